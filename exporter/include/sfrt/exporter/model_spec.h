@@ -1,0 +1,102 @@
+// ModelSpec: the exporter's in-memory model, between a source-format importer (ONNX, later
+// Keras) and the .sfrt writer. Importers fill it; WriteModelFile() serialises it.
+// Plain data: no I/O, no ownership subtleties.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "sfrt/model.h"
+
+namespace sfrt::exporter {
+
+// The layer vocabulary is the runtime's own (sfrt/model.h): one definition of each rule.
+using sfrt::Activation;
+using sfrt::CropRule;
+using sfrt::PaddingRule;
+using sfrt::WeightType;
+using Pads = sfrt::Padding;
+
+enum class ImageSlot { kLeft0, kRight0, kLeft1, kRight1 };
+enum class ColorOrder { kBGR, kRGB };
+
+struct ConvSpec {
+  std::string name;
+  int in_channels = 0;
+  int out_channels = 0;
+  int kernel_h = 3;
+  int kernel_w = 3;
+  int stride_h = 1;
+  int stride_w = 1;
+  PaddingRule padding_rule = PaddingRule::kExplicit;
+  Pads pads;  // the amounts at the traced size; the rule when padding_rule == kExplicit
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+  std::vector<float> weights_hwio;  // kernel_h * kernel_w * in_channels * out_channels
+  std::vector<float> bias;          // out_channels
+};
+
+struct UpsampleSpec {
+  std::string name;
+  int factor_h = 1;
+  int factor_w = 1;
+};
+
+struct CropSpec {
+  std::string name;
+  CropRule rule = CropRule::kToInputSize;
+  Pads amounts;                       // rows/cols removed per side when rule == kExplicit
+  bool excess_rows_from_top = true;   // kToInputSize: remove excess rows from the top
+  bool excess_cols_from_left = true;  // kToInputSize: remove excess columns from the left
+};
+
+using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec>;
+
+struct InputSpec {
+  std::string name = "stereo_pairs";
+  int channels = 12;
+  std::vector<ImageSlot> image_order = {ImageSlot::kLeft0, ImageSlot::kRight0, ImageSlot::kLeft1,
+                                        ImageSlot::kRight1};
+  ColorOrder color_order = ColorOrder::kBGR;
+  float scale = 1.0f;
+  std::array<float, 3> mean = {0.0f, 0.0f, 0.0f};
+  std::array<float, 3> std = {1.0f, 1.0f, 1.0f};
+  int traced_height = 0;  // 0 when unknown
+  int traced_width = 0;
+};
+
+struct OutputSpec {
+  std::string name = "scene_flow";
+  int channels = 3;
+  std::vector<std::string> channel_names = {"dX", "dY", "dZ"};
+  std::string units = "training-camera scene units (baseline = 1)";
+};
+
+struct CameraSpec {  // defaults: FlyingThings3D, as the authors trained
+  float focal_px = 1050.0f;
+  float baseline = 1.0f;
+  float cx = 479.5f;
+  float cy = 269.5f;
+};
+
+struct ProducerSpec {
+  std::string exporter_version;
+  std::string source_format;  // "onnx", "keras-h5"
+  std::string source_file;    // base name
+  std::string source_sha256;  // lowercase hex
+};
+
+struct ModelSpec {
+  std::string name = "sceneednet";
+  ProducerSpec producer;
+  InputSpec input;
+  OutputSpec output;
+  CameraSpec camera;
+  std::vector<LayerSpec> layers;  // a chain: layer i consumes layer i-1's output
+  WeightType weight_type = WeightType::kFloat32;
+};
+
+}  // namespace sfrt::exporter

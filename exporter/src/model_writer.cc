@@ -1,0 +1,227 @@
+#include "sfrt/exporter/model_writer.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+
+#include "sfrt/crc32c.h"
+#include "sfrt/model.h"
+#include "sfrt_model_generated.h"
+
+namespace sfrt::exporter {
+namespace {
+
+namespace fb = ::sfrt::schema;
+constexpr size_t kTensorAlignment = 64;
+
+// IEEE 754 binary32 -> binary16, round to nearest even; overflow gives infinity.
+uint16_t FloatToHalf(float f) {
+  const uint32_t x = std::bit_cast<uint32_t>(f);
+  const uint16_t sign = static_cast<uint16_t>((x >> 16) & 0x8000u);
+  const uint32_t abs = x & 0x7FFFFFFFu;
+  if (abs >= 0x7F800000u) {  // inf or NaN (keep NaN quiet)
+    return sign | 0x7C00u | (abs > 0x7F800000u ? 0x200u : 0u);
+  }
+  if (abs >= 0x477FF000u) return sign | 0x7C00u;  // rounds to >= 65520: infinity
+  if (abs < 0x38800000u) {                        // below the smallest normal half: subnormal
+    // value = abs_float; half subnormal unit is 2^-24.
+    const float scaled = std::bit_cast<float>(abs) * 16777216.0f;  // * 2^24, exact
+    return sign | static_cast<uint16_t>(std::nearbyint(scaled));     // ties to even (default mode)
+  }
+  const uint32_t rounded = abs + 0x0FFFu + ((abs >> 13) & 1u);  // round to nearest even
+  return sign | static_cast<uint16_t>((rounded - 0x38000000u) >> 13);
+}
+
+class Writer {
+ public:
+  explicit Writer(WeightType type) : type_(type) {}
+
+  flatbuffers::Offset<fb::Tensor> AddTensor(const std::vector<float>& values,
+                                            std::initializer_list<int> shape) {
+    const size_t elem = type_ == WeightType::kFloat32 ? 4 : 2;
+    std::vector<uint8_t> bytes(values.size() * elem);
+    if (type_ == WeightType::kFloat32) {
+      std::memcpy(bytes.data(), values.data(), bytes.size());
+    } else {
+      for (size_t i = 0; i < values.size(); ++i) {
+        const uint16_t h = FloatToHalf(values[i]);
+        std::memcpy(bytes.data() + 2 * i, &h, 2);
+      }
+    }
+    crc_ = Crc32c(crc_, bytes.data(), bytes.size());
+    const auto shape_offset = builder_.CreateVector(std::vector<int>(shape));
+    builder_.ForceVectorAlignment(bytes.size(), 1, kTensorAlignment);
+    const auto data_offset = builder_.CreateVector(bytes);
+    return fb::CreateTensor(builder_,
+                            type_ == WeightType::kFloat32 ? fb::DataType::Float32 : fb::DataType::Float16,
+                            shape_offset, data_offset);
+  }
+
+  flatbuffers::FlatBufferBuilder& builder() { return builder_; }
+  uint32_t crc() const { return crc_; }
+
+ private:
+  WeightType type_;
+  flatbuffers::FlatBufferBuilder builder_{1 << 20};
+  uint32_t crc_ = 0;
+};
+
+fb::Activation ToSchema(Activation a) {
+  switch (a) {
+    case Activation::kNone:
+      return fb::Activation::None;
+    case Activation::kRelu:
+      return fb::Activation::Relu;
+    case Activation::kLeakyRelu:
+      return fb::Activation::LeakyRelu;
+  }
+  return fb::Activation::None;
+}
+
+fb::ImageSlot ToSchema(ImageSlot s) {
+  switch (s) {
+    case ImageSlot::kLeft0:
+      return fb::ImageSlot::Left0;
+    case ImageSlot::kRight0:
+      return fb::ImageSlot::Right0;
+    case ImageSlot::kLeft1:
+      return fb::ImageSlot::Left1;
+    case ImageSlot::kRight1:
+      return fb::ImageSlot::Right1;
+  }
+  return fb::ImageSlot::Left0;
+}
+
+std::string LayerLabel(size_t i, const std::string& name) {
+  return "layer " + std::to_string(i) + " '" + name + "'";
+}
+
+}  // namespace
+
+const char* ExporterVersion() { return SFRT_VERSION; }
+
+Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
+  if (spec.layers.empty()) return Status::Error("model '" + spec.name + "' has no layers");
+  if (spec.input.channels <= 0) {
+    return Status::Error("input.channels is " + std::to_string(spec.input.channels));
+  }
+  Writer w(spec.weight_type);
+  auto& b = w.builder();
+
+  // Tensors are written in layer order, weights then bias, which defines the checksum order.
+  std::vector<flatbuffers::Offset<fb::Layer>> layers;
+  int channels = spec.input.channels;
+  for (size_t i = 0; i < spec.layers.size(); ++i) {
+    const LayerSpec& ls = spec.layers[i];
+    if (const auto* c = std::get_if<ConvSpec>(&ls)) {
+      const std::string where = LayerLabel(i, c->name);
+      if (c->in_channels != channels) {
+        return Status::Error(where + ": in_channels is " + std::to_string(c->in_channels) +
+                             " but its input has " + std::to_string(channels));
+      }
+      const size_t want = static_cast<size_t>(c->kernel_h) * c->kernel_w * c->in_channels *
+                          c->out_channels;
+      if (c->weights_hwio.size() != want || c->bias.size() != static_cast<size_t>(c->out_channels)) {
+        return Status::Error(where + ": holds " + std::to_string(c->weights_hwio.size()) +
+                             " weights and " + std::to_string(c->bias.size()) + " biases; needs " +
+                             std::to_string(want) + " and " + std::to_string(c->out_channels));
+      }
+      const auto weights = w.AddTensor(c->weights_hwio, {c->kernel_h, c->kernel_w, c->in_channels,
+                                                         c->out_channels});
+      const auto bias = w.AddTensor(c->bias, {c->out_channels});
+      const fb::Padding pads(c->pads.top, c->pads.left, c->pads.bottom, c->pads.right);
+      const auto conv = fb::CreateConv2D(
+          b, c->in_channels, c->out_channels, c->kernel_h, c->kernel_w, c->stride_h, c->stride_w,
+          c->padding_rule == PaddingRule::kSameUpper ? fb::PaddingRule::SameUpper
+                                                     : fb::PaddingRule::Explicit,
+          &pads, ToSchema(c->activation), c->leaky_slope, weights, bias);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union()));
+      channels = c->out_channels;
+    } else if (const auto* u = std::get_if<UpsampleSpec>(&ls)) {
+      const auto up = fb::CreateUpsample(b, u->factor_h, u->factor_w);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(u->name), fb::LayerOp::Upsample, up.Union()));
+    } else {
+      const auto& cr = std::get<CropSpec>(ls);
+      const fb::Padding amounts(cr.amounts.top, cr.amounts.left, cr.amounts.bottom, cr.amounts.right);
+      const auto crop = fb::CreateCrop(
+          b, cr.rule == CropRule::kToInputSize ? fb::CropRule::ToInputSize : fb::CropRule::Explicit,
+          &amounts, cr.excess_rows_from_top ? fb::RowSide::Top : fb::RowSide::Bottom,
+          cr.excess_cols_from_left ? fb::ColSide::Left : fb::ColSide::Right);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(cr.name), fb::LayerOp::Crop, crop.Union()));
+    }
+  }
+  if (spec.output.channels != channels) {
+    return Status::Error("output.channels is " + std::to_string(spec.output.channels) +
+                         " but the last layer produces " + std::to_string(channels));
+  }
+
+  const auto layers_offset = b.CreateVector(layers);
+  const ProducerSpec& ps = spec.producer;
+  const auto producer = fb::CreateProducer(
+      b, b.CreateString(ps.exporter_version.empty() ? ExporterVersion() : ps.exporter_version),
+      b.CreateString(ps.source_format), b.CreateString(ps.source_file),
+      b.CreateString(ps.source_sha256));
+  std::vector<fb::ImageSlot> order;
+  for (ImageSlot s : spec.input.image_order) order.push_back(ToSchema(s));
+  const auto input = fb::CreateInputDesc(
+      b, b.CreateString(spec.input.name), spec.input.channels, b.CreateVector(order),
+      spec.input.color_order == ColorOrder::kBGR ? fb::ColorOrder::BGR : fb::ColorOrder::RGB,
+      spec.input.scale, b.CreateVector(spec.input.mean.data(), 3),
+      b.CreateVector(spec.input.std.data(), 3), spec.input.traced_height, spec.input.traced_width);
+  std::vector<flatbuffers::Offset<flatbuffers::String>> names;
+  for (const auto& n : spec.output.channel_names) names.push_back(b.CreateString(n));
+  const auto output = fb::CreateOutputDesc(b, b.CreateString(spec.output.name), spec.output.channels,
+                                           b.CreateVector(names), b.CreateString(spec.output.units));
+  const auto camera = fb::CreateCamera(b, spec.camera.focal_px, spec.camera.baseline, spec.camera.cx,
+                                       spec.camera.cy);
+  const fb::Version version(static_cast<uint16_t>(kSchemaVersionMajor),
+                            static_cast<uint16_t>(kSchemaVersionMinor));
+  const auto model = fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input, output,
+                                     camera, layers_offset, w.crc());
+  fb::FinishModelBuffer(b, model);
+  return std::vector<uint8_t>(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
+}
+
+Status WriteModelFile(const ModelSpec& spec, const std::string& path) {
+  auto bytes = SerializeModel(spec);
+  if (!bytes.ok()) return Status::Error(path + ": " + bytes.message());
+  const std::filesystem::path target(path);
+  std::string tmp = (target.parent_path().empty() ? std::filesystem::path(".") : target.parent_path()) /
+                    ("." + target.filename().string() + ".tmp-XXXXXX");
+  const int fd = ::mkstemp(tmp.data());
+  if (fd < 0) return Status::Error(path + ": cannot create a temporary file beside it: " + std::strerror(errno));
+  const uint8_t* p = bytes->data();
+  size_t left = bytes->size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      return Status::Error(path + ": write failed: " + std::strerror(err));
+    }
+    p += n;
+    left -= static_cast<size_t>(n);
+  }
+  if (::fchmod(fd, 0644) != 0 || ::fsync(fd) != 0 || ::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    return Status::Error(path + ": cannot finish writing: " + std::strerror(err));
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    return Status::Error(path + ": cannot rename the finished file into place: " + std::strerror(err));
+  }
+  return Status::Ok();
+}
+
+}  // namespace sfrt::exporter

@@ -1,0 +1,165 @@
+// Model: a verified, immutable .sfrt model file in memory.
+//
+// Ownership and lifetime: a Model owns its bytes (a read-only memory mapping of the file, or a
+// copy of a caller's buffer) unless loaded with BufferOwnership::kBorrow, in which case the caller
+// keeps the buffer alive and unchanged for the Model's whole life. Weight pointers in LayerDesc
+// point into those bytes (or, for fp16 files, into fp32 copies the Model owns).
+//
+// Thread-safety: a Model is never modified after loading; any number of threads and Sessions
+// may share one (hold it by std::shared_ptr<const Model>).
+//
+// Verification on load, in order: size and 64-byte alignment; file identifier "SFRT"; schema
+// major version (a different major is rejected naming both versions); the FlatBuffers verifier;
+// then semantic checks (layer chain and channel counts, weight shapes and byte counts, alignment,
+// parameter ranges) and the CRC-32C of all weights. Any failure names the layer and field.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sfrt/status.h"
+
+namespace sfrt {
+
+// The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
+inline constexpr int kSchemaVersionMajor = 1;
+inline constexpr int kSchemaVersionMinor = 0;
+
+enum class LayerKind { kConv2D, kUpsample, kCrop };
+enum class Activation { kNone, kRelu, kLeakyRelu };
+enum class PaddingRule { kExplicit, kSameUpper };
+enum class CropRule { kExplicit, kToInputSize };
+enum class WeightType { kFloat32, kFloat16 };
+
+struct Padding {
+  int top = 0;
+  int left = 0;
+  int bottom = 0;
+  int right = 0;
+  friend bool operator==(const Padding&, const Padding&) = default;
+};
+
+struct ConvParams {
+  int in_channels = 0;
+  int out_channels = 0;
+  int kernel_h = 0;
+  int kernel_w = 0;
+  int stride_h = 1;
+  int stride_w = 1;
+  PaddingRule padding_rule = PaddingRule::kExplicit;
+  Padding pads;  // the rule when kExplicit; as stored (the traced size's amounts) otherwise
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+  const float* weights = nullptr;  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]
+  const float* bias = nullptr;     // [out_channels]
+};
+
+struct UpsampleParams {  // nearest neighbour
+  int factor_h = 1;
+  int factor_w = 1;
+};
+
+struct CropParams {
+  CropRule rule = CropRule::kToInputSize;
+  Padding amounts;                    // kExplicit: removed per side
+  bool excess_rows_from_top = true;   // kToInputSize
+  bool excess_cols_from_left = true;  // kToInputSize
+};
+
+struct LayerDesc {
+  std::string name;
+  LayerKind kind = LayerKind::kConv2D;
+  ConvParams conv;          // valid when kind == kConv2D
+  UpsampleParams upsample;  // valid when kind == kUpsample
+  CropParams crop;          // valid when kind == kCrop
+};
+
+struct InputDesc {
+  std::string name;
+  int channels = 0;
+  std::vector<std::string> image_order;  // "left0", "right0", "left1", "right1"
+  std::string color_order;               // "BGR" or "RGB"
+  float scale = 1.0f;                    // fed value = (pixel * scale - mean[c]) / std[c]
+  float mean[3] = {0, 0, 0};
+  float std[3] = {1, 1, 1};
+  int traced_height = 0;  // 0 when unknown
+  int traced_width = 0;
+};
+
+struct OutputDesc {
+  std::string name;
+  int channels = 0;
+  std::vector<std::string> channel_names;
+  std::string units;
+};
+
+struct CameraDesc {
+  float focal_px = 0;
+  float baseline = 0;
+  float cx = 0;
+  float cy = 0;
+};
+
+struct ModelMetadata {
+  std::string name;
+  int schema_major = 0;
+  int schema_minor = 0;
+  std::string exporter_version;
+  std::string source_format;
+  std::string source_file;
+  std::string source_sha256;
+  InputDesc input;
+  OutputDesc output;
+  CameraDesc camera;
+  uint32_t weights_crc32c = 0;
+  WeightType weight_type = WeightType::kFloat32;  // as stored in the file
+};
+
+struct LoadOptions {
+  bool verify_checksum = true;  // CRC-32C of all weights; costs one pass over them
+};
+
+enum class BufferOwnership {
+  kCopy,    // the Model copies the bytes (into 64-byte-aligned memory)
+  kBorrow,  // the Model uses the caller's bytes in place; they must be 64-byte aligned
+};
+
+class Model {
+ public:
+  // Memory-maps `path` read-only and verifies it. Errors name the file.
+  static Result<std::shared_ptr<const Model>> LoadFile(const std::string& path,
+                                                       const LoadOptions& options = {});
+  // Verifies a model held in memory. `label` names it in error messages.
+  static Result<std::shared_ptr<const Model>> LoadBuffer(const void* data, size_t size,
+                                                         BufferOwnership ownership,
+                                                         const LoadOptions& options = {},
+                                                         const std::string& label = "<memory>");
+
+  ~Model();
+  Model(const Model&) = delete;
+  Model& operator=(const Model&) = delete;
+
+  const ModelMetadata& metadata() const { return metadata_; }
+  std::span<const LayerDesc> layers() const { return layers_; }
+  size_t file_bytes() const { return size_; }
+  // Number of stored parameters (weights and biases of all layers).
+  size_t parameter_count() const;
+
+ private:
+  Model() = default;
+  struct Storage;  // how the bytes are held (mapping, aligned copy, or borrowed)
+  Status Parse(const LoadOptions& options, const std::string& label);
+
+  std::unique_ptr<Storage> storage_;
+  const uint8_t* data_ = nullptr;
+  size_t size_ = 0;
+  ModelMetadata metadata_;
+  std::vector<LayerDesc> layers_;
+  std::vector<std::vector<float>> widened_;  // fp32 copies of fp16 tensors
+};
+
+}  // namespace sfrt

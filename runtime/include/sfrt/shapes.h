@@ -1,0 +1,47 @@
+// Shape inference and cost accounting for a model at a given input size. Pure functions of the
+// model and the size; used by Session at load and by `sfrt inspect`.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "sfrt/model.h"
+#include "sfrt/status.h"
+
+namespace sfrt {
+
+struct TensorShape {  // one image, NHWC
+  int height = 0;
+  int width = 0;
+  int channels = 0;
+  size_t elements() const {
+    return static_cast<size_t>(height) * static_cast<size_t>(width) * static_cast<size_t>(channels);
+  }
+  friend bool operator==(const TensorShape&, const TensorShape&) = default;
+};
+
+// What one layer does at one input size.
+struct LayerGeometry {
+  TensorShape input;
+  TensorShape output;
+  Padding pads;          // Conv2D: the amounts in effect at this size
+  Padding crop;          // Crop: rows/cols removed per side at this size
+  uint64_t macs = 0;     // multiply-accumulates (Conv2D only)
+  uint64_t params = 0;   // weights + biases
+};
+
+// Convolution output size along one axis; `pad_before`/`pad_after` receive the amounts.
+// Returns <= 0 when the window does not fit.
+int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
+                   int explicit_after, int* pad_before, int* pad_after);
+
+// Fills `out` (one entry per layer) for an input of height x width. Does not allocate when
+// `out.size() == model.layers().size()`. Errors name the layer and the offending size.
+Status InferGeometry(const Model& model, int height, int width, std::span<LayerGeometry> out);
+
+// Convenience for tools: allocates the vector.
+Result<std::vector<LayerGeometry>> InferGeometry(const Model& model, int height, int width);
+
+}  // namespace sfrt

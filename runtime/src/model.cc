@@ -1,0 +1,521 @@
+#include "sfrt/model.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <string_view>
+
+#include "sfrt/crc32c.h"
+#include "sfrt_model_generated.h"
+
+namespace sfrt {
+
+static_assert(std::endian::native == std::endian::little,
+              "the model file is little-endian and is used in place");
+
+namespace fb = ::sfrt::schema;
+
+// How the model's bytes are held. Exactly one of the members is in use.
+struct Model::Storage {
+  void* mapping = nullptr;  // munmap on destruction
+  size_t mapping_size = 0;
+  void* owned = nullptr;  // std::free on destruction (64-byte aligned copy)
+
+  ~Storage() {
+    if (mapping != nullptr) munmap(mapping, mapping_size);
+    std::free(owned);
+  }
+};
+
+namespace {
+
+constexpr size_t kTensorAlignment = 64;
+// Limits that keep a hostile file from making verification or planning pathological.
+constexpr int kMaxLayers = 4096;
+constexpr int kMaxChannels = 1 << 16;
+constexpr int kMaxKernel = 31;
+constexpr int kMaxStride = 16;
+constexpr int kMaxUpsample = 64;
+
+std::string Hex32(uint32_t v) {
+  char buf[16];
+  std::snprintf(buf, sizeof(buf), "0x%08x", v);
+  return buf;
+}
+
+std::string Str(const flatbuffers::String* s) { return s != nullptr ? s->str() : std::string(); }
+
+// IEEE 754 binary16 -> binary32, exact for every input.
+float HalfToFloat(uint16_t h) {
+  const uint32_t sign = static_cast<uint32_t>(h & 0x8000u) << 16;
+  const uint32_t exponent = (h >> 10) & 0x1Fu;
+  uint32_t mantissa = h & 0x3FFu;
+  uint32_t bits;
+  if (exponent == 0x1F) {  // inf or NaN
+    bits = sign | 0x7F800000u | (mantissa << 13);
+  } else if (exponent != 0) {  // normal
+    bits = sign | ((exponent + 112) << 23) | (mantissa << 13);
+  } else if (mantissa == 0) {  // zero
+    bits = sign;
+  } else {  // subnormal: renormalise
+    int e = -1;
+    do {
+      ++e;
+      mantissa <<= 1;
+    } while ((mantissa & 0x400u) == 0);
+    bits = sign | static_cast<uint32_t>(112 - e) << 23 | ((mantissa & 0x3FFu) << 13);
+  }
+  return std::bit_cast<float>(bits);
+}
+
+const char* ImageSlotName(fb::ImageSlot s) {
+  switch (s) {
+    case fb::ImageSlot::Left0:
+      return "left0";
+    case fb::ImageSlot::Right0:
+      return "right0";
+    case fb::ImageSlot::Left1:
+      return "left1";
+    case fb::ImageSlot::Right1:
+      return "right1";
+  }
+  return nullptr;
+}
+
+// Collects one-line errors prefixed by the model's label.
+class Checker {
+ public:
+  explicit Checker(const std::string& label) : label_(label) {}
+  Status Fail(const std::string& what) const { return Status::Error(label_ + ": " + what); }
+
+ private:
+  const std::string& label_;
+};
+
+}  // namespace
+
+Model::~Model() = default;
+
+size_t Model::parameter_count() const {
+  size_t n = 0;
+  for (const LayerDesc& l : layers_) {
+    if (l.kind != LayerKind::kConv2D) continue;
+    const ConvParams& c = l.conv;
+    n += static_cast<size_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+         static_cast<size_t>(c.out_channels);
+  }
+  return n;
+}
+
+Result<std::shared_ptr<const Model>> Model::LoadFile(const std::string& path,
+                                                     const LoadOptions& options) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::Error(path + ": cannot open: " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    const int err = errno;
+    ::close(fd);
+    return Status::Error(path + ": cannot stat: " + std::strerror(err));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status::Error(path + ": not a regular file");
+  }
+  const size_t size = static_cast<size_t>(st.st_size);
+  if (size == 0) {
+    ::close(fd);
+    return Status::Error(path + ": file is empty (0 bytes); not a model file");
+  }
+  void* mapping = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+  const int map_errno = errno;
+  ::close(fd);
+  if (mapping == MAP_FAILED) return Status::Error(path + ": cannot mmap: " + std::strerror(map_errno));
+
+  std::shared_ptr<Model> model(new Model());
+  model->storage_ = std::make_unique<Storage>();
+  model->storage_->mapping = mapping;
+  model->storage_->mapping_size = size;
+  model->data_ = static_cast<const uint8_t*>(mapping);
+  model->size_ = size;
+  Status s = model->Parse(options, path);
+  if (!s.ok()) return s;
+  return std::shared_ptr<const Model>(std::move(model));
+}
+
+Result<std::shared_ptr<const Model>> Model::LoadBuffer(const void* data, size_t size,
+                                                       BufferOwnership ownership,
+                                                       const LoadOptions& options,
+                                                       const std::string& label) {
+  if (data == nullptr || size == 0) {
+    return Status::Error(label + ": buffer is empty (0 bytes); not a model file");
+  }
+  std::shared_ptr<Model> model(new Model());
+  model->storage_ = std::make_unique<Storage>();
+  if (ownership == BufferOwnership::kCopy) {
+    const size_t rounded = (size + kTensorAlignment - 1) / kTensorAlignment * kTensorAlignment;
+    void* copy = std::aligned_alloc(kTensorAlignment, rounded);
+    if (copy == nullptr) return Status::Error(label + ": out of memory copying the model");
+    std::memcpy(copy, data, size);
+    model->storage_->owned = copy;
+    model->data_ = static_cast<const uint8_t*>(copy);
+  } else {
+    if (reinterpret_cast<uintptr_t>(data) % kTensorAlignment != 0) {
+      return Status::Error(label + ": a borrowed model buffer must be 64-byte aligned (weights are"
+                                   " used in place); load it with BufferOwnership::kCopy instead");
+    }
+    model->data_ = static_cast<const uint8_t*>(data);
+  }
+  model->size_ = size;
+  Status s = model->Parse(options, label);
+  if (!s.ok()) return s;
+  return std::shared_ptr<const Model>(std::move(model));
+}
+
+Status Model::Parse(const LoadOptions& options, const std::string& label) {
+  const Checker check(label);
+  // 1. Size and identifier.
+  if (size_ < 8) {
+    return check.Fail("file is " + std::to_string(size_) +
+                      " bytes, too small to be a model file (truncated?)");
+  }
+  if (size_ > FLATBUFFERS_MAX_BUFFER_SIZE) {
+    return check.Fail("file is " + std::to_string(size_) + " bytes, above the 2 GiB format limit");
+  }
+  if (!flatbuffers::BufferHasIdentifier(data_, fb::ModelIdentifier())) {
+    std::string found;
+    for (int i = 4; i < 8; ++i) {
+      const char c = static_cast<char>(data_[i]);
+      found += (c >= 0x20 && c < 0x7F) ? std::string(1, c) : "\\x" + Hex32(data_[i]).substr(8);
+    }
+    return check.Fail("not an sfrt model file: file identifier is '" + found + "', expected '" +
+                      fb::ModelIdentifier() + "'");
+  }
+
+  // 2. Version, through the one-field probe, before trusting the rest of the layout.
+  {
+    flatbuffers::Verifier probe_verifier(data_, size_);
+    if (!probe_verifier.VerifyBuffer<fb::VersionProbe>(fb::ModelIdentifier())) {
+      return check.Fail("corrupt model file: its header does not verify (truncated or damaged)");
+    }
+    const fb::Version* v = flatbuffers::GetRoot<fb::VersionProbe>(data_)->version();
+    metadata_.schema_major = v->major();
+    metadata_.schema_minor = v->minor();
+    if (v->major() != kSchemaVersionMajor) {
+      return check.Fail("model file has schema version " + std::to_string(v->major()) + "." +
+                        std::to_string(v->minor()) + " but this runtime reads version " +
+                        std::to_string(kSchemaVersionMajor) + ".x only; export the model again" +
+                        (v->major() > kSchemaVersionMajor ? " with this sfrt or upgrade sfrt"
+                                                          : " with this sfrt"));
+    }
+  }
+
+  // 3. The whole structure.
+  flatbuffers::Verifier::Options vopts;
+  vopts.max_depth = 16;
+  vopts.max_tables = 1'000'000;
+  flatbuffers::Verifier verifier(data_, size_, vopts);
+  if (!fb::VerifyModelBuffer(verifier)) {
+    return check.Fail(
+        "corrupt model file: FlatBuffers verification failed (truncated or damaged structure)");
+  }
+  const fb::Model* m = fb::GetModel(data_);
+
+  // 4. Metadata.
+  metadata_.name = Str(m->name());
+  if (const fb::Producer* p = m->producer()) {
+    metadata_.exporter_version = Str(p->exporter_version());
+    metadata_.source_format = Str(p->source_format());
+    metadata_.source_file = Str(p->source_file());
+    metadata_.source_sha256 = Str(p->source_sha256());
+  }
+  const fb::InputDesc* in = m->input();
+  if (in == nullptr) return check.Fail("field 'input' is missing");
+  InputDesc& input = metadata_.input;
+  input.name = Str(in->name());
+  input.channels = in->channels();
+  if (input.channels <= 0 || input.channels > kMaxChannels) {
+    return check.Fail("input.channels is " + std::to_string(input.channels) +
+                      "; must be in 1.." + std::to_string(kMaxChannels));
+  }
+  if (in->image_order() != nullptr) {
+    for (auto slot : *in->image_order()) {
+      const char* name = ImageSlotName(static_cast<fb::ImageSlot>(slot));
+      if (name == nullptr) {
+        return check.Fail("input.image_order holds unknown image slot " +
+                          std::to_string(static_cast<int>(slot)));
+      }
+      input.image_order.push_back(name);
+    }
+    if (!input.image_order.empty() &&
+        static_cast<int>(input.image_order.size()) * 3 != input.channels) {
+      return check.Fail("input.image_order names " + std::to_string(input.image_order.size()) +
+                        " images (" + std::to_string(input.image_order.size() * 3) +
+                        " channels) but input.channels is " + std::to_string(input.channels));
+    }
+  }
+  switch (in->color_order()) {
+    case fb::ColorOrder::BGR:
+      input.color_order = "BGR";
+      break;
+    case fb::ColorOrder::RGB:
+      input.color_order = "RGB";
+      break;
+    default:
+      return check.Fail("input.color_order is unknown value " +
+                        std::to_string(static_cast<int>(in->color_order())));
+  }
+  input.scale = in->scale();
+  if (!std::isfinite(input.scale) || input.scale == 0.0f) {
+    return check.Fail("input.scale is " + std::to_string(input.scale) + "; must be finite, non-zero");
+  }
+  for (const auto& [vec, dst, field] :
+       {std::tuple{in->mean(), input.mean, "mean"}, std::tuple{in->std(), input.std, "std"}}) {
+    if (vec == nullptr || vec->size() == 0) continue;
+    if (vec->size() != 3) {
+      return check.Fail(std::string("input.") + field + " has " + std::to_string(vec->size()) +
+                        " values; must have 3 (one per colour channel) or none");
+    }
+    for (int c = 0; c < 3; ++c) dst[c] = vec->Get(c);
+  }
+  for (int c = 0; c < 3; ++c) {
+    if (!std::isfinite(input.mean[c]) || !std::isfinite(input.std[c]) || input.std[c] == 0.0f) {
+      return check.Fail("input.mean/std[" + std::to_string(c) + "] must be finite, std non-zero");
+    }
+  }
+  input.traced_height = in->traced_height();
+  input.traced_width = in->traced_width();
+  if (const fb::OutputDesc* out = m->output()) {
+    metadata_.output.name = Str(out->name());
+    metadata_.output.channels = out->channels();
+    metadata_.output.units = Str(out->units());
+    if (out->channel_names() != nullptr) {
+      for (const auto* s : *out->channel_names()) metadata_.output.channel_names.push_back(Str(s));
+    }
+  }
+  if (const fb::Camera* cam = m->camera()) {
+    metadata_.camera = {cam->focal_px(), cam->baseline(), cam->cx(), cam->cy()};
+  }
+  metadata_.weights_crc32c = m->weights_crc32c();
+
+  // 5. Layers: the chain, parameters and weights.
+  if (m->layers() == nullptr || m->layers()->size() == 0) return check.Fail("the model has no layers");
+  if (m->layers()->size() > static_cast<unsigned>(kMaxLayers)) {
+    return check.Fail("the model has " + std::to_string(m->layers()->size()) +
+                      " layers; at most " + std::to_string(kMaxLayers) + " are supported");
+  }
+  uint32_t crc = 0;
+  bool saw_fp16 = false;
+  int channels = input.channels;
+  layers_.reserve(m->layers()->size());
+  for (unsigned i = 0; i < m->layers()->size(); ++i) {
+    const fb::Layer* fl = m->layers()->Get(i);
+    LayerDesc layer;
+    layer.name = Str(fl->name());
+    if (layer.name.empty()) layer.name = "#" + std::to_string(i);
+    const std::string where = "layer " + std::to_string(i) + " '" + layer.name + "'";
+
+    // Checks one weight tensor and returns fp32 data for it (in place, or widened).
+    auto take_tensor = [&](const fb::Tensor* t, const char* field,
+                           std::initializer_list<int> shape, const float** dst) -> Status {
+      const std::string tf = where + ": " + field;
+      if (t == nullptr || t->data() == nullptr) return check.Fail(tf + " is missing");
+      size_t count = 1;
+      std::string want_shape;
+      for (int d : shape) {
+        count *= static_cast<size_t>(d);
+        want_shape += (want_shape.empty() ? "" : ",") + std::to_string(d);
+      }
+      std::string got_shape;
+      bool shape_ok = t->shape() != nullptr && t->shape()->size() == shape.size();
+      if (t->shape() != nullptr) {
+        unsigned k = 0;
+        for (int d : *t->shape()) {
+          got_shape += (got_shape.empty() ? "" : ",") + std::to_string(d);
+          if (shape_ok && d != *(shape.begin() + k)) shape_ok = false;
+          ++k;
+        }
+      }
+      if (!shape_ok) {
+        return check.Fail(tf + ".shape is (" + got_shape + "); expected (" + want_shape + ")");
+      }
+      size_t elem = 0;
+      switch (t->dtype()) {
+        case fb::DataType::Float32:
+          elem = 4;
+          break;
+        case fb::DataType::Float16:
+          elem = 2;
+          break;
+        default:
+          return check.Fail(tf + ".dtype is unknown value " +
+                            std::to_string(static_cast<int>(t->dtype())));
+      }
+      const size_t bytes = t->data()->size();
+      if (bytes != count * elem) {
+        return check.Fail(tf + ".data holds " + std::to_string(bytes) + " bytes; shape (" +
+                          want_shape + ") of " + (elem == 4 ? "float32" : "float16") + " needs " +
+                          std::to_string(count * elem));
+      }
+      const uint8_t* bytes_ptr = t->data()->data();
+      if (static_cast<size_t>(bytes_ptr - data_) % kTensorAlignment != 0) {
+        return check.Fail(tf + ".data starts at file offset " + std::to_string(bytes_ptr - data_) +
+                          ", not a multiple of 64 as the format requires");
+      }
+      if (options.verify_checksum) crc = Crc32c(crc, bytes_ptr, bytes);
+      if (elem == 4) {
+        *dst = reinterpret_cast<const float*>(bytes_ptr);
+      } else {
+        saw_fp16 = true;
+        std::vector<float>& wide = widened_.emplace_back(count);
+        for (size_t k = 0; k < count; ++k) {
+          uint16_t h;
+          std::memcpy(&h, bytes_ptr + 2 * k, 2);
+          wide[k] = HalfToFloat(h);
+        }
+        *dst = wide.data();
+      }
+      return Status::Ok();
+    };
+
+    switch (fl->op_type()) {
+      case fb::LayerOp::Conv2D: {
+        const fb::Conv2D* c = fl->op_as_Conv2D();
+        layer.kind = LayerKind::kConv2D;
+        ConvParams& p = layer.conv;
+        p.in_channels = c->in_channels();
+        p.out_channels = c->out_channels();
+        p.kernel_h = c->kernel_h();
+        p.kernel_w = c->kernel_w();
+        p.stride_h = c->stride_h();
+        p.stride_w = c->stride_w();
+        if (p.in_channels != channels) {
+          return check.Fail(where + ": in_channels is " + std::to_string(p.in_channels) +
+                            " but its input has " + std::to_string(channels) + " channels");
+        }
+        if (p.out_channels <= 0 || p.out_channels > kMaxChannels) {
+          return check.Fail(where + ": out_channels is " + std::to_string(p.out_channels) +
+                            "; must be in 1.." + std::to_string(kMaxChannels));
+        }
+        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 || p.kernel_w > kMaxKernel) {
+          return check.Fail(where + ": kernel is " + std::to_string(p.kernel_h) + "x" +
+                            std::to_string(p.kernel_w) + "; each side must be in 1.." +
+                            std::to_string(kMaxKernel));
+        }
+        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 || p.stride_w > kMaxStride) {
+          return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
+                            std::to_string(p.stride_w) + "; each must be in 1.." +
+                            std::to_string(kMaxStride));
+        }
+        switch (c->padding_rule()) {
+          case fb::PaddingRule::Explicit:
+            p.padding_rule = PaddingRule::kExplicit;
+            break;
+          case fb::PaddingRule::SameUpper:
+            p.padding_rule = PaddingRule::kSameUpper;
+            break;
+          default:
+            return check.Fail(where + ": padding_rule is unknown value " +
+                              std::to_string(static_cast<int>(c->padding_rule())));
+        }
+        if (const fb::Padding* pads = c->pads()) {
+          p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
+        }
+        for (const auto& [amount, side, limit] :
+             {std::tuple{p.pads.top, "top", p.kernel_h}, std::tuple{p.pads.bottom, "bottom", p.kernel_h},
+              std::tuple{p.pads.left, "left", p.kernel_w}, std::tuple{p.pads.right, "right", p.kernel_w}}) {
+          if (amount < 0 || amount >= limit) {
+            return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
+                              "; must be in 0.." + std::to_string(limit - 1));
+          }
+        }
+        switch (c->activation()) {
+          case fb::Activation::None:
+            p.activation = Activation::kNone;
+            break;
+          case fb::Activation::Relu:
+            p.activation = Activation::kRelu;
+            break;
+          case fb::Activation::LeakyRelu:
+            p.activation = Activation::kLeakyRelu;
+            break;
+          default:
+            return check.Fail(where + ": activation is unknown value " +
+                              std::to_string(static_cast<int>(c->activation())));
+        }
+        p.leaky_slope = c->leaky_slope();
+        if (!std::isfinite(p.leaky_slope)) return check.Fail(where + ": leaky_slope is not finite");
+        if (Status s = take_tensor(c->weights(), "weights",
+                                   {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels},
+                                   &p.weights);
+            !s.ok()) {
+          return s;
+        }
+        if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
+        channels = p.out_channels;
+        break;
+      }
+      case fb::LayerOp::Upsample: {
+        const fb::Upsample* u = fl->op_as_Upsample();
+        layer.kind = LayerKind::kUpsample;
+        layer.upsample = {u->factor_h(), u->factor_w()};
+        if (u->factor_h() < 1 || u->factor_h() > kMaxUpsample || u->factor_w() < 1 ||
+            u->factor_w() > kMaxUpsample) {
+          return check.Fail(where + ": upsampling factor is " + std::to_string(u->factor_h()) + "x" +
+                            std::to_string(u->factor_w()) + "; each must be in 1.." +
+                            std::to_string(kMaxUpsample));
+        }
+        break;
+      }
+      case fb::LayerOp::Crop: {
+        const fb::Crop* c = fl->op_as_Crop();
+        layer.kind = LayerKind::kCrop;
+        CropParams& p = layer.crop;
+        switch (c->rule()) {
+          case fb::CropRule::Explicit:
+            p.rule = CropRule::kExplicit;
+            break;
+          case fb::CropRule::ToInputSize:
+            p.rule = CropRule::kToInputSize;
+            break;
+          default:
+            return check.Fail(where + ": crop rule is unknown value " +
+                              std::to_string(static_cast<int>(c->rule())));
+        }
+        if (const fb::Padding* a = c->amounts()) p.amounts = {a->top(), a->left(), a->bottom(), a->right()};
+        if (p.amounts.top < 0 || p.amounts.left < 0 || p.amounts.bottom < 0 || p.amounts.right < 0) {
+          return check.Fail(where + ": crop amounts must not be negative");
+        }
+        p.excess_rows_from_top = c->excess_rows_from() == fb::RowSide::Top;
+        p.excess_cols_from_left = c->excess_cols_from() == fb::ColSide::Left;
+        break;
+      }
+      default:
+        return check.Fail(where + ": op type " + std::to_string(static_cast<int>(fl->op_type())) +
+                          " is missing or unknown to this runtime");
+    }
+    layers_.push_back(std::move(layer));
+  }
+  if (metadata_.output.channels == 0) metadata_.output.channels = channels;
+  if (metadata_.output.channels != channels) {
+    return check.Fail("output.channels is " + std::to_string(metadata_.output.channels) +
+                      " but the last layer produces " + std::to_string(channels));
+  }
+  metadata_.weight_type = saw_fp16 ? WeightType::kFloat16 : WeightType::kFloat32;
+
+  // 6. Checksum last, over exactly the bytes the layers use.
+  if (options.verify_checksum && crc != metadata_.weights_crc32c) {
+    return check.Fail("weights checksum mismatch: the file records CRC-32C " +
+                      Hex32(metadata_.weights_crc32c) + " but the weights give " + Hex32(crc) +
+                      " (the weights are damaged)");
+  }
+  return Status::Ok();
+}
+
+}  // namespace sfrt

@@ -1,0 +1,109 @@
+#include "sfrt/shapes.h"
+
+#include <algorithm>
+#include <string>
+
+namespace sfrt {
+namespace {
+
+std::string Quote(const LayerDesc& layer, size_t index) {
+  return "layer " + std::to_string(index) + " '" + layer.name + "'";
+}
+
+}  // namespace
+
+int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
+                   int explicit_after, int* pad_before, int* pad_after) {
+  if (rule == PaddingRule::kSameUpper) {
+    const int out = (in + stride - 1) / stride;
+    const int total = std::max((out - 1) * stride + kernel - in, 0);
+    *pad_before = total / 2;
+    *pad_after = total - total / 2;
+    return out;
+  }
+  *pad_before = explicit_before;
+  *pad_after = explicit_after;
+  const int padded = in + explicit_before + explicit_after;
+  if (padded < kernel) return 0;
+  return (padded - kernel) / stride + 1;
+}
+
+Status InferGeometry(const Model& model, int height, int width, std::span<LayerGeometry> out) {
+  const auto layers = model.layers();
+  if (out.size() != layers.size()) {
+    return Status::Error("internal: geometry buffer has " + std::to_string(out.size()) +
+                         " entries for " + std::to_string(layers.size()) + " layers");
+  }
+  if (height <= 0 || width <= 0) {
+    return Status::Error("input size " + std::to_string(height) + "x" + std::to_string(width) +
+                         " is not positive");
+  }
+  TensorShape cur{height, width, model.metadata().input.channels};
+  for (size_t i = 0; i < layers.size(); ++i) {
+    const LayerDesc& layer = layers[i];
+    LayerGeometry& g = out[i];
+    g = LayerGeometry{};
+    g.input = cur;
+    switch (layer.kind) {
+      case LayerKind::kConv2D: {
+        const ConvParams& c = layer.conv;
+        const int oh = ConvOutputSize(cur.height, c.kernel_h, c.stride_h, c.padding_rule,
+                                      c.pads.top, c.pads.bottom, &g.pads.top, &g.pads.bottom);
+        const int ow = ConvOutputSize(cur.width, c.kernel_w, c.stride_w, c.padding_rule,
+                                      c.pads.left, c.pads.right, &g.pads.left, &g.pads.right);
+        if (oh <= 0 || ow <= 0) {
+          return Status::Error(Quote(layer, i) + ": input " + std::to_string(cur.height) + "x" +
+                               std::to_string(cur.width) + " is smaller than its " +
+                               std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
+                               " kernel with its padding");
+        }
+        g.output = {oh, ow, c.out_channels};
+        g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+                   static_cast<uint64_t>(c.out_channels);
+        g.macs = static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w *
+                 c.in_channels;
+        break;
+      }
+      case LayerKind::kUpsample:
+        g.output = {cur.height * layer.upsample.factor_h, cur.width * layer.upsample.factor_w,
+                    cur.channels};
+        break;
+      case LayerKind::kCrop: {
+        const CropParams& c = layer.crop;
+        if (c.rule == CropRule::kExplicit) {
+          g.crop = c.amounts;
+        } else {
+          const int excess_rows = cur.height - height;
+          const int excess_cols = cur.width - width;
+          if (excess_rows < 0 || excess_cols < 0) {
+            return Status::Error(Quote(layer, i) + ": crops to the input size " +
+                                 std::to_string(height) + "x" + std::to_string(width) +
+                                 " but receives only " + std::to_string(cur.height) + "x" +
+                                 std::to_string(cur.width));
+          }
+          (c.excess_rows_from_top ? g.crop.top : g.crop.bottom) = excess_rows;
+          (c.excess_cols_from_left ? g.crop.left : g.crop.right) = excess_cols;
+        }
+        g.output = {cur.height - g.crop.top - g.crop.bottom, cur.width - g.crop.left - g.crop.right,
+                    cur.channels};
+        if (g.output.height <= 0 || g.output.width <= 0) {
+          return Status::Error(Quote(layer, i) + ": removes everything of a " +
+                               std::to_string(cur.height) + "x" + std::to_string(cur.width) +
+                               " input");
+        }
+        break;
+      }
+    }
+    cur = g.output;
+  }
+  return Status::Ok();
+}
+
+Result<std::vector<LayerGeometry>> InferGeometry(const Model& model, int height, int width) {
+  std::vector<LayerGeometry> geometry(model.layers().size());
+  Status s = InferGeometry(model, height, width, geometry);
+  if (!s.ok()) return s;
+  return geometry;
+}
+
+}  // namespace sfrt

@@ -1,0 +1,89 @@
+// Proves Session::Run performs no heap allocation: this program replaces the global allocation
+// functions (operator new/delete and the C allocator) with counting ones. Not built with
+// sanitizers, which own the allocator themselves.
+#include <gtest/gtest.h>
+#include <malloc.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "common/model_builders.h"
+#include "common/sceneednet_spec.h"
+#include "sfrt/session.h"
+
+extern "C" void* __libc_malloc(size_t);
+extern "C" void* __libc_calloc(size_t, size_t);
+extern "C" void* __libc_realloc(void*, size_t);
+extern "C" void* __libc_memalign(size_t, size_t);
+extern "C" void __libc_free(void*);
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+extern "C" {
+void* malloc(size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  return __libc_malloc(n);
+}
+void* calloc(size_t n, size_t size) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  return __libc_realloc(p, n);
+}
+void* aligned_alloc(size_t alignment, size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  return __libc_memalign(alignment, n);
+}
+int posix_memalign(void** out, size_t alignment, size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  *out = __libc_memalign(alignment, n);
+  return *out != nullptr ? 0 : ENOMEM;
+}
+void free(void* p) { __libc_free(p); }
+}
+
+// operator new forwards to malloc in libstdc++, but replace it too so the count does not
+// depend on that detail.
+void* operator new(size_t n) {
+  void* p = malloc(n == 0 ? 1 : n);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+void* operator new[](size_t n) { return operator new(n); }
+void operator delete(void* p) noexcept { free(p); }
+void operator delete[](void* p) noexcept { free(p); }
+void operator delete(void* p, size_t) noexcept { free(p); }
+void operator delete[](void* p, size_t) noexcept { free(p); }
+
+namespace sfrt {
+namespace {
+
+TEST(ZeroAllocation, CountingHooksSeeAnAllocation) {
+  // The hooks must be live, or the test below proves nothing.
+  const long before = g_allocations.load();
+  auto* v = new std::vector<int>(100);
+  delete v;
+  EXPECT_GE(g_allocations.load() - before, 2);
+}
+
+TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto session = Session::Create(model, {96, 128});
+  ASSERT_TRUE(session.ok()) << session.message();
+  std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
+  for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
+    const long before = g_allocations.load();
+    const Status s = (*session)->Run(input, h, w, output);
+    const long allocated = g_allocations.load() - before;
+    ASSERT_TRUE(s.ok()) << s.message();
+    EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << ") allocated " << allocated << " times";
+  }
+}
+
+}  // namespace
+}  // namespace sfrt

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs every Debian package sfrt needs to build, test and run (Debian bookworm, as root).
+# Idempotent: prints nothing and changes nothing when all packages are present.
+set -euo pipefail
+
+packages=(
+  # build
+  build-essential cmake pkg-config clang-format
+  # runtime core: model file schema
+  flatbuffers-compiler libflatbuffers-dev libeigen3-dev
+  # exporter
+  libonnx-dev libprotobuf-dev protobuf-compiler
+  # command-line tool and image I/O
+  libopencv-dev libcli11-dev nlohmann-json3-dev
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # reference models for tests (PyTorch builds SceneEDNet and exports ONNX)
+  python3 python3-numpy python3-torch python3-onnx
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${db:Status-Abbrev}' "$p" 2>/dev/null || true)
+  [[ "$status" == ii* ]] || missing+=("$p")
+done
+[[ ${#missing[@]} -eq 0 ]] && exit 0
+
+echo "install-deps: installing ${#missing[@]} package(s): ${missing[*]}"
+sudo_cmd=()
+[[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"

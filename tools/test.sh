@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# The whole test suite from a fresh clone: installs dependencies, builds the release and asan
+# presets, and runs every test in each (the asan run is the leak/UB/bounds check).
+# Usage: bash tools/test.sh [preset ...]   (default: release asan)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash tools/install-deps.sh
+presets=("$@")
+[[ ${#presets[@]} -gt 0 ]] || presets=(release asan)
+for preset in "${presets[@]}"; do
+  echo "== ${preset}: configure and build"
+  cmake --preset "${preset}" >/dev/null
+  cmake --build --preset "${preset}" -- --no-print-directory -s
+  echo "== ${preset}: test"
+  ctest --preset "${preset}"
+done
