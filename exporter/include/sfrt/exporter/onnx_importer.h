@@ -1,9 +1,42 @@
 // Imports a SceneEDNet-shaped ONNX graph (as torch.onnx.export writes it, opsets 11 to 17) into
-// a ModelSpec. Supported: Conv, Pad (constant zero, folded into the next Conv), LeakyRelu, Relu
-// (fused into the preceding Conv), Resize/Upsample (nearest, integer scale), Slice (as a crop),
-// Identity, initialisers and Constant nodes; constant subgraphs over static shapes (Shape,
-// Gather, Cast, Concat, Unsqueeze, ...) are evaluated at import. Any other node is an error that
-// names the node, its op type and the supported set.
+// a ModelSpec.
+//
+// The graph must have one float32 input of static shape (1, C, H, W) (the traced size) and one
+// output, joined by a single chain of:
+//   Conv       2-D, group 1, dilation 1, any kernel and strides; pads or auto_pad NOTSET,
+//              SAME_UPPER, VALID; bias optional. OIHW weights become HWIO.
+//   Pad        mode constant, value 0, H/W only; folded into the next Conv's pads.
+//   LeakyRelu  (alpha, ONNX default 0.01) and Relu: fused into the Conv right before them.
+//   Resize     mode nearest with integer H/W factors (from scales, or sizes over the traced
+//   Upsample   shape), when the coordinate_transformation_mode / nearest_mode pair computes
+//              in[floor(y / f)] at every size: asymmetric + floor; half_pixel or
+//              pytorch_half_pixel + round_prefer_floor/ceil; tf_half_pixel_for_nn + floor;
+//              asymmetric + round_prefer_floor and align_corners + round_prefer_floor/ceil at
+//              factors <= 2.
+//   Slice      axes 2/3 (no-op on axes 0/1), step 1, any start/end (negative, INT64_MAX);
+//              consecutive Slices form one crop.
+//   Identity
+// Initialisers and Constant nodes (FLOAT, DOUBLE, INT64, INT32, BOOL; raw_data or typed fields)
+// are constants, and so is the result of any supported shape op whose inputs are all constants:
+// Shape/Size (of any tensor, all shapes are static), Gather, Cast, Concat, Unsqueeze, Squeeze,
+// Slice, Reshape, Expand, Transpose, Tile, Range, ConstantOfShape, arithmetic, comparisons,
+// Clip, Where, ... (the full list is in every "unsupported" error). That covers the pads and
+// crop bounds torch computes from x.shape. Nodes the output does not depend on are ignored.
+//
+// Rules decided from the traced size:
+// - Padding: each conv's traced pads are its Pad nodes' amounts plus its own. With
+//   PaddingDetection::kAuto, if every conv's pads equal TensorFlow SAME_UPPER at its traced input
+//   size, every conv gets PaddingRule::kSameUpper, otherwise every conv keeps kExplicit.
+//   ConvSpec::pads always holds the traced amounts.
+// - Crop: a crop whose output has the graph input's H and W and that removes rows (columns) on at
+//   most one side becomes CropRule::kToInputSize, removing the excess from the side the traced
+//   slice removed it from (top/left when it removed nothing on that axis). Any other crop is
+//   kExplicit. CropSpec::amounts always holds the traced amounts.
+// - Layer names are the ONNX node names (a crop takes its first Slice's name); unnamed nodes get
+//   conv<i>, up<i>, crop<i> (counting from 0 per kind).
+//
+// Errors are one line naming the file and, where there is one, the node ("node '<name>' (op
+// <Type>)"), the attribute or input and the offending value.
 #pragma once
 
 #include <string>
@@ -15,7 +48,7 @@ namespace sfrt::exporter {
 
 enum class PaddingDetection {
   kAuto,       // SameUpper if every conv's pads equal the same-upper amounts at the traced size
-  kSameUpper,  // force SameUpper (error if the traced pads contradict it)
+  kSameUpper,  // force SameUpper (error naming the conv and both pads if the traced pads differ)
   kExplicit,   // keep the traced numbers
 };
 
@@ -24,7 +57,7 @@ struct OnnxImportOptions {
 };
 
 // Fills layers, input (channels, traced size), output channels and producer (format, file
-// name, SHA-256). Preprocessing and camera keep ModelSpec's defaults for the caller to set.
+// name, SHA-256). Name, preprocessing and camera keep ModelSpec's defaults for the caller to set.
 Result<ModelSpec> ImportOnnx(const std::string& path, const OnnxImportOptions& options = {});
 
 }  // namespace sfrt::exporter

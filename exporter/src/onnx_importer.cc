@@ -1,0 +1,2174 @@
+// ONNX -> ModelSpec. Method, in order:
+//  1. Parse the ModelProto; check the default-domain opset (11..17) and the single graph input
+//     (static (1, C, H, W) float32).
+//  2. Mark the nodes the graph output depends on (anything else is dead code and ignored).
+//  3. Walk the live nodes in file order (ONNX requires topological order). Every tensor is either
+//     a constant (initialiser, Constant node, or the result of evaluating a supported op whose
+//     inputs are all constants; Shape/Size of any tensor with a static shape is a constant) or a
+//     runtime tensor with a static NCHW shape. Runtime tensors may only flow through Conv, Pad,
+//     LeakyRelu, Relu, Resize, Upsample, Slice and Identity.
+//  4. Walk back from the graph output to the graph input: that path is the chain. Pads fold into
+//     the next Conv, activations fuse into the previous Conv, consecutive Slices merge into one
+//     crop. Padding and crop rules are decided from the amounts at the traced size.
+#include "sfrt/exporter/onnx_importer.h"
+
+// onnx_pb.h defines ONNX_API and then includes onnx-ml.pb.h (ONNX_ML=1); including
+// onnx-ml.pb.h directly does not compile with Debian's headers.
+#include <onnx/onnx_pb.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "sfrt/exporter/sha256.h"
+
+#define SFRT_ONNX_CONCAT_INNER(a, b) a##b
+#define SFRT_ONNX_CONCAT(a, b) SFRT_ONNX_CONCAT_INNER(a, b)
+
+// Returns the Status of `expr` from the enclosing function when it is an error.
+#define SFRT_ONNX_RETURN_IF_ERROR(expr)        \
+  do {                                         \
+    ::sfrt::Status sfrt_onnx_status_ = (expr); \
+    if (!sfrt_onnx_status_.ok()) {             \
+      return sfrt_onnx_status_;                \
+    }                                          \
+  } while (false)
+
+// `lhs = value of expr`, or returns expr's error Status from the enclosing function.
+#define SFRT_ONNX_ASSIGN_OR_RETURN(lhs, expr) \
+  SFRT_ONNX_ASSIGN_OR_RETURN_IMPL(SFRT_ONNX_CONCAT(sfrt_onnx_result_, __LINE__), lhs, expr)
+#define SFRT_ONNX_ASSIGN_OR_RETURN_IMPL(tmp, lhs, expr) \
+  auto tmp = (expr);                                    \
+  if (!tmp.ok()) {                                      \
+    return tmp.status();                                \
+  }                                                     \
+  lhs = std::move(tmp).value()
+
+namespace sfrt::exporter {
+namespace {
+
+using onnx::TensorProto;
+using Dims = std::vector<int64_t>;
+using Shape4 = std::array<int64_t, 4>;  // N, C, H, W
+
+constexpr int64_t kMinOpset = 11;
+constexpr int64_t kMaxOpset = 17;
+// Upper bound on the elements of one evaluated constant: shape arithmetic is tiny, and this keeps
+// a hostile file from making the importer allocate without limit.
+constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
+
+// Ops that may carry the network input (the chain).
+constexpr std::string_view kRuntimeOps[] = {"Conv",   "Pad",      "LeakyRelu", "Relu",
+                                            "Resize", "Upsample", "Slice",     "Identity"};
+// Ops evaluated at import when all their inputs are constants.
+// clang-format off
+constexpr std::string_view kFoldableOps[] = {
+    "Constant", "Shape", "Size", "Gather", "Cast", "CastLike", "Concat", "Unsqueeze", "Squeeze",
+    "Slice", "Reshape", "Expand", "Transpose", "Tile", "Range", "ConstantOfShape", "Identity",
+    "Add", "Sub", "Mul", "Div", "Mod", "Pow", "Neg", "Abs", "Floor", "Ceil", "Round", "Sqrt",
+    "Reciprocal", "Sign", "Min", "Max", "Clip", "Equal", "Less", "Greater", "LessOrEqual",
+    "GreaterOrEqual", "And", "Or", "Xor", "Not", "Where"};
+// clang-format on
+
+bool Contains(const auto& list, std::string_view op) {
+  return std::find(std::begin(list), std::end(list), op) != std::end(list);
+}
+
+std::string SupportedOpsText() {
+  std::string text;
+  for (std::string_view op : kRuntimeOps) {
+    if (!text.empty()) text += ", ";
+    text += op;
+  }
+  text += " (constant subgraphs may also use";
+  bool first = true;
+  for (std::string_view op : kFoldableOps) {
+    if (op == "Slice" || op == "Identity") continue;  // already listed
+    text += first ? " " : ", ";
+    text += op;
+    first = false;
+  }
+  text += ")";
+  return text;
+}
+
+// Replaces control characters so that a message stays on one line whatever a file contains.
+std::string Printable(std::string_view s) {
+  std::string out(s);
+  for (char& ch : out) {
+    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
+  }
+  return out;
+}
+
+std::string Quote(std::string_view s) { return "'" + Printable(s) + "'"; }
+
+std::string JoinInts(const std::vector<int64_t>& values) {
+  std::string s = "[";
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (i > 0) s += ", ";
+    s += std::to_string(values[i]);
+  }
+  return s + "]";
+}
+
+std::string FormatDouble(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.9g", v);
+  return buf;
+}
+
+std::string JoinReals(const std::vector<double>& values) {
+  std::string s = "[";
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (i > 0) s += ", ";
+    s += FormatDouble(values[i]);
+  }
+  return s + "]";
+}
+
+std::string PadsText(const Pads& p) {
+  return "(top " + std::to_string(p.top) + ", left " + std::to_string(p.left) + ", bottom " +
+         std::to_string(p.bottom) + ", right " + std::to_string(p.right) + ")";
+}
+
+std::string ShapeText(const Shape4& s) {
+  return "(" + std::to_string(s[0]) + ", " + std::to_string(s[1]) + ", " + std::to_string(s[2]) +
+         ", " + std::to_string(s[3]) + ")";
+}
+
+// ------------------------------------------------------------------------- constant tensors
+
+bool IsReal(int type) { return type == TensorProto::FLOAT || type == TensorProto::DOUBLE; }
+
+bool IsSupportedType(int type) {
+  return type == TensorProto::FLOAT || type == TensorProto::DOUBLE || type == TensorProto::INT64 ||
+         type == TensorProto::INT32 || type == TensorProto::BOOL;
+}
+
+std::string TypeName(int type) {
+  if (TensorProto::DataType_IsValid(type)) {
+    return TensorProto::DataType_Name(static_cast<TensorProto::DataType>(type));
+  }
+  return "data type " + std::to_string(type);
+}
+
+// FLOAT values are kept exactly representable as float, as an ONNX runtime would compute them.
+double RoundToType(int type, double v) {
+  return type == TensorProto::FLOAT ? static_cast<double>(static_cast<float>(v)) : v;
+}
+
+// double -> int64 without undefined behaviour: NaN gives 0, out-of-range values saturate.
+int64_t ToInt64(double v) {
+  if (std::isnan(v)) return 0;
+  if (v >= 9223372036854775807.0) return std::numeric_limits<int64_t>::max();
+  if (v <= -9223372036854775808.0) return std::numeric_limits<int64_t>::min();
+  return static_cast<int64_t>(v);
+}
+
+// Two's-complement wrapping int64 arithmetic, as ONNX runtimes compute it (no UB on overflow).
+int64_t WrapAdd(int64_t a, int64_t b) {
+  return static_cast<int64_t>(static_cast<uint64_t>(a) + static_cast<uint64_t>(b));
+}
+int64_t WrapSub(int64_t a, int64_t b) {
+  return static_cast<int64_t>(static_cast<uint64_t>(a) - static_cast<uint64_t>(b));
+}
+int64_t WrapMul(int64_t a, int64_t b) {
+  return static_cast<int64_t>(static_cast<uint64_t>(a) * static_cast<uint64_t>(b));
+}
+
+int64_t WrapToType(int type, int64_t v) {
+  if (type == TensorProto::INT32) return static_cast<int32_t>(v);
+  if (type == TensorProto::BOOL) return v != 0 ? 1 : 0;
+  return v;
+}
+
+// A constant tensor. Integer and bool values live in `ints`, FLOAT and DOUBLE values in `reals`.
+struct Const {
+  int type = TensorProto::INT64;
+  Dims dims;
+  std::vector<int64_t> ints;
+  std::vector<double> reals;
+
+  bool is_real() const { return IsReal(type); }
+  size_t size() const { return is_real() ? reals.size() : ints.size(); }
+  double Real(size_t i) const { return is_real() ? reals[i] : static_cast<double>(ints[i]); }
+  // Integer view; only used where the tensor is an integer tensor or the value is known whole.
+  int64_t Int(size_t i) const { return is_real() ? ToInt64(reals[i]) : ints[i]; }
+  void Set(size_t i, double v) {
+    if (is_real()) {
+      reals[i] = RoundToType(type, v);
+    } else {
+      ints[i] = WrapToType(type, ToInt64(v));
+    }
+  }
+  void SetInt(size_t i, int64_t v) {
+    if (is_real()) {
+      reals[i] = RoundToType(type, static_cast<double>(v));
+    } else {
+      ints[i] = WrapToType(type, v);
+    }
+  }
+};
+
+Result<int64_t> NumElements(const Dims& dims) {
+  int64_t n = 1;
+  for (int64_t d : dims) {
+    if (d < 0) return Status::Error("negative dimension " + std::to_string(d));
+    if (d != 0 && n > kMaxFoldedElements * 64 / d) {
+      return Status::Error("tensor of shape " + JoinInts(dims) + " is too large");
+    }
+    n *= d;
+  }
+  return n;
+}
+
+Result<Const> MakeConst(int type, Dims dims) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t n, NumElements(dims));
+  if (n > kMaxFoldedElements) {
+    return Status::Error("a constant of shape " + JoinInts(dims) + " is too large to evaluate");
+  }
+  Const c;
+  c.type = type;
+  c.dims = std::move(dims);
+  if (c.is_real()) {
+    c.reals.assign(static_cast<size_t>(n), 0.0);
+  } else {
+    c.ints.assign(static_cast<size_t>(n), 0);
+  }
+  return c;
+}
+
+// Copies element `si` of `src` into element `di` of `dst`, converting the type if needed.
+void CopyElement(const Const& src, size_t si, Const& dst, size_t di) {
+  if (src.is_real()) {
+    dst.Set(di, src.reals[si]);
+  } else {
+    dst.SetInt(di, src.ints[si]);
+  }
+}
+
+template <typename T>
+T LoadLittleEndian(const char* p) {
+  using U = std::conditional_t<sizeof(T) == 8, uint64_t, uint32_t>;
+  U u = 0;
+  for (size_t b = 0; b < sizeof(T); ++b) {
+    u |= static_cast<U>(static_cast<unsigned char>(p[b])) << (8 * b);
+  }
+  return std::bit_cast<T>(u);
+}
+
+// Decodes an initialiser or a Constant node's tensor. `what` names it in errors.
+Result<Const> DecodeTensor(const TensorProto& t, const std::string& what) {
+  if (t.data_location() == TensorProto::EXTERNAL) {
+    return Status::Error(what +
+                         " uses external data, which is not supported (re-export with the "
+                         "weights inside the .onnx file)");
+  }
+  if (!IsSupportedType(t.data_type())) {
+    return Status::Error(what + " has unsupported element type " + TypeName(t.data_type()) +
+                         " (supported: FLOAT, DOUBLE, INT64, INT32, BOOL)");
+  }
+  Dims dims(t.dims().begin(), t.dims().end());
+  auto count = NumElements(dims);
+  if (!count.ok()) return Status::Error(what + ": " + count.message());
+  const auto n = static_cast<size_t>(*count);
+  Const c;
+  c.type = t.data_type();
+  c.dims = std::move(dims);
+  const std::string& raw = t.raw_data();
+  auto mismatch = [&](size_t have) {
+    return Status::Error(what + " holds " + std::to_string(have) + " values of " +
+                         TypeName(t.data_type()) + ", its shape " + JoinInts(c.dims) + " needs " +
+                         std::to_string(n));
+  };
+  switch (t.data_type()) {
+    case TensorProto::FLOAT:
+      c.reals.resize(n);
+      if (t.has_raw_data()) {
+        if (raw.size() != n * 4) return mismatch(raw.size() / 4);
+        for (size_t i = 0; i < n; ++i) c.reals[i] = LoadLittleEndian<float>(raw.data() + 4 * i);
+      } else {
+        if (static_cast<size_t>(t.float_data_size()) != n) return mismatch(t.float_data_size());
+        for (size_t i = 0; i < n; ++i) c.reals[i] = t.float_data(static_cast<int>(i));
+      }
+      break;
+    case TensorProto::DOUBLE:
+      c.reals.resize(n);
+      if (t.has_raw_data()) {
+        if (raw.size() != n * 8) return mismatch(raw.size() / 8);
+        for (size_t i = 0; i < n; ++i) c.reals[i] = LoadLittleEndian<double>(raw.data() + 8 * i);
+      } else {
+        if (static_cast<size_t>(t.double_data_size()) != n) return mismatch(t.double_data_size());
+        for (size_t i = 0; i < n; ++i) c.reals[i] = t.double_data(static_cast<int>(i));
+      }
+      break;
+    case TensorProto::INT64:
+      c.ints.resize(n);
+      if (t.has_raw_data()) {
+        if (raw.size() != n * 8) return mismatch(raw.size() / 8);
+        for (size_t i = 0; i < n; ++i) c.ints[i] = LoadLittleEndian<int64_t>(raw.data() + 8 * i);
+      } else {
+        if (static_cast<size_t>(t.int64_data_size()) != n) return mismatch(t.int64_data_size());
+        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int64_data(static_cast<int>(i));
+      }
+      break;
+    case TensorProto::INT32:
+      c.ints.resize(n);
+      if (t.has_raw_data()) {
+        if (raw.size() != n * 4) return mismatch(raw.size() / 4);
+        for (size_t i = 0; i < n; ++i) c.ints[i] = LoadLittleEndian<int32_t>(raw.data() + 4 * i);
+      } else {
+        if (static_cast<size_t>(t.int32_data_size()) != n) return mismatch(t.int32_data_size());
+        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i));
+      }
+      break;
+    default:  // BOOL
+      c.ints.resize(n);
+      if (t.has_raw_data()) {
+        if (raw.size() != n) return mismatch(raw.size());
+        for (size_t i = 0; i < n; ++i) c.ints[i] = raw[i] != 0 ? 1 : 0;
+      } else {
+        if (static_cast<size_t>(t.int32_data_size()) != n) return mismatch(t.int32_data_size());
+        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i)) != 0;
+      }
+      break;
+  }
+  return c;
+}
+
+// Numpy-style (multidirectional) broadcasting of several shapes.
+Result<Dims> BroadcastDims(const std::vector<const Dims*>& shapes) {
+  size_t rank = 0;
+  for (const Dims* s : shapes) rank = std::max(rank, s->size());
+  Dims out(rank, 1);
+  for (const Dims* s : shapes) {
+    const size_t offset = rank - s->size();
+    for (size_t i = 0; i < s->size(); ++i) {
+      const int64_t d = (*s)[i];
+      int64_t& o = out[offset + i];
+      if (d == o || d == 1) continue;
+      if (o == 1) {
+        o = d;
+        continue;
+      }
+      std::string text;
+      for (const Dims* t : shapes) text += (text.empty() ? "" : " and ") + JoinInts(*t);
+      return Status::Error("shapes " + text + " do not broadcast");
+    }
+  }
+  return out;
+}
+
+// The flat index into a tensor of shape `in` (broadcast to `out`) for flat output index `flat`.
+size_t SourceIndex(size_t flat, const Dims& out, const Dims& in) {
+  size_t index = 0;
+  size_t stride = 1;
+  const size_t offset = out.size() - in.size();
+  for (size_t k = out.size(); k-- > 0;) {
+    const auto extent = static_cast<size_t>(out[k]);
+    const size_t coord = extent == 0 ? 0 : flat % extent;
+    flat = extent == 0 ? 0 : flat / extent;
+    if (k >= offset) {
+      const auto in_extent = static_cast<size_t>(in[k - offset]);
+      if (in_extent != 1) index += coord * stride;
+      stride *= in_extent;
+    }
+  }
+  return index;
+}
+
+int PromoteTypes(int a, int b) {
+  if (a == b) return a;
+  if (a == TensorProto::DOUBLE || b == TensorProto::DOUBLE) return TensorProto::DOUBLE;
+  if (a == TensorProto::FLOAT || b == TensorProto::FLOAT) return TensorProto::FLOAT;
+  return TensorProto::INT64;
+}
+
+// Elementwise op over broadcast inputs. `real_fn(double, double) -> double` is used when the
+// computation type is real, `int_fn(int64, int64) -> Result<int64>` otherwise. The output has
+// `out_type` (which may differ from the computation type, e.g. BOOL for comparisons).
+template <typename RealFn, typename IntFn>
+Result<Const> Elementwise(const Const& a, const Const& b, int out_type, RealFn real_fn,
+                          IntFn int_fn) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(Dims dims, BroadcastDims({&a.dims, &b.dims}));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(out_type, dims));
+  const bool real = a.is_real() || b.is_real();
+  for (size_t i = 0; i < out.size(); ++i) {
+    const size_t ia = SourceIndex(i, dims, a.dims);
+    const size_t ib = SourceIndex(i, dims, b.dims);
+    if (real) {
+      out.Set(i, real_fn(a.Real(ia), b.Real(ib)));
+    } else {
+      SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t v, int_fn(a.ints[ia], b.ints[ib]));
+      out.SetInt(i, v);
+    }
+  }
+  return out;
+}
+
+Result<int64_t> IntOk(int64_t v) { return v; }
+
+int64_t FloorDiv(int64_t n, int64_t d) {
+  int64_t q = n / d;
+  if ((n % d != 0) && ((n < 0) != (d < 0))) --q;
+  return q;
+}
+
+Result<Const> Cast(const Const& in, int to) {
+  if (!IsSupportedType(to)) {
+    return Status::Error("attribute 'to' = " + TypeName(to) +
+                         " is not supported (FLOAT, DOUBLE, INT64, INT32, BOOL)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(to, in.dims));
+  for (size_t i = 0; i < in.size(); ++i) {
+    if (in.is_real() && !out.is_real()) {
+      const double v = in.reals[i];
+      if (to == TensorProto::BOOL) {
+        out.ints[i] = v != 0.0 ? 1 : 0;
+        continue;
+      }
+      if (!std::isfinite(v) || std::fabs(v) >= 9.2e18) {
+        return Status::Error("cannot cast " + FormatDouble(v) + " to " + TypeName(to));
+      }
+      out.SetInt(i, static_cast<int64_t>(std::trunc(v)));
+    } else {
+      CopyElement(in, i, out, i);
+    }
+  }
+  return out;
+}
+
+// Normalises an axis in [-rank, rank) to [0, rank).
+Result<int64_t> NormalizeAxis(int64_t axis, int64_t rank, const std::string& what) {
+  if (axis < -rank || axis >= rank) {
+    return Status::Error(what + " " + std::to_string(axis) + " is out of range for rank " +
+                         std::to_string(rank));
+  }
+  return axis < 0 ? axis + rank : axis;
+}
+
+Dims Strides(const Dims& dims) {
+  Dims strides(dims.size(), 1);
+  for (size_t k = dims.size(); k-- > 1;) strides[k - 1] = strides[k] * dims[k];
+  return strides;
+}
+
+Result<Const> Concat(const std::vector<const Const*>& ins, int64_t axis_attr) {
+  if (ins.empty()) return Status::Error("no inputs");
+  const Const& first = *ins[0];
+  const auto rank = static_cast<int64_t>(first.dims.size());
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(axis_attr, rank, "axis"));
+  Dims dims = first.dims;
+  dims[axis] = 0;
+  int type = first.type;
+  for (const Const* in : ins) {
+    if (static_cast<int64_t>(in->dims.size()) != rank) {
+      return Status::Error("inputs have different ranks");
+    }
+    for (int64_t k = 0; k < rank; ++k) {
+      if (k != axis && in->dims[k] != first.dims[k]) {
+        return Status::Error("input shapes " + JoinInts(first.dims) + " and " + JoinInts(in->dims) +
+                             " differ outside axis " + std::to_string(axis));
+      }
+    }
+    dims[axis] += in->dims[axis];
+    type = PromoteTypes(type, in->type);
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(type, dims));
+  int64_t outer = 1;
+  for (int64_t k = 0; k < axis; ++k) outer *= dims[k];
+  size_t di = 0;
+  for (int64_t o = 0; o < outer; ++o) {
+    for (const Const* in : ins) {
+      const auto block =
+          static_cast<size_t>(in->size() / static_cast<size_t>(outer > 0 ? outer : 1));
+      const size_t base = static_cast<size_t>(o) * block;
+      for (size_t j = 0; j < block; ++j) CopyElement(*in, base + j, out, di++);
+    }
+  }
+  return out;
+}
+
+Result<Const> Gather(const Const& data, const Const& indices, int64_t axis_attr) {
+  if (indices.is_real()) return Status::Error("indices must be integers");
+  const auto rank = static_cast<int64_t>(data.dims.size());
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(axis_attr, rank, "axis"));
+  Dims dims(data.dims.begin(), data.dims.begin() + axis);
+  dims.insert(dims.end(), indices.dims.begin(), indices.dims.end());
+  dims.insert(dims.end(), data.dims.begin() + axis + 1, data.dims.end());
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(data.type, dims));
+  int64_t outer = 1;
+  int64_t inner = 1;
+  for (int64_t k = 0; k < axis; ++k) outer *= data.dims[k];
+  for (int64_t k = axis + 1; k < rank; ++k) inner *= data.dims[k];
+  const int64_t extent = data.dims[axis];
+  size_t di = 0;
+  for (int64_t o = 0; o < outer; ++o) {
+    for (size_t j = 0; j < indices.size(); ++j) {
+      int64_t idx = indices.ints[j];
+      if (idx < 0) idx += extent;
+      if (idx < 0 || idx >= extent) {
+        return Status::Error("index " + std::to_string(indices.ints[j]) +
+                             " is out of range for axis of size " + std::to_string(extent));
+      }
+      for (int64_t i = 0; i < inner; ++i) {
+        CopyElement(data, static_cast<size_t>((o * extent + idx) * inner + i), out, di++);
+      }
+    }
+  }
+  return out;
+}
+
+Result<Const> Reshaped(const Const& in, Dims dims) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t n, NumElements(dims));
+  if (static_cast<size_t>(n) != in.size()) {
+    return Status::Error("cannot reshape " + JoinInts(in.dims) + " to " + JoinInts(dims));
+  }
+  Const out = in;
+  out.dims = std::move(dims);
+  return out;
+}
+
+Result<Const> Reshape(const Const& in, const Const& shape, bool allow_zero) {
+  if (shape.is_real() || shape.dims.size() != 1) {
+    return Status::Error("input 'shape' must be a 1-D integer tensor");
+  }
+  Dims dims(shape.ints.begin(), shape.ints.end());
+  int infer = -1;
+  int64_t known = 1;
+  for (size_t k = 0; k < dims.size(); ++k) {
+    if (dims[k] == 0 && !allow_zero) {
+      if (k >= in.dims.size())
+        return Status::Error("shape " + JoinInts(shape.ints) + " copies a missing dimension");
+      dims[k] = in.dims[k];
+    }
+    if (dims[k] == -1) {
+      if (infer >= 0) return Status::Error("shape " + JoinInts(shape.ints) + " has two -1 entries");
+      infer = static_cast<int>(k);
+      continue;
+    }
+    if (dims[k] < 0) {
+      return Status::Error("shape " + JoinInts(shape.ints) + " has a negative entry");
+    }
+    if (dims[k] > 0 && known > kMaxFoldedElements / dims[k]) {
+      return Status::Error("shape " + JoinInts(shape.ints) + " is too large");
+    }
+    known *= dims[k];
+  }
+  if (infer >= 0) {
+    const auto total = static_cast<int64_t>(in.size());
+    if (known == 0 || total % known != 0) {
+      return Status::Error("cannot reshape " + JoinInts(in.dims) + " to " + JoinInts(shape.ints));
+    }
+    dims[infer] = total / known;
+  }
+  return Reshaped(in, std::move(dims));
+}
+
+Result<Const> Unsqueeze(const Const& in, const std::vector<int64_t>& axes_in) {
+  const auto out_rank = static_cast<int64_t>(in.dims.size() + axes_in.size());
+  std::vector<int64_t> axes;
+  for (int64_t a : axes_in) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(a, out_rank, "axis"));
+    if (std::find(axes.begin(), axes.end(), axis) != axes.end()) {
+      return Status::Error("axes " + JoinInts(axes_in) + " repeat an axis");
+    }
+    axes.push_back(axis);
+  }
+  Dims dims;
+  size_t next = 0;
+  for (int64_t k = 0; k < out_rank; ++k) {
+    if (std::find(axes.begin(), axes.end(), k) != axes.end()) {
+      dims.push_back(1);
+    } else {
+      dims.push_back(in.dims[next++]);
+    }
+  }
+  return Reshaped(in, std::move(dims));
+}
+
+Result<Const> Squeeze(const Const& in, const std::vector<int64_t>& axes_in, bool have_axes) {
+  const auto rank = static_cast<int64_t>(in.dims.size());
+  std::vector<bool> drop(in.dims.size(), false);
+  if (!have_axes) {
+    for (int64_t k = 0; k < rank; ++k) drop[k] = in.dims[k] == 1;
+  }
+  for (int64_t a : axes_in) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(a, rank, "axis"));
+    if (in.dims[axis] != 1) {
+      return Status::Error("cannot squeeze axis " + std::to_string(a) + " of shape " +
+                           JoinInts(in.dims));
+    }
+    drop[axis] = true;
+  }
+  Dims dims;
+  for (int64_t k = 0; k < rank; ++k) {
+    if (!drop[k]) dims.push_back(in.dims[k]);
+  }
+  return Reshaped(in, std::move(dims));
+}
+
+Result<Const> Transpose(const Const& in, std::vector<int64_t> perm) {
+  const size_t rank = in.dims.size();
+  if (perm.empty()) {
+    for (size_t k = rank; k-- > 0;) perm.push_back(static_cast<int64_t>(k));
+  }
+  if (perm.size() != rank)
+    return Status::Error("attribute 'perm' " + JoinInts(perm) + " has the wrong length");
+  std::vector<bool> seen(rank, false);
+  for (int64_t p : perm) {
+    if (p < 0 || static_cast<size_t>(p) >= rank || seen[p]) {
+      return Status::Error("attribute 'perm' " + JoinInts(perm) + " is not a permutation");
+    }
+    seen[p] = true;
+  }
+  Dims dims(rank);
+  for (size_t k = 0; k < rank; ++k) dims[k] = in.dims[perm[k]];
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  const Dims in_strides = Strides(in.dims);
+  for (size_t i = 0; i < out.size(); ++i) {
+    size_t flat = i;
+    size_t src = 0;
+    for (size_t k = rank; k-- > 0;) {
+      const auto extent = static_cast<size_t>(dims[k]);
+      src += (flat % extent) * static_cast<size_t>(in_strides[perm[k]]);
+      flat /= extent;
+    }
+    CopyElement(in, src, out, i);
+  }
+  return out;
+}
+
+Result<Const> Expand(const Const& in, const Const& shape) {
+  if (shape.is_real() || shape.dims.size() != 1) {
+    return Status::Error("input 'shape' must be a 1-D integer tensor");
+  }
+  const Dims target(shape.ints.begin(), shape.ints.end());
+  SFRT_ONNX_ASSIGN_OR_RETURN(const Dims dims, BroadcastDims({&in.dims, &target}));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  for (size_t i = 0; i < out.size(); ++i) CopyElement(in, SourceIndex(i, dims, in.dims), out, i);
+  return out;
+}
+
+Result<Const> Tile(const Const& in, const Const& repeats) {
+  if (repeats.is_real() || repeats.size() != in.dims.size()) {
+    return Status::Error("input 'repeats' must hold one integer per input dimension");
+  }
+  Dims dims = in.dims;
+  for (size_t k = 0; k < dims.size(); ++k) {
+    if (repeats.ints[k] < 0 || repeats.ints[k] > kMaxFoldedElements) {
+      return Status::Error("input 'repeats' = " + JoinInts(repeats.ints) + " is not supported");
+    }
+    dims[k] *= repeats.ints[k];  // both factors <= 2^24: no overflow
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  const Dims in_strides = Strides(in.dims);
+  for (size_t i = 0; i < out.size(); ++i) {
+    size_t flat = i;
+    size_t src = 0;
+    for (size_t k = dims.size(); k-- > 0;) {
+      const auto extent = static_cast<size_t>(dims[k]);
+      src +=
+          ((flat % extent) % static_cast<size_t>(in.dims[k])) * static_cast<size_t>(in_strides[k]);
+      flat /= extent;
+    }
+    CopyElement(in, src, out, i);
+  }
+  return out;
+}
+
+struct SliceAxis {
+  int64_t start = 0;
+  int64_t step = 1;
+  int64_t count = 0;
+};
+
+// ONNX Slice clamping for one axis of extent `dim`.
+SliceAxis ClampSlice(int64_t start, int64_t end, int64_t step, int64_t dim) {
+  SliceAxis s;
+  // Steps beyond the extent select one element either way; clamping keeps the arithmetic exact.
+  constexpr int64_t kMaxStep = int64_t{1} << 40;
+  step = std::clamp(step, -kMaxStep, kMaxStep);
+  s.step = step;
+  if (start < 0) start += dim;
+  if (end < 0) end += dim;
+  if (step > 0) {
+    start = std::clamp<int64_t>(start, 0, dim);
+    end = std::clamp<int64_t>(end, 0, dim);
+    s.count = end > start ? (end - start - 1) / step + 1 : 0;
+  } else {
+    start = std::clamp<int64_t>(start, 0, dim - 1);
+    end = std::clamp<int64_t>(end, -1, dim - 1);
+    s.count = start > end ? (start - end - 1) / (-step) + 1 : 0;
+  }
+  s.start = start;
+  return s;
+}
+
+struct SliceArgs {
+  std::vector<int64_t> starts, ends, axes, steps;
+};
+
+Result<SliceArgs> ReadSliceArgs(const Const* starts, const Const* ends, const Const* axes,
+                                const Const* steps, int64_t rank) {
+  auto ints = [](const Const* c, const char* name) -> Result<std::vector<int64_t>> {
+    if (c->is_real() || c->dims.size() > 1) {
+      return Status::Error(std::string("input '") + name + "' must be a 1-D integer tensor");
+    }
+    return c->ints;
+  };
+  SliceArgs a;
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.starts, ints(starts, "starts"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.ends, ints(ends, "ends"));
+  if (axes != nullptr) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(a.axes, ints(axes, "axes"));
+  } else {
+    for (size_t k = 0; k < a.starts.size(); ++k) a.axes.push_back(static_cast<int64_t>(k));
+  }
+  if (steps != nullptr) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(a.steps, ints(steps, "steps"));
+  } else {
+    a.steps.assign(a.starts.size(), 1);
+  }
+  if (a.ends.size() != a.starts.size() || a.axes.size() != a.starts.size() ||
+      a.steps.size() != a.starts.size()) {
+    return Status::Error("inputs 'starts' " + JoinInts(a.starts) + ", 'ends' " + JoinInts(a.ends) +
+                         ", 'axes' " + JoinInts(a.axes) + " and 'steps' " + JoinInts(a.steps) +
+                         " differ in length");
+  }
+  std::vector<int64_t> seen;
+  for (int64_t& axis : a.axes) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(axis, NormalizeAxis(axis, rank, "input 'axes' value"));
+    if (std::find(seen.begin(), seen.end(), axis) != seen.end()) {
+      return Status::Error("input 'axes' repeats axis " + std::to_string(axis));
+    }
+    seen.push_back(axis);
+  }
+  for (int64_t step : a.steps) {
+    if (step == 0) return Status::Error("input 'steps' contains 0");
+  }
+  return a;
+}
+
+Result<Const> SliceConst(const Const& in, const SliceArgs& args) {
+  const size_t rank = in.dims.size();
+  std::vector<SliceAxis> axes(rank);
+  for (size_t k = 0; k < rank; ++k) axes[k] = SliceAxis{0, 1, in.dims[k]};
+  for (size_t i = 0; i < args.axes.size(); ++i) {
+    const auto k = static_cast<size_t>(args.axes[i]);
+    axes[k] = ClampSlice(args.starts[i], args.ends[i], args.steps[i], in.dims[k]);
+  }
+  Dims dims(rank);
+  for (size_t k = 0; k < rank; ++k) dims[k] = axes[k].count;
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  const Dims in_strides = Strides(in.dims);
+  for (size_t i = 0; i < out.size(); ++i) {
+    size_t flat = i;
+    int64_t src = 0;
+    for (size_t k = rank; k-- > 0;) {
+      const auto extent = static_cast<size_t>(dims[k]);
+      const auto coord = static_cast<int64_t>(flat % extent);
+      flat /= extent;
+      src += (axes[k].start + coord * axes[k].step) * in_strides[k];
+    }
+    CopyElement(in, static_cast<size_t>(src), out, i);
+  }
+  return out;
+}
+
+Result<Const> Range(const Const& start, const Const& limit, const Const& delta) {
+  if (start.size() != 1 || limit.size() != 1 || delta.size() != 1) {
+    return Status::Error("inputs must be scalars");
+  }
+  const int type = start.type;
+  // The element count, computed in double: only small ranges are evaluated anyway.
+  const double d = delta.Real(0);
+  if (d == 0.0) return Status::Error("delta is 0");
+  const double count_d = std::max(std::ceil((limit.Real(0) - start.Real(0)) / d), 0.0);
+  if (!(count_d <= static_cast<double>(kMaxFoldedElements))) {
+    return Status::Error("range of " + FormatDouble(count_d) + " elements is too large");
+  }
+  const auto count = static_cast<int64_t>(count_d);
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(type, {count}));
+  for (int64_t i = 0; i < count; ++i) {
+    if (IsReal(type)) {
+      out.Set(static_cast<size_t>(i), start.Real(0) + static_cast<double>(i) * delta.Real(0));
+    } else {
+      out.SetInt(static_cast<size_t>(i), WrapAdd(start.Int(0), WrapMul(i, delta.Int(0))));
+    }
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------------- resize semantics
+
+// Whether ONNX nearest Resize with these modes computes in[floor(y / f)] for output row y, for
+// every y and every input length n, at integer factor f (output length f*n). ONNX maps y to
+// x = T(y) and rounds x with nearest_mode (then clamps to [0, n-1]).
+// - asymmetric, half_pixel, pytorch_half_pixel, tf_half_pixel_for_nn: for y = f*k + r,
+//   x = k + g(r) with g independent of k and n, so the result is floor(y / f) everywhere exactly
+//   when round(k + g(r)) == k for every r in [0, f). That is checked below in exact rationals
+//   (denominator 2f). Outcome: asymmetric + floor (any f); asymmetric + round_prefer_floor
+//   (f <= 2); half_pixel/pytorch_half_pixel + round_prefer_floor/round_prefer_ceil (any f, the
+//   fraction stays inside (-1/2, 1/2)); tf_half_pixel_for_nn + floor (any f).
+// - align_corners: x = y (n-1) / (f n - 1). At f = 1, x = y. At f = 2, y = 2k + r gives
+//   x = k + (r (n-1) - k) / (2n - 1), whose fraction lies strictly inside (-1/2, 1/2) for
+//   0 <= k <= n-1, so round_prefer_floor/ceil give k; floor/ceil do not. At f >= 3, r = f-1,
+//   k = 0 gives a fraction (f-1)(n-1)/(fn-1) > 1/2 once n > 3: not exact.
+// - tf_crop_and_resize depends on roi: never accepted.
+bool NearestIsFloorOfQuotient(const std::string& ctm, const std::string& nearest_mode, int64_t f) {
+  const bool round_mode =
+      nearest_mode == "round_prefer_floor" || nearest_mode == "round_prefer_ceil";
+  const bool known_mode = round_mode || nearest_mode == "floor" || nearest_mode == "ceil";
+  if (ctm == "align_corners") return known_mode && (f == 1 || (f == 2 && round_mode));
+  constexpr int64_t k = 3;  // any block index with x > 0
+  const int64_t den = 2 * f;
+  for (int64_t r = 0; r < f; ++r) {
+    const int64_t y = f * k + r;
+    int64_t num = 0;
+    if (ctm == "asymmetric") {
+      num = 2 * y;
+    } else if (ctm == "half_pixel" || ctm == "pytorch_half_pixel") {
+      num = 2 * y + 1 - f;
+    } else if (ctm == "tf_half_pixel_for_nn") {
+      num = 2 * y + 1;
+    } else {
+      return false;
+    }
+    const int64_t fl = FloorDiv(num, den);
+    const int64_t rem = num - fl * den;  // in [0, den)
+    int64_t rounded = 0;
+    if (nearest_mode == "floor") {
+      rounded = fl;
+    } else if (nearest_mode == "ceil") {
+      rounded = rem == 0 ? fl : fl + 1;
+    } else if (nearest_mode == "round_prefer_floor") {
+      rounded = 2 * rem <= den ? fl : fl + 1;
+    } else if (nearest_mode == "round_prefer_ceil") {
+      rounded = 2 * rem < den ? fl : fl + 1;
+    } else {
+      return false;
+    }
+    if (rounded != k) return false;
+  }
+  return true;
+}
+
+// TensorFlow 'same' / ONNX SAME_UPPER amounts for one axis.
+std::pair<int, int> SameUpperAxis(int64_t in, int64_t stride, int64_t kernel) {
+  const int64_t out = (in + stride - 1) / stride;
+  const int64_t total = std::max<int64_t>((out - 1) * stride + kernel - in, 0);
+  return {static_cast<int>(total / 2), static_cast<int>(total - total / 2)};
+}
+
+Pads SameUpperPads(int64_t in_h, int64_t in_w, int kh, int kw, int sh, int sw) {
+  const auto [top, bottom] = SameUpperAxis(in_h, sh, kh);
+  const auto [left, right] = SameUpperAxis(in_w, sw, kw);
+  return Pads{top, left, bottom, right};
+}
+
+// ------------------------------------------------------------------------- the importer
+
+// A node whose data input is a runtime tensor.
+struct ChainOp {
+  enum class Kind { kConv, kPad, kActivation, kUpsample, kSlice, kIdentity };
+  Kind kind = Kind::kIdentity;
+  int node_index = 0;
+  std::string input;
+  std::string output;
+  Shape4 in_shape{};
+  Shape4 out_shape{};
+  ConvSpec conv;  // kConv; pads = the Conv's own amounts at the traced size
+  Pads pads;      // kPad: amounts added; kSlice: amounts removed
+  Activation activation = Activation::kNone;
+  float slope = 0.0f;
+  int factor_h = 1;
+  int factor_w = 1;
+};
+
+class Importer {
+ public:
+  Importer(const std::string& path, const OnnxImportOptions& options)
+      : path_(path), options_(options) {}
+
+  Result<ModelSpec> Run();
+
+ private:
+  const onnx::GraphProto& graph() const { return model_.graph(); }
+
+  Status FileError(const std::string& message) const {
+    return Status::Error(path_ + ": " + message);
+  }
+  std::string NodeLabel(int idx) const {
+    const onnx::NodeProto& n = graph().node(idx);
+    std::string label =
+        n.name().empty() ? "node #" + std::to_string(idx) : "node " + Quote(n.name());
+    return label + " (op " + Printable(n.op_type()) + ")";
+  }
+  Status NodeError(int idx, const std::string& message) const {
+    return FileError(NodeLabel(idx) + ": " + message);
+  }
+  Status Unsupported(int idx, const std::string& note) const {
+    return NodeError(idx, "unsupported; supported ops: " + SupportedOpsText() + note);
+  }
+
+  Status Load();
+  Status ReadOpset();
+  Status ReadInitializers();
+  Status ReadInput();
+  std::vector<bool> LiveNodes() const;
+  Status ProcessNode(int idx);
+  Status ProcessConstant(int idx);
+  Status FoldNode(int idx);
+  Status ProcessRuntimeNode(int idx, const Shape4& in_shape);
+  Status ProcessConv(int idx, ChainOp& op);
+  Status ProcessPad(int idx, ChainOp& op);
+  Status ProcessResize(int idx, ChainOp& op);
+  Status ProcessSlice(int idx, ChainOp& op);
+  Result<ModelSpec> Assemble();
+
+  bool IsConst(const std::string& name) const {
+    return consts_.count(name) > 0 || initializers_.count(name) > 0;
+  }
+  // The constant named `name` (a copy). Errors name the node and its input slot.
+  Result<Const> GetConst(int idx, int slot) const;
+  // The optional constant input `slot` of node `idx`: absent (empty name or beyond the inputs)
+  // gives an empty optional.
+  Result<std::optional<Const>> GetOptionalConst(int idx, int slot) const;
+  Result<std::vector<float>> GetFloats(int idx, int slot, Dims* dims) const;
+
+  // Attribute access; errors name the node and the attribute.
+  const onnx::AttributeProto* FindAttr(int idx, std::string_view name) const;
+  Result<int64_t> IntAttr(int idx, std::string_view name, int64_t fallback) const;
+  Result<std::vector<int64_t>> IntsAttr(int idx, std::string_view name) const;
+  Result<float> FloatAttr(int idx, std::string_view name, float fallback) const;
+  Result<std::string> StringAttr(int idx, std::string_view name, const std::string& fallback) const;
+
+  std::string path_;
+  OnnxImportOptions options_;
+  onnx::ModelProto model_;
+  int64_t opset_ = 0;
+  std::unordered_map<std::string, const TensorProto*> initializers_;
+  std::unordered_map<std::string, Const> consts_;
+  std::unordered_map<std::string, Shape4> runtime_;      // runtime tensor -> static shape
+  std::unordered_map<std::string, size_t> producer_op_;  // runtime tensor -> index in ops_
+  std::vector<ChainOp> ops_;
+  std::string input_name_;
+  Shape4 input_shape_{};
+};
+
+const onnx::AttributeProto* Importer::FindAttr(int idx, std::string_view name) const {
+  for (const auto& a : graph().node(idx).attribute()) {
+    if (a.name() == name) return &a;
+  }
+  return nullptr;
+}
+
+Result<int64_t> Importer::IntAttr(int idx, std::string_view name, int64_t fallback) const {
+  const auto* a = FindAttr(idx, name);
+  if (a == nullptr) return fallback;
+  if (a->type() != onnx::AttributeProto::INT) {
+    return NodeError(idx, "attribute '" + std::string(name) + "' is not an integer");
+  }
+  return a->i();
+}
+
+Result<std::vector<int64_t>> Importer::IntsAttr(int idx, std::string_view name) const {
+  const auto* a = FindAttr(idx, name);
+  if (a == nullptr) return std::vector<int64_t>{};
+  if (a->type() != onnx::AttributeProto::INTS) {
+    return NodeError(idx, "attribute '" + std::string(name) + "' is not a list of integers");
+  }
+  return std::vector<int64_t>(a->ints().begin(), a->ints().end());
+}
+
+Result<float> Importer::FloatAttr(int idx, std::string_view name, float fallback) const {
+  const auto* a = FindAttr(idx, name);
+  if (a == nullptr) return fallback;
+  if (a->type() != onnx::AttributeProto::FLOAT) {
+    return NodeError(idx, "attribute '" + std::string(name) + "' is not a float");
+  }
+  return a->f();
+}
+
+Result<std::string> Importer::StringAttr(int idx, std::string_view name,
+                                         const std::string& fallback) const {
+  const auto* a = FindAttr(idx, name);
+  if (a == nullptr) return fallback;
+  if (a->type() != onnx::AttributeProto::STRING) {
+    return NodeError(idx, "attribute '" + std::string(name) + "' is not a string");
+  }
+  return a->s();
+}
+
+Result<Const> Importer::GetConst(int idx, int slot) const {
+  const std::string& name = graph().node(idx).input(slot);
+  if (auto it = consts_.find(name); it != consts_.end()) return it->second;
+  if (auto it = initializers_.find(name); it != initializers_.end()) {
+    auto decoded = DecodeTensor(*it->second, "initializer " + Quote(name));
+    if (!decoded.ok()) return FileError(decoded.message());
+    return decoded;
+  }
+  return NodeError(idx, "input " + std::to_string(slot) + " " + Quote(name) +
+                            " must be a constant (an initializer, a Constant node or a constant "
+                            "subgraph), but it depends on the network input");
+}
+
+Result<std::optional<Const>> Importer::GetOptionalConst(int idx, int slot) const {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (slot >= n.input_size() || n.input(slot).empty()) return std::optional<Const>();
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const c, GetConst(idx, slot));
+  return std::optional<Const>(std::move(c));
+}
+
+Result<std::vector<float>> Importer::GetFloats(int idx, int slot, Dims* dims) const {
+  const std::string& name = graph().node(idx).input(slot);
+  const std::string what = "input " + std::to_string(slot) + " " + Quote(name);
+  // Fast path for float32 initialisers (the weights): no detour through doubles.
+  if (auto it = initializers_.find(name); it != initializers_.end() && consts_.count(name) == 0) {
+    const TensorProto& t = *it->second;
+    if (t.data_type() == TensorProto::FLOAT && t.data_location() != TensorProto::EXTERNAL) {
+      dims->assign(t.dims().begin(), t.dims().end());
+      auto count = NumElements(*dims);
+      if (!count.ok()) return NodeError(idx, what + ": " + count.message());
+      const auto n = static_cast<size_t>(*count);
+      std::vector<float> values(n);
+      if (t.has_raw_data()) {
+        if (t.raw_data().size() != 4 * n) {
+          return NodeError(idx, what + " holds " + std::to_string(t.raw_data().size()) +
+                                    " bytes, its shape " + JoinInts(*dims) + " needs " +
+                                    std::to_string(4 * n));
+        }
+        for (size_t i = 0; i < n; ++i)
+          values[i] = LoadLittleEndian<float>(t.raw_data().data() + 4 * i);
+      } else {
+        if (static_cast<size_t>(t.float_data_size()) != n) {
+          return NodeError(idx, what + " holds " + std::to_string(t.float_data_size()) +
+                                    " floats, its shape " + JoinInts(*dims) + " needs " +
+                                    std::to_string(n));
+        }
+        std::copy(t.float_data().begin(), t.float_data().end(), values.begin());
+      }
+      return values;
+    }
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const Const c, GetConst(idx, slot));
+  if (c.type != TensorProto::FLOAT) {
+    return NodeError(idx, what + " has element type " + TypeName(c.type) + ", expected FLOAT");
+  }
+  *dims = c.dims;
+  return std::vector<float>(c.reals.begin(), c.reals.end());
+}
+
+Status Importer::Load() {
+  std::error_code ec;
+  if (!std::filesystem::exists(path_, ec)) {
+    return FileError("cannot open ONNX file: no such file");
+  }
+  if (!std::filesystem::is_regular_file(path_, ec)) {
+    return FileError("cannot open ONNX file: not a regular file");
+  }
+  std::ifstream in(path_, std::ios::binary);
+  if (!in) return FileError(std::string("cannot open ONNX file: ") + std::strerror(errno));
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) return FileError(std::string("cannot read ONNX file: ") + std::strerror(errno));
+  if (!model_.ParseFromString(bytes)) {
+    return FileError("not a valid ONNX file: the protobuf ModelProto does not parse (" +
+                     std::to_string(bytes.size()) + " bytes)");
+  }
+  if (model_.ir_version() <= 0 || !model_.has_graph()) {
+    return FileError("not a valid ONNX file: no ir_version or no graph (" +
+                     std::to_string(bytes.size()) + " bytes)");
+  }
+  return Status::Ok();
+}
+
+Status Importer::ReadOpset() {
+  bool found = false;
+  for (const auto& op : model_.opset_import()) {
+    if (op.domain().empty() || op.domain() == "ai.onnx") {
+      opset_ = op.version();
+      found = true;
+    }
+  }
+  if (!found) return FileError("opset_import has no entry for the default ONNX domain");
+  if (opset_ < kMinOpset || opset_ > kMaxOpset) {
+    return FileError("opset " + std::to_string(opset_) +
+                     " is not supported (supported: " + std::to_string(kMinOpset) + " to " +
+                     std::to_string(kMaxOpset) + "); re-export with opset_version in that range");
+  }
+  return Status::Ok();
+}
+
+Status Importer::ReadInitializers() {
+  for (const auto& t : graph().initializer()) initializers_[t.name()] = &t;
+  if (graph().sparse_initializer_size() > 0) {
+    return FileError("sparse initializers are not supported");
+  }
+  return Status::Ok();
+}
+
+Status Importer::ReadInput() {
+  const onnx::ValueInfoProto* input = nullptr;
+  for (const auto& vi : graph().input()) {
+    if (initializers_.count(vi.name()) > 0) continue;
+    if (input != nullptr) {
+      return FileError("graph has more than one non-initializer input (" + Quote(input->name()) +
+                       " and " + Quote(vi.name()) + "); the network takes one (1, C, H, W) tensor");
+    }
+    input = &vi;
+  }
+  if (input == nullptr) return FileError("graph has no input (every input is an initializer)");
+  input_name_ = input->name();
+  const std::string what = "graph input " + Quote(input_name_);
+  if (!input->type().has_tensor_type()) return FileError(what + " is not a tensor");
+  const auto& tt = input->type().tensor_type();
+  if (tt.elem_type() != TensorProto::FLOAT) {
+    return FileError(what + " has element type " + TypeName(tt.elem_type()) + ", expected FLOAT");
+  }
+  if (!tt.has_shape() || tt.shape().dim_size() != 4) {
+    return FileError(what + " must have a static 4-D shape (1, C, H, W)" +
+                     (tt.has_shape() ? ", it has rank " + std::to_string(tt.shape().dim_size())
+                                     : std::string(", it has no shape")));
+  }
+  static constexpr const char* kAxisNames[] = {"N", "C", "H", "W"};
+  for (int k = 0; k < 4; ++k) {
+    const auto& d = tt.shape().dim(k);
+    if (!d.has_dim_value() || d.dim_value() <= 0) {
+      return FileError(what + " dimension " + std::to_string(k) + " (" + kAxisNames[k] + ") is " +
+                       (d.has_dim_param() ? "symbolic " + Quote(d.dim_param()) : "unknown") +
+                       "; export with a static shape (1, C, H, W)");
+    }
+    if (d.dim_value() > std::numeric_limits<int32_t>::max()) {
+      return FileError(what + " dimension " + std::to_string(k) + " is too large");
+    }
+    input_shape_[k] = d.dim_value();
+  }
+  if (input_shape_[0] != 1) {
+    return FileError(what + " has batch size " + std::to_string(input_shape_[0]) +
+                     ", expected 1 (shape (1, C, H, W))");
+  }
+  runtime_[input_name_] = input_shape_;
+  return Status::Ok();
+}
+
+std::vector<bool> Importer::LiveNodes() const {
+  std::unordered_map<std::string, int> producer;
+  for (int i = 0; i < graph().node_size(); ++i) {
+    for (const auto& out : graph().node(i).output()) {
+      if (!out.empty()) producer[out] = i;
+    }
+  }
+  std::vector<bool> live(graph().node_size(), false);
+  std::vector<std::string> stack;
+  for (const auto& out : graph().output()) stack.push_back(out.name());
+  while (!stack.empty()) {
+    const std::string name = std::move(stack.back());
+    stack.pop_back();
+    auto it = producer.find(name);
+    if (it == producer.end() || live[it->second]) continue;
+    live[it->second] = true;
+    for (const auto& in : graph().node(it->second).input()) {
+      if (!in.empty()) stack.push_back(in);
+    }
+  }
+  return live;
+}
+
+Status Importer::ProcessConstant(int idx) {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (n.attribute_size() != 1) {
+    return NodeError(
+        idx, "expected exactly one value attribute, found " + std::to_string(n.attribute_size()));
+  }
+  const onnx::AttributeProto& a = n.attribute(0);
+  Const c;
+  if (a.name() == "value" && a.type() == onnx::AttributeProto::TENSOR) {
+    auto decoded = DecodeTensor(a.t(), "attribute 'value'");
+    if (!decoded.ok()) return NodeError(idx, decoded.message());
+    c = std::move(decoded).value();
+  } else if (a.name() == "value_float" && a.type() == onnx::AttributeProto::FLOAT) {
+    c.type = TensorProto::FLOAT;
+    c.reals = {a.f()};
+  } else if (a.name() == "value_floats" && a.type() == onnx::AttributeProto::FLOATS) {
+    c.type = TensorProto::FLOAT;
+    c.dims = {a.floats_size()};
+    c.reals.assign(a.floats().begin(), a.floats().end());
+  } else if (a.name() == "value_int" && a.type() == onnx::AttributeProto::INT) {
+    c.type = TensorProto::INT64;
+    c.ints = {a.i()};
+  } else if (a.name() == "value_ints" && a.type() == onnx::AttributeProto::INTS) {
+    c.type = TensorProto::INT64;
+    c.dims = {a.ints_size()};
+    c.ints.assign(a.ints().begin(), a.ints().end());
+  } else {
+    return NodeError(idx, "attribute " + Quote(a.name()) +
+                              " is not supported (value, value_float(s), value_int(s))");
+  }
+  if (n.output_size() != 1) return NodeError(idx, "expected one output");
+  consts_[n.output(0)] = std::move(c);
+  return Status::Ok();
+}
+
+Status Importer::FoldNode(int idx) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const std::string& op = n.op_type();
+  if (n.output_size() < 1 || n.output(0).empty()) return NodeError(idx, "has no output");
+
+  // Shape and Size only need the input's static shape, which runtime tensors have too.
+  if (op == "Shape" || op == "Size") {
+    if (n.input_size() != 1) return NodeError(idx, "expected one input");
+    Dims shape;
+    if (auto it = runtime_.find(n.input(0)); it != runtime_.end()) {
+      shape.assign(it->second.begin(), it->second.end());
+    } else {
+      SFRT_ONNX_ASSIGN_OR_RETURN(const Const in, GetConst(idx, 0));
+      shape = in.dims;
+    }
+    Const out;
+    out.type = TensorProto::INT64;
+    if (op == "Size") {
+      int64_t count = 1;
+      for (int64_t d : shape) count *= d;
+      out.ints = {count};
+    } else {
+      const auto rank = static_cast<int64_t>(shape.size());
+      SFRT_ONNX_ASSIGN_OR_RETURN(int64_t start, IntAttr(idx, "start", 0));
+      SFRT_ONNX_ASSIGN_OR_RETURN(int64_t end, IntAttr(idx, "end", rank));
+      if (start < 0) start += rank;
+      if (end < 0) end += rank;
+      start = std::clamp<int64_t>(start, 0, rank);
+      end = std::clamp<int64_t>(end, start, rank);
+      out.ints.assign(shape.begin() + start, shape.begin() + end);
+      out.dims = {end - start};
+    }
+    consts_[n.output(0)] = std::move(out);
+    return Status::Ok();
+  }
+
+  std::vector<std::optional<Const>> in(static_cast<size_t>(n.input_size()));
+  for (int k = 0; k < n.input_size(); ++k) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(in[k], GetOptionalConst(idx, k));
+  }
+  auto input = [&](size_t k) -> const Const* {
+    return k < in.size() && in[k].has_value() ? &*in[k] : nullptr;
+  };
+  auto need = [&](size_t count) -> Status {
+    for (size_t k = 0; k < count; ++k) {
+      if (input(k) == nullptr) {
+        return NodeError(idx, "needs input " + std::to_string(k) + ", which is missing");
+      }
+    }
+    return Status::Ok();
+  };
+  auto int_list = [&](size_t k, const char* what) -> Result<std::vector<int64_t>> {
+    const Const* c = input(k);
+    if (c == nullptr || c->is_real() || c->dims.size() > 1) {
+      return NodeError(idx, std::string("input '") + what + "' must be a 1-D integer tensor");
+    }
+    return c->ints;
+  };
+
+  Result<Const> result = Status::Error("unreached");
+
+  auto binary = [&](auto real_fn, auto int_fn) -> Result<Const> {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    return Elementwise(*input(0), *input(1), PromoteTypes(input(0)->type, input(1)->type), real_fn,
+                       int_fn);
+  };
+  auto compare = [&](auto real_fn) -> Result<Const> {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    return Elementwise(
+        *input(0), *input(1), TensorProto::BOOL,
+        [&](double x, double y) { return real_fn(x, y) ? 1.0 : 0.0; },
+        [&](int64_t x, int64_t y) -> Result<int64_t> {
+          return real_fn(static_cast<double>(x), static_cast<double>(y)) ? 1 : 0;
+        });
+  };
+  auto integer_compare = [&](auto fn) -> Result<Const> {  // exact for int64 values
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    return Elementwise(
+        *input(0), *input(1), TensorProto::BOOL,
+        [&](double x, double y) { return fn(x, y) ? 1.0 : 0.0; },
+        [&](int64_t x, int64_t y) -> Result<int64_t> { return fn(x, y) ? 1 : 0; });
+  };
+  auto unary = [&](auto real_fn, auto int_fn) -> Result<Const> {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    Const out = *input(0);
+    for (size_t i = 0; i < out.size(); ++i) {
+      if (out.is_real()) {
+        out.Set(i, real_fn(out.reals[i]));
+      } else {
+        out.SetInt(i, int_fn(out.ints[i]));
+      }
+    }
+    return out;
+  };
+
+  if (op == "Identity") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    result = *input(0);
+  } else if (op == "Cast") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t to, IntAttr(idx, "to", -1));
+    result = Cast(*input(0), static_cast<int>(to));
+  } else if (op == "CastLike") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    result = Cast(*input(0), input(1)->type);
+  } else if (op == "Concat") {
+    std::vector<const Const*> parts;
+    for (size_t k = 0; k < in.size(); ++k) {
+      if (input(k) != nullptr) parts.push_back(input(k));
+    }
+    if (FindAttr(idx, "axis") == nullptr) return NodeError(idx, "attribute 'axis' is missing");
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, IntAttr(idx, "axis", 0));
+    result = Concat(parts, axis);
+  } else if (op == "Gather") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, IntAttr(idx, "axis", 0));
+    result = Gather(*input(0), *input(1), axis);
+  } else if (op == "Unsqueeze" || op == "Squeeze") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    std::vector<int64_t> axes;
+    bool have_axes = false;
+    if (opset_ >= 13) {
+      if (input(1) != nullptr) {
+        SFRT_ONNX_ASSIGN_OR_RETURN(axes, int_list(1, "axes"));
+        have_axes = true;
+      }
+    } else {
+      SFRT_ONNX_ASSIGN_OR_RETURN(axes, IntsAttr(idx, "axes"));
+      have_axes = FindAttr(idx, "axes") != nullptr;
+    }
+    if (op == "Unsqueeze") {
+      if (!have_axes) return NodeError(idx, "axes are missing");
+      result = Unsqueeze(*input(0), axes);
+    } else {
+      result = Squeeze(*input(0), axes, have_axes);
+    }
+  } else if (op == "Reshape") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t allow_zero, IntAttr(idx, "allowzero", 0));
+    result = Reshape(*input(0), *input(1), allow_zero != 0);
+  } else if (op == "Expand") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    result = Expand(*input(0), *input(1));
+  } else if (op == "Tile") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    result = Tile(*input(0), *input(1));
+  } else if (op == "Transpose") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> perm, IntsAttr(idx, "perm"));
+    result = Transpose(*input(0), std::move(perm));
+  } else if (op == "Slice") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(3));
+    auto args = ReadSliceArgs(input(1), input(2), input(3), input(4),
+                              static_cast<int64_t>(input(0)->dims.size()));
+    if (!args.ok()) return NodeError(idx, args.message());
+    result = SliceConst(*input(0), *args);
+  } else if (op == "Range") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(3));
+    result = Range(*input(0), *input(1), *input(2));
+  } else if (op == "ConstantOfShape") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> shape, int_list(0, "input"));
+    Const value;
+    value.type = TensorProto::FLOAT;
+    value.reals = {0.0};
+    if (const auto* a = FindAttr(idx, "value"); a != nullptr) {
+      if (a->type() != onnx::AttributeProto::TENSOR) {
+        return NodeError(idx, "attribute 'value' is not a tensor");
+      }
+      auto decoded = DecodeTensor(a->t(), "attribute 'value'");
+      if (!decoded.ok()) return NodeError(idx, decoded.message());
+      value = std::move(decoded).value();
+      if (value.size() != 1) return NodeError(idx, "attribute 'value' must hold one element");
+    }
+    auto made = MakeConst(value.type, shape);
+    if (made.ok()) {
+      for (size_t i = 0; i < made->size(); ++i) CopyElement(value, 0, *made, i);
+    }
+    result = std::move(made);
+  } else if (op == "Add") {
+    result = binary([](double x, double y) { return x + y; },
+                    [](int64_t x, int64_t y) { return IntOk(WrapAdd(x, y)); });
+  } else if (op == "Sub") {
+    result = binary([](double x, double y) { return x - y; },
+                    [](int64_t x, int64_t y) { return IntOk(WrapSub(x, y)); });
+  } else if (op == "Mul") {
+    result = binary([](double x, double y) { return x * y; },
+                    [](int64_t x, int64_t y) { return IntOk(WrapMul(x, y)); });
+  } else if (op == "Div") {
+    result = binary([](double x, double y) { return x / y; },
+                    [](int64_t x, int64_t y) -> Result<int64_t> {
+                      if (y == 0) return Status::Error("integer division by zero");
+                      if (y == -1) return WrapSub(0, x);
+                      return x / y;  // truncates, as ONNX runtimes do
+                    });
+  } else if (op == "Mod") {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t fmod, IntAttr(idx, "fmod", 0));
+    result = binary(
+        [fmod](double x, double y) {
+          const double r = std::fmod(x, y);
+          return (fmod == 0 && r != 0.0 && ((r < 0) != (y < 0))) ? r + y : r;
+        },
+        [fmod](int64_t x, int64_t y) -> Result<int64_t> {
+          if (y == 0) return Status::Error("integer modulo by zero");
+          const int64_t r = y == -1 ? 0 : x % y;
+          return (fmod == 0 && r != 0 && ((r < 0) != (y < 0))) ? r + y : r;
+        });
+  } else if (op == "Pow") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(2));
+    result = Elementwise(
+        *input(0), *input(1), input(0)->type, [](double x, double y) { return std::pow(x, y); },
+        [](int64_t x, int64_t y) -> Result<int64_t> {
+          return ToInt64(std::round(std::pow(static_cast<double>(x), static_cast<double>(y))));
+        });
+  } else if (op == "Min" || op == "Max") {
+    const bool is_min = op == "Min";
+    std::optional<Const> acc;
+    for (size_t k = 0; k < in.size(); ++k) {
+      if (input(k) == nullptr) continue;
+      if (!acc.has_value()) {
+        acc = *input(k);
+        continue;
+      }
+      auto next = Elementwise(
+          *acc, *input(k), PromoteTypes(acc->type, input(k)->type),
+          [is_min](double x, double y) { return is_min ? std::min(x, y) : std::max(x, y); },
+          [is_min](int64_t x, int64_t y) {
+            return IntOk(is_min ? std::min(x, y) : std::max(x, y));
+          });
+      if (!next.ok()) return NodeError(idx, next.message());
+      acc = std::move(next).value();
+    }
+    if (!acc.has_value()) return NodeError(idx, "has no inputs");
+    result = std::move(*acc);
+  } else if (op == "Clip") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(1));
+    Const out = *input(0);
+    const Const* lo = input(1);
+    const Const* hi = input(2);
+    if ((lo != nullptr && lo->size() != 1) || (hi != nullptr && hi->size() != 1)) {
+      return NodeError(idx, "inputs 'min' and 'max' must be scalars");
+    }
+    for (size_t i = 0; i < out.size(); ++i) {
+      if (out.is_real()) {
+        double v = out.reals[i];
+        if (lo != nullptr) v = std::max(v, lo->Real(0));
+        if (hi != nullptr) v = std::min(v, hi->Real(0));
+        out.Set(i, v);
+      } else {
+        int64_t v = out.ints[i];
+        if (lo != nullptr) v = std::max(v, lo->Int(0));
+        if (hi != nullptr) v = std::min(v, hi->Int(0));
+        out.SetInt(i, v);
+      }
+    }
+    result = std::move(out);
+  } else if (op == "Equal") {
+    result = integer_compare([](auto x, auto y) { return x == y; });
+  } else if (op == "Less") {
+    result = integer_compare([](auto x, auto y) { return x < y; });
+  } else if (op == "Greater") {
+    result = integer_compare([](auto x, auto y) { return x > y; });
+  } else if (op == "LessOrEqual") {
+    result = integer_compare([](auto x, auto y) { return x <= y; });
+  } else if (op == "GreaterOrEqual") {
+    result = integer_compare([](auto x, auto y) { return x >= y; });
+  } else if (op == "And") {
+    result = compare([](double x, double y) { return x != 0 && y != 0; });
+  } else if (op == "Or") {
+    result = compare([](double x, double y) { return x != 0 || y != 0; });
+  } else if (op == "Xor") {
+    result = compare([](double x, double y) { return (x != 0) != (y != 0); });
+  } else if (op == "Not") {
+    result = unary([](double x) { return x == 0 ? 1.0 : 0.0; },
+                   [](int64_t x) -> int64_t { return x == 0 ? 1 : 0; });
+  } else if (op == "Neg") {
+    result = unary([](double x) { return -x; }, [](int64_t x) { return WrapSub(0, x); });
+  } else if (op == "Abs") {
+    result = unary([](double x) { return std::fabs(x); },
+                   [](int64_t x) { return x < 0 ? WrapSub(0, x) : x; });
+  } else if (op == "Sign") {
+    result = unary([](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); },
+                   [](int64_t x) -> int64_t { return x > 0 ? 1 : (x < 0 ? -1 : 0); });
+  } else if (op == "Floor") {
+    result = unary([](double x) { return std::floor(x); }, [](int64_t x) { return x; });
+  } else if (op == "Ceil") {
+    result = unary([](double x) { return std::ceil(x); }, [](int64_t x) { return x; });
+  } else if (op == "Round") {  // half to even
+    result = unary([](double x) { return std::nearbyint(x); }, [](int64_t x) { return x; });
+  } else if (op == "Sqrt") {
+    result = unary([](double x) { return std::sqrt(x); },
+                   [](int64_t x) { return ToInt64(std::sqrt(static_cast<double>(x))); });
+  } else if (op == "Reciprocal") {
+    result = unary([](double x) { return 1.0 / x; },
+                   [](int64_t x) -> int64_t { return x == 0 ? 0 : 1 / x; });
+  } else if (op == "Where") {
+    SFRT_ONNX_RETURN_IF_ERROR(need(3));
+    const Const& cond = *input(0);
+    const Const& x = *input(1);
+    const Const& y = *input(2);
+    auto dims = BroadcastDims({&cond.dims, &x.dims, &y.dims});
+    if (!dims.ok()) return NodeError(idx, dims.message());
+    auto out = MakeConst(PromoteTypes(x.type, y.type), *dims);
+    if (out.ok()) {
+      for (size_t i = 0; i < out->size(); ++i) {
+        const bool pick_x = cond.Real(SourceIndex(i, *dims, cond.dims)) != 0.0;
+        const Const& src = pick_x ? x : y;
+        CopyElement(src, SourceIndex(i, *dims, src.dims), *out, i);
+      }
+    }
+    result = std::move(out);
+  } else {
+    return Unsupported(idx, "");
+  }
+  if (!result.ok()) {
+    // Helper errors are bare details; node-level errors already carry the file name.
+    if (result.message().rfind(path_ + ": ", 0) == 0) return result.status();
+    return NodeError(idx, result.message());
+  }
+  consts_[n.output(0)] = std::move(result).value();
+  return Status::Ok();
+}
+
+Status Importer::ProcessConv(int idx, ChainOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (n.input_size() < 2) return NodeError(idx, "needs a weight input");
+  Dims wdims;
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<float> w, GetFloats(idx, 1, &wdims));
+  if (wdims.size() != 4) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has shape " + JoinInts(wdims) +
+                              "; only 2-D convolutions (OIHW weights) are supported");
+  }
+  const int64_t out_ch = wdims[0], in_ch = wdims[1], kh = wdims[2], kw = wdims[3];
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t group, IntAttr(idx, "group", 1));
+  if (group != 1) {
+    return NodeError(
+        idx, "attribute 'group' = " + std::to_string(group) + " is not supported (only group 1)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, IntsAttr(idx, "dilations"));
+  for (int64_t d : dilations) {
+    if (d != 1) {
+      return NodeError(idx, "attribute 'dilations' = " + JoinInts(dilations) +
+                                " is not supported (only dilation 1)");
+    }
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
+                             IntsAttr(idx, "kernel_shape"));
+  if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{kh, kw}) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts(kernel_shape) +
+                              " does not match the weight shape " + JoinInts(wdims));
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> strides, IntsAttr(idx, "strides"));
+  if (strides.empty()) strides = {1, 1};
+  if (strides.size() != 2 || strides[0] < 1 || strides[1] < 1) {
+    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) + " is not supported");
+  }
+  if (in_ch != op.in_shape[1]) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " expects " + std::to_string(in_ch) +
+                              " input channels, the input tensor " + Quote(op.input) + " has " +
+                              std::to_string(op.in_shape[1]));
+  }
+  if (out_ch < 1 || kh < 1 || kw < 1) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has an empty shape " + JoinInts(wdims));
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
+  const int64_t in_h = op.in_shape[2];
+  const int64_t in_w = op.in_shape[3];
+  Pads p;
+  if (auto_pad == "NOTSET") {
+    if (pads.empty()) pads = {0, 0, 0, 0};
+    if (pads.size() != 4) {
+      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
+    }
+    for (int64_t v : pads) {
+      if (v < 0 || v > std::numeric_limits<int32_t>::max()) {
+        return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " is not supported");
+      }
+    }
+    p = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
+             static_cast<int>(pads[3])};
+  } else if (auto_pad == "VALID") {
+    p = Pads{};
+  } else if (auto_pad == "SAME_UPPER") {
+    p = SameUpperPads(in_h, in_w, static_cast<int>(kh), static_cast<int>(kw),
+                      static_cast<int>(strides[0]), static_cast<int>(strides[1]));
+  } else {
+    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
+                              " is not supported (NOTSET, SAME_UPPER, VALID)");
+  }
+  const int64_t padded_h = in_h + p.top + p.bottom;
+  const int64_t padded_w = in_w + p.left + p.right;
+  if (padded_h < kh || padded_w < kw) {
+    return NodeError(idx, "kernel " + std::to_string(kh) + "x" + std::to_string(kw) +
+                              " is larger than the padded input " + std::to_string(padded_h) + "x" +
+                              std::to_string(padded_w));
+  }
+  op.out_shape = {1, out_ch, (padded_h - kh) / strides[0] + 1, (padded_w - kw) / strides[1] + 1};
+
+  ConvSpec& c = op.conv;
+  c.name = n.name();
+  c.in_channels = static_cast<int>(in_ch);
+  c.out_channels = static_cast<int>(out_ch);
+  c.kernel_h = static_cast<int>(kh);
+  c.kernel_w = static_cast<int>(kw);
+  c.stride_h = static_cast<int>(strides[0]);
+  c.stride_w = static_cast<int>(strides[1]);
+  c.pads = p;
+  c.weights_hwio.resize(w.size());
+  for (int64_t co = 0; co < out_ch; ++co) {
+    for (int64_t ci = 0; ci < in_ch; ++ci) {
+      for (int64_t ky = 0; ky < kh; ++ky) {
+        for (int64_t kx = 0; kx < kw; ++kx) {
+          c.weights_hwio[((ky * kw + kx) * in_ch + ci) * out_ch + co] =
+              w[((co * in_ch + ci) * kh + ky) * kw + kx];
+        }
+      }
+    }
+  }
+  c.bias.assign(static_cast<size_t>(out_ch), 0.0f);
+  if (n.input_size() > 2 && !n.input(2).empty()) {
+    Dims bdims;
+    SFRT_ONNX_ASSIGN_OR_RETURN(c.bias, GetFloats(idx, 2, &bdims));
+    if (bdims != Dims{out_ch}) {
+      return NodeError(idx, "bias " + Quote(n.input(2)) + " has shape " + JoinInts(bdims) +
+                                ", expected [" + std::to_string(out_ch) + "]");
+    }
+  }
+  return Status::Ok();
+}
+
+Status Importer::ProcessPad(int idx, ChainOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "constant"));
+  if (mode != "constant") {
+    return NodeError(idx, "attribute 'mode' = " + Quote(mode) +
+                              " is not supported (only constant zero padding)");
+  }
+  if (n.input_size() < 2 || n.input(1).empty()) return NodeError(idx, "input 'pads' is missing");
+  if (n.input_size() > 3 && !n.input(3).empty()) {
+    return NodeError(idx, "input 'axes' is not supported");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const Const pads_c, GetConst(idx, 1));
+  if (pads_c.is_real() || pads_c.size() != 8) {
+    return NodeError(idx, "input 'pads' must hold 8 integers (NCHW begins, then ends)");
+  }
+  const std::vector<int64_t>& pv = pads_c.ints;
+  if (pv[0] != 0 || pv[1] != 0 || pv[4] != 0 || pv[5] != 0) {
+    return NodeError(idx, "input 'pads' = " + JoinInts(pv) +
+                              " pads the batch or channel axis; only H and W can be padded");
+  }
+  for (int64_t v : pv) {
+    if (v < 0 || v > std::numeric_limits<int32_t>::max() / 4) {
+      return NodeError(
+          idx, "input 'pads' = " + JoinInts(pv) + " is not supported (negative or huge amounts)");
+    }
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> value, GetOptionalConst(idx, 2));
+  if (value.has_value()) {
+    if (value->size() > 1) return NodeError(idx, "input 'constant_value' must be a scalar");
+    if (value->size() == 1 && value->Real(0) != 0.0) {
+      return NodeError(idx, "input 'constant_value' = " + FormatDouble(value->Real(0)) +
+                                " is not supported (only zero padding)");
+    }
+  }
+  op.pads = Pads{static_cast<int>(pv[2]), static_cast<int>(pv[3]), static_cast<int>(pv[6]),
+                 static_cast<int>(pv[7])};
+  op.out_shape = {op.in_shape[0], op.in_shape[1], op.in_shape[2] + pv[2] + pv[6],
+                  op.in_shape[3] + pv[3] + pv[7]};
+  return Status::Ok();
+}
+
+Status Importer::ProcessResize(int idx, ChainOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const bool is_resize = n.op_type() == "Resize";
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "nearest"));
+  if (mode != "nearest") {
+    return NodeError(idx, "attribute 'mode' = " + Quote(mode) + " is not supported (only nearest)");
+  }
+  std::string ctm = "asymmetric";
+  std::string nearest_mode = "floor";  // Upsample: in[floor(y / scale)]
+  if (is_resize) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(ctm,
+                               StringAttr(idx, "coordinate_transformation_mode", "half_pixel"));
+    SFRT_ONNX_ASSIGN_OR_RETURN(nearest_mode, StringAttr(idx, "nearest_mode", "round_prefer_floor"));
+  }
+  // Scales or sizes.
+  std::vector<double> scales;
+  std::vector<int64_t> sizes;
+  if (is_resize) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> s, GetOptionalConst(idx, 2));
+    SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> z, GetOptionalConst(idx, 3));
+    if (s.has_value() && s->size() > 0) {
+      for (size_t i = 0; i < s->size(); ++i) scales.push_back(s->Real(i));
+    }
+    if (z.has_value() && z->size() > 0) {
+      if (z->is_real()) return NodeError(idx, "input 'sizes' must be integers");
+      sizes = z->ints;
+    }
+    if (scales.empty() == sizes.empty()) {
+      return NodeError(idx, "exactly one of the inputs 'scales' and 'sizes' must be given");
+    }
+  } else if (n.input_size() > 1 && !n.input(1).empty()) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const Const s, GetConst(idx, 1));
+    for (size_t i = 0; i < s.size(); ++i) scales.push_back(s.Real(i));
+  } else if (const auto* a = FindAttr(idx, "scales"); a != nullptr) {
+    scales.assign(a->floats().begin(), a->floats().end());
+  } else {
+    return NodeError(idx, "no scales given");
+  }
+  int64_t factors[4] = {1, 1, 1, 1};
+  if (!scales.empty()) {
+    if (scales.size() != 4) {
+      return NodeError(idx, "input 'scales' = " + JoinReals(scales) + " must have 4 values (NCHW)");
+    }
+    for (int k = 0; k < 4; ++k) {
+      const double r = std::round(scales[k]);
+      if (!std::isfinite(scales[k]) || r < 1.0 || r > 1024.0 || std::fabs(scales[k] - r) > 1e-6) {
+        return NodeError(idx, "input 'scales' = " + JoinReals(scales) + ": value " +
+                                  FormatDouble(scales[k]) + " on axis " + std::to_string(k) +
+                                  " is not a positive integer factor");
+      }
+      factors[k] = static_cast<int64_t>(r);
+    }
+  } else {
+    if (sizes.size() != 4) {
+      return NodeError(idx, "input 'sizes' = " + JoinInts(sizes) + " must have 4 values (NCHW)");
+    }
+    for (int k = 0; k < 4; ++k) {
+      if (sizes[k] < op.in_shape[k] || sizes[k] % op.in_shape[k] != 0 ||
+          sizes[k] / op.in_shape[k] > 1024) {
+        return NodeError(idx, "input 'sizes' = " + JoinInts(sizes) + " for an input of shape " +
+                                  ShapeText(op.in_shape) + ": axis " + std::to_string(k) +
+                                  " is not a positive integer factor");
+      }
+      factors[k] = sizes[k] / op.in_shape[k];
+    }
+  }
+  if (factors[0] != 1 || factors[1] != 1) {
+    return NodeError(idx, "scales the batch or channel axis (factors " +
+                              JoinInts({factors[0], factors[1]}) + "); only H and W");
+  }
+  for (int k = 2; k < 4; ++k) {
+    if (!NearestIsFloorOfQuotient(ctm, nearest_mode, factors[k])) {
+      return NodeError(idx, "attribute 'coordinate_transformation_mode' = " + Quote(ctm) +
+                                " with 'nearest_mode' = " + Quote(nearest_mode) +
+                                " is not in[floor(y / " + std::to_string(factors[k]) +
+                                ")] nearest upsampling (accepted: asymmetric + "
+                                "floor; half_pixel or pytorch_half_pixel + round_prefer_floor or "
+                                "round_prefer_ceil; tf_half_pixel_for_nn + floor; asymmetric + "
+                                "round_prefer_floor and align_corners + round_prefer_floor or "
+                                "round_prefer_ceil at factors up to 2)");
+    }
+  }
+  op.factor_h = static_cast<int>(factors[2]);
+  op.factor_w = static_cast<int>(factors[3]);
+  op.out_shape = {op.in_shape[0], op.in_shape[1], op.in_shape[2] * factors[2],
+                  op.in_shape[3] * factors[3]};
+  return Status::Ok();
+}
+
+Status Importer::ProcessSlice(int idx, ChainOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (n.input_size() < 3) return NodeError(idx, "needs inputs 'starts' and 'ends'");
+  SFRT_ONNX_ASSIGN_OR_RETURN(const Const starts, GetConst(idx, 1));
+  SFRT_ONNX_ASSIGN_OR_RETURN(const Const ends, GetConst(idx, 2));
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> axes, GetOptionalConst(idx, 3));
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> steps, GetOptionalConst(idx, 4));
+  auto args = ReadSliceArgs(&starts, &ends, axes ? &*axes : nullptr, steps ? &*steps : nullptr, 4);
+  if (!args.ok()) return NodeError(idx, args.message());
+  op.out_shape = op.in_shape;
+  Pads removed;
+  for (size_t i = 0; i < args->axes.size(); ++i) {
+    const int64_t axis = args->axes[i];
+    if (args->steps[i] != 1) {
+      return NodeError(
+          idx, "input 'steps' = " + JoinInts(args->steps) + " is not supported (only step 1)");
+    }
+    const int64_t dim = op.in_shape[axis];
+    const SliceAxis s = ClampSlice(args->starts[i], args->ends[i], 1, dim);
+    const int64_t before = s.start;
+    const int64_t after = dim - s.start - s.count;
+    if (s.count < 1) {
+      return NodeError(idx, "slice of axis " + std::to_string(axis) + " with starts " +
+                                JoinInts(args->starts) + " and ends " + JoinInts(args->ends) +
+                                " is empty");
+    }
+    if (axis < 2) {
+      if (before != 0 || after != 0) {
+        return NodeError(idx, "slices axis " + std::to_string(axis) +
+                                  (axis == 0 ? " (batch)" : " (channels)") + " with starts " +
+                                  JoinInts(args->starts) + " and ends " + JoinInts(args->ends) +
+                                  "; only H and W (axes 2, 3) can be cropped");
+      }
+      continue;
+    }
+    if (axis == 2) {
+      removed.top = static_cast<int>(before);
+      removed.bottom = static_cast<int>(after);
+    } else {
+      removed.left = static_cast<int>(before);
+      removed.right = static_cast<int>(after);
+    }
+    op.out_shape[axis] = s.count;
+  }
+  op.pads = removed;
+  return Status::Ok();
+}
+
+Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const std::string& type = n.op_type();
+  if (n.output_size() < 1 || n.output(0).empty()) return NodeError(idx, "has no output");
+  // Only input 0 carries activations; every other input must be a constant.
+  for (int k = 1; k < n.input_size(); ++k) {
+    if (runtime_.count(n.input(k)) > 0) {
+      return NodeError(idx, "input " + std::to_string(k) + " " + Quote(n.input(k)) +
+                                " depends on the network input; only input 0 may");
+    }
+  }
+  ChainOp op;
+  op.node_index = idx;
+  op.input = n.input(0);
+  op.output = n.output(0);
+  op.in_shape = in_shape;
+  op.out_shape = in_shape;
+  if (type == "Conv") {
+    op.kind = ChainOp::Kind::kConv;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessConv(idx, op));
+  } else if (type == "Pad") {
+    op.kind = ChainOp::Kind::kPad;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessPad(idx, op));
+  } else if (type == "LeakyRelu") {
+    op.kind = ChainOp::Kind::kActivation;
+    op.activation = Activation::kLeakyRelu;
+    SFRT_ONNX_ASSIGN_OR_RETURN(op.slope, FloatAttr(idx, "alpha", 0.01f));
+  } else if (type == "Relu") {
+    op.kind = ChainOp::Kind::kActivation;
+    op.activation = Activation::kRelu;
+  } else if (type == "Resize" || type == "Upsample") {
+    op.kind = ChainOp::Kind::kUpsample;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessResize(idx, op));
+  } else if (type == "Slice") {
+    op.kind = ChainOp::Kind::kSlice;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessSlice(idx, op));
+  } else if (type == "Identity") {
+    op.kind = ChainOp::Kind::kIdentity;
+  } else {
+    return Unsupported(idx, "");  // ProcessNode only routes runtime ops here
+  }
+  for (int64_t d : op.out_shape) {
+    if (d > std::numeric_limits<int32_t>::max()) {
+      return NodeError(idx, "output shape " + ShapeText(op.out_shape) + " is too large");
+    }
+  }
+  runtime_[op.output] = op.out_shape;
+  producer_op_[op.output] = ops_.size();
+  ops_.push_back(std::move(op));
+  return Status::Ok();
+}
+
+Status Importer::ProcessNode(int idx) {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (!n.domain().empty() && n.domain() != "ai.onnx") {
+    return Unsupported(idx, "; domain " + Quote(n.domain()) + " is not the default ONNX domain");
+  }
+  if (n.op_type() == "Constant") return ProcessConstant(idx);
+  // Every input must be known by now (ONNX graphs are topologically sorted).
+  int runtime_slot = -1;
+  for (int k = 0; k < n.input_size(); ++k) {
+    const std::string& name = n.input(k);
+    if (name.empty()) continue;
+    if (runtime_.count(name) > 0) {
+      if (runtime_slot < 0) runtime_slot = k;
+      continue;
+    }
+    if (!IsConst(name)) {
+      return NodeError(idx, "input " + Quote(name) +
+                                " is not produced by an earlier node, an initializer or the "
+                                "graph input");
+    }
+  }
+  const std::string& type = n.op_type();
+  if (runtime_slot < 0 || type == "Shape" || type == "Size") {
+    if (Contains(kFoldableOps, type)) return FoldNode(idx);
+    if (Contains(kRuntimeOps, type)) {
+      return Unsupported(idx, "; " + Printable(type) +
+                                  " on constant data only (it does not depend on the network "
+                                  "input) cannot be evaluated at import");
+    }
+    return Unsupported(idx, "");
+  }
+  if (!Contains(kRuntimeOps, type)) {
+    return Unsupported(idx, Contains(kFoldableOps, type)
+                                ? "; " + Printable(type) +
+                                      " is only evaluated when all its inputs are constants, and "
+                                      "input " +
+                                      Quote(n.input(runtime_slot)) + " depends on the network input"
+                                : "");
+  }
+  if (runtime_slot != 0) {
+    return NodeError(idx, "input " + std::to_string(runtime_slot) + " " +
+                              Quote(n.input(runtime_slot)) +
+                              " depends on the network input; only input 0 may");
+  }
+  return ProcessRuntimeNode(idx, runtime_.at(n.input(0)));
+}
+
+Result<ModelSpec> Importer::Assemble() {
+  if (graph().output_size() != 1) {
+    return FileError("graph has " + std::to_string(graph().output_size()) +
+                     " outputs; the network has exactly one (1, 3, H, W) output");
+  }
+  const std::string& out_name = graph().output(0).name();
+  if (runtime_.count(out_name) == 0) {
+    return FileError("graph output " + Quote(out_name) +
+                     (IsConst(out_name) ? " is a constant: it does not depend on the input"
+                                        : " is not produced by any node"));
+  }
+  // The chain: walk back from the output along input 0.
+  std::vector<size_t> chain;
+  for (std::string name = out_name; name != input_name_;) {
+    const size_t i = producer_op_.at(name);
+    chain.push_back(i);
+    name = ops_[i].input;
+  }
+  std::reverse(chain.begin(), chain.end());
+
+  // Runtime consumers of each tensor (Shape/Size consumers only read the static shape).
+  std::unordered_map<std::string, std::vector<size_t>> consumers;
+  for (size_t i = 0; i < ops_.size(); ++i) consumers[ops_[i].input].push_back(i);
+  for (size_t pos = 0; pos < chain.size(); ++pos) {
+    const ChainOp& op = ops_[chain[pos]];
+    const auto& users = consumers[op.output];
+    const size_t expected = pos + 1 < chain.size() ? 1 : 0;
+    if (users.size() != expected) {
+      std::string others;
+      for (size_t u : users) {
+        if (pos + 1 < chain.size() && u == chain[pos + 1]) continue;
+        others += (others.empty() ? "" : ", ") + NodeLabel(ops_[u].node_index);
+      }
+      return FileError(NodeLabel(op.node_index) + ": output " + Quote(op.output) +
+                       " is also used by " + others +
+                       "; the runtime executes a single chain (no branches)");
+    }
+  }
+
+  ModelSpec spec;
+  std::set<std::string> used_names;
+  auto unique_name = [&used_names](const std::string& wanted, const std::string& prefix,
+                                   int counter) {
+    std::string base = wanted.empty() ? prefix + std::to_string(counter) : wanted;
+    std::string name = base;
+    for (int k = 2; used_names.count(name) > 0; ++k) name = base + "_" + std::to_string(k);
+    used_names.insert(name);
+    return name;
+  };
+
+  struct ConvTrace {
+    size_t layer = 0;
+    int node_index = 0;
+    int64_t in_h = 0;  // before any folded Pad
+    int64_t in_w = 0;
+  };
+  struct CropTrace {
+    size_t layer = 0;
+    int64_t out_h = 0;
+    int64_t out_w = 0;
+  };
+  std::vector<ConvTrace> convs;
+  std::vector<CropTrace> crops;
+  Pads pending;
+  std::vector<int> pending_pads;  // node indices of Pads waiting for their Conv
+  Shape4 pre_pad_shape{};
+  int prev_node = -1;          // previous non-Identity chain node
+  bool conv_can_fuse = false;  // the last layer is a Conv with no activation, directly before
+  bool last_was_slice = false;
+  int num_convs = 0, num_ups = 0, num_crops = 0;
+
+  for (size_t i : chain) {
+    const ChainOp& op = ops_[i];
+    if (op.kind == ChainOp::Kind::kIdentity) continue;
+    if (!pending_pads.empty() && op.kind != ChainOp::Kind::kConv &&
+        op.kind != ChainOp::Kind::kPad) {
+      return FileError(NodeLabel(pending_pads.back()) +
+                       ": a Pad must be followed by a Conv (it is folded into the Conv's "
+                       "padding), but it is followed by " +
+                       NodeLabel(op.node_index));
+    }
+    switch (op.kind) {
+      case ChainOp::Kind::kPad:
+        if (pending_pads.empty()) pre_pad_shape = op.in_shape;
+        pending.top += op.pads.top;
+        pending.left += op.pads.left;
+        pending.bottom += op.pads.bottom;
+        pending.right += op.pads.right;
+        pending_pads.push_back(op.node_index);
+        conv_can_fuse = false;
+        last_was_slice = false;
+        break;
+      case ChainOp::Kind::kConv: {
+        ConvSpec conv = op.conv;
+        const Shape4 traced_in = pending_pads.empty() ? op.in_shape : pre_pad_shape;
+        conv.pads.top += pending.top;
+        conv.pads.left += pending.left;
+        conv.pads.bottom += pending.bottom;
+        conv.pads.right += pending.right;
+        pending = Pads{};
+        pending_pads.clear();
+        conv.name = unique_name(conv.name, "conv", num_convs++);
+        convs.push_back({spec.layers.size(), op.node_index, traced_in[2], traced_in[3]});
+        spec.layers.emplace_back(std::move(conv));
+        conv_can_fuse = true;
+        last_was_slice = false;
+        break;
+      }
+      case ChainOp::Kind::kActivation: {
+        if (!conv_can_fuse) {
+          return FileError(NodeLabel(op.node_index) +
+                           ": an activation must directly follow a Conv (it is fused into it), "
+                           "but it follows " +
+                           (prev_node < 0 ? std::string("the graph input") : NodeLabel(prev_node)));
+        }
+        auto& conv = std::get<ConvSpec>(spec.layers.back());
+        conv.activation = op.activation;
+        conv.leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
+        conv_can_fuse = false;
+        break;
+      }
+      case ChainOp::Kind::kUpsample: {
+        UpsampleSpec up;
+        up.name = unique_name(graph().node(op.node_index).name(), "up", num_ups++);
+        up.factor_h = op.factor_h;
+        up.factor_w = op.factor_w;
+        spec.layers.emplace_back(std::move(up));
+        conv_can_fuse = false;
+        last_was_slice = false;
+        break;
+      }
+      case ChainOp::Kind::kSlice: {
+        if (last_was_slice) {  // merge consecutive slices into one crop
+          auto& crop = std::get<CropSpec>(spec.layers.back());
+          crop.amounts.top += op.pads.top;
+          crop.amounts.left += op.pads.left;
+          crop.amounts.bottom += op.pads.bottom;
+          crop.amounts.right += op.pads.right;
+          crops.back().out_h = op.out_shape[2];
+          crops.back().out_w = op.out_shape[3];
+        } else {
+          CropSpec crop;
+          crop.name = unique_name(graph().node(op.node_index).name(), "crop", num_crops++);
+          crop.amounts = op.pads;
+          crops.push_back({spec.layers.size(), op.out_shape[2], op.out_shape[3]});
+          spec.layers.emplace_back(std::move(crop));
+        }
+        conv_can_fuse = false;
+        last_was_slice = true;
+        break;
+      }
+      case ChainOp::Kind::kIdentity:
+        break;
+    }
+    prev_node = op.node_index;
+  }
+  if (!pending_pads.empty()) {
+    return FileError(NodeLabel(pending_pads.back()) +
+                     ": a Pad must be followed by a Conv (it is folded into the Conv's "
+                     "padding), but it ends the graph");
+  }
+  if (spec.layers.empty()) return FileError("graph has no layers between input and output");
+
+  // Padding rule.
+  bool all_same_upper = true;
+  for (const ConvTrace& t : convs) {
+    auto& conv = std::get<ConvSpec>(spec.layers[t.layer]);
+    const Pads same =
+        SameUpperPads(t.in_h, t.in_w, conv.kernel_h, conv.kernel_w, conv.stride_h, conv.stride_w);
+    if (conv.pads == same) continue;
+    all_same_upper = false;
+    if (options_.padding == PaddingDetection::kSameUpper) {
+      return FileError("conv " + Quote(conv.name) + ": traced pads " + PadsText(conv.pads) +
+                       " at input " + std::to_string(t.in_h) + "x" + std::to_string(t.in_w) +
+                       " differ from the SAME_UPPER pads " + PadsText(same) +
+                       "; cannot force padding rule SameUpper");
+    }
+  }
+  const bool same_upper = options_.padding == PaddingDetection::kSameUpper ||
+                          (options_.padding == PaddingDetection::kAuto && all_same_upper);
+  for (const ConvTrace& t : convs) {
+    std::get<ConvSpec>(spec.layers[t.layer]).padding_rule =
+        same_upper ? PaddingRule::kSameUpper : PaddingRule::kExplicit;
+  }
+
+  // Crop rule: a crop that restores the input size, removing on one side per axis, is the
+  // "crop to the input size" rule; anything else keeps its numbers.
+  for (const CropTrace& t : crops) {
+    auto& crop = std::get<CropSpec>(spec.layers[t.layer]);
+    const Pads& a = crop.amounts;
+    const bool one_sided_rows = a.top == 0 || a.bottom == 0;
+    const bool one_sided_cols = a.left == 0 || a.right == 0;
+    if (t.out_h == input_shape_[2] && t.out_w == input_shape_[3] && one_sided_rows &&
+        one_sided_cols) {
+      crop.rule = CropRule::kToInputSize;
+      crop.excess_rows_from_top = a.top > 0 || a.bottom == 0;
+      crop.excess_cols_from_left = a.left > 0 || a.right == 0;
+    } else {
+      crop.rule = CropRule::kExplicit;
+    }
+  }
+
+  const Shape4& out_shape = runtime_.at(out_name);
+  spec.input.channels = static_cast<int>(input_shape_[1]);
+  spec.input.traced_height = static_cast<int>(input_shape_[2]);
+  spec.input.traced_width = static_cast<int>(input_shape_[3]);
+  spec.output.channels = static_cast<int>(out_shape[1]);
+  return spec;
+}
+
+Result<ModelSpec> Importer::Run() {
+  SFRT_ONNX_RETURN_IF_ERROR(Load());
+  SFRT_ONNX_RETURN_IF_ERROR(ReadOpset());
+  SFRT_ONNX_RETURN_IF_ERROR(ReadInitializers());
+  SFRT_ONNX_RETURN_IF_ERROR(ReadInput());
+  const std::vector<bool> live = LiveNodes();
+  for (int i = 0; i < graph().node_size(); ++i) {
+    if (live[i]) SFRT_ONNX_RETURN_IF_ERROR(ProcessNode(i));
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(ModelSpec spec, Assemble());
+  spec.producer.source_format = "onnx";
+  spec.producer.source_file = std::filesystem::path(path_).filename().string();
+  SFRT_ONNX_ASSIGN_OR_RETURN(spec.producer.source_sha256, Sha256OfFile(path_));
+  return spec;
+}
+
+}  // namespace
+
+Result<ModelSpec> ImportOnnx(const std::string& path, const OnnxImportOptions& options) {
+  Importer importer(path, options);
+  Result<ModelSpec> result = importer.Run();
+  if (result.ok()) return result;
+  return Status::Error(Printable(result.message()));  // one line, whatever the file contained
+}
+
+}  // namespace sfrt::exporter

@@ -1,0 +1,161 @@
+#include "sfrt/exporter/model_writer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "common/sceneednet_spec.h"
+#include "sfrt/crc32c.h"
+#include "sfrt/exporter/sha256.h"
+#include "sfrt/model.h"
+
+namespace sfrt::exporter {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(Sha256, MatchesFips180Examples) {
+  Sha256 empty;
+  EXPECT_EQ(empty.FinishHex(), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  Sha256 abc;
+  abc.Update("abc", 3);
+  EXPECT_EQ(abc.FinishHex(), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  // Two blocks, fed in uneven pieces.
+  const std::string msg = "abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq";
+  Sha256 split;
+  split.Update(msg.data(), 5);
+  split.Update(msg.data() + 5, msg.size() - 5);
+  EXPECT_EQ(split.FinishHex(), "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+}
+
+TEST(Sha256, OfFileMatchesTheSystemSha256sum) {
+  const fs::path path = fs::temp_directory_path() / "sfrt_sha_test.bin";
+  {
+    std::ofstream out(path, std::ios::binary);
+    for (int i = 0; i < 300000; ++i) out.put(static_cast<char>(i * 7 + (i >> 8)));
+  }
+  auto ours = Sha256OfFile(path.string());
+  ASSERT_TRUE(ours.ok()) << ours.message();
+  const std::string cmd = "sha256sum " + path.string() + " > " + path.string() + ".sum";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  std::string theirs;
+  std::ifstream(path.string() + ".sum") >> theirs;
+  EXPECT_EQ(*ours, theirs);
+  fs::remove(path);
+  fs::remove(path.string() + ".sum");
+}
+
+TEST(Sha256, OfMissingFileNamesIt) {
+  auto r = Sha256OfFile("/nonexistent/x.onnx");
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.message().find("/nonexistent/x.onnx"), std::string::npos);
+}
+
+TEST(Crc32c, MatchesTheStandardCheckValue) {
+  // The CRC-32C catalogue's check value for "123456789".
+  EXPECT_EQ(Crc32c(0, "123456789", 9), 0xE3069283u);
+  // Incremental use equals one pass, across the 8-byte slicing boundary.
+  const std::string s = "The quick brown fox jumps over the lazy dog";
+  EXPECT_EQ(Crc32c(Crc32c(0, s.data(), 13), s.data() + 13, s.size() - 13), Crc32c(0, s.data(), s.size()));
+}
+
+TEST(ModelWriter, RoundTripsEveryFieldThroughTheRuntimeLoader) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  spec.input.color_order = ColorOrder::kRGB;
+  spec.input.image_order = {ImageSlot::kLeft1, ImageSlot::kRight1, ImageSlot::kLeft0, ImageSlot::kRight0};
+  spec.input.scale = 1.0f / 255.0f;
+  spec.input.mean = {0.1f, 0.2f, 0.3f};
+  spec.input.std = {0.5f, 0.6f, 0.7f};
+  spec.input.traced_height = 67;
+  spec.input.traced_width = 121;
+  spec.camera = {721.5f, 0.54f, 609.5f, 172.8f};
+  spec.producer = {"9.9.9", "onnx", "m.onnx", "ab12"};
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  const ModelMetadata& md = (*model)->metadata();
+  EXPECT_EQ(md.input.color_order, "RGB");
+  EXPECT_EQ(md.input.image_order, (std::vector<std::string>{"left1", "right1", "left0", "right0"}));
+  EXPECT_FLOAT_EQ(md.input.scale, 1.0f / 255.0f);
+  EXPECT_FLOAT_EQ(md.input.mean[2], 0.3f);
+  EXPECT_FLOAT_EQ(md.input.std[1], 0.6f);
+  EXPECT_EQ(md.input.traced_height, 67);
+  EXPECT_FLOAT_EQ(md.camera.baseline, 0.54f);
+  EXPECT_EQ(md.exporter_version, "9.9.9");
+  EXPECT_EQ(md.source_file, "m.onnx");
+  EXPECT_EQ(md.output.channel_names, (std::vector<std::string>{"dX", "dY", "dZ"}));
+  const auto& conv = std::get<ConvSpec>(spec.layers[4]);
+  const ConvParams& loaded = (*model)->layers()[4].conv;
+  for (size_t i = 0; i < conv.weights_hwio.size(); ++i) ASSERT_EQ(loaded.weights[i], conv.weights_hwio[i]);
+  EXPECT_EQ((*model)->parameter_count(), 1u * 9 * 12 * 4 + 4 + 9 * 4 * 8 + 8 + 9 * 8 * 16 + 16 +
+                                             9 * 16 * 32 + 32 + 9 * 32 * 64 + 64 + 9 * 64 * 64 + 64 +
+                                             9 * 64 * 32 + 32 + 9 * 32 * 16 + 16 + 9 * 16 * 8 + 8 +
+                                             9 * 8 * 4 + 4 + 9 * 4 * 3 + 3);
+}
+
+TEST(ModelWriter, Float16WeightsAreWidenedAtLoadWithinHalfPrecision) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  spec.weight_type = WeightType::kFloat16;
+  auto bytes16 = SerializeModel(spec);
+  spec.weight_type = WeightType::kFloat32;
+  auto bytes32 = SerializeModel(spec);
+  ASSERT_TRUE(bytes16.ok() && bytes32.ok());
+  EXPECT_LT(bytes16->size(), bytes32->size() * 6 / 10);
+  auto model = Model::LoadBuffer(bytes16->data(), bytes16->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_EQ((*model)->metadata().weight_type, WeightType::kFloat16);
+  const auto& conv = std::get<ConvSpec>(spec.layers[2]);
+  const ConvParams& loaded = (*model)->layers()[2].conv;
+  for (size_t i = 0; i < conv.weights_hwio.size(); ++i) {
+    // Round to nearest: relative error at most 2^-11 for normal halves.
+    ASSERT_NEAR(loaded.weights[i], conv.weights_hwio[i], std::abs(conv.weights_hwio[i]) / 2048 + 1e-7f);
+  }
+}
+
+TEST(ModelWriter, RejectsABrokenChainNamingTheLayer) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  std::get<ConvSpec>(spec.layers[2]).in_channels = 99;
+  auto bytes = SerializeModel(spec);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("layer 2 'conv2'"), std::string::npos) << bytes.message();
+}
+
+TEST(ModelWriter, RejectsWrongWeightCounts) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  std::get<ConvSpec>(spec.layers[0]).weights_hwio.pop_back();
+  auto bytes = SerializeModel(spec);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("'conv0'"), std::string::npos) << bytes.message();
+}
+
+TEST(ModelWriter, WriteIsAtomicAndLeavesNoTemporaryFiles) {
+  const fs::path dir = fs::temp_directory_path() / "sfrt_writer_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path target = dir / "m.sfrt";
+  ASSERT_TRUE(WriteModelFile(testing::SceneEdNetSpec(16), target.string()).ok());
+  // A failing write (invalid spec) leaves the previous file untouched.
+  const auto size_before = fs::file_size(target);
+  ModelSpec bad = testing::SceneEdNetSpec(16);
+  bad.layers.clear();
+  EXPECT_FALSE(WriteModelFile(bad, target.string()).ok());
+  EXPECT_EQ(fs::file_size(target), size_before);
+  int entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
+  EXPECT_EQ(entries, 1);
+  auto model = Model::LoadFile(target.string());
+  EXPECT_TRUE(model.ok()) << model.message();
+  fs::remove_all(dir);
+}
+
+TEST(ModelWriter, WriteIntoAMissingDirectoryNamesThePath) {
+  Status s = WriteModelFile(testing::SceneEdNetSpec(16), "/nonexistent-dir/m.sfrt");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("/nonexistent-dir/m.sfrt"), std::string::npos) << s.message();
+}
+
+}  // namespace
+}  // namespace sfrt::exporter

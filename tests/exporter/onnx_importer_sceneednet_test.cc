@@ -1,0 +1,210 @@
+// ImportOnnx on the SceneEDNet suite that tests/fixtures/gen_sceneednet.py exports from PyTorch
+// (FIXTURES sceneednet_models). Fails, never skips, when the suite is missing.
+#include <gtest/gtest.h>
+#include <onnx/onnx_pb.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "sfrt/exporter/onnx_importer.h"
+
+namespace sfrt::exporter {
+namespace {
+
+struct FixtureCase {
+  std::string name;
+  int height = 0;
+  int width = 0;
+};
+
+// Hidden widths conv0..conv9 of the full network (docs/sceneednet.md), and their strides.
+constexpr std::array<int, 10> kFullWidths = {64, 128, 256, 512, 1024, 1024, 512, 256, 128, 64};
+constexpr std::array<int, 10> kStrides = {2, 2, 2, 2, 1, 1, 1, 1, 1, 1};
+
+std::string FixtureDir() { return SFRT_FIXTURE_DIR; }
+
+std::vector<FixtureCase> ReadCases() {
+  std::vector<FixtureCase> cases;
+  std::ifstream f(FixtureDir() + "/cases.txt");
+  std::string line;
+  while (std::getline(f, line)) {
+    if (line.empty()) continue;
+    std::istringstream fields(line);
+    FixtureCase c;
+    fields >> c.name >> c.height >> c.width;
+    EXPECT_TRUE(fields && !c.name.empty() && c.height > 0 && c.width > 0)
+        << "bad line in cases.txt: " << line;
+    if (fields) cases.push_back(c);
+  }
+  return cases;
+}
+
+int CeilDiv(int a, int b) { return (a + b - 1) / b; }
+
+Pads SameUpper(int in_h, int in_w, int stride) {
+  auto axis = [stride](int in, int* before, int* after) {
+    const int total = std::max((CeilDiv(in, stride) - 1) * stride + 3 - in, 0);
+    *before = total / 2;
+    *after = total - total / 2;
+  };
+  Pads p;
+  axis(in_h, &p.top, &p.bottom);
+  axis(in_w, &p.left, &p.right);
+  return p;
+}
+
+// The OIHW weights of initialiser `name` in the ONNX file.
+std::vector<float> OnnxWeights(const onnx::ModelProto& model, const std::string& name) {
+  for (const auto& t : model.graph().initializer()) {
+    if (t.name() != name) continue;
+    std::vector<float> w(t.raw_data().size() / 4);
+    std::memcpy(w.data(), t.raw_data().data(), w.size() * 4);  // little-endian host
+    if (w.empty()) w.assign(t.float_data().begin(), t.float_data().end());
+    return w;
+  }
+  ADD_FAILURE() << "initializer " << name << " not found";
+  return {};
+}
+
+void CheckHwioMatchesOihw(const ConvSpec& conv, const std::vector<float>& oihw) {
+  ASSERT_EQ(conv.weights_hwio.size(), oihw.size()) << conv.name;
+  const int kh = conv.kernel_h, kw = conv.kernel_w;
+  const int cin = conv.in_channels, cout = conv.out_channels;
+  for (int co = 0; co < cout; ++co) {
+    for (int ci = 0; ci < cin; ++ci) {
+      for (int ky = 0; ky < kh; ++ky) {
+        for (int kx = 0; kx < kw; ++kx) {
+          ASSERT_EQ(conv.weights_hwio[((ky * kw + kx) * cin + ci) * cout + co],
+                    oihw[((co * cin + ci) * kh + ky) * kw + kx])
+              << conv.name << " co " << co << " ci " << ci << " ky " << ky << " kx " << kx;
+        }
+      }
+    }
+  }
+}
+
+void CheckCase(const FixtureCase& fc) {
+  // Case names: w{width_div}_{tf|torch}_{H}x{W}[...] (gen_sceneednet.py default_name).
+  int width_div = 0;
+  ASSERT_EQ(std::sscanf(fc.name.c_str(), "w%d_", &width_div), 1) << fc.name;
+  ASSERT_GT(width_div, 0);
+  const bool tf = fc.name.find("_tf_") != std::string::npos;
+  const bool torch = fc.name.find("_torch_") != std::string::npos;
+  ASSERT_NE(tf, torch) << "case name names neither or both paddings: " << fc.name;
+
+  const std::string path = FixtureDir() + "/" + fc.name + ".onnx";
+  const Result<ModelSpec> spec = ImportOnnx(path);
+  ASSERT_TRUE(spec.ok()) << spec.message();
+
+  EXPECT_EQ(spec->input.channels, 12);
+  EXPECT_EQ(spec->input.traced_height, fc.height);
+  EXPECT_EQ(spec->input.traced_width, fc.width);
+  EXPECT_EQ(spec->output.channels, 3);
+  EXPECT_EQ(spec->producer.source_format, "onnx");
+  EXPECT_EQ(spec->producer.source_file, fc.name + ".onnx");
+  EXPECT_EQ(spec->producer.source_sha256.size(), 64u);
+
+  // conv0..conv5, up, conv6, up, conv7, up, conv8, up, crop, conv9, output.
+  const std::string kinds = "CCCCCCUCUCUCUXCC";
+  ASSERT_EQ(spec->layers.size(), kinds.size());
+  int convs = 0, ups = 0, crops = 0;
+  int h = fc.height, w = fc.width, channels = 12;
+  onnx::ModelProto model;
+  {
+    std::ifstream f(path, std::ios::binary);
+    ASSERT_TRUE(model.ParseFromIstream(&f)) << path;
+  }
+  for (size_t i = 0; i < kinds.size(); ++i) {
+    SCOPED_TRACE("layer " + std::to_string(i));
+    const LayerSpec& layer = spec->layers[i];
+    switch (kinds[i]) {
+      case 'C': {
+        ASSERT_TRUE(std::holds_alternative<ConvSpec>(layer));
+        const auto& c = std::get<ConvSpec>(layer);
+        const bool is_output = convs == 10;
+        const int stride = is_output ? 1 : kStrides[convs];
+        const int out_channels = is_output ? 3 : kFullWidths[convs] / width_div;
+        const std::string torch_name = is_output ? "output" : "conv" + std::to_string(convs);
+        EXPECT_NE(c.name.find(torch_name), std::string::npos) << c.name;
+        EXPECT_EQ(c.in_channels, channels);
+        EXPECT_EQ(c.out_channels, out_channels);
+        EXPECT_EQ(c.kernel_h, 3);
+        EXPECT_EQ(c.kernel_w, 3);
+        EXPECT_EQ(c.stride_h, stride);
+        EXPECT_EQ(c.stride_w, stride);
+        if (is_output) {
+          EXPECT_EQ(c.activation, Activation::kNone);
+        } else {
+          EXPECT_EQ(c.activation, Activation::kLeakyRelu);
+          EXPECT_FLOAT_EQ(c.leaky_slope, 0.3f);
+        }
+        if (tf) {
+          EXPECT_EQ(c.padding_rule, PaddingRule::kSameUpper);
+          EXPECT_EQ(c.pads, SameUpper(h, w, stride));
+        } else {
+          EXPECT_EQ(c.padding_rule, PaddingRule::kExplicit);
+          EXPECT_EQ(c.pads, (Pads{1, 1, 1, 1}));
+        }
+        EXPECT_EQ(c.bias.size(), static_cast<size_t>(out_channels));
+        if (convs == 0 || is_output)
+          CheckHwioMatchesOihw(c, OnnxWeights(model, torch_name + ".weight"));
+        channels = out_channels;
+        h = CeilDiv(h, stride);
+        w = CeilDiv(w, stride);
+        ++convs;
+        break;
+      }
+      case 'U': {
+        ASSERT_TRUE(std::holds_alternative<UpsampleSpec>(layer));
+        const auto& u = std::get<UpsampleSpec>(layer);
+        EXPECT_EQ(u.factor_h, 2);
+        EXPECT_EQ(u.factor_w, 2);
+        h *= 2;
+        w *= 2;
+        ++ups;
+        break;
+      }
+      default: {
+        ASSERT_TRUE(std::holds_alternative<CropSpec>(layer));
+        const auto& c = std::get<CropSpec>(layer);
+        EXPECT_EQ(c.rule, CropRule::kToInputSize);
+        EXPECT_TRUE(c.excess_rows_from_top);
+        EXPECT_TRUE(c.excess_cols_from_left);
+        EXPECT_EQ(c.amounts, (Pads{h - fc.height, w - fc.width, 0, 0}));
+        h = fc.height;
+        w = fc.width;
+        ++crops;
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(convs, 11);
+  EXPECT_EQ(ups, 4);
+  EXPECT_EQ(crops, 1);
+}
+
+TEST(OnnxImporterSceneEDNet, ImportsEveryFixtureCaseAsTheDocumentedLayerChain) {
+  const std::vector<FixtureCase> cases = ReadCases();
+  ASSERT_FALSE(cases.empty()) << FixtureDir() << "/cases.txt is missing or empty: run the "
+                              << "fixtures.generate_sceneednet test first (ctest -L fixtures)";
+  bool saw_tf = false, saw_torch = false;
+  for (const FixtureCase& fc : cases) {
+    SCOPED_TRACE(fc.name);
+    CheckCase(fc);
+    saw_tf = saw_tf || fc.name.find("_tf_") != std::string::npos;
+    saw_torch = saw_torch || fc.name.find("_torch_") != std::string::npos;
+  }
+  EXPECT_TRUE(saw_tf) << "the suite has no tf-padding case";
+  EXPECT_TRUE(saw_torch) << "the suite has no torch-padding case";
+}
+
+}  // namespace
+}  // namespace sfrt::exporter

@@ -1,0 +1,1173 @@
+// ImportOnnx on small ONNX graphs built here with the onnx protobuf API (no Python needed).
+#include "sfrt/exporter/onnx_importer.h"
+
+#include <gtest/gtest.h>
+#include <onnx/onnx_pb.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace sfrt::exporter {
+namespace {
+
+// Per-test scratch directory (unique per process and test, removed after the test).
+std::filesystem::path& TestDir() {
+  static std::filesystem::path dir;
+  return dir;
+}
+
+class OnnxImporter : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    TestDir() = std::filesystem::path(::testing::TempDir()) /
+                ("sfrt_onnx_importer_test_" + std::to_string(::getpid()) + "_" + info->name());
+    std::filesystem::create_directories(TestDir());
+  }
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(TestDir(), ec);
+  }
+};
+
+constexpr int64_t kInt64Max = std::numeric_limits<int64_t>::max();
+constexpr int64_t kInt64Min = std::numeric_limits<int64_t>::min();
+
+void SetInt(onnx::NodeProto& n, const std::string& name, int64_t v) {
+  auto* a = n.add_attribute();
+  a->set_name(name);
+  a->set_type(onnx::AttributeProto::INT);
+  a->set_i(v);
+}
+
+void SetInts(onnx::NodeProto& n, const std::string& name, const std::vector<int64_t>& v) {
+  auto* a = n.add_attribute();
+  a->set_name(name);
+  a->set_type(onnx::AttributeProto::INTS);
+  for (int64_t x : v) a->add_ints(x);
+}
+
+void SetFloat(onnx::NodeProto& n, const std::string& name, float v) {
+  auto* a = n.add_attribute();
+  a->set_name(name);
+  a->set_type(onnx::AttributeProto::FLOAT);
+  a->set_f(v);
+}
+
+void SetString(onnx::NodeProto& n, const std::string& name, const std::string& v) {
+  auto* a = n.add_attribute();
+  a->set_name(name);
+  a->set_type(onnx::AttributeProto::STRING);
+  a->set_s(v);
+}
+
+// Deterministic conv weights: element i of the OIHW tensor is WeightValue(i).
+float WeightValue(int64_t i) { return 0.001f * static_cast<float>(i) - 0.25f; }
+float BiasValue(int64_t co) { return 0.5f + static_cast<float>(co); }
+
+// Builds a ModelProto. Tensors are named by the caller; nodes are appended in order.
+class OnnxModel {
+ public:
+  explicit OnnxModel(int64_t opset = 13) {
+    proto_.set_ir_version(8);
+    proto_.set_producer_name("onnx_importer_test");
+    auto* op = proto_.add_opset_import();
+    op->set_domain("");
+    op->set_version(opset);
+    proto_.mutable_graph()->set_name("test");
+  }
+
+  onnx::ModelProto& proto() { return proto_; }
+  onnx::GraphProto& graph() { return *proto_.mutable_graph(); }
+
+  void Input(const std::string& name, const std::vector<int64_t>& dims) {
+    auto* in = graph().add_input();
+    in->set_name(name);
+    auto* tt = in->mutable_type()->mutable_tensor_type();
+    tt->set_elem_type(onnx::TensorProto::FLOAT);
+    for (int64_t d : dims) tt->mutable_shape()->add_dim()->set_dim_value(d);
+  }
+
+  void Output(const std::string& name) {
+    auto* out = graph().add_output();
+    out->set_name(name);
+    out->mutable_type()->mutable_tensor_type()->set_elem_type(onnx::TensorProto::FLOAT);
+  }
+
+  // Float initialiser, stored as raw_data (as torch writes it) or as float_data.
+  void Floats(const std::string& name, const std::vector<int64_t>& dims,
+              const std::vector<float>& values, bool raw = true) {
+    auto* t = graph().add_initializer();
+    t->set_name(name);
+    FillFloats(*t, dims, values, raw);
+  }
+
+  void Int64s(const std::string& name, const std::vector<int64_t>& values) {
+    auto* t = graph().add_initializer();
+    t->set_name(name);
+    t->set_data_type(onnx::TensorProto::INT64);
+    t->add_dims(static_cast<int64_t>(values.size()));
+    for (int64_t v : values) t->add_int64_data(v);
+  }
+
+  void Int32s(const std::string& name, const std::vector<int32_t>& values) {
+    auto* t = graph().add_initializer();
+    t->set_name(name);
+    t->set_data_type(onnx::TensorProto::INT32);
+    t->add_dims(static_cast<int64_t>(values.size()));
+    for (int32_t v : values) t->add_int32_data(v);
+  }
+
+  // A Constant node holding an int64 tensor (scalar when `scalar`).
+  void ConstInt64s(const std::string& output, const std::vector<int64_t>& values,
+                   bool scalar = false) {
+    auto& n = Node("Constant", {}, {output}, output + "_node");
+    auto* a = n.add_attribute();
+    a->set_name("value");
+    a->set_type(onnx::AttributeProto::TENSOR);
+    auto* t = a->mutable_t();
+    t->set_data_type(onnx::TensorProto::INT64);
+    if (!scalar) t->add_dims(static_cast<int64_t>(values.size()));
+    std::string raw;
+    for (int64_t v : values) {
+      for (int b = 0; b < 8; ++b)
+        raw.push_back(static_cast<char>((static_cast<uint64_t>(v) >> (8 * b)) & 0xff));
+    }
+    t->set_raw_data(raw);
+  }
+
+  void ConstFloats(const std::string& output, const std::vector<int64_t>& dims,
+                   const std::vector<float>& values) {
+    auto& n = Node("Constant", {}, {output}, output + "_node");
+    auto* a = n.add_attribute();
+    a->set_name("value");
+    a->set_type(onnx::AttributeProto::TENSOR);
+    FillFloats(*a->mutable_t(), dims, values, true);
+  }
+
+  onnx::NodeProto& Node(const std::string& op, const std::vector<std::string>& inputs,
+                        const std::vector<std::string>& outputs, const std::string& name = "") {
+    auto* n = graph().add_node();
+    n->set_op_type(op);
+    n->set_name(name);
+    for (const auto& i : inputs) n->add_input(i);
+    for (const auto& o : outputs) n->add_output(o);
+    return *n;
+  }
+
+  // Conv with deterministic OIHW weights "<name>.w" and bias "<name>.b" (unless !bias).
+  onnx::NodeProto& Conv(const std::string& name, const std::string& in, const std::string& out,
+                        int64_t cin, int64_t cout, int64_t k, int64_t stride,
+                        const std::vector<int64_t>& pads, bool bias = true) {
+    std::vector<float> w(static_cast<size_t>(cout * cin * k * k));
+    for (size_t i = 0; i < w.size(); ++i) w[i] = WeightValue(static_cast<int64_t>(i));
+    Floats(name + ".w", {cout, cin, k, k}, w);
+    std::vector<std::string> inputs = {in, name + ".w"};
+    if (bias) {
+      std::vector<float> b(static_cast<size_t>(cout));
+      for (int64_t co = 0; co < cout; ++co) b[co] = BiasValue(co);
+      Floats(name + ".b", {cout}, b);
+      inputs.push_back(name + ".b");
+    }
+    auto& n = Node("Conv", inputs, {out}, name);
+    SetInts(n, "kernel_shape", {k, k});
+    SetInts(n, "strides", {stride, stride});
+    if (!pads.empty()) SetInts(n, "pads", pads);
+    return n;
+  }
+
+  // Writes the model into the test's temporary directory and returns the path.
+  std::string Save(const std::string& file) const {
+    const std::string path = (TestDir() / file).string();
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    EXPECT_TRUE(proto_.SerializeToOstream(&f)) << path;
+    return path;
+  }
+
+ private:
+  static void FillFloats(onnx::TensorProto& t, const std::vector<int64_t>& dims,
+                         const std::vector<float>& values, bool raw) {
+    t.set_data_type(onnx::TensorProto::FLOAT);
+    for (int64_t d : dims) t.add_dims(d);
+    if (raw) {
+      std::string bytes(values.size() * 4, '\0');
+      for (size_t i = 0; i < values.size(); ++i) {
+        uint32_t u = 0;
+        std::memcpy(&u, &values[i], 4);
+        for (int b = 0; b < 4; ++b) bytes[4 * i + b] = static_cast<char>((u >> (8 * b)) & 0xff);
+      }
+      t.set_raw_data(bytes);
+    } else {
+      for (float v : values) t.add_float_data(v);
+    }
+  }
+
+  onnx::ModelProto proto_;
+};
+
+template <typename T>
+const T& LayerAs(const ModelSpec& spec, size_t i) {
+  EXPECT_LT(i, spec.layers.size());
+  EXPECT_TRUE(std::holds_alternative<T>(spec.layers.at(i))) << "layer " << i;
+  return std::get<T>(spec.layers.at(i));
+}
+
+// The import fails with a one-line message naming the file and containing every `part`.
+void ExpectImportError(const std::string& path, std::initializer_list<std::string> parts,
+                       const OnnxImportOptions& options = {}) {
+  const Result<ModelSpec> r = ImportOnnx(path, options);
+  ASSERT_FALSE(r.ok()) << "import of " << path << " unexpectedly succeeded";
+  const std::string& m = r.message();
+  EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+  EXPECT_NE(m.find(path), std::string::npos) << "file not named in: " << m;
+  for (const std::string& part : parts) {
+    EXPECT_NE(m.find(part), std::string::npos) << "'" << part << "' missing in: " << m;
+  }
+}
+
+Result<ModelSpec> ImportOk(const std::string& path, const OnnxImportOptions& options = {}) {
+  Result<ModelSpec> r = ImportOnnx(path, options);
+  EXPECT_TRUE(r.ok()) << r.message();
+  return r;
+}
+
+// ------------------------------------------------------------------------------ conv chains
+
+TEST_F(OnnxImporter, ImportsConvLeakyReluChainWithHwioWeights) {
+  OnnxModel m;
+  m.Input("x", {1, 3, 8, 10});
+  m.Conv("enc0", "x", "t", 3, 4, 3, 1, {1, 1, 1, 1});
+  SetFloat(m.Node("LeakyRelu", {"t"}, {"y"}, "enc0_act"), "alpha", 0.2f);
+  m.Output("y");
+  const std::string path = m.Save("chain.onnx");
+  auto spec = ImportOk(path);
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 1u);
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  EXPECT_EQ(c.name, "enc0");
+  EXPECT_EQ(c.in_channels, 3);
+  EXPECT_EQ(c.out_channels, 4);
+  EXPECT_EQ(c.kernel_h, 3);
+  EXPECT_EQ(c.kernel_w, 3);
+  EXPECT_EQ(c.stride_h, 1);
+  EXPECT_EQ(c.stride_w, 1);
+  EXPECT_EQ(c.pads, (Pads{1, 1, 1, 1}));
+  EXPECT_EQ(c.activation, Activation::kLeakyRelu);
+  EXPECT_FLOAT_EQ(c.leaky_slope, 0.2f);
+  ASSERT_EQ(c.weights_hwio.size(), 3u * 3 * 3 * 4);
+  for (int ky = 0; ky < 3; ++ky) {
+    for (int kx = 0; kx < 3; ++kx) {
+      for (int ci = 0; ci < 3; ++ci) {
+        for (int co = 0; co < 4; ++co) {
+          EXPECT_EQ(c.weights_hwio[((ky * 3 + kx) * 3 + ci) * 4 + co],
+                    WeightValue(((co * 3 + ci) * 3 + ky) * 3 + kx))
+              << ky << kx << ci << co;
+        }
+      }
+    }
+  }
+  ASSERT_EQ(c.bias.size(), 4u);
+  for (int co = 0; co < 4; ++co) EXPECT_EQ(c.bias[co], BiasValue(co));
+  EXPECT_EQ(spec->input.channels, 3);
+  EXPECT_EQ(spec->input.traced_height, 8);
+  EXPECT_EQ(spec->input.traced_width, 10);
+  EXPECT_EQ(spec->output.channels, 4);
+  EXPECT_EQ(spec->producer.source_format, "onnx");
+  EXPECT_EQ(spec->producer.source_file, "chain.onnx");
+  ASSERT_EQ(spec->producer.source_sha256.size(), 64u);
+  EXPECT_EQ(spec->producer.source_sha256.find_first_not_of("0123456789abcdef"), std::string::npos);
+}
+
+TEST_F(OnnxImporter, LeakyReluWithoutAlphaUsesOnnxDefaultSlope) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("LeakyRelu", {"t"}, {"y"}, "act");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("leaky_default.onnx"));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_FLOAT_EQ(LayerAs<ConvSpec>(*spec, 0).leaky_slope, 0.01f);
+}
+
+TEST_F(OnnxImporter, FusesReluIntoPrecedingConv) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t", 2, 3, 3, 1, {1, 1, 1, 1});
+  m.Node("Relu", {"t"}, {"y"}, "relu");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("relu.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 1u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kRelu);
+}
+
+TEST_F(OnnxImporter, ConvWithoutBiasGetsZeroBiasAndNoActivation) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "y", 2, 3, 1, 1, {}, /*bias=*/false);
+  m.Output("y");
+  auto spec = ImportOk(m.Save("nobias.onnx"));
+  ASSERT_TRUE(spec.ok());
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  EXPECT_EQ(c.bias, std::vector<float>(3, 0.0f));
+  EXPECT_EQ(c.activation, Activation::kNone);
+  EXPECT_EQ(c.kernel_h, 1);
+  EXPECT_EQ(c.pads, Pads{});
+}
+
+TEST_F(OnnxImporter, ReadsFloatDataInitializersAndConstantNodeTensors) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 4, 4});
+  // 2x1x1x2 kernel (non-square) in float_data; bias from a Constant node.
+  m.Floats("w", {2, 1, 1, 2}, {1.0f, 2.0f, 3.0f, 4.0f}, /*raw=*/false);
+  m.ConstFloats("b", {2}, {-1.0f, 7.5f});
+  m.Node("Conv", {"x", "w", "b"}, {"y"}, "c");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("float_data.onnx"));
+  ASSERT_TRUE(spec.ok());
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  EXPECT_EQ(c.kernel_h, 1);
+  EXPECT_EQ(c.kernel_w, 2);
+  // HWIO: [kx][co] for ky = 0, ci = 0.
+  EXPECT_EQ(c.weights_hwio, (std::vector<float>{1.0f, 3.0f, 2.0f, 4.0f}));
+  EXPECT_EQ(c.bias, (std::vector<float>{-1.0f, 7.5f}));
+}
+
+TEST_F(OnnxImporter, PassesIdentityNodesThrough) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Node("Identity", {"x"}, {"x1"}, "id0");
+  m.Conv("c", "x1", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Identity", {"t"}, {"t1"}, "id1");
+  m.Node("LeakyRelu", {"t1"}, {"u"}, "act");
+  m.Node("Identity", {"u"}, {"y"}, "id2");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("identity.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 1u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kLeakyRelu);
+}
+
+TEST_F(OnnxImporter, GeneratesLayerNamesForUnnamedNodes) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("", "x", "a", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  auto& r = m.Node("Resize", {"a", "", "scales"}, {"b"});
+  SetString(r, "coordinate_transformation_mode", "asymmetric");
+  SetString(r, "nearest_mode", "floor");
+  m.Conv("", "b", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("unnamed.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 3u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).name, "conv0");
+  EXPECT_EQ(LayerAs<UpsampleSpec>(*spec, 1).name, "up0");
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 2).name, "conv1");
+}
+
+TEST_F(OnnxImporter, IgnoresNodesTheOutputDoesNotDependOn) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Sigmoid", {"y"}, {"unused"}, "dead");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("dead.onnx"));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(spec->layers.size(), 1u);
+}
+
+// ------------------------------------------------------------------------------ padding
+
+TEST_F(OnnxImporter, FoldsZeroPadIntoFollowingConv) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("pads", {0, 0, 0, 0, 0, 0, 1, 1});
+  m.Node("Pad", {"x", "pads"}, {"p"}, "pad0");
+  m.Conv("c0", "p", "y", 2, 3, 3, 2, {0, 0, 0, 0});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("pad_fold.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 1u);
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  EXPECT_EQ(c.name, "c0");
+  EXPECT_EQ(c.pads, (Pads{0, 0, 1, 1}));
+  // (0, 1) at in = 8, stride 2 is exactly TensorFlow 'same'.
+  EXPECT_EQ(c.padding_rule, PaddingRule::kSameUpper);
+}
+
+TEST_F(OnnxImporter, SumsPadNodeAndConvPadsWithExplicitZeroValue) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("pads", {0, 0, 1, 0, 0, 0, 0, 2});  // top 1, right 2
+  m.Floats("zero", {}, {0.0f});
+  SetString(m.Node("Pad", {"x", "pads", "zero"}, {"p"}, "pad0"), "mode", "constant");
+  m.Conv("c0", "p", "y", 2, 3, 3, 1, {0, 1, 1, 0});  // left 1, bottom 1
+  m.Output("y");
+  auto spec = ImportOk(m.Save("pad_sum.onnx"));
+  ASSERT_TRUE(spec.ok());
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  EXPECT_EQ(c.pads, (Pads{1, 1, 1, 2}));
+  EXPECT_EQ(c.padding_rule, PaddingRule::kExplicit);
+}
+
+// Adds torch.onnx.export's graph for F.pad(x, tf_same_pads(x.shape)) (see
+// tests/fixtures/gen_sceneednet.py) in front of a stride-`stride` 3x3 conv: shape arithmetic
+// on Shape/Gather, then torch's pads reordering (ConstantOfShape, Concat, Reshape, a reversing
+// Slice, Transpose, Reshape, Cast). Returns the name of the Pad output.
+std::string AddTfSamePadSubgraph(OnnxModel& m, const std::string& x, const std::string& p,
+                                 int64_t stride, int64_t opset) {
+  auto t = [&](const std::string& s) { return p + "/" + s; };
+  auto scalar = [&](const std::string& name, int64_t v) { m.ConstInt64s(t(name), {v}, true); };
+  auto unsqueeze = [&](const std::string& in, const std::string& out) {
+    if (opset >= 13) {
+      m.ConstInt64s(t(out + "_axes"), {0});
+      m.Node("Unsqueeze", {in, t(out + "_axes")}, {out}, out);
+    } else {
+      SetInts(m.Node("Unsqueeze", {in}, {out}, out), "axes", {0});
+    }
+  };
+  m.Node("Shape", {x}, {t("shape")}, t("Shape"));
+  scalar("stride", stride);
+  scalar("stride_m1", stride - 1);
+  scalar("one", 1);
+  scalar("two", 2);
+  scalar("kernel", 3);
+  m.ConstInt64s(t("zero_f"), {0}, true);
+  for (int axis : {2, 3}) {
+    const std::string a = "ax" + std::to_string(axis);
+    scalar(a + "_index", axis);
+    m.Node("Gather", {t("shape"), t(a + "_index")}, {t(a + "_size")}, t(a + "_Gather"));
+    m.Node("Add", {t(a + "_size"), t("stride_m1")}, {t(a + "_num")}, t(a + "_Add"));
+    m.Node("Div", {t(a + "_num"), t("stride")}, {t(a + "_out")}, t(a + "_Div"));
+    m.Node("Sub", {t(a + "_out"), t("one")}, {t(a + "_out_m1")}, t(a + "_Sub"));
+    m.Node("Mul", {t(a + "_out_m1"), t("stride")}, {t(a + "_span")}, t(a + "_Mul"));
+    m.Node("Add", {t(a + "_span"), t("kernel")}, {t(a + "_need")}, t(a + "_Add2"));
+    m.Node("Sub", {t(a + "_need"), t(a + "_size")}, {t(a + "_total_raw")}, t(a + "_Sub2"));
+    SetInt(m.Node("Cast", {t("zero_f")}, {t(a + "_zero")}, t(a + "_Cast0")), "to",
+           onnx::TensorProto::INT64);
+    m.Node("Clip", {t(a + "_total_raw"), t(a + "_zero"), ""}, {t(a + "_total")}, t(a + "_Clip"));
+    m.Node("Div", {t(a + "_total"), t("two")}, {t(a + "_before")}, t(a + "_Div2"));
+    m.Node("Sub", {t(a + "_total"), t(a + "_before")}, {t(a + "_after")}, t(a + "_Sub3"));
+    unsqueeze(t(a + "_before"), t(a + "_before_1d"));
+    unsqueeze(t(a + "_after"), t(a + "_after_1d"));
+  }
+  // F.pad order: [left, right, top, bottom].
+  SetInt(m.Node("Concat",
+                {t("ax3_before_1d"), t("ax3_after_1d"), t("ax2_before_1d"), t("ax2_after_1d")},
+                {t("pads4")}, t("Concat")),
+         "axis", 0);
+  m.ConstInt64s(t("eight"), {8}, true);
+  m.Node("Size", {t("pads4")}, {t("n")}, t("Size"));
+  m.Node("Sub", {t("eight"), t("n")}, {t("nzeros")}, t("Sub_zeros"));
+  unsqueeze(t("nzeros"), t("nzeros_1d"));
+  auto& cos = m.Node("ConstantOfShape", {t("nzeros_1d")}, {t("zeros")}, t("ConstantOfShape"));
+  auto* value = cos.add_attribute();
+  value->set_name("value");
+  value->set_type(onnx::AttributeProto::TENSOR);
+  value->mutable_t()->set_data_type(onnx::TensorProto::INT64);
+  value->mutable_t()->add_dims(1);
+  value->mutable_t()->add_int64_data(0);
+  SetInt(m.Node("Concat", {t("pads4"), t("zeros")}, {t("pads8")}, t("Concat2")), "axis", 0);
+  m.ConstInt64s(t("pairs_shape"), {-1, 2});
+  m.Node("Reshape", {t("pads8"), t("pairs_shape")}, {t("pairs")}, t("Reshape"));
+  m.ConstInt64s(t("rev_start"), {-1});
+  m.ConstInt64s(t("rev_end"), {kInt64Min + 1});
+  m.ConstInt64s(t("rev_axes"), {0});
+  m.ConstInt64s(t("rev_steps"), {-1});
+  m.Node("Slice", {t("pairs"), t("rev_start"), t("rev_end"), t("rev_axes"), t("rev_steps")},
+         {t("reversed")}, t("Slice"));
+  SetInts(m.Node("Transpose", {t("reversed")}, {t("transposed")}, t("Transpose")), "perm", {1, 0});
+  m.ConstInt64s(t("flat"), {-1});
+  m.Node("Reshape", {t("transposed"), t("flat")}, {t("onnx_pads")}, t("Reshape2"));
+  SetInt(m.Node("Cast", {t("onnx_pads")}, {t("onnx_pads64")}, t("Cast")), "to",
+         onnx::TensorProto::INT64);
+  SetString(m.Node("Pad", {x, t("onnx_pads64"), ""}, {t("padded")}, t("Pad")), "mode", "constant");
+  return t("padded");
+}
+
+TEST_F(OnnxImporter, EvaluatesShapeDerivedPadSubgraphsAsTorchExportsThem) {
+  for (int64_t opset : {11, 13, 17}) {
+    SCOPED_TRACE("opset " + std::to_string(opset));
+    OnnxModel m(opset);
+    m.Input("x", {1, 2, 9, 12});
+    const std::string p0 = AddTfSamePadSubgraph(m, "x", "/conv0", 2, opset);
+    m.Conv("/conv0/Conv", p0, "c0", 2, 4, 3, 2, {0, 0, 0, 0});
+    SetFloat(m.Node("LeakyRelu", {"c0"}, {"a0"}, "/LeakyRelu"), "alpha", 0.3f);
+    const std::string p1 = AddTfSamePadSubgraph(m, "a0", "/conv1", 2, opset);
+    m.Conv("/conv1/Conv", p1, "y", 4, 3, 3, 2, {0, 0, 0, 0});
+    m.Output("y");
+    auto spec = ImportOk(m.Save("tf_same_" + std::to_string(opset) + ".onnx"));
+    ASSERT_TRUE(spec.ok());
+    ASSERT_EQ(spec->layers.size(), 2u);
+    const auto& c0 = LayerAs<ConvSpec>(*spec, 0);
+    const auto& c1 = LayerAs<ConvSpec>(*spec, 1);
+    // conv0 at 9x12: rows total 2 -> (1, 1), cols total 1 -> (0, 1).
+    EXPECT_EQ(c0.pads, (Pads{1, 0, 1, 1}));
+    // conv1 at 5x6: rows total 2 -> (1, 1), cols total 1 -> (0, 1).
+    EXPECT_EQ(c1.pads, (Pads{1, 0, 1, 1}));
+    EXPECT_EQ(c0.padding_rule, PaddingRule::kSameUpper);
+    EXPECT_EQ(c1.padding_rule, PaddingRule::kSameUpper);
+    EXPECT_EQ(c0.activation, Activation::kLeakyRelu);
+    EXPECT_EQ(spec->output.channels, 3);
+  }
+}
+
+// Two convs: stride 2 at 8x8 with pads `first`, then stride 1 with pads (1, 1, 1, 1).
+std::string TwoConvModel(const std::string& file, const std::vector<int64_t>& first) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Conv("down", "x", "a", 2, 3, 3, 2, first);
+  m.Conv("same", "a", "y", 3, 3, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  return m.Save(file);
+}
+
+TEST_F(OnnxImporter, DetectsSameUpperWhenEveryConvMatchesIt) {
+  auto spec = ImportOk(TwoConvModel("same_upper.onnx", {0, 0, 1, 1}));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).padding_rule, PaddingRule::kSameUpper);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).padding_rule, PaddingRule::kSameUpper);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).pads, (Pads{0, 0, 1, 1}));
+}
+
+TEST_F(OnnxImporter, KeepsExplicitPadsWhenAnyConvDiffersFromSameUpper) {
+  // torch's padding=1 at an even size: (1, 1) where 'same' is (0, 1).
+  auto spec = ImportOk(TwoConvModel("explicit.onnx", {1, 1, 1, 1}));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).padding_rule, PaddingRule::kExplicit);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).padding_rule, PaddingRule::kExplicit);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).pads, (Pads{1, 1, 1, 1}));
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).pads, (Pads{1, 1, 1, 1}));
+}
+
+TEST_F(OnnxImporter, ForcedSameUpperRejectsConvThatContradictsIt) {
+  OnnxImportOptions options;
+  options.padding = PaddingDetection::kSameUpper;
+  ExpectImportError(TwoConvModel("forced_bad.onnx", {1, 1, 1, 1}),
+                    {"conv 'down'", "(top 1, left 1, bottom 1, right 1)",
+                     "(top 0, left 0, bottom 1, right 1)", "8x8", "SameUpper"},
+                    options);
+}
+
+TEST_F(OnnxImporter, ForcedSameUpperAcceptsMatchingConvs) {
+  OnnxImportOptions options;
+  options.padding = PaddingDetection::kSameUpper;
+  auto spec = ImportOk(TwoConvModel("forced_ok.onnx", {0, 0, 1, 1}), options);
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).padding_rule, PaddingRule::kSameUpper);
+}
+
+TEST_F(OnnxImporter, ForcedExplicitKeepsTracedNumbers) {
+  OnnxImportOptions options;
+  options.padding = PaddingDetection::kExplicit;
+  auto spec = ImportOk(TwoConvModel("forced_explicit.onnx", {0, 0, 1, 1}), options);
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).padding_rule, PaddingRule::kExplicit);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).pads, (Pads{0, 0, 1, 1}));
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).padding_rule, PaddingRule::kExplicit);
+}
+
+TEST_F(OnnxImporter, AutoPadSameUpperIsTracedAtInputSize) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 9});
+  SetString(m.Conv("c", "x", "y", 2, 2, 3, 2, {}), "auto_pad", "SAME_UPPER");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("auto_pad.onnx"));
+  ASSERT_TRUE(spec.ok());
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  EXPECT_EQ(c.pads, (Pads{0, 1, 1, 1}));  // rows: total 1 -> (0, 1); cols: total 2 -> (1, 1)
+  EXPECT_EQ(c.padding_rule, PaddingRule::kSameUpper);
+}
+
+TEST_F(OnnxImporter, AutoPadValidMeansNoPadding) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 9});
+  SetString(m.Conv("c", "x", "y", 2, 2, 3, 1, {}), "auto_pad", "VALID");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("valid.onnx"));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).pads, Pads{});
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).padding_rule, PaddingRule::kExplicit);
+}
+
+// ------------------------------------------------------------------------------ resize
+
+// conv (2 channels, 3x3 same) -> Resize, with the Resize's attributes and inputs given.
+struct ResizeCase {
+  int64_t opset = 13;
+  std::vector<float> scales;   // empty: not given
+  std::vector<int64_t> sizes;  // empty: not given
+  std::string ctm = "asymmetric";
+  std::string nearest_mode = "floor";
+  std::string mode = "nearest";
+};
+
+std::string ResizeModel(const std::string& file, const ResizeCase& rc) {
+  OnnxModel m(rc.opset);
+  m.Input("x", {1, 2, 8, 10});
+  m.Conv("c", "x", "a", 2, 2, 3, 1, {1, 1, 1, 1});
+  std::vector<std::string> inputs = {"a", "", "", ""};
+  if (rc.opset == 11) {  // opset 11: roi and scales present, possibly empty
+    m.Floats("roi", {0}, {});
+    inputs[1] = "roi";
+    m.Floats("scales", {static_cast<int64_t>(rc.scales.size())}, rc.scales);
+    inputs[2] = "scales";
+  } else if (!rc.scales.empty()) {
+    m.Floats("scales", {static_cast<int64_t>(rc.scales.size())}, rc.scales);
+    inputs[2] = "scales";
+  }
+  if (!rc.sizes.empty()) {
+    m.Int64s("sizes", rc.sizes);
+    inputs[3] = "sizes";
+  } else {
+    inputs.pop_back();
+  }
+  auto& n = m.Node("Resize", inputs, {"y"}, "up");
+  if (!rc.ctm.empty()) SetString(n, "coordinate_transformation_mode", rc.ctm);
+  if (!rc.nearest_mode.empty()) SetString(n, "nearest_mode", rc.nearest_mode);
+  SetString(n, "mode", rc.mode);
+  m.Output("y");
+  return m.Save(file);
+}
+
+TEST_F(OnnxImporter, ResizeWithScalesBecomesUpsample) {
+  ResizeCase rc;
+  rc.scales = {1, 1, 2, 3};
+  auto spec = ImportOk(ResizeModel("resize_scales.onnx", rc));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 2u);
+  const auto& up = LayerAs<UpsampleSpec>(*spec, 1);
+  EXPECT_EQ(up.name, "up");
+  EXPECT_EQ(up.factor_h, 2);
+  EXPECT_EQ(up.factor_w, 3);
+  EXPECT_EQ(spec->output.channels, 2);
+}
+
+TEST_F(OnnxImporter, ResizeWithSizesBecomesUpsample) {
+  ResizeCase rc;
+  rc.opset = 11;  // empty roi and scales, as torch exports F.interpolate(size=...)
+  rc.sizes = {1, 2, 32, 20};
+  auto spec = ImportOk(ResizeModel("resize_sizes.onnx", rc));
+  ASSERT_TRUE(spec.ok());
+  const auto& up = LayerAs<UpsampleSpec>(*spec, 1);
+  EXPECT_EQ(up.factor_h, 4);
+  EXPECT_EQ(up.factor_w, 2);
+}
+
+TEST_F(OnnxImporter, ResizeDefaultsToHalfPixelRoundPreferFloorWhichIsExact) {
+  ResizeCase rc;
+  rc.scales = {1, 1, 3, 3};
+  rc.ctm = "";
+  rc.nearest_mode = "";
+  auto spec = ImportOk(ResizeModel("resize_defaults.onnx", rc));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_EQ(LayerAs<UpsampleSpec>(*spec, 1).factor_h, 3);
+}
+
+// ONNX's reference Resize (nearest, one axis), straight from the operator definition.
+int64_t OnnxNearestSource(const std::string& ctm, const std::string& nearest_mode, int64_t y,
+                          int64_t in_len, int64_t f) {
+  const int64_t out_len = in_len * f;
+  const double scale = static_cast<double>(f);
+  const double yd = static_cast<double>(y);
+  double x = 0;
+  if (ctm == "asymmetric") {
+    x = yd / scale;
+  } else if (ctm == "half_pixel") {
+    x = (yd + 0.5) / scale - 0.5;
+  } else if (ctm == "pytorch_half_pixel") {
+    x = out_len > 1 ? (yd + 0.5) / scale - 0.5 : 0.0;
+  } else if (ctm == "tf_half_pixel_for_nn") {
+    x = (yd + 0.5) / scale;
+  } else if (ctm == "align_corners") {
+    x = out_len == 1 ? 0.0
+                     : yd * static_cast<double>(in_len - 1) / static_cast<double>(out_len - 1);
+  }
+  double r = 0;
+  const bool half = x == std::floor(x) + 0.5;
+  if (nearest_mode == "floor") {
+    r = std::floor(x);
+  } else if (nearest_mode == "ceil") {
+    r = std::ceil(x);
+  } else if (nearest_mode == "round_prefer_floor") {
+    r = half ? std::floor(x) : std::round(x);
+  } else {  // round_prefer_ceil
+    r = half ? std::ceil(x) : std::round(x);
+  }
+  return std::clamp<int64_t>(static_cast<int64_t>(r), 0, in_len - 1);
+}
+
+// Whether the reference equals in[floor(y / f)] for every input length up to 40.
+bool ReferenceIsFloorOfQuotient(const std::string& ctm, const std::string& nearest_mode,
+                                int64_t f) {
+  for (int64_t n = 1; n <= 40; ++n) {
+    for (int64_t y = 0; y < n * f; ++y) {
+      if (OnnxNearestSource(ctm, nearest_mode, y, n, f) != y / f) return false;
+    }
+  }
+  return true;
+}
+
+TEST_F(OnnxImporter, ResizeAcceptsExactlyTheModesThatAreFloorOfQuotientForItsFactor) {
+  int accepted = 0;
+  int rejected = 0;
+  for (const char* ctm : {"asymmetric", "half_pixel", "pytorch_half_pixel", "tf_half_pixel_for_nn",
+                          "align_corners"}) {
+    for (const char* nm : {"floor", "ceil", "round_prefer_floor", "round_prefer_ceil"}) {
+      for (int64_t f : {1, 2, 3, 4}) {
+        SCOPED_TRACE(std::string(ctm) + " + " + nm + " at factor " + std::to_string(f));
+        ResizeCase rc;
+        rc.scales = {1, 1, static_cast<float>(f), static_cast<float>(f)};
+        rc.ctm = ctm;
+        rc.nearest_mode = nm;
+        const std::string path = ResizeModel("resize_modes.onnx", rc);
+        const bool exact = ReferenceIsFloorOfQuotient(ctm, nm, f);
+        if (exact) {
+          ++accepted;
+          auto spec = ImportOk(path);
+        } else {
+          ++rejected;
+          ExpectImportError(path, {"node 'up' (op Resize)", "coordinate_transformation_mode",
+                                   std::string("'") + ctm + "'", std::string("'") + nm + "'"});
+        }
+      }
+    }
+  }
+  // Sanity: the common cases are on the expected side.
+  EXPECT_TRUE(ReferenceIsFloorOfQuotient("asymmetric", "floor", 2));
+  EXPECT_TRUE(ReferenceIsFloorOfQuotient("half_pixel", "round_prefer_floor", 3));
+  EXPECT_FALSE(ReferenceIsFloorOfQuotient("asymmetric", "round_prefer_floor", 3));
+  EXPECT_FALSE(ReferenceIsFloorOfQuotient("half_pixel", "floor", 2));
+  EXPECT_GT(accepted, 0);
+  EXPECT_GT(rejected, 0);
+}
+
+TEST_F(OnnxImporter, UpsampleOpBecomesUpsample) {
+  OnnxModel m(11);
+  m.Input("x", {1, 2, 4, 4});
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  m.Node("Upsample", {"x", "scales"}, {"y"}, "legacy_up");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("upsample.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 1u);
+  EXPECT_EQ(LayerAs<UpsampleSpec>(*spec, 0).factor_w, 2);
+}
+
+// ------------------------------------------------------------------------------ crops
+
+// x (1, 2, 6, 10) -> conv stride 2 -> (3, 5) -> Resize x4 -> (12, 20) -> `slices` -> conv.
+// Each slice is {starts, ends, axes}.
+struct SliceSpec {
+  std::vector<int64_t> starts, ends, axes;
+};
+
+std::string CropModel(const std::string& file, const std::vector<SliceSpec>& slices,
+                      std::vector<float> scales = {1, 1, 4, 4}, int64_t in_w = 10) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 6, in_w});
+  m.Conv("down", "x", "a", 2, 2, 3, 2, {1, 1, 1, 1});
+  m.Floats("scales", {4}, scales);
+  auto& r = m.Node("Resize", {"a", "", "scales"}, {"b"}, "up");
+  SetString(r, "coordinate_transformation_mode", "asymmetric");
+  SetString(r, "nearest_mode", "floor");
+  std::string cur = "b";
+  for (size_t i = 0; i < slices.size(); ++i) {
+    const std::string k = std::to_string(i);
+    m.Int64s("starts" + k, slices[i].starts);
+    m.Int64s("ends" + k, slices[i].ends);
+    m.Int64s("axes" + k, slices[i].axes);
+    m.Node("Slice", {cur, "starts" + k, "ends" + k, "axes" + k}, {"s" + k}, "crop_" + k);
+    cur = "s" + k;
+  }
+  m.Conv("after", cur, "y", 2, 3, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  return m.Save(file);
+}
+
+TEST_F(OnnxImporter, SliceBackToInputSizeCropsExcessFromTopAndLeft) {
+  auto spec =
+      ImportOk(CropModel("crop_top_left.onnx", {{{6, 10}, {kInt64Max, kInt64Max}, {2, 3}}}));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 4u);
+  const auto& crop = LayerAs<CropSpec>(*spec, 2);
+  EXPECT_EQ(crop.name, "crop_0");
+  EXPECT_EQ(crop.rule, CropRule::kToInputSize);
+  EXPECT_TRUE(crop.excess_rows_from_top);
+  EXPECT_TRUE(crop.excess_cols_from_left);
+  EXPECT_EQ(crop.amounts, (Pads{6, 10, 0, 0}));  // the traced amounts, for information
+}
+
+TEST_F(OnnxImporter, SliceWithNegativeEndsCropsExcessFromBottomAndRight) {
+  auto spec = ImportOk(CropModel("crop_bottom_right.onnx", {{{0, 0}, {-6, -10}, {-2, -1}}}));
+  ASSERT_TRUE(spec.ok());
+  const auto& crop = LayerAs<CropSpec>(*spec, 2);
+  EXPECT_EQ(crop.rule, CropRule::kToInputSize);
+  EXPECT_FALSE(crop.excess_rows_from_top);
+  EXPECT_FALSE(crop.excess_cols_from_left);
+}
+
+TEST_F(OnnxImporter, CropSideDefaultsToTopLeftOnAnAxisWithNothingRemoved) {
+  // Resize x(4, 2): (12, 10); only rows removed, at the bottom.
+  auto spec =
+      ImportOk(CropModel("crop_rows_only.onnx", {{{0}, {6}, {2}}}, {1, 1, 4, 2}, /*in_w=*/10));
+  ASSERT_TRUE(spec.ok());
+  const auto& crop = LayerAs<CropSpec>(*spec, 2);
+  EXPECT_EQ(crop.rule, CropRule::kToInputSize);
+  EXPECT_FALSE(crop.excess_rows_from_top);
+  EXPECT_TRUE(crop.excess_cols_from_left);
+}
+
+TEST_F(OnnxImporter, MergesConsecutiveSlicesIntoOneCrop) {
+  auto spec =
+      ImportOk(CropModel("crop_two_slices.onnx", {{{6}, {kInt64Max}, {2}}, {{0}, {-10}, {3}}}));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 4u);
+  const auto& crop = LayerAs<CropSpec>(*spec, 2);
+  EXPECT_EQ(crop.name, "crop_0");
+  EXPECT_EQ(crop.rule, CropRule::kToInputSize);
+  EXPECT_TRUE(crop.excess_rows_from_top);
+  EXPECT_FALSE(crop.excess_cols_from_left);
+  EXPECT_EQ(crop.amounts, (Pads{6, 0, 0, 10}));
+}
+
+TEST_F(OnnxImporter, SliceToAnotherSizeIsAnExplicitCrop) {
+  auto spec = ImportOk(CropModel("crop_explicit.onnx", {{{1, 2}, {12, 20}, {2, 3}}}));
+  ASSERT_TRUE(spec.ok());
+  const auto& crop = LayerAs<CropSpec>(*spec, 2);
+  EXPECT_EQ(crop.rule, CropRule::kExplicit);
+  EXPECT_EQ(crop.amounts, (Pads{1, 2, 0, 0}));
+}
+
+TEST_F(OnnxImporter, CenterCropToInputSizeStaysExplicit) {
+  // 12 -> 6 rows removing 3 + 3: no single side reproduces it at other sizes.
+  auto spec = ImportOk(CropModel("crop_center.onnx", {{{3, 5}, {9, 15}, {2, 3}}}));
+  ASSERT_TRUE(spec.ok());
+  const auto& crop = LayerAs<CropSpec>(*spec, 2);
+  EXPECT_EQ(crop.rule, CropRule::kExplicit);
+  EXPECT_EQ(crop.amounts, (Pads{3, 5, 3, 5}));
+}
+
+TEST_F(OnnxImporter, ReadsInt32SliceBounds) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 6, 10});
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  auto& r = m.Node("Resize", {"x", "", "scales"}, {"b"}, "up");
+  SetString(r, "coordinate_transformation_mode", "asymmetric");
+  SetString(r, "nearest_mode", "floor");
+  m.Int32s("starts", {6});
+  m.Int32s("ends", {2147483647});
+  m.Int32s("axes", {2});
+  m.Int32s("steps", {1});
+  m.Node("Slice", {"b", "starts", "ends", "axes", "steps"}, {"c"}, "rows");
+  m.Int32s("starts_w", {0});
+  m.Int32s("ends_w", {10});
+  m.Int32s("axes_w", {3});
+  m.Node("Slice", {"c", "starts_w", "ends_w", "axes_w"}, {"y"}, "cols");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("crop_int32.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 2u);
+  const auto& crop = LayerAs<CropSpec>(*spec, 1);
+  EXPECT_EQ(crop.rule, CropRule::kToInputSize);
+  EXPECT_TRUE(crop.excess_rows_from_top);
+  EXPECT_FALSE(crop.excess_cols_from_left);
+  EXPECT_EQ(crop.amounts, (Pads{6, 0, 0, 10}));
+}
+
+// ------------------------------------------------------------------------------ errors
+
+TEST_F(OnnxImporter, RejectsUnsupportedOpNamingNodeAndOpType) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Sigmoid", {"t"}, {"y"}, "squash");
+  m.Output("y");
+  ExpectImportError(m.Save("sigmoid.onnx"),
+                    {"node 'squash' (op Sigmoid): unsupported; supported ops: Conv, Pad"});
+}
+
+TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Floats("one", {}, {1.0f});
+  m.Node("Add", {"x", "one"}, {"t"}, "shift");
+  m.Conv("c", "t", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  ExpectImportError(m.Save("add.onnx"),
+                    {"node 'shift' (op Add): unsupported", "only evaluated when all its inputs"});
+}
+
+TEST_F(OnnxImporter, RejectsGroupedConv) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  SetInt(m.Conv("grouped", "x", "y", 1, 2, 3, 1, {1, 1, 1, 1}), "group", 2);
+  m.Output("y");
+  ExpectImportError(m.Save("group.onnx"), {"node 'grouped' (op Conv)", "'group' = 2"});
+}
+
+TEST_F(OnnxImporter, RejectsDilatedConv) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 9, 9});
+  SetInts(m.Conv("dilated", "x", "y", 2, 2, 3, 1, {2, 2, 2, 2}), "dilations", {2, 2});
+  m.Output("y");
+  ExpectImportError(m.Save("dilation.onnx"), {"node 'dilated' (op Conv)", "'dilations' = [2, 2]"});
+}
+
+TEST_F(OnnxImporter, RejectsSameLowerAutoPad) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  SetString(m.Conv("lower", "x", "y", 2, 2, 3, 2, {}), "auto_pad", "SAME_LOWER");
+  m.Output("y");
+  ExpectImportError(m.Save("same_lower.onnx"),
+                    {"node 'lower' (op Conv)", "'auto_pad' = 'SAME_LOWER'"});
+}
+
+TEST_F(OnnxImporter, RejectsLinearResize) {
+  ResizeCase rc;
+  rc.scales = {1, 1, 2, 2};
+  rc.mode = "linear";
+  ExpectImportError(ResizeModel("linear.onnx", rc), {"node 'up' (op Resize)", "'mode' = 'linear'"});
+}
+
+TEST_F(OnnxImporter, RejectsNonIntegerScale) {
+  ResizeCase rc;
+  rc.scales = {1, 1, 1.5f, 2};
+  ExpectImportError(ResizeModel("scale_1_5.onnx", rc),
+                    {"node 'up' (op Resize)", "'scales'", "1.5", "not a positive integer factor"});
+}
+
+TEST_F(OnnxImporter, RejectsSizesThatAreNotMultiplesOfTheInput) {
+  ResizeCase rc;
+  rc.sizes = {1, 2, 12, 20};  // 8 -> 12
+  ExpectImportError(ResizeModel("sizes_12.onnx", rc),
+                    {"node 'up' (op Resize)", "'sizes' = [1, 2, 12, 20]"});
+}
+
+TEST_F(OnnxImporter, RejectsResizeOfTheChannelAxis) {
+  ResizeCase rc;
+  rc.scales = {1, 2, 2, 2};
+  ExpectImportError(ResizeModel("resize_channels.onnx", rc),
+                    {"node 'up' (op Resize)", "batch or channel"});
+}
+
+TEST_F(OnnxImporter, RejectsReflectPad) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("pads", {0, 0, 1, 1, 0, 0, 1, 1});
+  SetString(m.Node("Pad", {"x", "pads"}, {"p"}, "mirror"), "mode", "reflect");
+  m.Conv("c", "p", "y", 2, 2, 3, 1, {});
+  m.Output("y");
+  ExpectImportError(m.Save("reflect.onnx"), {"node 'mirror' (op Pad)", "'mode' = 'reflect'"});
+}
+
+TEST_F(OnnxImporter, RejectsNonZeroPadValue) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("pads", {0, 0, 1, 1, 0, 0, 1, 1});
+  m.Floats("value", {}, {0.5f});
+  m.Node("Pad", {"x", "pads", "value"}, {"p"}, "grey");
+  m.Conv("c", "p", "y", 2, 2, 3, 1, {});
+  m.Output("y");
+  ExpectImportError(m.Save("pad_value.onnx"), {"node 'grey' (op Pad)", "'constant_value' = 0.5"});
+}
+
+TEST_F(OnnxImporter, RejectsPadOnTheChannelAxis) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("pads", {0, 1, 0, 0, 0, 0, 0, 0});
+  m.Node("Pad", {"x", "pads"}, {"p"}, "chpad");
+  m.Conv("c", "p", "y", 3, 2, 3, 1, {});
+  m.Output("y");
+  ExpectImportError(m.Save("pad_channels.onnx"),
+                    {"node 'chpad' (op Pad)", "[0, 1, 0, 0, 0, 0, 0, 0]", "batch or channel"});
+}
+
+TEST_F(OnnxImporter, RejectsPadNotFollowedByConv) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("pads", {0, 0, 1, 1, 0, 0, 1, 1});
+  m.Node("Pad", {"x", "pads"}, {"p"}, "lonely");
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  m.Node("Resize", {"p", "", "scales"}, {"y"}, "up");
+  m.Output("y");
+  ExpectImportError(m.Save("pad_resize.onnx"),
+                    {"node 'lonely' (op Pad)", "followed by a Conv", "node 'up' (op Resize)"});
+}
+
+TEST_F(OnnxImporter, RejectsSliceWithStepTwo) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  m.Int64s("starts", {0});
+  m.Int64s("ends", {8});
+  m.Int64s("axes", {2});
+  m.Int64s("steps", {2});
+  m.Node("Slice", {"x", "starts", "ends", "axes", "steps"}, {"y"}, "strided");
+  m.Output("y");
+  ExpectImportError(m.Save("slice_step.onnx"), {"node 'strided' (op Slice)", "'steps' = [2]"});
+}
+
+TEST_F(OnnxImporter, RejectsSliceOfTheChannelAxis) {
+  OnnxModel m;
+  m.Input("x", {1, 4, 8, 8});
+  m.Int64s("starts", {0});
+  m.Int64s("ends", {2});
+  m.Int64s("axes", {1});
+  m.Node("Slice", {"x", "starts", "ends", "axes"}, {"y"}, "half");
+  m.Output("y");
+  ExpectImportError(m.Save("slice_channels.onnx"), {"node 'half' (op Slice)", "axis 1 (channels)"});
+}
+
+TEST_F(OnnxImporter, RejectsActivationThatDoesNotFollowAConv) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  m.Node("Resize", {"x", "", "scales"}, {"u"}, "up");
+  m.Node("Relu", {"u"}, {"y"}, "late_relu");
+  m.Output("y");
+  ExpectImportError(
+      m.Save("relu_after_resize.onnx"),
+      {"node 'late_relu' (op Relu)", "directly follow a Conv", "node 'up' (op Resize)"});
+}
+
+TEST_F(OnnxImporter, RejectsConvOutputWithASecondConsumer) {
+  // c0's output feeds its LeakyRelu and also conv 'side', whose shape sets the Resize size.
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("c0", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("LeakyRelu", {"t"}, {"u"}, "act");
+  m.Conv("side", "t", "v", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Shape", {"v"}, {"v_shape"}, "side_shape");
+  m.Int64s("mult", {1, 1, 2, 2});
+  m.Node("Mul", {"v_shape", "mult"}, {"sizes"}, "sizes");
+  SetString(m.Node("Resize", {"u", "", "", "sizes"}, {"y"}, "up"), "coordinate_transformation_mode",
+            "asymmetric");
+  m.Output("y");
+  ExpectImportError(m.Save("branch.onnx"), {"node 'c0' (op Conv)", "'t'", "node 'side' (op Conv)"});
+}
+
+TEST_F(OnnxImporter, RejectsTwoGraphOutputs) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("c0", "x", "a", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Conv("c1", "a", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("a");
+  m.Output("y");
+  ExpectImportError(m.Save("two_outputs.onnx"), {"2 outputs"});
+}
+
+TEST_F(OnnxImporter, RejectsNonConstantWeights) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 3, 3});
+  m.Node("Conv", {"x", "x"}, {"y"}, "self");
+  m.Output("y");
+  ExpectImportError(m.Save("weights_from_input.onnx"),
+                    {"node 'self' (op Conv)", "input 1 'x' depends on the network input"});
+}
+
+TEST_F(OnnxImporter, RejectsMissingFile) {
+  const std::string path = (TestDir() / "no_such_model.onnx").string();
+  std::filesystem::remove(path);
+  ExpectImportError(path, {"cannot open"});
+}
+
+TEST_F(OnnxImporter, RejectsGarbageBytes) {
+  const std::string path = (TestDir() / "garbage.onnx").string();
+  {
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    f << "this is not an ONNX model\n\xff\xfe\x01\x02";
+  }
+  ExpectImportError(path, {"not a valid ONNX file"});
+}
+
+TEST_F(OnnxImporter, RejectsEmptyFile) {
+  const std::string path = (TestDir() / "empty.onnx").string();
+  { std::ofstream f(path, std::ios::binary | std::ios::trunc); }
+  ExpectImportError(path, {"not a valid ONNX file"});
+}
+
+TEST_F(OnnxImporter, RejectsOpsetsOutside11To17) {
+  for (int64_t opset : {9, 10, 18}) {
+    OnnxModel m(opset);
+    m.Input("x", {1, 2, 4, 4});
+    m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+    m.Output("y");
+    ExpectImportError(m.Save("opset" + std::to_string(opset) + ".onnx"),
+                      {"opset " + std::to_string(opset) + " is not supported", "11 to 17"});
+  }
+  for (int64_t opset : {11, 17}) {
+    OnnxModel m(opset);
+    m.Input("x", {1, 2, 4, 4});
+    m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+    m.Output("y");
+    auto spec = ImportOk(m.Save("opset" + std::to_string(opset) + ".onnx"));
+  }
+}
+
+TEST_F(OnnxImporter, RejectsSymbolicInputDimension) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.graph()
+      .mutable_input(0)
+      ->mutable_type()
+      ->mutable_tensor_type()
+      ->mutable_shape()
+      ->mutable_dim(2)
+      ->set_dim_param("height");
+  m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  ExpectImportError(m.Save("symbolic.onnx"), {"graph input 'x'", "dimension 2 (H)", "'height'"});
+}
+
+TEST_F(OnnxImporter, RejectsBatchOtherThanOne) {
+  OnnxModel m;
+  m.Input("x", {2, 2, 4, 4});
+  m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  ExpectImportError(m.Save("batch2.onnx"), {"graph input 'x'", "batch size 2"});
+}
+
+TEST_F(OnnxImporter, RejectsExternalTensorData) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  auto* w = m.graph().mutable_initializer(0);
+  w->clear_raw_data();
+  w->set_data_location(onnx::TensorProto::EXTERNAL);
+  auto* entry = w->add_external_data();
+  entry->set_key("location");
+  entry->set_value("weights.bin");
+  m.Output("y");
+  ExpectImportError(m.Save("external.onnx"), {"'c.w'", "external data"});
+}
+
+TEST_F(OnnxImporter, RejectsWeightsWithTooFewValues) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("c", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.graph().mutable_initializer(0)->mutable_raw_data()->resize(12);
+  m.Output("y");
+  ExpectImportError(m.Save("short_weights.onnx"), {"node 'c' (op Conv)", "'c.w'", "12 bytes"});
+}
+
+TEST_F(OnnxImporter, ErrorMessagesStayOnOneLineWhateverTheNames) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Node("Sigmoid", {"x"}, {"y"}, "bad\nname");
+  m.Output("y");
+  ExpectImportError(m.Save("newline.onnx"), {"bad?name", "(op Sigmoid)"});
+}
+
+}  // namespace
+}  // namespace sfrt::exporter
