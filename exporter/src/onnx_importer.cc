@@ -1979,7 +1979,15 @@ Result<ModelSpec> Importer::Assemble() {
   std::set<std::string> used_names;
   auto unique_name = [&used_names](const std::string& wanted, const std::string& prefix,
                                    int counter) {
-    std::string base = wanted.empty() ? prefix + std::to_string(counter) : wanted;
+    // torch.onnx.export names nodes by module path and op ("/conv0/Conv"): keep the module
+    // path, which is what the author called the layer ("conv0").
+    std::string readable = wanted;
+    if (readable.size() > 1 && readable[0] == '/') {
+      readable.erase(0, 1);
+      const size_t last_slash = readable.rfind('/');
+      if (last_slash != std::string::npos && last_slash > 0) readable.erase(last_slash);
+    }
+    std::string base = readable.empty() ? prefix + std::to_string(counter) : readable;
     std::string name = base;
     for (int k = 2; used_names.count(name) > 0; ++k) name = base + "_" + std::to_string(k);
     used_names.insert(name);

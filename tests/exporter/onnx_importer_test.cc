@@ -376,6 +376,25 @@ TEST_F(OnnxImporter, GeneratesLayerNamesForUnnamedNodes) {
   EXPECT_EQ(LayerAs<ConvSpec>(*spec, 2).name, "conv1");
 }
 
+TEST_F(OnnxImporter, TorchModulePathsBecomeLayerNames) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("/encoder/conv0/Conv", "x", "a", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  auto& r = m.Node("Resize", {"a", "", "scales"}, {"b"});
+  r.set_name("/Resize_1");
+  SetString(r, "coordinate_transformation_mode", "asymmetric");
+  SetString(r, "nearest_mode", "floor");
+  m.Conv("plain_name", "b", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("torch_names.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 3u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).name, "encoder/conv0");
+  EXPECT_EQ(LayerAs<UpsampleSpec>(*spec, 1).name, "Resize_1");
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 2).name, "plain_name");
+}
+
 TEST_F(OnnxImporter, IgnoresNodesTheOutputDoesNotDependOn) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});

@@ -1,0 +1,387 @@
+// sfrt infer: one forward pass on four images (or a prepared .npy input); writes the flow.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "sfrt/commands.h"
+#include "sfrt/io/npy.h"
+#include "sfrt/io/pfm.h"
+#include "sfrt/model.h"
+#include "sfrt/session.h"
+
+namespace sfrt::tools {
+namespace {
+
+constexpr char kName[] = "infer";
+
+struct InferArgs {
+  std::string model;
+  std::string left0;
+  std::string right0;
+  std::string left1;
+  std::string right1;
+  std::string input_npy;
+  std::string output;
+  std::string size;
+};
+
+struct InputTensor {
+  int height = 0;
+  int width = 0;
+  std::vector<float> data;  // height x width x channels, in the model's channel order
+  std::string description;  // where it came from, for the report
+};
+
+std::string SizeString(int height, int width) {
+  return std::to_string(height) + "x" + std::to_string(width);
+}
+
+std::string FormatFloat(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", v);
+  return buf;
+}
+
+// Reads the four images and builds the network input as the model's metadata prescribes:
+// image order, color order, then value = (pixel * scale - mean[c]) / std[c].
+Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc, int resize_h,
+                                    int resize_w) {
+  struct Source {
+    const char* slot;
+    const char* flag;
+    const std::string* path;
+    cv::Mat image;
+  };
+  Source sources[4] = {{"left0", "--left0", &args.left0, {}},
+                       {"right0", "--right0", &args.right0, {}},
+                       {"left1", "--left1", &args.left1, {}},
+                       {"right1", "--right1", &args.right1, {}}};
+
+  // Check the metadata before reading anything big.
+  if (desc.channels != 3 * static_cast<int>(desc.image_order.size())) {
+    return Status::Error("the model takes " + std::to_string(desc.channels) +
+                         " input channels but its image order lists " +
+                         std::to_string(desc.image_order.size()) +
+                         " images of 3 channels; give --input-npy instead");
+  }
+  std::vector<size_t> group_source;  // input channel group -> index into sources
+  for (const std::string& slot : desc.image_order) {
+    size_t found = 4;
+    for (size_t i = 0; i < 4; ++i) {
+      if (slot == sources[i].slot) found = i;
+    }
+    if (found == 4) {
+      return Status::Error("the model's image order names an unknown image '" + slot +
+                           "' (known: left0, right0, left1, right1)");
+    }
+    group_source.push_back(found);
+  }
+  bool rgb = false;
+  if (desc.color_order == "RGB") {
+    rgb = true;
+  } else if (desc.color_order != "BGR") {
+    return Status::Error("the model's color order '" + desc.color_order +
+                         "' is neither BGR nor RGB");
+  }
+  for (int c = 0; c < 3; ++c) {
+    if (!(desc.std[c] != 0) || !std::isfinite(desc.std[c])) {
+      return Status::Error("the model's std[" + std::to_string(c) + "] is " +
+                           FormatFloat(desc.std[c]) + "; cannot normalise");
+    }
+  }
+
+  for (Source& s : sources) {
+    if (std::string problem = CheckInputFile(*s.path, std::string(s.flag) + " image");
+        !problem.empty()) {
+      return Status::Error(problem);
+    }
+    s.image = cv::imread(*s.path, cv::IMREAD_COLOR);  // 8-bit, BGR
+    if (s.image.empty()) {
+      return Status::Error(std::string(s.flag) + " image '" + *s.path +
+                           "' could not be decoded (not an image format OpenCV reads)");
+    }
+    if (s.image.type() != CV_8UC3) {
+      return Status::Error(std::string(s.flag) + " image '" + *s.path +
+                           "' did not decode to 8-bit BGR");
+    }
+  }
+  for (size_t i = 1; i < 4; ++i) {
+    if (sources[i].image.size() != sources[0].image.size()) {
+      return Status::Error(std::string(sources[i].flag) + " image '" + *sources[i].path + "' is " +
+                           SizeString(sources[i].image.rows, sources[i].image.cols) + " but " +
+                           sources[0].flag + " image '" + *sources[0].path + "' is " +
+                           SizeString(sources[0].image.rows, sources[0].image.cols) +
+                           " (all four images must have the same size)");
+    }
+  }
+  std::string resized;
+  if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
+    resized = ", resized from " + SizeString(sources[0].image.rows, sources[0].image.cols);
+    const bool shrink = resize_h <= sources[0].image.rows && resize_w <= sources[0].image.cols;
+    for (Source& s : sources) {
+      cv::Mat out;
+      cv::resize(s.image, out, cv::Size(resize_w, resize_h), 0, 0,
+                 shrink ? cv::INTER_AREA : cv::INTER_LINEAR);
+      s.image = out;
+    }
+  }
+
+  InputTensor input;
+  input.height = sources[0].image.rows;
+  input.width = sources[0].image.cols;
+  const size_t channels = static_cast<size_t>(desc.channels);
+  const size_t row_stride = static_cast<size_t>(input.width) * channels;
+  input.data.resize(static_cast<size_t>(input.height) * row_stride);
+  for (size_t g = 0; g < group_source.size(); ++g) {
+    const cv::Mat& image = sources[group_source[g]].image;
+    for (int y = 0; y < input.height; ++y) {
+      const uint8_t* src = image.ptr<uint8_t>(y);
+      float* dst = input.data.data() + static_cast<size_t>(y) * row_stride + 3 * g;
+      for (int x = 0; x < input.width; ++x, src += 3, dst += channels) {
+        for (int c = 0; c < 3; ++c) {
+          const float pixel = static_cast<float>(rgb ? src[2 - c] : src[c]);
+          dst[c] = (pixel * desc.scale - desc.mean[c]) / desc.std[c];
+        }
+      }
+    }
+  }
+  std::string order;
+  for (const std::string& slot : desc.image_order) order += (order.empty() ? "" : ",") + slot;
+  input.description = "4 images as " + order + ", " + desc.color_order + resized;
+  return input;
+}
+
+// Reads an (H, W, C) or (1, H, W, C) float32 array already in the model's channel order.
+Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc) {
+  if (std::string problem = CheckInputFile(path, "--input-npy file"); !problem.empty()) {
+    return Status::Error(problem);
+  }
+  Result<NpyArray> array = ReadNpy(path);
+  if (!array.ok()) return array.status();
+  std::vector<int64_t> shape = array->shape;
+  if (shape.size() == 4 && shape[0] == 1) shape.erase(shape.begin());
+  if (shape.size() != 3 || shape[0] <= 0 || shape[1] <= 0 ||
+      shape[0] > std::numeric_limits<int>::max() || shape[1] > std::numeric_limits<int>::max()) {
+    return Status::Error(path + ": shape " + array->ShapeString() + " is not (H, W, " +
+                         std::to_string(desc.channels) + ") or (1, H, W, " +
+                         std::to_string(desc.channels) + ")");
+  }
+  if (shape[2] != desc.channels) {
+    return Status::Error(path + ": shape " + array->ShapeString() + " has " +
+                         std::to_string(shape[2]) + " channels but the model takes " +
+                         std::to_string(desc.channels));
+  }
+  InputTensor input;
+  input.height = static_cast<int>(shape[0]);
+  input.width = static_cast<int>(shape[1]);
+  input.data = std::move(array->data);
+  input.description = "array " + path;
+  return input;
+}
+
+struct ChannelStats {
+  float min = std::numeric_limits<float>::infinity();
+  float max = -std::numeric_limits<float>::infinity();
+  double sum = 0;
+  size_t finite = 0;
+  size_t nan = 0;
+  size_t inf = 0;
+};
+
+int RunInfer(const InferArgs& args) {
+  // Usage checks: decided from the command line alone, before any file is read.
+  const bool any_image =
+      !args.left0.empty() || !args.right0.empty() || !args.left1.empty() || !args.right1.empty();
+  if (!args.input_npy.empty() && any_image) {
+    return ReportError(kName, "give either --input-npy or the four images, not both", kExitUsage);
+  }
+  if (args.input_npy.empty()) {
+    std::string missing;
+    if (args.left0.empty()) missing += " --left0";
+    if (args.right0.empty()) missing += " --right0";
+    if (args.left1.empty()) missing += " --left1";
+    if (args.right1.empty()) missing += " --right1";
+    if (!missing.empty()) {
+      return ReportError(kName,
+                         any_image ? "missing image option(s):" + missing +
+                                         " (all four of --left0 --right0 --left1 --right1 are "
+                                         "needed)"
+                                   : "no input: give --left0 --right0 --left1 --right1, or "
+                                     "--input-npy",
+                         kExitUsage);
+    }
+  }
+  int resize_h = 0;
+  int resize_w = 0;
+  if (!args.size.empty()) {
+    if (!ParseSize(args.size, &resize_h, &resize_w)) {
+      return ReportError(
+          kName,
+          "--size: expected HxW with positive integers (e.g. 540x960), got '" + args.size + "'",
+          kExitUsage);
+    }
+    if (!args.input_npy.empty()) {
+      return ReportError(kName, "--size resizes images; it cannot be used with --input-npy",
+                         kExitUsage);
+    }
+  }
+  const std::string out_ext = LowerExtension(args.output);
+  if (out_ext != ".pfm" && out_ext != ".npy") {
+    return ReportError(kName,
+                       "-o " + args.output + ": unsupported output format '" +
+                           (out_ext.empty() ? std::string("(no extension)") : out_ext) +
+                           "' (supported: .pfm, 3-channel PFM; .npy, float32 (H,W,3))",
+                       kExitUsage);
+  }
+
+  if (std::string problem = CheckOutputDirectory(args.output); !problem.empty()) {
+    return ReportError(kName, problem, kExitFailure);
+  }
+
+  // Model.
+  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
+    return ReportError(kName, problem, kExitFailure);
+  }
+  Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
+  if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
+  std::shared_ptr<const Model> model = std::move(loaded).value();
+  const ModelMetadata& meta = model->metadata();
+
+  // Input.
+  Result<InputTensor> input = args.input_npy.empty()
+                                  ? InputFromImages(args, meta.input, resize_h, resize_w)
+                                  : InputFromNpy(args.input_npy, meta.input);
+  if (!input.ok()) return ReportError(kName, input.message(), kExitFailure);
+  const int height = input->height;
+  const int width = input->width;
+
+  SessionOptions options;
+  options.max_height = height;
+  options.max_width = width;
+  Result<std::unique_ptr<Session>> session = Session::Create(model, options);
+  if (!session.ok()) {
+    return ReportError(
+        kName,
+        "cannot create a session for " + SizeString(height, width) + ": " + session.message(),
+        kExitFailure);
+  }
+  Result<TensorShape> out_shape = (*session)->OutputShape(height, width);
+  if (!out_shape.ok()) return ReportError(kName, out_shape.message(), kExitFailure);
+  if (out_ext == ".pfm" && out_shape->channels != 3 && out_shape->channels != 1) {
+    return ReportError(kName,
+                       "the model outputs " + std::to_string(out_shape->channels) +
+                           " channels; PFM holds 1 or 3 (write .npy instead)",
+                       kExitFailure);
+  }
+  std::vector<float> output(out_shape->elements());
+
+  std::cout << "model   " << args.model << " (" << meta.name << ")\n"
+            << "input   " << SizeString(height, width) << " from " << input->description << "\n";
+  const auto start = std::chrono::steady_clock::now();
+  Status run = (*session)->Run(input->data, height, width, output);
+  const auto stop = std::chrono::steady_clock::now();
+  if (!run.ok()) return ReportError(kName, run.message(), kExitFailure);
+  const double ms = std::chrono::duration<double, std::milli>(stop - start).count();
+  char time_line[64];
+  std::snprintf(time_line, sizeof(time_line), "%.1f ms", ms);
+  std::cout << "run     " << time_line << " (Session::Run, steady_clock)\n";
+
+  // Statistics per output channel.
+  const size_t channels = static_cast<size_t>(out_shape->channels);
+  std::vector<ChannelStats> stats(channels);
+  for (size_t i = 0; i < output.size(); ++i) {
+    ChannelStats& s = stats[i % channels];
+    const float v = output[i];
+    if (std::isnan(v)) {
+      ++s.nan;
+    } else if (std::isinf(v)) {
+      ++s.inf;
+    } else {
+      s.min = std::min(s.min, v);
+      s.max = std::max(s.max, v);
+      s.sum += v;
+      ++s.finite;
+    }
+  }
+  std::cout << "output  " << out_shape->height << "x" << out_shape->width << "x"
+            << out_shape->channels << " (" << meta.output.units << ")\n";
+  size_t nan = 0;
+  size_t inf = 0;
+  for (size_t c = 0; c < channels; ++c) {
+    const ChannelStats& s = stats[c];
+    std::string name = c < meta.output.channel_names.size() ? meta.output.channel_names[c]
+                                                            : "ch" + std::to_string(c);
+    char line[160];
+    if (s.finite > 0) {
+      std::snprintf(line, sizeof(line), "  %-4s  min %12.6g  max %12.6g  mean %12.6g", name.c_str(),
+                    static_cast<double>(s.min), static_cast<double>(s.max),
+                    s.sum / static_cast<double>(s.finite));
+    } else {
+      std::snprintf(line, sizeof(line), "  %-4s  no finite values", name.c_str());
+    }
+    std::cout << line << "\n";
+    nan += s.nan;
+    inf += s.inf;
+  }
+  if (nan == 0 && inf == 0) {
+    std::cout << "finite  yes (all " << GroupDigits(output.size()) << " values)\n";
+  } else {
+    std::cout << "finite  NO: " << GroupDigits(nan) << " NaN, " << GroupDigits(inf)
+              << " infinite of " << GroupDigits(output.size()) << " values\n";
+  }
+
+  Status written = Status::Ok();
+  if (out_ext == ".pfm") {
+    written =
+        WritePfm(args.output, output, out_shape->height, out_shape->width, out_shape->channels);
+  } else {
+    const int64_t shape[3] = {out_shape->height, out_shape->width, out_shape->channels};
+    written = WriteNpy(args.output, shape, output);
+  }
+  if (!written.ok()) return ReportError(kName, written.message(), kExitFailure);
+  std::cout << "wrote   " << args.output << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+Command AddInferCommand(CLI::App& parent) {
+  auto args = std::make_shared<InferArgs>();
+  CLI::App* cmd =
+      parent.add_subcommand("infer", "Run the network on one frame pair and write the scene flow");
+  cmd->add_option("--model", args->model, "Model file (.sfrt)")->required();
+  cmd->add_option("--left0", args->left0, "Left image at time t");
+  cmd->add_option("--right0", args->right0, "Right image at time t");
+  cmd->add_option("--left1", args->left1, "Left image at time t+1");
+  cmd->add_option("--right1", args->right1, "Right image at time t+1");
+  cmd->add_option("--input-npy", args->input_npy,
+                  "Network input as float32 .npy, shape (H,W,C) or (1,H,W,C), C = the model's "
+                  "input channels, already ordered and normalised (instead of the images)");
+  cmd->add_option("-o,--output", args->output,
+                  "Output file: .pfm (3-channel PFM) or .npy (float32, shape (H,W,3))")
+      ->required();
+  cmd->add_option("--size", args->size,
+                  "Resize the four images to HxW before inference (images only; default: their "
+                  "own size)");
+  cmd->footer(
+      "Input: four images of the same size, read with OpenCV (BGR), arranged in the model's\n"
+      "image order, converted to RGB if the model says so and normalised as its metadata\n"
+      "prescribes; or a float32 .npy already in the model's channel order. The session is\n"
+      "planned for exactly the input size. Output: dX, dY, dZ per pixel of left0, in the\n"
+      "training camera's units. Prints the input size, the time Session::Run took, per-channel\n"
+      "min/max/mean of the output and whether every value is finite.\n"
+      "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
+  return Command{cmd, [args] { return RunInfer(*args); }};
+}
+
+}  // namespace sfrt::tools

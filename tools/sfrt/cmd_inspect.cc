@@ -1,0 +1,308 @@
+// sfrt inspect: what a .sfrt model file holds and what it costs at one input size.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sfrt/commands.h"
+#include "sfrt/model.h"
+#include "sfrt/session.h"
+#include "sfrt/shapes.h"
+
+namespace sfrt::tools {
+namespace {
+
+constexpr char kName[] = "inspect";
+constexpr int kDefaultHeight = 540;
+constexpr int kDefaultWidth = 960;
+
+struct InspectArgs {
+  std::string model;
+  std::string size;
+  bool print_plan = false;
+};
+
+std::string FormatFloat(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", v);
+  return buf;
+}
+
+std::string Join(const std::vector<std::string>& items, const char* sep) {
+  std::string out;
+  for (const std::string& item : items) {
+    if (!out.empty()) out += sep;
+    out += item;
+  }
+  return out;
+}
+
+std::string Triple(const float v[3]) {
+  return FormatFloat(v[0]) + "," + FormatFloat(v[1]) + "," + FormatFloat(v[2]);
+}
+
+std::string PadsString(const Padding& p) {
+  return std::to_string(p.top) + "," + std::to_string(p.left) + "," + std::to_string(p.bottom) +
+         "," + std::to_string(p.right);
+}
+
+std::string ShapeString(const TensorShape& s) {
+  return std::to_string(s.height) + "x" + std::to_string(s.width) + "x" +
+         std::to_string(s.channels);
+}
+
+std::string OpString(const LayerDesc& layer) {
+  switch (layer.kind) {
+    case LayerKind::kConv2D: {
+      const ConvParams& c = layer.conv;
+      std::string op = "conv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
+                       "/s" + std::to_string(c.stride_h);
+      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
+      if (c.activation == Activation::kLeakyRelu) {
+        op += " + leaky(" + FormatFloat(c.leaky_slope) + ")";
+      } else if (c.activation == Activation::kRelu) {
+        op += " + relu";
+      }
+      return op;
+    }
+    case LayerKind::kUpsample: {
+      const UpsampleParams& u = layer.upsample;
+      std::string factor = u.factor_h == u.factor_w
+                               ? "x" + std::to_string(u.factor_h)
+                               : std::to_string(u.factor_h) + "x" + std::to_string(u.factor_w);
+      return "upsample " + factor + " nearest";
+    }
+    case LayerKind::kCrop: {
+      const CropParams& c = layer.crop;
+      if (c.rule == CropRule::kExplicit) return "crop explicit";
+      return std::string("crop to input (rows from ") +
+             (c.excess_rows_from_top ? "top" : "bottom") + ", cols from " +
+             (c.excess_cols_from_left ? "left" : "right") + ")";
+    }
+  }
+  return "?";
+}
+
+// The "pads" column: what is added (conv) or removed (crop) per side at this size.
+std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
+  switch (layer.kind) {
+    case LayerKind::kConv2D:
+      return PadsString(g.pads) +
+             (layer.conv.padding_rule == PaddingRule::kSameUpper ? " same-upper" : " explicit");
+    case LayerKind::kCrop:
+      return "crop " + PadsString(g.crop);
+    case LayerKind::kUpsample:
+      return "-";
+  }
+  return "?";
+}
+
+// A text table: left-aligned text columns, right-aligned number columns.
+class Table {
+ public:
+  explicit Table(std::vector<std::pair<std::string, bool>> columns)  // (title, right-aligned)
+      : columns_(std::move(columns)) {}
+  void Add(std::vector<std::string> row) { rows_.push_back(std::move(row)); }
+  void Print(std::ostream& out, const std::string& indent) const {
+    std::vector<size_t> width(columns_.size());
+    for (size_t c = 0; c < columns_.size(); ++c) {
+      width[c] = columns_[c].first.size();
+      for (const auto& row : rows_) width[c] = std::max(width[c], row[c].size());
+    }
+    auto line = [&](const std::vector<std::string>& cells) {
+      std::string s = indent;
+      for (size_t c = 0; c < cells.size(); ++c) {
+        std::string pad(width[c] - cells[c].size(), ' ');
+        if (c > 0) s += "  ";
+        s += columns_[c].second ? pad + cells[c] : cells[c] + pad;
+      }
+      while (!s.empty() && s.back() == ' ') s.pop_back();
+      out << s << "\n";
+    };
+    std::vector<std::string> titles;
+    for (const auto& col : columns_) titles.push_back(col.first);
+    line(titles);
+    for (const auto& row : rows_) line(row);
+  }
+
+ private:
+  std::vector<std::pair<std::string, bool>> columns_;
+  std::vector<std::vector<std::string>> rows_;
+};
+
+int RunInspect(const InspectArgs& args) {
+  int height = 0;
+  int width = 0;
+  if (!args.size.empty() && !ParseSize(args.size, &height, &width)) {
+    return ReportError(
+        kName,
+        "--size: expected HxW with positive integers (e.g. 540x960), got '" + args.size + "'",
+        kExitUsage);
+  }
+  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
+    return ReportError(kName, problem, kExitFailure);
+  }
+  Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
+  if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
+  std::shared_ptr<const Model> model = std::move(loaded).value();
+  const ModelMetadata& meta = model->metadata();
+
+  std::string size_source = "--size";
+  if (args.size.empty()) {
+    if (meta.input.traced_height > 0 && meta.input.traced_width > 0) {
+      height = meta.input.traced_height;
+      width = meta.input.traced_width;
+      size_source = "traced size";
+    } else {
+      height = kDefaultHeight;
+      width = kDefaultWidth;
+      size_source = "default; traced size unknown";
+    }
+  }
+
+  std::ostream& out = std::cout;
+  const std::string traced =
+      meta.input.traced_height > 0
+          ? std::to_string(meta.input.traced_height) + "x" + std::to_string(meta.input.traced_width)
+          : "unknown";
+  char crc[16];
+  std::snprintf(crc, sizeof(crc), "0x%08x", static_cast<unsigned>(meta.weights_crc32c));
+  out << "model     " << args.model << "\n"
+      << "  name            " << meta.name << "\n"
+      << "  schema version  " << meta.schema_major << "." << meta.schema_minor << "\n"
+      << "  file size       " << GroupDigits(model->file_bytes()) << " bytes\n"
+      << "producer\n"
+      << "  exporter        " << meta.exporter_version << "\n"
+      << "  source          " << meta.source_format << " file " << meta.source_file << "\n"
+      << "  source sha256   " << meta.source_sha256 << "\n"
+      << "input     " << meta.input.name << "\n"
+      << "  channels        " << meta.input.channels << "\n"
+      << "  image order     " << Join(meta.input.image_order, ",") << "\n"
+      << "  color order     " << meta.input.color_order << "\n"
+      << "  value           (pixel * " << FormatFloat(meta.input.scale)
+      << " - mean[c]) / std[c], mean " << Triple(meta.input.mean) << ", std "
+      << Triple(meta.input.std) << "\n"
+      << "  traced size     " << traced << "\n"
+      << "output    " << meta.output.name << "\n"
+      << "  channels        " << meta.output.channels << " ("
+      << Join(meta.output.channel_names, ", ") << ")\n"
+      << "  units           " << meta.output.units << "\n"
+      << "camera    (training)\n"
+      << "  focal           " << FormatFloat(meta.camera.focal_px) << " px\n"
+      << "  baseline        " << FormatFloat(meta.camera.baseline) << "\n"
+      << "  cx, cy          " << FormatFloat(meta.camera.cx) << ", " << FormatFloat(meta.camera.cy)
+      << "\n"
+      << "weights\n"
+      << "  type            " << (meta.weight_type == WeightType::kFloat16 ? "float16" : "float32")
+      << "\n"
+      << "  CRC-32C         " << crc << "\n";
+
+  Result<std::vector<LayerGeometry>> geometry = InferGeometry(*model, height, width);
+  if (!geometry.ok()) {
+    return ReportError(
+        kName,
+        "at " + std::to_string(height) + "x" + std::to_string(width) + ": " + geometry.message(),
+        kExitFailure);
+  }
+  std::span<const LayerDesc> layers = model->layers();
+  Table table({{"#", true},
+               {"name", false},
+               {"op", false},
+               {"pads t,l,b,r", false},
+               {"output HxWxC", true},
+               {"MACs", true},
+               {"params", true}});
+  uint64_t total_macs = 0;
+  uint64_t total_params = 0;
+  bool any_explicit = false;
+  for (size_t i = 0; i < layers.size(); ++i) {
+    const LayerGeometry& g = (*geometry)[i];
+    total_macs += g.macs;
+    total_params += g.params;
+    any_explicit |= layers[i].kind == LayerKind::kConv2D &&
+                    layers[i].conv.padding_rule == PaddingRule::kExplicit;
+    table.Add({std::to_string(i), layers[i].name, OpString(layers[i]), PadsColumn(layers[i], g),
+               ShapeString(g.output),
+               layers[i].kind == LayerKind::kConv2D ? GroupDigits(g.macs) : "-",
+               g.params > 0 ? GroupDigits(g.params) : "-"});
+  }
+  const int bytes_per_weight = meta.weight_type == WeightType::kFloat16 ? 2 : 4;
+  char gmac[32];
+  std::snprintf(gmac, sizeof(gmac), "%.2f", static_cast<double>(total_macs) / 1e9);
+  out << "\nlayers at " << height << "x" << width << " (" << size_source << ")\n";
+  table.Print(out, "  ");
+  out << "totals\n"
+      << "  compute         " << gmac << " GMAC (" << GroupDigits(total_macs) << " MACs)\n"
+      << "  parameters      " << GroupDigits(total_params) << "\n"
+      << "  weight bytes    " << GroupDigits(total_params * bytes_per_weight) << " ("
+      << (meta.weight_type == WeightType::kFloat16 ? "float16" : "float32") << ")\n";
+  if (any_explicit && traced != std::to_string(height) + "x" + std::to_string(width)) {
+    out << "  note            explicit pads apply unchanged at every size; if the source padded "
+           "by a size-dependent rule (TF/Keras 'same') they are exact only at the traced size "
+        << traced << "\n";
+  }
+
+  SessionOptions options;
+  options.max_height = height;
+  options.max_width = width;
+  Result<std::unique_ptr<Session>> session = Session::Create(model, options);
+  if (!session.ok()) {
+    return ReportError(kName,
+                       "cannot plan a session at " + std::to_string(height) + "x" +
+                           std::to_string(width) + ": " + session.message(),
+                       kExitFailure);
+  }
+  const size_t arena = (*session)->arena_bytes();
+  char mib[32];
+  std::snprintf(mib, sizeof(mib), "%.2f", static_cast<double>(arena) / (1024.0 * 1024.0));
+  out << "  arena           " << GroupDigits(arena) << " bytes (" << mib << " MiB) at " << height
+      << "x" << width << "\n";
+
+  if (args.print_plan) {
+    std::span<const PlannedTensor> plan = (*session)->plan();
+    Table plan_table({{"tensor", true},
+                      {"producer", false},
+                      {"last consumer", false},
+                      {"offset", true},
+                      {"bytes", true}});
+    auto layer_label = [&](int index) -> std::string {
+      if (index < 0 || static_cast<size_t>(index) >= layers.size()) return std::to_string(index);
+      return std::to_string(index) + " " + layers[static_cast<size_t>(index)].name;
+    };
+    for (size_t t = 0; t < plan.size(); ++t) {
+      plan_table.Add({std::to_string(t), layer_label(plan[t].producer),
+                      layer_label(plan[t].last_consumer), GroupDigits(plan[t].offset),
+                      GroupDigits(plan[t].bytes)});
+    }
+    out << "\narena plan at " << height << "x" << width << " (" << plan.size() << " tensors, "
+        << GroupDigits(arena) << " bytes)\n";
+    plan_table.Print(out, "  ");
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+Command AddInspectCommand(CLI::App& parent) {
+  auto args = std::make_shared<InspectArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "inspect", "Show a model file's metadata, per-layer shapes and costs, and arena size");
+  cmd->add_option("model", args->model, "Model file (.sfrt)")->required();
+  cmd->add_option("--size", args->size,
+                  "Input size HxW for the layer table and arena (default: the size the model was "
+                  "traced at, else 540x960)");
+  cmd->add_flag("--print-plan", args->print_plan,
+                "Also list every planned arena tensor: producer, last consumer, offset, bytes");
+  cmd->footer(
+      "Prints the metadata (name, schema version, producer and source SHA-256, input\n"
+      "preprocessing, output channels and units, training camera, weight type, CRC-32C), then\n"
+      "every layer at one input size (op, pads in effect, output shape, MACs, parameters), the\n"
+      "totals, and the arena bytes a session planned for that size needs.\n"
+      "Exit codes: 0 success, 1 model fails to load or plan, 2 usage error.");
+  return Command{cmd, [args] { return RunInspect(*args); }};
+}
+
+}  // namespace sfrt::tools

@@ -1,0 +1,55 @@
+// The `sfrt` subcommands. Each cmd_*.cc registers one subcommand on the CLI11 app and returns
+// the function that runs it once the command line has been parsed.
+//
+// Exit codes (all subcommands): 0 success, 1 runtime or input failure (unreadable or invalid
+// files, a model that fails to load or run), 2 usage error (bad flags or flag values, detected
+// before any file is read). Errors go to stderr as one line: "sfrt <command>: <message>".
+#pragma once
+
+#include <functional>
+#include <string>
+#include <string_view>
+
+namespace CLI {
+class App;
+}  // namespace CLI
+
+namespace sfrt::tools {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitUsage = 2;
+
+// A registered subcommand: its CLI11 app, and what to run when the command line selected it.
+// `run` returns the process exit code.
+struct Command {
+  CLI::App* app = nullptr;
+  std::function<int()> run;
+};
+
+Command AddExportCommand(CLI::App& parent);
+Command AddInspectCommand(CLI::App& parent);
+Command AddInferCommand(CLI::App& parent);
+
+// Prints "sfrt <command>: <message>" on one line to stderr (newlines in `message` become
+// spaces) and returns `exit_code`.
+int ReportError(std::string_view command, std::string_view message, int exit_code);
+
+// Parses "HxW" (also "HXW" or "H,W") into positive height and width.
+bool ParseSize(std::string_view text, int* height, int* width);
+
+// Empty when `path` names an existing regular file (or a symlink to one); otherwise a message
+// such as "model file 'x.sfrt' does not exist". `what` names the role ("model file").
+std::string CheckInputFile(const std::string& path, std::string_view what);
+
+// Empty when the directory `path` would be written into exists; otherwise a message such as
+// "output directory 'out' does not exist (for -o out/flow.pfm)".
+std::string CheckOutputDirectory(const std::string& path);
+
+// Lower-cased extension of `path` including the dot (".onnx"), or "" if it has none.
+std::string LowerExtension(const std::string& path);
+
+// Number with thousands separators: 1234567 -> "1,234,567".
+std::string GroupDigits(unsigned long long value);
+
+}  // namespace sfrt::tools

@@ -1,0 +1,151 @@
+// sfrt: the command-line front end of the scene-flow runtime.
+//   sfrt export  model.onnx -o model.sfrt   convert a trained network into a .sfrt model file
+//                                           (built with the exporter only)
+//   sfrt inspect model.sfrt                 metadata, per-layer shapes and costs, arena size
+//   sfrt infer   --model model.sfrt ...     run one frame pair and write the scene flow
+#include <CLI/CLI.hpp>
+#include <cctype>
+#include <charconv>
+#include <exception>
+#include <filesystem>
+#include <iostream>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "sfrt/commands.h"
+#include "sfrt/model.h"
+
+#ifndef SFRT_WITH_EXPORTER
+#define SFRT_WITH_EXPORTER 0
+#endif
+#ifndef SFRT_VERSION
+#define SFRT_VERSION "unknown"
+#endif
+
+namespace sfrt::tools {
+
+int ReportError(std::string_view command, std::string_view message, int exit_code) {
+  std::string line = "sfrt";
+  if (!command.empty()) {
+    line += " ";
+    line += command;
+  }
+  line += ": ";
+  for (char c : message) line.push_back(c == '\n' || c == '\r' ? ' ' : c);
+  while (!line.empty() && line.back() == ' ') line.pop_back();
+  std::cerr << line << std::endl;
+  return exit_code;
+}
+
+bool ParseSize(std::string_view text, int* height, int* width) {
+  size_t sep = text.find_first_of("xX,");
+  if (sep == std::string_view::npos) return false;
+  auto parse = [](std::string_view part, int* out) {
+    const char* end = part.data() + part.size();
+    auto [ptr, ec] = std::from_chars(part.data(), end, *out);
+    return !part.empty() && ec == std::errc() && ptr == end && *out > 0;
+  };
+  return parse(text.substr(0, sep), height) && parse(text.substr(sep + 1), width);
+}
+
+std::string CheckInputFile(const std::string& path, std::string_view what) {
+  std::error_code ec;
+  std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(st)) {
+    return std::string(what) + " '" + path + "' does not exist";
+  }
+  if (std::filesystem::is_directory(st)) {
+    return std::string(what) + " '" + path + "' is a directory";
+  }
+  return "";
+}
+
+std::string CheckOutputDirectory(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (parent.empty() || std::filesystem::is_directory(parent, ec)) return "";
+  return "output directory '" + parent.string() + "' does not exist (for -o " + path + ")";
+}
+
+std::string LowerExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+std::string GroupDigits(unsigned long long value) {
+  std::string digits = std::to_string(value);
+  std::string out;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out.push_back(',');
+    out.push_back(digits[i]);
+  }
+  return out;
+}
+
+}  // namespace sfrt::tools
+
+namespace {
+
+// The subcommand named on the command line, for error messages when parsing failed before
+// CLI11 recorded it.
+std::string CommandName(const CLI::App& app, int argc, char** argv) {
+  std::vector<CLI::App*> parsed = app.get_subcommands();
+  if (!parsed.empty()) return parsed.front()->get_name();
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    for (const CLI::App* sub : app.get_subcommands({})) {
+      if (sub->get_name() == arg) return arg;
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using sfrt::tools::kExitFailure;
+  using sfrt::tools::kExitOk;
+  using sfrt::tools::kExitUsage;
+  using sfrt::tools::ReportError;
+
+  CLI::App app{"sfrt: SceneEDNet scene-flow runtime tools.", "sfrt"};
+  app.set_version_flag("--version", std::string("sfrt ") + SFRT_VERSION + " (model schema " +
+                                        std::to_string(sfrt::kSchemaVersionMajor) + "." +
+                                        std::to_string(sfrt::kSchemaVersionMinor) + ")");
+  app.require_subcommand(1);
+  app.footer(
+      "Run 'sfrt <command> --help' for a command's options.\n"
+      "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
+
+  std::vector<sfrt::tools::Command> commands;
+#if SFRT_WITH_EXPORTER
+  commands.push_back(sfrt::tools::AddExportCommand(app));
+#endif
+  commands.push_back(sfrt::tools::AddInspectCommand(app));
+  commands.push_back(sfrt::tools::AddInferCommand(app));
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {  // --help, --version
+    return app.exit(e) == 0 ? kExitOk : kExitUsage;
+  } catch (const CLI::ParseError& e) {
+    std::string name = CommandName(app, argc, argv);
+    std::string hint = name.empty() ? "run 'sfrt --help'" : "run 'sfrt " + name + " --help'";
+    return ReportError(name, std::string(e.what()) + " (" + hint + ")", kExitUsage);
+  }
+
+  for (const sfrt::tools::Command& command : commands) {
+    if (!command.app->parsed()) continue;
+    const std::string& name = command.app->get_name();
+    try {
+      return command.run();
+    } catch (const std::bad_alloc&) {
+      return ReportError(name, "out of memory", kExitFailure);
+    } catch (const std::exception& e) {
+      return ReportError(name, e.what(), kExitFailure);
+    }
+  }
+  return ReportError("", "no command given (run 'sfrt --help')", kExitUsage);
+}
