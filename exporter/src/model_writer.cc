@@ -33,7 +33,7 @@ uint16_t FloatToHalf(float f) {
   if (abs < 0x38800000u) {                        // below the smallest normal half: subnormal
     // value = abs_float; half subnormal unit is 2^-24.
     const float scaled = std::bit_cast<float>(abs) * 16777216.0f;  // * 2^24, exact
-    return sign | static_cast<uint16_t>(std::nearbyint(scaled));     // ties to even (default mode)
+    return sign | static_cast<uint16_t>(std::nearbyint(scaled));   // ties to even (default mode)
   }
   const uint32_t rounded = abs + 0x0FFFu + ((abs >> 13) & 1u);  // round to nearest even
   return sign | static_cast<uint16_t>((rounded - 0x38000000u) >> 13);
@@ -59,9 +59,9 @@ class Writer {
     const auto shape_offset = builder_.CreateVector(std::vector<int>(shape));
     builder_.ForceVectorAlignment(bytes.size(), 1, kTensorAlignment);
     const auto data_offset = builder_.CreateVector(bytes);
-    return fb::CreateTensor(builder_,
-                            type_ == WeightType::kFloat32 ? fb::DataType::Float32 : fb::DataType::Float16,
-                            shape_offset, data_offset);
+    return fb::CreateTensor(
+        builder_, type_ == WeightType::kFloat32 ? fb::DataType::Float32 : fb::DataType::Float16,
+        shape_offset, data_offset);
   }
 
   flatbuffers::FlatBufferBuilder& builder() { return builder_; }
@@ -126,15 +126,16 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
         return Status::Error(where + ": in_channels is " + std::to_string(c->in_channels) +
                              " but its input has " + std::to_string(channels));
       }
-      const size_t want = static_cast<size_t>(c->kernel_h) * c->kernel_w * c->in_channels *
-                          c->out_channels;
-      if (c->weights_hwio.size() != want || c->bias.size() != static_cast<size_t>(c->out_channels)) {
+      const size_t want =
+          static_cast<size_t>(c->kernel_h) * c->kernel_w * c->in_channels * c->out_channels;
+      if (c->weights_hwio.size() != want ||
+          c->bias.size() != static_cast<size_t>(c->out_channels)) {
         return Status::Error(where + ": holds " + std::to_string(c->weights_hwio.size()) +
                              " weights and " + std::to_string(c->bias.size()) + " biases; needs " +
                              std::to_string(want) + " and " + std::to_string(c->out_channels));
       }
-      const auto weights = w.AddTensor(c->weights_hwio, {c->kernel_h, c->kernel_w, c->in_channels,
-                                                         c->out_channels});
+      const auto weights =
+          w.AddTensor(c->weights_hwio, {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels});
       const auto bias = w.AddTensor(c->bias, {c->out_channels});
       const fb::Padding pads(c->pads.top, c->pads.left, c->pads.bottom, c->pads.right);
       const auto conv = fb::CreateConv2D(
@@ -142,19 +143,23 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
           c->padding_rule == PaddingRule::kSameUpper ? fb::PaddingRule::SameUpper
                                                      : fb::PaddingRule::Explicit,
           &pads, ToSchema(c->activation), c->leaky_slope, weights, bias);
-      layers.push_back(fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union()));
+      layers.push_back(
+          fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union()));
       channels = c->out_channels;
     } else if (const auto* u = std::get_if<UpsampleSpec>(&ls)) {
       const auto up = fb::CreateUpsample(b, u->factor_h, u->factor_w);
-      layers.push_back(fb::CreateLayer(b, b.CreateString(u->name), fb::LayerOp::Upsample, up.Union()));
+      layers.push_back(
+          fb::CreateLayer(b, b.CreateString(u->name), fb::LayerOp::Upsample, up.Union()));
     } else {
       const auto& cr = std::get<CropSpec>(ls);
-      const fb::Padding amounts(cr.amounts.top, cr.amounts.left, cr.amounts.bottom, cr.amounts.right);
+      const fb::Padding amounts(cr.amounts.top, cr.amounts.left, cr.amounts.bottom,
+                                cr.amounts.right);
       const auto crop = fb::CreateCrop(
           b, cr.rule == CropRule::kToInputSize ? fb::CropRule::ToInputSize : fb::CropRule::Explicit,
           &amounts, cr.excess_rows_from_top ? fb::RowSide::Top : fb::RowSide::Bottom,
           cr.excess_cols_from_left ? fb::ColSide::Left : fb::ColSide::Right);
-      layers.push_back(fb::CreateLayer(b, b.CreateString(cr.name), fb::LayerOp::Crop, crop.Union()));
+      layers.push_back(
+          fb::CreateLayer(b, b.CreateString(cr.name), fb::LayerOp::Crop, crop.Union()));
     }
   }
   if (spec.output.channels != channels) {
@@ -177,14 +182,15 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
       b.CreateVector(spec.input.std.data(), 3), spec.input.traced_height, spec.input.traced_width);
   std::vector<flatbuffers::Offset<flatbuffers::String>> names;
   for (const auto& n : spec.output.channel_names) names.push_back(b.CreateString(n));
-  const auto output = fb::CreateOutputDesc(b, b.CreateString(spec.output.name), spec.output.channels,
-                                           b.CreateVector(names), b.CreateString(spec.output.units));
-  const auto camera = fb::CreateCamera(b, spec.camera.focal_px, spec.camera.baseline, spec.camera.cx,
-                                       spec.camera.cy);
+  const auto output =
+      fb::CreateOutputDesc(b, b.CreateString(spec.output.name), spec.output.channels,
+                           b.CreateVector(names), b.CreateString(spec.output.units));
+  const auto camera = fb::CreateCamera(b, spec.camera.focal_px, spec.camera.baseline,
+                                       spec.camera.cx, spec.camera.cy);
   const fb::Version version(static_cast<uint16_t>(kSchemaVersionMajor),
                             static_cast<uint16_t>(kSchemaVersionMinor));
-  const auto model = fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input, output,
-                                     camera, layers_offset, w.crc());
+  const auto model = fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input,
+                                     output, camera, layers_offset, w.crc());
   fb::FinishModelBuffer(b, model);
   return std::vector<uint8_t>(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
 }
@@ -193,10 +199,13 @@ Status WriteModelFile(const ModelSpec& spec, const std::string& path) {
   auto bytes = SerializeModel(spec);
   if (!bytes.ok()) return Status::Error(path + ": " + bytes.message());
   const std::filesystem::path target(path);
-  std::string tmp = (target.parent_path().empty() ? std::filesystem::path(".") : target.parent_path()) /
-                    ("." + target.filename().string() + ".tmp-XXXXXX");
+  std::string tmp =
+      (target.parent_path().empty() ? std::filesystem::path(".") : target.parent_path()) /
+      ("." + target.filename().string() + ".tmp-XXXXXX");
   const int fd = ::mkstemp(tmp.data());
-  if (fd < 0) return Status::Error(path + ": cannot create a temporary file beside it: " + std::strerror(errno));
+  if (fd < 0)
+    return Status::Error(path +
+                         ": cannot create a temporary file beside it: " + std::strerror(errno));
   const uint8_t* p = bytes->data();
   size_t left = bytes->size();
   while (left > 0) {
@@ -219,7 +228,8 @@ Status WriteModelFile(const ModelSpec& spec, const std::string& path) {
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
-    return Status::Error(path + ": cannot rename the finished file into place: " + std::strerror(err));
+    return Status::Error(path +
+                         ": cannot rename the finished file into place: " + std::strerror(err));
   }
   return Status::Ok();
 }

@@ -26,14 +26,15 @@ uint32_t Rotr(uint32_t x, int n) { return (x >> n) | (x << (32 - n)); }
 }  // namespace
 
 Sha256::Sha256()
-    : state_{0x6a09e667, 0xbb67ae85, 0x3c6ef372, 0xa54ff53a, 0x510e527f, 0x9b05688c, 0x1f83d9ab,
-             0x5be0cd19},
+    : state_{0x6a09e667, 0xbb67ae85, 0x3c6ef372, 0xa54ff53a,
+             0x510e527f, 0x9b05688c, 0x1f83d9ab, 0x5be0cd19},
       buffer_{} {}
 
 void Sha256::Compress(const uint8_t block[64]) {
   uint32_t w[64];
   for (int t = 0; t < 16; ++t) {
-    w[t] = static_cast<uint32_t>(block[4 * t]) << 24 | static_cast<uint32_t>(block[4 * t + 1]) << 16 |
+    w[t] = static_cast<uint32_t>(block[4 * t]) << 24 |
+           static_cast<uint32_t>(block[4 * t + 1]) << 16 |
            static_cast<uint32_t>(block[4 * t + 2]) << 8 | block[4 * t + 3];
   }
   for (int t = 16; t < 64; ++t) {
@@ -106,7 +107,8 @@ Result<std::string> Sha256OfFile(const std::string& path) {
   Sha256 hash;
   std::vector<uint8_t> chunk(1 << 20);
   size_t got;
-  while ((got = std::fread(chunk.data(), 1, chunk.size(), file.get())) > 0) hash.Update(chunk.data(), got);
+  while ((got = std::fread(chunk.data(), 1, chunk.size(), file.get())) > 0)
+    hash.Update(chunk.data(), got);
   if (std::ferror(file.get())) return Status::Error(path + ": read error: " + std::strerror(errno));
   return hash.FinishHex();
 }

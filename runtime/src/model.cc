@@ -136,7 +136,8 @@ Result<std::shared_ptr<const Model>> Model::LoadFile(const std::string& path,
   void* mapping = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
   const int map_errno = errno;
   ::close(fd);
-  if (mapping == MAP_FAILED) return Status::Error(path + ": cannot mmap: " + std::strerror(map_errno));
+  if (mapping == MAP_FAILED)
+    return Status::Error(path + ": cannot mmap: " + std::strerror(map_errno));
 
   std::shared_ptr<Model> model(new Model());
   model->storage_ = std::make_unique<Storage>();
@@ -167,8 +168,9 @@ Result<std::shared_ptr<const Model>> Model::LoadBuffer(const void* data, size_t 
     model->data_ = static_cast<const uint8_t*>(copy);
   } else {
     if (reinterpret_cast<uintptr_t>(data) % kTensorAlignment != 0) {
-      return Status::Error(label + ": a borrowed model buffer must be 64-byte aligned (weights are"
-                                   " used in place); load it with BufferOwnership::kCopy instead");
+      return Status::Error(label +
+                           ": a borrowed model buffer must be 64-byte aligned (weights are"
+                           " used in place); load it with BufferOwnership::kCopy instead");
     }
     model->data_ = static_cast<const uint8_t*>(data);
   }
@@ -241,8 +243,8 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   input.name = Str(in->name());
   input.channels = in->channels();
   if (input.channels <= 0 || input.channels > kMaxChannels) {
-    return check.Fail("input.channels is " + std::to_string(input.channels) +
-                      "; must be in 1.." + std::to_string(kMaxChannels));
+    return check.Fail("input.channels is " + std::to_string(input.channels) + "; must be in 1.." +
+                      std::to_string(kMaxChannels));
   }
   if (in->image_order() != nullptr) {
     for (auto slot : *in->image_order()) {
@@ -273,7 +275,8 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   }
   input.scale = in->scale();
   if (!std::isfinite(input.scale) || input.scale == 0.0f) {
-    return check.Fail("input.scale is " + std::to_string(input.scale) + "; must be finite, non-zero");
+    return check.Fail("input.scale is " + std::to_string(input.scale) +
+                      "; must be finite, non-zero");
   }
   for (const auto& [vec, dst, field] :
        {std::tuple{in->mean(), input.mean, "mean"}, std::tuple{in->std(), input.std, "std"}}) {
@@ -305,10 +308,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   metadata_.weights_crc32c = m->weights_crc32c();
 
   // 5. Layers: the chain, parameters and weights.
-  if (m->layers() == nullptr || m->layers()->size() == 0) return check.Fail("the model has no layers");
+  if (m->layers() == nullptr || m->layers()->size() == 0)
+    return check.Fail("the model has no layers");
   if (m->layers()->size() > static_cast<unsigned>(kMaxLayers)) {
-    return check.Fail("the model has " + std::to_string(m->layers()->size()) +
-                      " layers; at most " + std::to_string(kMaxLayers) + " are supported");
+    return check.Fail("the model has " + std::to_string(m->layers()->size()) + " layers; at most " +
+                      std::to_string(kMaxLayers) + " are supported");
   }
   uint32_t crc = 0;
   bool saw_fp16 = false;
@@ -322,8 +326,8 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     const std::string where = "layer " + std::to_string(i) + " '" + layer.name + "'";
 
     // Checks one weight tensor and returns fp32 data for it (in place, or widened).
-    auto take_tensor = [&](const fb::Tensor* t, const char* field,
-                           std::initializer_list<int> shape, const float** dst) -> Status {
+    auto take_tensor = [&](const fb::Tensor* t, const char* field, std::initializer_list<int> shape,
+                           const float** dst) -> Status {
       const std::string tf = where + ": " + field;
       if (t == nullptr || t->data() == nullptr) return check.Fail(tf + " is missing");
       size_t count = 1;
@@ -403,12 +407,14 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           return check.Fail(where + ": out_channels is " + std::to_string(p.out_channels) +
                             "; must be in 1.." + std::to_string(kMaxChannels));
         }
-        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 || p.kernel_w > kMaxKernel) {
+        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 ||
+            p.kernel_w > kMaxKernel) {
           return check.Fail(where + ": kernel is " + std::to_string(p.kernel_h) + "x" +
                             std::to_string(p.kernel_w) + "; each side must be in 1.." +
                             std::to_string(kMaxKernel));
         }
-        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 || p.stride_w > kMaxStride) {
+        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 ||
+            p.stride_w > kMaxStride) {
           return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
                             std::to_string(p.stride_w) + "; each must be in 1.." +
                             std::to_string(kMaxStride));
@@ -427,9 +433,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         if (const fb::Padding* pads = c->pads()) {
           p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
         }
-        for (const auto& [amount, side, limit] :
-             {std::tuple{p.pads.top, "top", p.kernel_h}, std::tuple{p.pads.bottom, "bottom", p.kernel_h},
-              std::tuple{p.pads.left, "left", p.kernel_w}, std::tuple{p.pads.right, "right", p.kernel_w}}) {
+        for (const auto& [amount, side, limit] : {std::tuple{p.pads.top, "top", p.kernel_h},
+                                                  std::tuple{p.pads.bottom, "bottom", p.kernel_h},
+                                                  std::tuple{p.pads.left, "left", p.kernel_w},
+                                                  std::tuple{p.pads.right, "right", p.kernel_w}}) {
           if (amount < 0 || amount >= limit) {
             return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
                               "; must be in 0.." + std::to_string(limit - 1));
@@ -451,9 +458,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         p.leaky_slope = c->leaky_slope();
         if (!std::isfinite(p.leaky_slope)) return check.Fail(where + ": leaky_slope is not finite");
-        if (Status s = take_tensor(c->weights(), "weights",
-                                   {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels},
-                                   &p.weights);
+        if (Status s =
+                take_tensor(c->weights(), "weights",
+                            {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels}, &p.weights);
             !s.ok()) {
           return s;
         }
@@ -467,8 +474,8 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         layer.upsample = {u->factor_h(), u->factor_w()};
         if (u->factor_h() < 1 || u->factor_h() > kMaxUpsample || u->factor_w() < 1 ||
             u->factor_w() > kMaxUpsample) {
-          return check.Fail(where + ": upsampling factor is " + std::to_string(u->factor_h()) + "x" +
-                            std::to_string(u->factor_w()) + "; each must be in 1.." +
+          return check.Fail(where + ": upsampling factor is " + std::to_string(u->factor_h()) +
+                            "x" + std::to_string(u->factor_w()) + "; each must be in 1.." +
                             std::to_string(kMaxUpsample));
         }
         break;
@@ -488,8 +495,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
             return check.Fail(where + ": crop rule is unknown value " +
                               std::to_string(static_cast<int>(c->rule())));
         }
-        if (const fb::Padding* a = c->amounts()) p.amounts = {a->top(), a->left(), a->bottom(), a->right()};
-        if (p.amounts.top < 0 || p.amounts.left < 0 || p.amounts.bottom < 0 || p.amounts.right < 0) {
+        if (const fb::Padding* a = c->amounts())
+          p.amounts = {a->top(), a->left(), a->bottom(), a->right()};
+        if (p.amounts.top < 0 || p.amounts.left < 0 || p.amounts.bottom < 0 ||
+            p.amounts.right < 0) {
           return check.Fail(where + ": crop amounts must not be negative");
         }
         p.excess_rows_from_top = c->excess_rows_from() == fb::RowSide::Top;

@@ -15,8 +15,9 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
                                                  const SessionOptions& options) {
   if (model == nullptr) return Status::Error("Session::Create: no model");
   if (options.max_height <= 0 || options.max_width <= 0) {
-    return Status::Error("Session::Create: maximum input size " + std::to_string(options.max_height) +
-                         "x" + std::to_string(options.max_width) + " is not positive");
+    return Status::Error("Session::Create: maximum input size " +
+                         std::to_string(options.max_height) + "x" +
+                         std::to_string(options.max_width) + " is not positive");
   }
   std::unique_ptr<Session> session(new Session());
   session->model_ = std::move(model);
@@ -28,8 +29,9 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
   session->geometry_.resize(layers.size());
   Status s = InferGeometry(m, options.max_height, options.max_width, session->geometry_);
   if (!s.ok()) {
-    return Status::Error("planning for the maximum input size " + std::to_string(options.max_height) +
-                         "x" + std::to_string(options.max_width) + ": " + s.message());
+    return Status::Error("planning for the maximum input size " +
+                         std::to_string(options.max_height) + "x" +
+                         std::to_string(options.max_width) + ": " + s.message());
   }
 
   // Every layer but the last writes a tensor of its own, except a crop, which is a view of its
@@ -109,13 +111,15 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       view.height = g.output.height;
       view.width = g.output.width;
       if (last) {
-        ref::Copy(view, DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
+        ref::Copy(view,
+                  DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
       }
       cur = view;
       continue;
     }
-    float* dst = last ? output.data()
-                      : arena_ + plan_[static_cast<size_t>(tensor_of_layer_[i])].offset / sizeof(float);
+    float* dst =
+        last ? output.data()
+             : arena_ + plan_[static_cast<size_t>(tensor_of_layer_[i])].offset / sizeof(float);
     const TensorView out = DenseView(dst, g.output.height, g.output.width, g.output.channels);
     if (layer.kind == LayerKind::kConv2D) {
       ref::Conv2d(cur, layer.conv, g.pads, out);

@@ -60,8 +60,8 @@ Status InferGeometry(const Model& model, int height, int width, std::span<LayerG
         g.output = {oh, ow, c.out_channels};
         g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
                    static_cast<uint64_t>(c.out_channels);
-        g.macs = static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w *
-                 c.in_channels;
+        g.macs =
+            static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w * c.in_channels;
         break;
       }
       case LayerKind::kUpsample:

@@ -2,8 +2,8 @@
 // random weights, so runtime tests need neither Python nor files.
 #pragma once
 
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <string>
 

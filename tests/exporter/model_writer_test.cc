@@ -58,13 +58,15 @@ TEST(Crc32c, MatchesTheStandardCheckValue) {
   EXPECT_EQ(Crc32c(0, "123456789", 9), 0xE3069283u);
   // Incremental use equals one pass, across the 8-byte slicing boundary.
   const std::string s = "The quick brown fox jumps over the lazy dog";
-  EXPECT_EQ(Crc32c(Crc32c(0, s.data(), 13), s.data() + 13, s.size() - 13), Crc32c(0, s.data(), s.size()));
+  EXPECT_EQ(Crc32c(Crc32c(0, s.data(), 13), s.data() + 13, s.size() - 13),
+            Crc32c(0, s.data(), s.size()));
 }
 
 TEST(ModelWriter, RoundTripsEveryFieldThroughTheRuntimeLoader) {
   ModelSpec spec = testing::SceneEdNetSpec(16);
   spec.input.color_order = ColorOrder::kRGB;
-  spec.input.image_order = {ImageSlot::kLeft1, ImageSlot::kRight1, ImageSlot::kLeft0, ImageSlot::kRight0};
+  spec.input.image_order = {ImageSlot::kLeft1, ImageSlot::kRight1, ImageSlot::kLeft0,
+                            ImageSlot::kRight0};
   spec.input.scale = 1.0f / 255.0f;
   spec.input.mean = {0.1f, 0.2f, 0.3f};
   spec.input.std = {0.5f, 0.6f, 0.7f};
@@ -89,11 +91,12 @@ TEST(ModelWriter, RoundTripsEveryFieldThroughTheRuntimeLoader) {
   EXPECT_EQ(md.output.channel_names, (std::vector<std::string>{"dX", "dY", "dZ"}));
   const auto& conv = std::get<ConvSpec>(spec.layers[4]);
   const ConvParams& loaded = (*model)->layers()[4].conv;
-  for (size_t i = 0; i < conv.weights_hwio.size(); ++i) ASSERT_EQ(loaded.weights[i], conv.weights_hwio[i]);
+  for (size_t i = 0; i < conv.weights_hwio.size(); ++i)
+    ASSERT_EQ(loaded.weights[i], conv.weights_hwio[i]);
   EXPECT_EQ((*model)->parameter_count(), 1u * 9 * 12 * 4 + 4 + 9 * 4 * 8 + 8 + 9 * 8 * 16 + 16 +
-                                             9 * 16 * 32 + 32 + 9 * 32 * 64 + 64 + 9 * 64 * 64 + 64 +
-                                             9 * 64 * 32 + 32 + 9 * 32 * 16 + 16 + 9 * 16 * 8 + 8 +
-                                             9 * 8 * 4 + 4 + 9 * 4 * 3 + 3);
+                                             9 * 16 * 32 + 32 + 9 * 32 * 64 + 64 + 9 * 64 * 64 +
+                                             64 + 9 * 64 * 32 + 32 + 9 * 32 * 16 + 16 + 9 * 16 * 8 +
+                                             8 + 9 * 8 * 4 + 4 + 9 * 4 * 3 + 3);
 }
 
 TEST(ModelWriter, Float16WeightsAreWidenedAtLoadWithinHalfPrecision) {
@@ -111,7 +114,8 @@ TEST(ModelWriter, Float16WeightsAreWidenedAtLoadWithinHalfPrecision) {
   const ConvParams& loaded = (*model)->layers()[2].conv;
   for (size_t i = 0; i < conv.weights_hwio.size(); ++i) {
     // Round to nearest: relative error at most 2^-11 for normal halves.
-    ASSERT_NEAR(loaded.weights[i], conv.weights_hwio[i], std::abs(conv.weights_hwio[i]) / 2048 + 1e-7f);
+    ASSERT_NEAR(loaded.weights[i], conv.weights_hwio[i],
+                std::abs(conv.weights_hwio[i]) / 2048 + 1e-7f);
   }
 }
 

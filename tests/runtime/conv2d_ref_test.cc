@@ -87,8 +87,8 @@ TEST_P(Conv2dRefMatchesDirect, OnRandomData) {
   const ConvCase c = GetParam();
   std::mt19937 rng(c.h * 131 + c.w * 7 + c.cin);
   std::uniform_real_distribution<float> dist(-1.0f, 1.0f);
-  std::vector<float> in(static_cast<size_t>(c.h) * c.w * c.cin), w(static_cast<size_t>(c.k) * c.k * c.cin * c.cout),
-      bias(c.cout);
+  std::vector<float> in(static_cast<size_t>(c.h) * c.w * c.cin),
+      w(static_cast<size_t>(c.k) * c.k * c.cin * c.cout), bias(c.cout);
   for (auto* v : {&in, &w, &bias})
     for (float& x : *v) x = dist(rng);
   Padding pads;
@@ -108,7 +108,8 @@ TEST_P(Conv2dRefMatchesDirect, OnRandomData) {
   std::vector<float> out(static_cast<size_t>(oh) * ow * c.cout);
   ref::Conv2d({in.data(), c.h, c.w, c.cin, static_cast<ptrdiff_t>(c.w) * c.cin}, p, pads,
               DenseView(out.data(), oh, ow, c.cout));
-  const auto expected = DirectConv(in, c.h, c.w, c.cin, w, bias, c.cout, c.k, c.stride, pads, oh, ow);
+  const auto expected =
+      DirectConv(in, c.h, c.w, c.cin, w, bias, c.cout, c.k, c.stride, pads, oh, ow);
   ASSERT_EQ(out.size(), expected.size());
   for (size_t i = 0; i < out.size(); ++i) ASSERT_NEAR(out[i], expected[i], 1e-5) << "at " << i;
 }

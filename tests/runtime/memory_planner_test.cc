@@ -49,7 +49,8 @@ TEST(MemoryPlanner, RandomLifetimesNeverOverlapAndStayWithinTotal) {
       size_t live = 0;
       for (size_t i = 0; i < requests.size(); ++i) {
         ASSERT_LE(plan.offsets[i] + requests[i].bytes, plan.total_bytes);
-        if (requests[i].first_use <= step && step <= requests[i].last_use) live += requests[i].bytes;
+        if (requests[i].first_use <= step && step <= requests[i].last_use)
+          live += requests[i].bytes;
       }
       peak_live = std::max(peak_live, live);
     }

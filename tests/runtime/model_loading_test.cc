@@ -31,7 +31,8 @@ void ExpectRejected(const Result<std::shared_ptr<const Model>>& result, const st
   const std::string& m = result.message();
   EXPECT_EQ(m.find('\n'), std::string::npos) << m;
   EXPECT_NE(m.find("bad.sfrt"), std::string::npos) << m;
-  EXPECT_NE(m.find(needle), std::string::npos) << "message: " << m << "\nexpected to contain: " << needle;
+  EXPECT_NE(m.find(needle), std::string::npos)
+      << "message: " << m << "\nexpected to contain: " << needle;
 }
 
 fb::Conv2D* MutableConv(std::vector<uint8_t>& bytes, int layer) {
@@ -88,8 +89,9 @@ TEST(ModelLoading, RejectsAMissingFileNamingIt) {
 TEST(ModelLoading, LoadsFromAMemoryMappedFile) {
   const auto bytes = GoodModelBytes();
   const auto path = std::filesystem::temp_directory_path() / "sfrt_good_test.sfrt";
-  std::ofstream(path.string(), std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                                        static_cast<std::streamsize>(bytes.size()));
+  std::ofstream(path.string(), std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
   auto model = Model::LoadFile(path.string());
   ASSERT_TRUE(model.ok()) << model.message();
   EXPECT_EQ((*model)->file_bytes(), bytes.size());
@@ -99,7 +101,8 @@ TEST(ModelLoading, LoadsFromAMemoryMappedFile) {
 TEST(ModelLoading, RejectsATruncatedFile) {
   const auto bytes = GoodModelBytes();
   ExpectRejected(LoadBytes({bytes.begin(), bytes.begin() + 6}), "too small");
-  ExpectRejected(LoadBytes({bytes.begin(), bytes.begin() + bytes.size() / 2}), "truncated or damaged");
+  ExpectRejected(LoadBytes({bytes.begin(), bytes.begin() + bytes.size() / 2}),
+                 "truncated or damaged");
   ExpectRejected(LoadBytes({bytes.begin(), bytes.end() - 1}), "truncated or damaged");
 }
 
@@ -147,13 +150,15 @@ TEST(ModelLoading, SkipsTheChecksumWhenAskedTo) {
 TEST(ModelLoading, RejectsInconsistentChannelsNamingTheLayerAndField) {
   auto bytes = GoodModelBytes();
   MutableConv(bytes, 1)->mutate_in_channels(5);
-  ExpectRejected(LoadBytes(bytes), "layer 1 'conv1': in_channels is 5 but its input has 4 channels");
+  ExpectRejected(LoadBytes(bytes),
+                 "layer 1 'conv1': in_channels is 5 but its input has 4 channels");
 }
 
 TEST(ModelLoading, RejectsAWeightShapeThatDisagreesWithTheLayer) {
   auto bytes = GoodModelBytes();
   MutableConv(bytes, 0)->mutable_weights()->mutable_shape()->Mutate(3, 7);
-  ExpectRejected(LoadBytes(bytes), "layer 0 'conv0': weights.shape is (3,3,12,7); expected (3,3,12,4)");
+  ExpectRejected(LoadBytes(bytes),
+                 "layer 0 'conv0': weights.shape is (3,3,12,7); expected (3,3,12,4)");
 }
 
 TEST(ModelLoading, RejectsOutOfRangeParameters) {
@@ -189,7 +194,8 @@ TEST(ModelLoading, SurvivesEveryTruncationAndRandomCorruption) {
   int rejected = 0;
   for (int trial = 0; trial < 300; ++trial) {
     auto damaged = bytes;
-    for (int k = 0; k < 4; ++k) damaged[rng() % damaged.size()] ^= static_cast<uint8_t>(1 + rng() % 255);
+    for (int k = 0; k < 4; ++k)
+      damaged[rng() % damaged.size()] ^= static_cast<uint8_t>(1 + rng() % 255);
     auto model = LoadBytes(damaged);  // must not crash; may be rejected
     if (!model.ok()) {
       ++rejected;

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "sfrt/io/npy.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
+#include "sfrt/io/npy.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 
@@ -41,7 +41,6 @@ TEST(PyTorchParity, FixtureSuiteIsPresent) {
   // Fails (rather than skips) when the generator did not run: parity must never be silent.
   EXPECT_GE(ReadCases().size(), 5u) << "no cases in " << SFRT_FIXTURE_DIR << "/cases.txt";
 }
-
 
 // Runs the model exported from `model_case` on the input of `data_case` and compares with
 // PyTorch's output for `data_case`; returns the error relative to the reference's largest value.

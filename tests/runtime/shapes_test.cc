@@ -43,7 +43,8 @@ TEST(InferGeometry, FullWidthSceneEdNetCostsAbout191Point6GmacAt540x960) {
     params += g.params;
   }
   // The spec's per-layer figures (G MAC), in layer order of the convolutions.
-  const double expected_gmac[] = {0.90, 2.39, 2.41, 2.41, 9.62, 19.25, 38.5, 38.5, 38.5, 38.2, 0.90};
+  const double expected_gmac[] = {0.90, 2.39, 2.41, 2.41, 9.62, 19.25,
+                                  38.5, 38.5, 38.5, 38.2, 0.90};
   int conv = 0;
   for (size_t i = 0; i < geometry->size(); ++i) {
     if (model->layers()[i].kind != LayerKind::kConv2D) continue;
@@ -64,9 +65,10 @@ TEST(InferGeometry, LayerShapesFollowTheSpecTableAt540x960) {
   ASSERT_NE(model, nullptr);
   auto geometry = InferGeometry(*model, 540, 960);
   ASSERT_TRUE(geometry.ok()) << geometry.message();
-  const std::vector<std::pair<int, int>> sizes = {
-      {270, 480}, {135, 240}, {68, 120}, {34, 60},  {34, 60},  {34, 60},  {68, 120}, {68, 120},
-      {136, 240}, {136, 240}, {272, 480}, {272, 480}, {544, 960}, {540, 960}, {540, 960}, {540, 960}};
+  const std::vector<std::pair<int, int>> sizes = {{270, 480}, {135, 240}, {68, 120},  {34, 60},
+                                                  {34, 60},   {34, 60},   {68, 120},  {68, 120},
+                                                  {136, 240}, {136, 240}, {272, 480}, {272, 480},
+                                                  {544, 960}, {540, 960}, {540, 960}, {540, 960}};
   ASSERT_EQ(geometry->size(), sizes.size());
   for (size_t i = 0; i < sizes.size(); ++i) {
     EXPECT_EQ((*geometry)[i].output.height, sizes[i].first) << model->layers()[i].name;
@@ -106,8 +108,8 @@ TEST(InferGeometry, RejectsNonPositiveSizes) {
 
 TEST(InferGeometry, ExplicitCropThatRemovesEverythingNamesTheLayer) {
   exporter::ModelSpec spec = testing::SceneEdNetSpec(16);
-  std::get<exporter::CropSpec>(spec.layers[13]) = {"crop", exporter::CropRule::kExplicit,
-                                                   {40, 0, 0, 0}, true, true};
+  std::get<exporter::CropSpec>(spec.layers[13]) = {
+      "crop", exporter::CropRule::kExplicit, {40, 0, 0, 0}, true, true};
   auto model = testing::LoadOrDie(spec);
   ASSERT_NE(model, nullptr);
   auto geometry = InferGeometry(*model, 20, 20);  // 32 rows reach the crop

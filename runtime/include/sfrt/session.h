@@ -61,11 +61,11 @@ class Session {
   Session() = default;
   std::shared_ptr<const Model> model_;
   SessionOptions options_;
-  std::vector<PlannedTensor> plan_;       // one per layer output, except the last and crops
-  std::vector<LayerGeometry> geometry_;   // scratch for Run(), sized at creation
-  std::vector<int> tensor_of_layer_;      // layer -> index into plan_ (-1: none)
+  std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops
+  std::vector<LayerGeometry> geometry_;  // scratch for Run(), sized at creation
+  std::vector<int> tensor_of_layer_;     // layer -> index into plan_ (-1: none)
   size_t arena_bytes_ = 0;
-  float* arena_ = nullptr;                // 64-byte aligned, arena_bytes_ long
+  float* arena_ = nullptr;  // 64-byte aligned, arena_bytes_ long
 };
 
 }  // namespace sfrt

@@ -26,10 +26,10 @@ struct TensorShape {  // one image, NHWC
 struct LayerGeometry {
   TensorShape input;
   TensorShape output;
-  Padding pads;          // Conv2D: the amounts in effect at this size
-  Padding crop;          // Crop: rows/cols removed per side at this size
-  uint64_t macs = 0;     // multiply-accumulates (Conv2D only)
-  uint64_t params = 0;   // weights + biases
+  Padding pads;         // Conv2D: the amounts in effect at this size
+  Padding crop;         // Crop: rows/cols removed per side at this size
+  uint64_t macs = 0;    // multiply-accumulates (Conv2D only)
+  uint64_t params = 0;  // weights + biases
 };
 
 // Convolution output size along one axis; `pad_before`/`pad_after` receive the amounts.
