@@ -1,15 +1,8 @@
 #include "sfrt/exporter/model_writer.h"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <bit>
-#include <cerrno>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
-#include <filesystem>
 
 #include "sfrt/crc32c.h"
 #include "sfrt/model.h"
@@ -193,45 +186,6 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
                                      output, camera, layers_offset, w.crc());
   fb::FinishModelBuffer(b, model);
   return std::vector<uint8_t>(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
-}
-
-Status WriteModelFile(const ModelSpec& spec, const std::string& path) {
-  auto bytes = SerializeModel(spec);
-  if (!bytes.ok()) return Status::Error(path + ": " + bytes.message());
-  const std::filesystem::path target(path);
-  std::string tmp =
-      (target.parent_path().empty() ? std::filesystem::path(".") : target.parent_path()) /
-      ("." + target.filename().string() + ".tmp-XXXXXX");
-  const int fd = ::mkstemp(tmp.data());
-  if (fd < 0)
-    return Status::Error(path +
-                         ": cannot create a temporary file beside it: " + std::strerror(errno));
-  const uint8_t* p = bytes->data();
-  size_t left = bytes->size();
-  while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      return Status::Error(path + ": write failed: " + std::strerror(err));
-    }
-    p += n;
-    left -= static_cast<size_t>(n);
-  }
-  if (::fchmod(fd, 0644) != 0 || ::fsync(fd) != 0 || ::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return Status::Error(path + ": cannot finish writing: " + std::strerror(err));
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return Status::Error(path +
-                         ": cannot rename the finished file into place: " + std::strerror(err));
-  }
-  return Status::Ok();
 }
 
 }  // namespace sfrt::exporter

@@ -135,31 +135,5 @@ TEST(ModelWriter, RejectsWrongWeightCounts) {
   EXPECT_NE(bytes.message().find("'conv0'"), std::string::npos) << bytes.message();
 }
 
-TEST(ModelWriter, WriteIsAtomicAndLeavesNoTemporaryFiles) {
-  const fs::path dir = fs::temp_directory_path() / "sfrt_writer_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const fs::path target = dir / "m.sfrt";
-  ASSERT_TRUE(WriteModelFile(testing::SceneEdNetSpec(16), target.string()).ok());
-  // A failing write (invalid spec) leaves the previous file untouched.
-  const auto size_before = fs::file_size(target);
-  ModelSpec bad = testing::SceneEdNetSpec(16);
-  bad.layers.clear();
-  EXPECT_FALSE(WriteModelFile(bad, target.string()).ok());
-  EXPECT_EQ(fs::file_size(target), size_before);
-  int entries = 0;
-  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
-  EXPECT_EQ(entries, 1);
-  auto model = Model::LoadFile(target.string());
-  EXPECT_TRUE(model.ok()) << model.message();
-  fs::remove_all(dir);
-}
-
-TEST(ModelWriter, WriteIntoAMissingDirectoryNamesThePath) {
-  Status s = WriteModelFile(testing::SceneEdNetSpec(16), "/nonexistent-dir/m.sfrt");
-  ASSERT_FALSE(s.ok());
-  EXPECT_NE(s.message().find("/nonexistent-dir/m.sfrt"), std::string::npos) << s.message();
-}
-
 }  // namespace
 }  // namespace sfrt::exporter

@@ -15,6 +15,7 @@
 #include "sfrt/exporter/model_spec.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
+#include "sfrt/io/atomic_write.h"
 #include "sfrt/model.h"
 #include "sfrt/shapes.h"
 
@@ -247,18 +248,16 @@ int RunExport(const ExportArgs& args) {
   spec.camera.cx = args.cx;
   spec.camera.cy = args.cy;
 
-  if (Status s = exporter::WriteModelFile(spec, args.output); !s.ok()) {
-    return ReportError(kName, s.message(), kExitFailure);
-  }
-
-  // Self-check: the file must load and verify exactly as a deployment would load it.
-  Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.output);
+  // Serialise, then check the bytes load and verify exactly as a deployment would load them
+  // before anything is written: a model that fails here never reaches the disk.
+  Result<std::vector<uint8_t>> bytes = exporter::SerializeModel(spec);
+  if (!bytes.ok()) return ReportError(kName, args.input + ": " + bytes.message(), kExitFailure);
+  Result<std::shared_ptr<const Model>> loaded =
+      Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy, {}, args.output);
   if (!loaded.ok()) {
-    std::error_code ec;
-    std::filesystem::remove(args.output, ec);
-    return ReportError(
-        kName, "the written model does not load back, so it was removed: " + loaded.message(),
-        kExitFailure);
+    return ReportError(kName,
+                       "the converted model does not verify, nothing written: " + loaded.message(),
+                       kExitFailure);
   }
   const Model& model = **loaded;
   const ModelMetadata& meta = model.metadata();
@@ -267,11 +266,9 @@ int RunExport(const ExportArgs& args) {
     Result<std::vector<LayerGeometry>> geometry =
         InferGeometry(model, meta.input.traced_height, meta.input.traced_width);
     if (!geometry.ok() || geometry->empty()) {
-      std::error_code ec;
-      std::filesystem::remove(args.output, ec);
       return ReportError(kName,
-                         "the written model has no valid shapes at its traced size, so it was "
-                         "removed: " +
+                         "the converted model has no valid shapes at its traced size, nothing "
+                         "written: " +
                              (geometry.ok() ? std::string("no layers") : geometry.message()),
                          kExitFailure);
     }
@@ -280,6 +277,10 @@ int RunExport(const ExportArgs& args) {
                   std::to_string(meta.input.traced_width) + " the output is " +
                   std::to_string(out.height) + "x" + std::to_string(out.width) + "x" +
                   std::to_string(out.channels);
+  }
+
+  if (Status s = WriteFileAtomically(args.output, *bytes); !s.ok()) {
+    return ReportError(kName, s.message(), kExitFailure);
   }
 
   int convs = 0;

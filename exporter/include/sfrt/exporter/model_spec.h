@@ -1,5 +1,5 @@
 // ModelSpec: the exporter's in-memory model, between a source-format importer (ONNX, later
-// Keras) and the .sfrt writer. Importers fill it; WriteModelFile() serialises it.
+// Keras) and the .sfrt writer. Importers fill it; SerializeModel() turns it into file bytes.
 // Plain data: no I/O, no ownership subtleties.
 #pragma once
 

@@ -2,7 +2,6 @@
 #pragma once
 
 #include <cstdint>
-#include <string>
 #include <vector>
 
 #include "sfrt/exporter/model_spec.h"
@@ -16,9 +15,5 @@ const char* ExporterVersion();
 // Checks the spec (chain consistency, weight counts) and returns the file's bytes. Tensor data
 // is 64-byte aligned relative to the start of the returned buffer.
 Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec);
-
-// SerializeModel, then writes `path` atomically (temporary file in the same directory, fsync,
-// rename): a failed export never leaves a half-written model behind.
-Status WriteModelFile(const ModelSpec& spec, const std::string& path);
 
 }  // namespace sfrt::exporter
