@@ -8,14 +8,16 @@ packages=(
   build-essential cmake pkg-config clang-format
   # runtime core: model file schema
   flatbuffers-compiler libflatbuffers-dev libeigen3-dev
-  # exporter
-  libonnx-dev libprotobuf-dev protobuf-compiler
-  # command-line tool and image I/O
-  libopencv-dev libcli11-dev nlohmann-json3-dev
+  # exporter: ONNX, Keras HDF5 (+ JSON for its model_config)
+  libonnx-dev libprotobuf-dev protobuf-compiler libhdf5-dev
+  # command-line tool, cameras, image I/O, deployment profiles
+  libopencv-dev libcli11-dev nlohmann-json3-dev libturbojpeg0-dev libyaml-cpp-dev
+  # aarch64 cross build of the runtime, tested under qemu
+  g++-aarch64-linux-gnu qemu-user
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # reference models for tests (PyTorch builds SceneEDNet and exports ONNX)
-  python3 python3-numpy python3-torch python3-onnx
+  python3 python3-numpy python3-torch python3-onnx python3-h5py
 )
 
 missing=()
