@@ -2,14 +2,118 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <string>
+#include <thread>
 
+#include "conv_packing.h"
+#include "kernels/conv_job.h"
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/resample_ref.h"
 #include "memory_planner.h"
+#include "thread_pool.h"
 
 namespace sfrt {
 
-Session::~Session() { std::free(arena_); }
+// One entry of the flat list Run() walks.
+struct Session::Step {
+  enum class Kind {
+    kConv,      // SIMD convolution (packed weights)
+    kUpConv,    // SIMD fused upsample 2x (+ crop) + 3x3 convolution
+    kRefConv,   // ref::Conv2d
+    kUpsample,  // ref::UpsampleNearest
+    kCrop,      // a view of the previous tensor (a copy only when it is the model's output)
+  };
+  Kind kind = Kind::kRefConv;
+  int first_layer = 0;
+  int last_layer = 0;
+  int crop_layer = -1;  // kUpConv: the crop between upsample and convolution, if any
+  ConvRowsFn fn = nullptr;
+  PackedConv packed;
+  const ConvParams* params = nullptr;  // kRefConv
+  const char* kernel = "";
+};
+
+class Session::Pool : public ThreadPool {
+ public:
+  using ThreadPool::ThreadPool;
+};
+
+const IsaConvKernels* ConvKernelsFor(Isa isa) {
+  switch (isa) {
+#if SFRT_HAVE_AVX2
+    case Isa::kAvx2:
+      return &avx2::ConvKernels();
+#endif
+#if SFRT_HAVE_AVX512
+    case Isa::kAvx512:
+      return &avx512::ConvKernels();
+#endif
+#if SFRT_HAVE_NEON
+    case Isa::kNeon:
+      return &neon::ConvKernels();
+#endif
+    default:
+      return nullptr;
+  }
+}
+
+namespace {
+
+Result<Isa> ResolveIsa(Isa requested) {
+  std::string source = "SessionOptions::isa";
+  if (requested == Isa::kAuto) {
+    const char* env = std::getenv("SFRT_ISA");
+    if (env == nullptr || *env == '\0') return BestIsa();
+    source = "SFRT_ISA";
+    if (!ParseIsa(env, &requested)) {
+      return Status::Error(std::string("Session::Create: SFRT_ISA='") + env +
+                           "' is not one of auto, ref, avx2, avx512, neon");
+    }
+    if (requested == Isa::kAuto) return BestIsa();
+  }
+  if (!IsaSupported(requested)) {
+    return Status::Error(
+        std::string("Session::Create: ") + source + " asks for ISA '" + IsaName(requested) +
+        "', which this CPU and build cannot run (supported: " + SupportedIsaList() + ")");
+  }
+  return requested;
+}
+
+struct ConvJob {
+  ConvRowsFn fn;
+  const ConvArgs* args;
+};
+
+void ConvTrampoline(void* ctx, int begin, int end) {
+  const ConvJob* job = static_cast<const ConvJob*>(ctx);
+  job->fn(*job->args, begin, end);
+}
+
+struct RefConvJob {
+  const ConvParams* params;
+  ConstTensorView in;
+  TensorView out;
+  Padding pads;
+};
+
+// The reference kernel on output rows [begin, end): the same call on a view of those rows,
+// with the top padding shifted so that every row reads the input rows it did before.
+void RefConvTrampoline(void* ctx, int begin, int end) {
+  const RefConvJob* job = static_cast<const RefConvJob*>(ctx);
+  TensorView rows = job->out;
+  rows.data = job->out.pixel(begin, 0);
+  rows.height = end - begin;
+  Padding pads = job->pads;
+  pads.top -= begin * job->params->stride_h;
+  ref::Conv2d(job->in, *job->params, pads, rows);
+}
+
+}  // namespace
+
+Session::~Session() {
+  std::free(arena_);
+  std::free(packed_);
+}
 
 Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> model,
                                                  const SessionOptions& options) {
@@ -19,48 +123,142 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
                          std::to_string(options.max_height) + "x" +
                          std::to_string(options.max_width) + " is not positive");
   }
+  if (options.threads < 0) {
+    return Status::Error("Session::Create: SessionOptions::threads is " +
+                         std::to_string(options.threads) + "; use 0 (one per CPU) or more");
+  }
+  Result<Isa> isa = ResolveIsa(options.isa);
+  if (!isa.ok()) return isa.status();
+
   std::unique_ptr<Session> session(new Session());
   session->model_ = std::move(model);
   session->options_ = options;
-  const Model& m = *session->model_;
-  const auto layers = m.layers();
-  const int n = static_cast<int>(layers.size());
+  session->isa_ = *isa;
+  session->threads_ = options.threads;
+  if (session->threads_ == 0) {
+    session->threads_ = static_cast<int>(std::thread::hardware_concurrency());
+    if (session->threads_ <= 0) session->threads_ = 1;
+  }
 
-  session->geometry_.resize(layers.size());
-  Status s = InferGeometry(m, options.max_height, options.max_width, session->geometry_);
+  session->geometry_.resize(session->model_->layers().size());
+  Status s =
+      InferGeometry(*session->model_, options.max_height, options.max_width, session->geometry_);
   if (!s.ok()) {
     return Status::Error("planning for the maximum input size " +
                          std::to_string(options.max_height) + "x" +
                          std::to_string(options.max_width) + ": " + s.message());
   }
-
-  // Every layer but the last writes a tensor of its own, except a crop, which is a view of its
-  // input. A tensor lives until the first layer after it that is not a crop has read it.
-  std::vector<BufferRequest> requests;
-  session->tensor_of_layer_.assign(layers.size(), -1);
-  for (int i = 0; i + 1 < n; ++i) {
-    if (layers[i].kind == LayerKind::kCrop) continue;
-    int reader = i + 1;
-    while (reader < n - 1 && layers[reader].kind == LayerKind::kCrop) ++reader;
-    session->tensor_of_layer_[i] = static_cast<int>(requests.size());
-    requests.push_back({session->geometry_[i].output.elements() * sizeof(float), i, reader});
-  }
-  const ArenaPlan plan = PlanArena(requests);
-  session->plan_.resize(requests.size());
-  for (size_t t = 0; t < requests.size(); ++t) {
-    session->plan_[t] = {requests[t].first_use, requests[t].last_use, plan.offsets[t],
-                         requests[t].bytes};
-  }
-  session->arena_bytes_ = plan.total_bytes;
-  if (plan.total_bytes > 0) {
-    session->arena_ = static_cast<float*>(std::aligned_alloc(kArenaAlignment, plan.total_bytes));
-    if (session->arena_ == nullptr) {
-      return Status::Error("cannot allocate the " + std::to_string(plan.total_bytes) +
-                           "-byte arena for " + std::to_string(options.max_height) + "x" +
-                           std::to_string(options.max_width) + " inputs");
-    }
+  if (Status planned = session->Plan(); !planned.ok()) return planned;
+  if (session->threads_ > 1) {
+    session->pool_ = std::make_unique<Pool>(session->threads_, options.pin_threads);
   }
   return session;
+}
+
+Status Session::Plan() {
+  const auto layers = model_->layers();
+  const int n = static_cast<int>(layers.size());
+  const IsaConvKernels* kernels = ConvKernelsFor(isa_);
+
+  // 1. The steps, fusing upsample 2x (+ crop) + 3x3 stride-1 convolution where the ISA can.
+  for (int i = 0; i < n; ++i) {
+    const LayerDesc& layer = layers[i];
+    Step step;
+    step.first_layer = step.last_layer = i;
+    if (layer.kind == LayerKind::kCrop) {
+      step.kind = Step::Kind::kCrop;
+      step.kernel = i + 1 == n ? "ref::Copy" : "view";
+    } else if (layer.kind == LayerKind::kUpsample) {
+      int conv = i + 1;
+      int crop = -1;
+      if (conv < n && layers[conv].kind == LayerKind::kCrop) crop = conv++;
+      const bool fusable = kernels != nullptr && layer.upsample.factor_h == 2 &&
+                           layer.upsample.factor_w == 2 && conv < n &&
+                           layers[conv].kind == LayerKind::kConv2D &&
+                           layers[conv].conv.kernel_h == 3 && layers[conv].conv.kernel_w == 3 &&
+                           layers[conv].conv.stride_h == 1 && layers[conv].conv.stride_w == 1;
+      if (fusable) {
+        step.kind = Step::Kind::kUpConv;
+        step.last_layer = conv;
+        step.crop_layer = crop;
+        i = conv;
+      } else {
+        step.kind = Step::Kind::kUpsample;
+        step.kernel = "ref::UpsampleNearest";
+      }
+    } else if (kernels != nullptr && layer.conv.kernel_h * layer.conv.kernel_w <= kMaxConvTaps) {
+      step.kind = Step::Kind::kConv;
+    } else {
+      step.kind = Step::Kind::kRefConv;
+      step.params = &layer.conv;
+      step.kernel = "ref::Conv2d";
+    }
+    steps_.push_back(step);
+  }
+
+  // 2. Packed weights for the SIMD steps, in one 64-byte-aligned allocation.
+  auto variant_for = [&](const ConvParams& p) -> const ConvKernelVariant& {
+    return p.out_channels <= kernels->narrow.nr ? kernels->narrow : kernels->wide;
+  };
+  size_t floats = 0;
+  for (const Step& step : steps_) {
+    if (step.kind != Step::Kind::kConv && step.kind != Step::Kind::kUpConv) continue;
+    const ConvParams& p = layers[step.last_layer].conv;
+    floats += PackedConvFloats(p, variant_for(p).nr, step.kind == Step::Kind::kUpConv);
+  }
+  if (floats > 0) {
+    packed_bytes_ = floats * sizeof(float);
+    packed_ = static_cast<float*>(std::aligned_alloc(kArenaAlignment, packed_bytes_));
+    if (packed_ == nullptr) {
+      return Status::Error("cannot allocate " + std::to_string(packed_bytes_) +
+                           " bytes for the packed weights");
+    }
+  }
+  float* cursor = packed_;
+  for (Step& step : steps_) {
+    if (step.kind != Step::Kind::kConv && step.kind != Step::Kind::kUpConv) continue;
+    const ConvParams& p = layers[step.last_layer].conv;
+    const ConvKernelVariant& v = variant_for(p);
+    const bool phases = step.kind == Step::Kind::kUpConv;
+    step.packed = PackConv(p, v.nr, phases, cursor);
+    cursor += PackedConvFloats(p, v.nr, phases);
+    step.fn = phases ? v.upconv : v.conv;
+    step.kernel = phases ? v.upconv_name : v.conv_name;
+  }
+  for (const Step& step : steps_) {
+    step_info_.push_back({step.first_layer, step.last_layer, step.kernel});
+  }
+
+  // 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is
+  // a view of its input. A tensor lives until the first step after it that is not a crop has
+  // read it (times are layer indices).
+  std::vector<BufferRequest> requests;
+  tensor_of_layer_.assign(layers.size(), -1);
+  const size_t m = steps_.size();
+  for (size_t k = 0; k + 1 < m; ++k) {
+    const Step& step = steps_[k];
+    if (step.kind == Step::Kind::kCrop) continue;
+    size_t reader = k + 1;
+    while (reader + 1 < m && steps_[reader].kind == Step::Kind::kCrop) ++reader;
+    tensor_of_layer_[step.last_layer] = static_cast<int>(requests.size());
+    requests.push_back({geometry_[step.last_layer].output.elements() * sizeof(float),
+                        step.last_layer, steps_[reader].last_layer});
+  }
+  const ArenaPlan plan = PlanArena(requests);
+  plan_.resize(requests.size());
+  for (size_t t = 0; t < requests.size(); ++t) {
+    plan_[t] = {requests[t].first_use, requests[t].last_use, plan.offsets[t], requests[t].bytes};
+  }
+  arena_bytes_ = plan.total_bytes;
+  if (plan.total_bytes > 0) {
+    arena_ = static_cast<float*>(std::aligned_alloc(kArenaAlignment, plan.total_bytes));
+    if (arena_ == nullptr) {
+      return Status::Error("cannot allocate the " + std::to_string(plan.total_bytes) +
+                           "-byte arena for " + std::to_string(options_.max_height) + "x" +
+                           std::to_string(options_.max_width) + " inputs");
+    }
+  }
+  return Status::Ok();
 }
 
 Result<TensorShape> Session::OutputShape(int height, int width) const {
@@ -97,15 +295,20 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
                          "the output needs " + std::to_string(out_shape.elements()));
   }
 
-  const auto layers = model_->layers();
-  const size_t n = layers.size();
+  const int n = static_cast<int>(model_->layers().size());
+  auto parallel_rows = [&](int rows, ThreadPool::Fn fn, void* ctx) {
+    if (pool_ != nullptr) {
+      pool_->ParallelFor(rows, fn, ctx);
+    } else {
+      fn(ctx, 0, rows);
+    }
+  };
   ConstTensorView cur{input.data(), in_shape.height, in_shape.width, in_shape.channels,
                       static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
-  for (size_t i = 0; i < n; ++i) {
-    const LayerDesc& layer = layers[i];
-    const LayerGeometry& g = geometry_[i];
-    const bool last = i + 1 == n;
-    if (layer.kind == LayerKind::kCrop) {
+  for (const Step& step : steps_) {
+    const LayerGeometry& g = geometry_[step.last_layer];
+    const bool last = step.last_layer + 1 == n;
+    if (step.kind == Step::Kind::kCrop) {
       ConstTensorView view = cur;
       view.data = cur.pixel(g.crop.top, g.crop.left);
       view.height = g.output.height;
@@ -119,12 +322,43 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
     }
     float* dst =
         last ? output.data()
-             : arena_ + plan_[static_cast<size_t>(tensor_of_layer_[i])].offset / sizeof(float);
+             : arena_ + plan_[static_cast<size_t>(tensor_of_layer_[step.last_layer])].offset /
+                            sizeof(float);
     const TensorView out = DenseView(dst, g.output.height, g.output.width, g.output.channels);
-    if (layer.kind == LayerKind::kConv2D) {
-      ref::Conv2d(cur, layer.conv, g.pads, out);
-    } else {
-      ref::UpsampleNearest(cur, layer.upsample.factor_h, layer.upsample.factor_w, out);
+    switch (step.kind) {
+      case Step::Kind::kConv:
+      case Step::Kind::kUpConv: {
+        ConvArgs args;
+        args.conv = &step.packed;
+        args.in = cur;
+        args.out = out;
+        args.pads = g.pads;
+        if (step.kind == Step::Kind::kUpConv) {
+          const LayerGeometry& c =
+              geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+          if (step.crop_layer >= 0) {
+            args.crop_top = c.crop.top;
+            args.crop_left = c.crop.left;
+          }
+          args.c_height = c.output.height;
+          args.c_width = c.output.width;
+        }
+        ConvJob job{step.fn, &args};
+        parallel_rows(out.height, ConvTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kRefConv: {
+        RefConvJob job{step.params, cur, out, g.pads};
+        parallel_rows(out.height, RefConvTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kUpsample: {
+        const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
+        ref::UpsampleNearest(cur, u.factor_h, u.factor_w, out);
+        break;
+      }
+      case Step::Kind::kCrop:
+        break;
     }
     cur = out;
   }

@@ -11,6 +11,7 @@
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
 #include "sfrt/io/npy.h"
+#include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 
@@ -44,7 +45,8 @@ TEST(PyTorchParity, FixtureSuiteIsPresent) {
 
 // Runs the model exported from `model_case` on the input of `data_case` and compares with
 // PyTorch's output for `data_case`; returns the error relative to the reference's largest value.
-double RelativeErrorAgainstPyTorch(const std::string& model_case, const FixtureCase& data_case) {
+double RelativeErrorAgainstPyTorch(const std::string& model_case, const FixtureCase& data_case,
+                                   Isa isa = Isa::kRef) {
   const std::string dir = std::string(SFRT_FIXTURE_DIR) + "/";
   auto spec = exporter::ImportOnnx(dir + model_case + ".onnx");
   EXPECT_TRUE(spec.ok()) << spec.message();
@@ -66,7 +68,11 @@ double RelativeErrorAgainstPyTorch(const std::string& model_case, const FixtureC
     return INFINITY;
   }
 
-  auto session = Session::Create(*model, {h, w});
+  SessionOptions options;
+  options.max_height = h;
+  options.max_width = w;
+  options.isa = isa;
+  auto session = Session::Create(*model, options);
   EXPECT_TRUE(session.ok()) << session.message();
   if (!session.ok()) return INFINITY;
   std::vector<float> out(expected->data.size());
@@ -82,8 +88,9 @@ double RelativeErrorAgainstPyTorch(const std::string& model_case, const FixtureC
   }
   EXPECT_GT(max_ref, 0.0);
   const double relative = max_err / max_ref;
-  std::printf("  model %-30s data %-30s %4dx%-4d max|ref| %.4g  max abs err %.3g  relative %.3g\n",
-              model_case.c_str(), data_case.name.c_str(), h, w, max_ref, max_err, relative);
+  std::printf(
+      "  %-6s model %-24s data %-24s %4dx%-4d max|ref| %.4g  max abs err %.3g  relative %.3g\n",
+      IsaName(isa), model_case.c_str(), data_case.name.c_str(), h, w, max_ref, max_err, relative);
   return relative;
 }
 
@@ -93,6 +100,19 @@ TEST(PyTorchParity, EveryFixtureCaseMatchesPyTorch) {
   for (const FixtureCase& c : cases) {
     SCOPED_TRACE(c.name);
     EXPECT_LE(RelativeErrorAgainstPyTorch(c.name, c), kRelativeTolerance);
+  }
+}
+
+// Every optimised path this CPU runs (packed kernels, fused upsample-conv) against PyTorch.
+TEST(PyTorchParity, EveryIsaMatchesPyTorchOnEveryFixtureCase) {
+  const auto cases = ReadCases();
+  ASSERT_FALSE(cases.empty());
+  for (Isa isa : SupportedIsas()) {
+    if (isa == Isa::kRef) continue;  // the test above
+    for (const FixtureCase& c : cases) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + " " + c.name);
+      EXPECT_LE(RelativeErrorAgainstPyTorch(c.name, c, isa), kRelativeTolerance);
+    }
   }
 }
 

@@ -62,7 +62,7 @@ TEST(Session, RepeatedRunsAreBitIdentical) {
 
 TEST(Session, PlanHasNoOverlapsAndFitsTheArena) {
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
-  auto session = Session::Create(model, {540, 960});
+  auto session = Session::Create(model, {540, 960, Isa::kRef});
   ASSERT_TRUE(session.ok());
   std::vector<BufferRequest> requests;
   ArenaPlan plan;
@@ -81,8 +81,9 @@ TEST(Session, ArenaForFullWidthAt540x960IsPinned) {
   // Regression guard (TFLite Micro's arena threshold test): the ping-pong plan needs the two
   // largest neighbours, up4 (544x960x128) and conv9's input/output pair. A planner change that
   // grows this should be a conscious decision.
+  // The reference path keeps every tensor; the fused plan is pinned in session_isa_test.
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(1));
-  auto session = Session::Create(model, {540, 960});
+  auto session = Session::Create(model, {540, 960, Isa::kRef});
   ASSERT_TRUE(session.ok()) << session.message();
   const size_t up4 = 544ull * 960 * 128 * 4;
   const size_t conv9 = 540ull * 960 * 64 * 4;

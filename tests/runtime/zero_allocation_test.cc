@@ -7,9 +7,11 @@
 #include <atomic>
 #include <cstdlib>
 #include <new>
+#include <string>
 
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
+#include "sfrt/isa.h"
 #include "sfrt/session.h"
 
 extern "C" void* __libc_malloc(size_t);
@@ -71,17 +73,30 @@ TEST(ZeroAllocation, CountingHooksSeeAnAllocation) {
   EXPECT_GE(g_allocations.load() - before, 2);
 }
 
+// Every ISA this CPU runs (packed weights and the fused upsample-conv included), with one
+// thread and with a pool of two (which must not create threads or allocate per Run).
 TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
-  auto session = Session::Create(model, {96, 128});
-  ASSERT_TRUE(session.ok()) << session.message();
-  std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
-  for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
-    const long before = g_allocations.load();
-    const Status s = (*session)->Run(input, h, w, output);
-    const long allocated = g_allocations.load() - before;
-    ASSERT_TRUE(s.ok()) << s.message();
-    EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << ") allocated " << allocated << " times";
+  for (Isa isa : SupportedIsas()) {
+    for (int threads : {1, 2}) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");
+      SessionOptions options;
+      options.max_height = 96;
+      options.max_width = 128;
+      options.isa = isa;
+      options.threads = threads;
+      auto session = Session::Create(model, options);
+      ASSERT_TRUE(session.ok()) << session.message();
+      std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
+      for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
+        const long before = g_allocations.load();
+        const Status s = (*session)->Run(input, h, w, output);
+        const long allocated = g_allocations.load() - before;
+        ASSERT_TRUE(s.ok()) << s.message();
+        EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << ") allocated " << allocated
+                                << " times";
+      }
+    }
   }
 }
 

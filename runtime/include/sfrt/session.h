@@ -7,6 +7,13 @@
 //
 // Ownership: a Session shares ownership of its Model; the input and output buffers belong to the
 // caller and are only accessed during Run().
+// Kernels: Create() also chooses the instruction set (SessionOptions::isa, see sfrt/isa.h),
+// packs every convolution's weights for it into memory the session owns (allocated once), fuses
+// each nearest-2x upsample (+ crop) into the 3x3 convolution that reads it (optimised ISAs only;
+// the upsampled tensor then never exists), and records the plan as a flat list of steps with
+// kernel function pointers. Run() walks that list. With threads > 1, Create() starts a fixed
+// pool and Run() splits each step's output rows over it.
+//
 // Thread-safety: a Session is not thread-safe (Run() writes its arena). Use one Session per
 // thread; Sessions created from the same Model share its weights.
 #pragma once
@@ -16,6 +23,7 @@
 #include <span>
 #include <vector>
 
+#include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/shapes.h"
 #include "sfrt/status.h"
@@ -25,6 +33,18 @@ namespace sfrt {
 struct SessionOptions {
   int max_height = 540;
   int max_width = 960;
+  // kAuto: the SFRT_ISA environment variable if set (ref|avx2|avx512|neon), else BestIsa().
+  // Asking for an ISA this CPU cannot run (here or through SFRT_ISA) fails Create().
+  Isa isa = Isa::kAuto;
+  int threads = 1;           // threads Run() uses, the caller's included; 0: one per CPU
+  bool pin_threads = false;  // bind thread i to the i-th CPU this process may use
+};
+
+// One entry of the flat list Run() walks.
+struct PlannedStep {
+  int first_layer = 0;  // the model layers this step computes, [first_layer, last_layer]
+  int last_layer = 0;
+  const char* kernel = "";  // e.g. "conv2d_f32__avx512_8x32", "ref::Conv2d", "view"
 };
 
 // Where each planned tensor lives in the arena (for `--print-plan` and tests).
@@ -56,9 +76,17 @@ class Session {
   const SessionOptions& options() const { return options_; }
   size_t arena_bytes() const { return arena_bytes_; }
   std::span<const PlannedTensor> plan() const { return plan_; }
+  Isa isa() const { return isa_; }
+  int threads() const { return threads_; }
+  std::span<const PlannedStep> steps() const { return step_info_; }
+  // Bytes of weights packed for the chosen kernels (0 on the reference path).
+  size_t packed_weight_bytes() const { return packed_bytes_; }
 
  private:
+  struct Step;
+  class Pool;
   Session() = default;
+  Status Plan();
   std::shared_ptr<const Model> model_;
   SessionOptions options_;
   std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops
@@ -66,6 +94,13 @@ class Session {
   std::vector<int> tensor_of_layer_;     // layer -> index into plan_ (-1: none)
   size_t arena_bytes_ = 0;
   float* arena_ = nullptr;  // 64-byte aligned, arena_bytes_ long
+  Isa isa_ = Isa::kRef;
+  int threads_ = 1;
+  std::vector<Step> steps_;
+  std::vector<PlannedStep> step_info_;
+  size_t packed_bytes_ = 0;
+  float* packed_ = nullptr;  // 64-byte aligned packed weights
+  std::unique_ptr<Pool> pool_;
 };
 
 }  // namespace sfrt

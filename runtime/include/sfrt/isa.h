@@ -1,0 +1,35 @@
+// Instruction sets the runtime has kernels for, and which of them this CPU can run.
+//
+// A Session picks one ISA at Create (SessionOptions::isa; when that is kAuto, the SFRT_ISA
+// environment variable, e.g. SFRT_ISA=avx2; otherwise the best the CPU runs) and keeps its
+// kernels as function pointers. kRef is the scalar reference path and always available.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace sfrt {
+
+enum class Isa {
+  kAuto,    // SessionOptions only: SFRT_ISA if set, else BestIsa()
+  kRef,     // scalar reference kernels (the oracle)
+  kAvx2,    // x86-64 AVX2 + FMA
+  kAvx512,  // x86-64 AVX-512 F/BW/VL/DQ (with the OS saving ZMM state)
+  kNeon,    // aarch64 Advanced SIMD
+};
+
+// "auto", "ref", "avx2", "avx512", "neon".
+const char* IsaName(Isa isa);
+// Parses the names above (lower case); false for anything else.
+bool ParseIsa(std::string_view name, Isa* isa);
+// True when this build has kernels for `isa` and this CPU (and OS) can execute them.
+bool IsaSupported(Isa isa);
+// Every supported ISA, kRef first, best last.
+std::vector<Isa> SupportedIsas();
+// The last entry of SupportedIsas().
+Isa BestIsa();
+// "ref, avx2, avx512": the supported ISAs as text, for messages.
+std::string SupportedIsaList();
+
+}  // namespace sfrt

@@ -1,0 +1,49 @@
+// AVX2 + FMA convolution kernels (compiled with -mavx2 -mfma only in this translation unit;
+// runtime/CMakeLists.txt). Tiles: 6 pixels x 16 channels (wide; 12 accumulators + 2 weight
+// vectors + 1 broadcast of the 16 YMM registers) and 6 pixels x 8 channels (narrow).
+#include <immintrin.h>
+
+#include "kernels/simd/conv_driver_inl.h"
+
+namespace sfrt::avx2 {
+namespace {
+
+struct V {
+  using Reg = __m256;
+  static constexpr int kLanes = 8;
+  static Reg Load(const float* p) { return _mm256_loadu_ps(p); }
+  static Reg Broadcast(const float* p) { return _mm256_broadcast_ss(p); }
+  static Reg Fma(Reg a, Reg b, Reg acc) { return _mm256_fmadd_ps(a, b, acc); }
+  static void Store(float* p, Reg v) { _mm256_storeu_ps(p, v); }
+  static void StorePartial(float* p, Reg v, int n) {
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), lane);
+    _mm256_maskstore_ps(p, mask, v);
+  }
+  // v > 0 ? v : v * slope, as the reference (NaN stays NaN).
+  static Reg Leaky(Reg v, float slope) {
+    const Reg positive = _mm256_cmp_ps(v, _mm256_setzero_ps(), _CMP_GT_OQ);
+    return _mm256_blendv_ps(_mm256_mul_ps(v, _mm256_set1_ps(slope)), v, positive);
+  }
+  static Reg Relu(Reg v) {
+    const Reg positive = _mm256_cmp_ps(v, _mm256_setzero_ps(), _CMP_GT_OQ);
+    return _mm256_and_ps(v, positive);
+  }
+};
+
+void Conv6x16(const ConvArgs& a, int b, int e) { simd::ConvRows<V, 6, 2>(a, b, e); }
+void Conv6x8(const ConvArgs& a, int b, int e) { simd::ConvRows<V, 6, 1>(a, b, e); }
+void UpConv6x16(const ConvArgs& a, int b, int e) { simd::UpConvRows<V, 6, 2>(a, b, e); }
+void UpConv6x8(const ConvArgs& a, int b, int e) { simd::UpConvRows<V, 6, 1>(a, b, e); }
+
+}  // namespace
+
+const IsaConvKernels& ConvKernels() {
+  static const IsaConvKernels kernels = {
+      {8, Conv6x8, UpConv6x8, "conv2d_f32__avx2_6x8", "upconv2x_conv3x3_f32__avx2_6x8"},
+      {16, Conv6x16, UpConv6x16, "conv2d_f32__avx2_6x16", "upconv2x_conv3x3_f32__avx2_6x16"},
+  };
+  return kernels;
+}
+
+}  // namespace sfrt::avx2

@@ -1,0 +1,89 @@
+// What an optimised convolution kernel is given: weights packed at Session::Create, and one
+// call's views. Shared by every SIMD tier (kernels/<isa>/) and the session that dispatches them.
+//
+// Packed layout ("output-channel blocked"): output channels are split into blocks of `nr`
+// (nr = vectors per tile x SIMD lanes); the last block is zero-padded. For each block, taps
+// (ky, kx) in row-major order, then input channels, then the block's nr output channels:
+//   weights[block][ky * kernel_w + kx][ci][nr]          bias[block * nr + j]
+// The fused upsample-conv adds, per output phase (py, px) of a nearest-2x-upsampled input,
+// the 2x2 kernel over the low-resolution map whose taps are sums of the 3x3 taps:
+//   phase_weights[py * 2 + px][block][ty * 2 + tx][ci][nr]
+// where, along each axis, phase 0 gives tap 0 = w0 + w1 and tap 1 = w2, and phase 1 gives
+// tap 0 = w0 and tap 1 = w1 + w2 (see docs in runtime/src/conv_packing.h).
+#pragma once
+
+#include <cstddef>
+
+#include "kernels/tensor_view.h"
+#include "sfrt/isa.h"
+#include "sfrt/model.h"
+
+namespace sfrt {
+
+inline constexpr int kMaxConvTaps = 64;  // kernel_h * kernel_w the SIMD kernels accept
+
+struct PackedConv {
+  int in_channels = 0;
+  int out_channels = 0;
+  int kernel_h = 0;
+  int kernel_w = 0;
+  int stride_h = 1;
+  int stride_w = 1;
+  int nr = 0;      // output channels per block
+  int blocks = 0;  // ceil(out_channels / nr)
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+  const float* weights = nullptr;        // [blocks][taps][in_channels][nr], 64-byte aligned
+  const float* bias = nullptr;           // [blocks * nr]
+  const float* phase_weights = nullptr;  // [4][blocks][4][in_channels][nr], or null
+};
+
+// One kernel call. For a plain convolution `in` is the convolution's input. For the fused
+// upsample(2x, nearest) -> crop -> 3x3 stride-1 convolution, `in` is the low-resolution map and
+// the convolution reads C, the upsampled map with `crop_top` rows and `crop_left` columns
+// removed, of size c_height x c_width (zero outside it).
+struct ConvArgs {
+  const PackedConv* conv = nullptr;
+  ConstTensorView in;
+  TensorView out;
+  Padding pads;  // in effect at this size (only top/left are read)
+  int crop_top = 0;
+  int crop_left = 0;
+  int c_height = 0;
+  int c_width = 0;
+};
+
+// Computes output rows [row_begin, row_end) of args.out. Safe to call concurrently on disjoint
+// row ranges.
+using ConvRowsFn = void (*)(const ConvArgs& args, int row_begin, int row_end);
+
+// One register tile shape of one ISA.
+struct ConvKernelVariant {
+  int nr = 0;  // output channels per block
+  ConvRowsFn conv = nullptr;
+  ConvRowsFn upconv = nullptr;
+  const char* conv_name = "";
+  const char* upconv_name = "";
+};
+
+// An ISA's kernels: `narrow` for layers with few output channels, `wide` otherwise.
+struct IsaConvKernels {
+  ConvKernelVariant narrow;
+  ConvKernelVariant wide;
+};
+
+// The kernels of `isa`, or null for kRef, kAuto and ISAs this build has no kernels for (whether
+// the CPU can run them is IsaSupported's question).
+const IsaConvKernels* ConvKernelsFor(Isa isa);
+
+namespace avx2 {
+const IsaConvKernels& ConvKernels();
+}
+namespace avx512 {
+const IsaConvKernels& ConvKernels();
+}
+namespace neon {
+const IsaConvKernels& ConvKernels();
+}
+
+}  // namespace sfrt

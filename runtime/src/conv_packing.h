@@ -1,0 +1,29 @@
+// Packs a convolution's HWIO weights into the output-channel-blocked layout the SIMD kernels
+// read (kernels/conv_job.h), at Session::Create, into memory the session owns.
+//
+// The fused upsample-conv: with U the nearest-2x upsampling of a low-resolution map L,
+// U[y] = L[y / 2], so for an output row whose first tap reads upsampled row a, the three taps
+// read L rows (a / 2, a / 2, a / 2 + 1) when a is even and (a / 2, a / 2 + 1, a / 2 + 1) when a
+// is odd. Taps that read the same row share an input value, so their weights can be summed
+// first: per output phase (a mod 2, and the same for columns) a 2x2 kernel over L with
+// 4 / 9 of the multiply-accumulates, equal to the 3x3 result up to rounding. It holds wherever
+// the whole 3x3 window lies inside the (cropped) upsampled map; the kernels use the 3x3
+// weights for the border pixels, where zero padding stands for some taps.
+#pragma once
+
+#include <cstddef>
+
+#include "kernels/conv_job.h"
+#include "sfrt/model.h"
+
+namespace sfrt {
+
+// Floats needed for the blocked weights and bias of `params` with blocks of `nr` channels, and
+// for the phase weights when `with_phases` (3x3 kernels only).
+size_t PackedConvFloats(const ConvParams& params, int nr, bool with_phases);
+
+// Writes the packed weights into `dst` (PackedConvFloats floats, 64-byte aligned, each part
+// starting on a 16-float boundary) and returns the descriptor pointing into it.
+PackedConv PackConv(const ConvParams& params, int nr, bool with_phases, float* dst);
+
+}  // namespace sfrt

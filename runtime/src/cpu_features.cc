@@ -1,0 +1,139 @@
+#include "cpu_features.h"
+
+#include <cstdint>
+
+#include "sfrt/isa.h"
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <cpuid.h>
+#define SFRT_X86 1
+#elif defined(__aarch64__)
+#include <asm/hwcap.h>
+#include <sys/auxv.h>
+#endif
+
+namespace sfrt {
+namespace {
+
+#if defined(SFRT_X86)
+uint64_t ReadXcr0() {
+  uint32_t eax = 0, edx = 0;
+  __asm__ volatile("xgetbv" : "=a"(eax), "=d"(edx) : "c"(0));
+  return (static_cast<uint64_t>(edx) << 32) | eax;
+}
+#endif
+
+CpuFeatures Detect() {
+  CpuFeatures f;
+#if defined(SFRT_X86)
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx)) return f;
+  const bool osxsave = (ecx >> 27) & 1;
+  const bool avx = (ecx >> 28) & 1;
+  const bool fma = (ecx >> 12) & 1;
+  if (!osxsave || !avx) return f;
+  const uint64_t xcr0 = ReadXcr0();
+  const bool ymm_state = (xcr0 & 0x6) == 0x6;    // SSE + AVX state
+  const bool zmm_state = (xcr0 & 0xe6) == 0xe6;  // + opmask, ZMM_Hi256, Hi16_ZMM
+  if (!__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx)) return f;
+  const bool avx2 = (ebx >> 5) & 1;
+  const bool avx512f = (ebx >> 16) & 1;
+  const bool avx512dq = (ebx >> 17) & 1;
+  const bool avx512bw = (ebx >> 30) & 1;
+  const bool avx512vl = (ebx >> 31) & 1;
+  f.avx2_fma = avx2 && fma && ymm_state;
+  f.avx512 = f.avx2_fma && avx512f && avx512dq && avx512bw && avx512vl && zmm_state;
+#elif defined(__aarch64__)
+  f.neon = (getauxval(AT_HWCAP) & HWCAP_ASIMD) != 0;
+#endif
+  return f;
+}
+
+// Whether this build compiled kernels for an ISA (runtime/CMakeLists.txt sets these).
+bool Compiled(Isa isa) {
+  switch (isa) {
+    case Isa::kRef:
+      return true;
+    case Isa::kAvx2:
+      return SFRT_HAVE_AVX2 != 0;
+    case Isa::kAvx512:
+      return SFRT_HAVE_AVX512 != 0;
+    case Isa::kNeon:
+      return SFRT_HAVE_NEON != 0;
+    case Isa::kAuto:
+      return false;
+  }
+  return false;
+}
+
+}  // namespace
+
+const CpuFeatures& HostCpuFeatures() {
+  static const CpuFeatures features = Detect();
+  return features;
+}
+
+const char* IsaName(Isa isa) {
+  switch (isa) {
+    case Isa::kAuto:
+      return "auto";
+    case Isa::kRef:
+      return "ref";
+    case Isa::kAvx2:
+      return "avx2";
+    case Isa::kAvx512:
+      return "avx512";
+    case Isa::kNeon:
+      return "neon";
+  }
+  return "?";
+}
+
+bool ParseIsa(std::string_view name, Isa* isa) {
+  for (Isa candidate : {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon}) {
+    if (name == IsaName(candidate)) {
+      *isa = candidate;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool IsaSupported(Isa isa) {
+  if (!Compiled(isa)) return false;
+  const CpuFeatures& f = HostCpuFeatures();
+  switch (isa) {
+    case Isa::kRef:
+      return true;
+    case Isa::kAvx2:
+      return f.avx2_fma;
+    case Isa::kAvx512:
+      return f.avx512;
+    case Isa::kNeon:
+      return f.neon;
+    case Isa::kAuto:
+      return false;
+  }
+  return false;
+}
+
+std::vector<Isa> SupportedIsas() {
+  std::vector<Isa> out;
+  for (Isa isa : {Isa::kRef, Isa::kNeon, Isa::kAvx2, Isa::kAvx512}) {
+    if (IsaSupported(isa)) out.push_back(isa);
+  }
+  return out;
+}
+
+Isa BestIsa() { return SupportedIsas().back(); }
+
+std::string SupportedIsaList() {
+  std::string out;
+  for (Isa isa : SupportedIsas()) {
+    if (!out.empty()) out += ", ";
+    out += IsaName(isa);
+  }
+  return out;
+}
+
+}  // namespace sfrt

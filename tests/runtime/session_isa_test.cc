@@ -1,0 +1,222 @@
+// Whole-model checks of the optimised paths: every ISA this CPU runs against the reference path
+// on SceneEDNet at 1/16 width (540x960 and an odd size), thread counts, ISA selection and its
+// errors, the fused upsample-conv plan.
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <string>
+
+#include "common/model_builders.h"
+#include "common/sceneednet_spec.h"
+#include "sfrt/isa.h"
+#include "sfrt/session.h"
+
+namespace sfrt {
+namespace {
+
+// The acceptance bound of issue 4: max error at most 1e-4 of the reference's largest magnitude.
+constexpr double kRelativeTolerance = 1e-4;
+
+std::vector<float> RandomImage(int h, int w, int c, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> dist(0.0f, 255.0f);
+  std::vector<float> v(static_cast<size_t>(h) * w * c);
+  for (float& x : v) x = dist(rng);
+  return v;
+}
+
+std::vector<float> RunWith(std::shared_ptr<const Model> model, Isa isa, int threads,
+                           const std::vector<float>& input, int h, int w) {
+  SessionOptions options;
+  options.max_height = h;
+  options.max_width = w;
+  options.isa = isa;
+  options.threads = threads;
+  auto session = Session::Create(std::move(model), options);
+  EXPECT_TRUE(session.ok()) << session.message();
+  if (!session.ok()) return {};
+  EXPECT_EQ((*session)->isa(), isa);
+  std::vector<float> out(static_cast<size_t>(h) * w * 3, NAN);
+  const Status s = (*session)->Run(input, h, w, out);
+  EXPECT_TRUE(s.ok()) << s.message();
+  return out;
+}
+
+double RelativeError(const std::vector<float>& got, const std::vector<float>& want) {
+  if (got.size() != want.size() || want.empty()) return INFINITY;
+  double max_ref = 0.0, max_err = 0.0;
+  for (size_t i = 0; i < want.size(); ++i) {
+    if (!std::isfinite(got[i])) return INFINITY;
+    max_ref = std::max(max_ref, std::abs(double(want[i])));
+    max_err = std::max(max_err, std::abs(double(got[i]) - want[i]));
+  }
+  return max_ref > 0 ? max_err / max_ref : INFINITY;
+}
+
+class SessionIsa : public ::testing::TestWithParam<Isa> {
+ protected:
+  void SetUp() override {
+    if (!IsaSupported(GetParam())) {
+      GTEST_SKIP() << "this CPU or build cannot run " << IsaName(GetParam())
+                   << " (supported: " << SupportedIsaList() << ")";
+    }
+  }
+};
+
+TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAt540x960) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  const auto input = RandomImage(540, 960, 12, 3);
+  const auto want = RunWith(model, Isa::kRef, 2, input, 540, 960);
+  const auto got = RunWith(model, GetParam(), 1, input, 540, 960);
+  EXPECT_LE(RelativeError(got, want), kRelativeTolerance);
+}
+
+TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAtAnOddSize) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16, 7));
+  const auto input = RandomImage(67, 121, 12, 4);
+  const auto want = RunWith(model, Isa::kRef, 1, input, 67, 121);
+  const auto got = RunWith(model, GetParam(), 1, input, 67, 121);
+  EXPECT_LE(RelativeError(got, want), kRelativeTolerance);
+}
+
+TEST_P(SessionIsa, TwoThreadsGiveBitIdenticalResultsToOne) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16, 5));
+  const auto input = RandomImage(97, 133, 12, 5);
+  EXPECT_EQ(RunWith(model, GetParam(), 2, input, 97, 133),
+            RunWith(model, GetParam(), 1, input, 97, 133));
+}
+
+TEST_P(SessionIsa, FusesEveryUpsampleIntoTheConvolutionThatReadsIt) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  SessionOptions options;
+  options.isa = GetParam();
+  auto session = Session::Create(model, options);
+  ASSERT_TRUE(session.ok()) << session.message();
+  int fused = 0, ref_kernels = 0;
+  for (const PlannedStep& step : (*session)->steps()) {
+    const std::string kernel = step.kernel;
+    EXPECT_NE(kernel.find(IsaName(GetParam())), std::string::npos) << kernel;
+    if (kernel.rfind("upconv2x_conv3x3_f32__", 0) == 0) ++fused;
+    if (kernel.rfind("ref::", 0) == 0) ++ref_kernels;
+  }
+  EXPECT_EQ(fused, 4);
+  EXPECT_EQ(ref_kernels, 0);
+  // 16 layers in 11 steps: 7 convolutions, 4 fused upsample(+crop)+conv.
+  EXPECT_EQ((*session)->steps().size(), 11u);
+  // No upsampled tensor: 10 tensors (every step's output but the last).
+  EXPECT_EQ((*session)->plan().size(), 10u);
+  EXPECT_GT((*session)->packed_weight_bytes(), 0u);
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryIsa, SessionIsa,
+                         ::testing::Values(Isa::kAvx2, Isa::kAvx512, Isa::kNeon),
+                         [](const ::testing::TestParamInfo<Isa>& param) {
+                           return std::string(IsaName(param.param));
+                         });
+
+TEST(SessionIsaSelection, FusedPlanHalvesTheFullWidthArena) {
+  if (BestIsa() == Isa::kRef) GTEST_SKIP() << "no SIMD ISA on this CPU or build";
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(1));
+  SessionOptions options;
+  options.isa = BestIsa();
+  auto session = Session::Create(model, options);
+  ASSERT_TRUE(session.ok()) << session.message();
+  // The two largest neighbours are now conv8's output (272x480x128) and conv9's (540x960x64).
+  const size_t conv8 = 272ull * 480 * 128 * 4;
+  const size_t conv9 = 540ull * 960 * 64 * 4;
+  EXPECT_EQ((*session)->arena_bytes(), conv8 + conv9);
+}
+
+TEST(SessionIsaSelection, RefIsAlwaysSupportedAndListedFirst) {
+  EXPECT_TRUE(IsaSupported(Isa::kRef));
+  EXPECT_FALSE(IsaSupported(Isa::kAuto));
+  ASSERT_FALSE(SupportedIsas().empty());
+  EXPECT_EQ(SupportedIsas().front(), Isa::kRef);
+  EXPECT_EQ(SupportedIsas().back(), BestIsa());
+}
+
+TEST(SessionIsaSelection, ParsesEveryNameAndRejectsOthers) {
+  for (Isa isa : {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon}) {
+    Isa parsed = Isa::kRef;
+    EXPECT_TRUE(ParseIsa(IsaName(isa), &parsed)) << IsaName(isa);
+    EXPECT_EQ(parsed, isa);
+  }
+  Isa parsed = Isa::kRef;
+  EXPECT_FALSE(ParseIsa("sse2", &parsed));
+  EXPECT_FALSE(ParseIsa("AVX2", &parsed));
+}
+
+TEST(SessionIsaSelection, AnUnsupportedRequestFailsNamingTheIsaAndWhatIsSupported) {
+  Isa missing = Isa::kAuto;
+  for (Isa isa : {Isa::kNeon, Isa::kAvx512, Isa::kAvx2}) {
+    if (!IsaSupported(isa)) missing = isa;
+  }
+  if (missing == Isa::kAuto) GTEST_SKIP() << "this CPU runs every ISA this runtime knows";
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  SessionOptions options;
+  options.isa = missing;
+  auto session = Session::Create(model, options);
+  ASSERT_FALSE(session.ok());
+  EXPECT_NE(session.message().find(std::string("'") + IsaName(missing) + "'"), std::string::npos)
+      << session.message();
+  EXPECT_NE(session.message().find(SupportedIsaList()), std::string::npos) << session.message();
+}
+
+// Sets an environment variable for one scope.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = getenv(name)) old_ = old, had_ = true;
+    setenv(name, value, 1);
+  }
+  ~ScopedEnv() {
+    if (had_) {
+      setenv(name_, old_.c_str(), 1);
+    } else {
+      unsetenv(name_);
+    }
+  }
+
+ private:
+  const char* name_;
+  std::string old_;
+  bool had_ = false;
+};
+
+TEST(SessionIsaSelection, SfrtIsaEnvironmentVariableChoosesThePathWhenOptionsSayAuto) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  {
+    ScopedEnv env("SFRT_ISA", "ref");
+    auto session = Session::Create(model, {32, 32});
+    ASSERT_TRUE(session.ok()) << session.message();
+    EXPECT_EQ((*session)->isa(), Isa::kRef);
+    // An explicit option wins over the environment.
+    SessionOptions options;
+    options.max_height = options.max_width = 32;
+    options.isa = BestIsa();
+    auto explicit_session = Session::Create(model, options);
+    ASSERT_TRUE(explicit_session.ok()) << explicit_session.message();
+    EXPECT_EQ((*explicit_session)->isa(), BestIsa());
+  }
+  {
+    ScopedEnv env("SFRT_ISA", "mmx");
+    auto session = Session::Create(model, {32, 32});
+    ASSERT_FALSE(session.ok());
+    EXPECT_NE(session.message().find("SFRT_ISA='mmx'"), std::string::npos) << session.message();
+  }
+}
+
+TEST(SessionIsaSelection, RejectsANegativeThreadCount) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  SessionOptions options;
+  options.threads = -1;
+  auto session = Session::Create(model, options);
+  ASSERT_FALSE(session.ok());
+  EXPECT_NE(session.message().find("threads"), std::string::npos) << session.message();
+}
+
+}  // namespace
+}  // namespace sfrt
