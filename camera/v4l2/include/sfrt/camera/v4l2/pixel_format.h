@@ -1,0 +1,94 @@
+// Pixel formats from V4L2 buffers to packed BGR8 (3 bytes per pixel, row stride 3*width, the
+// layout OpenCV's CV_8UC3 and the model's BGR input use).
+//
+// Supported: YUYV (YUV 4:2:2 packed), MJPEG (decoded with libjpeg-turbo), GREY (Y8), NV12
+// (Y plane then interleaved CbCr at half resolution), BGR24 and RGB24. Every raw converter
+// honours the source row stride (V4L2 bytesperline), which drivers often pad.
+//
+// YUV is BT.601 limited range ("studio swing", Y 16..235, Cb/Cr 16..240), what UVC cameras send:
+//   R = 1.164 (Y-16) + 1.596 (Cr-128)
+//   G = 1.164 (Y-16) - 0.392 (Cb-128) - 0.813 (Cr-128)
+//   B = 1.164 (Y-16) + 2.017 (Cb-128)
+// computed in 8-bit fixed point (coefficients x256), within 1 of the real-valued formula.
+//
+// Thread-safety: the free functions are pure. A PixelConverter holds a libjpeg-turbo handle and
+// must be used by one thread at a time.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sfrt/camera/status.h"
+
+namespace sfrt::v4l2 {
+
+// A frame of packed BGR8 pixels with its capture metadata.
+struct Frame {
+  int width = 0;
+  int height = 0;
+  std::vector<uint8_t> bgr;  // width * height * 3 bytes, rows top to bottom
+  int64_t timestamp_ns = 0;  // CLOCK_MONOTONIC at capture (the driver's buffer timestamp)
+  uint32_t sequence = 0;     // the driver's frame counter (counts dropped frames too)
+};
+
+// The bytes of one dequeued buffer, copied out of the driver's memory, with what is needed to
+// interpret them.
+struct RawFrame {
+  uint32_t fourcc = 0;
+  int width = 0;
+  int height = 0;
+  int bytesperline = 0;        // row stride of the (first) plane; 0 for MJPEG
+  std::vector<uint8_t> bytes;  // bytes.size() == bytesused of the buffer
+  int64_t timestamp_ns = 0;
+  uint32_t sequence = 0;
+};
+
+// "YUYV", "MJPG", ... for a V4L2 fourcc (non-printable bytes shown as '?').
+std::string FourccToString(uint32_t fourcc);
+// True for the formats this module converts.
+bool IsSupportedFourcc(uint32_t fourcc);
+// Smallest valid bytesperline for a raw format at this width (0 for compressed formats).
+int MinBytesPerLine(uint32_t fourcc, int width);
+// Bytes a complete raw frame needs with this stride (0 for compressed formats).
+size_t RequiredBytes(uint32_t fourcc, int width, int height, int bytesperline);
+
+// One pixel of BT.601 limited-range YCbCr to B, G, R.
+void YuvToBgrPixel(int y, int cb, int cr, uint8_t* bgr);
+
+// Raw converters. `dst` receives width*height*3 bytes with row stride dst_stride.
+void YuyvToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
+               int dst_stride);
+void Nv12ToBgr(const uint8_t* y_plane, int y_stride, const uint8_t* uv_plane, int uv_stride,
+               int width, int height, uint8_t* dst, int dst_stride);
+void GreyToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
+               int dst_stride);
+void Bgr24ToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
+                int dst_stride);
+void Rgb24ToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
+                int dst_stride);
+
+// Converts any supported RawFrame to a Frame, reusing out->bgr's storage (no allocation once it
+// has reached the frame size). A truncated raw buffer or an undecodable JPEG gives a kFrameError
+// Status for that frame; the converter stays usable.
+class PixelConverter {
+ public:
+  PixelConverter();
+  ~PixelConverter();
+  PixelConverter(const PixelConverter&) = delete;
+  PixelConverter& operator=(const PixelConverter&) = delete;
+
+  camera::Status ToBgr(const RawFrame& raw, Frame* out);
+
+ private:
+  void ResetJpeg();
+  void* jpeg_ = nullptr;  // tjhandle, created on first MJPEG frame
+};
+
+// Splits a side-by-side frame (both eyes in one image, each width/2 wide) into two frames.
+// left_first: the left eye is the left half (the usual layout); false swaps the halves.
+// Timestamp and sequence are copied to both. Width must be even.
+camera::Status SplitSideBySide(const Frame& both, bool left_first, Frame* left, Frame* right);
+
+}  // namespace sfrt::v4l2

@@ -1,0 +1,139 @@
+// Preprocessing into the H x W x 12 network input: image order, colour order, scale, mean and std
+// checked value by value against the model file's formula evaluated directly.
+#include "sfrt/camera/preprocess.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <vector>
+
+namespace sfrt::camera {
+namespace {
+
+constexpr int kH = 5;
+constexpr int kW = 7;
+
+cv::Mat RandomImage(std::mt19937* rng) {
+  cv::Mat image(kH, kW, CV_8UC3);
+  std::uniform_int_distribution<int> dist(0, 255);
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      for (int c = 0; c < 3; ++c) image.at<cv::Vec3b>(y, x)[c] = static_cast<uint8_t>(dist(*rng));
+    }
+  }
+  return image;
+}
+
+TEST(Preprocessor, OrderColourScaleMeanStdExactly) {
+  std::mt19937 rng(1234);
+  const cv::Mat images[4] = {RandomImage(&rng), RandomImage(&rng), RandomImage(&rng),
+                             RandomImage(&rng)};  // left0, right0, left1, right1
+  Result<std::array<ImageSlot, 4>> order = ParseImageOrder({"right1", "left0", "right0", "left1"});
+  ASSERT_TRUE(order.ok()) << order.message();
+  for (const char* colour : {"BGR", "RGB"}) {
+    PreprocessParams params;
+    params.image_order = *order;
+    params.color_order = *ParseColorOrder(colour);
+    params.scale = 1.0f / 255.0f;
+    const float mean[3] = {0.485f, 0.456f, 0.406f};
+    const float std[3] = {0.229f, 0.224f, 0.225f};
+    std::memcpy(params.mean, mean, sizeof(mean));
+    std::memcpy(params.std, std, sizeof(std));
+    Result<Preprocessor> p = Preprocessor::Create(params, kH, kW);
+    ASSERT_TRUE(p.ok()) << p.message();
+    std::vector<float> out(p->output_floats(), -999.0f);
+    ASSERT_EQ(out.size(), static_cast<size_t>(kH * kW * 12));
+    Status s = p->Run(images[0], images[1], images[2], images[3], out.data(), out.size());
+    ASSERT_TRUE(s.ok()) << s.message();
+
+    const int source_of_group[4] = {3, 0, 1, 2};  // right1, left0, right0, left1
+    const bool rgb = std::string(colour) == "RGB";
+    for (int y = 0; y < kH; ++y) {
+      for (int x = 0; x < kW; ++x) {
+        for (int g = 0; g < 4; ++g) {
+          const cv::Vec3b bgr = images[source_of_group[g]].at<cv::Vec3b>(y, x);
+          for (int c = 0; c < 3; ++c) {
+            const float pixel = static_cast<float>(rgb ? bgr[2 - c] : bgr[c]);
+            const float want = (pixel * params.scale - mean[c]) / std[c];
+            const float got = out[(static_cast<size_t>(y) * kW + x) * 12 + 3 * g + c];
+            ASSERT_EQ(got, want) << colour << " y=" << y << " x=" << x << " g=" << g << " c=" << c;
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(Preprocessor, HandComputedValuesAndStridedImages) {
+  // A 1x1 ROI inside a larger image (non-contiguous rows are fine; here 2x2 for a real stride).
+  cv::Mat big(4, 4, CV_8UC3, cv::Scalar(0, 0, 0));
+  big.at<cv::Vec3b>(1, 1) = cv::Vec3b(10, 20, 30);  // B G R
+  big.at<cv::Vec3b>(1, 2) = cv::Vec3b(40, 50, 60);
+  big.at<cv::Vec3b>(2, 1) = cv::Vec3b(70, 80, 90);
+  big.at<cv::Vec3b>(2, 2) = cv::Vec3b(100, 110, 120);
+  const cv::Mat roi = big(cv::Rect(1, 1, 2, 2));
+  const cv::Mat zero(2, 2, CV_8UC3, cv::Scalar::all(0));
+  PreprocessParams params;  // L0 R0 L1 R1
+  params.color_order = ColorOrder::kRGB;
+  params.scale = 2.0f;
+  params.mean[0] = 10;  // R
+  params.mean[1] = 0;
+  params.mean[2] = 20;  // B
+  params.std[0] = 2;
+  params.std[1] = 4;
+  params.std[2] = 0.5f;
+  Result<Preprocessor> p = Preprocessor::Create(params, 2, 2);
+  ASSERT_TRUE(p.ok()) << p.message();
+  std::vector<float> out(p->output_floats());
+  ASSERT_TRUE(p->Run(zero, zero, zero, roi, out.data(), out.size()).ok());
+  // Pixel (1, 0) of right1 is B=70 G=80 R=90: R -> (180-10)/2, G -> 160/4, B -> (140-20)/0.5.
+  const float* px = &out[(1 * 2 + 0) * 12 + 9];
+  EXPECT_EQ(px[0], 85.0f);
+  EXPECT_EQ(px[1], 40.0f);
+  EXPECT_EQ(px[2], 240.0f);
+  // left0 is black: R -> -5, G -> 0, B -> -40.
+  EXPECT_EQ(out[0], -5.0f);
+  EXPECT_EQ(out[1], 0.0f);
+  EXPECT_EQ(out[2], -40.0f);
+}
+
+TEST(Preprocessor, RejectsBadParametersAndBuffers) {
+  Result<std::array<ImageSlot, 4>> dup = ParseImageOrder({"left0", "left0", "left1", "right1"});
+  ASSERT_FALSE(dup.ok());
+  EXPECT_NE(dup.message().find("'left0' twice"), std::string::npos) << dup.message();
+  Result<std::array<ImageSlot, 4>> three = ParseImageOrder({"left0", "right0", "left1"});
+  ASSERT_FALSE(three.ok());
+  Result<ImageSlot> typo = ParseImageSlot("left2");
+  ASSERT_FALSE(typo.ok());
+  EXPECT_NE(typo.message().find("'left2'"), std::string::npos);
+  Result<ColorOrder> colour = ParseColorOrder("YUV");
+  ASSERT_FALSE(colour.ok());
+  EXPECT_NE(colour.message().find("'YUV'"), std::string::npos);
+
+  PreprocessParams params;
+  params.std[1] = 0;
+  Result<Preprocessor> zero_std = Preprocessor::Create(params, 2, 2);
+  ASSERT_FALSE(zero_std.ok());
+  EXPECT_NE(zero_std.message().find("std[1] is 0"), std::string::npos) << zero_std.message();
+
+  params = PreprocessParams();
+  params.image_order[3] = ImageSlot::kLeft0;
+  ASSERT_FALSE(Preprocessor::Create(params, 2, 2).ok());
+
+  Result<Preprocessor> p = Preprocessor::Create(PreprocessParams(), 2, 3);
+  ASSERT_TRUE(p.ok()) << p.message();
+  const cv::Mat ok(2, 3, CV_8UC3, cv::Scalar::all(1));
+  const cv::Mat wrong(3, 2, CV_8UC3, cv::Scalar::all(1));
+  std::vector<float> out(p->output_floats());
+  Status size = p->Run(ok, ok, wrong, ok, out.data(), out.size());
+  ASSERT_FALSE(size.ok());
+  EXPECT_NE(size.message().find("left1 image is 3x2"), std::string::npos) << size.message();
+  Status short_dst = p->Run(ok, ok, ok, ok, out.data(), out.size() - 1);
+  ASSERT_FALSE(short_dst.ok());
+  EXPECT_NE(short_dst.message().find("71 floats, expected 72"), std::string::npos)
+      << short_dst.message();
+}
+
+}  // namespace
+}  // namespace sfrt::camera

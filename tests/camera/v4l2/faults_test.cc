@@ -1,0 +1,241 @@
+// Every fault knob of the fake device, and the behaviour capture.h promises for it.
+#include <gtest/gtest.h>
+#include <linux/videodev2.h>
+
+#include <string>
+
+#include "camera/v4l2/capture_test_util.h"
+
+namespace sfrt::v4l2::testing {
+namespace {
+
+using camera::ErrorKind;
+using camera::Status;
+
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
+
+class Faults : public ::testing::Test {
+ protected:
+  void SetUp() override { dev_ = &sys_.AddDevice({}); }
+  CaptureDevice& Cam(uint32_t fourcc = V4L2_PIX_FMT_GREY) {
+    cam_ = std::make_unique<CaptureDevice>(MakeConfig("/dev/video0", fourcc, 64, 32), sys_);
+    return *cam_;
+  }
+  // After a Read, every buffer belongs to the driver (queued or done): none leaked.
+  void ExpectAllBuffersWithDriver() {
+    EXPECT_EQ(dev_->buffers_queued() + dev_->buffers_done(), dev_->buffer_count());
+  }
+  FakeV4l2System sys_;
+  FakeDevice* dev_ = nullptr;
+  std::unique_ptr<CaptureDevice> cam_;
+};
+
+TEST_F(Faults, ErrorFlagFrameIsSkippedRequeuedAndCounted) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().error_flag_next = 1;
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(f.sequence, 1u) << "frame 0 carried V4L2_BUF_FLAG_ERROR";
+  EXPECT_EQ(cam.stats().error_flag_frames, 1u);
+  EXPECT_EQ(cam.stats().sequence_drops, 0u);
+  ExpectAllBuffersWithDriver();
+}
+
+TEST_F(Faults, DroppedFramesAreCountedFromSequenceGaps) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  dev_->faults().drop_next = 3;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(f.sequence, 4u);
+  EXPECT_EQ(MaxDiffToGreyPattern(f, 4, 0), 0);
+  EXPECT_EQ(cam.stats().sequence_drops, 3u);
+  dev_->faults().drop_every = 2;  // every second slot from now on
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(cam.stats().sequence_drops, dev_->stats().frames_dropped_by_knob);
+  EXPECT_GE(cam.stats().sequence_drops, 12u);
+}
+
+TEST_F(Faults, EioLosesABufferAndCaptureRequeuesIt) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().eio_next_dqbuf = 1;
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(cam.stats().eio, 1u);
+  EXPECT_EQ(cam.stats().eio_requeued, 1u);
+  ExpectAllBuffersWithDriver();
+  // Without the requeue the fake would run out of buffers within a few frames.
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(dev_->stats().frames_dropped_no_buffer, 0u);
+}
+
+TEST_F(Faults, UnplugIsReportedThenReopenedWithBackoff) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  dev_->Unplug();
+
+  Status s = cam.Read(&f);  // poll sees POLLERR|POLLHUP, QUERYCAP confirms ENODEV
+  EXPECT_EQ(s.kind(), ErrorKind::kDisconnected);
+  EXPECT_TRUE(Contains(s.message(), "ENODEV")) << s.message();
+  EXPECT_TRUE(cam.disconnected());
+  EXPECT_EQ(cam.stats().disconnects, 1u);
+  EXPECT_EQ(sys_.open_fds(), 0) << "the dead fd is closed";
+  EXPECT_EQ(sys_.live_mappings(), 0) << "the buffers are unmapped";
+
+  // Still unplugged: each attempt sleeps the back-off (100 ms, then 200 ms) and fails.
+  int64_t t = sys_.MonotonicNowNs();
+  s = cam.Read(&f);
+  EXPECT_EQ(s.kind(), ErrorKind::kDisconnected);
+  EXPECT_TRUE(Contains(s.message(), "reopen attempt 1 failed")) << s.message();
+  EXPECT_EQ(sys_.MonotonicNowNs() - t, 100'000'000);
+  t = sys_.MonotonicNowNs();
+  EXPECT_EQ(cam.Read(&f).kind(), ErrorKind::kDisconnected);
+  EXPECT_EQ(sys_.MonotonicNowNs() - t, 200'000'000);
+  EXPECT_EQ(cam.stats().reopen_attempts, 2u);
+
+  dev_->Replug();
+  ASSERT_TRUE(cam.Read(&f).ok()) << cam.stats().last_error;
+  EXPECT_FALSE(cam.disconnected());
+  EXPECT_EQ(cam.stats().reopens, 1u);
+  EXPECT_EQ(f.sequence, 0u) << "a new stream";
+  EXPECT_EQ(sys_.open_fds(), 1);
+}
+
+TEST_F(Faults, UnplugSeenByDqbufIsADisconnect) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->Unplug();
+  RawFrame raw;
+  bool got = true;
+  Status s = cam.DrainNewest(&raw, &got);
+  EXPECT_EQ(s.kind(), ErrorKind::kDisconnected);
+  EXPECT_TRUE(Contains(s.message(), "VIDIOC_DQBUF: ENODEV")) << s.message();
+  EXPECT_FALSE(got);
+  EXPECT_EQ(sys_.live_mappings(), 0);
+}
+
+TEST_F(Faults, StallFiresTheWatchdogThenRestartsTheStream) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().stalled = true;
+  Frame f;
+  for (int i = 1; i <= 3; ++i) {
+    const int64_t t = sys_.MonotonicNowNs();
+    Status s = cam.Read(&f);
+    EXPECT_EQ(s.kind(), ErrorKind::kTimeout);
+    EXPECT_EQ(sys_.MonotonicNowNs() - t, 500'000'000) << "the watchdog is watchdog_ms";
+    if (i == 3) {
+      EXPECT_TRUE(Contains(s.message(), "stream restarted")) << s.message();
+    }
+  }
+  EXPECT_EQ(cam.stats().watchdog_timeouts, 3u);
+  EXPECT_EQ(cam.stats().stream_restarts, 1u);
+  EXPECT_EQ(dev_->stats().streamons, 2u);
+  dev_->faults().stalled = false;
+  ASSERT_TRUE(cam.Read(&f).ok());
+}
+
+TEST_F(Faults, EnospcAtStreamonExplainsUsbBandwidth) {
+  dev_->faults().nospc_on_streamon = true;
+  CaptureDevice& cam = Cam(V4L2_PIX_FMT_YUYV);
+  Status s = cam.Open();
+  EXPECT_EQ(s.kind(), ErrorKind::kNoBandwidth);
+  EXPECT_TRUE(Contains(s.message(), "VIDIOC_STREAMON: ENOSPC")) << s.message();
+  EXPECT_TRUE(Contains(s.message(), "USB")) << s.message();
+  EXPECT_TRUE(Contains(s.message(), "use MJPEG")) << s.message();
+  EXPECT_EQ(sys_.open_fds(), 0);
+  EXPECT_EQ(sys_.live_mappings(), 0);
+  EXPECT_EQ(dev_->buffer_count(), 0u) << "REQBUFS(0) freed the buffers";
+}
+
+TEST_F(Faults, EbusyAtOpenAndAtSFmtMeanDeviceInUse) {
+  dev_->faults().busy_on_open = true;
+  Status s = Cam().Open();
+  EXPECT_EQ(s.kind(), ErrorKind::kBusy);
+  EXPECT_TRUE(Contains(s.message(), "in use")) << s.message();
+  dev_->faults().busy_on_open = false;
+  dev_->faults().busy_on_s_fmt = true;
+  s = Cam().Open();
+  EXPECT_EQ(s.kind(), ErrorKind::kBusy);
+  EXPECT_TRUE(Contains(s.message(), "VIDIOC_S_FMT: EBUSY")) << s.message();
+  EXPECT_EQ(sys_.open_fds(), 0);
+}
+
+TEST_F(Faults, SecondOpenerOfAStreamingDeviceGetsBusy) {
+  CaptureDevice& first = Cam();
+  ASSERT_TRUE(first.Open().ok());
+  CaptureDevice second(MakeConfig("/dev/video0", V4L2_PIX_FMT_GREY, 64, 32), sys_);
+  EXPECT_EQ(second.Open().kind(), ErrorKind::kBusy);
+  EXPECT_EQ(sys_.open_fds(), 1);
+  Frame f;
+  EXPECT_TRUE(first.Read(&f).ok()) << "the first opener is unaffected";
+}
+
+TEST_F(Faults, ShortRawFrameIsSkippedAndCounted) {
+  CaptureDevice& cam = Cam(V4L2_PIX_FMT_YUYV);
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().short_next = 1;
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(f.sequence, 1u);
+  EXPECT_EQ(cam.stats().short_frames, 1u);
+  ExpectAllBuffersWithDriver();
+}
+
+TEST_F(Faults, ShortMjpegIsAFrameErrorThenCaptureGoesOn) {
+  CaptureDevice& cam = Cam(V4L2_PIX_FMT_MJPEG);
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().short_next = 1;
+  Frame f;
+  Status s = cam.Read(&f);
+  EXPECT_EQ(s.kind(), ErrorKind::kFrameError);
+  EXPECT_TRUE(Contains(s.message(), "MJPEG frame 0")) << s.message();
+  EXPECT_EQ(cam.stats().decode_errors, 1u);
+  ExpectAllBuffersWithDriver();
+  ASSERT_TRUE(cam.Read(&f).ok()) << cam.stats().last_error;
+  EXPECT_EQ(f.sequence, 1u);
+  EXPECT_LE(MaxDiffToPattern(f, 1, 0), 2);
+}
+
+TEST_F(Faults, CorruptMjpegIsAFrameErrorThenCaptureGoesOn) {
+  CaptureDevice& cam = Cam(V4L2_PIX_FMT_MJPEG);
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().corrupt_jpeg_next = 2;
+  Frame f;
+  EXPECT_EQ(cam.Read(&f).kind(), ErrorKind::kFrameError);
+  EXPECT_EQ(cam.Read(&f).kind(), ErrorKind::kFrameError);
+  ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(f.sequence, 2u);
+  EXPECT_EQ(cam.stats().decode_errors, 2u);
+  EXPECT_EQ(cam.stats().frames_delivered, 1u);
+}
+
+TEST_F(Faults, RepeatedUnplugCyclesLeakNothing) {
+  CaptureDevice& cam = Cam(V4L2_PIX_FMT_MJPEG);
+  ASSERT_TRUE(cam.Open().ok());
+  Frame f;
+  for (int cycle = 0; cycle < 5; ++cycle) {
+    ASSERT_TRUE(cam.Read(&f).ok());
+    dev_->Unplug();
+    EXPECT_EQ(cam.Read(&f).kind(), ErrorKind::kDisconnected);
+    dev_->Replug();
+    ASSERT_TRUE(cam.Read(&f).ok()) << cam.stats().last_error;
+    EXPECT_EQ(sys_.open_fds(), 1);
+    EXPECT_EQ(sys_.live_mappings(), 4);
+  }
+  EXPECT_EQ(cam.stats().disconnects, 5u);
+  EXPECT_EQ(cam.stats().reopens, 5u);
+  cam.Close();
+  EXPECT_EQ(sys_.open_fds(), 0);
+  EXPECT_EQ(sys_.live_mappings(), 0);
+}
+
+}  // namespace
+}  // namespace sfrt::v4l2::testing
