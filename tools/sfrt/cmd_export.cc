@@ -1,28 +1,39 @@
-// sfrt export: a trained network (ONNX for now) -> a verified .sfrt model file.
+// sfrt export: a trained network (ONNX or Keras 2 HDF5) -> a verified .sfrt model file, with an
+// optional parity check of the converted model against the source framework's output.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <array>
 #include <cctype>
 #include <charconv>
+#include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "sfrt/commands.h"
+#include "sfrt/exporter/keras_importer.h"
 #include "sfrt/exporter/model_spec.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
 #include "sfrt/io/atomic_write.h"
+#include "sfrt/io/npy.h"
 #include "sfrt/model.h"
+#include "sfrt/session.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::tools {
 namespace {
 
 constexpr char kName[] = "export";
+constexpr double kDefaultTolerance = 1e-4;      // relative to the reference's largest |value|
+constexpr double kDefaultFp16Tolerance = 1e-2;  // with --weights fp16
+constexpr uint32_t kCheckSeed = 0;
 
 struct ExportArgs {
   std::string input;
@@ -38,6 +49,13 @@ struct ExportArgs {
   float baseline = 0;
   float cx = 0;
   float cy = 0;
+  std::string architecture;
+  std::string weights = "fp32";
+  bool check = false;
+  std::string check_input;
+  std::string check_output;
+  std::string check_size;
+  double tolerance = -1;  // < 0: the default for the weight type
 };
 
 std::string Upper(std::string s) {
@@ -142,6 +160,225 @@ std::string DescribePadding(const Model& model) {
          std::to_string(explicit_pads) + " explicit (as traced at " + traced + ")";
 }
 
+std::string Sci(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2e", v);
+  return buf;
+}
+
+std::string SizeText(int height, int width) {
+  return std::to_string(height) + "x" + std::to_string(width);
+}
+
+// "float16, 1,234 bytes (float32: 2,468; saves 1,234)".
+std::string WeightsLine(const Model& model) {
+  const uint64_t params = model.parameter_count();
+  if (model.metadata().weight_type == WeightType::kFloat16) {
+    return "float16, " + GroupDigits(params * 2) + " bytes (float32 would need " +
+           GroupDigits(params * 4) + "; saves " + GroupDigits(params * 2) +
+           "), widened to float32 at load";
+  }
+  return "float32, " + GroupDigits(params * 4) + " bytes";
+}
+
+// Runs `model` once on `input` (height x width x input channels).
+bool RunOnce(const std::shared_ptr<const Model>& model, const std::vector<float>& input, int height,
+             int width, std::vector<float>* output, TensorShape* out_shape, double* ms,
+             std::string* failure) {
+  SessionOptions options;
+  options.max_height = height;
+  options.max_width = width;
+  Result<std::unique_ptr<Session>> session = Session::Create(model, options);
+  if (!session.ok()) {
+    *failure =
+        "check: cannot plan the model at " + SizeText(height, width) + ": " + session.message();
+    return false;
+  }
+  Result<TensorShape> shape = (*session)->OutputShape(height, width);
+  if (!shape.ok()) {
+    *failure = "check: at " + SizeText(height, width) + ": " + shape.message();
+    return false;
+  }
+  *out_shape = *shape;
+  output->assign(shape->elements(), 0.0f);
+  const auto t0 = std::chrono::steady_clock::now();
+  Status s = (*session)->Run(input, height, width, *output);
+  *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (!s.ok()) {
+    *failure = "check: the model fails to run: " + s.message();
+    return false;
+  }
+  return true;
+}
+
+// Reads a float32 .npy of shape (H, W, C) or (1, H, W, C).
+bool ReadImageArray(const std::string& path, const char* flag, tools::NpyArray* array, int* height,
+                    int* width, int* channels, std::string* failure) {
+  Result<tools::NpyArray> read = tools::ReadNpy(path);
+  if (!read.ok()) {
+    *failure = std::string(flag) + ": " + read.message();
+    return false;
+  }
+  *array = std::move(read).value();
+  std::vector<int64_t> shape = array->shape;
+  if (shape.size() == 4 && shape[0] == 1) shape.erase(shape.begin());
+  if (shape.size() != 3 || shape[0] <= 0 || shape[1] <= 0 || shape[2] <= 0 ||
+      shape[0] > (1 << 16) || shape[1] > (1 << 16)) {
+    *failure = std::string(flag) + " " + path + ": shape " + array->ShapeString() +
+               " is not (H, W, C) or (1, H, W, C)";
+    return false;
+  }
+  *height = static_cast<int>(shape[0]);
+  *width = static_cast<int>(shape[1]);
+  *channels = static_cast<int>(shape[2]);
+  return true;
+}
+
+// --check-input [--check-output]: runs the model on the given (already preprocessed) input and
+// compares with the reference. Appends report lines; false (with `failure`) when it fails.
+bool ParityCheck(const std::shared_ptr<const Model>& model, const std::string& input_path,
+                 const std::string& output_path, double tolerance, std::vector<std::string>* lines,
+                 std::string* failure) {
+  tools::NpyArray input;
+  int h = 0, w = 0, c = 0;
+  if (!ReadImageArray(input_path, "--check-input", &input, &h, &w, &c, failure)) return false;
+  if (c != model->metadata().input.channels) {
+    *failure = "--check-input " + input_path + ": shape " + input.ShapeString() + " has " +
+               std::to_string(c) + " channels but the model takes " +
+               std::to_string(model->metadata().input.channels);
+    return false;
+  }
+  tools::NpyArray reference;
+  int rh = 0, rw = 0, rc = 0;
+  if (!output_path.empty() &&
+      !ReadImageArray(output_path, "--check-output", &reference, &rh, &rw, &rc, failure)) {
+    return false;
+  }
+  std::vector<float> output;
+  TensorShape shape;
+  double ms = 0;
+  if (!RunOnce(model, input.data, h, w, &output, &shape, &ms, failure)) return false;
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "  check       input %s (%dx%dx%d) -> output %dx%dx%d in %.0f ms",
+                input_path.c_str(), h, w, c, shape.height, shape.width, shape.channels, ms);
+  lines->push_back(line);
+  size_t non_finite = 0;
+  for (float v : output) non_finite += std::isfinite(v) ? 0 : 1;
+  if (output_path.empty()) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (float v : output) {
+      if (!std::isfinite(v)) continue;
+      lo = std::min(lo, static_cast<double>(v));
+      hi = std::max(hi, static_cast<double>(v));
+    }
+    lines->push_back("  output      min " + Sci(lo) + ", max " + Sci(hi) + "; finite " +
+                     (non_finite == 0 ? "yes" : "NO (" + std::to_string(non_finite) + ")"));
+    if (non_finite > 0) {
+      *failure = "check: the output has " + std::to_string(non_finite) + " non-finite values";
+      return false;
+    }
+    return true;
+  }
+  if (rh != shape.height || rw != shape.width || rc != shape.channels) {
+    *failure = "--check-output " + output_path + ": shape " + reference.ShapeString() +
+               " differs from the model's output " + std::to_string(shape.height) + "x" +
+               std::to_string(shape.width) + "x" + std::to_string(shape.channels);
+    return false;
+  }
+  double max_abs = 0;
+  double ref_max = 0;
+  for (float v : reference.data) ref_max = std::max(ref_max, std::fabs(static_cast<double>(v)));
+  const double scale = ref_max > 0 ? ref_max : 1.0;
+  size_t pixels_over = 0;
+  const size_t pixels = static_cast<size_t>(rh) * static_cast<size_t>(rw);
+  for (size_t p = 0; p < pixels; ++p) {
+    double pixel_err = 0;
+    for (int k = 0; k < rc; ++k) {
+      const size_t i = p * static_cast<size_t>(rc) + static_cast<size_t>(k);
+      const double err = std::fabs(static_cast<double>(output[i]) - reference.data[i]);
+      pixel_err = std::isnan(err) ? INFINITY : std::max(pixel_err, err);
+    }
+    max_abs = std::max(max_abs, pixel_err);
+    pixels_over += pixel_err > tolerance * scale ? 1 : 0;
+  }
+  const double relative = max_abs / scale;
+  char share[32];
+  std::snprintf(share, sizeof(share), "%.3f%%",
+                pixels > 0 ? 100.0 * static_cast<double>(pixels_over) / pixels : 0.0);
+  lines->push_back("  parity      vs " + output_path + ": max abs error " + Sci(max_abs) +
+                   ", reference max |value| " + Sci(ref_max) + ", max error relative to it " +
+                   Sci(relative) + " (tolerance " + Sci(tolerance) + "), pixels over tolerance " +
+                   GroupDigits(pixels_over) + " of " + GroupDigits(pixels) + " (" + share +
+                   "), finite " + (non_finite == 0 ? "yes" : "NO"));
+  if (non_finite > 0) {
+    *failure =
+        "parity check failed: the output has " + std::to_string(non_finite) + " non-finite values";
+    return false;
+  }
+  if (!(relative <= tolerance)) {
+    *failure = "parity check failed: max error relative to the reference's largest value " +
+               Sci(relative) + " exceeds the tolerance " + Sci(tolerance) + " (" +
+               GroupDigits(pixels_over) + " pixels over)";
+    return false;
+  }
+  lines->push_back("  parity      ok");
+  return true;
+}
+
+// --check without a reference: a seeded input (pixel values: uniform integers 0..255, put
+// through the model's preprocessing) at the built size (or --check-size, else 540x960).
+bool SeededCheck(const std::shared_ptr<const Model>& model, int height, int width,
+                 std::vector<std::string>* lines, std::string* failure) {
+  const InputDesc& in = model->metadata().input;
+  if (height == 0) {
+    height = in.traced_height > 0 ? in.traced_height : 540;
+    width = in.traced_width > 0 ? in.traced_width : 960;
+  }
+  const size_t count =
+      static_cast<size_t>(height) * static_cast<size_t>(width) * static_cast<size_t>(in.channels);
+  std::vector<float> input(count);
+  std::mt19937 rng(kCheckSeed);
+  for (size_t i = 0; i < count; ++i) {
+    const int c = static_cast<int>(i % static_cast<size_t>(in.channels)) % 3;
+    const auto pixel = static_cast<float>(rng() % 256u);
+    input[i] = (pixel * in.scale - in.mean[c]) / in.std[c];
+  }
+  std::vector<float> output;
+  TensorShape shape;
+  double ms = 0;
+  if (!RunOnce(model, input, height, width, &output, &shape, &ms, failure)) return false;
+  double sum = 0, sum2 = 0, lo = INFINITY, hi = -INFINITY;
+  size_t non_finite = 0;
+  for (float v : output) {
+    if (!std::isfinite(v)) {
+      ++non_finite;
+      continue;
+    }
+    sum += v;
+    sum2 += static_cast<double>(v) * v;
+    lo = std::min(lo, static_cast<double>(v));
+    hi = std::max(hi, static_cast<double>(v));
+  }
+  const double n = static_cast<double>(output.size() - non_finite);
+  const double mean = n > 0 ? sum / n : 0;
+  const double stddev = n > 0 ? std::sqrt(std::max(sum2 / n - mean * mean, 0.0)) : 0;
+  char line[256];
+  std::snprintf(line, sizeof(line),
+                "  check       seeded input (pixels uniform 0..255, seed %u) at %dx%d -> output "
+                "%dx%dx%d in %.0f ms",
+                kCheckSeed, height, width, shape.height, shape.width, shape.channels, ms);
+  lines->push_back(line);
+  lines->push_back("  output      min " + Sci(lo) + ", max " + Sci(hi) + ", mean " + Sci(mean) +
+                   ", std " + Sci(stddev) + "; finite " +
+                   (non_finite == 0 ? "yes" : "NO (" + std::to_string(non_finite) + ")"));
+  if (non_finite > 0) {
+    *failure = "check failed: the output has " + std::to_string(non_finite) + " non-finite values";
+    return false;
+  }
+  return true;
+}
+
 int RunExport(const ExportArgs& args) {
   // Everything decidable from the command line alone is checked first (usage errors).
   exporter::ModelSpec defaults;
@@ -196,6 +433,30 @@ int RunExport(const ExportArgs& args) {
   if (!std::isfinite(args.cx) || !std::isfinite(args.cy)) {
     return ReportError(kName, "--cx/--cy: must be finite numbers", kExitUsage);
   }
+  exporter::WeightType weight_type = exporter::WeightType::kFloat32;
+  if (args.weights == "fp16") {
+    weight_type = exporter::WeightType::kFloat16;
+  } else if (args.weights != "fp32") {
+    return ReportError(kName, "--weights: expected fp32 or fp16, got '" + args.weights + "'",
+                       kExitUsage);
+  }
+  if (args.tolerance != -1 && !(args.tolerance > 0 && std::isfinite(args.tolerance))) {
+    return ReportError(kName, "--tolerance: must be a positive number", kExitUsage);
+  }
+  if (!args.check_output.empty() && args.check_input.empty()) {
+    return ReportError(kName, "--check-output needs --check-input (the input it was computed from)",
+                       kExitUsage);
+  }
+  int check_height = 0;
+  int check_width = 0;
+  if (!args.check_size.empty() && !ParseSize(args.check_size, &check_height, &check_width)) {
+    return ReportError(
+        kName, "--check-size: expected HxW with positive integers, got '" + args.check_size + "'",
+        kExitUsage);
+  }
+  if (!args.check_size.empty() && (!args.check || !args.check_input.empty())) {
+    return ReportError(kName, "--check-size applies to --check without --check-input", kExitUsage);
+  }
   exporter::OnnxImportOptions import_options;
   if (args.padding == "auto") {
     import_options.padding = exporter::PaddingDetection::kAuto;
@@ -209,19 +470,29 @@ int RunExport(const ExportArgs& args) {
         kExitUsage);
   }
   const std::string ext = LowerExtension(args.input);
-  if (ext == ".h5" || ext == ".hdf5" || ext == ".keras") {
+  const bool keras = ext == ".h5" || ext == ".hdf5";
+  if (ext == ".keras") {
     return ReportError(kName,
                        args.input +
-                           ": Keras HDF5 import is not implemented yet (issue #3); "
-                           "export the network to ONNX and pass the .onnx file",
+                           ": Keras 3 .keras archives are not supported; save the model from "
+                           "Keras 2 / tf.keras as HDF5 (model.save('model.h5')) and pass that",
                        kExitUsage);
   }
-  if (ext != ".onnx") {
+  if (ext != ".onnx" && !keras) {
     return ReportError(kName,
                        args.input + ": unsupported input format '" +
                            (ext.empty() ? std::string("(no extension)") : ext) +
-                           "' (supported: .onnx; Keras .h5 is planned, issue #3)",
+                           "' (supported: .onnx, Keras 2 .h5/.hdf5)",
                        kExitUsage);
+  }
+  if (keras && args.padding != "auto") {
+    return ReportError(kName,
+                       "--padding applies to ONNX input only (Keras layers state 'same' or "
+                       "'valid' themselves)",
+                       kExitUsage);
+  }
+  if (!keras && !args.architecture.empty()) {
+    return ReportError(kName, "--architecture applies to Keras .h5 input only", kExitUsage);
   }
   if (args.output.empty()) return ReportError(kName, "-o: output path is empty", kExitUsage);
 
@@ -232,9 +503,31 @@ int RunExport(const ExportArgs& args) {
   if (std::string problem = CheckOutputDirectory(args.output); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
-  Result<exporter::ModelSpec> imported = exporter::ImportOnnx(args.input, import_options);
-  if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
-  exporter::ModelSpec spec = std::move(imported).value();
+  for (const std::string* file : {&args.architecture, &args.check_input, &args.check_output}) {
+    if (file->empty()) continue;
+    const char* role = file == &args.architecture  ? "--architecture file"
+                       : file == &args.check_input ? "--check-input file"
+                                                   : "--check-output file";
+    if (std::string problem = CheckInputFile(*file, role); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
+  exporter::ModelSpec spec;
+  std::vector<std::string> notes;
+  if (keras) {
+    exporter::KerasImportOptions keras_options;
+    keras_options.architecture_json = args.architecture;
+    Result<exporter::KerasImportResult> imported =
+        exporter::ImportKerasH5(args.input, keras_options);
+    if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
+    spec = std::move(imported->spec);
+    notes = std::move(imported->notes);
+  } else {
+    Result<exporter::ModelSpec> imported = exporter::ImportOnnx(args.input, import_options);
+    if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
+    spec = std::move(imported).value();
+  }
+  spec.weight_type = weight_type;
 
   // Apply the flags.
   if (!args.name.empty()) spec.name = args.name;
@@ -259,7 +552,8 @@ int RunExport(const ExportArgs& args) {
                        "the converted model does not verify, nothing written: " + loaded.message(),
                        kExitFailure);
   }
-  const Model& model = **loaded;
+  const std::shared_ptr<const Model> model_ptr = *loaded;
+  const Model& model = *model_ptr;
   const ModelMetadata& meta = model.metadata();
   std::string shapes_line = "not checked (traced size unknown)";
   if (meta.input.traced_height > 0 && meta.input.traced_width > 0) {
@@ -277,6 +571,26 @@ int RunExport(const ExportArgs& args) {
                   std::to_string(meta.input.traced_width) + " the output is " +
                   std::to_string(out.height) + "x" + std::to_string(out.width) + "x" +
                   std::to_string(out.channels);
+  }
+
+  // The parity check runs before anything is written: a model that fails it never reaches
+  // the disk (and an existing file at -o stays as it was).
+  std::vector<std::string> check_lines;
+  if (args.check || !args.check_input.empty()) {
+    const double tolerance = args.tolerance > 0                              ? args.tolerance
+                             : weight_type == exporter::WeightType::kFloat16 ? kDefaultFp16Tolerance
+                                                                             : kDefaultTolerance;
+    std::string failure;
+    const bool passed =
+        args.check_input.empty()
+            ? SeededCheck(model_ptr, check_height, check_width, &check_lines, &failure)
+            : ParityCheck(model_ptr, args.check_input, args.check_output, tolerance, &check_lines,
+                          &failure);
+    if (!passed) {
+      for (const std::string& line : check_lines) std::cout << line << "\n";
+      std::cout.flush();
+      return ReportError(kName, failure + "; nothing written to " + args.output, kExitFailure);
+    }
   }
 
   if (Status s = WriteFileAtomically(args.output, *bytes); !s.ok()) {
@@ -317,8 +631,11 @@ int RunExport(const ExportArgs& args) {
             << "  camera      f " << FormatFloat(meta.camera.focal_px) << " px, baseline "
             << FormatFloat(meta.camera.baseline) << ", cx " << FormatFloat(meta.camera.cx)
             << ", cy " << FormatFloat(meta.camera.cy) << "\n"
+            << "  weights     " << WeightsLine(model) << "\n"
             << "  file        " << GroupDigits(model.file_bytes())
             << " bytes, loads and verifies (CRC-32C ok)\n";
+  for (const std::string& note : notes) std::cout << "  note        " << note << "\n";
+  for (const std::string& line : check_lines) std::cout << line << "\n";
   return kExitOk;
 }
 
@@ -333,16 +650,17 @@ Command AddExportCommand(CLI::App& parent) {
   args->cy = defaults.camera.cy;
   args->scale = defaults.input.scale;
 
-  CLI::App* cmd =
-      parent.add_subcommand("export", "Convert a trained network (.onnx) into a .sfrt model file");
-  cmd->add_option("model", args->input, "Source network (.onnx)")->required();
+  CLI::App* cmd = parent.add_subcommand(
+      "export", "Convert a trained network (.onnx, Keras .h5) into a .sfrt model file");
+  cmd->add_option("model", args->input, "Source network (.onnx, or Keras 2 .h5/.hdf5)")->required();
   cmd->add_option("-o,--output", args->output, "Model file to write (.sfrt)")->required();
   cmd->add_option("--name", args->name,
                   "Model name stored in the file (default: " + defaults.name + ")");
-  cmd->add_option("--padding", args->padding,
-                  "How conv padding is stored: auto (same-upper if every conv's pads equal the "
-                  "same-upper amounts at the traced size, else explicit), same-upper (fail if "
-                  "the traced pads contradict it), explicit (keep the traced numbers)")
+  cmd->add_option(
+         "--padding", args->padding,
+         "ONNX only: how conv padding is stored: auto (same-upper if every conv's pads equal the "
+         "same-upper amounts at the traced size, else explicit), same-upper (fail if "
+         "the traced pads contradict it), explicit (keep the traced numbers)")
       ->check(CLI::IsMember({"auto", "same-upper", "explicit"}))
       ->capture_default_str();
   cmd->add_option("--color-order", args->color_order,
@@ -367,12 +685,40 @@ Command AddExportCommand(CLI::App& parent) {
       ->capture_default_str();
   cmd->add_option("--cy", args->cy, "Training camera principal point y (pixels)")
       ->capture_default_str();
+  cmd->add_option("--architecture", args->architecture,
+                  "Keras only: architecture JSON (model.to_json()); needed for a weights-only "
+                  ".h5 from save_weights(), replaces a full model's own model_config");
+  cmd->add_option("--weights", args->weights,
+                  "Weight storage: fp32, or fp16 (IEEE half: about half the file; the runtime "
+                  "widens to float32 once at load and computes in float32)")
+      ->check(CLI::IsMember({"fp32", "fp16"}))
+      ->capture_default_str();
+  cmd->add_flag("--check", args->check,
+                "Run the converted model on a seeded input (pixels 0..255 through the model's "
+                "preprocessing) at the built size (or --check-size; 540x960 if unknown); "
+                "print output statistics; fail if any value is not finite");
+  cmd->add_option("--check-size", args->check_size, "Input size HxW for --check");
+  cmd->add_option("--check-input", args->check_input,
+                  "Parity check input: float32 .npy (H,W,C) or (1,H,W,C), the values the "
+                  "source framework was fed (after preprocessing)");
+  cmd->add_option("--check-output", args->check_output,
+                  "Parity check reference: the source framework's output for --check-input, "
+                  "float32 .npy (H,W,3) or (1,H,W,3)");
+  cmd->add_option("--tolerance", args->tolerance,
+                  "Parity tolerance: largest allowed |error| relative to the reference's "
+                  "largest |value| (default 1e-4; 1e-2 with --weights fp16)");
   cmd->footer(
-      "Reads ONNX as torch.onnx.export writes it (Keras .h5 import is not implemented yet,\n"
-      "issue #3). Records the preprocessing and the training camera given by the flags; the\n"
+      "Reads ONNX as torch.onnx.export writes it (opsets 11-17), and Keras 2 HDF5 (.h5/.hdf5)\n"
+      "from model.save() (functional or Sequential; a multi_gpu_model checkpoint exports its\n"
+      "nested model) or save_weights() with --architecture. Keras 3 .keras archives are not\n"
+      "read. Records the preprocessing and the training camera given by the flags; the\n"
       "defaults are the SceneEDNet authors' setup (BGR, L0,R0,L1,R1, raw 0..255 pixels,\n"
-      "FlyingThings3D camera). Writes the file atomically, then loads it back to verify it.\n"
-      "Exit codes: 0 success, 1 import/write/verify failure, 2 usage error.");
+      "FlyingThings3D camera). Serialises, loads the bytes back and verifies them, runs the\n"
+      "checks asked for, and only then writes the file (atomically).\n"
+      "Parity check: prints max abs error, max error relative to the reference's largest\n"
+      "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
+      "written (an existing file at -o is left unchanged) and the exit code is 1.\n"
+      "Exit codes: 0 success, 1 import/check/write/verify failure, 2 usage error.");
   return Command{cmd, [args] { return RunExport(*args); }};
 }
 

@@ -30,6 +30,9 @@ struct Command {
 Command AddExportCommand(CLI::App& parent);
 Command AddInspectCommand(CLI::App& parent);
 Command AddInferCommand(CLI::App& parent);
+Command AddBenchCommand(CLI::App& parent);
+Command AddSynthCommand(CLI::App& parent);
+Command AddAnnotateCommand(CLI::App& parent);
 
 // Prints "sfrt <command>: <message>" on one line to stderr (newlines in `message` become
 // spaces) and returns `exit_code`.

@@ -125,6 +125,9 @@ int main(int argc, char** argv) {
 #endif
   commands.push_back(sfrt::tools::AddInspectCommand(app));
   commands.push_back(sfrt::tools::AddInferCommand(app));
+  commands.push_back(sfrt::tools::AddBenchCommand(app));
+  commands.push_back(sfrt::tools::AddSynthCommand(app));
+  commands.push_back(sfrt::tools::AddAnnotateCommand(app));
 
   try {
     app.parse(argc, argv);

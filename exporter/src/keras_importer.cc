@@ -1,0 +1,1148 @@
+// Keras 2 HDF5 -> ModelSpec. Method, in order:
+//  1. Open the file with the HDF5 C library (automatic error printing off; HDF5's own message
+//     for a failure is appended to ours). Read `backend` and `keras_version` if present.
+//  2. Parse the architecture JSON (the file's `model_config`, or the --architecture file).
+//  3. Find the chain: walk back from the single output layer to the InputLayer along each
+//     layer's single inbound tensor (functional), or take the list (Sequential). A
+//     multi_gpu_model wrapper is recognised first and replaced by its nested model.
+//  4. Turn the chain into ModelSpec layers, reading each Conv2D's kernel and bias datasets and
+//     tracking the shape at the built size; fold ZeroPadding2D, fuse activations.
+//  5. Check that every weighted layer of the weights group was used, then decide crop rules.
+#include "sfrt/exporter/keras_importer.h"
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "sfrt/exporter/sha256.h"
+
+// Returns the Status of `expr` from the enclosing function when it is an error.
+#define SFRT_KERAS_RETURN_IF_ERROR(expr)        \
+  do {                                          \
+    ::sfrt::Status sfrt_keras_status_ = (expr); \
+    if (!sfrt_keras_status_.ok()) {             \
+      return sfrt_keras_status_;                \
+    }                                           \
+  } while (false)
+
+namespace sfrt::exporter {
+namespace {
+
+using nlohmann::json;
+
+constexpr char kSupportedLayers[] =
+    "InputLayer, Conv2D, LeakyReLU, Activation, UpSampling2D, Cropping2D, ZeroPadding2D (and a "
+    "multi_gpu_model wrapper: InputLayer/Lambda/Concatenate around one nested Model)";
+// Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
+constexpr uint64_t kMaxTensorElements = uint64_t{1} << 30;
+// Upper bound on dimensions read from the architecture (kernel sizes, strides, crops, ...).
+constexpr int64_t kMaxDim = 1 << 20;
+
+// Replaces control characters so that a message stays on one line whatever a file contains.
+std::string Printable(std::string_view s) {
+  std::string out(s);
+  for (char& ch : out) {
+    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
+  }
+  return out;
+}
+
+std::string Quote(std::string_view s) { return "'" + Printable(s) + "'"; }
+
+std::string DimsText(const std::vector<uint64_t>& dims) {
+  std::string s = "(";
+  for (size_t i = 0; i < dims.size(); ++i) {
+    if (i > 0) s += ", ";
+    s += std::to_string(dims[i]);
+  }
+  return s + (dims.size() == 1 ? ",)" : ")");
+}
+
+// ------------------------------------------------------------------------------ HDF5 helpers
+
+// Owns one HDF5 identifier.
+class H5Handle {
+ public:
+  using Closer = herr_t (*)(hid_t);
+  H5Handle() = default;
+  H5Handle(hid_t id, Closer closer) : id_(id), closer_(closer) {}
+  H5Handle(const H5Handle&) = delete;
+  H5Handle& operator=(const H5Handle&) = delete;
+  H5Handle(H5Handle&& other) noexcept : id_(other.id_), closer_(other.closer_) { other.id_ = -1; }
+  H5Handle& operator=(H5Handle&& other) noexcept {
+    if (this != &other) {
+      Reset();
+      id_ = other.id_;
+      closer_ = other.closer_;
+      other.id_ = -1;
+    }
+    return *this;
+  }
+  ~H5Handle() { Reset(); }
+  hid_t get() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  void Reset() {
+    if (id_ >= 0 && closer_ != nullptr) closer_(id_);
+    id_ = -1;
+  }
+  hid_t id_ = -1;
+  Closer closer_ = nullptr;
+};
+
+herr_t FirstErrorText(unsigned /*n*/, const H5E_error2_t* err, void* data) {
+  auto* text = static_cast<std::string*>(data);
+  if (text->empty() && err != nullptr && err->desc != nullptr) *text = err->desc;
+  return 0;
+}
+
+// The most specific message on HDF5's error stack (then cleared), as " (HDF5: ...)" or "".
+std::string Hdf5Error() {
+  std::string text;
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, FirstErrorText, &text);
+  H5Eclear2(H5E_DEFAULT);
+  return text.empty() ? "" : " (HDF5: " + Printable(text) + ")";
+}
+
+// Turns HDF5's automatic error printing off for the importer's lifetime.
+class QuietHdf5 {
+ public:
+  QuietHdf5() {
+    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
+  QuietHdf5(const QuietHdf5&) = delete;
+  QuietHdf5& operator=(const QuietHdf5&) = delete;
+
+ private:
+  H5E_auto2_t func_ = nullptr;
+  void* data_ = nullptr;
+};
+
+// Whether `path` ("a/b/c", relative to `loc`) names an existing object, checking each component
+// (H5Lexists fails rather than answering "no" when an intermediate group is missing).
+bool PathExists(hid_t loc, const std::string& path) {
+  std::string prefix;
+  size_t start = 0;
+  while (start <= path.size()) {
+    const size_t slash = path.find('/', start);
+    const std::string part = path.substr(start, slash == std::string::npos ? slash : slash - start);
+    if (part.empty()) return false;
+    prefix += (prefix.empty() ? "" : "/") + part;
+    if (H5Lexists(loc, prefix.c_str(), H5P_DEFAULT) <= 0) {
+      H5Eclear2(H5E_DEFAULT);
+      return false;
+    }
+    if (slash == std::string::npos) break;
+    start = slash + 1;
+  }
+  return !prefix.empty();
+}
+
+// Reads a string attribute (scalar or 1-D; fixed- or variable-length) of `obj`. `where` names the
+// object in errors. Returns std::nullopt-like empty optional when the attribute does not exist.
+Result<std::optional<std::vector<std::string>>> ReadStringsAttr(hid_t obj, const char* name,
+                                                                const std::string& where) {
+  const htri_t exists = H5Aexists(obj, name);
+  if (exists < 0)
+    return Status::Error(where + ": cannot look up attribute " + Quote(name) + Hdf5Error());
+  if (exists == 0) return std::optional<std::vector<std::string>>();
+  const std::string what = "attribute " + Quote(name) + " of " + where;
+  H5Handle attr(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose);
+  if (!attr.valid()) return Status::Error("cannot open " + what + Hdf5Error());
+  H5Handle type(H5Aget_type(attr.get()), H5Tclose);
+  H5Handle space(H5Aget_space(attr.get()), H5Sclose);
+  if (!type.valid() || !space.valid()) return Status::Error("cannot read " + what + Hdf5Error());
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  const hssize_t count = H5Sget_simple_extent_npoints(space.get());
+  if (rank < 0 || rank > 1 || count < 0 || count > (1 << 24)) {
+    return Status::Error(what + " is not a scalar or a list of strings");
+  }
+  std::vector<std::string> values;
+  // Keras writes an empty list (a layer without weights) as an empty float64 array.
+  if (count == 0) return std::optional<std::vector<std::string>>(values);
+  if (H5Tget_class(type.get()) != H5T_STRING) {
+    return Status::Error(what + " is not a string");
+  }
+  const htri_t variable = H5Tis_variable_str(type.get());
+  if (variable < 0) return Status::Error("cannot read " + what + Hdf5Error());
+  if (variable > 0) {
+    H5Handle mem(H5Tcopy(H5T_C_S1), H5Tclose);
+    if (!mem.valid() || H5Tset_size(mem.get(), H5T_VARIABLE) < 0 ||
+        H5Tset_cset(mem.get(), H5Tget_cset(type.get())) < 0) {
+      return Status::Error("cannot read " + what + Hdf5Error());
+    }
+    std::vector<char*> ptrs(static_cast<size_t>(count), nullptr);
+    if (H5Aread(attr.get(), mem.get(), ptrs.data()) < 0) {
+      return Status::Error("cannot read " + what + Hdf5Error());
+    }
+    for (char* p : ptrs) values.emplace_back(p != nullptr ? p : "");
+    H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, ptrs.data());
+  } else {
+    const size_t size = H5Tget_size(type.get());
+    if (size == 0 || size > (size_t{1} << 28) / static_cast<size_t>(count)) {
+      return Status::Error(what + " has an unreasonable string size " + std::to_string(size));
+    }
+    H5Handle mem(H5Tcopy(H5T_C_S1), H5Tclose);
+    if (!mem.valid() || H5Tset_size(mem.get(), size) < 0 ||
+        H5Tset_strpad(mem.get(), H5T_STR_NULLPAD) < 0 ||
+        H5Tset_cset(mem.get(), H5Tget_cset(type.get())) < 0) {
+      return Status::Error("cannot read " + what + Hdf5Error());
+    }
+    std::vector<char> buf(size * static_cast<size_t>(count), '\0');
+    if (H5Aread(attr.get(), mem.get(), buf.data()) < 0) {
+      return Status::Error("cannot read " + what + Hdf5Error());
+    }
+    for (hssize_t i = 0; i < count; ++i) {
+      const char* p = buf.data() + static_cast<size_t>(i) * size;
+      size_t len = 0;
+      while (len < size && p[len] != '\0') ++len;
+      values.emplace_back(p, len);
+    }
+  }
+  return std::optional<std::vector<std::string>>(std::move(values));
+}
+
+// A list attribute as Keras writes it: whole, or (when over HDF5's 64 KiB attribute limit) split
+// by save_attributes_to_hdf5_group into `<name>0`, `<name>1`, ...
+Result<std::optional<std::vector<std::string>>> ReadKerasList(hid_t obj, const std::string& name,
+                                                              const std::string& where) {
+  auto whole = ReadStringsAttr(obj, name.c_str(), where);
+  if (!whole.ok() || whole->has_value()) return whole;
+  std::optional<std::vector<std::string>> all;
+  for (int i = 0; i < (1 << 16); ++i) {
+    const std::string chunk = name + std::to_string(i);
+    auto part = ReadStringsAttr(obj, chunk.c_str(), where);
+    if (!part.ok()) return part;
+    if (!part->has_value()) break;
+    if (!all) all.emplace();
+    all->insert(all->end(), (*part)->begin(), (*part)->end());
+  }
+  return all;
+}
+
+// --------------------------------------------------------------------------- JSON helpers
+
+std::string JsonText(const json& v) {
+  std::string s = v.dump();
+  if (s.size() > 80) s = s.substr(0, 77) + "...";
+  return Printable(s);
+}
+
+bool IsInt(const json& v) {
+  return v.is_number_integer() ||
+         (v.is_number_float() && std::isfinite(v.get<double>()) &&
+          v.get<double>() == std::floor(v.get<double>()) && std::fabs(v.get<double>()) < 1e15);
+}
+
+// `v` (may be null) as an integer in [lo, hi].
+bool GetInt(const json* v, int64_t lo, int64_t hi, int* out) {
+  if (v == nullptr || !IsInt(*v)) return false;
+  const auto i = v->is_number_float() ? static_cast<int64_t>(v->get<double>()) : v->get<int64_t>();
+  if (i < lo || i > hi) return false;
+  *out = static_cast<int>(i);
+  return true;
+}
+
+// `v` as (a, b): an integer n gives (n, n); a list of two integers gives them.
+bool GetPair(const json* v, int64_t lo, int64_t hi, std::array<int, 2>* out) {
+  int n = 0;
+  if (GetInt(v, lo, hi, &n)) {
+    *out = {n, n};
+    return true;
+  }
+  if (v == nullptr || !v->is_array() || v->size() != 2) return false;
+  return GetInt(&(*v)[0], lo, hi, &(*out)[0]) && GetInt(&(*v)[1], lo, hi, &(*out)[1]);
+}
+
+// Keras' cropping/padding argument: n, (rows, cols) symmetric, or ((top, bottom), (left, right)).
+bool GetSidePads(const json* v, Pads* out) {
+  int n = 0;
+  if (GetInt(v, 0, kMaxDim, &n)) {
+    *out = Pads{n, n, n, n};
+    return true;
+  }
+  if (v == nullptr || !v->is_array() || v->size() != 2) return false;
+  std::array<int, 2> rows{};
+  std::array<int, 2> cols{};
+  if (!GetPair(&(*v)[0], 0, kMaxDim, &rows) || !GetPair(&(*v)[1], 0, kMaxDim, &cols)) return false;
+  *out = Pads{rows[0], cols[0], rows[1], cols[1]};
+  return true;
+}
+
+int CeilDiv(int a, int b) { return (a + b - 1) / b; }
+
+// TensorFlow 'same' amounts for one axis: (before, after).
+std::pair<int, int> SameAxis(int in, int stride, int kernel) {
+  const int total = std::max((CeilDiv(in, stride) - 1) * stride + kernel - in, 0);
+  return {total / 2, total - total / 2};
+}
+
+bool IsNestedModelClass(const std::string& cls) {
+  return cls == "Model" || cls == "Functional" || cls == "Sequential";
+}
+
+// ------------------------------------------------------------------------------ the importer
+
+struct ChainLayer {
+  std::string name;
+  std::string cls;
+  const json* config = nullptr;  // the layer's "config" object
+};
+
+struct ChainModel {
+  std::string name;
+  std::vector<ChainLayer> layers;  // input first
+  int height = 0;                  // built size; 0 when None
+  int width = 0;
+  int channels = 0;
+};
+
+// Where each Conv2D's weights come from.
+struct WeightSource {
+  std::string root_label;  // "model_weights" or "/" (in messages)
+  hid_t root = -1;         // the group holding one group per layer
+  // Nested (multi-GPU) mode: all weights listed by one group, taken in order.
+  bool nested = false;
+  std::string nested_group;  // path relative to root
+  std::vector<std::string> nested_names;
+  size_t next = 0;
+};
+
+class Importer {
+ public:
+  Importer(std::string path, KerasImportOptions options)
+      : path_(std::move(path)), options_(std::move(options)) {}
+  Result<KerasImportResult> Run();
+
+ private:
+  Status Fail(const std::string& message) const { return Status::Error(path_ + ": " + message); }
+  Status LayerFail(const ChainLayer& l, const std::string& message) const {
+    return Fail("layer " + Quote(l.name) + " (" + Printable(l.cls) + "): " + message);
+  }
+  std::string GroupLabel(const std::string& rel) const {
+    return Quote(src_.root_label == "/" ? rel : src_.root_label + "/" + rel);
+  }
+
+  Status Open();
+  Result<json> ReadArchitecture();
+  Status FindWeightsRoot();
+  Result<ChainModel> ParseModel(const json& model, const std::string& label);
+  Result<ChainModel> ParseFunctional(const json& config, const std::string& label);
+  Result<ChainModel> ParseSequential(const json& layers, const std::string& label);
+  Status ReadInputShape(const ChainLayer& l, const json& shape, ChainModel* model);
+  Result<std::vector<std::string>> WeightPaths(const ChainLayer& l, size_t count);
+  Result<std::vector<float>> ReadDataset(const ChainLayer& l, const std::string& path,
+                                         const std::vector<uint64_t>& want,
+                                         const std::string& meaning);
+  Status Build(const ChainModel& model, ModelSpec* spec);
+  Status CheckAllWeightsUsed();
+
+  std::string path_;
+  KerasImportOptions options_;
+  QuietHdf5 quiet_;
+  H5Handle file_;
+  H5Handle weights_group_;
+  std::string backend_;
+  std::string keras_version_;
+  std::vector<std::string> layer_names_;  // attribute layer_names of the weights root
+  std::set<std::string> used_groups_;     // layer groups whose weights were read
+  WeightSource src_;
+  std::vector<std::string> notes_;
+};
+
+Status Importer::Open() {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path_, ec)) return Fail("no such file");
+  const auto size = std::filesystem::file_size(path_, ec);
+  const htri_t is_hdf5 = H5Fis_hdf5(path_.c_str());
+  if (is_hdf5 <= 0) {
+    const std::string detail = Hdf5Error();
+    return Fail("not an HDF5 file (no HDF5 signature" +
+                (ec ? std::string() : " in its " + std::to_string(size) + " bytes") + ")" + detail);
+  }
+  file_ = H5Handle(H5Fopen(path_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file_.valid()) {
+    return Fail("HDF5 file cannot be opened: truncated or damaged (" + std::to_string(size) +
+                " bytes)" + Hdf5Error());
+  }
+  for (auto [name, out] :
+       {std::pair<const char*, std::string*>{"backend", &backend_},
+        std::pair<const char*, std::string*>{"keras_version", &keras_version_}}) {
+    auto value = ReadStringsAttr(file_.get(), name, "the file root");
+    if (!value.ok()) return Fail(value.message());
+    if (value->has_value() && (*value)->size() == 1) *out = (**value)[0];
+  }
+  return Status::Ok();
+}
+
+Status Importer::FindWeightsRoot() {
+  if (PathExists(file_.get(), "model_weights")) {
+    weights_group_ = H5Handle(H5Gopen2(file_.get(), "model_weights", H5P_DEFAULT), H5Gclose);
+    if (!weights_group_.valid()) {
+      return Fail("cannot open group 'model_weights'" + Hdf5Error());
+    }
+    src_.root_label = "model_weights";
+    src_.root = weights_group_.get();
+  } else {
+    src_.root_label = "/";
+    src_.root = file_.get();
+  }
+  const std::string where = src_.root_label == "/" ? "the file root" : "group 'model_weights'";
+  auto names = ReadKerasList(src_.root, "layer_names", where);
+  if (!names.ok()) return Fail(names.message());
+  if (!names->has_value()) {
+    return Fail(src_.root_label == "/"
+                    ? "no group 'model_weights' and no attribute 'layer_names' at the root: not a "
+                      "Keras model or weights file"
+                    : "group 'model_weights' has no attribute 'layer_names'");
+  }
+  layer_names_ = std::move(**names);
+  return Status::Ok();
+}
+
+Result<json> Importer::ReadArchitecture() {
+  std::string text;
+  std::string source;
+  if (!options_.architecture_json.empty()) {
+    std::ifstream in(options_.architecture_json, std::ios::binary);
+    if (!in) return Status::Error(options_.architecture_json + ": cannot open architecture JSON");
+    std::ostringstream buf;
+    buf << in.rdbuf();
+    text = buf.str();
+    source = options_.architecture_json;
+    if (PathExists(file_.get(), "model_weights")) {
+      notes_.push_back("the architecture comes from " + options_.architecture_json +
+                       ", not from the file's own model_config");
+    }
+  } else {
+    auto config = ReadStringsAttr(file_.get(), "model_config", "the file root");
+    if (!config.ok()) return Fail(config.message());
+    if (!config->has_value()) {
+      return Fail(
+          "no attribute 'model_config': a weights-only file (save_weights); pass the "
+          "architecture JSON from model.to_json() (sfrt export --architecture FILE)");
+    }
+    if ((*config)->size() != 1) return Fail("attribute 'model_config' is not one string");
+    text = (**config)[0];
+    source = path_ + ": attribute 'model_config'";
+  }
+  json parsed = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (parsed.is_discarded()) return Status::Error(source + ": not valid JSON");
+  if (!parsed.is_object() || !parsed.contains("class_name") || !parsed.contains("config")) {
+    return Status::Error(source + ": not a Keras model description (no class_name/config)");
+  }
+  return parsed;
+}
+
+// obj[key], or nullptr when `obj` is not an object or has no such key.
+const json* Find(const json& obj, const char* key) {
+  if (!obj.is_object()) return nullptr;
+  auto it = obj.find(key);
+  return it == obj.end() ? nullptr : &*it;
+}
+
+// One entry of a layer list: name, class and config.
+Result<ChainLayer> ReadLayerEntry(const json& entry, const std::string& where) {
+  const json* cls = Find(entry, "class_name");
+  const json* config = Find(entry, "config");
+  if (cls == nullptr || !cls->is_string() || config == nullptr || !config->is_object()) {
+    return Status::Error(where + ": a layer entry has no class_name/config: " + JsonText(entry));
+  }
+  ChainLayer l;
+  l.cls = cls->get<std::string>();
+  l.config = config;
+  const json* name = Find(entry, "name");
+  if (name == nullptr || !name->is_string()) name = Find(*config, "name");
+  if (name == nullptr || !name->is_string() || name->get<std::string>().empty()) {
+    return Status::Error(where + ": a " + Printable(l.cls) + " layer has no name");
+  }
+  l.name = name->get<std::string>();
+  return l;
+}
+
+Result<ChainModel> Importer::ParseModel(const json& model, const std::string& label) {
+  const json* cls = Find(model, "class_name");
+  const json* config = Find(model, "config");
+  if (cls == nullptr || !cls->is_string() || config == nullptr) {
+    return Fail(label + ": no class_name/config");
+  }
+  const std::string c = cls->get<std::string>();
+  Result<ChainModel> result = Status::Error("unset");
+  if (c == "Sequential") {
+    if (config->is_array()) {  // Keras <= 2.2.2: the config is the layer list
+      result = ParseSequential(*config, label);
+    } else if (const json* layers = Find(*config, "layers")) {
+      result = ParseSequential(*layers, label);
+    } else {
+      return Fail(label + ": Sequential config has no layer list");
+    }
+  } else if (c == "Model" || c == "Functional") {
+    if (!config->is_object()) return Fail(label + ": " + c + " config is not an object");
+    result = ParseFunctional(*config, label);
+  } else {
+    return Fail(label + ": model class " + Quote(c) +
+                " is not supported (supported: Model/Functional, Sequential)");
+  }
+  if (result.ok()) {
+    if (const json* name = Find(*config, "name"); name != nullptr && name->is_string()) {
+      result->name = name->get<std::string>();
+    }
+  }
+  return result;
+}
+
+Status Importer::ReadInputShape(const ChainLayer& l, const json& shape, ChainModel* model) {
+  if (!shape.is_array() || shape.size() != 4) {
+    return LayerFail(
+        l, "batch_input_shape " + JsonText(shape) + " is not (batch, height, width, channels)");
+  }
+  auto dim = [&](size_t i, int* out) {
+    if (shape[i].is_null()) {
+      *out = 0;
+      return true;
+    }
+    return GetInt(&shape[i], 1, kMaxDim, out);
+  };
+  if (!dim(1, &model->height) || !dim(2, &model->width) || !dim(3, &model->channels) ||
+      model->channels == 0) {
+    return LayerFail(l, "batch_input_shape " + JsonText(shape) +
+                            ": height and width must be positive or None, channels positive");
+  }
+  if (model->height == 0 || model->width == 0) model->height = model->width = 0;
+  return Status::Ok();
+}
+
+Result<ChainModel> Importer::ParseSequential(const json& layers, const std::string& label) {
+  if (!layers.is_array() || layers.empty()) return Fail(label + ": Sequential has no layers");
+  ChainModel model;
+  bool have_input = false;
+  for (const json& entry : layers) {
+    Result<ChainLayer> l = ReadLayerEntry(entry, path_ + ": " + label);
+    if (!l.ok()) return l.status();
+    if (!have_input) {
+      const json* shape = Find(*l->config, "batch_input_shape");
+      if (shape == nullptr) {
+        return LayerFail(*l,
+                         "the first layer of a Sequential has no batch_input_shape (the input "
+                         "channels are unknown)");
+      }
+      SFRT_KERAS_RETURN_IF_ERROR(ReadInputShape(*l, *shape, &model));
+      have_input = true;
+      if (l->cls == "InputLayer") continue;
+    } else if (l->cls == "InputLayer") {
+      return LayerFail(*l, "a second InputLayer inside a Sequential");
+    }
+    model.layers.push_back(*l);
+  }
+  return model;
+}
+
+// The layer names of "input_layers"/"output_layers": [[name, node, tensor], ...] or, as some
+// Keras versions write a single one, [name, node, tensor].
+std::optional<std::vector<std::string>> EndpointNames(const json* v) {
+  if (v == nullptr || !v->is_array()) return std::nullopt;
+  std::vector<std::string> names;
+  if (!v->empty() && (*v)[0].is_string()) {
+    names.push_back((*v)[0].get<std::string>());
+    return names;
+  }
+  for (const json& e : *v) {
+    if (!e.is_array() || e.empty() || !e[0].is_string()) return std::nullopt;
+    names.push_back(e[0].get<std::string>());
+  }
+  return names;
+}
+
+Result<ChainModel> Importer::ParseFunctional(const json& config, const std::string& label) {
+  const json* layers = Find(config, "layers");
+  if (layers == nullptr || !layers->is_array() || layers->empty()) {
+    return Fail(label + ": no layer list");
+  }
+  std::vector<ChainLayer> all;
+  std::vector<const json*> entries;
+  std::unordered_map<std::string, size_t> index;
+  for (const json& entry : *layers) {
+    Result<ChainLayer> l = ReadLayerEntry(entry, path_ + ": " + label);
+    if (!l.ok()) return l.status();
+    if (!index.emplace(l->name, all.size()).second) {
+      return Fail(label + ": two layers are named " + Quote(l->name));
+    }
+    all.push_back(*l);
+    entries.push_back(&entry);
+  }
+  auto inputs = EndpointNames(Find(config, "input_layers"));
+  auto outputs = EndpointNames(Find(config, "output_layers"));
+  if (!inputs || inputs->size() != 1) {
+    return Fail(label + ": input_layers " + JsonText(config.value("input_layers", json())) +
+                " is not one input (the network takes one 12-channel tensor)");
+  }
+  if (!outputs || outputs->size() != 1) {
+    return Fail(label + ": output_layers " + JsonText(config.value("output_layers", json())) +
+                " is not one output");
+  }
+
+  // Walk back from the output along each layer's single inbound tensor.
+  std::vector<size_t> chain;
+  std::string name = (*outputs)[0];
+  while (true) {
+    auto it = index.find(name);
+    if (it == index.end()) {
+      return Fail(label + ": layer " + Quote(name) + " is referenced but not in the layer list");
+    }
+    if (chain.size() > all.size()) return Fail(label + ": the layer graph has a cycle");
+    chain.push_back(it->second);
+    const ChainLayer& l = all[it->second];
+    if (l.cls == "InputLayer") break;
+    const json* nodes = Find(*entries[it->second], "inbound_nodes");
+    if (nodes == nullptr || !nodes->is_array() || nodes->empty()) {
+      return LayerFail(l, "has no inbound node and is not an InputLayer");
+    }
+    if (nodes->size() != 1) {
+      return LayerFail(l, "is called " + std::to_string(nodes->size()) +
+                              " times; shared layers are not supported (the runtime executes a "
+                              "single chain)");
+    }
+    const json& node = (*nodes)[0];
+    if (!node.is_array() || node.empty()) {
+      return LayerFail(l, "inbound node " + JsonText(node) + " is not in Keras 2 format");
+    }
+    if (node.size() != 1) {
+      return LayerFail(l, "takes " + std::to_string(node.size()) +
+                              " inputs; the runtime executes a single chain of " +
+                              kSupportedLayers);
+    }
+    const json& tensor = node[0];
+    if (!tensor.is_array() || tensor.empty() || !tensor[0].is_string()) {
+      return LayerFail(l, "inbound node " + JsonText(node) + " is not in Keras 2 format");
+    }
+    name = tensor[0].get<std::string>();
+  }
+  std::reverse(chain.begin(), chain.end());
+  const ChainLayer& input = all[chain.front()];
+  if (input.name != (*inputs)[0]) {
+    return Fail(label + ": the output depends on InputLayer " + Quote(input.name) +
+                ", not on the model input " + Quote((*inputs)[0]));
+  }
+  ChainModel model;
+  const json* shape = Find(*input.config, "batch_input_shape");
+  if (shape == nullptr) return LayerFail(input, "has no batch_input_shape");
+  SFRT_KERAS_RETURN_IF_ERROR(ReadInputShape(input, *shape, &model));
+  for (size_t i = 1; i < chain.size(); ++i) model.layers.push_back(all[chain[i]]);
+  return model;
+}
+
+Result<std::vector<std::string>> Importer::WeightPaths(const ChainLayer& l, size_t count) {
+  std::vector<std::string> paths;
+  if (src_.nested) {
+    if (src_.next + count > src_.nested_names.size()) {
+      return LayerFail(l, "group " + GroupLabel(src_.nested_group) + " lists " +
+                              std::to_string(src_.nested_names.size()) +
+                              " weights, too few for the nested model's layers");
+    }
+    for (size_t i = 0; i < count; ++i) {
+      paths.push_back(src_.nested_group + "/" + src_.nested_names[src_.next++]);
+    }
+    return paths;
+  }
+  const std::string group = GroupLabel(l.name);
+  if (!PathExists(src_.root, l.name)) {
+    return LayerFail(l, "weights group " + group + " is missing");
+  }
+  if (std::find(layer_names_.begin(), layer_names_.end(), l.name) == layer_names_.end()) {
+    return LayerFail(l, "weights group " + group + " is not listed in attribute 'layer_names'");
+  }
+  H5Handle g(H5Gopen2(src_.root, l.name.c_str(), H5P_DEFAULT), H5Gclose);
+  if (!g.valid()) return LayerFail(l, "cannot open weights group " + group + Hdf5Error());
+  auto names = ReadKerasList(g.get(), "weight_names", "group " + group);
+  if (!names.ok()) return LayerFail(l, names.message());
+  if (!names->has_value()) {
+    return LayerFail(l, "weights group " + group + " has no attribute 'weight_names'");
+  }
+  const std::vector<std::string>& listed = **names;
+  if (listed.size() != count) {
+    std::string text;
+    for (const std::string& n : listed) text += (text.empty() ? "" : ", ") + Quote(n);
+    return LayerFail(l, "weights group " + group + " lists " + std::to_string(listed.size()) +
+                            " weights [" + text + "]; expected " + std::to_string(count) +
+                            (count == 2 ? " (kernel, bias)" : " (kernel; use_bias is false)"));
+  }
+  for (const std::string& n : listed) paths.push_back(l.name + "/" + n);
+  used_groups_.insert(l.name);
+  return paths;
+}
+
+Result<std::vector<float>> Importer::ReadDataset(const ChainLayer& l, const std::string& path,
+                                                 const std::vector<uint64_t>& want,
+                                                 const std::string& meaning) {
+  const std::string label = "dataset " + GroupLabel(path);
+  if (!PathExists(src_.root, path)) return LayerFail(l, label + " is missing");
+  H5Handle ds(H5Dopen2(src_.root, path.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!ds.valid()) return LayerFail(l, "cannot open " + label + Hdf5Error());
+  H5Handle type(H5Dget_type(ds.get()), H5Tclose);
+  H5Handle space(H5Dget_space(ds.get()), H5Sclose);
+  if (!type.valid() || !space.valid()) return LayerFail(l, "cannot read " + label + Hdf5Error());
+  if (H5Tget_class(type.get()) != H5T_FLOAT) {
+    return LayerFail(l, label + " is not floating point");
+  }
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 0 || rank > 8) return LayerFail(l, label + " has an unreadable shape" + Hdf5Error());
+  std::vector<hsize_t> dims(static_cast<size_t>(rank));
+  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0) {
+    return LayerFail(l, label + " has an unreadable shape" + Hdf5Error());
+  }
+  const std::vector<uint64_t> have(dims.begin(), dims.end());
+  if (have != want) {
+    return LayerFail(
+        l, label + " has shape " + DimsText(have) + "; expected " + DimsText(want) + " " + meaning);
+  }
+  uint64_t n = 1;
+  for (uint64_t d : want) {
+    if (d != 0 && n > kMaxTensorElements / d) return LayerFail(l, label + " is too large");
+    n *= d;
+  }
+  std::vector<float> values(static_cast<size_t>(n));
+  if (n > 0 &&
+      H5Dread(ds.get(), H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0) {
+    return LayerFail(l, "cannot read " + label + Hdf5Error());
+  }
+  for (float v : values) {
+    if (!std::isfinite(v)) return LayerFail(l, label + " holds non-finite values");
+  }
+  return values;
+}
+
+Status CheckChannelsLast(const ChainLayer& l, const std::string& path) {
+  const json* f = Find(*l.config, "data_format");
+  if (f == nullptr || f->is_null() ||
+      (f->is_string() && f->get<std::string>() == "channels_last")) {
+    return Status::Ok();
+  }
+  return Status::Error(path + ": layer " + Quote(l.name) + " (" + Printable(l.cls) +
+                       "): data_format " + JsonText(*f) + " is not supported (only channels_last)");
+}
+
+Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
+  int h = model.height;  // 0 when the built size is unknown
+  int w = model.width;
+  int c = model.channels;
+  const bool known = h > 0 && w > 0;
+  Pads pending;
+  const ChainLayer* pending_pad = nullptr;
+  bool fusable = false;  // the last layer is a Conv2D without activation
+  struct CropTrace {
+    size_t layer = 0;
+    int out_h = 0;
+    int out_w = 0;
+  };
+  std::vector<CropTrace> crops;
+  int convs = 0;
+
+  for (const ChainLayer& l : model.layers) {
+    const json& cfg = *l.config;
+    if (pending_pad != nullptr && l.cls != "Conv2D" && l.cls != "ZeroPadding2D") {
+      return LayerFail(*pending_pad,
+                       "must be followed by a Conv2D with padding 'valid' (it is "
+                       "folded into the convolution), but is followed by layer " +
+                           Quote(l.name) + " (" + Printable(l.cls) + ")");
+    }
+    if (l.cls == "Conv2D") {
+      SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+      auto field = [&](const char* key) { return Find(cfg, key); };
+      int filters_value = 0;
+      std::array<int, 2> kernel_value{};
+      if (!GetInt(field("filters"), 1, kMaxDim, &filters_value)) {
+        return LayerFail(l, "'filters' is missing or not a positive integer");
+      }
+      if (!GetPair(field("kernel_size"), 1, kMaxDim, &kernel_value)) {
+        return LayerFail(l, "'kernel_size' is missing or not positive integers");
+      }
+      const int* filters = &filters_value;
+      const std::array<int, 2>* kernel = &kernel_value;
+      std::array<int, 2> strides{1, 1};
+      if (const json* s = field("strides")) {
+        if (!GetPair(s, 1, kMaxDim, &strides)) {
+          return LayerFail(l, "strides " + JsonText(*s) + " are not positive integers");
+        }
+      }
+      if (const json* d = field("dilation_rate")) {
+        std::array<int, 2> v{};
+        if (!GetPair(d, 1, kMaxDim, &v) || v[0] != 1 || v[1] != 1) {
+          return LayerFail(l, "dilation_rate " + JsonText(*d) + " is not supported (only 1)");
+        }
+      }
+      if (const json* g = field("groups")) {
+        if (int v = 0; !GetInt(g, 1, kMaxDim, &v) || v != 1) {
+          return LayerFail(l, "groups " + JsonText(*g) + " is not supported (only 1)");
+        }
+      }
+      std::string padding = "valid";
+      if (const json* p = field("padding")) {
+        if (!p->is_string()) return LayerFail(l, "padding " + JsonText(*p) + " is not a string");
+        padding = p->get<std::string>();
+      }
+      if (padding != "same" && padding != "valid") {
+        return LayerFail(l, "padding " + Quote(padding) + " is not supported (same, valid)");
+      }
+      bool use_bias = true;
+      if (const json* b = field("use_bias")) {
+        if (!b->is_boolean()) return LayerFail(l, "use_bias " + JsonText(*b) + " is not a bool");
+        use_bias = b->get<bool>();
+      }
+      std::string activation = "linear";
+      if (const json* a = field("activation")) {
+        if (!a->is_string()) {
+          return LayerFail(l, "activation " + JsonText(*a) + " is not supported (linear, relu)");
+        }
+        activation = a->get<std::string>();
+      }
+      if (activation != "linear" && activation != "relu") {
+        return LayerFail(l, "activation " + Quote(activation) + " is not supported (linear, relu)");
+      }
+
+      ConvSpec conv;
+      conv.name = l.name;
+      conv.in_channels = c;
+      conv.out_channels = *filters;
+      conv.kernel_h = (*kernel)[0];
+      conv.kernel_w = (*kernel)[1];
+      conv.stride_h = strides[0];
+      conv.stride_w = strides[1];
+      conv.activation = activation == "relu" ? Activation::kRelu : Activation::kNone;
+      if (padding == "same") {
+        if (pending_pad != nullptr) {
+          return LayerFail(l, "follows ZeroPadding2D " + Quote(pending_pad->name) +
+                                  " but pads 'same'; only padding 'valid' can absorb it");
+        }
+        conv.padding_rule = PaddingRule::kSameUpper;
+        if (known) {
+          const auto [top, bottom] = SameAxis(h, conv.stride_h, conv.kernel_h);
+          const auto [left, right] = SameAxis(w, conv.stride_w, conv.kernel_w);
+          conv.pads = Pads{top, left, bottom, right};
+        }
+      } else {
+        conv.padding_rule = PaddingRule::kExplicit;
+        conv.pads = pending;
+      }
+      pending = Pads{};
+      pending_pad = nullptr;
+      if (known) {
+        const int ph = h + conv.pads.top + conv.pads.bottom;
+        const int pw = w + conv.pads.left + conv.pads.right;
+        if (ph < conv.kernel_h || pw < conv.kernel_w) {
+          return LayerFail(l, "its " + std::to_string(ph) + "x" + std::to_string(pw) +
+                                  " input at the built size is smaller than the kernel");
+        }
+        h = (ph - conv.kernel_h) / conv.stride_h + 1;
+        w = (pw - conv.kernel_w) / conv.stride_w + 1;
+      }
+      Result<std::vector<std::string>> paths = WeightPaths(l, use_bias ? 2 : 1);
+      if (!paths.ok()) return paths.status();
+      const std::string meaning = "(kernel_size " + std::to_string(conv.kernel_h) + "x" +
+                                  std::to_string(conv.kernel_w) + ", " + std::to_string(c) +
+                                  " input channels, filters " + std::to_string(*filters) + ")";
+      auto kernel_values =
+          ReadDataset(l, (*paths)[0],
+                      {static_cast<uint64_t>(conv.kernel_h), static_cast<uint64_t>(conv.kernel_w),
+                       static_cast<uint64_t>(c), static_cast<uint64_t>(*filters)},
+                      meaning);
+      if (!kernel_values.ok()) return kernel_values.status();
+      conv.weights_hwio = std::move(kernel_values).value();
+      if (use_bias) {
+        auto bias = ReadDataset(l, (*paths)[1], {static_cast<uint64_t>(*filters)},
+                                "(filters " + std::to_string(*filters) + ")");
+        if (!bias.ok()) return bias.status();
+        conv.bias = std::move(bias).value();
+      } else {
+        conv.bias.assign(static_cast<size_t>(*filters), 0.0f);
+      }
+      c = *filters;
+      fusable = conv.activation == Activation::kNone;
+      spec->layers.emplace_back(std::move(conv));
+      ++convs;
+    } else if (l.cls == "LeakyReLU") {
+      const json* alpha = Find(cfg, "alpha");
+      if (alpha == nullptr) {
+        return LayerFail(l,
+                         "config has no 'alpha' (the negative slope; Keras 2 always stores "
+                         "it, default 0.3)");
+      }
+      if (!alpha->is_number() || !std::isfinite(alpha->get<double>())) {
+        return LayerFail(l, "alpha " + JsonText(*alpha) + " is not a finite number");
+      }
+      if (!fusable) {
+        return LayerFail(l,
+                         "must directly follow a Conv2D with activation 'linear' (it is "
+                         "fused into the convolution)");
+      }
+      auto& conv = std::get<ConvSpec>(spec->layers.back());
+      conv.activation = Activation::kLeakyRelu;
+      conv.leaky_slope = static_cast<float>(alpha->get<double>());
+      fusable = false;
+    } else if (l.cls == "Activation") {
+      const json* a = Find(cfg, "activation");
+      const std::string act = a != nullptr && a->is_string() ? a->get<std::string>() : "";
+      if (act == "linear") continue;  // identity: keeps `fusable` as it is
+      if (act != "relu") {
+        return LayerFail(l, "activation " + (a ? JsonText(*a) : std::string("(missing)")) +
+                                " is not supported (linear, relu)");
+      }
+      if (!fusable) {
+        return LayerFail(l,
+                         "must directly follow a Conv2D with activation 'linear' (it is "
+                         "fused into the convolution)");
+      }
+      std::get<ConvSpec>(spec->layers.back()).activation = Activation::kRelu;
+      fusable = false;
+    } else if (l.cls == "UpSampling2D") {
+      SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+      std::array<int, 2> factors_value{};
+      const std::array<int, 2>* factors = &factors_value;
+      if (!GetPair(Find(cfg, "size"), 1, 64, &factors_value)) {
+        return LayerFail(l, "'size' is missing or not integers in 1..64");
+      }
+      if (const json* interp = Find(cfg, "interpolation")) {
+        if (!interp->is_string() || interp->get<std::string>() != "nearest") {
+          return LayerFail(
+              l, "interpolation " + JsonText(*interp) + " is not supported (only nearest)");
+        }
+      }
+      UpsampleSpec up;
+      up.name = l.name;
+      up.factor_h = (*factors)[0];
+      up.factor_w = (*factors)[1];
+      spec->layers.emplace_back(std::move(up));
+      h *= (*factors)[0];
+      w *= (*factors)[1];
+      fusable = false;
+    } else if (l.cls == "Cropping2D") {
+      SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+      Pads amounts_value;
+      const Pads* amounts = &amounts_value;
+      if (!GetSidePads(Find(cfg, "cropping"), &amounts_value)) {
+        return LayerFail(l, "'cropping' is missing or not ((top, bottom), (left, right))");
+      }
+      if (known) {
+        const int oh = h - amounts->top - amounts->bottom;
+        const int ow = w - amounts->left - amounts->right;
+        if (oh < 1 || ow < 1) {
+          return LayerFail(l, "crops its " + std::to_string(h) + "x" + std::to_string(w) +
+                                  " input at the built size to nothing");
+        }
+        h = oh;
+        w = ow;
+      }
+      CropSpec crop;
+      crop.name = l.name;
+      crop.rule = CropRule::kExplicit;
+      crop.amounts = *amounts;
+      crops.push_back({spec->layers.size(), h, w});
+      spec->layers.emplace_back(std::move(crop));
+      fusable = false;
+    } else if (l.cls == "ZeroPadding2D") {
+      SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+      Pads amounts_value;
+      const Pads* amounts = &amounts_value;
+      if (!GetSidePads(Find(cfg, "padding"), &amounts_value)) {
+        return LayerFail(l, "'padding' is missing or not ((top, bottom), (left, right))");
+      }
+      pending.top += amounts->top;
+      pending.left += amounts->left;
+      pending.bottom += amounts->bottom;
+      pending.right += amounts->right;
+      pending_pad = &l;
+      fusable = false;
+    } else if (IsNestedModelClass(l.cls)) {
+      return LayerFail(l, std::string("nested models are supported only as a multi_gpu_model "
+                                      "wrapper (InputLayer/Lambda/Concatenate around one nested "
+                                      "model); supported layers: ") +
+                              kSupportedLayers);
+    } else {
+      return LayerFail(
+          l, std::string("layer class is not supported (supported: ") + kSupportedLayers + ")");
+    }
+  }
+  if (pending_pad != nullptr) {
+    return LayerFail(*pending_pad,
+                     "ends the model; it must be followed by a Conv2D with "
+                     "padding 'valid'");
+  }
+  if (convs == 0) return Fail("the model has no Conv2D layer between input and output");
+
+  for (const CropTrace& t : crops) {
+    auto& crop = std::get<CropSpec>(spec->layers[t.layer]);
+    const Pads& a = crop.amounts;
+    const bool one_sided = (a.top == 0 || a.bottom == 0) && (a.left == 0 || a.right == 0);
+    std::string why;
+    if (!known) {
+      why = "the model's input height/width are None, so the size it was built for is unknown";
+    } else if (t.out_h != model.height || t.out_w != model.width) {
+      why = "at the built size " + std::to_string(model.height) + "x" +
+            std::to_string(model.width) + " its output is " + std::to_string(t.out_h) + "x" +
+            std::to_string(t.out_w) + ", not the input size";
+    } else if (!one_sided) {
+      why = "it crops both sides of an axis";
+    }
+    if (why.empty()) {
+      crop.rule = CropRule::kToInputSize;
+      crop.excess_rows_from_top = a.top > 0 || a.bottom == 0;
+      crop.excess_cols_from_left = a.left > 0 || a.right == 0;
+    } else {
+      notes_.push_back("Cropping2D " + Quote(crop.name) + " keeps its amounts (top " +
+                       std::to_string(a.top) + ", bottom " + std::to_string(a.bottom) + ", left " +
+                       std::to_string(a.left) + ", right " + std::to_string(a.right) +
+                       ") at every input size: " + why);
+    }
+  }
+  spec->input.channels = model.channels;
+  spec->input.traced_height = model.height;
+  spec->input.traced_width = model.width;
+  spec->output.channels = c;
+  return Status::Ok();
+}
+
+Status Importer::CheckAllWeightsUsed() {
+  if (src_.nested) {
+    if (src_.next != src_.nested_names.size()) {
+      return Fail("group " + GroupLabel(src_.nested_group) + " lists " +
+                  std::to_string(src_.nested_names.size()) +
+                  " weights but the nested model's layers use " + std::to_string(src_.next));
+    }
+    return Status::Ok();
+  }
+  for (const std::string& name : layer_names_) {
+    if (used_groups_.count(name) > 0 || !PathExists(src_.root, name)) continue;
+    H5Handle g(H5Gopen2(src_.root, name.c_str(), H5P_DEFAULT), H5Gclose);
+    if (!g.valid()) continue;
+    auto names = ReadKerasList(g.get(), "weight_names", "group " + GroupLabel(name));
+    if (!names.ok()) return Fail(names.message());
+    if (names->has_value() && !(*names)->empty()) {
+      return Fail("weights group " + GroupLabel(name) + " holds " +
+                  std::to_string((*names)->size()) +
+                  " weights but no layer of that name lies between the model's input and "
+                  "output (wrong architecture?)");
+    }
+  }
+  return Status::Ok();
+}
+
+Result<KerasImportResult> Importer::Run() {
+  SFRT_KERAS_RETURN_IF_ERROR(Open());
+  if (backend_ == "theano") {
+    return Fail(
+        "saved with the Theano backend, whose stored kernels are flipped; load it in "
+        "Keras with TensorFlow and save it again");
+  }
+  if (keras_version_.rfind("1.", 0) == 0) {
+    return Fail("saved by Keras " + Printable(keras_version_) + "; only Keras 2 files are read");
+  }
+  SFRT_KERAS_RETURN_IF_ERROR(FindWeightsRoot());
+  Result<json> arch = ReadArchitecture();
+  if (!arch.ok()) return arch.status();
+  const json top = std::move(arch).value();
+
+  // A multi_gpu_model wrapper: one nested model among InputLayer/Lambda/Concatenate layers.
+  json nested_model;
+  const json* model_json = &top;
+  const json* top_config = Find(top, "config");
+  const json* top_layers = top_config ? Find(*top_config, "layers") : nullptr;
+  const std::string top_class =
+      top["class_name"].is_string() ? top["class_name"].get<std::string>() : std::string();
+  std::string label = "model";
+  if (const json* n = top_config ? Find(*top_config, "name") : nullptr; n && n->is_string()) {
+    label = "model " + Quote(n->get<std::string>());
+  }
+  if ((top_class == "Model" || top_class == "Functional") && top_layers != nullptr &&
+      top_layers->is_array()) {
+    std::vector<ChainLayer> nested;
+    bool wrapper_only = true;
+    int lambdas = 0;
+    for (const json& entry : *top_layers) {
+      Result<ChainLayer> l = ReadLayerEntry(entry, path_ + ": " + label);
+      if (!l.ok()) return l.status();
+      if (IsNestedModelClass(l->cls)) {
+        nested.push_back(*l);
+      } else if (l->cls == "Lambda") {
+        ++lambdas;
+      } else if (l->cls != "InputLayer" && l->cls != "Concatenate") {
+        wrapper_only = false;
+      }
+    }
+    if (nested.size() == 1 && wrapper_only) {
+      const ChainLayer& inner = nested[0];
+      nested_model = json{{"class_name", inner.cls}, {"config", *inner.config}};
+      model_json = &nested_model;
+      label = "nested model " + Quote(inner.name);
+      src_.nested = true;
+      src_.nested_group = inner.name;
+      if (!PathExists(src_.root, inner.name)) {
+        return LayerFail(inner, "weights group " + GroupLabel(inner.name) + " is missing");
+      }
+      H5Handle g(H5Gopen2(src_.root, inner.name.c_str(), H5P_DEFAULT), H5Gclose);
+      if (!g.valid()) return LayerFail(inner, "cannot open its weights group" + Hdf5Error());
+      auto names = ReadKerasList(g.get(), "weight_names", "group " + GroupLabel(inner.name));
+      if (!names.ok()) return LayerFail(inner, names.message());
+      if (!names->has_value()) {
+        return LayerFail(
+            inner, "weights group " + GroupLabel(inner.name) + " has no attribute 'weight_names'");
+      }
+      src_.nested_names = std::move(**names);
+      notes_.push_back(
+          (lambdas > 0 ? std::string("multi_gpu_model checkpoint: ") : std::string()) +
+          "exported the nested model " + Quote(inner.name) + " (" + Printable(inner.cls) +
+          ") with the weights of group " + GroupLabel(inner.name) + "; the outer " +
+          std::to_string(top_layers->size() - 1) +
+          " layers (input, Lambda batch slices, Concatenate merge) only split and merge the "
+          "batch across devices");
+    }
+  }
+
+  Result<ChainModel> chain = ParseModel(*model_json, label);
+  if (!chain.ok()) return chain.status();
+  KerasImportResult result;
+  SFRT_KERAS_RETURN_IF_ERROR(Build(*chain, &result.spec));
+  SFRT_KERAS_RETURN_IF_ERROR(CheckAllWeightsUsed());
+  if (chain->height == 0) {
+    notes_.push_back("the model's input height/width are None: no built size is recorded");
+  }
+  result.spec.producer.source_format = "keras-h5";
+  result.spec.producer.source_file = std::filesystem::path(path_).filename().string();
+  Result<std::string> sha = Sha256OfFile(path_);
+  if (!sha.ok()) return sha.status();
+  result.spec.producer.source_sha256 = std::move(sha).value();
+  result.notes = std::move(notes_);
+  return result;
+}
+
+}  // namespace
+
+Result<KerasImportResult> ImportKerasH5(const std::string& path,
+                                        const KerasImportOptions& options) {
+  Result<KerasImportResult> result = Status::Error("unset");
+  try {
+    Importer importer(path, options);
+    result = importer.Run();
+  } catch (const std::exception& e) {  // nlohmann::json or allocation failures: never escape
+    result = Status::Error(path + ": " + e.what());
+  }
+  if (result.ok()) return result;
+  return Status::Error(Printable(result.message()));  // one line, whatever the file contained
+}
+
+}  // namespace sfrt::exporter
