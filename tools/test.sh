@@ -15,3 +15,5 @@ for preset in "${presets[@]}"; do
   echo "== ${preset}: test"
   ctest --preset "${preset}"
 done
+# Third stage of the default run: the aarch64 cross build, NEON tests under qemu.
+if [[ $# -eq 0 ]]; then bash tools/test-aarch64.sh; fi

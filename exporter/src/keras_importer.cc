@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -190,7 +191,11 @@ Result<std::optional<std::vector<std::string>>> ReadStringsAttr(hid_t obj, const
     }
     std::vector<char*> ptrs(static_cast<size_t>(count), nullptr);
     if (H5Aread(attr.get(), mem.get(), ptrs.data()) < 0) {
-      return Status::Error("cannot read " + what + Hdf5Error());
+      // A read that fails part way (a damaged heap) leaves the strings it did read allocated.
+      const std::string detail = Hdf5Error();
+      H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, ptrs.data());
+      H5Eclear2(H5E_DEFAULT);
+      return Status::Error("cannot read " + what + detail);
     }
     for (char* p : ptrs) values.emplace_back(p != nullptr ? p : "");
     H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, ptrs.data());
@@ -329,6 +334,10 @@ class Importer {
  public:
   Importer(std::string path, KerasImportOptions options)
       : path_(std::move(path)), options_(std::move(options)) {}
+  // Reads an HDF5 file image held in memory (`image` must outlive the importer); `label` stands
+  // for the path in messages.
+  Importer(std::string_view image, std::string label, KerasImportOptions options)
+      : path_(std::move(label)), options_(std::move(options)), image_(image), in_memory_(true) {}
   Result<KerasImportResult> Run();
 
  private:
@@ -341,6 +350,7 @@ class Importer {
   }
 
   Status Open();
+  Status OpenFile();
   Result<json> ReadArchitecture();
   Status FindWeightsRoot();
   Result<ChainModel> ParseModel(const json& model, const std::string& label);
@@ -354,8 +364,12 @@ class Importer {
   Status Build(const ChainModel& model, ModelSpec* spec);
   Status CheckAllWeightsUsed();
 
+  Status OpenImage();
+
   std::string path_;
   KerasImportOptions options_;
+  std::string_view image_;
+  bool in_memory_ = false;
   QuietHdf5 quiet_;
   H5Handle file_;
   H5Handle weights_group_;
@@ -367,7 +381,52 @@ class Importer {
   std::vector<std::string> notes_;
 };
 
+// The file image through HDF5's core (in-memory) driver: HDF5 copies the bytes and never
+// touches the disk.
+Status Importer::OpenImage() {
+  static constexpr char kSignature[] = "\x89HDF\r\n\x1a\n";
+  // The superblock sits at offset 0, 512, 1024, 2048, ... (after a user block).
+  bool signature = false;
+  for (size_t at = 0; at + 8 <= image_.size() && !signature; at = at == 0 ? 512 : at * 2) {
+    signature = image_.compare(at, 8, std::string_view(kSignature, 8)) == 0;
+  }
+  if (!signature) {
+    return Fail("not an HDF5 file (no HDF5 signature in its " + std::to_string(image_.size()) +
+                " bytes)");
+  }
+  H5Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  if (!fapl.valid() || H5Pset_fapl_core(fapl.get(), 1 << 16, /*backing_store=*/0) < 0 ||
+      H5Pset_file_image(fapl.get(), const_cast<char*>(image_.data()), image_.size()) < 0) {
+    return Fail("cannot set up an in-memory HDF5 file" + Hdf5Error());
+  }
+  // The name only has to differ from every file HDF5 has open (it compares names first).
+  static std::atomic<unsigned> images{0};
+  const std::string name = "sfrt-memory-image-" + std::to_string(images++);
+  file_ = H5Handle(H5Fopen(name.c_str(), H5F_ACC_RDONLY, fapl.get()), H5Fclose);
+  if (!file_.valid()) {
+    return Fail("HDF5 file cannot be opened: truncated or damaged (" +
+                std::to_string(image_.size()) + " bytes)" + Hdf5Error());
+  }
+  return Status::Ok();
+}
+
 Status Importer::Open() {
+  if (in_memory_) {
+    SFRT_KERAS_RETURN_IF_ERROR(OpenImage());
+  } else {
+    SFRT_KERAS_RETURN_IF_ERROR(OpenFile());
+  }
+  for (auto [name, out] :
+       {std::pair<const char*, std::string*>{"backend", &backend_},
+        std::pair<const char*, std::string*>{"keras_version", &keras_version_}}) {
+    auto value = ReadStringsAttr(file_.get(), name, "the file root");
+    if (!value.ok()) return Fail(value.message());
+    if (value->has_value() && (*value)->size() == 1) *out = (**value)[0];
+  }
+  return Status::Ok();
+}
+
+Status Importer::OpenFile() {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path_, ec)) return Fail("no such file");
   const auto size = std::filesystem::file_size(path_, ec);
@@ -381,13 +440,6 @@ Status Importer::Open() {
   if (!file_.valid()) {
     return Fail("HDF5 file cannot be opened: truncated or damaged (" + std::to_string(size) +
                 " bytes)" + Hdf5Error());
-  }
-  for (auto [name, out] :
-       {std::pair<const char*, std::string*>{"backend", &backend_},
-        std::pair<const char*, std::string*>{"keras_version", &keras_version_}}) {
-    auto value = ReadStringsAttr(file_.get(), name, "the file root");
-    if (!value.ok()) return Fail(value.message());
-    if (value->has_value() && (*value)->size() == 1) *out = (**value)[0];
   }
   return Status::Ok();
 }
@@ -1123,26 +1175,47 @@ Result<KerasImportResult> Importer::Run() {
   }
   result.spec.producer.source_format = "keras-h5";
   result.spec.producer.source_file = std::filesystem::path(path_).filename().string();
-  Result<std::string> sha = Sha256OfFile(path_);
-  if (!sha.ok()) return sha.status();
-  result.spec.producer.source_sha256 = std::move(sha).value();
+  if (in_memory_) {
+    Sha256 hash;
+    hash.Update(image_.data(), image_.size());
+    result.spec.producer.source_sha256 = hash.FinishHex();
+  } else {
+    Result<std::string> sha = Sha256OfFile(path_);
+    if (!sha.ok()) return sha.status();
+    result.spec.producer.source_sha256 = std::move(sha).value();
+  }
   result.notes = std::move(notes_);
   return result;
 }
 
 }  // namespace
 
-Result<KerasImportResult> ImportKerasH5(const std::string& path,
-                                        const KerasImportOptions& options) {
+namespace {
+
+// make() returns the Importer (constructed inside the try: construction may throw too).
+template <typename MakeImporter>
+Result<KerasImportResult> RunImporter(const std::string& label, const MakeImporter& make) {
   Result<KerasImportResult> result = Status::Error("unset");
   try {
-    Importer importer(path, options);
+    Importer importer = make();
     result = importer.Run();
   } catch (const std::exception& e) {  // nlohmann::json or allocation failures: never escape
-    result = Status::Error(path + ": " + e.what());
+    result = Status::Error(label + ": " + e.what());
   }
   if (result.ok()) return result;
   return Status::Error(Printable(result.message()));  // one line, whatever the file contained
+}
+
+}  // namespace
+
+Result<KerasImportResult> ImportKerasH5(const std::string& path,
+                                        const KerasImportOptions& options) {
+  return RunImporter(path, [&] { return Importer(path, options); });
+}
+
+Result<KerasImportResult> ImportKerasH5FromMemory(std::string_view image, const std::string& label,
+                                                  const KerasImportOptions& options) {
+  return RunImporter(label, [&] { return Importer(image, label, options); });
 }
 
 }  // namespace sfrt::exporter

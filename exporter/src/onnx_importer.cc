@@ -906,8 +906,9 @@ struct ChainOp {
 
 class Importer {
  public:
-  Importer(const std::string& path, const OnnxImportOptions& options)
-      : path_(path), options_(options) {}
+  // `bytes` must outlive the importer; `path` labels messages and names the source file.
+  Importer(std::string_view bytes, const std::string& path, const OnnxImportOptions& options)
+      : bytes_(bytes), path_(path), options_(options) {}
 
   Result<ModelSpec> Run();
 
@@ -962,6 +963,7 @@ class Importer {
   Result<float> FloatAttr(int idx, std::string_view name, float fallback) const;
   Result<std::string> StringAttr(int idx, std::string_view name, const std::string& fallback) const;
 
+  std::string_view bytes_;
   std::string path_;
   OnnxImportOptions options_;
   onnx::ModelProto model_;
@@ -1079,26 +1081,35 @@ Result<std::vector<float>> Importer::GetFloats(int idx, int slot, Dims* dims) co
 }
 
 Status Importer::Load() {
-  std::error_code ec;
-  if (!std::filesystem::exists(path_, ec)) {
-    return FileError("cannot open ONNX file: no such file");
-  }
-  if (!std::filesystem::is_regular_file(path_, ec)) {
-    return FileError("cannot open ONNX file: not a regular file");
-  }
-  std::ifstream in(path_, std::ios::binary);
-  if (!in) return FileError(std::string("cannot open ONNX file: ") + std::strerror(errno));
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return FileError(std::string("cannot read ONNX file: ") + std::strerror(errno));
-  if (!model_.ParseFromString(bytes)) {
+  if (!model_.ParseFromArray(bytes_.data(), static_cast<int>(bytes_.size()))) {
     return FileError("not a valid ONNX file: the protobuf ModelProto does not parse (" +
-                     std::to_string(bytes.size()) + " bytes)");
+                     std::to_string(bytes_.size()) + " bytes)");
   }
   if (model_.ir_version() <= 0 || !model_.has_graph()) {
     return FileError("not a valid ONNX file: no ir_version or no graph (" +
-                     std::to_string(bytes.size()) + " bytes)");
+                     std::to_string(bytes_.size()) + " bytes)");
   }
   return Status::Ok();
+}
+
+// Reads the whole file at `path`; errors name it.
+Result<std::string> ReadOnnxFile(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return Status::Error(path + ": cannot open ONNX file: no such file");
+  }
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return Status::Error(path + ": cannot open ONNX file: not a regular file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return Status::Error(path + ": cannot open ONNX file: " + std::strerror(errno));
+  }
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) {
+    return Status::Error(path + ": cannot read ONNX file: " + std::strerror(errno));
+  }
+  return bytes;
 }
 
 Status Importer::ReadOpset() {
@@ -2166,17 +2177,30 @@ Result<ModelSpec> Importer::Run() {
   SFRT_ONNX_ASSIGN_OR_RETURN(ModelSpec spec, Assemble());
   spec.producer.source_format = "onnx";
   spec.producer.source_file = std::filesystem::path(path_).filename().string();
-  SFRT_ONNX_ASSIGN_OR_RETURN(spec.producer.source_sha256, Sha256OfFile(path_));
+  Sha256 sha;
+  sha.Update(bytes_.data(), bytes_.size());
+  spec.producer.source_sha256 = sha.FinishHex();
   return spec;
 }
 
 }  // namespace
 
-Result<ModelSpec> ImportOnnx(const std::string& path, const OnnxImportOptions& options) {
-  Importer importer(path, options);
+Result<ModelSpec> ImportOnnxFromMemory(std::string_view bytes, const std::string& label,
+                                       const OnnxImportOptions& options) {
+  if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max())) {
+    return Status::Error(Printable(label) + ": ONNX file is " + std::to_string(bytes.size()) +
+                         " bytes, above protobuf's 2 GiB limit");
+  }
+  Importer importer(bytes, label, options);
   Result<ModelSpec> result = importer.Run();
   if (result.ok()) return result;
   return Status::Error(Printable(result.message()));  // one line, whatever the file contained
+}
+
+Result<ModelSpec> ImportOnnx(const std::string& path, const OnnxImportOptions& options) {
+  Result<std::string> bytes = ReadOnnxFile(path);
+  if (!bytes.ok()) return Status::Error(Printable(bytes.message()));
+  return ImportOnnxFromMemory(*bytes, path, options);
 }
 
 }  // namespace sfrt::exporter

@@ -31,6 +31,12 @@ struct PackedConv {
   int stride_w = 1;
   int nr = 0;      // output channels per block
   int blocks = 0;  // ceil(out_channels / nr)
+  // Input channels summed per pass (cache blocking): the kernels walk output-channel block ->
+  // input-channel block of this many channels -> rows -> register tiles, so one block's
+  // weights (taps x cin_block x nr floats) stay in L2 while every row of the range uses them.
+  // Passes after the first add to the partial sums already in the output; the last applies
+  // the activation. Any value from 1 to in_channels is correct (tests use odd ones).
+  int cin_block = 0;
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
   const float* weights = nullptr;        // [blocks][taps][in_channels][nr], 64-byte aligned
@@ -53,9 +59,10 @@ struct ConvArgs {
   int c_width = 0;
 };
 
-// Computes output rows [row_begin, row_end) of args.out. Safe to call concurrently on disjoint
-// row ranges.
-using ConvRowsFn = void (*)(const ConvArgs& args, int row_begin, int row_end);
+// Computes output rows [row_begin, row_end) of args.out, output-channel blocks
+// [blk_begin, blk_end) only. Safe to call concurrently on disjoint (rows x blocks) rectangles.
+using ConvRowsFn = void (*)(const ConvArgs& args, int row_begin, int row_end, int blk_begin,
+                            int blk_end);
 
 // One register tile shape of one ISA.
 struct ConvKernelVariant {
@@ -66,11 +73,20 @@ struct ConvKernelVariant {
   const char* upconv_name = "";
 };
 
-// An ISA's kernels: `narrow` for layers with few output channels, `wide` otherwise.
+// An ISA's kernels, by increasing nr. A layer uses the narrowest variant whose nr covers its
+// output channels, or the widest (PickConvVariant).
+inline constexpr int kMaxConvVariants = 4;
 struct IsaConvKernels {
-  ConvKernelVariant narrow;
-  ConvKernelVariant wide;
+  ConvKernelVariant variants[kMaxConvVariants];
+  int count = 0;
 };
+
+inline const ConvKernelVariant& PickConvVariant(const IsaConvKernels& k, int out_channels) {
+  for (int i = 0; i < k.count; ++i) {
+    if (out_channels <= k.variants[i].nr) return k.variants[i];
+  }
+  return k.variants[k.count - 1];
+}
 
 // The kernels of `isa`, or null for kRef, kAuto and ISAs this build has no kernels for (whether
 // the CPU can run them is IsaSupported's question).

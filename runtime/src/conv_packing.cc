@@ -25,6 +25,16 @@ Sizes SizesOf(const ConvParams& p, int nr, bool with_phases) {
 
 }  // namespace
 
+int DefaultCinBlock(const ConvParams& p, int nr, bool with_phases) {
+  const size_t taps = with_phases ? 4 : static_cast<size_t>(p.kernel_h * p.kernel_w);
+  const size_t per_channel = taps * static_cast<size_t>(nr) * sizeof(float);
+  int kc = static_cast<int>(kConvWeightBlockBytes / per_channel);
+  if (kc < 16) kc = 16;
+  if (kc >= p.in_channels) return p.in_channels;
+  const int passes = (p.in_channels + kc - 1) / kc;
+  return (p.in_channels + passes - 1) / passes;
+}
+
 size_t PackedConvFloats(const ConvParams& params, int nr, bool with_phases) {
   const Sizes s = SizesOf(params, nr, with_phases);
   return s.weights + s.bias + s.phases;
@@ -43,6 +53,7 @@ PackedConv PackConv(const ConvParams& p, int nr, bool with_phases, float* dst) {
   out.stride_w = p.stride_w;
   out.nr = nr;
   out.blocks = (cout + nr - 1) / nr;
+  out.cin_block = DefaultCinBlock(p, nr, with_phases);
   out.activation = p.activation;
   out.leaky_slope = p.leaky_slope;
 

@@ -23,7 +23,18 @@ namespace sfrt {
 size_t PackedConvFloats(const ConvParams& params, int nr, bool with_phases);
 
 // Writes the packed weights into `dst` (PackedConvFloats floats, 64-byte aligned, each part
-// starting on a 16-float boundary) and returns the descriptor pointing into it.
+// starting on a 16-float boundary) and returns the descriptor pointing into it, with
+// cin_block = DefaultCinBlock(params, nr, with_phases).
 PackedConv PackConv(const ConvParams& params, int nr, bool with_phases, float* dst);
+
+// Bytes of one output-channel block's weights for one input-channel block that the kernels
+// keep in cache (about a quarter of a 1 MiB L2, leaving room for the input rows and the
+// output partial sums the same pass touches).
+inline constexpr size_t kConvWeightBlockBytes = 256 * 1024;
+
+// Input channels per pass: the most whose weights (taps x cin_block x nr floats; the fused
+// upsample-conv's interior reads 2x2 phase kernels) fit kConvWeightBlockBytes, at least 16,
+// split evenly across the passes; in_channels when they all fit.
+int DefaultCinBlock(const ConvParams& params, int nr, bool with_phases);
 
 }  // namespace sfrt

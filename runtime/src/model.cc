@@ -388,6 +388,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
       return Status::Ok();
     };
 
+    // The verifier accepts a union whose type is set but whose table is absent.
+    if (fl->op_type() != fb::LayerOp::NONE && fl->op() == nullptr) {
+      return check.Fail(where + ": op type " + std::to_string(static_cast<int>(fl->op_type())) +
+                        " has no op table (damaged file)");
+    }
     switch (fl->op_type()) {
       case fb::LayerOp::Conv2D: {
         const fb::Conv2D* c = fl->op_as_Conv2D();

@@ -79,14 +79,37 @@ Result<Isa> ResolveIsa(Isa requested) {
   return requested;
 }
 
+// A SIMD convolution split into work items: output-channel block major, then `chunks` row
+// ranges, so threads taking consecutive items share one block's weights in cache while they
+// write disjoint rows, and a layer with many blocks hands each thread whole blocks.
 struct ConvJob {
   ConvRowsFn fn;
   const ConvArgs* args;
+  int rows;
+  int chunks;
 };
 
 void ConvTrampoline(void* ctx, int begin, int end) {
   const ConvJob* job = static_cast<const ConvJob*>(ctx);
-  job->fn(*job->args, begin, end);
+  for (int item = begin; item < end;) {
+    const int blk = item / job->chunks;
+    const int chunk = item % job->chunks;
+    // Consecutive items of one block are one row range.
+    const int last_chunk =
+        end - blk * job->chunks < job->chunks ? end - blk * job->chunks : job->chunks;
+    const int r0 = static_cast<int>(static_cast<long long>(job->rows) * chunk / job->chunks);
+    const int r1 = static_cast<int>(static_cast<long long>(job->rows) * last_chunk / job->chunks);
+    job->fn(*job->args, r0, r1, blk, blk + 1);
+    item = blk * job->chunks + last_chunk;
+  }
+}
+
+// Row ranges per output-channel block: about four items per thread.
+int ConvChunks(int blocks, int rows, int threads) {
+  const int want = 4 * threads;
+  int chunks = (want + blocks - 1) / blocks;
+  if (chunks > rows) chunks = rows;
+  return chunks < 1 ? 1 : chunks;
 }
 
 struct RefConvJob {
@@ -198,7 +221,7 @@ Status Session::Plan() {
 
   // 2. Packed weights for the SIMD steps, in one 64-byte-aligned allocation.
   auto variant_for = [&](const ConvParams& p) -> const ConvKernelVariant& {
-    return p.out_channels <= kernels->narrow.nr ? kernels->narrow : kernels->wide;
+    return PickConvVariant(*kernels, p.out_channels);
   };
   size_t floats = 0;
   for (const Step& step : steps_) {
@@ -343,8 +366,13 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
           args.c_height = c.output.height;
           args.c_width = c.output.width;
         }
-        ConvJob job{step.fn, &args};
-        parallel_rows(out.height, ConvTrampoline, &job);
+        if (pool_ == nullptr) {
+          step.fn(args, 0, out.height, 0, step.packed.blocks);
+        } else {
+          ConvJob job{step.fn, &args, out.height,
+                      ConvChunks(step.packed.blocks, out.height, threads_)};
+          pool_->ParallelFor(step.packed.blocks * job.chunks, ConvTrampoline, &job);
+        }
         break;
       }
       case Step::Kind::kRefConv: {

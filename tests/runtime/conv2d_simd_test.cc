@@ -59,8 +59,10 @@ class Conv2dSimd : public ::testing::TestWithParam<Isa> {
     kernels_ = ConvKernelsFor(GetParam());
     ASSERT_NE(kernels_, nullptr);
   }
-  const ConvKernelVariant& Variant(int cout) const {
-    return cout <= kernels_->narrow.nr ? kernels_->narrow : kernels_->wide;
+  std::vector<const ConvKernelVariant*> Variants() const {
+    std::vector<const ConvKernelVariant*> v;
+    for (int i = 0; i < kernels_->count; ++i) v.push_back(&kernels_->variants[i]);
+    return v;
   }
   const IsaConvKernels* kernels_ = nullptr;
 };
@@ -101,6 +103,8 @@ const std::vector<ConvCase>& ConvCases() {
       {9, 18, 12, 32, 3, 1, {1, 1, 1, 1}, 60},  // input is a view with a row stride
       {9, 18, 12, 35, 3, 1, {1, 1, 1, 1}, 0, Activation::kRelu},
       {9, 18, 12, 35, 3, 2, {0, 1, 1, 1}, 0, Activation::kNone},
+      {4, 29, 70, 65, 3, 1, {1, 1, 1, 1}},  // 70 input channels: blocks of 16/32 leave tails
+      {13, 7, 33, 64, 3, 1, {1, 1, 1, 1}},  // width below the tile, cin one past 32
   };
   return cases;
 }
@@ -132,19 +136,28 @@ TEST_P(Conv2dSimd, MatchesReferenceOnEveryShapeOfTheTable) {
     std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
     ref::Conv2d(in, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
 
-    const ConvKernelVariant& v = Variant(c.cout);
-    Aligned packed(PackedConvFloats(p, v.nr, false));
-    const PackedConv pc = PackConv(p, v.nr, false, packed.data);
-    std::vector<float> got(want.size(), NAN);
-    ConvArgs args;
-    args.conv = &pc;
-    args.in = in;
-    args.out = DenseView(got.data(), out_h, out_w, c.cout);
-    args.pads = c.pads;
-    // In two row ranges, as two threads would call it.
-    v.conv(args, 0, out_h / 2);
-    v.conv(args, out_h / 2, out_h);
-    EXPECT_LE(MaxRelativeError(got, want), kTolerance) << v.conv_name;
+    // Every tile shape of this ISA, each with its default input-channel block and with blocks
+    // that leave a tail (cin not a multiple of the block) or sum one channel per pass.
+    for (const ConvKernelVariant* v : Variants()) {
+      Aligned packed(PackedConvFloats(p, v->nr, false));
+      PackedConv pc = PackConv(p, v->nr, false, packed.data);
+      for (int cin_block : {pc.cin_block, 1, 5, 16}) {
+        SCOPED_TRACE(std::string(v->conv_name) + " cin_block " + std::to_string(cin_block));
+        pc.cin_block = cin_block;
+        std::vector<float> got(want.size(), NAN);
+        ConvArgs args;
+        args.conv = &pc;
+        args.in = in;
+        args.out = DenseView(got.data(), out_h, out_w, c.cout);
+        args.pads = c.pads;
+        // As two threads would call it: two row ranges, and the blocks split in two.
+        const int half_blocks = pc.blocks / 2;
+        v->conv(args, 0, out_h / 2, 0, pc.blocks);
+        v->conv(args, out_h / 2, out_h, 0, half_blocks);
+        v->conv(args, out_h / 2, out_h, half_blocks, pc.blocks);
+        EXPECT_LE(MaxRelativeError(got, want), kTolerance);
+      }
+    }
   }
 }
 
@@ -168,6 +181,7 @@ TEST_P(Conv2dSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
       {1, 1, 5, 6, 0, 0, 0, 0, {1, 1, 1, 1}},     // 2x2 upsampled: no interior pixel
       {1, 9, 5, 6, 1, 0, 0, 0, {1, 1, 1, 1}},     // a single upsampled row after the crop
       {3, 30, 24, 64, 0, 3, 0, 0, {1, 1, 1, 1}},  // long rows: full register tiles
+      {3, 23, 37, 70, 4, 1, 0, 0, {1, 1, 1, 1}},  // cin 37, cout 70: every tail, odd width
   };
   uint32_t seed = 100;
   for (const UpConvCase& c : cases) {
@@ -206,22 +220,27 @@ TEST_P(Conv2dSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
     std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
     ref::Conv2d(cropped, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
 
-    const ConvKernelVariant& v = Variant(c.cout);
-    Aligned packed(PackedConvFloats(p, v.nr, true));
-    const PackedConv pc = PackConv(p, v.nr, true, packed.data);
-    std::vector<float> got(want.size(), NAN);
-    ConvArgs args;
-    args.conv = &pc;
-    args.in = low_view;
-    args.out = DenseView(got.data(), out_h, out_w, c.cout);
-    args.pads = c.pads;
-    args.crop_top = c.crop_top;
-    args.crop_left = c.crop_left;
-    args.c_height = cropped.height;
-    args.c_width = cropped.width;
-    v.upconv(args, 0, 1);
-    v.upconv(args, 1, out_h);
-    EXPECT_LE(MaxRelativeError(got, want), 4 * kTolerance) << v.upconv_name;
+    for (const ConvKernelVariant* v : Variants()) {
+      Aligned packed(PackedConvFloats(p, v->nr, true));
+      PackedConv pc = PackConv(p, v->nr, true, packed.data);
+      for (int cin_block : {pc.cin_block, 1, 5, 16}) {
+        SCOPED_TRACE(std::string(v->upconv_name) + " cin_block " + std::to_string(cin_block));
+        pc.cin_block = cin_block;
+        std::vector<float> got(want.size(), NAN);
+        ConvArgs args;
+        args.conv = &pc;
+        args.in = low_view;
+        args.out = DenseView(got.data(), out_h, out_w, c.cout);
+        args.pads = c.pads;
+        args.crop_top = c.crop_top;
+        args.crop_left = c.crop_left;
+        args.c_height = cropped.height;
+        args.c_width = cropped.width;
+        v->upconv(args, 0, 1, 0, pc.blocks);
+        v->upconv(args, 1, out_h, 0, pc.blocks);
+        EXPECT_LE(MaxRelativeError(got, want), 4 * kTolerance);
+      }
+    }
   }
 }
 

@@ -13,6 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/pipeline.h"
+#include "sfrt/camera/preprocess.h"
+#include "sfrt/camera/rectifier.h"
 #include "sfrt/commands.h"
 #include "sfrt/io/npy.h"
 #include "sfrt/io/pfm.h"
@@ -46,12 +49,6 @@ std::string SizeString(int height, int width) {
   return std::to_string(height) + "x" + std::to_string(width);
 }
 
-std::string FormatFloat(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
-
 // Reads the four images and builds the network input as the model's metadata prescribes:
 // image order, color order, then value = (pixel * scale - mean[c]) / std[c].
 Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc, int resize_h,
@@ -67,37 +64,11 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
                        {"left1", "--left1", &args.left1, {}},
                        {"right1", "--right1", &args.right1, {}}};
 
-  // Check the metadata before reading anything big.
-  if (desc.channels != 3 * static_cast<int>(desc.image_order.size())) {
-    return Status::Error("the model takes " + std::to_string(desc.channels) +
-                         " input channels but its image order lists " +
-                         std::to_string(desc.image_order.size()) +
-                         " images of 3 channels; give --input-npy instead");
-  }
-  std::vector<size_t> group_source;  // input channel group -> index into sources
-  for (const std::string& slot : desc.image_order) {
-    size_t found = 4;
-    for (size_t i = 0; i < 4; ++i) {
-      if (slot == sources[i].slot) found = i;
-    }
-    if (found == 4) {
-      return Status::Error("the model's image order names an unknown image '" + slot +
-                           "' (known: left0, right0, left1, right1)");
-    }
-    group_source.push_back(found);
-  }
-  bool rgb = false;
-  if (desc.color_order == "RGB") {
-    rgb = true;
-  } else if (desc.color_order != "BGR") {
-    return Status::Error("the model's color order '" + desc.color_order +
-                         "' is neither BGR nor RGB");
-  }
-  for (int c = 0; c < 3; ++c) {
-    if (!(desc.std[c] != 0) || !std::isfinite(desc.std[c])) {
-      return Status::Error("the model's std[" + std::to_string(c) + "] is " +
-                           FormatFloat(desc.std[c]) + "; cannot normalise");
-    }
+  // Check the metadata before reading anything big: the same preprocessing as `sfrt run`
+  // (camera/sources Preprocessor, parameters from the model's metadata).
+  Result<camera::PreprocessParams> params = pipeline::PreprocessFromMetadata(desc);
+  if (!params.ok()) {
+    return Status::Error(params.message() + "; give --input-npy instead");
   }
 
   for (Source& s : sources) {
@@ -127,34 +98,28 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   std::string resized;
   if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
     resized = ", resized from " + SizeString(sources[0].image.rows, sources[0].image.cols);
-    const bool shrink = resize_h <= sources[0].image.rows && resize_w <= sources[0].image.cols;
-    for (Source& s : sources) {
-      cv::Mat out;
-      cv::resize(s.image, out, cv::Size(resize_w, resize_h), 0, 0,
-                 shrink ? cv::INTER_AREA : cv::INTER_LINEAR);
-      s.image = out;
+    // The same resize as `sfrt run` (INTER_AREA when shrinking, bilinear when enlarging).
+    auto resizer = camera::StereoRectifier::CreateResizeOnly(sources[0].image.size(),
+                                                             cv::Size(resize_w, resize_h));
+    if (!resizer.ok()) return Status::Error(resizer.message());
+    for (size_t i = 0; i < 4; i += 2) {
+      cv::Mat left, right;
+      camera::Status r = resizer->Apply(sources[i].image, sources[i + 1].image, &left, &right);
+      if (!r.ok()) return Status::Error(r.message());
+      sources[i].image = left;
+      sources[i + 1].image = right;
     }
   }
 
   InputTensor input;
   input.height = sources[0].image.rows;
   input.width = sources[0].image.cols;
-  const size_t channels = static_cast<size_t>(desc.channels);
-  const size_t row_stride = static_cast<size_t>(input.width) * channels;
-  input.data.resize(static_cast<size_t>(input.height) * row_stride);
-  for (size_t g = 0; g < group_source.size(); ++g) {
-    const cv::Mat& image = sources[group_source[g]].image;
-    for (int y = 0; y < input.height; ++y) {
-      const uint8_t* src = image.ptr<uint8_t>(y);
-      float* dst = input.data.data() + static_cast<size_t>(y) * row_stride + 3 * g;
-      for (int x = 0; x < input.width; ++x, src += 3, dst += channels) {
-        for (int c = 0; c < 3; ++c) {
-          const float pixel = static_cast<float>(rgb ? src[2 - c] : src[c]);
-          dst[c] = (pixel * desc.scale - desc.mean[c]) / desc.std[c];
-        }
-      }
-    }
-  }
+  auto pre = camera::Preprocessor::Create(*params, input.height, input.width);
+  if (!pre.ok()) return Status::Error(pre.message());
+  input.data.resize(pre->output_floats());
+  camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
+                                sources[3].image, input.data.data(), input.data.size());
+  if (!ran.ok()) return Status::Error(ran.message());
   std::string order;
   for (const std::string& slot : desc.image_order) order += (order.empty() ? "" : ",") + slot;
   input.description = "4 images as " + order + ", " + desc.color_order + resized;

@@ -33,6 +33,9 @@ Command AddInferCommand(CLI::App& parent);
 Command AddBenchCommand(CLI::App& parent);
 Command AddSynthCommand(CLI::App& parent);
 Command AddAnnotateCommand(CLI::App& parent);
+Command AddRunCommand(CLI::App& parent);
+Command AddEvalCommand(CLI::App& parent);
+Command AddConfigCommand(CLI::App& parent);
 
 // Prints "sfrt <command>: <message>" on one line to stderr (newlines in `message` become
 // spaces) and returns `exit_code`.

@@ -128,6 +128,9 @@ int main(int argc, char** argv) {
   commands.push_back(sfrt::tools::AddBenchCommand(app));
   commands.push_back(sfrt::tools::AddSynthCommand(app));
   commands.push_back(sfrt::tools::AddAnnotateCommand(app));
+  commands.push_back(sfrt::tools::AddRunCommand(app));
+  commands.push_back(sfrt::tools::AddEvalCommand(app));
+  commands.push_back(sfrt::tools::AddConfigCommand(app));
 
   try {
     app.parse(argc, argv);

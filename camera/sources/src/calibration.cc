@@ -207,6 +207,9 @@ Result<RosCamera> ReadRosCamera(const std::string& file) {
 
 // ---- OpenCV FileStorage ----
 
+// Calibration matrices are at most 3x4 and distortion vectors 1x14; anything larger is damage.
+constexpr int kMaxMatrixSide = 64;
+
 struct FsFile {
   std::string path;
   cv::FileStorage fs;
@@ -239,8 +242,17 @@ Result<cv::Mat> FsMatrix(const std::vector<FsFile>& files, const std::vector<std
   *found_key = key;
   cv::Mat m;
   try {
-    where->fs[key] >> m;
-  } catch (const cv::Exception&) {
+    // OpenCV allocates rows x cols x channels before it reads the data: bound the sizes first,
+    // or a damaged "cols" asks for gigabytes. (OpenCV then checks the data count itself.)
+    const cv::FileNode node = where->fs[key];
+    const cv::FileNode rows = node["rows"], cols = node["cols"], data = node["data"];
+    if (node.isMap() && rows.isInt() && cols.isInt() && data.isSeq() &&
+        static_cast<int>(rows) >= 1 && static_cast<int>(rows) <= kMaxMatrixSide &&
+        static_cast<int>(cols) >= 1 && static_cast<int>(cols) <= kMaxMatrixSide &&
+        data.size() >= 1 && data.size() <= 4 * kMaxMatrixSide * kMaxMatrixSide) {
+      node >> m;
+    }
+  } catch (const std::exception&) {  // cv::Exception, and std:: ones OpenCV lets out
     m.release();
   }
   if (m.empty()) {
@@ -300,13 +312,14 @@ Result<cv::Size> FsImageSize(const std::vector<FsFile>& files) {
       try {
         if (node.isSeq()) {
           node >> v;
-        } else if (node.isMap()) {
-          cv::Mat m;
+        } else if (node.isMap() && node["rows"].isInt() && node["cols"].isInt() &&
+                   static_cast<int>(node["rows"]) * static_cast<int>(node["cols"]) == 2) {
+          cv::Mat m;  // a 1x2 or 2x1 opencv-matrix (sizes checked: OpenCV allocates first)
           node >> m;
           m.convertTo(m, CV_64F);
           v.assign(m.begin<double>(), m.end<double>());
         }
-      } catch (const cv::Exception&) {
+      } catch (const std::exception&) {  // cv::Exception, and std:: ones OpenCV lets out
         v.clear();
       }
       if (v.size() != 2 || !(v[0] >= 1) || !(v[1] >= 1) || v[0] != std::floor(v[0]) ||
@@ -461,8 +474,14 @@ Result<StereoCalibration> ReadOpenCvCalibration(const std::vector<std::string>& 
       if (!f.fs.open(p, cv::FileStorage::READ)) {
         return Status::Error(p + ": not an OpenCV FileStorage file (YAML with %YAML:1.0, or XML)");
       }
+      // Key lookups assert (throw) on a top level that is not a mapping.
+      if (!f.fs.getFirstTopLevelNode().isMap()) {
+        return Status::Error(p + ": top level of the OpenCV FileStorage file is not a mapping");
+      }
     } catch (const cv::Exception& e) {
       return Status::Error(p + ": not a readable OpenCV FileStorage file (" + e.err + ")");
+    } catch (const std::exception& e) {  // OpenCV's parser also lets std::length_error out
+      return Status::Error(p + ": not a readable OpenCV FileStorage file (" + e.what() + ")");
     }
     files.push_back(std::move(f));
   }

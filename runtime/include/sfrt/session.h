@@ -12,7 +12,9 @@
 // each nearest-2x upsample (+ crop) into the 3x3 convolution that reads it (optimised ISAs only;
 // the upsampled tensor then never exists), and records the plan as a flat list of steps with
 // kernel function pointers. Run() walks that list. With threads > 1, Create() starts a fixed
-// pool and Run() splits each step's output rows over it.
+// pool and Run() splits each step over it: SIMD convolutions into (output-channel block x row
+// range) items, block-major, so the threads share a block's weights in cache and write disjoint
+// outputs; other steps by output rows.
 //
 // Thread-safety: a Session is not thread-safe (Run() writes its arena). Use one Session per
 // thread; Sessions created from the same Model share its weights.

@@ -12,6 +12,10 @@ struct V {
   using Reg = __m256;
   static constexpr int kLanes = 8;
   static Reg Load(const float* p) { return _mm256_loadu_ps(p); }
+  static Reg LoadPartial(const float* p, int n) {
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    return _mm256_maskload_ps(p, _mm256_cmpgt_epi32(_mm256_set1_epi32(n), lane));
+  }
   static Reg Broadcast(const float* p) { return _mm256_broadcast_ss(p); }
   static Reg Fma(Reg a, Reg b, Reg acc) { return _mm256_fmadd_ps(a, b, acc); }
   static void Store(float* p, Reg v) { _mm256_storeu_ps(p, v); }
@@ -31,17 +35,28 @@ struct V {
   }
 };
 
-void Conv6x16(const ConvArgs& a, int b, int e) { simd::ConvRows<V, 6, 2>(a, b, e); }
-void Conv6x8(const ConvArgs& a, int b, int e) { simd::ConvRows<V, 6, 1>(a, b, e); }
-void UpConv6x16(const ConvArgs& a, int b, int e) { simd::UpConvRows<V, 6, 2>(a, b, e); }
-void UpConv6x8(const ConvArgs& a, int b, int e) { simd::UpConvRows<V, 6, 1>(a, b, e); }
+void Conv6x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::ConvRows<V, 6, 2>(a, r0, r1, b0, b1);
+}
+void Conv6x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::ConvRows<V, 6, 1>(a, r0, r1, b0, b1);
+}
+void UpConv6x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::UpConvRows<V, 6, 2>(a, r0, r1, b0, b1);
+}
+void UpConv6x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::UpConvRows<V, 6, 1>(a, r0, r1, b0, b1);
+}
 
 }  // namespace
 
 const IsaConvKernels& ConvKernels() {
   static const IsaConvKernels kernels = {
-      {8, Conv6x8, UpConv6x8, "conv2d_f32__avx2_6x8", "upconv2x_conv3x3_f32__avx2_6x8"},
-      {16, Conv6x16, UpConv6x16, "conv2d_f32__avx2_6x16", "upconv2x_conv3x3_f32__avx2_6x16"},
+      {
+          {8, Conv6x8, UpConv6x8, "conv2d_f32__avx2_6x8", "upconv2x_conv3x3_f32__avx2_6x8"},
+          {16, Conv6x16, UpConv6x16, "conv2d_f32__avx2_6x16", "upconv2x_conv3x3_f32__avx2_6x16"},
+      },
+      2,
   };
   return kernels;
 }

@@ -1,6 +1,8 @@
 // AVX-512 convolution kernels (compiled with -mavx512f -mavx512bw -mavx512vl -mavx512dq only
-// in this translation unit; runtime/CMakeLists.txt). Tiles: 8 pixels x 32 channels (wide) and
-// 8 pixels x 16 channels (narrow, for layers with at most 16 output channels).
+// in this translation unit; runtime/CMakeLists.txt). Tiles (pixels x output channels), the
+// accumulators using most of the 32 ZMM registers: 6x64 (24 accumulators, 4 weight vectors, one
+// broadcast: 10 loads per 24 FMAs) for layers with more than 32 output channels, 12x32 for
+// 17..32, 8x16 for 9..16 and 12x8 (256-bit) for at most 8.
 #include <immintrin.h>
 
 #include "kernels/simd/conv_driver_inl.h"
@@ -12,6 +14,9 @@ struct V {
   using Reg = __m512;
   static constexpr int kLanes = 16;
   static Reg Load(const float* p) { return _mm512_loadu_ps(p); }
+  static Reg LoadPartial(const float* p, int n) {
+    return _mm512_maskz_loadu_ps(static_cast<__mmask16>((1u << n) - 1u), p);
+  }
   static Reg Broadcast(const float* p) { return _mm512_set1_ps(*p); }
   static Reg Fma(Reg a, Reg b, Reg acc) { return _mm512_fmadd_ps(a, b, acc); }
   static void Store(float* p, Reg v) { _mm512_storeu_ps(p, v); }
@@ -29,17 +34,70 @@ struct V {
   }
 };
 
-void Conv8x32(const ConvArgs& a, int b, int e) { simd::ConvRows<V, 8, 2>(a, b, e); }
-void Conv8x16(const ConvArgs& a, int b, int e) { simd::ConvRows<V, 8, 1>(a, b, e); }
-void UpConv8x32(const ConvArgs& a, int b, int e) { simd::UpConvRows<V, 8, 2>(a, b, e); }
-void UpConv8x16(const ConvArgs& a, int b, int e) { simd::UpConvRows<V, 8, 1>(a, b, e); }
+// 256-bit vectors (AVX-512VL keeps all 32 registers and masked loads/stores) for layers with
+// at most 8 output channels, where a 16-lane tile would compute mostly padding.
+struct V8 {
+  using Reg = __m256;
+  static constexpr int kLanes = 8;
+  static Reg Load(const float* p) { return _mm256_loadu_ps(p); }
+  static Reg LoadPartial(const float* p, int n) {
+    return _mm256_maskz_loadu_ps(static_cast<__mmask8>((1u << n) - 1u), p);
+  }
+  static Reg Broadcast(const float* p) { return _mm256_broadcast_ss(p); }
+  static Reg Fma(Reg a, Reg b, Reg acc) { return _mm256_fmadd_ps(a, b, acc); }
+  static void Store(float* p, Reg v) { _mm256_storeu_ps(p, v); }
+  static void StorePartial(float* p, Reg v, int n) {
+    _mm256_mask_storeu_ps(p, static_cast<__mmask8>((1u << n) - 1u), v);
+  }
+  static Reg Leaky(Reg v, float slope) {
+    const __mmask8 positive = _mm256_cmp_ps_mask(v, _mm256_setzero_ps(), _CMP_GT_OQ);
+    return _mm256_mask_blend_ps(positive, _mm256_mul_ps(v, _mm256_set1_ps(slope)), v);
+  }
+  static Reg Relu(Reg v) {
+    const __mmask8 positive = _mm256_cmp_ps_mask(v, _mm256_setzero_ps(), _CMP_GT_OQ);
+    return _mm256_mask_blend_ps(positive, _mm256_setzero_ps(), v);
+  }
+};
+
+void Conv12x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::ConvRows<V8, 12, 1>(a, r0, r1, b0, b1);
+}
+void UpConv12x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::UpConvRows<V8, 12, 1>(a, r0, r1, b0, b1);
+}
+void Conv6x64(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::ConvRows<V, 6, 4>(a, r0, r1, b0, b1);
+}
+void Conv12x32(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::ConvRows<V, 12, 2>(a, r0, r1, b0, b1);
+}
+void Conv8x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::ConvRows<V, 8, 1>(a, r0, r1, b0, b1);
+}
+void UpConv6x64(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::UpConvRows<V, 6, 4>(a, r0, r1, b0, b1);
+}
+void UpConv12x32(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::UpConvRows<V, 12, 2>(a, r0, r1, b0, b1);
+}
+void UpConv8x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::UpConvRows<V, 8, 1>(a, r0, r1, b0, b1);
+}
 
 }  // namespace
 
 const IsaConvKernels& ConvKernels() {
   static const IsaConvKernels kernels = {
-      {16, Conv8x16, UpConv8x16, "conv2d_f32__avx512_8x16", "upconv2x_conv3x3_f32__avx512_8x16"},
-      {32, Conv8x32, UpConv8x32, "conv2d_f32__avx512_8x32", "upconv2x_conv3x3_f32__avx512_8x32"},
+      {
+          {8, Conv12x8, UpConv12x8, "conv2d_f32__avx512_12x8", "upconv2x_conv3x3_f32__avx512_12x8"},
+          {16, Conv8x16, UpConv8x16, "conv2d_f32__avx512_8x16",
+           "upconv2x_conv3x3_f32__avx512_8x16"},
+          {32, Conv12x32, UpConv12x32, "conv2d_f32__avx512_12x32",
+           "upconv2x_conv3x3_f32__avx512_12x32"},
+          {64, Conv6x64, UpConv6x64, "conv2d_f32__avx512_6x64",
+           "upconv2x_conv3x3_f32__avx512_6x64"},
+      },
+      4,
   };
   return kernels;
 }

@@ -50,6 +50,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "sfrt/exporter/model_spec.h"
@@ -74,5 +75,11 @@ struct KerasImportResult {
 // file name, SHA-256 of the .h5). Name, preprocessing and camera keep ModelSpec's defaults.
 Result<KerasImportResult> ImportKerasH5(const std::string& path,
                                         const KerasImportOptions& options = {});
+
+// ImportKerasH5 on an HDF5 file image held in memory (read through HDF5's core driver, never
+// touching the disk): `label` stands for the path in messages and gives producer.source_file
+// its base name; the SHA-256 is of `image`.
+Result<KerasImportResult> ImportKerasH5FromMemory(std::string_view image, const std::string& label,
+                                                  const KerasImportOptions& options = {});
 
 }  // namespace sfrt::exporter

@@ -40,6 +40,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 
 #include "sfrt/exporter/model_spec.h"
 #include "sfrt/status.h"
@@ -59,5 +60,10 @@ struct OnnxImportOptions {
 // Fills layers, input (channels, traced size), output channels and producer (format, file
 // name, SHA-256). Name, preprocessing and camera keep ModelSpec's defaults for the caller to set.
 Result<ModelSpec> ImportOnnx(const std::string& path, const OnnxImportOptions& options = {});
+
+// ImportOnnx on a file's bytes held in memory: `label` stands for the path in messages and gives
+// producer.source_file its base name; the SHA-256 is of `bytes`.
+Result<ModelSpec> ImportOnnxFromMemory(std::string_view bytes, const std::string& label,
+                                       const OnnxImportOptions& options = {});
 
 }  // namespace sfrt::exporter

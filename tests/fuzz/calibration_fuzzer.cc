@@ -1,0 +1,88 @@
+// Fuzz target: the stereo calibration readers (ROS camera_info pair, Kalibr camchain, OpenCV
+// FileStorage YAML/XML, one or two files, and the content-sniffing ReadStereoCalibration).
+// The readers take paths, so the input is written to files in a private temporary directory.
+// Input layout: byte 0 picks the reader (value % 7, below); the rest is the file content, split
+// into two files at the first "\n---8<---\n" for the two-file readers (without the marker, both
+// files get the whole content).
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "sfrt/camera/calibration.h"
+
+namespace {
+
+constexpr std::string_view kSplit = "\n---8<---\n";
+
+const std::filesystem::path& TempDir() {
+  static const std::filesystem::path dir = [] {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "sfrt-fuzz-calib-XXXXXX").string();
+    if (::mkdtemp(tmpl.data()) == nullptr) {
+      std::perror("mkdtemp");
+      std::abort();
+    }
+    std::atexit([] {
+      std::error_code ec;
+      std::filesystem::remove_all(TempDir(), ec);
+    });
+    return std::filesystem::path(tmpl);
+  }();
+  return dir;
+}
+
+std::string WriteFile(const std::string& name, std::string_view content) {
+  const std::string path = (TempDir() / name).string();
+  FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr || std::fwrite(content.data(), 1, content.size(), f) != content.size() ||
+      std::fclose(f) != 0) {
+    std::perror(path.c_str());
+    std::abort();
+  }
+  return path;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  if (size < 1) return 0;
+  const int mode = data[0] % 7;
+  const std::string_view body(reinterpret_cast<const char*>(data + 1), size - 1);
+  std::string_view first = body, second = body;
+  if (const size_t at = body.find(kSplit); at != std::string_view::npos) {
+    first = body.substr(0, at);
+    second = body.substr(at + kSplit.size());
+  }
+  using namespace sfrt::camera;
+  switch (mode) {
+    case 0:  // ROS camera_info pair
+      (void)ReadRosCameraInfoPair(WriteFile("left.yaml", first), WriteFile("right.yaml", second));
+      break;
+    case 1:  // Kalibr camchain
+      (void)ReadKalibrCamchain(WriteFile("camchain.yaml", body));
+      break;
+    case 2:  // OpenCV FileStorage, one YAML file
+      (void)ReadOpenCvCalibration({WriteFile("stereo.yml", body)});
+      break;
+    case 3:  // OpenCV FileStorage, one XML file
+      (void)ReadOpenCvCalibration({WriteFile("stereo.xml", body)});
+      break;
+    case 4:  // OpenCV FileStorage, intrinsics + extrinsics
+      (void)ReadOpenCvCalibration(
+          {WriteFile("intrinsics.yml", first), WriteFile("extrinsics.yml", second)});
+      break;
+    case 5:  // content sniffing, one file
+      (void)ReadStereoCalibration({WriteFile("calib.yaml", body)});
+      break;
+    default:  // content sniffing, two files
+      (void)ReadStereoCalibration({WriteFile("a.yaml", first), WriteFile("b.yaml", second)});
+      break;
+  }
+  return 0;
+}

@@ -1,0 +1,313 @@
+// The pipeline with a fake frame source and the bundled 1/16-width demo model.
+#include "pipeline/pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <string>
+
+#include "pipeline/visualize.h"
+#include "sfrt/io/pfm.h"
+#include "sfrt/session.h"
+
+namespace sfrt::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kH = 32;
+constexpr int kW = 48;
+
+std::shared_ptr<const Model> DemoModel() {
+  auto model =
+      Model::LoadFile(std::string(SFRT_SOURCE_DIR) + "/tools/demo/sceneednet-w16-demo.sfrt");
+  EXPECT_TRUE(model.ok()) << model.message();
+  return model.ok() ? *model : nullptr;
+}
+
+// Pair k: seeded noise, so every window differs.
+cv::Mat PairImage(int k, int side) {
+  cv::Mat m(kH, kW, CV_8UC3);
+  cv::RNG rng(static_cast<uint64_t>(1000 + 2 * k + side));
+  rng.fill(m, cv::RNG::UNIFORM, 0, 256);
+  return m;
+}
+
+// Windows (k, k+1) for k < windows; optionally live, failing or raising `stop` after some.
+class FakeSource : public FrameSource {
+ public:
+  explicit FakeSource(int windows) : windows_(windows) {}
+  Result<cv::Size> Open() override { return cv::Size(kW, kH); }
+  Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& /*stop*/) override {
+    if (next_ == fail_at_)
+      return Status::Error("fake: frame 'k" + std::to_string(next_) + "' is bad");
+    if (next_ == stop_at_ && stop_) {
+      stop_signal_->store(SIGTERM);
+      stop_->store(true);
+    }
+    if (next_ >= windows_) return Fetch::kEnd;
+    PairImage(next_, 0).copyTo(item->left0);
+    PairImage(next_, 1).copyTo(item->right0);
+    PairImage(next_ + 1, 0).copyTo(item->left1);
+    PairImage(next_ + 1, 1).copyTo(item->right1);
+    item->meta.sequence = "seq";
+    item->meta.frame0 = next_;
+    item->meta.frame1 = next_ + 1;
+    const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                            std::chrono::steady_clock::now().time_since_epoch())
+                            .count();
+    item->meta.capture_ns[0] = item->meta.capture_ns[1] = now;
+    item->meta.stage_ns[0][0] = now;
+    ++next_;
+    return Fetch::kWindow;
+  }
+  std::string Describe() const override { return "fake"; }
+  std::string kind() const override { return "fake"; }
+  std::optional<int64_t> total_windows() const override { return windows_; }
+  bool live() const override { return live_; }
+  void ToJson(nlohmann::json* out) const override { (*out)["fake"] = true; }
+
+  int windows_;
+  int next_ = 0;
+  bool live_ = false;
+  int fail_at_ = -1;
+  int stop_at_ = -1;
+  std::atomic<bool>* stop_ = nullptr;
+  std::atomic<int>* stop_signal_ = nullptr;
+};
+
+class PipelineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("sfrt_pipeline_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    options_.out_dir = dir_.string();
+    options_.progress = ProgressMode::kOff;
+    options_.model_path = "demo";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  nlohmann::json Summary() {
+    std::ifstream in(dir_ / "summary.json");
+    return nlohmann::json::parse(in);
+  }
+  std::vector<std::string> Files(const std::string& ext) {
+    std::vector<std::string> out;
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      if (e.path().extension() == ext) out.push_back(e.path().filename().string());
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+  bool AnyTempFile() {
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      if (e.path().filename().string().find(".tmp.") != std::string::npos) return true;
+    }
+    return false;
+  }
+
+  fs::path dir_;
+  PipelineOptions options_;
+};
+
+TEST_F(PipelineTest, ReplayWritesEveryWindowAndMatchesDirectInference) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(4);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.frames, 4);
+  EXPECT_EQ(r.stopped_by, "end of source");
+  EXPECT_EQ(Files(".pfm"), (std::vector<std::string>{"seq_000000.pfm", "seq_000001.pfm",
+                                                     "seq_000002.pfm", "seq_000003.pfm"}));
+  EXPECT_EQ(Files(".png").size(), 4u);
+  EXPECT_FALSE(AnyTempFile());
+
+  // Independent path: Preprocessor + a fresh Session on the same images, same ISA and threads.
+  auto params = PreprocessFromMetadata(model->metadata().input);
+  ASSERT_TRUE(params.ok());
+  auto pre = camera::Preprocessor::Create(*params, kH, kW);
+  ASSERT_TRUE(pre.ok());
+  SessionOptions so;
+  so.max_height = kH;
+  so.max_width = kW;
+  auto session = Session::Create(model, so);
+  ASSERT_TRUE(session.ok());
+  std::vector<float> input(pre->output_floats());
+  std::vector<float> flow(static_cast<size_t>(kH) * kW * 3);
+  for (int k = 0; k < 4; ++k) {
+    ASSERT_TRUE(pre->Run(PairImage(k, 0), PairImage(k, 1), PairImage(k + 1, 0), PairImage(k + 1, 1),
+                         input.data(), input.size())
+                    .ok());
+    ASSERT_TRUE((*session)->Run(input, kH, kW, flow).ok());
+    char name[32];
+    std::snprintf(name, sizeof(name), "seq_%06d.pfm", k);
+    auto written = tools::ReadPfm((dir_ / name).string());
+    ASSERT_TRUE(written.ok()) << written.message();
+    ASSERT_EQ(written->data.size(), flow.size());
+    for (size_t i = 0; i < flow.size(); ++i)
+      ASSERT_EQ(written->data[i], flow[i]) << name << " " << i;
+  }
+
+  nlohmann::json j = Summary();
+  EXPECT_EQ(j["frames"]["written"], 4);
+  EXPECT_EQ(j["frames"]["total"], 4);
+  EXPECT_EQ(j["completed"], true);
+  EXPECT_EQ(j["queue_policy"], "block");
+  EXPECT_EQ(j["drops"]["preprocess"], 0);
+  EXPECT_EQ(j["latency_ms"]["end_to_end"]["count"], 4);
+  for (const char* stage : {"source", "preprocess", "infer", "output", "end_to_end"}) {
+    const auto& p = j["latency_ms"][stage];
+    EXPECT_LE(p["p50"].get<double>(), p["p90"].get<double>()) << stage;
+    EXPECT_LE(p["p90"].get<double>(), p["p99"].get<double>()) << stage;
+    EXPECT_LE(p["p99"].get<double>(), p["max"].get<double>()) << stage;
+  }
+}
+
+TEST_F(PipelineTest, NewestWinsNeverGoesBackInTimeAndAccountsForEveryWindow) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(300);
+  source.live_ = true;  // kNewestWins by default
+  options_.write_png = false;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  nlohmann::json j = Summary();
+  EXPECT_EQ(j["queue_policy"], "newest-wins");
+  const int64_t read = j["frames"]["read"];
+  const int64_t written = j["frames"]["written"];
+  const int64_t dropped = j["drops"]["preprocess"].get<int64_t>() +
+                          j["drops"]["infer"].get<int64_t>() + j["drops"]["output"].get<int64_t>();
+  EXPECT_EQ(read, 300);
+  EXPECT_EQ(written + dropped + j["drops"]["discarded_at_stop"].get<int64_t>(), read);
+  // The source makes a window in microseconds, the network needs far longer: windows are
+  // dropped rather than queued.
+  EXPECT_GT(dropped, 0);
+  // Written frames are in capture order (names sort by frame number), the last one included.
+  std::vector<std::string> files = Files(".pfm");
+  EXPECT_EQ(static_cast<int64_t>(files.size()), written);
+  EXPECT_EQ(files.back(), "seq_000299.pfm");
+}
+
+TEST_F(PipelineTest, StopRequestFinishesWindowsInFlightAndSaysSo) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  std::atomic<bool> stop{false};
+  std::atomic<int> sig{0};
+  FakeSource source(200);
+  source.stop_at_ = 3;
+  source.stop_ = &stop;
+  source.stop_signal_ = &sig;
+  options_.stop = &stop;
+  options_.stop_signal = &sig;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.stopped_by, "SIGTERM");
+  nlohmann::json j = Summary();
+  EXPECT_EQ(j["stopped_by"], "SIGTERM");
+  EXPECT_EQ(j["completed"], false);
+  const int64_t written = j["frames"]["written"];
+  EXPECT_GE(written, 3);  // everything read before the stop was finished (queue policy block)
+  EXPECT_LT(written, 200);
+  EXPECT_EQ(written, j["frames"]["read"].get<int64_t>());
+  EXPECT_FALSE(AnyTempFile());
+  for (const std::string& f : Files(".pfm")) {
+    auto pfm = tools::ReadPfm((dir_ / f).string());
+    EXPECT_TRUE(pfm.ok()) << pfm.message();
+  }
+}
+
+TEST_F(PipelineTest, SourceErrorEndsTheRunWithTheErrorInTheSummary) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(10);
+  source.fail_at_ = 2;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_FALSE(r.status.ok());
+  EXPECT_NE(r.status.message().find("frame 'k2' is bad"), std::string::npos);
+  nlohmann::json j = Summary();
+  EXPECT_EQ(j["stopped_by"], "error");
+  EXPECT_NE(j["error"].get<std::string>().find("frame 'k2' is bad"), std::string::npos);
+  EXPECT_EQ(j["frames"]["written"], 2);  // the windows read before the error are written
+}
+
+TEST_F(PipelineTest, MaxFramesStopsAfterThatManyFrames) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(20);
+  options_.max_frames = 3;
+  options_.flow_format = FlowFormat::kNpy;
+  options_.write_png = false;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.frames, 3);
+  EXPECT_EQ(r.stopped_by, "max-frames");
+  EXPECT_EQ(Files(".npy").size(), 3u);
+}
+
+TEST(PreprocessFromMetadata, CopiesTheModelsPreprocessing) {
+  InputDesc d;
+  d.channels = 12;
+  d.image_order = {"right0", "left0", "right1", "left1"};
+  d.color_order = "RGB";
+  d.scale = 0.5f;
+  d.mean[1] = 3;
+  d.std[2] = 4;
+  auto p = PreprocessFromMetadata(d);
+  ASSERT_TRUE(p.ok()) << p.message();
+  EXPECT_EQ(p->image_order[0], camera::ImageSlot::kRight0);
+  EXPECT_EQ(p->image_order[3], camera::ImageSlot::kLeft1);
+  EXPECT_EQ(p->color_order, camera::ColorOrder::kRGB);
+  EXPECT_EQ(p->scale, 0.5f);
+  EXPECT_EQ(p->mean[1], 3.0f);
+  EXPECT_EQ(p->std[2], 4.0f);
+  d.color_order = "YUV";
+  auto bad = PreprocessFromMetadata(d);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.message().find("color order 'YUV'"), std::string::npos);
+}
+
+TEST(Visualizer, ColoursDirectionByHueAndZByADivergingMap) {
+  cv::Mat left(4, 4, CV_8UC3, cv::Scalar(10, 20, 30));
+  std::vector<float> flow(4 * 4 * 3, 0.0f);
+  flow[0] = 2.0f;       // pixel (0,0): +X at full scale, Z = 0
+  flow[3 + 2] = -1.0f;  // pixel (0,1): Z negative, the largest |Z|
+  flow[6 + 2] = 0.5f;   // pixel (0,2): Z positive, half scale
+  Visualizer vis;
+  cv::Mat canvas;
+  vis.Render(left, flow.data(), 3, "t", &canvas);
+  ASSERT_EQ(canvas.rows, 4 + Visualizer::kLegendRows);
+  ASSERT_EQ(canvas.cols, 12);
+  EXPECT_EQ(canvas.at<cv::Vec3b>(0, 0), cv::Vec3b(10, 20, 30));  // the left image
+  EXPECT_EQ(canvas.at<cv::Vec3b>(0, 4), cv::Vec3b(0, 0, 255));   // +X: red, full value
+  EXPECT_EQ(canvas.at<cv::Vec3b>(1, 4), cv::Vec3b(0, 0, 0));     // no motion: black
+  EXPECT_EQ(canvas.at<cv::Vec3b>(0, 8), DivergingColor(0.0));    // Z = 0
+  EXPECT_EQ(canvas.at<cv::Vec3b>(0, 9), DivergingColor(-1.0));   // Z = -max
+  EXPECT_EQ(canvas.at<cv::Vec3b>(0, 10), DivergingColor(0.5));   // Z = max / 2
+  EXPECT_EQ(DivergingColor(0.0), cv::Vec3b(255, 255, 255));
+  const cv::Vec3b cold = DivergingColor(-1.0), warm = DivergingColor(1.0);
+  EXPECT_GT(cold[0], cold[2]);  // blue end
+  EXPECT_GT(warm[2], warm[0]);  // red end
+  EXPECT_DOUBLE_EQ(vis.last_xy_scale(), 2.0);
+  EXPECT_DOUBLE_EQ(vis.last_z_scale(), 1.0);
+}
+
+TEST(ComputePercentiles, InterpolatesLikeNumpy) {
+  Percentiles p = ComputePercentiles({4, 1, 3, 2, 5});
+  EXPECT_DOUBLE_EQ(p.p50, 3.0);
+  EXPECT_DOUBLE_EQ(p.p90, 4.6);
+  EXPECT_DOUBLE_EQ(p.p99, 4.96);
+  EXPECT_DOUBLE_EQ(p.max, 5.0);
+  EXPECT_EQ(p.count, 5u);
+  EXPECT_EQ(ComputePercentiles({}).count, 0u);
+}
+
+}  // namespace
+}  // namespace sfrt::pipeline

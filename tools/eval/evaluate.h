@@ -1,0 +1,96 @@
+// `sfrt eval`: scene-flow accuracy of a model and two baselines over a dataset tree with ground
+// truth, in the layout of the Scene Flow datasets (tools/synth/dataset.h):
+//
+//   DIR/camera.json                                    focal, baseline, cx, cy (sfrt synth)
+//   DIR/frames_cleanpass/<seq>/{left,right}/NNNN.png   a frame is evaluated when NNNN+1 exists
+//   DIR/scene_flow/<seq>/into_future/left/NNNN.pfm     ground truth (dX, dY, dZ), or else built
+//       from disparity/, disparity_change/ and optical_flow/ with the spec's formula
+//       (synth::ComputeSceneFlow, ConventionKind::kFormula)
+//
+// Methods, all scored against the same ground truth with eval/metrics.h:
+//   sfrt       the model, fed the four images as its metadata prescribes (image order, colour
+//              order, scale/mean/std); with a model size other than the dataset's, the images
+//              are resized (INTER_AREA shrinking, else INTER_LINEAR) and the predicted flow is
+//              resized back bilinearly (its values are 3D displacements: not rescaled)
+//   zero_flow  (0, 0, 0) everywhere: its mean EPE is the mean ground-truth magnitude
+//   classical  eval/classical.h at the dataset's resolution, with the dataset's camera
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "eval/metrics.h"
+#include "sfrt/status.h"
+
+namespace sfrt::eval {
+
+inline constexpr const char* kMethodNames[] = {"sfrt", "zero_flow", "classical"};
+inline constexpr int kMethodCount = 3;
+
+struct EvalOptions {
+  std::string model_path;  // .sfrt; empty: baselines only
+  std::string dataset;
+  int model_height = 0;  // 0: the dataset's size
+  int model_width = 0;
+  int max_frames = 0;  // 0: all
+  bool classical = true;
+};
+
+struct FrameRef {
+  std::string sequence;
+  std::string frame;       // "NNNN"
+  std::string next_frame;  // "NNNN+1"
+};
+
+struct SequenceResult {
+  std::string name;
+  int frames = 0;
+  MetricsAccumulator methods[kMethodCount];
+};
+
+struct EvalReport {
+  std::string dataset;
+  std::string model_path;
+  std::string model_name;
+  double focal = 0, baseline = 0, cx = 0, cy = 0;  // the dataset's camera
+  std::string camera_note;    // a warning when the model's training camera differs, else empty
+  int height = 0, width = 0;  // the dataset's image size
+  int model_height = 0, model_width = 0;  // what the model ran at
+  int frames = 0;
+  bool has_model = false;
+  bool has_classical = false;
+  std::vector<SequenceResult> sequences;
+  MetricsAccumulator overall[kMethodCount];
+};
+
+struct EvalProgress {
+  int done = 0;
+  int total = 0;
+  const FrameRef* frame = nullptr;
+};
+
+// Frames of `root` that have both images at t and t+1 and ground truth (or its inputs) at t,
+// sorted by sequence and frame. Fails when there are none (naming what is missing).
+Result<std::vector<FrameRef>> ListEvalFrames(const std::string& root);
+
+// Ground-truth scene flow of one frame (H*W*3), from scene_flow/ or computed.
+Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameRef& frame,
+                                           double focal, double baseline, double cx, double cy,
+                                           int* height, int* width);
+
+Result<EvalReport> RunEvaluation(const EvalOptions& options,
+                                 const std::function<void(const EvalProgress&)>& progress = {});
+
+// The report as a table (per sequence and overall, one row per method).
+std::string FormatTable(const EvalReport& report);
+
+// The report as JSON: top-level keys "sfrt" (only with a model), "zero_flow", "classical"
+// (unless disabled), each {"epe3d", "epe_x", "epe_y", "epe_z", "acc05", "acc10", "outliers",
+// "valid_pixels", "frames", "sequences": {"<seq>": {the same metrics}}}, plus "dataset",
+// "model", "camera", "image_size", "model_size", "frames", "units" and "definitions".
+std::string FormatJson(const EvalReport& report);
+
+}  // namespace sfrt::eval

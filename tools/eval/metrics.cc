@@ -1,0 +1,68 @@
+#include "eval/metrics.h"
+
+#include <cmath>
+#include <limits>
+
+namespace sfrt::eval {
+
+void MetricsAccumulator::Add(const float* pred, const float* truth, size_t pixels) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < pixels; ++i) {
+    const float* g = truth + 3 * i;
+    if (!std::isfinite(g[0]) || !std::isfinite(g[1]) || !std::isfinite(g[2])) {
+      ++skipped_;
+      continue;
+    }
+    ++valid_;
+    double diff[3];
+    bool finite = true;
+    for (int c = 0; c < 3; ++c) {
+      const double p = pred == nullptr ? 0.0 : static_cast<double>(pred[3 * i + c]);
+      if (!std::isfinite(p)) finite = false;
+      diff[c] = p - static_cast<double>(g[c]);
+    }
+    double epe = kInf;
+    if (finite) {
+      epe = std::sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2]);
+      for (int c = 0; c < 3; ++c) sum_abs_[c] += std::fabs(diff[c]);
+    } else {
+      for (double& s : sum_abs_) s = kInf;
+    }
+    sum_epe_ += epe;
+    const double norm =
+        std::sqrt(static_cast<double>(g[0]) * g[0] + static_cast<double>(g[1]) * g[1] +
+                  static_cast<double>(g[2]) * g[2]);
+    const double rel = norm > 0 ? epe / norm : (epe > 0 ? kInf : 0.0);
+    if (epe < 0.05 || rel < 0.05) ++acc05_;
+    if (epe < 0.1 || rel < 0.1) ++acc10_;
+    if (epe > 0.3 || rel > 0.1) ++outliers_;
+  }
+}
+
+void MetricsAccumulator::Merge(const MetricsAccumulator& other) {
+  sum_epe_ += other.sum_epe_;
+  for (int c = 0; c < 3; ++c) sum_abs_[c] += other.sum_abs_[c];
+  acc05_ += other.acc05_;
+  acc10_ += other.acc10_;
+  outliers_ += other.outliers_;
+  valid_ += other.valid_;
+  skipped_ += other.skipped_;
+}
+
+FlowMetrics MetricsAccumulator::Metrics() const {
+  FlowMetrics m;
+  m.valid_pixels = valid_;
+  m.skipped_pixels = skipped_;
+  if (valid_ == 0) return m;
+  const double n = static_cast<double>(valid_);
+  m.epe3d = sum_epe_ / n;
+  m.epe_x = sum_abs_[0] / n;
+  m.epe_y = sum_abs_[1] / n;
+  m.epe_z = sum_abs_[2] / n;
+  m.acc05 = static_cast<double>(acc05_) / n;
+  m.acc10 = static_cast<double>(acc10_) / n;
+  m.outliers = static_cast<double>(outliers_) / n;
+  return m;
+}
+
+}  // namespace sfrt::eval

@@ -1,0 +1,643 @@
+#include "pipeline/pipeline.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+#include <thread>
+#include <utility>
+
+#include "pipeline/visualize.h"
+#include "sfrt/camera/rectifier.h"
+#include "sfrt/io/atomic_write.h"
+#include "sfrt/io/npy.h"
+#include "sfrt/io/pfm.h"
+#include "sfrt/session.h"
+
+namespace sfrt::pipeline {
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kStageNames[4] = {"source", "preprocess", "infer", "output"};
+
+int64_t NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
+std::string Fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
+  return buf;
+}
+
+struct InputItem {
+  FrameMeta meta;
+  cv::Mat left_vis;          // rectified left image at t, model size (for the visualisation)
+  std::vector<float> input;  // height x width x 12
+};
+
+struct FlowItem {
+  FrameMeta meta;
+  cv::Mat left_vis;
+  std::vector<float> flow;  // height x width x output channels
+};
+
+json PercentilesJson(const Percentiles& p) {
+  return json{{"p50", p.p50}, {"p90", p.p90}, {"p99", p.p99}, {"max", p.max}, {"count", p.count}};
+}
+
+class Runner {
+ public:
+  Runner(std::shared_ptr<const Model> model, FrameSource* source, const PipelineOptions& options)
+      : model_(std::move(model)), source_(source), options_(options) {}
+
+  PipelineResult Run();
+
+ private:
+  Status Setup();
+  void SourceStage();
+  void PreprocessStage();
+  void InferStage();
+  void OutputStage();
+  void Fail(const Status& status, bool discard);
+  void Progress(bool final);
+  Status WriteSummary(PipelineResult* result);
+  WindowItem MakeWindow() const;
+  InputItem MakeInput() const;
+  FlowItem MakeFlow() const;
+
+  std::shared_ptr<const Model> model_;
+  FrameSource* source_;
+  PipelineOptions options_;
+
+  cv::Size source_size_;
+  int height_ = 0;
+  int width_ = 0;
+  int out_channels_ = 0;
+  std::unique_ptr<Session> session_;
+  std::optional<camera::Preprocessor> preprocessor_;
+  std::optional<camera::StereoRectifier> rectifier_;
+  QueuePolicy policy_ = QueuePolicy::kBlock;
+  std::unique_ptr<LatestQueue<WindowItem>> q1_;
+  std::unique_ptr<LatestQueue<InputItem>> q2_;
+  std::unique_ptr<LatestQueue<FlowItem>> q3_;
+
+  std::atomic<bool> halt_{false};  // the source stops reading
+  std::atomic<bool> max_reached_{false};
+  std::mutex mu_;  // guards error_ and the counters the main thread reads while running
+  Status error_ = Status::Ok();
+  std::vector<std::string> warnings_;
+
+  // Written by one stage each; read after the threads are joined.
+  int64_t windows_read_ = 0;
+  int64_t frames_ = 0;
+  int64_t misses_ = 0;
+  int64_t discarded_after_max_ = 0;
+  std::vector<double> stage_ms_[4];
+  std::vector<double> e2e_ms_;
+  std::string last_stem_;
+  std::string video_tmp_;
+  bool video_written_ = false;
+  int64_t start_ns_ = 0;
+  int64_t end_ns_ = 0;
+  int64_t last_progress_ns_ = 0;
+  bool tty_progress_ = false;
+  bool line_progress_ = false;
+};
+
+WindowItem Runner::MakeWindow() const {
+  WindowItem w;
+  for (cv::Mat* m : {&w.left0, &w.right0, &w.left1, &w.right1}) {
+    m->create(source_size_, CV_8UC3);
+  }
+  return w;
+}
+
+InputItem Runner::MakeInput() const {
+  InputItem in;
+  in.left_vis.create(height_, width_, CV_8UC3);
+  in.input.resize(preprocessor_->output_floats());
+  return in;
+}
+
+FlowItem Runner::MakeFlow() const {
+  FlowItem f;
+  f.left_vis.create(height_, width_, CV_8UC3);
+  f.flow.resize(static_cast<size_t>(height_) * width_ * out_channels_);
+  return f;
+}
+
+void Runner::Fail(const Status& status, bool discard) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (error_.ok()) error_ = status;
+  }
+  halt_ = true;
+  if (discard) {
+    q1_->Discard();
+    q2_->Discard();
+    q3_->Discard();
+  }
+}
+
+Status Runner::Setup() {
+  Result<cv::Size> size = source_->Open();
+  if (!size.ok()) return size.status();
+  source_size_ = *size;
+  height_ = options_.height > 0 ? options_.height : source_size_.height;
+  width_ = options_.width > 0 ? options_.width : source_size_.width;
+
+  Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
+  if (!params.ok()) return params.status();
+  auto pre = camera::Preprocessor::Create(*params, height_, width_);
+  if (!pre.ok()) return Status::Error(pre.message());
+  preprocessor_.emplace(std::move(pre).value());
+
+  const cv::Size model_size(width_, height_);
+  if (options_.calibration) {
+    auto rect = camera::StereoRectifier::Create(*options_.calibration, source_size_,
+                                                camera::RectifyOptions{model_size});
+    if (!rect.ok()) return Status::Error(rect.message());
+    rectifier_.emplace(std::move(rect).value());
+    // The network was trained on one camera; a different rectified camera scales its output.
+    const CameraDesc& trained = model_->metadata().camera;
+    const camera::RectifiedCamera& cam = rectifier_->camera();
+    auto differs = [](double a, double b, double rel) {
+      return std::fabs(a - b) > rel * std::max(std::fabs(a), std::fabs(b));
+    };
+    auto warn = [&](const std::string& what, double got, double want) {
+      warnings_.push_back("rectified camera " + what + " " + Fixed(got, 4) +
+                          " differs from the model's training camera (" + Fixed(want, 4) +
+                          "); the flow's scale may be off");
+    };
+    if (trained.focal_px > 0 && differs(cam.fx, trained.focal_px, 0.01)) {
+      warn("focal length (px)", cam.fx, trained.focal_px);
+    }
+    if (trained.baseline > 0 && differs(cam.baseline, trained.baseline, 0.01)) {
+      warn("baseline", cam.baseline, trained.baseline);
+    }
+    if (trained.focal_px > 0 &&
+        (std::fabs(cam.cx - trained.cx) > 2.0 || std::fabs(cam.cy - trained.cy) > 2.0)) {
+      warnings_.push_back("rectified principal point (" + Fixed(cam.cx, 1) + ", " +
+                          Fixed(cam.cy, 1) + ") differs from the training camera's (" +
+                          Fixed(trained.cx, 1) + ", " + Fixed(trained.cy, 1) + ")");
+    }
+  } else {
+    auto rect = camera::StereoRectifier::CreateResizeOnly(source_size_, model_size);
+    if (!rect.ok()) return Status::Error(rect.message());
+    rectifier_.emplace(std::move(rect).value());
+  }
+
+  SessionOptions so;
+  so.max_height = height_;
+  so.max_width = width_;
+  so.isa = options_.isa;
+  so.threads = options_.threads;
+  Result<std::unique_ptr<Session>> session = Session::Create(model_, so);
+  if (!session.ok()) {
+    return Status::Error("cannot create a session for " + std::to_string(height_) + "x" +
+                         std::to_string(width_) + ": " + session.message());
+  }
+  session_ = std::move(session).value();
+  Result<TensorShape> shape = session_->OutputShape(height_, width_);
+  if (!shape.ok()) return shape.status();
+  out_channels_ = shape->channels;
+  if (shape->height != height_ || shape->width != width_) {
+    return Status::Error("the model's output is " + std::to_string(shape->height) + "x" +
+                         std::to_string(shape->width) + " for an input of " +
+                         std::to_string(height_) + "x" + std::to_string(width_) +
+                         "; the pipeline needs flow at the input size");
+  }
+  if (options_.write_flow && options_.flow_format == FlowFormat::kPfm && out_channels_ != 1 &&
+      out_channels_ != 3) {
+    return Status::Error("the model outputs " + std::to_string(out_channels_) +
+                         " channels; PFM holds 1 or 3 (use --flow-format npy)");
+  }
+
+  policy_ =
+      options_.policy.value_or(source_->live() ? QueuePolicy::kNewestWins : QueuePolicy::kBlock);
+  const size_t cap = std::max<size_t>(1, options_.queue_capacity);
+  q1_ = std::make_unique<LatestQueue<WindowItem>>(cap, policy_, [this] { return MakeWindow(); });
+  q2_ = std::make_unique<LatestQueue<InputItem>>(cap, policy_, [this] { return MakeInput(); });
+  q3_ = std::make_unique<LatestQueue<FlowItem>>(cap, policy_, [this] { return MakeFlow(); });
+  const size_t reserve = options_.max_frames > 0
+                             ? static_cast<size_t>(options_.max_frames)
+                             : static_cast<size_t>(source_->total_windows().value_or(4096));
+  for (auto& v : stage_ms_) v.reserve(reserve);
+  e2e_ms_.reserve(reserve);
+
+  switch (options_.progress) {
+    case ProgressMode::kAuto:
+      tty_progress_ = ::isatty(STDERR_FILENO) == 1;
+      line_progress_ = !tty_progress_;
+      break;
+    case ProgressMode::kTty:
+      tty_progress_ = true;
+      break;
+    case ProgressMode::kLines:
+      line_progress_ = true;
+      break;
+    case ProgressMode::kOff:
+      break;
+  }
+  return Status::Ok();
+}
+
+void Runner::SourceStage() {
+  WindowItem item = MakeWindow();
+  while (!halt_.load()) {
+    Result<Fetch> next = source_->Next(&item, halt_);
+    if (!next.ok()) {
+      Fail(next.status(), /*discard=*/false);  // windows already read are still written
+      break;
+    }
+    if (*next == Fetch::kEnd) break;
+    item.meta.window = windows_read_++;
+    item.meta.stage_ns[0][1] = NowNs();
+    if (!q1_->Push(&item)) break;
+  }
+  q1_->Close();
+}
+
+void Runner::PreprocessStage() {
+  WindowItem w = MakeWindow();
+  InputItem in = MakeInput();
+  cv::Mat l0, r0, l1, r1;  // rectified, model size
+  for (cv::Mat* m : {&l0, &r0, &l1, &r1}) m->create(height_, width_, CV_8UC3);
+  while (q1_->Pop(&w)) {
+    w.meta.stage_ns[1][0] = NowNs();
+    const cv::Size size = w.left0.size();
+    if (w.left1.size() != size) {
+      Fail(Status::Error("window at '" + w.meta.left0_path +
+                         "': the images at t and t+1 differ in size"),
+           true);
+      break;
+    }
+    if (size != rectifier_->input_size()) {
+      if (options_.calibration) {
+        Fail(Status::Error("frame size changed to " + std::to_string(size.width) + "x" +
+                           std::to_string(size.height) + " but the calibration is for " +
+                           std::to_string(rectifier_->input_size().width) + "x" +
+                           std::to_string(rectifier_->input_size().height)),
+             true);
+        break;
+      }
+      auto rect = camera::StereoRectifier::CreateResizeOnly(size, cv::Size(width_, height_));
+      if (!rect.ok()) {
+        Fail(Status::Error(rect.message()), true);
+        break;
+      }
+      rectifier_.emplace(std::move(rect).value());
+    }
+    camera::Status s = rectifier_->Apply(w.left0, w.right0, &l0, &r0);
+    if (s.ok()) s = rectifier_->Apply(w.left1, w.right1, &l1, &r1);
+    if (s.ok()) s = preprocessor_->Run(l0, r0, l1, r1, in.input.data(), in.input.size());
+    if (!s.ok()) {
+      Fail(Status::Error(s.message()), true);
+      break;
+    }
+    l0.copyTo(in.left_vis);
+    std::swap(in.meta, w.meta);
+    in.meta.stage_ns[1][1] = NowNs();
+    if (!q2_->Push(&in)) break;
+  }
+  q2_->Close();
+}
+
+void Runner::InferStage() {
+  // Both items are allocated here, before the first frame; the loop only swaps and runs.
+  InputItem in = MakeInput();
+  FlowItem out = MakeFlow();
+  while (q2_->Pop(&in)) {
+    in.meta.stage_ns[2][0] = NowNs();
+    Status s = session_->Run(in.input, height_, width_, out.flow);
+    if (!s.ok()) {
+      Fail(s, true);
+      break;
+    }
+    std::swap(out.meta, in.meta);
+    std::swap(out.left_vis, in.left_vis);
+    out.meta.stage_ns[2][1] = NowNs();
+    if (!q3_->Push(&out)) break;
+  }
+  q3_->Close();
+}
+
+void Runner::OutputStage() {
+  FlowItem f = MakeFlow();
+  Visualizer vis;
+  cv::Mat canvas;
+  std::vector<uint8_t> png;
+  // zlib level 1: several times faster than OpenCV's default for a slightly larger file.
+  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
+  cv::VideoWriter video;
+  const std::filesystem::path dir(options_.out_dir);
+  while (q3_->Pop(&f)) {
+    if (max_reached_.load()) {
+      ++discarded_after_max_;
+      continue;
+    }
+    FrameMeta& m = f.meta;
+    m.stage_ns[3][0] = NowNs();
+    const std::string stem = OutputStem(m);
+    Status s = Status::Ok();
+    if (options_.write_flow) {
+      if (options_.flow_format == FlowFormat::kPfm) {
+        s = tools::WritePfm((dir / (stem + ".pfm")).string(), f.flow, height_, width_,
+                            out_channels_);
+      } else {
+        const int64_t shape[3] = {height_, width_, out_channels_};
+        s = tools::WriteNpy((dir / (stem + ".npy")).string(), shape, f.flow);
+      }
+    }
+    if (s.ok() && (options_.write_png || !options_.video_path.empty())) {
+      std::string label = stem;
+      vis.Render(f.left_vis, f.flow.data(), out_channels_, label, &canvas);
+      if (options_.write_png) {
+        if (!cv::imencode(".png", canvas, png, png_params)) {
+          s = Status::Error("cannot encode the visualisation of " + stem + " as PNG");
+        } else {
+          s = tools::WriteFileAtomically((dir / (stem + ".png")).string(), png);
+        }
+      }
+      if (s.ok() && !options_.video_path.empty()) {
+        if (!video.isOpened()) {
+          video_tmp_ = options_.video_path + ".tmp.avi";
+          video.open(video_tmp_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), options_.video_fps,
+                     canvas.size());
+          if (!video.isOpened()) {
+            s = Status::Error("cannot open '" + video_tmp_ +
+                              "' for writing with OpenCV VideoWriter (MJPG/AVI)");
+          }
+        }
+        if (s.ok()) {
+          video.write(canvas);
+          video_written_ = true;
+        }
+      }
+    }
+    if (!s.ok()) {
+      Fail(s, true);
+      break;
+    }
+    m.stage_ns[3][1] = NowNs();
+    for (int st = 0; st < 4; ++st)
+      stage_ms_[st].push_back(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
+    const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
+    e2e_ms_.push_back(e2e);
+    if (options_.budget_ms > 0 && e2e > options_.budget_ms) ++misses_;
+    last_stem_ = stem;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      ++frames_;
+    }
+    Progress(false);
+    if (options_.max_frames > 0 && frames_ >= options_.max_frames) {
+      max_reached_ = true;
+      halt_ = true;
+    }
+  }
+  if (video.isOpened()) video.release();
+  if (video_written_) {
+    std::error_code ec;
+    std::filesystem::rename(video_tmp_, options_.video_path, ec);
+    if (ec) {
+      Fail(Status::Error("cannot rename '" + video_tmp_ + "' to '" + options_.video_path +
+                         "': " + ec.message()),
+           false);
+    }
+  }
+}
+
+void Runner::Progress(bool final) {
+  if (!tty_progress_ && !line_progress_) return;
+  const int64_t now = NowNs();
+  if (tty_progress_ && !final && now - last_progress_ns_ < 250'000'000) return;
+  if (line_progress_ && !final &&
+      (options_.progress_every <= 0 || frames_ % options_.progress_every != 0)) {
+    return;
+  }
+  if (line_progress_ && final && options_.progress_every > 0 &&
+      frames_ % options_.progress_every == 0 && frames_ > 0) {
+    return;  // already printed
+  }
+  last_progress_ns_ = now;
+  const double wall = static_cast<double>(now - start_ns_) / 1e9;
+  const std::optional<int64_t> total = source_->total_windows();
+  std::string line = "sfrt run: " + std::to_string(frames_);
+  if (total)
+    line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
+                                                         : *total);
+  line += " frames, " + Fixed(wall > 0 ? frames_ / wall : 0.0, 1) + " fps, p50 " +
+          Fixed(ComputePercentiles(e2e_ms_).p50, 1) + " ms end to end";
+  if (tty_progress_) {
+    std::fprintf(stderr, "\r%s\x1b[K%s", line.c_str(), final ? "\n" : "");
+  } else {
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
+  std::fflush(stderr);
+}
+
+Status Runner::WriteSummary(PipelineResult* result) {
+  json j;
+  const ModelMetadata& meta = model_->metadata();
+  j["model"] = {{"path", options_.model_path},
+                {"name", meta.name},
+                {"input_size", {height_, width_}},
+                {"output_channels", out_channels_}};
+  j["isa"] = session_ ? IsaName(session_->isa()) : "";
+  j["threads"] = session_ ? session_->threads() : options_.threads;
+  json src;
+  src["kind"] = source_->kind();
+  src["description"] = source_->Describe();
+  src["frame_size"] = {source_size_.height, source_size_.width};
+  source_->ToJson(&src);
+  j["source"] = src;
+  const std::optional<int64_t> total = source_->total_windows();
+  j["frames"] = {{"written", frames_},
+                 {"read", windows_read_},
+                 {"total", total ? json(*total) : json(nullptr)}};
+  j["completed"] = result->stopped_by == "end of source" || result->stopped_by == "max-frames";
+  j["stopped_by"] = result->stopped_by;
+  j["error"] = error_.ok() ? json(nullptr) : json(error_.message());
+  const uint64_t discarded = (q1_ ? q1_->discarded() : 0) + (q2_ ? q2_->discarded() : 0) +
+                             (q3_ ? q3_->discarded() : 0) +
+                             static_cast<uint64_t>(discarded_after_max_);
+  j["queue_policy"] = policy_ == QueuePolicy::kNewestWins ? "newest-wins" : "block";
+  j["drops"] = {{"source", source_->drops()},
+                {"preprocess", q1_ ? q1_->drops() : 0},
+                {"infer", q2_ ? q2_->drops() : 0},
+                {"output", q3_ ? q3_->drops() : 0},
+                {"discarded_at_stop", discarded}};
+  json bad = json::array();
+  for (const FrameSource::BadFrame& b : source_->bad_frames()) {
+    bad.push_back({{"path", b.path}, {"reason", b.reason}});
+  }
+  j["bad_frames"] = bad;
+  j["deadline"] = {{"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
+                   {"misses", misses_}};
+  json lat;
+  for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
+  lat["end_to_end"] = PercentilesJson(result->end_to_end);
+  j["latency_ms"] = lat;
+  j["wall_s"] = static_cast<double>(end_ns_ - start_ns_) / 1e9;
+  j["fps"] = result->fps;
+  j["clock"] = "CLOCK_MONOTONIC";
+  j["outputs"] = {{"dir", options_.out_dir},
+                  {"flow_format", !options_.write_flow                       ? "none"
+                                  : options_.flow_format == FlowFormat::kPfm ? "pfm"
+                                                                             : "npy"},
+                  {"png", options_.write_png},
+                  {"video", video_written_ ? json(options_.video_path) : json(nullptr)},
+                  {"last", last_stem_}};
+  j["warnings"] = warnings_;
+  const std::string path = (std::filesystem::path(options_.out_dir) / "summary.json").string();
+  const std::string text = j.dump(2) + "\n";
+  Status s = tools::WriteFileAtomically(
+      path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+  if (s.ok()) result->summary_path = path;
+  return s;
+}
+
+PipelineResult Runner::Run() {
+  PipelineResult result;
+  start_ns_ = NowNs();
+  Status setup = Setup();
+  for (const std::string& w : warnings_) std::fprintf(stderr, "sfrt run: warning: %s\n", w.c_str());
+  if (!setup.ok()) {
+    result.status = setup;
+    result.stopped_by = "error";
+    error_ = setup;
+    end_ns_ = NowNs();
+    std::error_code ec;
+    if (std::filesystem::is_directory(options_.out_dir, ec)) (void)WriteSummary(&result);
+    return result;
+  }
+  start_ns_ = NowNs();
+  std::thread threads[4] = {
+      std::thread([this] { SourceStage(); }), std::thread([this] { PreprocessStage(); }),
+      std::thread([this] { InferStage(); }), std::thread([this] { OutputStage(); })};
+  // Relay an asynchronous stop (signal) to the stages until the source has finished.
+  std::atomic<bool> done{false};
+  std::thread watcher([&] {
+    while (!done.load()) {
+      if (options_.stop && options_.stop->load()) halt_ = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  });
+  for (std::thread& t : threads) t.join();
+  done = true;
+  watcher.join();
+  end_ns_ = NowNs();
+  Progress(true);
+
+  result.frames = frames_;
+  result.status = error_;
+  const int sig = options_.stop_signal ? options_.stop_signal->load() : 0;
+  if (!error_.ok()) {
+    result.stopped_by = "error";
+  } else if (max_reached_) {
+    result.stopped_by = "max-frames";
+  } else if (options_.stop && options_.stop->load()) {
+    result.stopped_by = sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "stop request";
+  } else {
+    result.stopped_by = "end of source";
+  }
+  const double wall = static_cast<double>(end_ns_ - start_ns_) / 1e9;
+  result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
+  for (int st = 0; st < 4; ++st) result.stage[st] = ComputePercentiles(stage_ms_[st]);
+  result.end_to_end = ComputePercentiles(e2e_ms_);
+  result.warnings = warnings_;
+  Status s = WriteSummary(&result);
+  if (!s.ok() && result.status.ok()) result.status = s;
+  return result;
+}
+
+}  // namespace
+
+Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) {
+  if (input.channels != 3 * static_cast<int>(input.image_order.size()) ||
+      input.image_order.size() != 4) {
+    return Status::Error("the model takes " + std::to_string(input.channels) +
+                         " input channels and its image order lists " +
+                         std::to_string(input.image_order.size()) +
+                         " images; expected 12 channels from left0, right0, left1, right1");
+  }
+  camera::PreprocessParams p;
+  for (size_t g = 0; g < 4; ++g) {
+    auto slot = camera::ParseImageSlot(input.image_order[g]);
+    if (!slot.ok()) {
+      return Status::Error("the model's image order names an unknown image '" +
+                           input.image_order[g] + "' (known: left0, right0, left1, right1)");
+    }
+    p.image_order[g] = *slot;
+  }
+  auto order = camera::ParseImageOrder(input.image_order);
+  if (!order.ok()) return Status::Error("the model's image order: " + order.message());
+  auto color = camera::ParseColorOrder(input.color_order);
+  if (!color.ok()) {
+    return Status::Error("the model's color order '" + input.color_order +
+                         "' is neither BGR nor RGB");
+  }
+  p.color_order = *color;
+  p.scale = input.scale;
+  for (int c = 0; c < 3; ++c) {
+    if (!(input.std[c] != 0) || !std::isfinite(input.std[c])) {
+      return Status::Error("the model's std[" + std::to_string(c) + "] is " +
+                           Fixed(input.std[c], 6) + "; cannot normalise");
+    }
+    p.mean[c] = input.mean[c];
+    p.std[c] = input.std[c];
+  }
+  return p;
+}
+
+Percentiles ComputePercentiles(std::vector<double> values) {
+  Percentiles p;
+  p.count = values.size();
+  if (values.empty()) return p;
+  std::sort(values.begin(), values.end());
+  auto at = [&](double q) {
+    const double pos = q * static_cast<double>(values.size() - 1);
+    const size_t lo = static_cast<size_t>(pos);
+    const size_t hi = std::min(lo + 1, values.size() - 1);
+    return values[lo] + (values[hi] - values[lo]) * (pos - static_cast<double>(lo));
+  };
+  p.p50 = at(0.50);
+  p.p90 = at(0.90);
+  p.p99 = at(0.99);
+  p.max = values.back();
+  return p;
+}
+
+std::string OutputStem(const FrameMeta& meta) {
+  char num[32];
+  std::snprintf(num, sizeof(num), "%06lld", static_cast<long long>(meta.frame0));
+  if (meta.sequence.empty()) return std::string("frame_") + num;
+  std::string seq = meta.sequence;
+  for (char& c : seq) {
+    if (c == '/' || c == '\\' || c == ' ') c = '_';
+  }
+  return seq + "_" + num;
+}
+
+PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* source,
+                           const PipelineOptions& options) {
+  Runner runner(std::move(model), source, options);
+  return runner.Run();
+}
+
+}  // namespace sfrt::pipeline

@@ -1,0 +1,136 @@
+// sfrt eval: scene-flow accuracy of a model against ground truth, beside two baselines (zero
+// flow and a classical OpenCV pipeline). See tools/eval/evaluate.h.
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "eval/evaluate.h"
+#include "sfrt/commands.h"
+#include "sfrt/io/atomic_write.h"
+
+namespace sfrt::tools {
+namespace {
+
+constexpr char kName[] = "eval";
+
+struct EvalArgs {
+  std::string model;
+  std::string dataset;
+  std::string json;
+  std::string size;
+  int max_frames = 0;
+  bool no_classical = false;
+  bool quiet = false;
+};
+
+int RunEval(const EvalArgs& args) {
+  eval::EvalOptions options;
+  options.model_path = args.model;
+  options.dataset = args.dataset;
+  options.max_frames = args.max_frames;
+  options.classical = !args.no_classical;
+  if (!args.size.empty()) {
+    if (args.model.empty()) {
+      return ReportError(kName, "--size sets the model's input size; it needs --model", kExitUsage);
+    }
+    if (!ParseSize(args.size, &options.model_height, &options.model_width)) {
+      return ReportError(
+          kName,
+          "--size: expected HxW with positive integers (e.g. 128x224), got '" + args.size + "'",
+          kExitUsage);
+    }
+  }
+  if (args.max_frames < 0) {
+    return ReportError(
+        kName, "--max-frames: must be 0 (all) or more, got " + std::to_string(args.max_frames),
+        kExitUsage);
+  }
+  if (!args.json.empty()) {
+    if (std::string problem = CheckOutputDirectory(args.json); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
+  if (!args.model.empty()) {
+    if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
+
+  const auto start = std::chrono::steady_clock::now();
+  Result<eval::EvalReport> report = eval::RunEvaluation(options, [&](const eval::EvalProgress& p) {
+    if (args.quiet || p.frame == nullptr) return;
+    if (p.done % 10 != 0) return;
+    std::cout << "frame     " << p.done + 1 << "/" << p.total << "  seq " << p.frame->sequence
+              << " frame " << p.frame->frame << "\n"
+              << std::flush;
+  });
+  if (!report.ok()) return ReportError(kName, report.message(), kExitFailure);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  char camera[200];
+  std::snprintf(camera, sizeof(camera), "f %g px, baseline %g, cx %g, cy %g", report->focal,
+                report->baseline, report->cx, report->cy);
+  std::cout << "dataset   " << report->dataset << " (" << report->frames << " frames, "
+            << report->height << "x" << report->width << ")\n"
+            << "camera    " << camera << " (camera.json); metrics in its scene units\n";
+  if (report->has_model) {
+    std::cout << "model     " << report->model_path << " (" << report->model_name << ") at "
+              << report->model_height << "x" << report->model_width << "\n";
+  }
+  if (!report->camera_note.empty()) std::cout << "warning   " << report->camera_note << "\n";
+  std::cout << "\n" << eval::FormatTable(*report) << "\n";
+  char done[96];
+  std::snprintf(done, sizeof(done), "evaluated %d frames in %.1f s", report->frames, seconds);
+  std::cout << done << "\n";
+  if (!args.json.empty()) {
+    const std::string json = eval::FormatJson(*report);
+    Status written = WriteFileAtomically(
+        args.json,
+        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
+    if (!written.ok()) return ReportError(kName, written.message(), kExitFailure);
+    std::cout << "wrote     " << args.json << "\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+Command AddEvalCommand(CLI::App& parent) {
+  auto args = std::make_shared<EvalArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "eval", "Score scene flow against ground truth: a model, zero flow and a classical baseline");
+  cmd->add_option("--model", args->model, "Model file (.sfrt); without it, baselines only");
+  cmd->add_option("--dataset", args->dataset,
+                  "Dataset root in the Scene Flow layout with camera.json (as sfrt synth writes)")
+      ->required();
+  cmd->add_option("--json", args->json, "Also write the results as JSON to this file");
+  cmd->add_option("--size", args->size,
+                  "Run the model at HxW (images resized, flow resized back; default: the "
+                  "dataset's size)");
+  cmd->add_option("--max-frames", args->max_frames, "Evaluate at most N frames (default: all)");
+  cmd->add_flag("--no-classical", args->no_classical, "Skip the classical OpenCV baseline");
+  cmd->add_flag("--quiet", args->quiet, "No progress lines");
+  cmd->footer(
+      "Frames: DIR/frames_cleanpass/<seq>/{left,right}/NNNN.png with frame NNNN+1 present;\n"
+      "ground truth DIR/scene_flow/<seq>/into_future/left/NNNN.pfm, or else computed from\n"
+      "disparity, disparity_change and optical_flow with the spec's formula. Camera (f, B,\n"
+      "cx, cy) from DIR/camera.json. Methods: sfrt (the model), zero_flow, classical\n"
+      "(StereoSGBM disparity at t and t+1, DIS optical flow on the left images, d1 read\n"
+      "bilinearly where the pixel moved, then Z = f B / d etc.).\n"
+      "Metrics over pixels with finite ground truth, in the dataset's scene units:\n"
+      "  EPE3D     mean |pred - gt|;  EPE_X/Y/Z mean |pred_c - gt_c|\n"
+      "  ACC.05    share with EPE < 0.05 or EPE/|gt| < 5%\n"
+      "  ACC.10    share with EPE < 0.1 or EPE/|gt| < 10%\n"
+      "  outliers  share with EPE > 0.3 or EPE/|gt| > 10%\n"
+      "Per sequence and overall. JSON: keys sfrt, zero_flow, classical, each with epe3d,\n"
+      "epe_x, epe_y, epe_z, acc05, acc10, outliers, valid_pixels, frames and sequences.\n"
+      "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
+  return Command{cmd, [args] { return RunEval(*args); }};
+}
+
+}  // namespace sfrt::tools

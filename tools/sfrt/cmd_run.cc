@@ -1,0 +1,412 @@
+// sfrt run: the real-time pipeline (tools/pipeline) from a camera pair or recorded files to
+// scene-flow files, visualisations and a run summary.
+#include <linux/videodev2.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pipeline/pipeline.h"
+#include "pipeline/sources.h"
+#include "sfrt/commands.h"
+#include "sfrt/isa.h"
+#include "sfrt/model.h"
+
+namespace sfrt::tools {
+namespace {
+
+constexpr char kName[] = "run";
+
+// Set by the SIGINT/SIGTERM handler; read by the pipeline's watcher thread.
+std::atomic<bool> g_stop{false};
+std::atomic<int> g_signal{0};
+static_assert(std::atomic<bool>::is_always_lock_free && std::atomic<int>::is_always_lock_free);
+
+extern "C" void OnStopSignal(int sig) {
+  g_signal.store(sig);
+  g_stop.store(true);
+}
+
+struct RunArgs {
+  std::string model;
+  std::string camera;
+  std::string sbs_camera;
+  std::string replay;
+  std::string replay_left;
+  std::string replay_right;
+  std::string replay_video;
+  std::string pass = "clean";
+  bool right_first = false;
+  std::string format = "auto";
+  std::string camera_size = "480x640";
+  double fps = 30;
+  int buffers = 4;
+  double pair_tolerance_ms = 0;
+  int camera_timeout_ms = 1000;
+  std::string calibration;
+  std::string on_bad_frame;
+  std::string out;
+  std::string flow_format = "pfm";
+  bool no_png = false;
+  std::string video;
+  double video_fps = 10;
+  double budget_ms = 0;
+  int64_t max_frames = 0;
+  std::string size;
+  std::string isa = "auto";
+  int threads = 1;
+  std::string queue;
+  int queue_depth = 1;
+  std::string progress = "auto";
+  int progress_every = 10;
+};
+
+std::vector<std::string> SplitComma(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+std::string Fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
+  return buf;
+}
+
+int RunRun(const RunArgs& args) {
+  // ---- usage checks, before any file or device is touched
+  const bool plain = !args.replay_left.empty() || !args.replay_right.empty();
+  const int sources = !args.camera.empty() + !args.sbs_camera.empty() + !args.replay.empty() +
+                      plain + !args.replay_video.empty();
+  if (sources != 1) {
+    return ReportError(kName,
+                       sources == 0 ? "no source: give one of --camera, --sbs-camera, --replay, "
+                                      "--replay-left/--replay-right, --replay-video"
+                                    : "give exactly one source (--camera, --sbs-camera, "
+                                      "--replay, --replay-left/--replay-right, --replay-video)",
+                       kExitUsage);
+  }
+  if (plain && (args.replay_left.empty() || args.replay_right.empty())) {
+    return ReportError(kName, "--replay-left and --replay-right go together", kExitUsage);
+  }
+  std::vector<std::string> devices = SplitComma(args.camera);
+  if (!args.camera.empty() && devices.size() != 2) {
+    return ReportError(kName,
+                       "--camera: expected two devices LEFT,RIGHT (e.g. /dev/video0,/dev/video2), "
+                       "got '" +
+                           args.camera + "'",
+                       kExitUsage);
+  }
+  const bool live = !args.camera.empty() || !args.sbs_camera.empty();
+  pipeline::PipelineOptions options;
+  if (!args.size.empty() && !ParseSize(args.size, &options.height, &options.width)) {
+    return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
+                       kExitUsage);
+  }
+  int cam_h = 0, cam_w = 0;
+  if (!ParseSize(args.camera_size, &cam_h, &cam_w)) {
+    return ReportError(kName,
+                       "--camera-size: expected HxW (e.g. 480x640), got '" + args.camera_size + "'",
+                       kExitUsage);
+  }
+  uint32_t fourcc = 0;
+  if (args.format != "auto") {
+    if (args.format.size() != 4) {
+      return ReportError(kName,
+                         "--format: expected auto or a fourcc (YUYV, MJPG, GREY, NV12, BGR3, "
+                         "RGB3), got '" +
+                             args.format + "'",
+                         kExitUsage);
+    }
+    fourcc = v4l2_fourcc(args.format[0], args.format[1], args.format[2], args.format[3]);
+  }
+  camera::BadFramePolicy on_bad =
+      live ? camera::BadFramePolicy::kSkip : camera::BadFramePolicy::kStop;
+  if (!args.on_bad_frame.empty()) {
+    auto parsed = camera::ParseBadFramePolicy(args.on_bad_frame);
+    if (!parsed.ok()) {
+      return ReportError(kName,
+                         "--on-bad-frame: expected skip or stop, got '" + args.on_bad_frame + "'",
+                         kExitUsage);
+    }
+    on_bad = *parsed;
+  }
+  if (args.flow_format == "pfm") {
+    options.flow_format = pipeline::FlowFormat::kPfm;
+  } else if (args.flow_format == "npy") {
+    options.flow_format = pipeline::FlowFormat::kNpy;
+  } else if (args.flow_format == "none") {
+    options.write_flow = false;
+  } else {
+    return ReportError(kName,
+                       "--flow-format: expected pfm, npy or none, got '" + args.flow_format + "'",
+                       kExitUsage);
+  }
+  if (args.isa != "auto" && (!ParseIsa(args.isa, &options.isa) || options.isa == Isa::kAuto)) {
+    return ReportError(
+        kName, "--isa: '" + args.isa + "' is not one of auto, ref, avx2, avx512, neon", kExitUsage);
+  }
+  if (!args.queue.empty()) {
+    if (args.queue == "newest-wins") {
+      options.policy = pipeline::QueuePolicy::kNewestWins;
+    } else if (args.queue == "block") {
+      options.policy = pipeline::QueuePolicy::kBlock;
+    } else {
+      return ReportError(kName, "--queue: expected newest-wins or block, got '" + args.queue + "'",
+                         kExitUsage);
+    }
+  }
+  if (args.progress == "auto") {
+    options.progress = pipeline::ProgressMode::kAuto;
+  } else if (args.progress == "tty") {
+    options.progress = pipeline::ProgressMode::kTty;
+  } else if (args.progress == "lines") {
+    options.progress = pipeline::ProgressMode::kLines;
+  } else if (args.progress == "off") {
+    options.progress = pipeline::ProgressMode::kOff;
+  } else {
+    return ReportError(kName,
+                       "--progress: expected auto, tty, lines or off, got '" + args.progress + "'",
+                       kExitUsage);
+  }
+  if (args.threads < 0 || args.queue_depth < 1 || args.max_frames < 0 || args.budget_ms < 0 ||
+      args.buffers < 2 || !(args.fps >= 0) || args.pair_tolerance_ms < 0 ||
+      args.camera_timeout_ms <= 0 || !(args.video_fps > 0)) {
+    return ReportError(kName,
+                       "--threads, --max-frames, --budget-ms, --pair-tolerance-ms must be >= 0; "
+                       "--queue-depth >= 1; --buffers >= 2; --camera-timeout-ms and --video-fps "
+                       "> 0",
+                       kExitUsage);
+  }
+
+  // ---- files
+  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
+    return ReportError(kName, problem, kExitFailure);
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(args.out, ec);
+  if (!std::filesystem::is_directory(args.out, ec)) {
+    return ReportError(kName, "--out: cannot create the output directory '" + args.out + "'",
+                       kExitFailure);
+  }
+  if (!args.video.empty()) {
+    if (std::string problem = CheckOutputDirectory(args.video); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
+  if (!args.calibration.empty()) {
+    std::vector<std::string> files = SplitComma(args.calibration);
+    for (const std::string& f : files) {
+      if (std::string problem = CheckInputFile(f, "--calibration file"); !problem.empty()) {
+        return ReportError(kName, problem, kExitFailure);
+      }
+    }
+    auto calib = camera::ReadStereoCalibration(files);
+    if (!calib.ok()) return ReportError(kName, calib.message(), kExitFailure);
+    options.calibration = std::move(calib).value();
+  }
+  Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
+  if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
+
+  std::unique_ptr<pipeline::FrameSource> source;
+  if (live) {
+    v4l2::StereoConfig config;
+    config.mode = args.camera.empty() ? v4l2::StereoConfig::Mode::kSideBySide
+                                      : v4l2::StereoConfig::Mode::kTwoDevices;
+    config.left.device = args.camera.empty() ? args.sbs_camera : devices[0];
+    config.left.pixel_format = fourcc;
+    config.left.width = config.mode == v4l2::StereoConfig::Mode::kSideBySide ? 2 * cam_w : cam_w;
+    config.left.height = cam_h;
+    config.left.fps = args.fps;
+    config.left.buffer_count = args.buffers;
+    config.left.watchdog_ms = args.camera_timeout_ms;
+    config.right = config.left;
+    if (!args.camera.empty()) {
+      config.right.device = devices[1];
+      config.right.width = cam_w;
+    }
+    // Default pairing tolerance: under half a frame period (0.45 of it), at most 8 ms... unless
+    // the frame rate is unknown (--fps 0), then 8 ms.
+    config.pair_tolerance_ns =
+        args.pair_tolerance_ms > 0
+            ? static_cast<int64_t>(args.pair_tolerance_ms * 1e6)
+            : (args.fps > 0 ? static_cast<int64_t>(0.45e9 / args.fps) : int64_t{8'000'000});
+    config.sbs_left_first = !args.right_first;
+    config.timeout_ms = args.camera_timeout_ms;
+    source = pipeline::MakeCameraSource(config, on_bad);
+  } else {
+    pipeline::ReplaySpec spec;
+    if (!args.replay.empty()) {
+      spec.kind = pipeline::ReplaySpec::Kind::kDataset;
+      spec.root = args.replay;
+      if (!std::filesystem::exists(spec.root, ec)) {
+        return ReportError(kName, "--replay: dataset root '" + spec.root + "' does not exist",
+                           kExitFailure);
+      }
+    } else if (plain) {
+      spec.kind = pipeline::ReplaySpec::Kind::kPlain;
+      spec.left = args.replay_left;
+      spec.right = args.replay_right;
+    } else {
+      spec.kind = pipeline::ReplaySpec::Kind::kVideo;
+      spec.video = args.replay_video;
+      if (std::string problem = CheckInputFile(spec.video, "--replay-video file");
+          !problem.empty()) {
+        return ReportError(kName, problem, kExitFailure);
+      }
+    }
+    spec.pass = args.pass;
+    spec.video_left_first = !args.right_first;
+    spec.on_bad_frame = on_bad;
+    source = pipeline::MakeReplaySource(spec);
+  }
+
+  options.out_dir = args.out;
+  options.write_png = !args.no_png;
+  options.video_path = args.video;
+  options.video_fps = args.video_fps;
+  options.budget_ms = args.budget_ms;
+  options.max_frames = args.max_frames;
+  options.threads = args.threads;
+  options.queue_capacity = static_cast<size_t>(args.queue_depth);
+  options.progress_every = args.progress_every;
+  options.model_path = args.model;
+  options.stop = &g_stop;
+  options.stop_signal = &g_signal;
+
+  struct sigaction action = {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  struct sigaction old_int = {}, old_term = {};
+  sigaction(SIGINT, &action, &old_int);
+  sigaction(SIGTERM, &action, &old_term);
+  pipeline::PipelineResult result = pipeline::RunPipeline(*loaded, source.get(), options);
+  sigaction(SIGINT, &old_int, nullptr);
+  sigaction(SIGTERM, &old_term, nullptr);
+
+  std::cout << "source      " << source->Describe() << "\n"
+            << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n"
+            << "throughput  " << Fixed(result.fps, 2) << " fps\n";
+  static const char* kStages[4] = {"source", "preprocess", "infer", "output"};
+  for (int st = 0; st < 4; ++st) {
+    std::cout << "p50 " << kStages[st] << std::string(11 - std::string(kStages[st]).size(), ' ')
+              << Fixed(result.stage[st].p50, 2) << " ms\n";
+  }
+  std::cout << "end to end  p50 " << Fixed(result.end_to_end.p50, 2) << " ms, p99 "
+            << Fixed(result.end_to_end.p99, 2) << " ms, max " << Fixed(result.end_to_end.max, 2)
+            << " ms\n";
+  if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
+  if (!result.status.ok()) return ReportError(kName, result.status.message(), kExitFailure);
+  return kExitOk;
+}
+
+}  // namespace
+
+Command AddRunCommand(CLI::App& parent) {
+  auto args = std::make_shared<RunArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "run", "Run the real-time pipeline on cameras or recorded frames and write the scene flow");
+  cmd->add_option("--model", args->model, "Model file (.sfrt)")->required();
+  cmd->add_option("--camera", args->camera,
+                  "Two V4L2 devices LEFT,RIGHT, paired by capture timestamp");
+  cmd->add_option("--sbs-camera", args->sbs_camera,
+                  "One V4L2 device delivering both views side by side");
+  cmd->add_option("--replay", args->replay,
+                  "Dataset root: Scene Flow (FlyingThings3D/Driving/Monkaa), KITTI scene flow, "
+                  "or <seq>/{left,right}/ directories (layout detected)");
+  cmd->add_option("--replay-left", args->replay_left,
+                  "Left frames: a directory or a glob, sorted by name (with --replay-right)");
+  cmd->add_option("--replay-right", args->replay_right, "Right frames: a directory or a glob");
+  cmd->add_option("--replay-video", args->replay_video,
+                  "Side-by-side stereo video file (OpenCV VideoCapture)");
+  cmd->add_option("--pass", args->pass,
+                  "Scene Flow datasets: rendering pass to read, clean or final")
+      ->capture_default_str();
+  cmd->add_flag("--right-first", args->right_first,
+                "Side-by-side sources: the left half is the right view");
+  cmd->add_option("--format", args->format,
+                  "Camera pixel format: auto (the first the device lists that sfrt converts) or "
+                  "a fourcc: YUYV, MJPG, GREY, NV12, BGR3, RGB3")
+      ->capture_default_str();
+  cmd->add_option("--camera-size", args->camera_size,
+                  "Camera image size per view, HxW (the driver may adjust it; the summary says)")
+      ->capture_default_str();
+  cmd->add_option("--fps", args->fps, "Camera frame rate to request (0: the driver's)")
+      ->capture_default_str();
+  cmd->add_option("--buffers", args->buffers, "V4L2 buffers to request per camera (>= 2)")
+      ->capture_default_str();
+  cmd->add_option("--pair-tolerance-ms", args->pair_tolerance_ms,
+                  "Two cameras: largest timestamp difference of a stereo pair (default: 0.45 "
+                  "of the frame period, 8 ms when --fps is 0)");
+  cmd->add_option("--camera-timeout-ms", args->camera_timeout_ms,
+                  "Camera watchdog: no frame for this long is logged and counted")
+      ->capture_default_str();
+  cmd->add_option("--calibration", args->calibration,
+                  "Stereo calibration to rectify with: ROS camera_info LEFT.yaml,RIGHT.yaml, a "
+                  "Kalibr camchain, or OpenCV YAML/XML (one or two files, comma-separated). "
+                  "Without it frames are only resized");
+  cmd->add_option("--on-bad-frame", args->on_bad_frame,
+                  "A missing/corrupt frame: skip (recorded in the summary) or stop (exit 1). "
+                  "Default: stop for replays, skip for cameras");
+  cmd->add_option("--out", args->out,
+                  "Output directory (created): <stem>.pfm|.npy flow, <stem>.png visualisation, "
+                  "summary.json")
+      ->required();
+  cmd->add_option("--flow-format", args->flow_format,
+                  "Flow files: pfm (3-channel PFM), npy (float32 (H,W,3)) or none")
+      ->capture_default_str();
+  cmd->add_flag("--no-png", args->no_png, "Do not write visualisation PNGs");
+  cmd->add_option("--video", args->video,
+                  "Also write the visualisations as an MJPG AVI video to this file");
+  cmd->add_option("--video-fps", args->video_fps, "Frame rate written into --video")
+      ->capture_default_str();
+  cmd->add_option("--budget-ms", args->budget_ms,
+                  "Deadline per frame, capture to written output; misses are counted (0: none)")
+      ->capture_default_str();
+  cmd->add_option("--max-frames", args->max_frames, "Stop after this many frames (0: no limit)")
+      ->capture_default_str();
+  cmd->add_option("--size", args->size,
+                  "Model input size HxW (frames are rectified/resized to it; default: the "
+                  "source's frame size)");
+  cmd->add_option("--isa", args->isa,
+                  "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, neon")
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "Threads for inference (0: one per CPU)")
+      ->capture_default_str();
+  cmd->add_option("--queue", args->queue,
+                  "When a stage falls behind: newest-wins (drop the older queued frame, counted) "
+                  "or block (wait). Default: newest-wins for cameras, block for replays");
+  cmd->add_option("--queue-depth", args->queue_depth, "Frames each queue between stages holds")
+      ->capture_default_str();
+  cmd->add_option("--progress", args->progress,
+                  "Progress on stderr: auto (one updating line on a terminal, else lines), tty, "
+                  "lines, off")
+      ->capture_default_str();
+  cmd->add_option("--progress-every", args->progress_every,
+                  "With line progress: one line every this many frames")
+      ->capture_default_str();
+  cmd->footer(
+      "Stages (capture/read, preprocess, infer, output) run on their own threads joined by\n"
+      "bounded queues. The network sees (pair t, pair t+1) windows, preprocessed as the model's\n"
+      "metadata says. Latencies are measured on CLOCK_MONOTONIC from capture (the V4L2 buffer\n"
+      "timestamp; for files, the end of reading) to the written output. SIGINT/SIGTERM stop the\n"
+      "source; frames already read are finished, every file is written to a temporary name and\n"
+      "renamed, and summary.json says how far the run got. Exit codes: 0 success (also after a\n"
+      "stop by signal), 1 runtime or input failure (incl. a bad frame under --on-bad-frame\n"
+      "stop), 2 usage error.");
+  return Command{cmd, [args] { return RunRun(*args); }};
+}
+
+}  // namespace sfrt::tools
