@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite from a fresh clone: installs dependencies, builds the release and asan
-# presets, and runs every test in each (the asan run is the leak/UB/bounds check).
-# Usage: bash tools/test.sh [preset ...]   (default: release asan)
+# presets and runs every test in each (the asan run is the leak/UB/bounds check), then the
+# aarch64 stage (tools/test-aarch64.sh: cross build, NEON tests under qemu).
+# Usage: bash tools/test.sh [preset ...]   (default: release asan, then aarch64; named presets only)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
