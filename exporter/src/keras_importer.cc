@@ -29,6 +29,7 @@
 #include <utility>
 #include <vector>
 
+#include "message_text.h"
 #include "sfrt/exporter/sha256.h"
 
 // Returns the Status of `expr` from the enclosing function when it is an error.
@@ -52,17 +53,6 @@ constexpr char kSupportedLayers[] =
 constexpr uint64_t kMaxTensorElements = uint64_t{1} << 30;
 // Upper bound on dimensions read from the architecture (kernel sizes, strides, crops, ...).
 constexpr int64_t kMaxDim = 1 << 20;
-
-// Replaces control characters so that a message stays on one line whatever a file contains.
-std::string Printable(std::string_view s) {
-  std::string out(s);
-  for (char& ch : out) {
-    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
-  }
-  return out;
-}
-
-std::string Quote(std::string_view s) { return "'" + Printable(s) + "'"; }
 
 std::string DimsText(const std::vector<uint64_t>& dims) {
   std::string s = "(";

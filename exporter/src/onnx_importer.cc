@@ -12,6 +12,8 @@
 //     crop. Padding and crop rules are decided from the amounts at the traced size.
 #include "sfrt/exporter/onnx_importer.h"
 
+#include "message_text.h"
+
 // onnx_pb.h defines ONNX_API and then includes onnx-ml.pb.h (ONNX_ML=1); including
 // onnx-ml.pb.h directly does not compile with Debian's headers.
 #include <onnx/onnx_pb.h>
@@ -108,17 +110,6 @@ std::string SupportedOpsText() {
   text += ")";
   return text;
 }
-
-// Replaces control characters so that a message stays on one line whatever a file contains.
-std::string Printable(std::string_view s) {
-  std::string out(s);
-  for (char& ch : out) {
-    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
-  }
-  return out;
-}
-
-std::string Quote(std::string_view s) { return "'" + Printable(s) + "'"; }
 
 std::string JoinInts(const std::vector<int64_t>& values) {
   std::string s = "[";
