@@ -30,12 +30,6 @@ struct AnnotateArgs {
   CLI::Option* cy_opt = nullptr;
 };
 
-std::string Fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
-
 int RunAnnotate(const AnnotateArgs& args) {
   synth::ConventionKind convention;
   if (args.convention == "formula") {
@@ -74,8 +68,8 @@ int RunAnnotate(const AnnotateArgs& args) {
     }
     if (!(args.focal > 0) || !(args.baseline > 0)) {
       return ReportError(kName,
-                         "--focal and --baseline must be positive, got " + Fmt(args.focal) +
-                             " and " + Fmt(args.baseline),
+                         "--focal and --baseline must be positive, got " + FormatFloat(args.focal) +
+                             " and " + FormatFloat(args.baseline),
                          kExitUsage);
     }
     k = synth::Intrinsics{args.focal, args.baseline, args.cx, args.cy};
@@ -95,8 +89,9 @@ int RunAnnotate(const AnnotateArgs& args) {
     camera_source = json;
   }
 
-  std::cout << "camera    f " << Fmt(k.focal) << " px, baseline " << Fmt(k.baseline) << ", cx "
-            << Fmt(k.cx) << ", cy " << Fmt(k.cy) << " (" << camera_source << ")\n"
+  std::cout << "camera    f " << FormatFloat(k.focal) << " px, baseline " << FormatFloat(k.baseline)
+            << ", cx " << FormatFloat(k.cx) << ", cy " << FormatFloat(k.cy) << " (" << camera_source
+            << ")\n"
             << "formula   "
             << (convention == synth::ConventionKind::kFormula
                     ? "spec: d1 = d0 + disparity_change, (col, u) with cx, (row, v) with cy"

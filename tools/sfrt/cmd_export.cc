@@ -63,12 +63,6 @@ std::string Upper(std::string s) {
   return s;
 }
 
-std::string FormatFloat(float v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", static_cast<double>(v));
-  return buf;
-}
-
 // "a,b,c" -> three finite floats.
 bool ParseTriple(const std::string& text, std::array<float, 3>* out) {
   std::vector<std::string> parts;

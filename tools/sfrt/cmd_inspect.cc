@@ -25,12 +25,6 @@ struct InspectArgs {
   bool print_plan = false;
 };
 
-std::string FormatFloat(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
-
 std::string Join(const std::vector<std::string>& items, const char* sep) {
   std::string out;
   for (const std::string& item : items) {

@@ -40,12 +40,6 @@ struct SynthArgs {
   CLI::Option* cy_opt = nullptr;
 };
 
-std::string Fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
-
 int RunSynth(const SynthArgs& args) {
   int height = 0;
   int width = 0;
@@ -58,8 +52,8 @@ int RunSynth(const SynthArgs& args) {
   }
   auto range = [](const char* flag, double value, double lo, double hi) -> std::string {
     if (std::isfinite(value) && value >= lo && value <= hi) return "";
-    return std::string(flag) + ": must be from " + Fmt(lo) + " to " + Fmt(hi) + ", got " +
-           Fmt(value);
+    return std::string(flag) + ": must be from " + FormatFloat(lo) + " to " + FormatFloat(hi) +
+           ", got " + FormatFloat(value);
   };
   const double focal = args.focal_opt->count() > 0 ? args.focal : 1050.0 * width / 960.0;
   const double cx = args.cx_opt->count() > 0 ? args.cx : (width - 1) / 2.0;
@@ -108,8 +102,9 @@ int RunSynth(const SynthArgs& args) {
   options.blur_sigma = args.blur;
   options.threads = threads;
 
-  std::cout << "camera    f " << Fmt(focal) << " px, baseline " << Fmt(args.baseline) << ", cx "
-            << Fmt(cx) << ", cy " << Fmt(cy) << ", " << height << "x" << width << "\n"
+  std::cout << "camera    f " << FormatFloat(focal) << " px, baseline "
+            << FormatFloat(args.baseline) << ", cx " << FormatFloat(cx) << ", cy "
+            << FormatFloat(cy) << ", " << height << "x" << width << "\n"
             << "scenes    " << args.sequences << " sequence(s) x " << args.frames
             << " frame(s), seed " << args.seed << ", " << args.objects << " objects, textures "
             << (args.textures.empty() ? std::string("procedural") : args.textures) << "\n"

@@ -58,4 +58,7 @@ std::string LowerExtension(const std::string& path);
 // Number with thousands separators: 1234567 -> "1,234,567".
 std::string GroupDigits(unsigned long long value);
 
+// Shortest natural form of a number, as printf's %g: 1050, 479.5, 0.3, 1e-05.
+std::string FormatFloat(double value);
+
 }  // namespace sfrt::tools
