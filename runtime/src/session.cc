@@ -1,5 +1,6 @@
 #include "sfrt/session.h"
 
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -298,6 +299,21 @@ Result<TensorShape> Session::OutputShape(int height, int width) const {
 }
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output) {
+  return Run(input, height, width, output, {});
+}
+
+Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output,
+                    std::span<int64_t> step_end_ns) {
+  if (!step_end_ns.empty() && step_end_ns.size() < steps_.size() + 1) {
+    return Status::Error("step timestamp buffer holds " + std::to_string(step_end_ns.size()) +
+                         " values; this plan needs " + std::to_string(steps_.size() + 1));
+  }
+  const bool timed = !step_end_ns.empty();
+  auto stamp = [&](size_t k) {
+    step_end_ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                         std::chrono::steady_clock::now().time_since_epoch())
+                         .count();
+  };
   if (height <= 0 || width <= 0 || height > options_.max_height || width > options_.max_width) {
     return Status::Error("input " + std::to_string(height) + "x" + std::to_string(width) +
                          " is outside the session's planned range 1x1.." +
@@ -328,7 +344,10 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
   };
   ConstTensorView cur{input.data(), in_shape.height, in_shape.width, in_shape.channels,
                       static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
+  if (timed) stamp(0);
+  size_t step_index = 0;
   for (const Step& step : steps_) {
+    ++step_index;
     const LayerGeometry& g = geometry_[step.last_layer];
     const bool last = step.last_layer + 1 == n;
     if (step.kind == Step::Kind::kCrop) {
@@ -341,6 +360,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
                   DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
       }
       cur = view;
+      if (timed) stamp(step_index);
       continue;
     }
     float* dst =
@@ -389,6 +409,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         break;
     }
     cur = out;
+    if (timed) stamp(step_index);
   }
   return Status::Ok();
 }

@@ -60,6 +60,34 @@ TEST(Session, RepeatedRunsAreBitIdentical) {
   EXPECT_EQ(RunOnce(**session, input, 40, 50), first);
 }
 
+TEST(Session, TimedRunGivesTheSameOutputAndOrderedStepTimestamps) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto session = Session::Create(model, {40, 50});
+  ASSERT_TRUE(session.ok());
+  const auto input = RandomImage(40, 50, 12, 3);
+  const auto untimed = RunOnce(**session, input, 40, 50);
+  std::vector<float> timed(untimed.size());
+  std::vector<int64_t> stamps((*session)->steps().size() + 1, -1);
+  const Status s = (*session)->Run(input, 40, 50, timed, stamps);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_EQ(timed, untimed);
+  for (size_t k = 1; k < stamps.size(); ++k) {
+    EXPECT_GE(stamps[k], stamps[k - 1]) << "step " << k - 1 << " ended before it started";
+  }
+  EXPECT_GT(stamps.back(), stamps.front());
+}
+
+TEST(Session, TimedRunRejectsATimestampBufferTooShortForThePlan) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto session = Session::Create(model, {40, 50});
+  ASSERT_TRUE(session.ok());
+  std::vector<float> input(40 * 50 * 12, 1.0f), output(40 * 50 * 3);
+  std::vector<int64_t> stamps((*session)->steps().size());
+  const Status s = (*session)->Run(input, 40, 50, output, stamps);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("step timestamp buffer"), std::string::npos) << s.message();
+}
+
 TEST(Session, PlanHasNoOverlapsAndFitsTheArena) {
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
   auto session = Session::Create(model, {540, 960, Isa::kRef});

@@ -88,13 +88,17 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
       auto session = Session::Create(model, options);
       ASSERT_TRUE(session.ok()) << session.message();
       std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
+      std::vector<int64_t> step_end_ns((*session)->steps().size() + 1);
       for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
-        const long before = g_allocations.load();
-        const Status s = (*session)->Run(input, h, w, output);
-        const long allocated = g_allocations.load() - before;
-        ASSERT_TRUE(s.ok()) << s.message();
-        EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << ") allocated " << allocated
-                                << " times";
+        for (bool timed : {false, true}) {
+          const long before = g_allocations.load();
+          const Status s = timed ? (*session)->Run(input, h, w, output, step_end_ns)
+                                 : (*session)->Run(input, h, w, output);
+          const long allocated = g_allocations.load() - before;
+          ASSERT_TRUE(s.ok()) << s.message();
+          EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << (timed ? ", timed" : "")
+                                  << ") allocated " << allocated << " times";
+        }
       }
     }
   }

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <vector>
@@ -73,6 +74,14 @@ class Session {
   // Fails (allocating only for the message) if the size exceeds the planned maximum or a buffer
   // is too small.
   Status Run(std::span<const float> input, int height, int width, std::span<float> output);
+
+  // As above, and records when each planned step ended, for profiling without allocation:
+  // step_end_ns[0] is taken as Run() starts its first step, step_end_ns[k + 1] when steps()[k]
+  // has finished, in nanoseconds of std::chrono::steady_clock (CLOCK_MONOTONIC on Linux), so
+  // the timestamps line up with the caller's own stages. step_end_ns must hold
+  // steps().size() + 1 values; on failure its contents are unspecified.
+  Status Run(std::span<const float> input, int height, int width, std::span<float> output,
+             std::span<int64_t> step_end_ns);
 
   const Model& model() const { return *model_; }
   const SessionOptions& options() const { return options_; }
