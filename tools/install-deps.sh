@@ -14,10 +14,10 @@ packages=(
   libopencv-dev libcli11-dev nlohmann-json3-dev libturbojpeg0-dev libyaml-cpp-dev
   # aarch64 cross build of the runtime, tested under qemu
   g++-aarch64-linux-gnu qemu-user
-  # tests, benchmarks and fuzzing (libFuzzer comes with clang's runtime)
-  libgtest-dev libgmock-dev libbenchmark-dev clang-14 libclang-rt-14-dev
+  # tests, benchmarks, fuzzing (libFuzzer comes with clang's runtime) and memcheck
+  libgtest-dev libgmock-dev libbenchmark-dev clang-14 libclang-rt-14-dev valgrind
   # reference models for tests (PyTorch builds SceneEDNet and exports ONNX)
-  python3 python3-numpy python3-torch python3-onnx python3-h5py
+  python3 python3-numpy python3-torch python3-onnx python3-h5py python3-pil
 )
 
 missing=()

@@ -100,7 +100,32 @@ std::string LayerLabel(size_t i, const std::string& name) {
 
 const char* ExporterVersion() { return SFRT_VERSION; }
 
-Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
+Status UpdateFileChecksum(std::span<uint8_t> file) {
+  flatbuffers::Verifier verifier(file.data(), file.size());
+  if (!verifier.VerifyBuffer<fb::VersionProbe>(fb::ModelIdentifier())) {
+    return Status::Error("cannot set the file checksum: the model's root table does not verify");
+  }
+  const auto* root = reinterpret_cast<const flatbuffers::Table*>(
+      flatbuffers::GetRoot<fb::VersionProbe>(file.data()));
+  const uint8_t* field = root->GetAddressOf(fb::VersionProbe::VT_FILE_CRC32C);
+  if (field == nullptr) {
+    return Status::Error(
+        "cannot set the file checksum: the model has no file_crc32c field (schema 1.0 layout)");
+  }
+  uint8_t* at = file.data() + (field - file.data());
+  std::memset(at, 0, 4);
+  const uint32_t crc = Crc32c(0, file.data(), file.size());
+  for (int i = 0; i < 4; ++i) at[i] = static_cast<uint8_t>(crc >> (8 * i));  // little-endian
+  return Status::Ok();
+}
+
+Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
+                                            const SerializeOptions& options) {
+  if (options.schema_minor != 0 && options.schema_minor != kSchemaVersionMinor) {
+    return Status::Error("schema version 1." + std::to_string(options.schema_minor) +
+                         " cannot be written; this exporter writes 1.0 and 1." +
+                         std::to_string(kSchemaVersionMinor));
+  }
   if (spec.layers.empty()) return Status::Error("model '" + spec.name + "' has no layers");
   if (spec.input.channels <= 0) {
     return Status::Error("input.channels is " + std::to_string(spec.input.channels));
@@ -181,11 +206,19 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec) {
   const auto camera = fb::CreateCamera(b, spec.camera.focal_px, spec.camera.baseline,
                                        spec.camera.cx, spec.camera.cy);
   const fb::Version version(static_cast<uint16_t>(kSchemaVersionMajor),
-                            static_cast<uint16_t>(kSchemaVersionMinor));
-  const auto model = fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input,
-                                     output, camera, layers_offset, w.crc());
+                            static_cast<uint16_t>(options.schema_minor));
+  // 1.1: file_crc32c is written with a non-default placeholder (so that the field is stored) and
+  // patched once the buffer is finished.
+  const bool file_checksum = options.schema_minor >= 1;
+  const auto model =
+      fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input, output, camera,
+                      layers_offset, w.crc(), file_checksum ? 0xFFFFFFFFu : 0u);
   fb::FinishModelBuffer(b, model);
-  return std::vector<uint8_t>(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
+  std::vector<uint8_t> file(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
+  if (file_checksum) {
+    if (Status s = UpdateFileChecksum(file); !s.ok()) return s;
+  }
+  return file;
 }
 
 }  // namespace sfrt::exporter

@@ -42,6 +42,10 @@ struct PackedConv {
   const float* weights = nullptr;        // [blocks][taps][in_channels][nr], 64-byte aligned
   const float* bias = nullptr;           // [blocks * nr]
   const float* phase_weights = nullptr;  // [4][blocks][4][in_channels][nr], or null
+  // The few-output kernel's layout instead (kernels/simd/conv_few_out_inl.h): one block,
+  // [taps][out_channels][few_ci_stride], zero beyond in_channels; null for the others.
+  const float* few_weights = nullptr;
+  int few_ci_stride = 0;  // in_channels rounded up to 16
 };
 
 // One kernel call. For a plain convolution `in` is the convolution's input. For the fused
@@ -57,6 +61,9 @@ struct ConvArgs {
   int crop_left = 0;
   int c_height = 0;
   int c_width = 0;
+  // Fused upsample-conv: leave the interior pixels (whose 3x3 window lies inside C) untouched,
+  // computing only the border; set when the Winograd phase path writes the interior.
+  bool skip_interior = false;
 };
 
 // Computes output rows [row_begin, row_end) of args.out, output-channel blocks
@@ -76,9 +83,15 @@ struct ConvKernelVariant {
 // An ISA's kernels, by increasing nr. A layer uses the narrowest variant whose nr covers its
 // output channels, or the widest (PickConvVariant).
 inline constexpr int kMaxConvVariants = 4;
+// Layers with at most this many output channels (and at least kFewOutMinInputs inputs) use the
+// ISA's few-output kernel, vectorised over input channels, where it has one.
+inline constexpr int kFewOutChannels = 4;
+inline constexpr int kFewOutMinInputs = 16;
 struct IsaConvKernels {
   ConvKernelVariant variants[kMaxConvVariants];
   int count = 0;
+  ConvRowsFn few_out = nullptr;  // plain convolutions with few outputs (few_weights)
+  const char* few_out_name = "";
 };
 
 inline const ConvKernelVariant& PickConvVariant(const IsaConvKernels& k, int out_channels) {

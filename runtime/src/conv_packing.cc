@@ -40,6 +40,43 @@ size_t PackedConvFloats(const ConvParams& params, int nr, bool with_phases) {
   return s.weights + s.bias + s.phases;
 }
 
+size_t PackedConvFewOutFloats(const ConvParams& p) {
+  const size_t taps = static_cast<size_t>(p.kernel_h * p.kernel_w);
+  return RoundUp16(taps * static_cast<size_t>(p.out_channels) * RoundUp16(p.in_channels)) +
+         RoundUp16(static_cast<size_t>(p.out_channels));
+}
+
+PackedConv PackConvFewOut(const ConvParams& p, float* dst) {
+  const int cin = p.in_channels, cout = p.out_channels, taps = p.kernel_h * p.kernel_w;
+  const int cs = static_cast<int>(RoundUp16(static_cast<size_t>(cin)));
+  PackedConv out;
+  out.in_channels = cin;
+  out.out_channels = cout;
+  out.kernel_h = p.kernel_h;
+  out.kernel_w = p.kernel_w;
+  out.stride_h = p.stride_h;
+  out.stride_w = p.stride_w;
+  out.nr = cout;
+  out.blocks = 1;
+  out.cin_block = cin;
+  out.activation = p.activation;
+  out.leaky_slope = p.leaky_slope;
+  out.few_ci_stride = cs;
+  float* w = dst;
+  for (int t = 0; t < taps; ++t) {
+    for (int co = 0; co < cout; ++co) {
+      for (int ci = 0; ci < cs; ++ci) {
+        *w++ = ci < cin ? p.weights[(static_cast<size_t>(t) * cin + ci) * cout + co] : 0.0f;
+      }
+    }
+  }
+  float* bias = dst + RoundUp16(static_cast<size_t>(taps) * cout * cs);
+  for (int co = 0; co < cout; ++co) bias[co] = p.bias[co];
+  out.few_weights = dst;
+  out.bias = bias;
+  return out;
+}
+
 PackedConv PackConv(const ConvParams& p, int nr, bool with_phases, float* dst) {
   assert(!with_phases || (p.kernel_h == 3 && p.kernel_w == 3));
   const Sizes s = SizesOf(p, nr, with_phases);

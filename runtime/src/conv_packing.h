@@ -27,6 +27,12 @@ size_t PackedConvFloats(const ConvParams& params, int nr, bool with_phases);
 // cin_block = DefaultCinBlock(params, nr, with_phases).
 PackedConv PackConv(const ConvParams& params, int nr, bool with_phases, float* dst);
 
+// The few-output kernel's packing (kernels/simd/conv_few_out_inl.h): one block, weights
+// [taps][out_channels][in_channels rounded up to 16] (zero-filled), bias [out_channels rounded
+// up to 16]. For out_channels <= kFewOutChannels.
+size_t PackedConvFewOutFloats(const ConvParams& params);
+PackedConv PackConvFewOut(const ConvParams& params, float* dst);
+
 // Bytes of one output-channel block's weights for one input-channel block that the kernels
 // keep in cache (about a quarter of a 1 MiB L2, leaving room for the input rows and the
 // output partial sums the same pass touches).

@@ -21,6 +21,11 @@ static_assert(std::endian::native == std::endian::little,
               "the model file is little-endian and is used in place");
 
 namespace fb = ::sfrt::schema;
+static_assert(static_cast<int>(fb::VersionProbe::VT_VERSION) ==
+                      static_cast<int>(fb::Model::VT_VERSION) &&
+                  static_cast<int>(fb::VersionProbe::VT_FILE_CRC32C) ==
+                      static_cast<int>(fb::Model::VT_FILE_CRC32C),
+              "VersionProbe must keep Model's field numbers");
 
 // How the model's bytes are held. Exactly one of the members is in use.
 struct Model::Storage {
@@ -215,6 +220,31 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                         std::to_string(kSchemaVersionMajor) + ".x only; export the model again" +
                         (v->major() > kSchemaVersionMajor ? " with this sfrt or upgrade sfrt"
                                                           : " with this sfrt"));
+    }
+    // 2b. The whole-file checksum (schema 1.1), before anything else in the file is read. It is
+    // checked whenever the field is present, whatever the minor version says, so that damage to
+    // the version itself is caught too.
+    const auto* root =
+        reinterpret_cast<const flatbuffers::Table*>(flatbuffers::GetRoot<fb::VersionProbe>(data_));
+    if (const uint8_t* field = root->GetAddressOf(fb::VersionProbe::VT_FILE_CRC32C)) {
+      const size_t offset = static_cast<size_t>(field - data_);
+      const uint32_t recorded = flatbuffers::ReadScalar<uint32_t>(field);
+      metadata_.file_crc32c = recorded;
+      if (options.verify_checksum) {
+        static constexpr uint8_t kZeros[4] = {0, 0, 0, 0};
+        uint32_t crc = Crc32c(0, data_, offset);
+        crc = Crc32c(crc, kZeros, sizeof(kZeros));
+        crc = Crc32c(crc, data_ + offset + 4, size_ - offset - 4);
+        if (crc != recorded) {
+          return check.Fail("file checksum mismatch: the file records CRC-32C " + Hex32(recorded) +
+                            " but its " + std::to_string(size_) + " bytes give " + Hex32(crc) +
+                            " (truncated or damaged)");
+        }
+      }
+    } else if (v->minor() >= 1) {
+      return check.Fail("model file has schema version " + std::to_string(v->major()) + "." +
+                        std::to_string(v->minor()) +
+                        " but no file checksum (field file_crc32c); the file is damaged");
     }
   }
 

@@ -10,8 +10,11 @@
 #include "kernels/conv_job.h"
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/resample_ref.h"
+#include "kernels/winograd_job.h"
 #include "memory_planner.h"
 #include "thread_pool.h"
+#include "winograd_packing.h"
+#include "winograd_run.h"
 
 namespace sfrt {
 
@@ -23,6 +26,7 @@ struct Session::Step {
     kRefConv,   // ref::Conv2d
     kUpsample,  // ref::UpsampleNearest
     kCrop,      // a view of the previous tensor (a copy only when it is the model's output)
+    kWinograd,  // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -32,6 +36,12 @@ struct Session::Step {
   PackedConv packed;
   const ConvParams* params = nullptr;  // kRefConv
   const char* kernel = "";
+  const WinogradKernels* winograd = nullptr;  // kWinograd
+  PackedWinograd wpacked;
+  size_t scratch_offset = 0;  // kWinograd: bytes from the arena start of its v and m buffers
+  // kUpConv on the Winograd phase path (interior pixels; the direct kernel does the border):
+  const WinogradKernels* upwinograd = nullptr;
+  int band_rows = 0;  // tile rows per pass, so that v and m stay small (planned at Create)
 };
 
 class Session::Pool : public ThreadPool {
@@ -132,6 +142,26 @@ void RefConvTrampoline(void* ctx, int begin, int end) {
   ref::Conv2d(job->in, *job->params, pads, rows);
 }
 
+// Tile side of the Winograd path: SFRT_WINOGRAD=off|f2|f4 if set (for experiments and tests),
+// else kDefaultWinogradTile. 0: off.
+constexpr int kDefaultWinogradTile = 2;
+Result<int> ResolveWinogradTile() {
+  const char* env = std::getenv("SFRT_WINOGRAD");
+  if (env == nullptr || *env == '\0') return kDefaultWinogradTile;
+  const std::string v = env;
+  if (v == "off") return 0;
+  if (v == "f2") return 2;
+  if (v == "f4") return 4;
+  return Status::Error("Session::Create: SFRT_WINOGRAD='" + v + "' is not one of off, f2, f4");
+}
+
+// SFRT_WINOGRAD_UPCONV=off turns the fused upsample-conv's Winograd phase path off (for
+// experiments and tests); anything else, or unset, leaves it on.
+bool UpConvWinogradEnabled() {
+  const char* env = std::getenv("SFRT_WINOGRAD_UPCONV");
+  return env == nullptr || std::string(env) != "off";
+}
+
 }  // namespace
 
 Session::~Session() {
@@ -183,6 +213,12 @@ Status Session::Plan() {
   const auto layers = model_->layers();
   const int n = static_cast<int>(layers.size());
   const IsaConvKernels* kernels = ConvKernelsFor(isa_);
+  Result<int> winograd_tile = ResolveWinogradTile();
+  if (!winograd_tile.ok()) return winograd_tile.status();
+  const WinogradKernels* winograd =
+      *winograd_tile > 0 ? WinogradKernelsFor(isa_, *winograd_tile) : nullptr;
+  const WinogradKernels* upwinograd =
+      *winograd_tile > 0 && UpConvWinogradEnabled() ? WinogradUpKernelsFor(isa_) : nullptr;
 
   // 1. The steps, fusing upsample 2x (+ crop) + 3x3 stride-1 convolution where the ISA can.
   for (int i = 0; i < n; ++i) {
@@ -205,11 +241,18 @@ Status Session::Plan() {
         step.kind = Step::Kind::kUpConv;
         step.last_layer = conv;
         step.crop_layer = crop;
+        if (upwinograd != nullptr && WinogradUpApplies(layers[conv].conv)) {
+          step.upwinograd = upwinograd;
+        }
         i = conv;
       } else {
         step.kind = Step::Kind::kUpsample;
         step.kernel = "ref::UpsampleNearest";
       }
+    } else if (winograd != nullptr && WinogradApplies(layer.conv)) {
+      step.kind = Step::Kind::kWinograd;
+      step.winograd = winograd;
+      step.kernel = winograd->name;
     } else if (kernels != nullptr && layer.conv.kernel_h * layer.conv.kernel_w <= kMaxConvTaps) {
       step.kind = Step::Kind::kConv;
     } else {
@@ -224,10 +267,29 @@ Status Session::Plan() {
   auto variant_for = [&](const ConvParams& p) -> const ConvKernelVariant& {
     return PickConvVariant(*kernels, p.out_channels);
   };
+  auto few_out = [&](const Step& step) {
+    const ConvParams& p = layers[step.last_layer].conv;
+    const char* env = std::getenv("SFRT_FEWOUT");  // "off": for experiments and tests
+    if (env != nullptr && std::string(env) == "off") return false;
+    return step.kind == Step::Kind::kConv && kernels->few_out != nullptr &&
+           p.out_channels <= kFewOutChannels && p.in_channels >= kFewOutMinInputs;
+  };
   size_t floats = 0;
   for (const Step& step : steps_) {
-    if (step.kind != Step::Kind::kConv && step.kind != Step::Kind::kUpConv) continue;
     const ConvParams& p = layers[step.last_layer].conv;
+    if (step.kind == Step::Kind::kWinograd) {
+      floats += PackedWinogradFloats(p, step.winograd->m, step.winograd->nr);
+    }
+    if (step.kind != Step::Kind::kConv && step.kind != Step::Kind::kUpConv) continue;
+    if (few_out(step)) {
+      floats += PackedConvFewOutFloats(p);
+      continue;
+    }
+    if (step.upwinograd != nullptr) {
+      floats += PackedWinogradUpFloats(p, step.upwinograd->nr) +
+                PackedConvFloats(p, variant_for(p).nr, false);
+      continue;
+    }
     floats += PackedConvFloats(p, variant_for(p).nr, step.kind == Step::Kind::kUpConv);
   }
   if (floats > 0) {
@@ -240,9 +302,31 @@ Status Session::Plan() {
   }
   float* cursor = packed_;
   for (Step& step : steps_) {
-    if (step.kind != Step::Kind::kConv && step.kind != Step::Kind::kUpConv) continue;
     const ConvParams& p = layers[step.last_layer].conv;
+    if (step.kind == Step::Kind::kWinograd) {
+      step.wpacked = PackWinograd(p, step.winograd->m, step.winograd->nr, cursor);
+      cursor += PackedWinogradFloats(p, step.winograd->m, step.winograd->nr);
+      continue;
+    }
+    if (step.kind != Step::Kind::kConv && step.kind != Step::Kind::kUpConv) continue;
+    if (few_out(step)) {
+      step.packed = PackConvFewOut(p, cursor);
+      cursor += PackedConvFewOutFloats(p);
+      step.fn = kernels->few_out;
+      step.kernel = kernels->few_out_name;
+      continue;
+    }
     const ConvKernelVariant& v = variant_for(p);
+    if (step.upwinograd != nullptr) {
+      // The 3x3 weights for the border, the phase kernels' Winograd weights for the interior.
+      step.packed = PackConv(p, v.nr, false, cursor);
+      cursor += PackedConvFloats(p, v.nr, false);
+      step.wpacked = PackWinogradUp(p, step.upwinograd->nr, cursor);
+      cursor += PackedWinogradUpFloats(p, step.upwinograd->nr);
+      step.fn = v.upconv;
+      step.kernel = step.upwinograd->name;
+      continue;
+    }
     const bool phases = step.kind == Step::Kind::kUpConv;
     step.packed = PackConv(p, v.nr, phases, cursor);
     cursor += PackedConvFloats(p, v.nr, phases);
@@ -268,9 +352,34 @@ Status Session::Plan() {
     requests.push_back({geometry_[step.last_layer].output.elements() * sizeof(float),
                         step.last_layer, steps_[reader].last_layer});
   }
+  // Winograd scratch (v and m) lives during its own step only, so it reuses memory that the
+  // tensors of other steps need; it is not a tensor (plan() lists tensors only).
+  const size_t tensors = requests.size();
+  auto has_scratch = [](const Step& step) {
+    return step.kind == Step::Kind::kWinograd || step.upwinograd != nullptr;
+  };
+  for (Step& step : steps_) {
+    if (!has_scratch(step)) continue;
+    const LayerGeometry& g = geometry_[step.last_layer];
+    size_t floats_needed = 0;
+    if (step.kind == Step::Kind::kWinograd) {
+      floats_needed = WinogradScratchFloats(step.wpacked, g.output.height, g.output.width);
+    } else {
+      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+      const UpGrid u =
+          UpGridOf(g.output.height, g.output.width, g.pads, c.output.height, c.output.width,
+                   step.crop_layer >= 0 ? c.crop.top : 0, step.crop_layer >= 0 ? c.crop.left : 0);
+      step.band_rows = UpWinogradBandRows(step.wpacked, u.tiles_h, u.tiles_w);
+      floats_needed = UpWinogradScratchFloats(step.wpacked, step.band_rows, u.tiles_w);
+    }
+    requests.push_back({floats_needed * sizeof(float), step.last_layer, step.last_layer});
+  }
   const ArenaPlan plan = PlanArena(requests);
-  plan_.resize(requests.size());
-  for (size_t t = 0; t < requests.size(); ++t) {
+  for (size_t t = tensors, k = 0; k < steps_.size(); ++k) {
+    if (has_scratch(steps_[k])) steps_[k].scratch_offset = plan.offsets[t++];
+  }
+  plan_.resize(tensors);
+  for (size_t t = 0; t < tensors; ++t) {
     plan_[t] = {requests[t].first_use, requests[t].last_use, plan.offsets[t], requests[t].bytes};
   }
   arena_bytes_ = plan.total_bytes;
@@ -386,6 +495,11 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
           args.c_height = c.output.height;
           args.c_width = c.output.width;
         }
+        if (step.upwinograd != nullptr) {
+          RunUpWinogradBands(*step.upwinograd, step.wpacked, step.band_rows,
+                             arena_ + step.scratch_offset / sizeof(float), args, parallel_rows);
+          args.skip_interior = true;
+        }
         if (pool_ == nullptr) {
           step.fn(args, 0, out.height, 0, step.packed.blocks);
         } else {
@@ -393,6 +507,27 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
                       ConvChunks(step.packed.blocks, out.height, threads_)};
           pool_->ParallelFor(step.packed.blocks * job.chunks, ConvTrampoline, &job);
         }
+        break;
+      }
+      case Step::Kind::kWinograd: {
+        WinogradArgs args;
+        args.conv = &step.wpacked;
+        args.in = cur;
+        args.out = out;
+        args.pads = g.pads;
+        args.tiles_h = WinogradTiles(out.height, step.wpacked.m);
+        args.tiles_w = WinogradTiles(out.width, step.wpacked.m);
+        args.v = arena_ + step.scratch_offset / sizeof(float);
+        args.m = args.v + static_cast<size_t>(step.wpacked.alpha) * step.wpacked.alpha *
+                              args.tiles_h * args.tiles_w * step.wpacked.k_stride;
+        const int tiles = args.tiles_h * args.tiles_w;
+        const int items = step.wpacked.alpha * step.wpacked.alpha * step.wpacked.blocks;
+        WinogradJob input_job{step.winograd->input, &args};
+        WinogradJob product{step.winograd->product, &args};
+        WinogradJob output_job{step.winograd->output, &args};
+        parallel_rows(tiles, WinogradTrampoline, &input_job);
+        parallel_rows(items, WinogradTrampoline, &product);
+        parallel_rows(tiles, WinogradTrampoline, &output_job);
         break;
       }
       case Step::Kind::kRefConv: {

@@ -38,6 +38,10 @@ Status InferGeometry(const Model& model, int height, int width, std::span<LayerG
     return Status::Error("input size " + std::to_string(height) + "x" + std::to_string(width) +
                          " is not positive");
   }
+  if (height > kMaxTensorSide || width > kMaxTensorSide) {
+    return Status::Error("input size " + std::to_string(height) + "x" + std::to_string(width) +
+                         " exceeds the largest supported side, " + std::to_string(kMaxTensorSide));
+  }
   TensorShape cur{height, width, model.metadata().input.channels};
   for (size_t i = 0; i < layers.size(); ++i) {
     const LayerDesc& layer = layers[i];
@@ -65,6 +69,14 @@ Status InferGeometry(const Model& model, int height, int width, std::span<LayerG
         break;
       }
       case LayerKind::kUpsample:
+        if (cur.height > kMaxTensorSide / layer.upsample.factor_h ||
+            cur.width > kMaxTensorSide / layer.upsample.factor_w) {
+          return Status::Error(
+              Quote(layer, i) + ": upsampling " + std::to_string(cur.height) + "x" +
+              std::to_string(cur.width) + " by " + std::to_string(layer.upsample.factor_h) + "x" +
+              std::to_string(layer.upsample.factor_w) + " exceeds the largest supported side, " +
+              std::to_string(kMaxTensorSide));
+        }
         g.output = {cur.height * layer.upsample.factor_h, cur.width * layer.upsample.factor_w,
                     cur.channels};
         break;
@@ -84,13 +96,15 @@ Status InferGeometry(const Model& model, int height, int width, std::span<LayerG
           (c.excess_rows_from_top ? g.crop.top : g.crop.bottom) = excess_rows;
           (c.excess_cols_from_left ? g.crop.left : g.crop.right) = excess_cols;
         }
-        g.output = {cur.height - g.crop.top - g.crop.bottom, cur.width - g.crop.left - g.crop.right,
-                    cur.channels};
-        if (g.output.height <= 0 || g.output.width <= 0) {
+        // In 64 bits: explicit amounts are any non-negative int in a (crafted) file.
+        const int64_t rows = int64_t{cur.height} - g.crop.top - g.crop.bottom;
+        const int64_t cols = int64_t{cur.width} - g.crop.left - g.crop.right;
+        if (rows <= 0 || cols <= 0) {
           return Status::Error(Quote(layer, i) + ": removes everything of a " +
                                std::to_string(cur.height) + "x" + std::to_string(cur.width) +
                                " input");
         }
+        g.output = {static_cast<int>(rows), static_cast<int>(cols), cur.channels};
         break;
       }
     }

@@ -1,5 +1,6 @@
 // Fuzz target: the stereo calibration readers (ROS camera_info pair, Kalibr camchain, OpenCV
-// FileStorage YAML/XML, one or two files, and the content-sniffing ReadStereoCalibration).
+// FileStorage YAML, one or two files, the refusal of OpenCV XML, and the content-sniffing
+// ReadStereoCalibration).
 // The readers take paths, so the input is written to files in a private temporary directory.
 // Input layout: byte 0 picks the reader (value % 7, below); the rest is the file content, split
 // into two files at the first "\n---8<---\n" for the two-file readers (without the marker, both
@@ -70,7 +71,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case 2:  // OpenCV FileStorage, one YAML file
       (void)ReadOpenCvCalibration({WriteFile("stereo.yml", body)});
       break;
-    case 3:  // OpenCV FileStorage, one XML file
+    case 3:  // OpenCV FileStorage, one XML file (refused before any parser sees it)
       (void)ReadOpenCvCalibration({WriteFile("stereo.xml", body)});
       break;
     case 4:  // OpenCV FileStorage, intrinsics + extrinsics

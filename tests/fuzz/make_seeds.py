@@ -12,6 +12,9 @@ Writes OUT_DIR/<target>/ for every target of tests/fuzz:
   pfm, npy                   small images/arrays in every accepted variant
   calibration                ROS camera_info pair, Kalibr camchain, OpenCV FileStorage YAML/XML,
                              each behind its reader-selector byte (calibration_fuzzer.cc)
+  image                      small PNG (8-bit RGB, grey, 16-bit, palette, RGBA), PPM and PGM
+                             frames behind the selector byte of image_fuzzer.cc
+  profile                    the shipped deployment profiles firmware-cfg/*.yaml
 Run with Debian's /usr/bin/python3 (torch, onnx, numpy, h5py).
 Usage: make_seeds.py --out-dir DIR --model-seeds BIN [--work-dir DIR]
 """
@@ -23,6 +26,7 @@ import shutil
 import struct
 import subprocess
 import sys
+import zlib
 
 import numpy as np
 
@@ -129,6 +133,51 @@ cam1:
     write(os.path.join(out, "opencv_xml"), bytes([3]) + xml)
 
 
+def png_bytes(width, height, color_type, bit_depth, pixels, palette=None):
+    """A PNG with one IDAT; pixels: bytes of the filtered-free scanlines (filter 0 added)."""
+    def chunk(tag, body):
+        return (struct.pack(">I", len(body)) + tag + body +
+                struct.pack(">I", zlib.crc32(tag + body) & 0xFFFFFFFF))
+    channels = {0: 1, 2: 3, 3: 1, 6: 4}[color_type]
+    stride = (width * channels * bit_depth + 7) // 8
+    raw = b"".join(b"\0" + pixels[y * stride:(y + 1) * stride] for y in range(height))
+    out = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, bit_depth,
+                                                             color_type, 0, 0, 0))
+    if palette is not None:
+        out += chunk(b"PLTE", palette)
+    return out + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b"")
+
+
+def image_seeds(out):
+    # Selector byte (image_fuzzer.cc): bits 0-1 extension (.png .ppm .pgm .jpg), bit 2 stop
+    # policy, bit 3 glob. The right frame there is 4x4, so the 4x4 seeds decode into pairs.
+    rng = np.random.default_rng(1)
+    rgb = rng.integers(0, 256, (4, 4, 3), dtype=np.uint8).tobytes()
+    grey = rng.integers(0, 256, (4, 4), dtype=np.uint8).tobytes()
+    write(os.path.join(out, "png_rgb8"), bytes([0]) + png_bytes(4, 4, 2, 8, rgb))
+    write(os.path.join(out, "png_grey8_glob_stop"), bytes([12]) + png_bytes(4, 4, 0, 8, grey))
+    write(os.path.join(out, "png_rgb16"), bytes([0]) + png_bytes(4, 4, 2, 16, rgb + rgb))
+    write(os.path.join(out, "png_rgba8_5x3"), bytes([4]) + png_bytes(5, 3, 6, 8, rgb + rgb[:12]))
+    write(os.path.join(out, "png_palette"),
+          bytes([8]) + png_bytes(4, 4, 3, 8, bytes(i % 4 for i in range(16)), rgb[:12]))
+    write(os.path.join(out, "ppm_p6"), bytes([1]) + b"P6\n4 4\n255\n" + rgb)
+    write(os.path.join(out, "ppm_p3_comment"), bytes([9]) + b"P3\n# c\n2 2\n255\n" +
+          " ".join(str(v) for v in rgb[:12]).encode() + b"\n")
+    write(os.path.join(out, "pgm_p5"), bytes([2]) + b"P5\n4 4\n255\n" + grey)
+    write(os.path.join(out, "ppm_p6_16bit"), bytes([5]) + b"P6\n2 2\n65535\n" + rgb[:24])
+    from PIL import Image  # Debian python3-pil
+    buf = io.BytesIO()
+    Image.frombytes("RGB", (4, 4), rgb).save(buf, format="JPEG", quality=90)
+    write(os.path.join(out, "jpeg_baseline"), bytes([3]) + buf.getvalue())
+
+
+def profile_seeds(out):
+    cfg = os.path.join(HERE, "..", "..", "firmware-cfg")
+    for name in sorted(os.listdir(cfg)):
+        if name.endswith(".yaml"):
+            write(os.path.join(out, name), open(os.path.join(cfg, name), "rb").read())
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out-dir", required=True)
@@ -185,6 +234,8 @@ def main():
     write(os.path.join(out, "npy", "numpy_save.npy"), buf.getvalue())
 
     calibration_seeds(os.path.join(out, "calibration"))
+    image_seeds(os.path.join(out, "image"))
+    profile_seeds(os.path.join(out, "profile"))
     for target in sorted(os.listdir(out)):
         if target.startswith("."):
             continue

@@ -161,6 +161,61 @@ TEST_P(Conv2dSimd, MatchesReferenceOnEveryShapeOfTheTable) {
   }
 }
 
+// The few-output kernel (vectorised over input channels) on the table's shapes with at most
+// kFewOutChannels outputs and more: SceneEDNet's 64 -> 3 output convolution at an odd size,
+// input-channel tails of every vector width, strides, pads, 5x5, one to four outputs.
+TEST_P(Conv2dSimd, FewOutputKernelMatchesReference) {
+  ASSERT_NE(kernels_->few_out, nullptr);
+  const std::string name = kernels_->few_out_name;
+  EXPECT_NE(name.find(std::string("__") + IsaName(GetParam())), std::string::npos) << name;
+  std::vector<ConvCase> cases = {
+      {33, 47, 64, 3, 3, 1, {1, 1, 1, 1}},  // the output convolution
+      {9, 13, 64, 3, 3, 1, {1, 1, 1, 1}, 0, Activation::kNone},
+      {7, 20, 70, 3, 3, 1, {1, 1, 1, 1}},  // 70 = 64 + 6: a partial vector
+      {5, 9, 17, 1, 3, 1, {1, 1, 1, 1}},   // one output
+      {6, 11, 40, 2, 3, 2, {0, 0, 1, 1}},  // two outputs, stride 2, TF same-upper
+      {8, 15, 24, 4, 5, 1, {2, 2, 2, 2}, 0, Activation::kRelu},  // four outputs, 5x5
+      {1, 1, 16, 3, 3, 1, {1, 1, 1, 1}},                         // one pixel
+      {10, 26, 33, 3, 3, 1, {2, 0, 0, 2}},                       // asymmetric, large pads
+      {9, 18, 16, 3, 3, 1, {1, 1, 1, 1}, 48},  // input is a view with a row stride
+  };
+  uint32_t seed = 500;
+  for (const ConvCase& c : cases) {
+    SCOPED_TRACE(Describe(c));
+    const int out_h = (c.h + c.pads.top + c.pads.bottom - c.k) / c.stride + 1;
+    const int out_w = (c.w + c.pads.left + c.pads.right - c.k) / c.stride + 1;
+    const ptrdiff_t row = static_cast<ptrdiff_t>(c.w) * c.cin + c.extra_row_floats;
+    const std::vector<float> input = Random(static_cast<size_t>(c.h) * row, seed++, 1.0f);
+    const std::vector<float> weights = Random(static_cast<size_t>(c.k * c.k) * c.cin * c.cout,
+                                              seed++, 1.0f / std::sqrt(float(c.k * c.k * c.cin)));
+    const std::vector<float> bias = Random(c.cout, seed++, 0.5f);
+    ConvParams p;
+    p.in_channels = c.cin;
+    p.out_channels = c.cout;
+    p.kernel_h = p.kernel_w = c.k;
+    p.stride_h = p.stride_w = c.stride;
+    p.activation = c.act;
+    p.leaky_slope = 0.3f;
+    p.weights = weights.data();
+    p.bias = bias.data();
+    const ConstTensorView in{input.data(), c.h, c.w, c.cin, row};
+    std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
+    ref::Conv2d(in, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
+
+    Aligned packed(PackedConvFewOutFloats(p));
+    const PackedConv pc = PackConvFewOut(p, packed.data);
+    std::vector<float> got(want.size(), NAN);
+    ConvArgs args;
+    args.conv = &pc;
+    args.in = in;
+    args.out = DenseView(got.data(), out_h, out_w, c.cout);
+    args.pads = c.pads;
+    kernels_->few_out(args, 0, out_h / 2, 0, 1);
+    kernels_->few_out(args, out_h / 2, out_h, 0, 1);
+    EXPECT_LE(MaxRelativeError(got, want), kTolerance);
+  }
+}
+
 struct UpConvCase {
   int h, w, cin, cout;      // low-resolution input
   int crop_top, crop_left;  // removed from the upsampled map

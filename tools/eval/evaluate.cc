@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "eval/classical.h"
+#include "sfrt/io/imread.h"
 #include "sfrt/io/pfm.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
@@ -62,7 +63,7 @@ bool IsFile(const std::string& path) {
 }
 
 Result<cv::Mat> ReadImage(const std::string& path) {
-  cv::Mat image = cv::imread(path, cv::IMREAD_COLOR);
+  cv::Mat image = tools::ReadImageOrEmpty(path);
   if (image.empty() || image.type() != CV_8UC3) {
     return Status::Error(path + ": cannot be decoded as an 8-bit colour image");
   }

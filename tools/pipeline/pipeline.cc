@@ -3,10 +3,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -15,6 +17,7 @@
 #include <thread>
 #include <utility>
 
+#include "pipeline/profiler.h"
 #include "pipeline/visualize.h"
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/io/atomic_write.h"
@@ -43,6 +46,24 @@ std::string Fixed(double v, int digits) {
   return buf;
 }
 
+// The latest kLatencyWindow latencies of one kind, in memory allocated and touched once (before
+// the stages start), so a run of any length keeps a constant resident size. Percentiles in the
+// summary describe these latest windows (all of them in runs up to kLatencyWindow windows).
+constexpr size_t kLatencyWindow = size_t{1} << 16;
+class LatencyWindow {
+ public:
+  LatencyWindow() : values_(kLatencyWindow, -1.0) {}
+  void Add(double ms) { values_[added_++ % values_.size()] = ms; }
+  std::vector<double> Values() const {
+    return {values_.begin(),
+            values_.begin() + static_cast<ptrdiff_t>(std::min(added_, values_.size()))};
+  }
+
+ private:
+  std::vector<double> values_;
+  size_t added_ = 0;
+};
+
 struct InputItem {
   FrameMeta meta;
   cv::Mat left_vis;          // rectified left image at t, model size (for the visualisation)
@@ -52,7 +73,8 @@ struct InputItem {
 struct FlowItem {
   FrameMeta meta;
   cv::Mat left_vis;
-  std::vector<float> flow;  // height x width x output channels
+  std::vector<float> flow;       // height x width x output channels
+  std::vector<int64_t> step_ns;  // --profile: Session::Run's step end times (steps + 1)
 };
 
 json PercentilesJson(const Percentiles& p) {
@@ -106,8 +128,14 @@ class Runner {
   int64_t frames_ = 0;
   int64_t misses_ = 0;
   int64_t discarded_after_max_ = 0;
-  std::vector<double> stage_ms_[4];
-  std::vector<double> e2e_ms_;
+  std::atomic<bool> skip_next_{false};  // drop_next_on_miss: set by output, taken by source
+  int64_t skipped_after_miss_ = 0;      // written by the source stage
+  int64_t output_errors_ = 0;
+  static constexpr size_t kMaxListedSkips = 100;        // summary.json lists at most this many
+  std::vector<FrameSource::BadFrame> skipped_outputs_;  // {stem, error} under kSkip
+  LatencyWindow stage_ms_[4];
+  LatencyWindow e2e_ms_;
+  std::FILE* latency_log_ = nullptr;  // --latency-log
   std::string last_stem_;
   std::string video_tmp_;
   bool video_written_ = false;
@@ -137,6 +165,7 @@ FlowItem Runner::MakeFlow() const {
   FlowItem f;
   f.left_vis.create(height_, width_, CV_8UC3);
   f.flow.resize(static_cast<size_t>(height_) * width_ * out_channels_);
+  if (options_.profiler) f.step_ns.resize(session_->steps().size() + 1);
   return f;
 }
 
@@ -227,17 +256,27 @@ Status Runner::Setup() {
                          " channels; PFM holds 1 or 3 (use --flow-format npy)");
   }
 
+  if (options_.prefault) {  // page in the arena and packed weights before the first frame
+    std::vector<float> zeros(preprocessor_->output_floats(), 0.0f);
+    std::vector<float> flow(static_cast<size_t>(height_) * width_ * out_channels_);
+    if (Status s = session_->Run(zeros, height_, width_, flow); !s.ok()) return s;
+  }
+  if (options_.profiler) options_.profiler->Prepare(*session_, height_, width_);
+
   policy_ =
       options_.policy.value_or(source_->live() ? QueuePolicy::kNewestWins : QueuePolicy::kBlock);
   const size_t cap = std::max<size_t>(1, options_.queue_capacity);
   q1_ = std::make_unique<LatestQueue<WindowItem>>(cap, policy_, [this] { return MakeWindow(); });
   q2_ = std::make_unique<LatestQueue<InputItem>>(cap, policy_, [this] { return MakeInput(); });
   q3_ = std::make_unique<LatestQueue<FlowItem>>(cap, policy_, [this] { return MakeFlow(); });
-  const size_t reserve = options_.max_frames > 0
-                             ? static_cast<size_t>(options_.max_frames)
-                             : static_cast<size_t>(source_->total_windows().value_or(4096));
-  for (auto& v : stage_ms_) v.reserve(reserve);
-  e2e_ms_.reserve(reserve);
+  if (!options_.latency_log.empty()) {
+    latency_log_ = std::fopen(options_.latency_log.c_str(), "w");
+    if (latency_log_ == nullptr) {
+      return Status::Error("cannot open the latency log '" + options_.latency_log +
+                           "': " + std::strerror(errno));
+    }
+    std::fprintf(latency_log_, "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms\n");
+  }
 
   switch (options_.progress) {
     case ProgressMode::kAuto:
@@ -257,6 +296,7 @@ Status Runner::Setup() {
 }
 
 void Runner::SourceStage() {
+  if (options_.on_stage_start) options_.on_stage_start(0);
   WindowItem item = MakeWindow();
   while (!halt_.load()) {
     Result<Fetch> next = source_->Next(&item, halt_);
@@ -265,6 +305,11 @@ void Runner::SourceStage() {
       break;
     }
     if (*next == Fetch::kEnd) break;
+    if (skip_next_.exchange(false)) {  // latency.on_miss: drop-next
+      ++skipped_after_miss_;
+      ++windows_read_;
+      continue;
+    }
     item.meta.window = windows_read_++;
     item.meta.stage_ns[0][1] = NowNs();
     if (!q1_->Push(&item)) break;
@@ -273,6 +318,7 @@ void Runner::SourceStage() {
 }
 
 void Runner::PreprocessStage() {
+  if (options_.on_stage_start) options_.on_stage_start(1);
   WindowItem w = MakeWindow();
   InputItem in = MakeInput();
   cv::Mat l0, r0, l1, r1;  // rectified, model size
@@ -318,12 +364,15 @@ void Runner::PreprocessStage() {
 }
 
 void Runner::InferStage() {
+  if (options_.on_stage_start) options_.on_stage_start(2);
   // Both items are allocated here, before the first frame; the loop only swaps and runs.
   InputItem in = MakeInput();
   FlowItem out = MakeFlow();
   while (q2_->Pop(&in)) {
     in.meta.stage_ns[2][0] = NowNs();
-    Status s = session_->Run(in.input, height_, width_, out.flow);
+    Status s = out.step_ns.empty()
+                   ? session_->Run(in.input, height_, width_, out.flow)
+                   : session_->Run(in.input, height_, width_, out.flow, out.step_ns);
     if (!s.ok()) {
       Fail(s, true);
       break;
@@ -337,6 +386,7 @@ void Runner::InferStage() {
 }
 
 void Runner::OutputStage() {
+  if (options_.on_stage_start) options_.on_stage_start(3);
   FlowItem f = MakeFlow();
   Visualizer vis;
   cv::Mat canvas;
@@ -354,14 +404,17 @@ void Runner::OutputStage() {
     m.stage_ns[3][0] = NowNs();
     const std::string stem = OutputStem(m);
     Status s = Status::Ok();
+    std::vector<std::string> written;  // this window's files so far, removed if a later one fails
     if (options_.write_flow) {
       if (options_.flow_format == FlowFormat::kPfm) {
-        s = tools::WritePfm((dir / (stem + ".pfm")).string(), f.flow, height_, width_,
-                            out_channels_);
+        written.push_back((dir / (stem + ".pfm")).string());
+        s = tools::WritePfm(written.back(), f.flow, height_, width_, out_channels_);
       } else {
         const int64_t shape[3] = {height_, width_, out_channels_};
-        s = tools::WriteNpy((dir / (stem + ".npy")).string(), shape, f.flow);
+        written.push_back((dir / (stem + ".npy")).string());
+        s = tools::WriteNpy(written.back(), shape, f.flow);
       }
+      if (!s.ok()) written.pop_back();
     }
     if (s.ok() && (options_.write_png || !options_.video_path.empty())) {
       std::string label = stem;
@@ -390,15 +443,35 @@ void Runner::OutputStage() {
       }
     }
     if (!s.ok()) {
-      Fail(s, true);
-      break;
+      for (const std::string& path : written) ::unlink(path.c_str());
+      ++output_errors_;
+      if (options_.on_output_error == OutputErrorPolicy::kStop) {
+        Fail(s, true);
+        break;
+      }
+      std::fprintf(stderr, "sfrt run: warning: window %s skipped: %s\n", stem.c_str(),
+                   s.message().c_str());
+      if (skipped_outputs_.size() < kMaxListedSkips) {
+        skipped_outputs_.push_back({stem, s.message()});
+      }
+      continue;
     }
     m.stage_ns[3][1] = NowNs();
-    for (int st = 0; st < 4; ++st)
-      stage_ms_[st].push_back(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
+    for (int st = 0; st < 4; ++st) stage_ms_[st].Add(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
     const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
-    e2e_ms_.push_back(e2e);
-    if (options_.budget_ms > 0 && e2e > options_.budget_ms) ++misses_;
+    e2e_ms_.Add(e2e);
+    if (latency_log_ != nullptr) {
+      std::fprintf(latency_log_, "%lld,%.4f,%.4f,%.4f,%.4f,%.4f\n",
+                   static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
+                   Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
+                   Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e);
+    }
+    const bool miss = options_.budget_ms > 0 && e2e > options_.budget_ms;
+    if (miss) {
+      ++misses_;
+      if (options_.drop_next_on_miss) skip_next_ = true;
+    }
+    if (options_.profiler) options_.profiler->Record(m, f.step_ns, miss);
     last_stem_ = stem;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -442,7 +515,7 @@ void Runner::Progress(bool final) {
     line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
                                                          : *total);
   line += " frames, " + Fixed(wall > 0 ? frames_ / wall : 0.0, 1) + " fps, p50 " +
-          Fixed(ComputePercentiles(e2e_ms_).p50, 1) + " ms end to end";
+          Fixed(ComputePercentiles(e2e_ms_.Values()).p50, 1) + " ms end to end";
   if (tty_progress_) {
     std::fprintf(stderr, "\r%s\x1b[K%s", line.c_str(), final ? "\n" : "");
   } else {
@@ -487,8 +560,17 @@ Status Runner::WriteSummary(PipelineResult* result) {
     bad.push_back({{"path", b.path}, {"reason", b.reason}});
   }
   j["bad_frames"] = bad;
+  json skipped = json::array();
+  for (const FrameSource::BadFrame& b : skipped_outputs_) {
+    skipped.push_back({{"window", b.path}, {"error", b.reason}});
+  }
+  j["output_errors"] = {
+      {"policy", options_.on_output_error == OutputErrorPolicy::kStop ? "stop" : "skip"},
+      {"count", output_errors_},
+      {"skipped", skipped}};
   j["deadline"] = {{"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
-                   {"misses", misses_}};
+                   {"misses", misses_},
+                   {"skipped_after_miss", skipped_after_miss_}};
   json lat;
   for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
   lat["end_to_end"] = PercentilesJson(result->end_to_end);
@@ -545,6 +627,7 @@ PipelineResult Runner::Run() {
   Progress(true);
 
   result.frames = frames_;
+  result.output_errors = output_errors_;
   result.status = error_;
   const int sig = options_.stop_signal ? options_.stop_signal->load() : 0;
   if (!error_.ok()) {
@@ -558,11 +641,22 @@ PipelineResult Runner::Run() {
   }
   const double wall = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
-  for (int st = 0; st < 4; ++st) result.stage[st] = ComputePercentiles(stage_ms_[st]);
-  result.end_to_end = ComputePercentiles(e2e_ms_);
+  for (int st = 0; st < 4; ++st) result.stage[st] = ComputePercentiles(stage_ms_[st].Values());
+  result.end_to_end = ComputePercentiles(e2e_ms_.Values());
+  if (latency_log_ != nullptr && std::fclose(latency_log_) != 0) {
+    warnings_.push_back("the latency log '" + options_.latency_log +
+                        "' was not written completely: " + std::strerror(errno));
+  }
+  latency_log_ = nullptr;
   result.warnings = warnings_;
   Status s = WriteSummary(&result);
-  if (!s.ok() && result.status.ok()) result.status = s;
+  if (!s.ok()) {
+    if (result.status.ok()) {
+      result.status = s;
+    } else {
+      std::fprintf(stderr, "sfrt run: warning: no summary: %s\n", s.message().c_str());
+    }
+  }
   return result;
 }
 

@@ -31,6 +31,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
@@ -46,6 +47,8 @@
 #include "sfrt/status.h"
 
 namespace sfrt::pipeline {
+
+class FrameProfiler;  // profiler.h
 
 // The model's input metadata as camera/ preprocessing parameters (image order, colour order,
 // scale, mean, std). Errors name the metadata field and value.
@@ -104,6 +107,12 @@ class FrameSource {
 };
 
 enum class FlowFormat { kPfm, kNpy };
+// What a failed output write (disk full, read-only or vanished directory, ...) does to the run.
+// Either way the window's files are all or nothing: every file is written to a temporary name and
+// renamed, and the files of a window already written are removed when a later one fails.
+//   kStop: the run ends with the error (exit 1), queued windows are discarded.
+//   kSkip: the window is dropped, counted and listed in the summary; the run goes on.
+enum class OutputErrorPolicy { kStop, kSkip };
 enum class ProgressMode { kAuto, kTty, kLines, kOff };
 
 struct PipelineOptions {
@@ -111,6 +120,7 @@ struct PipelineOptions {
   FlowFormat flow_format = FlowFormat::kPfm;
   bool write_flow = true;
   bool write_png = true;
+  OutputErrorPolicy on_output_error = OutputErrorPolicy::kStop;
   std::string video_path;  // "" = no video; written as MJPG AVI
   double video_fps = 10;
   double budget_ms = 0;    // 0 = no deadline accounting
@@ -125,9 +135,20 @@ struct PipelineOptions {
   ProgressMode progress = ProgressMode::kAuto;
   int progress_every = 10;  // kLines: one line every this many frames
   std::string model_path;   // for the summary
+  // "" = none; else a CSV file, one line per written window: window number, the four stage
+  // durations and end to end (ms). For soak runs (tools/soak.sh); --profile has more.
+  std::string latency_log;
   // Set asynchronously (signal handler) to stop; stop_signal says which signal (0 = none).
   const std::atomic<bool>* stop = nullptr;
   const std::atomic<int>* stop_signal = nullptr;
+  // Deployment settings (`sfrt run --config`, issue #6):
+  // called first on each stage's thread with its index (0 source, 1 preprocess, 2 infer,
+  // 3 output), e.g. to set the thread's CPU affinity and SCHED_FIFO priority.
+  std::function<void(int stage)> on_stage_start;
+  bool prefault = false;           // one inference on zeros at setup: arena and weights paged in
+  bool drop_next_on_miss = false;  // a deadline miss makes the source skip its next window
+  // `--profile` (profiler.h): per-frame stage and step timestamps into this preallocated ring.
+  FrameProfiler* profiler = nullptr;
 };
 
 struct Percentiles {
@@ -138,11 +159,12 @@ struct Percentiles {
 Percentiles ComputePercentiles(std::vector<double> values);
 
 struct PipelineResult {
-  Status status;             // ok, or the error that ended the run
-  int64_t frames = 0;        // windows whose outputs were written
-  std::string stopped_by;    // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
-  std::string summary_path;  // "" if even the summary could not be written
-  double fps = 0;            // frames / wall time
+  Status status;              // ok, or the error that ended the run
+  int64_t frames = 0;         // windows whose outputs were written
+  int64_t output_errors = 0;  // windows whose outputs could not be written (skipped or the stop)
+  std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
+  std::string summary_path;   // "" if even the summary could not be written
+  double fps = 0;             // frames / wall time
   Percentiles end_to_end;
   Percentiles stage[4];  // source, preprocess, infer, output
   std::vector<std::string> warnings;

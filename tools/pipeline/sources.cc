@@ -23,6 +23,84 @@ class ReplaySource : public FrameSource {
   explicit ReplaySource(ReplaySpec spec) : spec_(std::move(spec)) {}
 
   Result<cv::Size> Open() override {
+    if (spec_.loops < 1) {
+      return Status::Error("replay: loops is " + std::to_string(spec_.loops) + "; must be >= 1");
+    }
+    Result<cv::Size> size = OpenPass();
+    if (size.ok() && total_) total_ = *total_ * spec_.loops;
+    return size;
+  }
+
+  Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& /*stop*/) override {
+    const int64_t start = NowNs();
+    if (!primed_) {
+      Result<Fetch> next = Advance();
+      if (next.ok() && *next == Fetch::kEnd && ++pass_ < spec_.loops) {
+        const std::optional<int64_t> total = total_;
+        Result<cv::Size> size = OpenPass();
+        total_ = total;
+        if (!size.ok()) return size.status();
+        next = Fetch::kWindow;
+      }
+      if (!next.ok() || *next == Fetch::kEnd) return next;
+    }
+    primed_ = false;
+    const camera::FramePair& prev = window_->previous();
+    const camera::FramePair& cur = window_->current();
+    prev.left.copyTo(item->left0);
+    prev.right.copyTo(item->right0);
+    cur.left.copyTo(item->left1);
+    cur.right.copyTo(item->right1);
+    FrameMeta& m = item->meta;
+    m.sequence = cur.sequence;
+    m.frame0 = prev.frame_number;
+    m.frame1 = cur.frame_number;
+    m.left0_path = prev.left_path;
+    const int64_t now = NowNs();
+    m.capture_ns[0] = m.capture_ns[1] = now;
+    m.stage_ns[0][0] = start;
+    return Fetch::kWindow;
+  }
+
+  std::string Describe() const override {
+    std::string d = source_ ? source_->Describe() : std::string("replay (not open)");
+    if (spec_.loops > 1) d += ", " + std::to_string(spec_.loops) + " passes";
+    return d;
+  }
+  std::string kind() const override {
+    switch (spec_.kind) {
+      case ReplaySpec::Kind::kDataset:
+        return "replay";
+      case ReplaySpec::Kind::kPlain:
+        return "replay-left/right";
+      case ReplaySpec::Kind::kVideo:
+        return "replay-video";
+    }
+    return "replay";
+  }
+  std::optional<int64_t> total_windows() const override { return total_; }
+  bool live() const override { return false; }
+  void ToJson(nlohmann::json* out) const override {
+    nlohmann::json& j = *out;
+    j["on_bad_frame"] = spec_.on_bad_frame == camera::BadFramePolicy::kStop ? "stop" : "skip";
+    if (spec_.kind == ReplaySpec::Kind::kDataset) j["root"] = spec_.root;
+    if (spec_.kind == ReplaySpec::Kind::kPlain) {
+      j["left"] = spec_.left;
+      j["right"] = spec_.right;
+    }
+    if (spec_.kind == ReplaySpec::Kind::kVideo) j["video"] = spec_.video;
+    if (total_) j["windows_expected"] = *total_;
+    j["loops"] = spec_.loops;
+  }
+  std::vector<BadFrame> bad_frames() const override {
+    std::vector<BadFrame> out;
+    for (const camera::BadFrame& b : bad_) out.push_back({b.path, b.reason});
+    return out;
+  }
+
+ private:
+  // Opens the files for one pass and reads the first pair of the first window.
+  Result<cv::Size> OpenPass() {
     // Always skip inside camera/sources and apply the policy here, so a bad frame that stops
     // the run is recorded by path like a skipped one.
     camera::SourceOptions base;
@@ -71,64 +149,6 @@ class ReplaySource : public FrameSource {
     return window_->current().left.size();
   }
 
-  Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& /*stop*/) override {
-    const int64_t start = NowNs();
-    if (!primed_) {
-      Result<Fetch> next = Advance();
-      if (!next.ok() || *next == Fetch::kEnd) return next;
-    }
-    primed_ = false;
-    const camera::FramePair& prev = window_->previous();
-    const camera::FramePair& cur = window_->current();
-    prev.left.copyTo(item->left0);
-    prev.right.copyTo(item->right0);
-    cur.left.copyTo(item->left1);
-    cur.right.copyTo(item->right1);
-    FrameMeta& m = item->meta;
-    m.sequence = cur.sequence;
-    m.frame0 = prev.frame_number;
-    m.frame1 = cur.frame_number;
-    m.left0_path = prev.left_path;
-    const int64_t now = NowNs();
-    m.capture_ns[0] = m.capture_ns[1] = now;
-    m.stage_ns[0][0] = start;
-    return Fetch::kWindow;
-  }
-
-  std::string Describe() const override {
-    return source_ ? source_->Describe() : std::string("replay (not open)");
-  }
-  std::string kind() const override {
-    switch (spec_.kind) {
-      case ReplaySpec::Kind::kDataset:
-        return "replay";
-      case ReplaySpec::Kind::kPlain:
-        return "replay-left/right";
-      case ReplaySpec::Kind::kVideo:
-        return "replay-video";
-    }
-    return "replay";
-  }
-  std::optional<int64_t> total_windows() const override { return total_; }
-  bool live() const override { return false; }
-  void ToJson(nlohmann::json* out) const override {
-    nlohmann::json& j = *out;
-    j["on_bad_frame"] = spec_.on_bad_frame == camera::BadFramePolicy::kStop ? "stop" : "skip";
-    if (spec_.kind == ReplaySpec::Kind::kDataset) j["root"] = spec_.root;
-    if (spec_.kind == ReplaySpec::Kind::kPlain) {
-      j["left"] = spec_.left;
-      j["right"] = spec_.right;
-    }
-    if (spec_.kind == ReplaySpec::Kind::kVideo) j["video"] = spec_.video;
-    if (total_) j["windows_expected"] = *total_;
-  }
-  std::vector<BadFrame> bad_frames() const override {
-    std::vector<BadFrame> out;
-    for (const camera::BadFrame& b : bad_) out.push_back({b.path, b.reason});
-    return out;
-  }
-
- private:
   // One PairWindow step, with --on-bad-frame stop applied.
   Result<Fetch> Advance() {
     const size_t bad_before = bad_.size();
@@ -147,6 +167,7 @@ class ReplaySource : public FrameSource {
   std::unique_ptr<camera::PairWindow> window_;
   std::vector<camera::BadFrame> bad_;
   std::optional<int64_t> total_;
+  int64_t pass_ = 0;
   bool primed_ = false;
 };
 

@@ -33,6 +33,9 @@ struct ReplaySpec {
   std::string pass = "clean";
   bool video_left_first = true;
   camera::BadFramePolicy on_bad_frame = camera::BadFramePolicy::kStop;
+  // Passes over the files (>= 1). Each pass reopens the source and delivers the same windows
+  // with the same output stems, so later passes overwrite earlier files: for soak runs.
+  int64_t loops = 1;
 };
 
 // The source opens in FrameSource::Open().

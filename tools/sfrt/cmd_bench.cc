@@ -1,22 +1,31 @@
 // sfrt bench: times Session::Run on one model and input size for every requested ISA and thread
 // count, in the same process and interleaved round by round (so a machine shared with other
-// work slows every configuration alike), and reports median / p90 / p99 / min, effective
-// GFLOP/s (2 x the model's nominal multiply-accumulates / median time, so exact shortcuts that
-// skip arithmetic count as speed) and each configuration's time relative to the first one.
-#include <sys/resource.h>
-
+// work slows every configuration alike). Reports per configuration: p50/p90/p99/p99.9/max and
+// standard deviation, effective GFLOP/s (2 x the model's nominal multiply-accumulates / median
+// time, so exact shortcuts that skip arithmetic count as speed) and its share of the measured
+// peak FMA throughput, the time of each planned step (run order, top N, by op type), and per
+// run the page faults, context switches and CPU migrations that explain spikes; with
+// --budget-ms, whether a percentile meets a latency budget (exit 3 when it does not).
+// `sfrt bench --peak` runs only the peak-FMA microbenchmark. Statistics and counters live in
+// tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <iostream>
+#include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "profiling/peak_fma.h"
+#include "profiling/stats.h"
+#include "profiling/system_info.h"
 #include "sfrt/commands.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
@@ -26,7 +35,12 @@
 namespace sfrt::tools {
 namespace {
 
+namespace prof = sfrt::profiling;
+using Json = nlohmann::ordered_json;
+
 constexpr char kName[] = "bench";
+// A configuration's chosen percentile exceeded --budget-ms.
+constexpr int kExitBudgetMissed = 3;
 
 struct BenchArgs {
   std::string model;
@@ -37,14 +51,35 @@ struct BenchArgs {
   int runs = 5;
   double min_seconds = 0.0;
   std::string json;
+  int top = 10;
+  double budget_ms = 0;  // set when budget_given
+  bool budget_given = false;
+  std::string budget_percentile = "p99";
+  bool peak = false;
+  double peak_seconds = 0.2;
+};
+
+// Per-run process counters of one configuration.
+struct RunCounters {
+  std::vector<double> wall_ms;
+  std::vector<int64_t> minor_faults;
+  std::vector<int64_t> major_faults;
+  std::vector<int64_t> voluntary_switches;
+  std::vector<int64_t> involuntary_switches;
+  std::vector<int64_t> migrations;  // empty when the counter is unavailable
 };
 
 struct Config {
   Isa isa = Isa::kRef;
   int threads = 1;
   std::unique_ptr<Session> session;
-  std::vector<double> ms;
   std::string kernels;
+  std::vector<prof::StepLabel> labels;
+  std::unique_ptr<prof::StepRecorder> recorder;
+  std::vector<int64_t> stamps;  // steps + 1, reused by every run
+  RunCounters counters;
+  double peak_gflops = 0;  // 0: not measured
+  std::string peak_kernel;
 };
 
 std::vector<std::string> SplitList(const std::string& text) {
@@ -57,57 +92,191 @@ std::vector<std::string> SplitList(const std::string& text) {
   return out;
 }
 
-double Percentile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const size_t lo = static_cast<size_t>(pos);
-  const size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (v[hi] - v[lo]) * (pos - static_cast<double>(lo));
-}
-
 std::string Fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "-";
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
   return buf;
 }
 
+// A budget as given, without rounding or exponent for ordinary values: 1000000, 12.5, 1e-06.
+std::string Milliseconds(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.10g", v);
+  return buf;
+}
+
+std::string ConfigName(Isa isa, int threads) {
+  return std::string(IsaName(isa)) + " x" + std::to_string(threads);
+}
+
+// --isa and --threads into lists; "" on success, else the usage message.
+std::string ParseLists(const BenchArgs& args, std::vector<Isa>* isas,
+                       std::vector<int>* thread_counts) {
+  for (const std::string& name : SplitList(args.isas)) {
+    if (name == "all") {
+      for (Isa isa : SupportedIsas()) isas->push_back(isa);
+      continue;
+    }
+    if (name == "best") {
+      isas->push_back(BestIsa());
+      continue;
+    }
+    Isa isa = Isa::kRef;
+    if (!ParseIsa(name, &isa) || isa == Isa::kAuto) {
+      return "--isa: '" + name + "' is not one of ref, avx2, avx512, neon, best, all";
+    }
+    isas->push_back(isa);
+  }
+  for (const std::string& t : SplitList(args.threads)) {
+    int n = 0;
+    if (!ParseSize("1x" + t, &n, &n) || n < 1) {
+      return "--threads: '" + t + "' is not a positive integer";
+    }
+    thread_counts->push_back(n);
+  }
+  if (isas->empty() || thread_counts->empty()) {
+    return "--isa and --threads need at least one value";
+  }
+  return "";
+}
+
+Json BuildJson() {
+  const prof::BuildInfo& b = prof::GetBuildInfo();
+  return Json{{"compiler", b.compiler},         {"build_type", b.build_type},
+              {"cxx_flags", b.cxx_flags},       {"version", b.version},
+              {"git_describe", b.git_describe}, {"system", b.system}};
+}
+
+Json CpuJson() {
+  Json isas = Json::array();
+  for (Isa isa : SupportedIsas()) isas.push_back(IsaName(isa));
+  return Json{{"model", prof::CpuModel()},
+              {"available_cpus", prof::AvailableCpus()},
+              {"supported_isas", isas}};
+}
+
+void PrintBuildAndCpu() {
+  const prof::BuildInfo& b = prof::GetBuildInfo();
+  std::printf("build  %s, %s, flags '%s', sfrt %s (%s), %s\n", b.compiler.c_str(),
+              b.build_type.empty() ? "no build type" : b.build_type.c_str(), b.cxx_flags.c_str(),
+              b.version.c_str(), b.git_describe.c_str(), b.system.c_str());
+  std::printf("cpu    %s, %d CPUs available to this process; ISAs this build runs here: %s\n",
+              prof::CpuModel().c_str(), prof::AvailableCpus(), SupportedIsaList().c_str());
+}
+
+bool WriteJson(const std::string& path, const Json& json) {
+  std::ofstream out(path);
+  out << json.dump(2) << "\n";
+  return static_cast<bool>(out);
+}
+
+// `sfrt bench --peak`: the microbenchmark alone.
+int RunPeak(const BenchArgs& args, const std::vector<Isa>& isas,
+            const std::vector<int>& thread_counts) {
+  PrintBuildAndCpu();
+  std::printf("\npeak fp32 FMA throughput: fastest of 20 windows over about %.2f s each\n",
+              args.peak_seconds);
+  std::printf("%-7s %7s %10s %11s  %s\n", "isa", "threads", "GFLOP/s", "per thread", "loop");
+  Json results = Json::array();
+  for (Isa isa : isas) {
+    for (int threads : thread_counts) {
+      Result<prof::PeakFma> peak = prof::MeasurePeakFma(isa, threads, args.peak_seconds);
+      if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
+      std::printf("%-7s %7d %10s %11s  %s\n", IsaName(isa), threads, Fixed(peak->gflops, 1).c_str(),
+                  Fixed(peak->gflops / threads, 1).c_str(), peak->kernel.c_str());
+      results.push_back(Json{{"isa", IsaName(isa)},
+                             {"threads", threads},
+                             {"gflops", peak->gflops},
+                             {"gflops_per_thread", peak->gflops / threads},
+                             {"kernel", peak->kernel}});
+    }
+  }
+  if (!args.json.empty()) {
+    Json json{{"peak", results}, {"build", BuildJson()}, {"cpu", CpuJson()}};
+    if (!WriteJson(args.json, json)) {
+      return ReportError(kName, "cannot write --json " + args.json, kExitFailure);
+    }
+  }
+  return kExitOk;
+}
+
+template <typename T>
+double MedianOf(const std::vector<T>& v) {
+  std::vector<double> d(v.begin(), v.end());
+  return prof::Percentile(std::move(d), 0.5);
+}
+
+template <typename T>
+T MaxOf(const std::vector<T>& v) {
+  return v.empty() ? T{} : *std::max_element(v.begin(), v.end());
+}
+
+Json StepsJson(const std::vector<prof::StepRow>& rows) {
+  Json steps = Json::array();
+  for (const prof::StepRow& r : rows) {
+    steps.push_back(Json{{"step", r.step},
+                         {"layers", r.label.name},
+                         {"first_layer", r.label.first_layer},
+                         {"last_layer", r.label.last_layer},
+                         {"op", r.label.op},
+                         {"kernel", r.label.kernel},
+                         {"median_ms", r.ms.p50},
+                         {"mean_ms", r.ms.mean},
+                         {"p99_ms", r.ms.p99},
+                         {"max_ms", r.ms.max},
+                         {"stddev_ms", r.ms.stddev},
+                         {"share", r.share}});
+  }
+  return steps;
+}
+
 int RunBench(const BenchArgs& args) {
+  std::vector<Isa> isas;
+  std::vector<int> thread_counts;
+  if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
+  }
+  if (args.peak_seconds < 0 || (args.peak && args.peak_seconds <= 0)) {
+    return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
+  }
+  if (args.peak) {
+    if (!args.model.empty() || args.budget_given) {
+      return ReportError(kName,
+                         "--peak runs only the FMA microbenchmark; it takes no --model or "
+                         "--budget-ms (a model run measures the peak by itself)",
+                         kExitUsage);
+    }
+    return RunPeak(args, isas, thread_counts);
+  }
+  if (args.model.empty()) {
+    return ReportError(kName, "--model is required (or --peak for the FMA microbenchmark)",
+                       kExitUsage);
+  }
   int height = 0, width = 0;
   if (!ParseSize(args.size, &height, &width)) {
     return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
                        kExitUsage);
   }
-  if (args.runs < 1 || args.warmup < 0 || args.min_seconds < 0) {
-    return ReportError(kName, "--runs must be >= 1, --warmup and --min-seconds >= 0", kExitUsage);
+  if (args.runs < 1 || args.warmup < 0 || args.min_seconds < 0 || args.top < 0) {
+    return ReportError(kName, "--runs must be >= 1, --warmup, --min-seconds and --top >= 0",
+                       kExitUsage);
   }
-  std::vector<Isa> isas;
-  for (const std::string& name : SplitList(args.isas)) {
-    if (name == "all") {
-      for (Isa isa : SupportedIsas()) isas.push_back(isa);
-      continue;
-    }
-    if (name == "best") {
-      isas.push_back(BestIsa());
-      continue;
-    }
-    Isa isa = Isa::kRef;
-    if (!ParseIsa(name, &isa) || isa == Isa::kAuto) {
+  double budget_percent = 99;
+  if (args.budget_given) {
+    if (!(args.budget_ms > 0) || !std::isfinite(args.budget_ms)) {
       return ReportError(kName,
-                         "--isa: '" + name + "' is not one of ref, avx2, avx512, neon, best, all",
+                         "--budget-ms must be a positive number of milliseconds, got " +
+                             FormatFloat(args.budget_ms),
                          kExitUsage);
     }
-    isas.push_back(isa);
   }
-  std::vector<int> thread_counts;
-  for (const std::string& t : SplitList(args.threads)) {
-    int n = 0;
-    if (!ParseSize("1x" + t, &n, &n) || n < 1) {
-      return ReportError(kName, "--threads: '" + t + "' is not a positive integer", kExitUsage);
-    }
-    thread_counts.push_back(n);
-  }
-  if (isas.empty() || thread_counts.empty()) {
-    return ReportError(kName, "--isa and --threads need at least one value", kExitUsage);
+  if (!prof::ParsePercentile(args.budget_percentile, &budget_percent)) {
+    return ReportError(kName,
+                       "--budget-percentile: '" + args.budget_percentile +
+                           "' is not a percentile (p50, p90, p99, p99.9, max, or a number in "
+                           "(0, 100])",
+                       kExitUsage);
   }
   if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
@@ -119,6 +288,10 @@ int RunBench(const BenchArgs& args) {
   uint64_t macs = 0;
   for (const LayerGeometry& g : *geometry) macs += g.macs;
 
+  // Before any session's thread pool exists, so the pools' threads are counted too.
+  prof::MigrationCounter migrations;
+
+  const size_t expected_runs = static_cast<size_t>(args.runs) + 16;
   std::vector<Config> configs;
   for (Isa isa : isas) {
     for (int threads : thread_counts) {
@@ -138,6 +311,15 @@ int RunBench(const BenchArgs& args) {
         if (!c.kernels.empty()) c.kernels += " ";
         c.kernels += step.kernel;
       }
+      c.labels = prof::LabelSteps(*c.session);
+      c.recorder = std::make_unique<prof::StepRecorder>(c.labels.size(), expected_runs);
+      c.stamps.resize(c.labels.size() + 1);
+      RunCounters& k = c.counters;
+      for (auto* v : {&k.minor_faults, &k.major_faults, &k.voluntary_switches,
+                      &k.involuntary_switches, &k.migrations}) {
+        v->reserve(expected_runs);
+      }
+      k.wall_ms.reserve(expected_runs);
       configs.push_back(std::move(c));
     }
   }
@@ -149,23 +331,38 @@ int RunBench(const BenchArgs& args) {
   for (float& v : input) v = dist(rng);
   std::vector<float> output(geometry->back().output.elements());
 
-  std::printf("model %s at %dx%d: %.2f GMAC (%.1f GFLOP) per run\n", args.model.c_str(), height,
+  std::printf("model  %s at %dx%d: %.2f GMAC (%.1f GFLOP) per run\n", args.model.c_str(), height,
               width, static_cast<double>(macs) / 1e9, 2.0 * static_cast<double>(macs) / 1e9);
+  PrintBuildAndCpu();
   for (const Config& c : configs) {
-    std::printf("  %-6s x%d threads: %s\n", IsaName(c.isa), c.threads, c.kernels.c_str());
+    const std::string flags = prof::IsaFlags(IsaName(c.isa));
+    std::printf("  %-6s x%d threads: %s (kernels built with %s)\n", IsaName(c.isa), c.threads,
+                c.kernels.c_str(), flags.empty() ? "the build's flags" : flags.c_str());
   }
   std::fflush(stdout);
 
   using Clock = std::chrono::steady_clock;
   auto run_once = [&](Config& c, bool record) -> bool {
+    const prof::ResourceUsage u0 = prof::ReadResourceUsage();
+    const int64_t m0 = migrations.Read();
     const auto t0 = Clock::now();
-    const Status s = c.session->Run(input, height, width, output);
+    const Status s = c.session->Run(input, height, width, output, c.stamps);
     const auto t1 = Clock::now();
+    const int64_t m1 = migrations.Read();
+    const prof::ResourceUsage du = prof::ReadResourceUsage() - u0;
     if (!s.ok()) {
       ReportError(kName, s.message(), kExitFailure);
       return false;
     }
-    if (record) c.ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    if (!record) return true;
+    RunCounters& k = c.counters;
+    k.wall_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    k.minor_faults.push_back(du.minor_faults);
+    k.major_faults.push_back(du.major_faults);
+    k.voluntary_switches.push_back(du.voluntary_switches);
+    k.involuntary_switches.push_back(du.involuntary_switches);
+    if (m0 >= 0 && m1 >= 0) k.migrations.push_back(m1 - m0);
+    c.recorder->Add(c.stamps);
     return true;
   };
   for (int i = 0; i < args.warmup; ++i) {
@@ -182,50 +379,212 @@ int RunBench(const BenchArgs& args) {
       if (!run_once(c, true)) return kExitFailure;
     }
   }
+  const prof::ResourceUsage usage = prof::ReadResourceUsage();
 
-  struct rusage usage {};
-  getrusage(RUSAGE_SELF, &usage);
-  const double base = Percentile(configs.front().ms, 0.5);
-  std::printf("\n%-7s %7s %5s %10s %10s %10s %10s %9s %11s\n", "isa", "threads", "runs",
-              "median ms", "p90 ms", "p99 ms", "min ms", "GFLOP/s", "vs first");
-  std::ostringstream json;
-  json << "{\n  \"model\": \"" << args.model << "\",\n  \"height\": " << height
-       << ",\n  \"width\": " << width << ",\n  \"macs\": " << macs
-       << ",\n  \"peak_rss_kib\": " << usage.ru_maxrss
-       << ",\n  \"peak_rss_mib\": " << static_cast<double>(usage.ru_maxrss) / 1024.0
-       << ",\n  \"sessions\": " << configs.size() << ",\n  \"results\": [";
-  for (size_t i = 0; i < configs.size(); ++i) {
-    const Config& c = configs[i];
-    const double median = Percentile(c.ms, 0.5);
-    const double gflops = 2.0 * static_cast<double>(macs) / (median * 1e6);
-    std::printf("%-7s %7d %5zu %10s %10s %10s %10s %9s %10sx\n", IsaName(c.isa), c.threads,
-                c.ms.size(), Fixed(median, 2).c_str(), Fixed(Percentile(c.ms, 0.9), 2).c_str(),
-                Fixed(Percentile(c.ms, 0.99), 2).c_str(),
-                Fixed(*std::min_element(c.ms.begin(), c.ms.end()), 2).c_str(),
-                Fixed(gflops, 1).c_str(), Fixed(median / base, 3).c_str());
-    json << (i ? "," : "") << "\n    {\"isa\": \"" << IsaName(c.isa)
-         << "\", \"threads\": " << c.threads << ", \"runs\": " << c.ms.size()
-         << ", \"median_ms\": " << median << ", \"p90_ms\": " << Percentile(c.ms, 0.9)
-         << ", \"p99_ms\": " << Percentile(c.ms, 0.99)
-         << ", \"min_ms\": " << *std::min_element(c.ms.begin(), c.ms.end())
-         << ", \"gflops\": " << gflops << ", \"kernels\": \"" << c.kernels << "\"}";
+  // Peak FMA throughput per distinct (ISA, threads), measured after the timed runs.
+  if (args.peak_seconds > 0) {
+    for (Config& c : configs) {
+      Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
+      if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
+      c.peak_gflops = peak->gflops;
+      c.peak_kernel = peak->kernel;
+    }
   }
-  json << "\n  ]\n}\n";
+
+  // Summary table.
+  const double base = prof::Percentile(configs.front().counters.wall_ms, 0.5);
+  std::printf("\n%-7s %7s %5s %9s %9s %9s %9s %9s %8s %9s %7s %9s\n", "isa", "threads", "runs",
+              "median ms", "p90 ms", "p99 ms", "p99.9 ms", "max ms", "stddev", "GFLOP/s", "% peak",
+              "vs first");
+  Json results = Json::array();
+  std::vector<prof::Summary> summaries;
+  for (const Config& c : configs) {
+    const prof::Summary s = prof::Summarize(c.counters.wall_ms);
+    summaries.push_back(s);
+    const double gflops = 2.0 * static_cast<double>(macs) / (s.p50 * 1e6);
+    const double percent_peak = c.peak_gflops > 0 ? 100.0 * gflops / c.peak_gflops : NAN;
+    std::printf("%-7s %7d %5zu %9s %9s %9s %9s %9s %8s %9s %7s %8sx\n", IsaName(c.isa), c.threads,
+                s.count, Fixed(s.p50, 2).c_str(), Fixed(s.p90, 2).c_str(), Fixed(s.p99, 2).c_str(),
+                Fixed(s.p999, 2).c_str(), Fixed(s.max, 2).c_str(), Fixed(s.stddev, 2).c_str(),
+                Fixed(gflops, 1).c_str(), Fixed(percent_peak, 1).c_str(),
+                Fixed(s.p50 / base, 3).c_str());
+
+    const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
+    double steps_total = 0;
+    for (size_t r = 0; r < c.recorder->runs(); ++r) steps_total += c.recorder->total_ms(r);
+    steps_total /= static_cast<double>(std::max<size_t>(c.recorder->runs(), 1));
+    Json by_op = Json::array();
+    for (const prof::OpRow& op : prof::ByOp(rows)) {
+      by_op.push_back(Json{{"op", op.op},
+                           {"steps", op.steps},
+                           {"median_ms", op.median_ms},
+                           {"mean_ms", op.mean_ms},
+                           {"share", op.share}});
+    }
+    Json top = Json::array();
+    for (const prof::StepRow& r : prof::TopSteps(rows, static_cast<size_t>(args.top))) {
+      top.push_back(r.step);
+    }
+    const RunCounters& k = c.counters;
+    Json per_run{{"wall_ms", k.wall_ms},
+                 {"minor_faults", k.minor_faults},
+                 {"major_faults", k.major_faults},
+                 {"voluntary_switches", k.voluntary_switches},
+                 {"involuntary_switches", k.involuntary_switches},
+                 {"cpu_migrations", migrations.available() ? Json(k.migrations) : Json(nullptr)}};
+    results.push_back(Json{{"isa", IsaName(c.isa)},
+                           {"threads", c.threads},
+                           {"runs", s.count},
+                           {"median_ms", s.p50},
+                           {"p90_ms", s.p90},
+                           {"p99_ms", s.p99},
+                           {"p999_ms", s.p999},
+                           {"max_ms", s.max},
+                           {"min_ms", s.min},
+                           {"mean_ms", s.mean},
+                           {"stddev_ms", s.stddev},
+                           {"gflops", gflops},
+                           {"peak_gflops", c.peak_gflops > 0 ? Json(c.peak_gflops) : Json()},
+                           {"percent_of_peak", c.peak_gflops > 0 ? Json(percent_peak) : Json()},
+                           {"peak_kernel", c.peak_kernel},
+                           {"kernels", c.kernels},
+                           {"isa_flags", prof::IsaFlags(IsaName(c.isa))},
+                           {"steps_total_mean_ms", steps_total},
+                           {"steps", StepsJson(rows)},
+                           {"top_steps", top},
+                           {"by_op", by_op},
+                           {"per_run", per_run}});
+  }
+  if (args.peak_seconds > 0) {
+    std::printf(
+        "%% peak: GFLOP/s / the peak FMA throughput of the same ISA and threads, measured "
+        "in this process after the runs:\n");
+    std::map<std::pair<Isa, int>, bool> shown;
+    for (const Config& c : configs) {
+      if (shown[{c.isa, c.threads}]) continue;
+      shown[{c.isa, c.threads}] = true;
+      std::printf("  %-6s x%d: %.1f GFLOP/s (%s)\n", IsaName(c.isa), c.threads, c.peak_gflops,
+                  c.peak_kernel.c_str());
+    }
+  }
+
+  // Process counters per run.
+  std::printf("\nper run, median / max (getrusage, whole process%s):\n",
+              migrations.available() ? "; migrations: perf_event_open" : "");
+  std::printf("%-7s %7s %13s %13s %13s %13s %13s\n", "isa", "threads", "minor faults",
+              "major faults", "vol. switch", "invol. sw.", "migrations");
+  for (const Config& c : configs) {
+    const RunCounters& k = c.counters;
+    auto cell = [](const std::vector<int64_t>& v) {
+      return Fixed(MedianOf(v), 0) + " / " + std::to_string(MaxOf(v));
+    };
+    std::printf("%-7s %7d %13s %13s %13s %13s %13s\n", IsaName(c.isa), c.threads,
+                cell(k.minor_faults).c_str(), cell(k.major_faults).c_str(),
+                cell(k.voluntary_switches).c_str(), cell(k.involuntary_switches).c_str(),
+                migrations.available() ? cell(k.migrations).c_str() : "unavailable");
+    const size_t slowest = static_cast<size_t>(
+        std::max_element(k.wall_ms.begin(), k.wall_ms.end()) - k.wall_ms.begin());
+    std::printf(
+        "        slowest run #%zu: %.2f ms, %lld minor / %lld major faults, %lld voluntary / "
+        "%lld involuntary switches%s\n",
+        slowest, k.wall_ms[slowest], static_cast<long long>(k.minor_faults[slowest]),
+        static_cast<long long>(k.major_faults[slowest]),
+        static_cast<long long>(k.voluntary_switches[slowest]),
+        static_cast<long long>(k.involuntary_switches[slowest]),
+        migrations.available() && slowest < k.migrations.size()
+            ? (", " + std::to_string(k.migrations[slowest]) + " migrations").c_str()
+            : "");
+  }
+  if (!migrations.available()) {
+    std::printf("CPU migrations unavailable: %s\n", migrations.unavailable_reason().c_str());
+  }
+
+  // Per-step tables.
+  for (const Config& c : configs) {
+    const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
+    std::printf(
+        "\n%s threads: %zu planned steps in run order (milliseconds over %zu runs; share "
+        "of the steps' mean total)\n",
+        ConfigName(c.isa, c.threads).c_str(), rows.size(), c.recorder->runs());
+    std::fputs(prof::FormatStepTable(rows).c_str(), stdout);
+    if (args.top > 0) {
+      std::printf("top %d by median:\n", args.top);
+      std::fputs(prof::FormatStepTable(prof::TopSteps(rows, static_cast<size_t>(args.top))).c_str(),
+                 stdout);
+    }
+    std::printf("by op type:\n");
+    std::fputs(prof::FormatOpTable(prof::ByOp(rows)).c_str(), stdout);
+  }
+
+  std::printf("\n");
   if (configs.size() == 1) {
     std::printf(
         "peak resident memory %.1f MiB (this process: the model, one session, input and "
         "output)\n",
-        static_cast<double>(usage.ru_maxrss) / 1024.0);
+        static_cast<double>(usage.max_rss_kib) / 1024.0);
   } else {
     std::printf(
         "peak resident memory %.1f MiB (all %zu sessions together; time one "
         "configuration alone for one session's)\n",
-        static_cast<double>(usage.ru_maxrss) / 1024.0, configs.size());
+        static_cast<double>(usage.max_rss_kib) / 1024.0, configs.size());
   }
+
+  // Budget.
+  bool budget_met = true;
+  Json budget_json;
+  if (args.budget_given) {
+    const std::string label = prof::PercentileLabel(budget_percent);
+    Json budget_results = Json::array();
+    for (size_t i = 0; i < configs.size(); ++i) {
+      const Config& c = configs[i];
+      const double value = prof::Percentile(c.counters.wall_ms, budget_percent / 100.0);
+      const bool met = value <= args.budget_ms;
+      budget_met = budget_met && met;
+      if (met) {
+        std::printf("budget met: %s threads %s %.3f ms <= %s ms (%.3f ms to spare)\n",
+                    ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
+                    Milliseconds(args.budget_ms).c_str(), args.budget_ms - value);
+      } else {
+        std::printf("budget MISSED: %s threads %s %.3f ms > %s ms, over by %.3f ms (%.1f%%)\n",
+                    ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
+                    Milliseconds(args.budget_ms).c_str(), value - args.budget_ms,
+                    100.0 * (value - args.budget_ms) / args.budget_ms);
+      }
+      budget_results.push_back(Json{{"isa", IsaName(c.isa)},
+                                    {"threads", c.threads},
+                                    {"value_ms", value},
+                                    {"met", met},
+                                    {"over_ms", value - args.budget_ms}});
+    }
+    budget_json = Json{{"budget_ms", args.budget_ms},
+                       {"percentile", label},
+                       {"met", budget_met},
+                       {"results", budget_results}};
+  }
+
   if (!args.json.empty()) {
-    std::ofstream out(args.json);
-    out << json.str();
-    if (!out) return ReportError(kName, "cannot write --json " + args.json, kExitFailure);
+    Json json{{"model", args.model},
+              {"height", height},
+              {"width", width},
+              {"macs", macs},
+              {"peak_rss_kib", usage.max_rss_kib},
+              {"peak_rss_mib", static_cast<double>(usage.max_rss_kib) / 1024.0},
+              {"sessions", configs.size()},
+              {"build", BuildJson()},
+              {"cpu", CpuJson()},
+              {"cpu_migrations", Json{{"available", migrations.available()},
+                                      {"reason", migrations.unavailable_reason()}}},
+              {"results", results}};
+    if (args.budget_given) json["budget"] = budget_json;
+    if (!WriteJson(args.json, json)) {
+      return ReportError(kName, "cannot write --json " + args.json, kExitFailure);
+    }
+  }
+  if (!budget_met) {
+    std::fprintf(stderr, "sfrt %s: latency budget missed: %s above %s ms (see 'budget MISSED')\n",
+                 kName, prof::PercentileLabel(budget_percent).c_str(),
+                 Milliseconds(args.budget_ms).c_str());
+    return kExitBudgetMissed;
   }
   return kExitOk;
 }
@@ -234,9 +593,10 @@ int RunBench(const BenchArgs& args) {
 
 Command AddBenchCommand(CLI::App& parent) {
   auto args = std::make_shared<BenchArgs>();
-  CLI::App* cmd =
-      parent.add_subcommand("bench", "Time a model per ISA and thread count in the same run");
-  cmd->add_option("--model", args->model, "Model file (.sfrt)")->required();
+  CLI::App* cmd = parent.add_subcommand(
+      "bench",
+      "Time a model per ISA and thread count in the same run, per layer, against a budget");
+  cmd->add_option("--model", args->model, "Model file (.sfrt); required unless --peak");
   cmd->add_option("--size", args->size, "Input size HxW (default 540x960)");
   cmd->add_option("--isa", args->isas,
                   "Comma-separated ISAs to time: ref, avx2, avx512, neon, best (default), all");
@@ -245,18 +605,48 @@ Command AddBenchCommand(CLI::App& parent) {
   cmd->add_option("--runs", args->runs, "Timed runs per configuration, at least (default 5)");
   cmd->add_option("--min-seconds", args->min_seconds,
                   "Keep running rounds until this much time has passed (default 0)");
+  cmd->add_option("--top", args->top, "Rows in the top-N table of steps by median (default 10)");
+  CLI::Option* budget = cmd->add_option(
+      "--budget-ms", args->budget_ms,
+      "Latency budget: exit 3 when a configuration's --budget-percentile exceeds it");
+  cmd->add_option("--budget-percentile", args->budget_percentile,
+                  "Percentile checked against --budget-ms: p50, p90, p99 (default), p99.9, max, or "
+                  "a number in (0, 100]");
+  cmd->add_flag("--peak", args->peak,
+                "Run only the peak fp32 FMA microbenchmark for --isa and --threads");
+  cmd->add_option("--peak-seconds", args->peak_seconds,
+                  "Time per peak-FMA measurement (default 0.2; 0 skips it in a model run)");
   cmd->add_option("--json", args->json,
-                  "Also write the results as JSON (median_ms, p90_ms, p99_ms, min_ms, gflops, "
-                  "isa, threads per configuration)");
+                  "Also write the results as JSON (per configuration median_ms, p90_ms, p99_ms, "
+                  "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, steps, "
+                  "by_op, per_run counters; build, cpu, budget)");
   cmd->footer(
       "Every configuration (ISA x threads) gets its own session, planned once; rounds run each\n"
-      "configuration once, in turn, on the same seeded random input. GFLOP/s counts the model's\n"
-      "nominal arithmetic (2 x MACs of the plain convolutions), so the fused upsample-conv's\n"
-      "saved work shows as speed. 'vs first' is median / the first configuration's median.\n"
+      "configuration once, in turn, on the same seeded random input. Times are steady_clock\n"
+      "around Session::Run; percentiles interpolate linearly between ranks (NumPy's default),\n"
+      "so with few runs p99.9 lies between the slowest runs; stddev is the population one.\n"
+      "GFLOP/s counts the model's nominal arithmetic (2 x MACs of the plain convolutions), so\n"
+      "the fused upsample-conv's saved work shows as speed; '% peak' divides it by the peak FMA\n"
+      "throughput of the same ISA and thread count, measured in this process after the runs\n"
+      "(--peak-seconds each; 'ref' is measured with the baseline ISA's 128-bit vectors).\n"
+      "'vs first' is median / the first configuration's median.\n"
+      "Per step (Session::Run's step timestamps): median, p99, max and share of the steps' mean\n"
+      "total, in run order, the --top N slowest, and summed by op type. Per run: minor/major page\n"
+      "faults and voluntary/involuntary context switches (getrusage, whole process) and CPU\n"
+      "migrations (perf_event_open; 'unavailable' with the reason where the kernel refuses).\n"
+      "Also printed: compiler and version, build type and flags, each ISA's kernel flags, sfrt\n"
+      "version and git describe (at configure time), CPU model (/proc/cpuinfo).\n"
       "Peak resident memory (also peak_rss_mib in the JSON) is the whole process's: with one\n"
       "configuration (one --isa, one --threads) it is one session's, as a deployment has it.\n"
-      "Exit codes: 0 success, 1 model fails to load, plan or run, 2 usage error.");
-  return Command{cmd, [args] { return RunBench(*args); }};
+      "--peak: only the FMA microbenchmark (independent accumulator chains in vector registers)\n"
+      "for each --isa and --threads, no model.\n"
+      "Exit codes: 0 success (and every budget met), 1 model fails to load, plan or run, 2 usage\n"
+      "error, 3 --budget-ms missed: some configuration's --budget-percentile exceeds the budget\n"
+      "(each miss is printed as 'budget MISSED: <isa> x<threads> threads <percentile> ...').");
+  return Command{cmd, [args, budget] {
+                   args->budget_given = budget->count() > 0;
+                   return RunBench(*args);
+                 }};
 }
 
 }  // namespace sfrt::tools

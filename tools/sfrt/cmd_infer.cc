@@ -14,9 +14,11 @@
 #include <vector>
 
 #include "pipeline/pipeline.h"
+#include "profiling/stats.h"
 #include "sfrt/camera/preprocess.h"
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/commands.h"
+#include "sfrt/io/imread.h"
 #include "sfrt/io/npy.h"
 #include "sfrt/io/pfm.h"
 #include "sfrt/model.h"
@@ -76,7 +78,7 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
         !problem.empty()) {
       return Status::Error(problem);
     }
-    s.image = cv::imread(*s.path, cv::IMREAD_COLOR);  // 8-bit, BGR
+    s.image = ReadImageOrEmpty(*s.path);  // 8-bit, BGR
     if (s.image.empty()) {
       return Status::Error(std::string(s.flag) + " image '" + *s.path +
                            "' could not be decoded (not an image format OpenCV reads)");
@@ -155,10 +157,7 @@ Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc)
 }
 
 struct ChannelStats {
-  float min = std::numeric_limits<float>::infinity();
-  float max = -std::numeric_limits<float>::infinity();
-  double sum = 0;
-  size_t finite = 0;
+  profiling::RunningStats finite;  // min, max, mean of the finite values
   size_t nan = 0;
   size_t inf = 0;
 };
@@ -272,10 +271,7 @@ int RunInfer(const InferArgs& args) {
     } else if (std::isinf(v)) {
       ++s.inf;
     } else {
-      s.min = std::min(s.min, v);
-      s.max = std::max(s.max, v);
-      s.sum += v;
-      ++s.finite;
+      s.finite.Add(v);
     }
   }
   std::cout << "output  " << out_shape->height << "x" << out_shape->width << "x"
@@ -287,10 +283,9 @@ int RunInfer(const InferArgs& args) {
     std::string name = c < meta.output.channel_names.size() ? meta.output.channel_names[c]
                                                             : "ch" + std::to_string(c);
     char line[160];
-    if (s.finite > 0) {
+    if (s.finite.count() > 0) {
       std::snprintf(line, sizeof(line), "  %-4s  min %12.6g  max %12.6g  mean %12.6g", name.c_str(),
-                    static_cast<double>(s.min), static_cast<double>(s.max),
-                    s.sum / static_cast<double>(s.finite));
+                    s.finite.min(), s.finite.max(), s.finite.mean());
     } else {
       std::snprintf(line, sizeof(line), "  %-4s  no finite values", name.c_str());
     }

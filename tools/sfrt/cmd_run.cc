@@ -8,8 +8,10 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -19,6 +21,7 @@
 #include "sfrt/commands.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/run_config.h"
 
 namespace sfrt::tools {
 namespace {
@@ -53,6 +56,9 @@ struct RunArgs {
   int camera_timeout_ms = 1000;
   std::string calibration;
   std::string on_bad_frame;
+  std::string on_output_error = "stop";
+  int64_t loop = 1;
+  std::string latency_log;
   std::string out;
   std::string flow_format = "pfm";
   bool no_png = false;
@@ -85,8 +91,20 @@ std::string Fixed(double v, int digits) {
   return buf;
 }
 
-int RunRun(const RunArgs& args) {
+int RunRun(const RunArgs& args, RunConfigState* rc) {
+  // Installed first and kept until the process exits: a signal while the model loads or the
+  // camera opens stops the run before its first frame, and one that lands after the pipeline
+  // has finished only sets a flag nobody reads any more; either way the summary is printed.
+  struct sigaction action = {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+
   // ---- usage checks, before any file or device is touched
+  if (args.model.empty() || args.out.empty()) {
+    return ReportError(kName, "--model and --out are required (or a --config profile)", kExitUsage);
+  }
   const bool plain = !args.replay_left.empty() || !args.replay_right.empty();
   const int sources = !args.camera.empty() + !args.sbs_camera.empty() + !args.replay.empty() +
                       plain + !args.replay_video.empty();
@@ -221,6 +239,7 @@ int RunRun(const RunArgs& args) {
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
 
   std::unique_ptr<pipeline::FrameSource> source;
+  std::optional<pipeline::ReplaySpec> replay_spec;  // --profile-overhead replays it again
   if (live) {
     v4l2::StereoConfig config;
     config.mode = args.camera.empty() ? v4l2::StereoConfig::Mode::kSideBySide
@@ -270,10 +289,14 @@ int RunRun(const RunArgs& args) {
     spec.pass = args.pass;
     spec.video_left_first = !args.right_first;
     spec.on_bad_frame = on_bad;
+    spec.loops = args.loop;
+    replay_spec = spec;
     source = pipeline::MakeReplaySource(spec);
   }
 
   options.out_dir = args.out;
+  options.on_output_error = args.on_output_error == "skip" ? pipeline::OutputErrorPolicy::kSkip
+                                                           : pipeline::OutputErrorPolicy::kStop;
   options.write_png = !args.no_png;
   options.video_path = args.video;
   options.video_fps = args.video_fps;
@@ -283,18 +306,15 @@ int RunRun(const RunArgs& args) {
   options.queue_capacity = static_cast<size_t>(args.queue_depth);
   options.progress_every = args.progress_every;
   options.model_path = args.model;
+  options.latency_log = args.latency_log;
   options.stop = &g_stop;
   options.stop_signal = &g_signal;
+  if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
 
-  struct sigaction action = {};
-  action.sa_handler = OnStopSignal;
-  sigemptyset(&action.sa_mask);
-  struct sigaction old_int = {}, old_term = {};
-  sigaction(SIGINT, &action, &old_int);
-  sigaction(SIGTERM, &action, &old_term);
-  pipeline::PipelineResult result = pipeline::RunPipeline(*loaded, source.get(), options);
-  sigaction(SIGINT, &old_int, nullptr);
-  sigaction(SIGTERM, &old_term, nullptr);
+  std::function<std::unique_ptr<pipeline::FrameSource>()> again;
+  if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };
+  pipeline::PipelineResult result =
+      RunConfiguredPipeline(rc, *loaded, source.get(), options, again);
 
   std::cout << "source      " << source->Describe() << "\n"
             << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n"
@@ -308,6 +328,7 @@ int RunRun(const RunArgs& args) {
             << Fixed(result.end_to_end.p99, 2) << " ms, max " << Fixed(result.end_to_end.max, 2)
             << " ms\n";
   if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
+  PrintRunConfigReport(*rc, result, std::cout);
   if (!result.status.ok()) return ReportError(kName, result.status.message(), kExitFailure);
   return kExitOk;
 }
@@ -318,7 +339,9 @@ Command AddRunCommand(CLI::App& parent) {
   auto args = std::make_shared<RunArgs>();
   CLI::App* cmd = parent.add_subcommand(
       "run", "Run the real-time pipeline on cameras or recorded frames and write the scene flow");
-  cmd->add_option("--model", args->model, "Model file (.sfrt)")->required();
+  auto rc = std::make_shared<RunConfigState>();
+  AddRunConfigOptions(cmd, rc.get());
+  cmd->add_option("--model", args->model, "Model file (.sfrt); required unless --config");
   cmd->add_option("--camera", args->camera,
                   "Two V4L2 devices LEFT,RIGHT, paired by capture timestamp");
   cmd->add_option("--sbs-camera", args->sbs_camera,
@@ -355,15 +378,28 @@ Command AddRunCommand(CLI::App& parent) {
       ->capture_default_str();
   cmd->add_option("--calibration", args->calibration,
                   "Stereo calibration to rectify with: ROS camera_info LEFT.yaml,RIGHT.yaml, a "
-                  "Kalibr camchain, or OpenCV YAML/XML (one or two files, comma-separated). "
+                  "Kalibr camchain, or OpenCV YAML (one or two files, comma-separated). "
                   "Without it frames are only resized");
   cmd->add_option("--on-bad-frame", args->on_bad_frame,
                   "A missing/corrupt frame: skip (recorded in the summary) or stop (exit 1). "
                   "Default: stop for replays, skip for cameras");
+  cmd->add_option("--on-output-error", args->on_output_error,
+                  "A window's output cannot be written (disk full, read-only directory): stop "
+                  "(exit 1) or skip it (counted and listed in summary.json). Either way no "
+                  "partial file is left")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"stop", "skip"}));
+  cmd->add_option("--loop", args->loop,
+                  "Replays: pass over the files this many times (soak runs; later passes "
+                  "overwrite the same output files)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--latency-log", args->latency_log,
+                  "Also write a CSV line per written window: window, source/preprocess/infer/"
+                  "output and end-to-end milliseconds (for soak runs)");
   cmd->add_option("--out", args->out,
                   "Output directory (created): <stem>.pfm|.npy flow, <stem>.png visualisation, "
-                  "summary.json")
-      ->required();
+                  "summary.json; required unless --config");
   cmd->add_option("--flow-format", args->flow_format,
                   "Flow files: pfm (3-channel PFM), npy (float32 (H,W,3)) or none")
       ->capture_default_str();
@@ -405,8 +441,14 @@ Command AddRunCommand(CLI::App& parent) {
       "source; frames already read are finished, every file is written to a temporary name and\n"
       "renamed, and summary.json says how far the run got. Exit codes: 0 success (also after a\n"
       "stop by signal), 1 runtime or input failure (incl. a bad frame under --on-bad-frame\n"
-      "stop), 2 usage error.");
-  return Command{cmd, [args] { return RunRun(*args); }};
+      "stop), 2 usage error (incl. an invalid --config profile).\n"
+      "With --config FILE the profile gives every option above it has a key for (the start\n"
+      "banner lists them); an option given on the command line overrides the profile. The final\n"
+      "summary lists the settings applied and not applied.");
+  return Command{cmd, [args, rc, cmd] {
+                   if (int code = ApplyRunConfig(cmd, rc.get()); code != kExitOk) return code;
+                   return RunRun(*args, rc.get());
+                 }};
 }
 
 }  // namespace sfrt::tools

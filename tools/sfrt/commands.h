@@ -36,6 +36,7 @@ Command AddAnnotateCommand(CLI::App& parent);
 Command AddRunCommand(CLI::App& parent);
 Command AddEvalCommand(CLI::App& parent);
 Command AddConfigCommand(CLI::App& parent);
+Command AddReportCommand(CLI::App& parent);
 
 // Prints "sfrt <command>: <message>" on one line to stderr (newlines in `message` become
 // spaces) and returns `exit_code`.

@@ -138,6 +138,7 @@ int main(int argc, char** argv) {
   commands.push_back(sfrt::tools::AddRunCommand(app));
   commands.push_back(sfrt::tools::AddEvalCommand(app));
   commands.push_back(sfrt::tools::AddConfigCommand(app));
+  commands.push_back(sfrt::tools::AddReportCommand(app));
 
   try {
     app.parse(argc, argv);

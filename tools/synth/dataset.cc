@@ -74,6 +74,8 @@ std::string CameraJson(const DatasetOptions& o) {
   s += "  \"sequences\": " + std::to_string(o.sequences) + ",\n";
   s += "  \"frames\": " + std::to_string(o.scene.frames) + ",\n";
   s += "  \"objects\": " + std::to_string(o.scene.objects) + ",\n";
+  s += std::string("  \"scene\": ") +
+       (o.scene.preset == ScenePreset::kRobot ? "\"robot\"" : "\"room\"") + ",\n";
   s += "  \"textures\": " +
        (o.texture_dir.empty() ? std::string("\"procedural\"") : JsonString(o.texture_dir)) + ",\n";
   s += "  \"noise_sigma\": " + Number(o.noise_sigma) + ",\n";

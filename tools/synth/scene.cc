@@ -228,6 +228,157 @@ double BoundingRadius(const SceneObject& obj) {
   }
 }
 
+// Camera-space pose at one frame of a body with world pose (orientation q, position t), seen from
+// a camera with world pose (orientation qc: camera to world, position c).
+Pose CameraSpacePose(Quat qc, Vec3 c, Quat q, Vec3 t) {
+  return Pose{ToMatrix(Normalized(Conjugate(qc) * q)), TransposeTimes(ToMatrix(qc), t - c)};
+}
+
+// Rotation by a small angle about one axis of the current frame, given s = sin(theta / 2).
+Quat AxisRotation(int axis, double s) {
+  const double c = std::sqrt(1.0 - s * s);
+  return Quat{c, axis == 0 ? s : 0.0, axis == 1 ? s : 0.0, axis == 2 ? s : 0.0};
+}
+
+bool InsideBox(Vec3 p, Vec3 centre, Vec3 half) {
+  return std::fabs(p.x - centre.x) <= half.x && std::fabs(p.y - centre.y) <= half.y &&
+         std::fabs(p.z - centre.z) <= half.z;
+}
+
+// The kRobot family (see scene.h). World frame: OpenCV axes at the left camera's start (y down);
+// the floor is the plane y = camera height.
+Result<Scene> MakeRobotScene(const SceneOptions& options, uint64_t seed, int sequence,
+                             TextureSource& textures) {
+  const Camera& cam = options.camera;
+  Rng rng(MixSeed(seed, static_cast<uint64_t>(sequence), 0x40B07));
+  Scene scene;
+  scene.camera = cam;
+  scene.frames = options.frames;
+  const int pose_count = options.frames + 1;
+  scene.light = RandomDirection(rng);
+  if (scene.light.z > 0) scene.light.z = -scene.light.z;
+  scene.ambient = rng.Uniform(0.3, 0.6);
+  auto add_texture = [&](SceneObject& obj) -> Status {
+    Result<std::shared_ptr<const Texture>> tex = textures.Next(rng);
+    if (!tex.ok()) return tex.status();
+    obj.texture = static_cast<int>(scene.textures.size());
+    scene.textures.push_back(std::move(tex).value());
+    return Status::Ok();
+  };
+  auto texel_at = [&](double z, double px) { return px * z / cam.focal; };
+
+  // The room (metres): the rig starts `behind` m from the wall behind it, `ahead` m from the one
+  // in front, inside the width and at `height` m above the floor.
+  const double height = rng.Uniform(0.3, 1.2);
+  const double room_height = rng.Uniform(2.4, 3.4);
+  const double room_width = rng.Uniform(3.5, 8.0);
+  const double ahead = rng.Uniform(3.0, 7.0);
+  const double behind = rng.Uniform(1.0, 3.0);
+  const Vec3 half{room_width / 2, room_height / 2, (ahead + behind) / 2};
+  const Vec3 centre{rng.Uniform(-0.5, 0.5) * (half.x - 0.8), height - half.y, (ahead - behind) / 2};
+
+  // Ego-motion: constant body-frame velocity and turn rates (a robot driving an arc, slightly
+  // pitching and rolling); the velocity reverses where the rig would come within 0.6 m of a wall.
+  std::vector<Quat> cam_q(static_cast<size_t>(pose_count));
+  std::vector<Vec3> cam_c(static_cast<size_t>(pose_count));
+  {
+    Quat q = Normalized(AxisRotation(1, rng.Uniform(-0.2, 0.2)) *
+                        AxisRotation(0, rng.Uniform(-0.05, 0.05)) *
+                        AxisRotation(2, rng.Uniform(-0.02, 0.02)));
+    const double speed =
+        rng.Uniform() < 0.15 ? rng.Uniform(0.0, 0.01) : rng.Uniform(0.01, 0.10);  // m per frame
+    Vec3 v{speed * rng.Uniform(-0.15, 0.15), speed * rng.Uniform(-0.05, 0.05), speed};
+    const Quat turn = Normalized(AxisRotation(1, rng.Uniform(-0.015, 0.015)) *
+                                 AxisRotation(0, rng.Uniform(-0.002, 0.002)) *
+                                 AxisRotation(2, rng.Uniform(-0.002, 0.002)));
+    const Vec3 margin{half.x - 0.6, half.y - 0.2, half.z - 0.6};
+    Vec3 c{0, 0, 0};
+    for (int t = 0; t < pose_count; ++t) {
+      cam_q[static_cast<size_t>(t)] = q;
+      cam_c[static_cast<size_t>(t)] = c;
+      Vec3 next = c + ToMatrix(q) * v;
+      if (!InsideBox(next, centre, margin)) {
+        v = -1.0 * v;
+        next = c + ToMatrix(q) * v;
+      }
+      c = next;
+      q = Normalized(q * turn);
+    }
+  }
+  {
+    SceneObject room;
+    room.kind = ShapeKind::kRoom;
+    room.size = half;
+    room.gain = rng.Uniform(0.8, 1.1);
+    room.texel_size = texel_at(0.6 * ahead, rng.Uniform(0.5, 1.5));
+    if (Status s = add_texture(room); !s.ok()) return s;
+    for (int t = 0; t < pose_count; ++t) {
+      room.poses.push_back(CameraSpacePose(cam_q[static_cast<size_t>(t)],
+                                           cam_c[static_cast<size_t>(t)], Quat{}, centre));
+    }
+    scene.objects.push_back(std::move(room));
+  }
+
+  // Objects: placed in the first view at 0.8-5 m; 35% static, the others moving at up to
+  // 0.08 m per frame (mostly horizontally) and spinning. An object that would come within
+  // 0.3 m of the rig or leave the room is drawn again (up to 20 times, then left out).
+  for (int i = 0; i < options.objects; ++i) {
+    SceneObject obj;
+    const int kind = rng.Below(3);
+    obj.kind = kind == 0 ? ShapeKind::kSphere : (kind == 1 ? ShapeKind::kBox : ShapeKind::kCard);
+    const double radius = rng.Uniform(0.12, 0.45);
+    if (obj.kind == ShapeKind::kSphere) {
+      obj.size = {radius * 0.8, 0, 0};
+    } else if (obj.kind == ShapeKind::kBox) {
+      obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
+                  radius * rng.Uniform(0.4, 0.8)};
+    } else {
+      obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
+    }
+    const double bound = BoundingRadius(obj);
+    obj.gain = rng.Uniform(0.8, 1.2);
+    const Vec3 room_margin{half.x - bound, half.y - bound, half.z - bound};
+    bool placed = false;
+    for (int attempt = 0; attempt < 20 && !placed; ++attempt) {
+      const double z = rng.Uniform(0.8, std::min(5.0, ahead));
+      const double col = rng.Uniform(0.05, 0.95) * cam.width;
+      const double row = rng.Uniform(0.05, 0.95) * cam.height;
+      const Vec3 in_view{(col - cam.cx) * z / cam.focal, (row - cam.cy) * z / cam.focal, z};
+      Vec3 t = cam_c[0] + ToMatrix(cam_q[0]) * in_view;
+      Quat q = RandomOrientation(rng);
+      const bool moving = rng.Uniform() >= 0.35;
+      Vec3 v;
+      Quat spin;
+      if (moving) {
+        const Vec3 dir = RandomDirection(rng);
+        const double speed = rng.Uniform(0.01, 0.08);
+        v = speed * Vec3{dir.x, 0.25 * dir.y, dir.z};
+        spin = SmallRotation(rng, rng.Uniform(0.004, 0.03));
+      }
+      obj.texel_size = texel_at(z, rng.Uniform(0.4, 1.2));
+      obj.poses.clear();
+      placed = InsideBox(t, centre, room_margin);
+      for (int f = 0; f < pose_count && placed; ++f) {
+        const Vec3 to_rig = t - cam_c[static_cast<size_t>(f)];
+        if (Norm(to_rig) < bound + 0.3) placed = false;
+        obj.poses.push_back(
+            CameraSpacePose(cam_q[static_cast<size_t>(f)], cam_c[static_cast<size_t>(f)], q, t));
+        Vec3 next = t + v;
+        if (!InsideBox(next, centre, room_margin)) {
+          v = -1.0 * v;
+          next = t + v;
+        }
+        t = next;
+        q = Normalized(spin * q);
+      }
+    }
+    if (!placed) continue;
+    if (Status s = add_texture(obj); !s.ok()) return s;
+    scene.objects.push_back(std::move(obj));
+  }
+  return scene;
+}
+
 }  // namespace
 
 bool CastRay(const Scene& scene, int frame, Vec3 origin, Vec3 dir, Hit* hit) {
@@ -281,6 +432,9 @@ Result<std::shared_ptr<const Texture>> TextureSource::Next(Rng& rng) {
 
 Result<Scene> MakeRandomScene(const SceneOptions& options, uint64_t seed, int sequence,
                               TextureSource& textures) {
+  if (options.preset == ScenePreset::kRobot) {
+    return MakeRobotScene(options, seed, sequence, textures);
+  }
   const Camera& cam = options.camera;
   Rng rng(MixSeed(seed, static_cast<uint64_t>(sequence), 0x5CE7E));
   Scene scene;

@@ -4,7 +4,8 @@
 // Coordinates: camera coordinates of the LEFT camera, OpenCV axes (x right, y down, z forward),
 // in scene units. The right camera sits at (baseline, 0, 0) with the same orientation. A pixel
 // (col, row) has its centre at integer coordinates and looks along ((col-cx)/f, (row-cy)/f, 1).
-// The rig is static: ego-motion is simulated by moving the room, which is itself a rigid object.
+// The rig is static in these coordinates: ego-motion appears as the inverse rigid motion of every
+// static surface (the room, which is itself a rigid object, and with kRobot the static objects).
 //
 // Every object (the room is object 0) has one pose per frame, frames 0..frames (one more than
 // the rendered frames, so the ground truth "into the future" of the last frame is defined).
@@ -86,8 +87,16 @@ class TextureSource {
   std::map<std::string, std::shared_ptr<const Texture>> cache_;
 };
 
+// Scene families. kRoom: the rig is static inside a box room whose small motion stands in for
+// ego-motion, sizes relative to f*B (scale-free). kRobot: metric (metres), for a robot's stereo
+// rig (e.g. baseline 0.12 m): a room of a few metres, the rig driving through it (forward speed,
+// yaw and small pitch/roll rates, so every static surface moves by the inverse ego-motion) and
+// objects of 0.1-0.5 m at 0.8-5 m, some static, most moving on their own.
+enum class ScenePreset { kRoom, kRobot };
+
 struct SceneOptions {
   Camera camera;
+  ScenePreset preset = ScenePreset::kRoom;
   int frames = 10;  // frames to render (poses are made for frames + 1)
   int objects = 8;  // moving objects besides the room
 };

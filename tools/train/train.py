@@ -90,14 +90,14 @@ def load_sets(dirs, factor=1):
     return np.concatenate(xs), np.concatenate(ys), cams[0]
 
 
-def evaluate(model, x, y, batch):
-    """(model EPE, zero-flow EPE) over all samples."""
+def evaluate(model, x, y, batch, flow_scale=1.0):
+    """(model EPE, zero-flow EPE) over all samples, in the data's units."""
     model.eval()
     total, zero, n = 0.0, 0.0, 0
     with torch.no_grad():
         for i in range(0, x.shape[0], batch):
             xb, yb = to_input(x[i:i + batch]), to_target(y[i:i + batch])
-            pred = model(xb)
+            pred = model(xb) / flow_scale
             total += float(torch.norm(pred - yb, dim=1).sum())
             zero += float(torch.norm(yb, dim=1).sum())
             n += yb.shape[0] * yb.shape[2] * yb.shape[3]
@@ -115,8 +115,21 @@ def learning_rate(args, it, total_iters, epoch):
     return 0.5 * args.lr * (1.0 + math.cos(math.pi * min(1.0, t)))
 
 
+def unscaled(model, flow_scale):
+    """A copy of `model` whose output is in the data's units: the network was trained to predict
+    flow * flow_scale, so the linear output conv's weights and bias are divided by it."""
+    import copy
+    model = copy.deepcopy(model)
+    if flow_scale != 1.0:
+        with torch.no_grad():
+            model.output.weight.div_(flow_scale)
+            model.output.bias.div_(flow_scale)
+    return model
+
+
 def export(model, args, cam, height, width):
     onnx_path = os.path.join(args.out, "model.onnx")
+    model = unscaled(model, args.flow_scale)
     model.eval()
     x = torch.zeros(1, sceneednet.IN_CHANNELS, height, width)
     with warnings.catch_warnings():
@@ -151,6 +164,7 @@ def export_only(args):
     print(f"export  weights of {name} (iteration {state['iteration']}"
           + (f", validation EPE {state['val_epe']:.4f})" if "val_epe" in state else ")"),
           flush=True)
+    args.flow_scale = config.get("flow_scale", 1.0)
     export(model, args, config["camera"], config["height"], config["width"])
     return 0
 
@@ -174,6 +188,10 @@ def parse_args(argv):
                    help="stop after this much wall time; the cosine schedule is then laid "
                         "over the estimated number of iterations that fit")
     p.add_argument("--augment", action="store_true", help="random brightness/contrast")
+    p.add_argument("--flow-scale", type=float, default=1.0,
+                   help="train the network to predict flow * S (e.g. 10 for metric data: "
+                        "decimetres, targets near 1); the export divides the output conv by S, "
+                        "so the model file predicts the data's units")
     p.add_argument("--threads", type=int, default=1, help="torch threads")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--log-every", type=int, default=10)
@@ -257,7 +275,7 @@ def main(argv=None):
         nonlocal best
         if vx is None:
             return
-        v, z = evaluate(model, vx, vy, args.batch)
+        v, z = evaluate(model, vx, vy, args.batch, args.flow_scale)
         log.writerow([it, epoch, f"{spent + time.monotonic() - t0:.1f}", "", "", f"{v:.6f}",
                       f"{z:.6f}"])
         log_file.flush()
@@ -298,7 +316,7 @@ def main(argv=None):
         lr = learning_rate(args, it, max(sched_total, it + 1), epoch)
         for g in opt.param_groups:
             g["lr"] = lr
-        loss = sceneednet.epe_loss(model(xb), yb)
+        loss = sceneednet.epe_loss(model(xb), yb * args.flow_scale) / args.flow_scale
         opt.zero_grad()
         loss.backward()
         opt.step()

@@ -1,10 +1,15 @@
-// Calibration readers. yaml-cpp and cv::FileStorage throw; every exception stops here.
+// Calibration readers, all on yaml-cpp (never cv::FileStorage); its exceptions stop here.
 #include "sfrt/camera/calibration.h"
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <opencv2/calib3d.hpp>
 #include <set>
 #include <sstream>
@@ -38,10 +43,30 @@ Status CheckReadable(const std::string& path) {
   return Status::Ok();
 }
 
-Result<YAML::Node> LoadYaml(const std::string& path) {
+// A calibration file is a few kilobytes; anything past this is not one (and is not parsed).
+constexpr std::uintmax_t kMaxCalibrationFileBytes = 1 << 20;
+
+// Reads a whole calibration file, refusing files over kMaxCalibrationFileBytes.
+Result<std::string> ReadCalibrationText(const std::string& path) {
   if (Status s = CheckReadable(path); !s.ok()) return s;
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+  if (ec) return Status::Error(path + ": cannot read calibration file (" + ec.message() + ")");
+  if (bytes > kMaxCalibrationFileBytes) {
+    return Status::Error(path + ": calibration file is " + std::to_string(bytes) +
+                         " bytes; the limit is " + std::to_string(kMaxCalibrationFileBytes));
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in && !in.eof()) return Status::Error(path + ": cannot read calibration file");
+  return text;
+}
+
+Result<YAML::Node> LoadYaml(const std::string& path) {
+  Result<std::string> text = ReadCalibrationText(path);
+  if (!text.ok()) return text.status();
   try {
-    YAML::Node root = YAML::LoadFile(path);
+    YAML::Node root = YAML::Load(*text);
     if (!root.IsMap()) return Status::Error(path + ": top level is not a YAML mapping");
     return root;
   } catch (const YAML::Exception& e) {
@@ -205,15 +230,101 @@ Result<RosCamera> ReadRosCamera(const std::string& file) {
   return cam;
 }
 
-// ---- OpenCV FileStorage ----
+// ---- OpenCV FileStorage (YAML), read with yaml-cpp ----
+//
+// cv::FileStorage is never given a calibration file: its parsers crash on damaged input (OpenCV
+// 4.6 dereferences NULL in FileStorage::open on the 10-byte XML `<?xml ion=`, found by
+// fuzz_calibration). The YAML flavour OpenCV writes is read here with yaml-cpp instead, and XML is
+// refused with a message saying how to convert it.
 
 // Calibration matrices are at most 3x4 and distortion vectors 1x14; anything larger is damage.
 constexpr int kMaxMatrixSide = 64;
-
 struct FsFile {
   std::string path;
-  cv::FileStorage fs;
+  YAML::Node root;  // a mapping
 };
+
+Result<FsFile> LoadOpenCvYaml(const std::string& path) {
+  Result<std::string> text = ReadCalibrationText(path);
+  if (!text.ok()) return text.status();
+  std::string& t = *text;
+  size_t start = t.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0;  // UTF-8 byte order mark
+  start = std::min(t.find_first_not_of(" \t\r\n", start), t.size());
+  if (t.compare(start, 1, "<") == 0) {
+    return Status::Error(path +
+                         ": OpenCV XML calibration files are not read (OpenCV's XML parser is not "
+                         "safe on damaged files); save it as OpenCV YAML (cv::FileStorage with a "
+                         ".yml name)");
+  }
+  // OpenCV writes the directive "%YAML:1.0", which is not YAML: blank that line (keeping the line
+  // numbers of yaml-cpp's messages right).
+  if (t.compare(start, 6, "%YAML:") == 0) {
+    const size_t end = std::min(t.find('\n', start), t.size());
+    std::fill(t.begin() + static_cast<std::ptrdiff_t>(start),
+              t.begin() + static_cast<std::ptrdiff_t>(end), ' ');
+  }
+  FsFile f;
+  f.path = path;
+  try {
+    f.root = YAML::Load(t);
+  } catch (const YAML::Exception& e) {
+    return Status::Error(path + ": not valid OpenCV YAML (" + std::string(e.what()) + ")");
+  }
+  if (!f.root.IsMap()) {
+    return Status::Error(path + ": top level of the OpenCV YAML file is not a mapping");
+  }
+  return f;
+}
+
+std::string Shape(const cv::Mat& m) {
+  return std::to_string(m.rows) + "x" + std::to_string(m.cols);
+}
+
+// An opencv-matrix mapping (rows, cols, dt, data) as a 1-channel CV_64F matrix.
+Result<cv::Mat> ParseFsMatrix(const std::string& file, const std::string& key,
+                              const YAML::Node& node) {
+  const Status not_matrix = Status::Error(file + ": key '" + key +
+                                          "' is not an OpenCV matrix (opencv-matrix with rows, "
+                                          "cols, dt, data)");
+  if (!node.IsMap() || !node["rows"].IsDefined() || !node["cols"].IsDefined() ||
+      !node["data"].IsDefined()) {
+    return not_matrix;
+  }
+  Result<int> rows = GetPositiveInt(file, key + ".rows", node["rows"]);
+  if (!rows.ok()) return rows.status();
+  Result<int> cols = GetPositiveInt(file, key + ".cols", node["cols"]);
+  if (!cols.ok()) return cols.status();
+  if (*rows > kMaxMatrixSide || *cols > kMaxMatrixSide) {
+    return Status::Error(file + ": key '" + key + "' is " + std::to_string(*rows) + "x" +
+                         std::to_string(*cols) + "; a calibration matrix is at most " +
+                         std::to_string(kMaxMatrixSide) + "x" + std::to_string(kMaxMatrixSide));
+  }
+  // dt: an optional channel count and one element type letter ("d", "f", "3d", ...).
+  const YAML::Node dt = node["dt"];
+  if (dt.IsDefined()) {
+    const std::string type = dt.IsScalar() ? dt.Scalar() : "";
+    size_t digits = 0;
+    while (digits < type.size() && digits < 3 &&
+           std::isdigit(static_cast<unsigned char>(type[digits]))) {
+      ++digits;
+    }
+    const bool valid =
+        type.size() == digits + 1 && std::string("ucwsifdh").find(type.back()) != std::string::npos;
+    if (!valid) {
+      return Status::Error(file + ": key '" + key + ".dt' value " + Show(dt) +
+                           " is not an OpenCV element type (u, c, w, s, i, f, d, h)");
+    }
+    const int channels = digits == 0 ? 1 : std::stoi(type.substr(0, digits));
+    if (channels != 1) {
+      return Status::Error(file + ": key '" + key + "' has " + std::to_string(channels) +
+                           " channels, expected 1");
+    }
+  }
+  Result<std::vector<double>> data =
+      GetList(file, key + ".data", node["data"], {static_cast<size_t>(*rows * *cols)});
+  if (!data.ok()) return data.status();
+  return cv::Mat(*rows, *cols, CV_64F, data->data()).clone();
+}
 
 Result<cv::Mat> FsMatrix(const std::vector<FsFile>& files, const std::vector<std::string>& names,
                          bool required, std::string* found_in, std::string* found_key) {
@@ -221,7 +332,7 @@ Result<cv::Mat> FsMatrix(const std::vector<FsFile>& files, const std::vector<std
   std::string key;
   for (const FsFile& f : files) {
     for (const std::string& n : names) {
-      if (f.fs[n].isNone()) continue;
+      if (!f.root[n].IsDefined()) continue;
       if (where != nullptr) {
         return Status::Error(f.path + ": key '" + n + "' is also given as '" + key + "' in " +
                              where->path + "; give it once");
@@ -240,42 +351,7 @@ Result<cv::Mat> FsMatrix(const std::vector<FsFile>& files, const std::vector<std
   }
   *found_in = where->path;
   *found_key = key;
-  cv::Mat m;
-  try {
-    // OpenCV allocates rows x cols x channels before it reads the data: bound the sizes first,
-    // or a damaged "cols" asks for gigabytes. (OpenCV then checks the data count itself.)
-    const cv::FileNode node = where->fs[key];
-    const cv::FileNode rows = node["rows"], cols = node["cols"], data = node["data"];
-    if (node.isMap() && rows.isInt() && cols.isInt() && data.isSeq() &&
-        static_cast<int>(rows) >= 1 && static_cast<int>(rows) <= kMaxMatrixSide &&
-        static_cast<int>(cols) >= 1 && static_cast<int>(cols) <= kMaxMatrixSide &&
-        data.size() >= 1 && data.size() <= 4 * kMaxMatrixSide * kMaxMatrixSide) {
-      node >> m;
-    }
-  } catch (const std::exception&) {  // cv::Exception, and std:: ones OpenCV lets out
-    m.release();
-  }
-  if (m.empty()) {
-    return Status::Error(where->path + ": key '" + key +
-                         "' is not an OpenCV matrix (opencv-matrix "
-                         "with rows, cols, dt, data)");
-  }
-  if (m.channels() != 1) {
-    return Status::Error(where->path + ": key '" + key + "' has " + std::to_string(m.channels()) +
-                         " channels, expected 1");
-  }
-  m.convertTo(m, CV_64F);
-  for (int i = 0; i < static_cast<int>(m.total()); ++i) {
-    if (!std::isfinite(m.at<double>(i))) {
-      return Status::Error(where->path + ": key '" + key + "' element " + std::to_string(i) +
-                           " is " + Num(m.at<double>(i)) + ", not finite");
-    }
-  }
-  return m;
-}
-
-std::string Shape(const cv::Mat& m) {
-  return std::to_string(m.rows) + "x" + std::to_string(m.cols);
+  return ParseFsMatrix(where->path, key, where->root[key]);
 }
 
 Result<cv::Matx33d> FsIntrinsics(const std::vector<FsFile>& files, const char* k, const char* m) {
@@ -306,37 +382,36 @@ Result<cv::Mat> FsDistortion(const std::vector<FsFile>& files, const char* name)
 Result<cv::Size> FsImageSize(const std::vector<FsFile>& files) {
   for (const FsFile& f : files) {
     for (const char* key : {"image_size", "imageSize"}) {
-      cv::FileNode node = f.fs[key];
-      if (node.isNone()) continue;
+      const YAML::Node node = f.root[key];
+      if (!node.IsDefined()) continue;
+      const Status bad =
+          Status::Error(f.path + ": key '" + key + "' is not [width, height] in pixels");
       std::vector<double> v;
-      try {
-        if (node.isSeq()) {
-          node >> v;
-        } else if (node.isMap() && node["rows"].isInt() && node["cols"].isInt() &&
-                   static_cast<int>(node["rows"]) * static_cast<int>(node["cols"]) == 2) {
-          cv::Mat m;  // a 1x2 or 2x1 opencv-matrix (sizes checked: OpenCV allocates first)
-          node >> m;
-          m.convertTo(m, CV_64F);
-          v.assign(m.begin<double>(), m.end<double>());
-        }
-      } catch (const std::exception&) {  // cv::Exception, and std:: ones OpenCV lets out
-        v.clear();
+      if (node.IsSequence()) {
+        Result<std::vector<double>> list = GetList(f.path, key, node, {2});
+        if (!list.ok()) return bad;
+        v = *list;
+      } else {
+        Result<cv::Mat> m = ParseFsMatrix(f.path, key, node);  // a 1x2 or 2x1 opencv-matrix
+        if (!m.ok() || m->total() != 2) return bad;
+        v = {m->at<double>(0), m->at<double>(1)};
       }
-      if (v.size() != 2 || !(v[0] >= 1) || !(v[1] >= 1) || v[0] != std::floor(v[0]) ||
-          v[1] != std::floor(v[1])) {
-        return Status::Error(f.path + ": key '" + key + "' is not [width, height] in pixels");
+      if (!(v[0] >= 1) || !(v[1] >= 1) || !(v[0] <= 1e6) || !(v[1] <= 1e6) ||
+          v[0] != std::floor(v[0]) || v[1] != std::floor(v[1])) {
+        return bad;
       }
       return cv::Size(static_cast<int>(v[0]), static_cast<int>(v[1]));
     }
-    if (!f.fs["image_width"].isNone() || !f.fs["image_height"].isNone()) {
-      const cv::FileNode w = f.fs["image_width"];
-      const cv::FileNode h = f.fs["image_height"];
-      if (!w.isInt() || !h.isInt() || static_cast<int>(w) < 1 || static_cast<int>(h) < 1) {
+    const YAML::Node w = f.root["image_width"], h = f.root["image_height"];
+    if (w.IsDefined() || h.IsDefined()) {
+      Result<int> width = GetPositiveInt(f.path, "image_width", w);
+      Result<int> height = GetPositiveInt(f.path, "image_height", h);
+      if (!width.ok() || !height.ok()) {
         return Status::Error(f.path +
                              ": keys 'image_width' and 'image_height' must both be positive "
                              "integers");
       }
-      return cv::Size(static_cast<int>(w), static_cast<int>(h));
+      return cv::Size(*width, *height);
     }
   }
   return cv::Size();
@@ -467,23 +542,9 @@ Result<StereoCalibration> ReadOpenCvCalibration(const std::vector<std::string>& 
   }
   std::vector<FsFile> files;
   for (const std::string& p : paths) {
-    if (Status s = CheckReadable(p); !s.ok()) return s;
-    FsFile f;
-    f.path = p;
-    try {
-      if (!f.fs.open(p, cv::FileStorage::READ)) {
-        return Status::Error(p + ": not an OpenCV FileStorage file (YAML with %YAML:1.0, or XML)");
-      }
-      // Key lookups assert (throw) on a top level that is not a mapping.
-      if (!f.fs.getFirstTopLevelNode().isMap()) {
-        return Status::Error(p + ": top level of the OpenCV FileStorage file is not a mapping");
-      }
-    } catch (const cv::Exception& e) {
-      return Status::Error(p + ": not a readable OpenCV FileStorage file (" + e.err + ")");
-    } catch (const std::exception& e) {  // OpenCV's parser also lets std::length_error out
-      return Status::Error(p + ": not a readable OpenCV FileStorage file (" + e.what() + ")");
-    }
-    files.push_back(std::move(f));
+    Result<FsFile> f = LoadOpenCvYaml(p);
+    if (!f.ok()) return f.status();
+    files.push_back(std::move(*f));
   }
   StereoCalibration c;
   for (const std::string& p : paths) c.source += (c.source.empty() ? "" : " + ") + p;
@@ -531,8 +592,10 @@ Result<StereoCalibration> ReadOpenCvCalibration(const std::vector<std::string>& 
 Result<StereoCalibration> ReadStereoCalibration(const std::vector<std::string>& paths) {
   if (paths.empty()) return Status::Error("no calibration file given");
   auto top_level_has = [](const std::string& path, const char* key) {
+    Result<std::string> text = ReadCalibrationText(path);
+    if (!text.ok()) return false;  // the chosen reader reports it
     try {
-      const YAML::Node root = YAML::LoadFile(path);
+      const YAML::Node root = YAML::Load(*text);
       return root.IsMap() && root[key].IsDefined();
     } catch (const YAML::Exception&) {
       return false;  // XML, or OpenCV's "%YAML:1.0" header that yaml-cpp rejects

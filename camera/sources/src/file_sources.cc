@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
@@ -209,7 +210,17 @@ std::string ReadImage(const std::string& path, cv::Mat* out) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return "missing";
   if (!fs::is_regular_file(path, ec)) return "not a regular file";
-  *out = cv::imread(path, cv::IMREAD_COLOR);
+  try {
+    *out = cv::imread(path, cv::IMREAD_COLOR);
+  } catch (const cv::Exception& e) {
+    // imread throws, not fails, on some damaged headers (a PBM claiming a height over
+    // CV_IO_MAX_IMAGE_HEIGHT: found by fuzz_image).
+    out->release();
+    return "could not be decoded as an image (" + e.err + ")";
+  } catch (const std::exception& e) {  // std::bad_alloc for a huge declared size
+    out->release();
+    return std::string("could not be decoded as an image (") + e.what() + ")";
+  }
   if (out->empty()) return "could not be decoded as an image (corrupt or unsupported)";
   if (out->type() != CV_8UC3) return "did not decode to 8-bit BGR";
   return "";

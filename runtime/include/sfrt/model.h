@@ -10,13 +10,15 @@
 //
 // Verification on load, in order: size and 64-byte alignment; file identifier "SFRT"; schema
 // major version (a different major is rejected naming both versions); the FlatBuffers verifier;
-// then semantic checks (layer chain and channel counts, weight shapes and byte counts, alignment,
+// the CRC-32C of the whole file (schema 1.1; 1.0 files have none); the FlatBuffers verifier; then
+// semantic checks (layer chain and channel counts, weight shapes and byte counts, alignment,
 // parameter ranges) and the CRC-32C of all weights. Any failure names the layer and field.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -27,7 +29,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 0;
+inline constexpr int kSchemaVersionMinor = 1;
 
 enum class LayerKind { kConv2D, kUpsample, kCrop };
 enum class Activation { kNone, kRelu, kLeakyRelu };
@@ -116,11 +118,13 @@ struct ModelMetadata {
   OutputDesc output;
   CameraDesc camera;
   uint32_t weights_crc32c = 0;
+  std::optional<uint32_t> file_crc32c;            // whole-file CRC-32C; absent in schema 1.0 files
   WeightType weight_type = WeightType::kFloat32;  // as stored in the file
 };
 
 struct LoadOptions {
-  bool verify_checksum = true;  // CRC-32C of all weights; costs one pass over them
+  // The CRC-32C of the whole file (1.1) and of all weights; costs a pass over each.
+  bool verify_checksum = true;
 };
 
 enum class BufferOwnership {

@@ -22,6 +22,10 @@ struct TensorShape {  // one image, NHWC
   friend bool operator==(const TensorShape&, const TensorShape&) = default;
 };
 
+// The largest height or width of the input and of every intermediate tensor (2^20). Larger
+// sizes are rejected by InferGeometry (so by Session::Create) instead of overflowing int.
+inline constexpr int kMaxTensorSide = 1 << 20;
+
 // What one layer does at one input size.
 struct LayerGeometry {
   TensorShape input;

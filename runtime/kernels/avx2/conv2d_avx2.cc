@@ -4,6 +4,8 @@
 #include <immintrin.h>
 
 #include "kernels/simd/conv_driver_inl.h"
+#include "kernels/simd/conv_few_out_inl.h"
+#include "kernels/simd/winograd_driver_inl.h"
 
 namespace sfrt::avx2 {
 namespace {
@@ -18,6 +20,14 @@ struct V {
   }
   static Reg Broadcast(const float* p) { return _mm256_broadcast_ss(p); }
   static Reg Fma(Reg a, Reg b, Reg acc) { return _mm256_fmadd_ps(a, b, acc); }
+  static Reg Add(Reg a, Reg b) { return _mm256_add_ps(a, b); }
+  static Reg Sub(Reg a, Reg b) { return _mm256_sub_ps(a, b); }
+  static Reg Set(float x) { return _mm256_set1_ps(x); }
+  static float ReduceAdd(Reg v) {
+    const __m128 s4 = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+    const __m128 s2 = _mm_add_ps(s4, _mm_movehl_ps(s4, s4));
+    return _mm_cvtss_f32(_mm_add_ss(s2, _mm_movehdup_ps(s2)));
+  }
   static void Store(float* p, Reg v) { _mm256_storeu_ps(p, v); }
   static void StorePartial(float* p, Reg v, int n) {
     const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -47,6 +57,28 @@ void UpConv6x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
 void UpConv6x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
   simd::UpConvRows<V, 6, 1>(a, r0, r1, b0, b1);
 }
+void FewOut4(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::FewOutConvRows<V, 4>(a, r0, r1, b0, b1);
+}
+void WinogradUpIn(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradPhaseTransform>(a, b, e);
+}
+void WinogradUpOut(const WinogradArgs& a, int b, int e) { simd::WinogradUpOutput<V>(a, b, e); }
+void WinogradIn2(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradTransform<2>>(a, b, e);
+}
+void WinogradOut2(const WinogradArgs& a, int b, int e) {
+  simd::WinogradOutput<V, WinogradTransform<2>>(a, b, e);
+}
+void WinogradIn4(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradTransform<4>>(a, b, e);
+}
+void WinogradOut4(const WinogradArgs& a, int b, int e) {
+  simd::WinogradOutput<V, WinogradTransform<4>>(a, b, e);
+}
+void WinogradProduct6x16(const WinogradArgs& a, int b, int e) {
+  simd::WinogradProduct<V, 6, 2>(a, b, e);
+}
 
 }  // namespace
 
@@ -57,7 +89,31 @@ const IsaConvKernels& ConvKernels() {
           {16, Conv6x16, UpConv6x16, "conv2d_f32__avx2_6x16", "upconv2x_conv3x3_f32__avx2_6x16"},
       },
       2,
+      FewOut4,
+      "conv2d_fewout_f32__avx2_4xc",
   };
+  return kernels;
+}
+
+const WinogradKernels& WinogradUpKernels() {
+  static const WinogradKernels kernels = {2,
+                                          16,
+                                          WinogradUpIn,
+                                          WinogradProduct6x16,
+                                          WinogradUpOut,
+                                          "upconv2x_conv3x3_winograd_f2x2_2x2__avx2_6x16"};
+  return kernels;
+}
+
+const WinogradKernels& WinogradF2Kernels() {
+  static const WinogradKernels kernels = {
+      2, 16, WinogradIn2, WinogradProduct6x16, WinogradOut2, "conv2d_winograd_f2x2_3x3__avx2_6x16"};
+  return kernels;
+}
+
+const WinogradKernels& WinogradF4Kernels() {
+  static const WinogradKernels kernels = {
+      4, 16, WinogradIn4, WinogradProduct6x16, WinogradOut4, "conv2d_winograd_f4x4_3x3__avx2_6x16"};
   return kernels;
 }
 

@@ -6,6 +6,8 @@
 #include <immintrin.h>
 
 #include "kernels/simd/conv_driver_inl.h"
+#include "kernels/simd/conv_few_out_inl.h"
+#include "kernels/simd/winograd_driver_inl.h"
 
 namespace sfrt::avx512 {
 namespace {
@@ -19,6 +21,19 @@ struct V {
   }
   static Reg Broadcast(const float* p) { return _mm512_set1_ps(*p); }
   static Reg Fma(Reg a, Reg b, Reg acc) { return _mm512_fmadd_ps(a, b, acc); }
+  static Reg Add(Reg a, Reg b) { return _mm512_add_ps(a, b); }
+  static Reg Sub(Reg a, Reg b) { return _mm512_sub_ps(a, b); }
+  static Reg Set(float x) { return _mm512_set1_ps(x); }
+  // Lane sum in 512-bit registers with the zero-masked shuffles (GCC 12's
+  // _mm512_reduce_add_ps, casts and unmasked shuffles trip -Wmaybe-uninitialized).
+  static float ReduceAdd(Reg v) {
+    constexpr __mmask16 kAll = 0xFFFF;
+    v = _mm512_add_ps(v, _mm512_maskz_shuffle_f32x4(kAll, v, v, 0x4E));
+    v = _mm512_add_ps(v, _mm512_maskz_shuffle_f32x4(kAll, v, v, 0xB1));
+    v = _mm512_add_ps(v, _mm512_maskz_permute_ps(kAll, v, 0x4E));
+    v = _mm512_add_ps(v, _mm512_maskz_permute_ps(kAll, v, 0xB1));
+    return _mm512_cvtss_f32(v);
+  }
   static void Store(float* p, Reg v) { _mm512_storeu_ps(p, v); }
   static void StorePartial(float* p, Reg v, int n) {
     _mm512_mask_storeu_ps(p, static_cast<__mmask16>((1u << n) - 1u), v);
@@ -83,6 +98,28 @@ void UpConv12x32(const ConvArgs& a, int r0, int r1, int b0, int b1) {
 void UpConv8x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
   simd::UpConvRows<V, 8, 1>(a, r0, r1, b0, b1);
 }
+void FewOut8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::FewOutConvRows<V, 8>(a, r0, r1, b0, b1);
+}
+void WinogradUpIn(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradPhaseTransform>(a, b, e);
+}
+void WinogradUpOut(const WinogradArgs& a, int b, int e) { simd::WinogradUpOutput<V>(a, b, e); }
+void WinogradIn2(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradTransform<2>>(a, b, e);
+}
+void WinogradOut2(const WinogradArgs& a, int b, int e) {
+  simd::WinogradOutput<V, WinogradTransform<2>>(a, b, e);
+}
+void WinogradIn4(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradTransform<4>>(a, b, e);
+}
+void WinogradOut4(const WinogradArgs& a, int b, int e) {
+  simd::WinogradOutput<V, WinogradTransform<4>>(a, b, e);
+}
+void WinogradProduct6x64(const WinogradArgs& a, int b, int e) {
+  simd::WinogradProduct<V, 6, 4>(a, b, e);
+}
 
 }  // namespace
 
@@ -98,7 +135,39 @@ const IsaConvKernels& ConvKernels() {
            "upconv2x_conv3x3_f32__avx512_6x64"},
       },
       4,
+      FewOut8,
+      "conv2d_fewout_f32__avx512_8xc",
   };
+  return kernels;
+}
+
+const WinogradKernels& WinogradUpKernels() {
+  static const WinogradKernels kernels = {2,
+                                          64,
+                                          WinogradUpIn,
+                                          WinogradProduct6x64,
+                                          WinogradUpOut,
+                                          "upconv2x_conv3x3_winograd_f2x2_2x2__avx512_6x64"};
+  return kernels;
+}
+
+const WinogradKernels& WinogradF2Kernels() {
+  static const WinogradKernels kernels = {2,
+                                          64,
+                                          WinogradIn2,
+                                          WinogradProduct6x64,
+                                          WinogradOut2,
+                                          "conv2d_winograd_f2x2_3x3__avx512_6x64"};
+  return kernels;
+}
+
+const WinogradKernels& WinogradF4Kernels() {
+  static const WinogradKernels kernels = {4,
+                                          64,
+                                          WinogradIn4,
+                                          WinogradProduct6x64,
+                                          WinogradOut4,
+                                          "conv2d_winograd_f4x4_3x3__avx512_6x64"};
   return kernels;
 }
 

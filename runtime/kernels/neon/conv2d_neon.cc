@@ -4,6 +4,8 @@
 #include <arm_neon.h>
 
 #include "kernels/simd/conv_driver_inl.h"
+#include "kernels/simd/conv_few_out_inl.h"
+#include "kernels/simd/winograd_driver_inl.h"
 
 namespace sfrt::neon {
 namespace {
@@ -19,6 +21,10 @@ struct V {
   }
   static Reg Broadcast(const float* p) { return vld1q_dup_f32(p); }
   static Reg Fma(Reg a, Reg b, Reg acc) { return vfmaq_f32(acc, a, b); }
+  static Reg Add(Reg a, Reg b) { return vaddq_f32(a, b); }
+  static Reg Sub(Reg a, Reg b) { return vsubq_f32(a, b); }
+  static Reg Set(float x) { return vdupq_n_f32(x); }
+  static float ReduceAdd(Reg v) { return vaddvq_f32(v); }
   static void Store(float* p, Reg v) { vst1q_f32(p, v); }
   static void StorePartial(float* p, Reg v, int n) {
     float tmp[4];
@@ -55,6 +61,29 @@ void UpConv8x4(const ConvArgs& a, int r0, int r1, int b0, int b1) {
   simd::UpConvRows<V, 8, 1>(a, r0, r1, b0, b1);
 }
 
+void FewOut6(const ConvArgs& a, int r0, int r1, int b0, int b1) {
+  simd::FewOutConvRows<V, 6>(a, r0, r1, b0, b1);
+}
+void WinogradUpIn(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradPhaseTransform>(a, b, e);
+}
+void WinogradUpOut(const WinogradArgs& a, int b, int e) { simd::WinogradUpOutput<V>(a, b, e); }
+void WinogradIn2(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradTransform<2>>(a, b, e);
+}
+void WinogradOut2(const WinogradArgs& a, int b, int e) {
+  simd::WinogradOutput<V, WinogradTransform<2>>(a, b, e);
+}
+void WinogradIn4(const WinogradArgs& a, int b, int e) {
+  simd::WinogradInput<V, WinogradTransform<4>>(a, b, e);
+}
+void WinogradOut4(const WinogradArgs& a, int b, int e) {
+  simd::WinogradOutput<V, WinogradTransform<4>>(a, b, e);
+}
+void WinogradProduct6x16(const WinogradArgs& a, int b, int e) {
+  simd::WinogradProduct<V, 6, 4>(a, b, e);
+}
+
 }  // namespace
 
 const IsaConvKernels& ConvKernels() {
@@ -65,7 +94,31 @@ const IsaConvKernels& ConvKernels() {
           {16, Conv6x16, UpConv6x16, "conv2d_f32__neon_6x16", "upconv2x_conv3x3_f32__neon_6x16"},
       },
       3,
+      FewOut6,
+      "conv2d_fewout_f32__neon_6xc",
   };
+  return kernels;
+}
+
+const WinogradKernels& WinogradUpKernels() {
+  static const WinogradKernels kernels = {2,
+                                          16,
+                                          WinogradUpIn,
+                                          WinogradProduct6x16,
+                                          WinogradUpOut,
+                                          "upconv2x_conv3x3_winograd_f2x2_2x2__neon_6x16"};
+  return kernels;
+}
+
+const WinogradKernels& WinogradF2Kernels() {
+  static const WinogradKernels kernels = {
+      2, 16, WinogradIn2, WinogradProduct6x16, WinogradOut2, "conv2d_winograd_f2x2_3x3__neon_6x16"};
+  return kernels;
+}
+
+const WinogradKernels& WinogradF4Kernels() {
+  static const WinogradKernels kernels = {
+      4, 16, WinogradIn4, WinogradProduct6x16, WinogradOut4, "conv2d_winograd_f4x4_3x3__neon_6x16"};
   return kernels;
 }
 

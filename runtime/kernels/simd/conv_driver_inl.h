@@ -256,6 +256,7 @@ void UpConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, in
         }
         for (int ox = 0; ox < x_lo; ++ox) single(ox);
         for (int ox = x_hi; ox < out_w; ++ox) single(ox);
+        if (a.skip_interior) continue;
         const int ay = cy0 + a.crop_top;  // upsampled row of the window's first tap
         const int py = ay & 1, by = ay >> 1;
         for (int px = 0; px < 2; ++px) {

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <opencv2/calib3d.hpp>
 #include <sstream>
 #include <string>
@@ -195,18 +196,41 @@ void WriteOpenCv(const std::string& path, const Rig& rig, bool m_names, bool wit
   if (with_size) fs << "image_size" << std::vector<int>{rig.size.width, rig.size.height};
 }
 
-TEST(OpenCvCalibration, YamlWithKNamesAndXmlWithMNames) {
+TEST(OpenCvCalibration, YamlWithKNamesOrMNames) {
   TempDir tmp;
   Rig rig;
   WriteOpenCv(tmp / "stereo.yml", rig, /*m_names=*/false, /*with_size=*/true);
-  WriteOpenCv(tmp / "stereo.xml", rig, /*m_names=*/true, /*with_size=*/true);
-  for (const std::string& path : {tmp / "stereo.yml", tmp / "stereo.xml"}) {
+  WriteOpenCv(tmp / "stereo_m.yaml", rig, /*m_names=*/true, /*with_size=*/true);
+  for (const std::string& path : {tmp / "stereo.yml", tmp / "stereo_m.yaml"}) {
     Result<StereoCalibration> c = ReadOpenCvCalibration({path});
     ASSERT_TRUE(c.ok()) << c.message();
     ExpectRig(*c, rig, 1e-12);
     Result<StereoCalibration> detected = ReadStereoCalibration({path});
     ASSERT_TRUE(detected.ok()) << detected.message();
     ExpectRig(*detected, rig, 1e-12);
+  }
+}
+
+// OpenCV's XML parser crashes on damaged files (fuzz_calibration), so XML is refused by name,
+// valid or not, before any parser sees it.
+TEST(OpenCvCalibration, XmlIsRefusedWithAConversionHint) {
+  TempDir tmp;
+  Rig rig;
+  WriteOpenCv(tmp / "stereo.xml", rig, /*m_names=*/true, /*with_size=*/true);
+  {
+    std::ofstream damaged(tmp / "damaged.xml", std::ios::binary);
+    damaged << "<?xml ion=";  // crashed cv::FileStorage::open in OpenCV 4.6
+  }
+  for (const std::string& path : {tmp / "stereo.xml", tmp / "damaged.xml"}) {
+    for (bool detect : {false, true}) {
+      Result<StereoCalibration> r =
+          detect ? ReadStereoCalibration({path}) : ReadOpenCvCalibration({path});
+      ASSERT_FALSE(r.ok()) << path;
+      EXPECT_NE(r.message().find(path + ": OpenCV XML calibration files are not read"),
+                std::string::npos)
+          << r.message();
+      EXPECT_NE(r.message().find("save it as OpenCV YAML"), std::string::npos) << r.message();
+    }
   }
 }
 
@@ -267,6 +291,38 @@ TEST(OpenCvCalibration, ErrorsNameFileKeyAndValue) {
   Result<StereoCalibration> twice = ReadOpenCvCalibration({tmp / "a.yml", tmp / "b.yml"});
   ASSERT_FALSE(twice.ok());
   EXPECT_NE(twice.message().find("give it once"), std::string::npos) << twice.message();
+
+  // Damage OpenCV's own reader would have allocated or decoded first: a huge matrix, channels,
+  // a data count that does not match rows x cols, a file far larger than any calibration.
+  const std::string header = "%YAML:1.0\n---\n";
+  const std::string k1 = "K1: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n";
+  const struct {
+    const char* name;
+    std::string text;
+    const char* must_contain;
+  } damaged[] = {
+      {"huge.yml",
+       header + "K1: !!opencv-matrix\n   rows: 3\n   cols: 100000\n   dt: d\n"
+                "   data: [ 1. ]\n",
+       "key 'K1' is 3x100000; a calibration matrix is at most 64x64"},
+      {"channels.yml",
+       header + "K1: !!opencv-matrix\n   rows: 1\n   cols: 3\n   dt: 3d\n"
+                "   data: [ 1., 2., 3., 4., 5., 6., 7., 8., 9. ]\n",
+       "key 'K1' has 3 channels, expected 1"},
+      {"count.yml", header + k1 + "   data: [ 1., 0., 2. ]\n",
+       "key 'K1.data' has 3 values, expected 9"},
+      {"big.yml", header + "# " + std::string(1 << 20, 'x') + "\n", "bytes; the limit is 1048576"},
+  };
+  for (const auto& d : damaged) {
+    {
+      std::ofstream f(tmp / d.name, std::ios::binary);
+      f << d.text;
+    }
+    Result<StereoCalibration> r = ReadOpenCvCalibration({tmp / d.name});
+    ASSERT_FALSE(r.ok()) << d.name;
+    EXPECT_NE(r.message().find(tmp / d.name), std::string::npos) << r.message();
+    EXPECT_NE(r.message().find(d.must_contain), std::string::npos) << r.message();
+  }
 
   Result<StereoCalibration> missing = ReadStereoCalibration({tmp / "none.yml"});
   ASSERT_FALSE(missing.ok());

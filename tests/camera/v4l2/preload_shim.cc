@@ -4,9 +4,10 @@
 //   LD_PRELOAD=libsfrt_fake_v4l2_preload.so some-capture-program   (both in the environment)
 //
 // Each ';'-separated entry is a path and optional comma-separated knobs: side (pattern 0/1),
-// sbs (1 = side-by-side pattern), fps, phase_ms, jitter_ms, drop_every, width, height (the
-// defaults), formats (e.g. YUYV+MJPG+GREY, in ENUM_FMT order). Frames come in real time, on a
-// grid shared by all devices (align_to_epoch), like two cameras on one clock.
+// sbs (1 = side-by-side pattern), fps, phase_ms, jitter_ms, drop_every, stalled (1 = never
+// delivers a frame), width, height (the defaults), formats (e.g. YUYV+MJPG+GREY, in ENUM_FMT
+// order). Frames come in real time, on a grid shared by all devices (align_to_epoch), like two
+// cameras on one clock.
 //
 // Interposed: open, open64, openat, openat64, __open_2, __open64_2, close, ioctl, mmap, mmap64,
 // munmap, poll. Calls on other paths/fds go straight to the kernel with syscall(2) (no dlsym, so
@@ -29,6 +30,7 @@
 
 namespace {
 
+using sfrt::v4l2::testing::FakeDevice;
 using sfrt::v4l2::testing::FakeDeviceConfig;
 using sfrt::v4l2::testing::FakeV4l2System;
 
@@ -56,6 +58,7 @@ FakeV4l2System* Create() {
     c.path = entry.substr(0, colon);
     std::string knobs = colon == std::string::npos ? "" : entry.substr(colon + 1);
     int drop_every = 0;
+    bool stalled = false;
     size_t k = 0;
     while (k < knobs.size()) {
       size_t comma = knobs.find(',', k);
@@ -73,6 +76,7 @@ FakeV4l2System* Create() {
       if (key == "phase_ms") c.phase_ns = static_cast<int64_t>(num * 1e6);
       if (key == "jitter_ms") c.jitter_ns = static_cast<int64_t>(num * 1e6);
       if (key == "drop_every") drop_every = static_cast<int>(num);
+      if (key == "stalled") stalled = num != 0;
       if (key == "width") c.default_width = static_cast<int>(num);
       if (key == "height") c.default_height = static_cast<int>(num);
       if (key == "formats") {
@@ -81,7 +85,9 @@ FakeV4l2System* Create() {
           c.formats.push_back(ParseFourcc(val.substr(f, 4)));
       }
     }
-    sys->AddDevice(c).faults().drop_every = drop_every;
+    FakeDevice& device = sys->AddDevice(c);
+    device.faults().drop_every = drop_every;
+    device.faults().stalled = stalled;
   }
   return sys;
 }

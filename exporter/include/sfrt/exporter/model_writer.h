@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "sfrt/exporter/model_spec.h"
@@ -12,8 +13,23 @@ namespace sfrt::exporter {
 // The version recorded in Producer.exporter_version when the spec leaves it empty.
 const char* ExporterVersion();
 
+struct SerializeOptions {
+  // Schema minor version to write (major is always kSchemaVersionMajor). 1 (the default) writes
+  // Model.file_crc32c, the CRC-32C of the whole file; 0 writes the 1.0 layout, whose only checksum
+  // covers the weights. Every 1.x runtime reads both; 0 exists so tests can keep checking that
+  // this runtime still reads 1.0 files.
+  int schema_minor = 1;
+};
+
 // Checks the spec (chain consistency, weight counts) and returns the file's bytes. Tensor data
 // is 64-byte aligned relative to the start of the returned buffer.
-Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec);
+Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
+                                            const SerializeOptions& options = {});
+
+// Sets Model.file_crc32c of a serialised file (schema 1.1 or later) to the CRC-32C of all its
+// bytes, the field's own 4 bytes taken as zero: the writer's last step, and what a tool or test
+// that edits fields of a finished file calls afterwards. Fails, changing nothing, when the file's
+// root table does not verify or has no file_crc32c field (a 1.0 file).
+Status UpdateFileChecksum(std::span<uint8_t> file);
 
 }  // namespace sfrt::exporter

@@ -18,11 +18,15 @@
 //    distortion_model (radtan | none), distortion_coeffs [k1, k2, p1, p2], resolution [w, h], and
 //    cam1.T_cn_cnm1 (4x4, maps cam0 coordinates to cam1: R = its 3x3 block, T = its last column).
 //    equidistant / fov / omni models are rejected by name.
-//  * OpenCV FileStorage (.yml .yaml .xml, one file or two, e.g. the stereo_calib sample's
-//    intrinsics.yml + extrinsics.yml): K1 or M1 (3x3), D1 (1xN or Nx1, N in {4,5,8,12,14}),
-//    K2 or M2, D2, R (3x3 matrix, or a 3-vector Rodrigues rotation), T (3-vector); optional image
-//    size as image_size / imageSize ([w, h]) or image_width + image_height. A key present in both
-//    files is an error.
+//  * OpenCV FileStorage YAML (what cv::FileStorage writes to a .yml/.yaml name, "%YAML:1.0"
+//    header included; one file or two, e.g. the stereo_calib sample's intrinsics.yml +
+//    extrinsics.yml): K1 or M1 (3x3), D1 (1xN or Nx1, N in {4,5,8,12,14}), K2 or M2, D2, R (3x3
+//    matrix, or a 3-vector Rodrigues rotation), T (3-vector); optional image size as image_size /
+//    imageSize ([w, h]) or image_width + image_height. A key present in both files is an error.
+//    Matrices are opencv-matrix mappings (rows, cols, dt with one channel, data), at most 64x64.
+//    The files are parsed with yaml-cpp, never handed to cv::FileStorage (whose parsers crash on
+//    damaged files); OpenCV's XML flavour is refused with a hint to save it as YAML.
+// Every calibration file is at most 1 MiB (kMaxCalibrationFileBytes in calibration.cc).
 //
 // Errors: one line naming the file, the key and the offending value, e.g.
 //   "right.yaml: key 'projection_matrix' data has 9 values, expected 12".

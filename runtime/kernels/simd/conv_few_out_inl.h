@@ -1,0 +1,152 @@
+// Convolutions with very few output channels (SceneEDNet's 64 -> 3 output layer), shared by every
+// SIMD tier over the vector vocabulary of conv_driver_inl.h plus ReduceAdd(Reg) -> float.
+// The output-channel-blocked tile would fill most of its lanes with padding (3 of 8 or 16), so
+// here the vectors run over input channels instead: per tap, R pixels x CO outputs accumulate
+// x[pixel][ci..ci+L) * w[tap][co][ci..ci+L), and each accumulator is summed across its lanes
+// once per pixel at the end. Weights: PackedConv::few_weights, [taps][CO][few_ci_stride], zero
+// beyond in_channels. Templates only (internal linkage per ISA translation unit).
+#pragma once
+
+#include <cstddef>
+
+#include "kernels/conv_job.h"
+#include "kernels/simd/conv_driver_inl.h"
+
+namespace sfrt::simd {
+
+template <typename V, int R, int CO>
+inline void FewOutTile(const float* const* xs, const float* const* ws, int taps, ptrdiff_t x_step,
+                       int cin, int ci_stride, const float* bias, float* out, ptrdiff_t out_step,
+                       Activation act, float slope) {
+  constexpr int kL = V::kLanes;
+  using Reg = typename V::Reg;
+  Reg acc[R][CO];
+#pragma GCC unroll 8
+  for (int m = 0; m < R; ++m) {
+#pragma GCC unroll 4
+    for (int co = 0; co < CO; ++co) acc[m][co] = V::Set(0.0f);
+  }
+  for (int t = 0; t < taps; ++t) {
+    const float* x = xs[t];
+    const float* w = ws[t];
+    for (int c = 0; c < cin; c += kL) {
+      const int n = cin - c;
+      Reg wv[CO];
+#pragma GCC unroll 4
+      for (int co = 0; co < CO; ++co) wv[co] = V::Load(w + co * ci_stride + c);
+#pragma GCC unroll 8
+      for (int m = 0; m < R; ++m) {
+        const float* src = x + m * x_step + c;
+        const Reg xv = n >= kL ? V::Load(src) : V::LoadPartial(src, n);
+#pragma GCC unroll 4
+        for (int co = 0; co < CO; ++co) acc[m][co] = V::Fma(xv, wv[co], acc[m][co]);
+      }
+    }
+  }
+#pragma GCC unroll 8
+  for (int m = 0; m < R; ++m) {
+#pragma GCC unroll 4
+    for (int co = 0; co < CO; ++co) {
+      float r = V::ReduceAdd(acc[m][co]) + bias[co];
+      if (act == Activation::kLeakyRelu) {
+        r = r > 0.0f ? r : r * slope;
+      } else if (act == Activation::kRelu) {
+        r = r > 0.0f ? r : 0.0f;
+      }
+      out[m * out_step + co] = r;
+    }
+  }
+}
+
+template <typename V, int R, int CO>
+inline void FewOutTileUpTo(int r, const float* const* xs, const float* const* ws, int taps,
+                           ptrdiff_t x_step, int cin, int ci_stride, const float* bias, float* out,
+                           ptrdiff_t out_step, Activation act, float slope) {
+  if constexpr (R > 1) {
+    if (r < R) {
+      FewOutTileUpTo<V, R - 1, CO>(r, xs, ws, taps, x_step, cin, ci_stride, bias, out, out_step,
+                                   act, slope);
+      return;
+    }
+  }
+  FewOutTile<V, R, CO>(xs, ws, taps, x_step, cin, ci_stride, bias, out, out_step, act, slope);
+}
+
+// Output rows [row_begin, row_end) of a convolution with exactly CO output channels (one block).
+template <typename V, int MR, int CO>
+void FewOutRows(const ConvArgs& a, int row_begin, int row_end) {
+  const PackedConv& p = *a.conv;
+  const int cin = p.in_channels, cs = p.few_ci_stride;
+  const int kh = p.kernel_h, kw = p.kernel_w, sh = p.stride_h, sw = p.stride_w;
+  const ptrdiff_t tap_floats = static_cast<ptrdiff_t>(CO) * cs;
+  const int pt = a.pads.top, pl = a.pads.left;
+  const int in_h = a.in.height, in_w = a.in.width, out_w = a.out.width;
+  const Activation act = p.activation;
+  const float slope = p.leaky_slope;
+  const int x_lo = MinOf(out_w, (pl + sw - 1) / sw);
+  const int x_hi = MaxOf(x_lo, MinOf(out_w, FloorDiv(in_w - kw + pl, sw) + 1));
+  const ptrdiff_t x_step = static_cast<ptrdiff_t>(sw) * cin;
+  const float* xs[kMaxConvTaps];
+  const float* ws[kMaxConvTaps];
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    const int iy0 = oy * sh - pt;
+    const int ky_lo = MaxOf(0, -iy0);
+    const int ky_hi = MinOf(kh, in_h - iy0);
+    float* orow = a.out.pixel(oy, 0);
+    auto single = [&](int ox) {
+      int n = 0;
+      const int ix0 = ox * sw - pl;
+      for (int ky = ky_lo; ky < ky_hi; ++ky) {
+        for (int kx = 0; kx < kw; ++kx) {
+          const int ix = ix0 + kx;
+          if (ix < 0 || ix >= in_w) continue;
+          xs[n] = a.in.pixel(iy0 + ky, ix);
+          ws[n] = p.few_weights + (ky * kw + kx) * tap_floats;
+          ++n;
+        }
+      }
+      FewOutTile<V, 1, CO>(xs, ws, n, 0, cin, cs, p.bias, orow + static_cast<ptrdiff_t>(ox) * CO, 0,
+                           act, slope);
+    };
+    for (int ox = 0; ox < x_lo; ++ox) single(ox);
+    int ox = x_lo;
+    if (ox < x_hi) {
+      int n = 0;
+      for (int ky = ky_lo; ky < ky_hi; ++ky) {
+        for (int kx = 0; kx < kw; ++kx) ws[n++] = p.few_weights + (ky * kw + kx) * tap_floats;
+      }
+      for (; ox < x_hi; ox += MR) {
+        int t = 0;
+        const int ix0 = ox * sw - pl;
+        for (int ky = ky_lo; ky < ky_hi; ++ky) {
+          for (int kx = 0; kx < kw; ++kx) xs[t++] = a.in.pixel(iy0 + ky, ix0 + kx);
+        }
+        FewOutTileUpTo<V, MR, CO>(MinOf(MR, x_hi - ox), xs, ws, n, x_step, cin, cs, p.bias,
+                                  orow + static_cast<ptrdiff_t>(ox) * CO, CO, act, slope);
+      }
+      ox = x_hi;
+    }
+    for (; ox < out_w; ++ox) single(ox);
+  }
+}
+
+// ConvRowsFn for 1..kFewOutChannels output channels.
+template <typename V, int MR>
+void FewOutConvRows(const ConvArgs& a, int row_begin, int row_end, int, int) {
+  switch (a.conv->out_channels) {
+    case 1:
+      FewOutRows<V, MR, 1>(a, row_begin, row_end);
+      break;
+    case 2:
+      FewOutRows<V, MR, 2>(a, row_begin, row_end);
+      break;
+    case 3:
+      FewOutRows<V, MR, 3>(a, row_begin, row_end);
+      break;
+    default:
+      FewOutRows<V, MR, 4>(a, row_begin, row_end);
+      break;
+  }
+}
+
+}  // namespace sfrt::simd

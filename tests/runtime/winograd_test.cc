@@ -1,0 +1,348 @@
+// The Winograd F(2x2, 3x3) and F(4x4, 3x3) paths against the direct reference convolution
+// (ref::Conv2d, the oracle): the scalar Winograd reference (kernels/ref/winograd_ref.h) and
+// every SIMD tier this CPU executes, on SceneEDNet's real channel counts (conv4 512 -> 1024,
+// conv5 1024 -> 1024) at small and odd sizes, its conv4/conv5 map size (34x60) and shapes that
+// leave tails in tiles and channel vectors. The passes are called as two threads would, on
+// split ranges.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "conv_packing.h"
+#include "kernels/conv_job.h"
+#include "kernels/ref/conv2d_ref.h"
+#include "kernels/ref/resample_ref.h"
+#include "kernels/ref/winograd_ref.h"
+#include "kernels/winograd_job.h"
+#include "sfrt/isa.h"
+#include "winograd_packing.h"
+#include "winograd_run.h"
+
+namespace sfrt {
+namespace {
+
+// Winograd rounds differently from direct summation: the transforms add up to alpha^2 terms
+// and the constants of F(4x4) (up to 8 in AT, 5 in BT) amplify rounding. Bounds: this fraction
+// of the largest reference magnitude, for inputs in [-1, 1] and weights scaled by
+// 1 / sqrt(9 cin), so outputs are of order 1. Measured on these cases: F(2x2) at most ~1e-6,
+// F(4x4) at most ~1e-5 (1024 channels).
+constexpr double kToleranceF2 = 1e-5;
+constexpr double kToleranceF4 = 1e-4;
+
+std::vector<float> Random(size_t n, uint32_t seed, float scale) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> dist(-scale, scale);
+  std::vector<float> v(n);
+  for (float& x : v) x = dist(rng);
+  return v;
+}
+
+struct Aligned {
+  explicit Aligned(size_t n) : data(static_cast<float*>(std::aligned_alloc(64, (n + 16) * 4))) {}
+  ~Aligned() { std::free(data); }
+  float* data;
+};
+
+double MaxRelativeError(const std::vector<float>& got, const std::vector<float>& want) {
+  double max_ref = 0.0, max_err = 0.0;
+  for (size_t i = 0; i < want.size(); ++i) {
+    if (!std::isfinite(got[i])) return INFINITY;
+    max_ref = std::max(max_ref, std::abs(double(want[i])));
+    max_err = std::max(max_err, std::abs(double(got[i]) - want[i]));
+  }
+  return max_ref > 0 ? max_err / max_ref : INFINITY;
+}
+
+struct Case {
+  int h, w, cin, cout;
+  Padding pads;  // top, left, bottom, right
+  Activation act = Activation::kLeakyRelu;
+};
+
+std::string Describe(const Case& c) {
+  return std::to_string(c.h) + "x" + std::to_string(c.w) + "x" + std::to_string(c.cin) + "->" +
+         std::to_string(c.cout) + " pads " + std::to_string(c.pads.top) + "," +
+         std::to_string(c.pads.left) + "," + std::to_string(c.pads.bottom) + "," +
+         std::to_string(c.pads.right);
+}
+
+const std::vector<Case>& Cases() {
+  static const std::vector<Case> cases = {
+      {5, 7, 1024, 1024, {1, 1, 1, 1}},  // conv5's channels, odd size: partial tiles both ways
+      {4, 9, 512, 1024, {1, 1, 1, 1}},   // conv4's channels
+      {34, 60, 64, 80, {1, 1, 1, 1}},    // conv4/conv5's map at 540x960
+      {9, 13, 67, 70, {1, 1, 1, 1}},     // channel tails of every vector width
+      {1, 1, 64, 64, {1, 1, 1, 1}},      // one pixel: every tap but the centre padded
+      {2, 3, 70, 65, {1, 1, 1, 1}},      // smaller than one F(4x4) tile
+      {11, 6, 33, 17, {0, 0, 2, 2}, Activation::kRelu},  // asymmetric pads
+      {6, 11, 16, 40, {2, 2, 0, 0}, Activation::kNone},
+      {7, 10, 64, 96, {1, 0, 1, 2}},
+  };
+  return cases;
+}
+
+struct Problem {
+  std::vector<float> input, weights, bias, want;
+  ConvParams p;
+  ConstTensorView in;
+  int out_h = 0, out_w = 0;
+};
+
+Problem Make(const Case& c, uint32_t seed) {
+  Problem pr;
+  pr.input = Random(static_cast<size_t>(c.h) * c.w * c.cin, seed, 1.0f);
+  pr.weights = Random(static_cast<size_t>(9) * c.cin * c.cout, seed + 1,
+                      1.0f / std::sqrt(9.0f * static_cast<float>(c.cin)));
+  pr.bias = Random(c.cout, seed + 2, 0.5f);
+  pr.p.in_channels = c.cin;
+  pr.p.out_channels = c.cout;
+  pr.p.kernel_h = pr.p.kernel_w = 3;
+  pr.p.activation = c.act;
+  pr.p.leaky_slope = 0.3f;
+  pr.p.weights = pr.weights.data();
+  pr.p.bias = pr.bias.data();
+  pr.in = DenseView(pr.input.data(), c.h, c.w, c.cin);
+  pr.out_h = c.h + c.pads.top + c.pads.bottom - 2;
+  pr.out_w = c.w + c.pads.left + c.pads.right - 2;
+  pr.want.resize(static_cast<size_t>(pr.out_h) * pr.out_w * c.cout);
+  ref::Conv2d(pr.in, pr.p, c.pads, DenseView(pr.want.data(), pr.out_h, pr.out_w, c.cout));
+  return pr;
+}
+
+// The problems of Cases(), built once: the direct reference on 1024 channels is slow.
+const Problem& ProblemOf(size_t index) {
+  static std::vector<std::unique_ptr<Problem>> problems(Cases().size());
+  if (problems[index] == nullptr) {
+    problems[index] =
+        std::make_unique<Problem>(Make(Cases()[index], 3 * static_cast<uint32_t>(index) + 1));
+  }
+  return *problems[index];
+}
+
+class WinogradRef : public ::testing::TestWithParam<int> {};
+
+TEST_P(WinogradRef, MatchesDirectReferenceOnEveryShapeOfTheTable) {
+  const int m = GetParam();
+  for (size_t i = 0; i < Cases().size(); ++i) {
+    const Case& c = Cases()[i];
+    SCOPED_TRACE(Describe(c));
+    const Problem& pr = ProblemOf(i);
+    ASSERT_GT(pr.out_h, 0);
+    std::vector<float> got(pr.want.size(), NAN);
+    ref::Conv2dWinograd(pr.in, pr.p, c.pads, m, DenseView(got.data(), pr.out_h, pr.out_w, c.cout));
+    EXPECT_LE(MaxRelativeError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(F2AndF4, WinogradRef, ::testing::Values(2, 4),
+                         [](const ::testing::TestParamInfo<int>& param) {
+                           return "F" + std::to_string(param.param) + "x" +
+                                  std::to_string(param.param);
+                         });
+
+struct IsaAndTile {
+  Isa isa;
+  int m;
+};
+
+class WinogradSimd : public ::testing::TestWithParam<IsaAndTile> {
+ protected:
+  void SetUp() override {
+    if (!IsaSupported(GetParam().isa)) {
+      GTEST_SKIP() << "this CPU or build cannot run " << IsaName(GetParam().isa)
+                   << " (supported: " << SupportedIsaList() << ")";
+    }
+    kernels_ = WinogradKernelsFor(GetParam().isa, GetParam().m);
+    ASSERT_NE(kernels_, nullptr);
+  }
+  const WinogradKernels* kernels_ = nullptr;
+};
+
+TEST_P(WinogradSimd, MatchesDirectReferenceOnEveryShapeOfTheTable) {
+  const int m = GetParam().m;
+  EXPECT_EQ(kernels_->m, m);
+  const std::string name = kernels_->name;
+  EXPECT_NE(name.find(std::string("conv2d_winograd_f") + std::to_string(m) + "x" +
+                      std::to_string(m) + "_3x3__" + IsaName(GetParam().isa)),
+            std::string::npos)
+      << name;
+  for (size_t i = 0; i < Cases().size(); ++i) {
+    const Case& c = Cases()[i];
+    SCOPED_TRACE(Describe(c) + " " + name);
+    const Problem& pr = ProblemOf(i);
+    Aligned packed(PackedWinogradFloats(pr.p, m, kernels_->nr));
+    const PackedWinograd w = PackWinograd(pr.p, m, kernels_->nr, packed.data);
+    WinogradArgs args;
+    args.conv = &w;
+    args.in = pr.in;
+    std::vector<float> got(pr.want.size(), NAN);
+    args.out = DenseView(got.data(), pr.out_h, pr.out_w, c.cout);
+    args.pads = c.pads;
+    args.tiles_h = WinogradTiles(pr.out_h, m);
+    args.tiles_w = WinogradTiles(pr.out_w, m);
+    const size_t points = static_cast<size_t>(w.alpha) * w.alpha;
+    const int tiles = args.tiles_h * args.tiles_w;
+    ASSERT_EQ(WinogradScratchFloats(w, pr.out_h, pr.out_w),
+              points * tiles * (w.k_stride + w.n_stride));
+    Aligned scratch(WinogradScratchFloats(w, pr.out_h, pr.out_w));
+    args.v = scratch.data;
+    args.m = scratch.data + points * tiles * w.k_stride;
+    const int items = static_cast<int>(points) * w.blocks;
+    kernels_->input(args, 0, tiles / 2);
+    kernels_->input(args, tiles / 2, tiles);
+    kernels_->product(args, 0, items / 3);
+    kernels_->product(args, items / 3, items);
+    kernels_->output(args, 0, tiles / 2);
+    kernels_->output(args, tiles / 2, tiles);
+    EXPECT_LE(MaxRelativeError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryIsa, WinogradSimd,
+                         ::testing::Values(IsaAndTile{Isa::kAvx2, 2}, IsaAndTile{Isa::kAvx2, 4},
+                                           IsaAndTile{Isa::kAvx512, 2}, IsaAndTile{Isa::kAvx512, 4},
+                                           IsaAndTile{Isa::kNeon, 2}, IsaAndTile{Isa::kNeon, 4}),
+                         [](const ::testing::TestParamInfo<IsaAndTile>& param) {
+                           return std::string(IsaName(param.param.isa)) + "_F" +
+                                  std::to_string(param.param.m) + "x" +
+                                  std::to_string(param.param.m);
+                         });
+
+struct UpCase {
+  int h, w, cin, cout;  // low-resolution input
+  int crop_top, crop_left, crop_bottom, crop_right;
+  Padding pads;
+};
+
+class WinogradUpSimd : public ::testing::TestWithParam<Isa> {
+ protected:
+  void SetUp() override {
+    if (!IsaSupported(GetParam())) {
+      GTEST_SKIP() << "this CPU or build cannot run " << IsaName(GetParam())
+                   << " (supported: " << SupportedIsaList() << ")";
+    }
+    up_ = WinogradUpKernelsFor(GetParam());
+    conv_ = ConvKernelsFor(GetParam());
+    ASSERT_NE(up_, nullptr);
+    ASSERT_NE(conv_, nullptr);
+  }
+  const WinogradKernels* up_ = nullptr;
+  const IsaConvKernels* conv_ = nullptr;
+};
+
+// The fused upsample(2x) -> crop -> 3x3 convolution with the interior on the F(2x2, 2x2) phase
+// path (in bands of one, two and all tile rows) and the border on the direct kernel, against
+// the reference upsample, crop view and direct convolution.
+TEST_P(WinogradUpSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
+  const std::string name = up_->name;
+  EXPECT_NE(name.find(std::string("upconv2x_conv3x3_winograd_f2x2_2x2__") + IsaName(GetParam())),
+            std::string::npos)
+      << name;
+  const std::vector<UpCase> cases = {
+      {17, 30, 128, 64, 4, 0, 0, 0, {1, 1, 1, 1}},  // conv9's channels, up4 + crop of 540x960
+      {5, 8, 1024, 512, 0, 0, 0, 0, {1, 1, 1, 1}},  // conv6's channels
+      {9, 12, 67, 70, 0, 0, 0, 0, {1, 1, 1, 1}},    // channel tails
+      {5, 8, 64, 65, 1, 1, 0, 0, {1, 1, 1, 1}},     // odd crop: phases swap
+      {6, 9, 64, 64, 3, 5, 1, 1, {1, 1, 1, 1}},     // crops on every side
+      {4, 7, 64, 80, 0, 1, 0, 0, {0, 0, 2, 2}},     // explicit asymmetric pads
+      {4, 7, 64, 80, 1, 0, 0, 0, {2, 2, 0, 0}},
+      {1, 1, 64, 64, 0, 0, 0, 0, {1, 1, 1, 1}},  // no interior pixel
+      {2, 3, 64, 64, 1, 0, 0, 0, {1, 1, 1, 1}},
+  };
+  uint32_t seed = 700;
+  for (const UpCase& c : cases) {
+    SCOPED_TRACE(std::to_string(c.h) + "x" + std::to_string(c.w) + "x" + std::to_string(c.cin) +
+                 "->" + std::to_string(c.cout) + " crop " + std::to_string(c.crop_top) + "," +
+                 std::to_string(c.crop_left) + " pads " + std::to_string(c.pads.top) + "," +
+                 std::to_string(c.pads.left) + "," + std::to_string(c.pads.bottom) + "," +
+                 std::to_string(c.pads.right));
+    const std::vector<float> low = Random(static_cast<size_t>(c.h) * c.w * c.cin, seed++, 1.0f);
+    const std::vector<float> weights =
+        Random(static_cast<size_t>(9) * c.cin * c.cout, seed++, 1.0f / std::sqrt(9.0f * c.cin));
+    const std::vector<float> bias = Random(c.cout, seed++, 0.5f);
+    ConvParams p;
+    p.in_channels = c.cin;
+    p.out_channels = c.cout;
+    p.kernel_h = p.kernel_w = 3;
+    p.activation = Activation::kLeakyRelu;
+    p.leaky_slope = 0.3f;
+    p.weights = weights.data();
+    p.bias = bias.data();
+    std::vector<float> up(static_cast<size_t>(4) * c.h * c.w * c.cin);
+    const ConstTensorView low_view = DenseView(const_cast<float*>(low.data()), c.h, c.w, c.cin);
+    const TensorView up_view = DenseView(up.data(), 2 * c.h, 2 * c.w, c.cin);
+    ref::UpsampleNearest(low_view, 2, 2, up_view);
+    ConstTensorView cropped = up_view;
+    cropped.data = up_view.pixel(c.crop_top, c.crop_left);
+    cropped.height = 2 * c.h - c.crop_top - c.crop_bottom;
+    cropped.width = 2 * c.w - c.crop_left - c.crop_right;
+    const int out_h = cropped.height + c.pads.top + c.pads.bottom - 2;
+    const int out_w = cropped.width + c.pads.left + c.pads.right - 2;
+    ASSERT_GT(out_h, 0);
+    ASSERT_GT(out_w, 0);
+    std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
+    ref::Conv2d(cropped, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
+
+    const ConvKernelVariant& v = PickConvVariant(*conv_, c.cout);
+    Aligned border(PackedConvFloats(p, v.nr, false));
+    const PackedConv pc = PackConv(p, v.nr, false, border.data);
+    Aligned packed(PackedWinogradUpFloats(p, up_->nr));
+    const PackedWinograd w = PackWinogradUp(p, up_->nr, packed.data);
+    ConvArgs args;
+    args.conv = &pc;
+    args.in = low_view;
+    args.pads = c.pads;
+    args.crop_top = c.crop_top;
+    args.crop_left = c.crop_left;
+    args.c_height = cropped.height;
+    args.c_width = cropped.width;
+    const UpGrid grid =
+        UpGridOf(out_h, out_w, c.pads, cropped.height, cropped.width, c.crop_top, c.crop_left);
+    for (int band_rows : {1, 2, UpWinogradBandRows(w, grid.tiles_h, grid.tiles_w)}) {
+      SCOPED_TRACE("band rows " + std::to_string(band_rows));
+      std::vector<float> got(want.size(), NAN);
+      args.out = DenseView(got.data(), out_h, out_w, c.cout);
+      args.skip_interior = false;
+      Aligned scratch(UpWinogradScratchFloats(w, band_rows, grid.tiles_w));
+      // As two threads would: each pass split in two ranges.
+      auto parallel = [](int n, void (*fn)(void*, int, int), void* ctx) {
+        fn(ctx, 0, n / 2);
+        fn(ctx, n / 2, n);
+      };
+      RunUpWinogradBands(*up_, w, band_rows, scratch.data, args, parallel);
+      args.skip_interior = true;
+      v.upconv(args, 0, out_h, 0, pc.blocks);
+      EXPECT_LE(MaxRelativeError(got, want), kToleranceF2);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryIsa, WinogradUpSimd,
+                         ::testing::Values(Isa::kAvx2, Isa::kAvx512, Isa::kNeon),
+                         [](const ::testing::TestParamInfo<Isa>& param) {
+                           return std::string(IsaName(param.param));
+                         });
+
+TEST(WinogradPlanRule, TakesWideStrideOne3x3AndLeavesTheRest) {
+  ConvParams p;
+  p.kernel_h = p.kernel_w = 3;
+  p.in_channels = 1024;
+  p.out_channels = 1024;
+  EXPECT_TRUE(WinogradApplies(p));
+  p.out_channels = 3;  // SceneEDNet's output convolution
+  EXPECT_FALSE(WinogradApplies(p));
+  p.out_channels = 1024;
+  p.stride_h = p.stride_w = 2;  // conv0..conv3
+  EXPECT_FALSE(WinogradApplies(p));
+  p.stride_h = p.stride_w = 1;
+  p.kernel_h = p.kernel_w = 5;
+  EXPECT_FALSE(WinogradApplies(p));
+}
+
+}  // namespace
+}  // namespace sfrt
