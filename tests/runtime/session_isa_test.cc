@@ -11,6 +11,7 @@
 
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
+#include "common/session_compare.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -19,42 +20,6 @@ namespace {
 
 // The acceptance bound of issue 4: max error at most 1e-4 of the reference's largest magnitude.
 constexpr double kRelativeTolerance = 1e-4;
-
-std::vector<float> RandomImage(int h, int w, int c, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> dist(0.0f, 255.0f);
-  std::vector<float> v(static_cast<size_t>(h) * w * c);
-  for (float& x : v) x = dist(rng);
-  return v;
-}
-
-std::vector<float> RunWith(std::shared_ptr<const Model> model, Isa isa, int threads,
-                           const std::vector<float>& input, int h, int w) {
-  SessionOptions options;
-  options.max_height = h;
-  options.max_width = w;
-  options.isa = isa;
-  options.threads = threads;
-  auto session = Session::Create(std::move(model), options);
-  EXPECT_TRUE(session.ok()) << session.message();
-  if (!session.ok()) return {};
-  EXPECT_EQ((*session)->isa(), isa);
-  std::vector<float> out(static_cast<size_t>(h) * w * 3, NAN);
-  const Status s = (*session)->Run(input, h, w, out);
-  EXPECT_TRUE(s.ok()) << s.message();
-  return out;
-}
-
-double RelativeError(const std::vector<float>& got, const std::vector<float>& want) {
-  if (got.size() != want.size() || want.empty()) return INFINITY;
-  double max_ref = 0.0, max_err = 0.0;
-  for (size_t i = 0; i < want.size(); ++i) {
-    if (!std::isfinite(got[i])) return INFINITY;
-    max_ref = std::max(max_ref, std::abs(double(want[i])));
-    max_err = std::max(max_err, std::abs(double(got[i]) - want[i]));
-  }
-  return max_ref > 0 ? max_err / max_ref : INFINITY;
-}
 
 class SessionIsa : public ::testing::TestWithParam<Isa> {
  protected:
@@ -68,25 +33,25 @@ class SessionIsa : public ::testing::TestWithParam<Isa> {
 
 TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAt540x960) {
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
-  const auto input = RandomImage(540, 960, 12, 3);
-  const auto want = RunWith(model, Isa::kRef, 2, input, 540, 960);
-  const auto got = RunWith(model, GetParam(), 1, input, 540, 960);
-  EXPECT_LE(RelativeError(got, want), kRelativeTolerance);
+  const auto input = testing::RandomImage(540, 960, 12, 3);
+  const auto want = testing::RunSession(model, Isa::kRef, 2, input, 540, 960);
+  const auto got = testing::RunSession(model, GetParam(), 1, input, 540, 960);
+  EXPECT_LE(testing::RelativeMaxError(got, want), kRelativeTolerance);
 }
 
 TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAtAnOddSize) {
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16, 7));
-  const auto input = RandomImage(67, 121, 12, 4);
-  const auto want = RunWith(model, Isa::kRef, 1, input, 67, 121);
-  const auto got = RunWith(model, GetParam(), 1, input, 67, 121);
-  EXPECT_LE(RelativeError(got, want), kRelativeTolerance);
+  const auto input = testing::RandomImage(67, 121, 12, 4);
+  const auto want = testing::RunSession(model, Isa::kRef, 1, input, 67, 121);
+  const auto got = testing::RunSession(model, GetParam(), 1, input, 67, 121);
+  EXPECT_LE(testing::RelativeMaxError(got, want), kRelativeTolerance);
 }
 
 TEST_P(SessionIsa, TwoThreadsGiveBitIdenticalResultsToOne) {
   auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16, 5));
-  const auto input = RandomImage(97, 133, 12, 5);
-  EXPECT_EQ(RunWith(model, GetParam(), 2, input, 97, 133),
-            RunWith(model, GetParam(), 1, input, 97, 133));
+  const auto input = testing::RandomImage(97, 133, 12, 5);
+  EXPECT_EQ(testing::RunSession(model, GetParam(), 2, input, 97, 133),
+            testing::RunSession(model, GetParam(), 1, input, 97, 133));
 }
 
 TEST_P(SessionIsa, FusesEveryUpsampleIntoTheConvolutionThatReadsIt) {

@@ -298,7 +298,18 @@ Status Runner::Setup() {
 void Runner::SourceStage() {
   if (options_.on_stage_start) options_.on_stage_start(0);
   WindowItem item = MakeWindow();
+  const auto period =
+      options_.source_fps > 0
+          ? std::chrono::nanoseconds(static_cast<int64_t>(1e9 / options_.source_fps))
+          : std::chrono::nanoseconds(0);
+  auto due = std::chrono::steady_clock::now();
   while (!halt_.load()) {
+    if (period.count() > 0) {
+      // Paced like a camera: wait for this window's slot; a late window moves the schedule on
+      // instead of letting the next ones arrive in a burst.
+      std::this_thread::sleep_until(due);
+      due = std::max(due, std::chrono::steady_clock::now()) + period;
+    }
     Result<Fetch> next = source_->Next(&item, halt_);
     if (!next.ok()) {
       Fail(next.status(), /*discard=*/false);  // windows already read are still written

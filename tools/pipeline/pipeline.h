@@ -125,7 +125,10 @@ struct PipelineOptions {
   double video_fps = 10;
   double budget_ms = 0;    // 0 = no deadline accounting
   int64_t max_frames = 0;  // 0 = until the source ends or a stop
-  int height = 0;          // model input size; 0 = the source's frame size
+  // > 0: the source reads at most this many windows a second, on a fixed schedule (never in a
+  // burst to catch up), as a camera would deliver them; 0 = as fast as the pipeline takes them.
+  double source_fps = 0;
+  int height = 0;  // model input size; 0 = the source's frame size
   int width = 0;
   Isa isa = Isa::kAuto;
   int threads = 1;

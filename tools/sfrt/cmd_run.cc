@@ -66,6 +66,7 @@ struct RunArgs {
   double video_fps = 10;
   double budget_ms = 0;
   int64_t max_frames = 0;
+  double replay_fps = 0;
   std::string size;
   std::string isa = "auto";
   int threads = 1;
@@ -302,6 +303,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.video_fps = args.video_fps;
   options.budget_ms = args.budget_ms;
   options.max_frames = args.max_frames;
+  options.source_fps = args.replay_fps;
   options.threads = args.threads;
   options.queue_capacity = static_cast<size_t>(args.queue_depth);
   options.progress_every = args.progress_every;
@@ -411,6 +413,10 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--budget-ms", args->budget_ms,
                   "Deadline per frame, capture to written output; misses are counted (0: none)")
       ->capture_default_str();
+  cmd->add_option("--replay-fps", args->replay_fps,
+                  "Read replayed windows at this rate, like a camera (0: as fast as the pipeline "
+                  "takes them)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--max-frames", args->max_frames, "Stop after this many frames (0: no limit)")
       ->capture_default_str();
   cmd->add_option("--size", args->size,
