@@ -400,14 +400,16 @@ std::string ProbeKerasImportInChild(const std::string& path,
   while (::waitpid(child, &status, 0) < 0) {
     if (errno != EINTR) return "";
   }
-  if (WIFSIGNALED(status)) {
-    const int sig = WTERMSIG(status);
-    return path + ": reading this HDF5 file crashed the HDF5 library (signal " +
-           std::to_string(sig) + ", " + ::strsignal(sig) +
-           ") in an isolated reader process; the file is damaged or not a Keras model. "
-           "Nothing was written";
-  }
-  return "";
+  // The child ends with status 0 whenever the import returns, failed or not. Anything else is a
+  // crash: a signal, or (in sanitizer builds) the sanitizer's own exit after catching one.
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return "";
+  const std::string how =
+      WIFSIGNALED(status)
+          ? "signal " + std::to_string(WTERMSIG(status)) + ", " + ::strsignal(WTERMSIG(status))
+          : "the reader process ended with status " + std::to_string(WEXITSTATUS(status));
+  return path + ": reading this HDF5 file crashed the HDF5 library (" + how +
+         ") in an isolated reader process; the file is damaged or not a Keras model. "
+         "Nothing was written";
 }
 
 int RunExport(const ExportArgs& args) {
