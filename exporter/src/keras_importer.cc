@@ -1,6 +1,8 @@
 // Keras 2 HDF5 -> ModelSpec. Method, in order:
 //  1. Open the file with the HDF5 C library (automatic error printing off; HDF5's own message
-//     for a failure is appended to ours). Read `backend` and `keras_version` if present.
+//     for a failure is appended to ours; every global-heap reference is checked before libhdf5
+//     follows it: hdf5_vlen_guard.h; every object header, the root's before H5Fopen, is checked
+//     before libhdf5 loads it: hdf5_header_guard.h). Read `backend` and `keras_version`.
 //  2. Parse the architecture JSON (the file's `model_config`, or the --architecture file).
 //  3. Find the chain: walk back from the single output layer to the InputLayer along each
 //     layer's single inbound tensor (functional), or take the list (Sequential). A
@@ -25,10 +27,13 @@
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <unordered_map>
 #include <utility>
 #include <vector>
 
+#include "hdf5_header_guard.h"
+#include "hdf5_vlen_guard.h"
 #include "message_text.h"
 #include "sfrt/exporter/sha256.h"
 
@@ -110,6 +115,16 @@ std::string Hdf5Error() {
   return text.empty() ? "" : " (HDF5: " + Printable(text) + ")";
 }
 
+// Why a read of variable-length data failed: the guard's refusal (a damaged heap reference it
+// stopped before libhdf5 followed it) as ": ...", else HDF5's message.
+std::string ReadFailureDetail() {
+  hdf5::VlenGuard* guard = hdf5::VlenGuard::Current();
+  std::string refusal = guard != nullptr ? guard->TakeRefusal() : std::string();
+  if (refusal.empty()) return Hdf5Error();
+  H5Eclear2(H5E_DEFAULT);
+  return ": " + Printable(refusal);
+}
+
 // Turns HDF5's automatic error printing off for the importer's lifetime.
 class QuietHdf5 {
  public:
@@ -125,26 +140,6 @@ class QuietHdf5 {
   H5E_auto2_t func_ = nullptr;
   void* data_ = nullptr;
 };
-
-// Whether `path` ("a/b/c", relative to `loc`) names an existing object, checking each component
-// (H5Lexists fails rather than answering "no" when an intermediate group is missing).
-bool PathExists(hid_t loc, const std::string& path) {
-  std::string prefix;
-  size_t start = 0;
-  while (start <= path.size()) {
-    const size_t slash = path.find('/', start);
-    const std::string part = path.substr(start, slash == std::string::npos ? slash : slash - start);
-    if (part.empty()) return false;
-    prefix += (prefix.empty() ? "" : "/") + part;
-    if (H5Lexists(loc, prefix.c_str(), H5P_DEFAULT) <= 0) {
-      H5Eclear2(H5E_DEFAULT);
-      return false;
-    }
-    if (slash == std::string::npos) break;
-    start = slash + 1;
-  }
-  return !prefix.empty();
-}
 
 // Reads a string attribute (scalar or 1-D; fixed- or variable-length) of `obj`. `where` names the
 // object in errors. Returns std::nullopt-like empty optional when the attribute does not exist.
@@ -182,7 +177,7 @@ Result<std::optional<std::vector<std::string>>> ReadStringsAttr(hid_t obj, const
     std::vector<char*> ptrs(static_cast<size_t>(count), nullptr);
     if (H5Aread(attr.get(), mem.get(), ptrs.data()) < 0) {
       // A read that fails part way (a damaged heap) leaves the strings it did read allocated.
-      const std::string detail = Hdf5Error();
+      const std::string detail = ReadFailureDetail();
       H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, ptrs.data());
       H5Eclear2(H5E_DEFAULT);
       return Status::Error("cannot read " + what + detail);
@@ -323,11 +318,16 @@ struct WeightSource {
 class Importer {
  public:
   Importer(std::string path, KerasImportOptions options)
-      : path_(std::move(path)), options_(std::move(options)) {}
+      : path_(std::move(path)), options_(std::move(options)), guard_(path_), headers_(path_) {}
   // Reads an HDF5 file image held in memory (`image` must outlive the importer); `label` stands
   // for the path in messages.
   Importer(std::string_view image, std::string label, KerasImportOptions options)
-      : path_(std::move(label)), options_(std::move(options)), image_(image), in_memory_(true) {}
+      : path_(std::move(label)),
+        options_(std::move(options)),
+        image_(image),
+        in_memory_(true),
+        guard_(image),
+        headers_(image) {}
   Result<KerasImportResult> Run();
 
  private:
@@ -339,6 +339,7 @@ class Importer {
     return Quote(src_.root_label == "/" ? rel : src_.root_label + "/" + rel);
   }
 
+  Result<bool> PathExists(hid_t loc, const std::string& path);
   Status Open();
   Status OpenFile();
   Result<json> ReadArchitecture();
@@ -361,6 +362,11 @@ class Importer {
   std::string_view image_;
   bool in_memory_ = false;
   QuietHdf5 quiet_;
+  // Checks every global-heap reference before libhdf5 follows it (hdf5_vlen_guard.h); declared
+  // before file_, so it stays installed until the file is closed.
+  hdf5::VlenGuard guard_;
+  // Checks object headers before libhdf5 loads them (hdf5_header_guard.h).
+  hdf5::HeaderGuard headers_;
   H5Handle file_;
   H5Handle weights_group_;
   std::string backend_;
@@ -370,6 +376,41 @@ class Importer {
   WeightSource src_;
   std::vector<std::string> notes_;
 };
+
+// Whether `path` ("a/b/c", relative to `loc`: the file or the weights group) names an existing
+// object, checking each component (H5Lexists fails rather than answering "no" when an
+// intermediate group is missing). Each component's object header is checked before the next
+// lookup (which loads it) or the caller's open: H5Lget_info gives a hard link's address without
+// loading the header. An error when a header is damaged or a component is not a hard link.
+Result<bool> Importer::PathExists(hid_t loc, const std::string& path) {
+  const std::string base = loc == file_.get() ? "" : src_.root_label + "/";
+  std::string prefix;
+  size_t start = 0;
+  while (start <= path.size()) {
+    const size_t slash = path.find('/', start);
+    const std::string part = path.substr(start, slash == std::string::npos ? slash : slash - start);
+    if (part.empty()) return false;
+    prefix += (prefix.empty() ? "" : "/") + part;
+    if (H5Lexists(loc, prefix.c_str(), H5P_DEFAULT) <= 0) {
+      H5Eclear2(H5E_DEFAULT);
+      return false;
+    }
+    H5L_info_t info;
+    if (H5Lget_info(loc, prefix.c_str(), &info, H5P_DEFAULT) < 0) {
+      return Fail("cannot look up link " + Quote(base + prefix) + Hdf5Error());
+    }
+    if (info.type != H5L_TYPE_HARD) {
+      return Fail(Quote(base + prefix) + " is a soft or external link (link type " +
+                  std::to_string(static_cast<int>(info.type)) + "); Keras files use hard links");
+    }
+    if (Status s = headers_.CheckObject(info.u.address, Quote(base + prefix)); !s.ok()) {
+      return Fail(s.message());
+    }
+    if (slash == std::string::npos) break;
+    start = slash + 1;
+  }
+  return !prefix.empty();
+}
 
 // The file image through HDF5's core (in-memory) driver: HDF5 copies the bytes and never
 // touches the disk.
@@ -384,6 +425,8 @@ Status Importer::OpenImage() {
     return Fail("not an HDF5 file (no HDF5 signature in its " + std::to_string(image_.size()) +
                 " bytes)");
   }
+  // libhdf5 loads the root group's header in H5Fopen.
+  if (Status root = headers_.CheckRoot(); !root.ok()) return Fail(root.message());
   H5Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   if (!fapl.valid() || H5Pset_fapl_core(fapl.get(), 1 << 16, /*backing_store=*/0) < 0 ||
       H5Pset_file_image(fapl.get(), const_cast<char*>(image_.data()), image_.size()) < 0) {
@@ -401,6 +444,7 @@ Status Importer::OpenImage() {
 }
 
 Status Importer::Open() {
+  if (Status installed = guard_.Install(); !installed.ok()) return Fail(installed.message());
   if (in_memory_) {
     SFRT_KERAS_RETURN_IF_ERROR(OpenImage());
   } else {
@@ -426,6 +470,8 @@ Status Importer::OpenFile() {
     return Fail("not an HDF5 file (no HDF5 signature" +
                 (ec ? std::string() : " in its " + std::to_string(size) + " bytes") + ")" + detail);
   }
+  // libhdf5 loads the root group's header in H5Fopen.
+  if (Status root = headers_.CheckRoot(); !root.ok()) return Fail(root.message());
   file_ = H5Handle(H5Fopen(path_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file_.valid()) {
     return Fail("HDF5 file cannot be opened: truncated or damaged (" + std::to_string(size) +
@@ -435,7 +481,9 @@ Status Importer::OpenFile() {
 }
 
 Status Importer::FindWeightsRoot() {
-  if (PathExists(file_.get(), "model_weights")) {
+  const Result<bool> has_weights = PathExists(file_.get(), "model_weights");
+  if (!has_weights.ok()) return has_weights.status();
+  if (*has_weights) {
     weights_group_ = H5Handle(H5Gopen2(file_.get(), "model_weights", H5P_DEFAULT), H5Gclose);
     if (!weights_group_.valid()) {
       return Fail("cannot open group 'model_weights'" + Hdf5Error());
@@ -469,7 +517,9 @@ Result<json> Importer::ReadArchitecture() {
     buf << in.rdbuf();
     text = buf.str();
     source = options_.architecture_json;
-    if (PathExists(file_.get(), "model_weights")) {
+    const Result<bool> has_weights = PathExists(file_.get(), "model_weights");
+    if (!has_weights.ok()) return has_weights.status();
+    if (*has_weights) {
       notes_.push_back("the architecture comes from " + options_.architecture_json +
                        ", not from the file's own model_config");
     }
@@ -704,7 +754,9 @@ Result<std::vector<std::string>> Importer::WeightPaths(const ChainLayer& l, size
     return paths;
   }
   const std::string group = GroupLabel(l.name);
-  if (!PathExists(src_.root, l.name)) {
+  const Result<bool> exists = PathExists(src_.root, l.name);
+  if (!exists.ok()) return exists.status();
+  if (!*exists) {
     return LayerFail(l, "weights group " + group + " is missing");
   }
   if (std::find(layer_names_.begin(), layer_names_.end(), l.name) == layer_names_.end()) {
@@ -734,7 +786,9 @@ Result<std::vector<float>> Importer::ReadDataset(const ChainLayer& l, const std:
                                                  const std::vector<uint64_t>& want,
                                                  const std::string& meaning) {
   const std::string label = "dataset " + GroupLabel(path);
-  if (!PathExists(src_.root, path)) return LayerFail(l, label + " is missing");
+  const Result<bool> exists = PathExists(src_.root, path);
+  if (!exists.ok()) return exists.status();
+  if (!*exists) return LayerFail(l, label + " is missing");
   H5Handle ds(H5Dopen2(src_.root, path.c_str(), H5P_DEFAULT), H5Dclose);
   if (!ds.valid()) return LayerFail(l, "cannot open " + label + Hdf5Error());
   H5Handle type(H5Dget_type(ds.get()), H5Tclose);
@@ -881,6 +935,21 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       } else {
         conv.padding_rule = PaddingRule::kExplicit;
         conv.pads = pending;
+        // The model format takes explicit pads of at most kernel - 1 per side (as the loader).
+        for (const auto& [amount, side, size] :
+             {std::tuple{conv.pads.top, "top", conv.kernel_h},
+              std::tuple{conv.pads.bottom, "bottom", conv.kernel_h},
+              std::tuple{conv.pads.left, "left", conv.kernel_w},
+              std::tuple{conv.pads.right, "right", conv.kernel_w}}) {
+          if (amount >= size) {
+            return LayerFail(l, "follows ZeroPadding2D " +
+                                    Quote(pending_pad != nullptr ? pending_pad->name : "") +
+                                    " whose padding gives it " + std::to_string(amount) +
+                                    " on the " + side + "; a " + std::to_string(conv.kernel_h) +
+                                    "x" + std::to_string(conv.kernel_w) + " kernel takes at most " +
+                                    std::to_string(size - 1));
+          }
+        }
       }
       pending = Pads{};
       pending_pad = nullptr;
@@ -1069,7 +1138,10 @@ Status Importer::CheckAllWeightsUsed() {
     return Status::Ok();
   }
   for (const std::string& name : layer_names_) {
-    if (used_groups_.count(name) > 0 || !PathExists(src_.root, name)) continue;
+    if (used_groups_.count(name) > 0) continue;
+    const Result<bool> exists = PathExists(src_.root, name);
+    if (!exists.ok()) return exists.status();
+    if (!*exists) continue;
     H5Handle g(H5Gopen2(src_.root, name.c_str(), H5P_DEFAULT), H5Gclose);
     if (!g.valid()) continue;
     auto names = ReadKerasList(g.get(), "weight_names", "group " + GroupLabel(name));
@@ -1133,7 +1205,9 @@ Result<KerasImportResult> Importer::Run() {
       label = "nested model " + Quote(inner.name);
       src_.nested = true;
       src_.nested_group = inner.name;
-      if (!PathExists(src_.root, inner.name)) {
+      const Result<bool> exists = PathExists(src_.root, inner.name);
+      if (!exists.ok()) return exists.status();
+      if (!*exists) {
         return LayerFail(inner, "weights group " + GroupLabel(inner.name) + " is missing");
       }
       H5Handle g(H5Gopen2(src_.root, inner.name.c_str(), H5P_DEFAULT), H5Gclose);

@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "common/relative_error.h"  // RelativeMaxError, used with RunSession
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -45,19 +46,6 @@ inline std::vector<float> RunSession(std::shared_ptr<const Model> model, Isa isa
   const Status s = (*session)->Run(input, height, width, out);
   EXPECT_TRUE(s.ok()) << s.message();
   return s.ok() ? out : std::vector<float>{};
-}
-
-// max |got - want| / max |want|: infinity when sizes differ, `want` is empty or all zero, or
-// `got` holds a non-finite value.
-inline double RelativeMaxError(const std::vector<float>& got, const std::vector<float>& want) {
-  if (got.size() != want.size() || want.empty()) return INFINITY;
-  double max_ref = 0.0, max_err = 0.0;
-  for (size_t i = 0; i < want.size(); ++i) {
-    if (!std::isfinite(got[i])) return INFINITY;
-    max_ref = std::max(max_ref, std::abs(double(want[i])));
-    max_err = std::max(max_err, std::abs(double(got[i]) - double(want[i])));
-  }
-  return max_ref > 0 ? max_err / max_ref : INFINITY;
 }
 
 }  // namespace sfrt::testing

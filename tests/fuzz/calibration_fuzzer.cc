@@ -5,48 +5,25 @@
 // Input layout: byte 0 picks the reader (value % 7, below); the rest is the file content, split
 // into two files at the first "\n---8<---\n" for the two-file readers (without the marker, both
 // files get the whole content).
-#include <unistd.h>
-
 #include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "fuzz/scratch_dir.h"
 #include "sfrt/camera/calibration.h"
 
 namespace {
 
 constexpr std::string_view kSplit = "\n---8<---\n";
 
-const std::filesystem::path& TempDir() {
-  static const std::filesystem::path dir = [] {
-    std::string tmpl = (std::filesystem::temp_directory_path() / "sfrt-fuzz-calib-XXXXXX").string();
-    if (::mkdtemp(tmpl.data()) == nullptr) {
-      std::perror("mkdtemp");
-      std::abort();
-    }
-    std::atexit([] {
-      std::error_code ec;
-      std::filesystem::remove_all(TempDir(), ec);
-    });
-    return std::filesystem::path(tmpl);
-  }();
-  return dir;
-}
-
+// Writes `content` to `name` in the scratch directory; returns its path.
 std::string WriteFile(const std::string& name, std::string_view content) {
-  const std::string path = (TempDir() / name).string();
-  FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr || std::fwrite(content.data(), 1, content.size(), f) != content.size() ||
-      std::fclose(f) != 0) {
-    std::perror(path.c_str());
-    std::abort();
-  }
-  return path;
+  const std::filesystem::path path = sfrt::fuzz::ScratchDir("sfrt-fuzz-calib") / name;
+  sfrt::fuzz::WriteFileOrDie(path, content);
+  return path.string();
 }
 
 }  // namespace

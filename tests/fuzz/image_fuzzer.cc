@@ -8,8 +8,6 @@
 // so a decodable input of another size takes the size-mismatch path.
 // OpenCV and its codec libraries are not instrumented: libFuzzer sees no coverage inside them and
 // ASan checks only what they pass through intercepted calls (memcpy, malloc, ...).
-#include <unistd.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -18,38 +16,18 @@
 #include <string>
 #include <string_view>
 
+#include "fuzz/scratch_dir.h"
 #include "sfrt/camera/stereo_source.h"
 
 namespace {
 
-void WriteFile(const std::filesystem::path& path, std::string_view content) {
-  FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr || std::fwrite(content.data(), 1, content.size(), f) != content.size() ||
-      std::fclose(f) != 0) {
-    std::perror(path.c_str());
-    std::abort();
-  }
-}
-
 const std::filesystem::path& TempDir() {
-  static const std::filesystem::path dir = [] {
-    std::string tmpl = (std::filesystem::temp_directory_path() / "sfrt-fuzz-image-XXXXXX").string();
-    if (::mkdtemp(tmpl.data()) == nullptr) {
-      std::perror("mkdtemp");
-      std::abort();
-    }
-    const std::filesystem::path root(tmpl);
-    std::filesystem::create_directories(root / "right");
+  // right/0.ppm: the fixed right frame, a valid 4x4 PPM.
+  return sfrt::fuzz::ScratchDir("sfrt-fuzz-image", [](const std::filesystem::path& root) {
     std::string ppm = "P6\n4 4\n255\n";
     for (int i = 0; i < 4 * 4 * 3; ++i) ppm.push_back(static_cast<char>(i * 5));
-    WriteFile(root / "right/0.ppm", ppm);
-    std::atexit([] {
-      std::error_code ec;
-      std::filesystem::remove_all(TempDir(), ec);
-    });
-    return root;
-  }();
-  return dir;
+    sfrt::fuzz::WriteFileOrDie(root / "right/0.ppm", ppm);
+  });
 }
 
 void ReadAll(const std::string& left, const std::string& right,
@@ -81,7 +59,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::filesystem::remove_all(left_dir, ec);
   std::filesystem::create_directories(left_dir);
   const std::filesystem::path frame = left_dir / (std::string("0") + kExt[data[0] % 4]);
-  WriteFile(frame, std::string_view(reinterpret_cast<const char*>(data + 1), size - 1));
+  sfrt::fuzz::WriteFileOrDie(frame,
+                             std::string_view(reinterpret_cast<const char*>(data + 1), size - 1));
   const auto policy = (data[0] & 4) != 0 ? sfrt::camera::BadFramePolicy::kStop
                                          : sfrt::camera::BadFramePolicy::kSkip;
   if ((data[0] & 8) != 0) {

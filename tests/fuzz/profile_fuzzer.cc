@@ -7,8 +7,6 @@
 // (the seeds) find their relative files: the two calibration files (one valid Kalibr camchain),
 // the demo frames (empty files: only globbed) and the model (an empty file: the loader rejects it,
 // the model loader has its own targets).
-#include <unistd.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -18,6 +16,7 @@
 #include <string_view>
 
 #include "config/profile.h"
+#include "fuzz/scratch_dir.h"
 
 namespace {
 
@@ -40,38 +39,17 @@ cam1:
   - [0.0, 0.0, 0.0, 1.0]
 )";
 
-void WriteFile(const std::filesystem::path& path, std::string_view content) {
-  std::filesystem::create_directories(path.parent_path());
-  FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr || std::fwrite(content.data(), 1, content.size(), f) != content.size() ||
-      std::fclose(f) != 0) {
-    std::perror(path.c_str());
-    std::abort();
-  }
-}
-
+// Laid out like the repository around firmware-cfg/ (see the top of this file).
 const std::filesystem::path& TempDir() {
-  static const std::filesystem::path dir = [] {
-    std::string tmpl =
-        (std::filesystem::temp_directory_path() / "sfrt-fuzz-profile-XXXXXX").string();
-    if (::mkdtemp(tmpl.data()) == nullptr) {
-      std::perror("mkdtemp");
-      std::abort();
-    }
-    const std::filesystem::path root(tmpl);
-    WriteFile(root / "firmware-cfg/calib/usb-stereo-640x480.camchain.yaml", kCamchain);
-    WriteFile(root / "firmware-cfg/calib/sbs-stereo-1280x480.camchain.yaml", kCamchain);
+  return sfrt::fuzz::ScratchDir("sfrt-fuzz-profile", [](const std::filesystem::path& root) {
+    using sfrt::fuzz::WriteFileOrDie;
+    WriteFileOrDie(root / "firmware-cfg/calib/usb-stereo-640x480.camchain.yaml", kCamchain);
+    WriteFileOrDie(root / "firmware-cfg/calib/sbs-stereo-1280x480.camchain.yaml", kCamchain);
     for (const char* name : {"left0.png", "left1.png", "right0.png", "right1.png"}) {
-      WriteFile(root / "tools/demo/frames" / name, "");
+      WriteFileOrDie(root / "tools/demo/frames" / name, "");
     }
-    WriteFile(root / "tools/demo/sceneednet-w16-demo.sfrt", "");
-    std::atexit([] {
-      std::error_code ec;
-      std::filesystem::remove_all(TempDir(), ec);
-    });
-    return root;
-  }();
-  return dir;
+    WriteFileOrDie(root / "tools/demo/sceneednet-w16-demo.sfrt", "");
+  });
 }
 
 }  // namespace

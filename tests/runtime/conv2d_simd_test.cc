@@ -7,14 +7,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
 #include <string>
 #include <vector>
 
+#include "common/conv_problems.h"
+#include "common/relative_error.h"
 #include "conv_packing.h"
 #include "kernels/conv_job.h"
-#include "kernels/ref/conv2d_ref.h"
-#include "kernels/ref/resample_ref.h"
 #include "sfrt/isa.h"
 
 namespace sfrt {
@@ -24,29 +23,15 @@ namespace {
 // by rounding only. Bound: this fraction of the largest reference magnitude (at least 1).
 constexpr double kTolerance = 2e-6;
 
-std::vector<float> Random(size_t n, uint32_t seed, float scale) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> dist(-scale, scale);
-  std::vector<float> v(n);
-  for (float& x : v) x = dist(rng);
-  return v;
-}
+using testing::AlignedFloats;
+using testing::ConvProblem;
+using testing::ConvShape;
+using testing::UpConvProblem;
+using testing::UpConvShape;
 
-// 64-byte-aligned float buffer for packed weights.
-struct Aligned {
-  explicit Aligned(size_t n) : data(static_cast<float*>(std::aligned_alloc(64, (n + 16) * 4))) {}
-  ~Aligned() { std::free(data); }
-  float* data;
-};
-
+// Bounded absolutely where the reference is small (below 1).
 double MaxRelativeError(const std::vector<float>& got, const std::vector<float>& want) {
-  double max_ref = 1.0, max_err = 0.0;
-  for (size_t i = 0; i < want.size(); ++i) {
-    if (!std::isfinite(got[i])) return INFINITY;
-    max_ref = std::max(max_ref, std::abs(double(want[i])));
-    max_err = std::max(max_err, std::abs(double(got[i]) - want[i]));
-  }
-  return max_err / max_ref;
+  return testing::RelativeMaxError(got, want, 1.0);
 }
 
 class Conv2dSimd : public ::testing::TestWithParam<Isa> {
@@ -67,23 +52,8 @@ class Conv2dSimd : public ::testing::TestWithParam<Isa> {
   const IsaConvKernels* kernels_ = nullptr;
 };
 
-struct ConvCase {
-  int h, w, cin, cout, k, stride;
-  Padding pads;              // top, left, bottom, right
-  int extra_row_floats = 0;  // input row stride beyond width * cin (a cropped view)
-  Activation act = Activation::kLeakyRelu;
-};
-
-std::string Describe(const ConvCase& c) {
-  return std::to_string(c.h) + "x" + std::to_string(c.w) + "x" + std::to_string(c.cin) + "->" +
-         std::to_string(c.cout) + " k" + std::to_string(c.k) + " s" + std::to_string(c.stride) +
-         " pads " + std::to_string(c.pads.top) + "," + std::to_string(c.pads.left) + "," +
-         std::to_string(c.pads.bottom) + "," + std::to_string(c.pads.right) + " rowpad " +
-         std::to_string(c.extra_row_floats);
-}
-
-const std::vector<ConvCase>& ConvCases() {
-  static const std::vector<ConvCase> cases = {
+const std::vector<ConvShape>& ConvCases() {
+  static const std::vector<ConvShape> cases = {
       {17, 23, 12, 64, 3, 2, {0, 0, 1, 1}},     // conv0 at an odd size, TF same-upper
       {16, 24, 12, 64, 3, 2, {0, 0, 1, 1}},     // conv0, even
       {9, 13, 64, 3, 3, 1, {1, 1, 1, 1}},       // the 64 -> 3 output convolution
@@ -109,37 +79,32 @@ const std::vector<ConvCase>& ConvCases() {
   return cases;
 }
 
-TEST_P(Conv2dSimd, MatchesReferenceOnEveryShapeOfTheTable) {
-  uint32_t seed = 1;
-  for (const ConvCase& c : ConvCases()) {
-    SCOPED_TRACE(Describe(c));
-    const int out_h = (c.h + c.pads.top + c.pads.bottom - c.k) / c.stride + 1;
-    const int out_w = (c.w + c.pads.left + c.pads.right - c.k) / c.stride + 1;
-    ASSERT_GT(out_h, 0);
-    ASSERT_GT(out_w, 0);
-    const ptrdiff_t row = static_cast<ptrdiff_t>(c.w) * c.cin + c.extra_row_floats;
-    const std::vector<float> input = Random(static_cast<size_t>(c.h) * row, seed++, 1.0f);
-    const std::vector<float> weights = Random(static_cast<size_t>(c.k * c.k) * c.cin * c.cout,
-                                              seed++, 1.0f / std::sqrt(float(c.k * c.k * c.cin)));
-    const std::vector<float> bias = Random(c.cout, seed++, 0.5f);
-    ConvParams p;
-    p.in_channels = c.cin;
-    p.out_channels = c.cout;
-    p.kernel_h = p.kernel_w = c.k;
-    p.stride_h = p.stride_w = c.stride;
-    p.activation = c.act;
-    p.leaky_slope = 0.3f;
-    p.weights = weights.data();
-    p.bias = bias.data();
-    const ConstTensorView in{input.data(), c.h, c.w, c.cin, row};
+// Profiles and `sfrt bench` name kernels by these strings: each names its ISA and ends with
+// its register tile's output channels (nr), e.g. conv2d_f32__avx512_6x64.
+TEST_P(Conv2dSimd, VariantNamesCarryIsaAndOutputChannelBlock) {
+  const std::string isa = std::string("__") + IsaName(GetParam()) + "_";
+  for (const ConvKernelVariant* v : Variants()) {
+    for (const std::string name : {v->conv_name, v->upconv_name}) {
+      EXPECT_NE(name.find(isa), std::string::npos) << name;
+      EXPECT_TRUE(name.ends_with("x" + std::to_string(v->nr))) << name << " nr " << v->nr;
+    }
+  }
+}
 
-    std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
-    ref::Conv2d(in, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
+TEST_P(Conv2dSimd, MatchesReferenceOnEveryShapeOfTheTable) {
+  for (size_t i = 0; i < ConvCases().size(); ++i) {
+    const ConvShape& c = ConvCases()[i];
+    SCOPED_TRACE(Describe(c));
+    const ConvProblem pr = testing::MakeConvProblem(c, 1 + 3 * static_cast<uint32_t>(i));
+    ASSERT_FALSE(pr.want.empty());  // the shape has an output
+    const int out_h = pr.out_h, out_w = pr.out_w;
+    const ConvParams& p = pr.params;
+    const std::vector<float>& want = pr.want;
 
     // Every tile shape of this ISA, each with its default input-channel block and with blocks
     // that leave a tail (cin not a multiple of the block) or sum one channel per pass.
     for (const ConvKernelVariant* v : Variants()) {
-      Aligned packed(PackedConvFloats(p, v->nr, false));
+      AlignedFloats packed(PackedConvFloats(p, v->nr, false));
       PackedConv pc = PackConv(p, v->nr, false, packed.data);
       for (int cin_block : {pc.cin_block, 1, 5, 16}) {
         SCOPED_TRACE(std::string(v->conv_name) + " cin_block " + std::to_string(cin_block));
@@ -147,7 +112,7 @@ TEST_P(Conv2dSimd, MatchesReferenceOnEveryShapeOfTheTable) {
         std::vector<float> got(want.size(), NAN);
         ConvArgs args;
         args.conv = &pc;
-        args.in = in;
+        args.in = pr.in;
         args.out = DenseView(got.data(), out_h, out_w, c.cout);
         args.pads = c.pads;
         // As two threads would call it: two row ranges, and the blocks split in two.
@@ -168,7 +133,7 @@ TEST_P(Conv2dSimd, FewOutputKernelMatchesReference) {
   ASSERT_NE(kernels_->few_out, nullptr);
   const std::string name = kernels_->few_out_name;
   EXPECT_NE(name.find(std::string("__") + IsaName(GetParam())), std::string::npos) << name;
-  std::vector<ConvCase> cases = {
+  const std::vector<ConvShape> cases = {
       {33, 47, 64, 3, 3, 1, {1, 1, 1, 1}},  // the output convolution
       {9, 13, 64, 3, 3, 1, {1, 1, 1, 1}, 0, Activation::kNone},
       {7, 20, 70, 3, 3, 1, {1, 1, 1, 1}},  // 70 = 64 + 6: a partial vector
@@ -179,35 +144,20 @@ TEST_P(Conv2dSimd, FewOutputKernelMatchesReference) {
       {10, 26, 33, 3, 3, 1, {2, 0, 0, 2}},                       // asymmetric, large pads
       {9, 18, 16, 3, 3, 1, {1, 1, 1, 1}, 48},  // input is a view with a row stride
   };
-  uint32_t seed = 500;
-  for (const ConvCase& c : cases) {
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const ConvShape& c = cases[i];
     SCOPED_TRACE(Describe(c));
-    const int out_h = (c.h + c.pads.top + c.pads.bottom - c.k) / c.stride + 1;
-    const int out_w = (c.w + c.pads.left + c.pads.right - c.k) / c.stride + 1;
-    const ptrdiff_t row = static_cast<ptrdiff_t>(c.w) * c.cin + c.extra_row_floats;
-    const std::vector<float> input = Random(static_cast<size_t>(c.h) * row, seed++, 1.0f);
-    const std::vector<float> weights = Random(static_cast<size_t>(c.k * c.k) * c.cin * c.cout,
-                                              seed++, 1.0f / std::sqrt(float(c.k * c.k * c.cin)));
-    const std::vector<float> bias = Random(c.cout, seed++, 0.5f);
-    ConvParams p;
-    p.in_channels = c.cin;
-    p.out_channels = c.cout;
-    p.kernel_h = p.kernel_w = c.k;
-    p.stride_h = p.stride_w = c.stride;
-    p.activation = c.act;
-    p.leaky_slope = 0.3f;
-    p.weights = weights.data();
-    p.bias = bias.data();
-    const ConstTensorView in{input.data(), c.h, c.w, c.cin, row};
-    std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
-    ref::Conv2d(in, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
+    const ConvProblem pr = testing::MakeConvProblem(c, 500 + 3 * static_cast<uint32_t>(i));
+    ASSERT_FALSE(pr.want.empty());  // the shape has an output
+    const int out_h = pr.out_h, out_w = pr.out_w;
+    const std::vector<float>& want = pr.want;
 
-    Aligned packed(PackedConvFewOutFloats(p));
-    const PackedConv pc = PackConvFewOut(p, packed.data);
+    AlignedFloats packed(PackedConvFewOutFloats(pr.params));
+    const PackedConv pc = PackConvFewOut(pr.params, packed.data);
     std::vector<float> got(want.size(), NAN);
     ConvArgs args;
     args.conv = &pc;
-    args.in = in;
+    args.in = pr.in;
     args.out = DenseView(got.data(), out_h, out_w, c.cout);
     args.pads = c.pads;
     kernels_->few_out(args, 0, out_h / 2, 0, 1);
@@ -216,15 +166,8 @@ TEST_P(Conv2dSimd, FewOutputKernelMatchesReference) {
   }
 }
 
-struct UpConvCase {
-  int h, w, cin, cout;      // low-resolution input
-  int crop_top, crop_left;  // removed from the upsampled map
-  int crop_bottom, crop_right;
-  Padding pads;
-};
-
 TEST_P(Conv2dSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
-  const std::vector<UpConvCase> cases = {
+  const std::vector<UpConvShape> cases = {
       {34, 60, 16, 8, 4, 0, 0, 0, {1, 1, 1, 1}},  // SceneEDNet's up4 + crop at 540x960 / 16
       {5, 8, 12, 32, 0, 0, 0, 0, {1, 1, 1, 1}},
       {5, 8, 12, 35, 1, 1, 0, 0, {1, 1, 1, 1}},  // odd crop: phases swap
@@ -238,45 +181,17 @@ TEST_P(Conv2dSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
       {3, 30, 24, 64, 0, 3, 0, 0, {1, 1, 1, 1}},  // long rows: full register tiles
       {3, 23, 37, 70, 4, 1, 0, 0, {1, 1, 1, 1}},  // cin 37, cout 70: every tail, odd width
   };
-  uint32_t seed = 100;
-  for (const UpConvCase& c : cases) {
-    SCOPED_TRACE(std::to_string(c.h) + "x" + std::to_string(c.w) + "x" + std::to_string(c.cin) +
-                 "->" + std::to_string(c.cout) + " crop " + std::to_string(c.crop_top) + "," +
-                 std::to_string(c.crop_left) + "," + std::to_string(c.crop_bottom) + "," +
-                 std::to_string(c.crop_right) + " pads " + std::to_string(c.pads.top) + "," +
-                 std::to_string(c.pads.left) + "," + std::to_string(c.pads.bottom) + "," +
-                 std::to_string(c.pads.right));
-    const std::vector<float> low = Random(static_cast<size_t>(c.h) * c.w * c.cin, seed++, 1.0f);
-    const std::vector<float> weights =
-        Random(static_cast<size_t>(9) * c.cin * c.cout, seed++, 1.0f / std::sqrt(9.0f * c.cin));
-    const std::vector<float> bias = Random(c.cout, seed++, 0.5f);
-    ConvParams p;
-    p.in_channels = c.cin;
-    p.out_channels = c.cout;
-    p.kernel_h = p.kernel_w = 3;
-    p.activation = Activation::kLeakyRelu;
-    p.leaky_slope = 0.3f;
-    p.weights = weights.data();
-    p.bias = bias.data();
-
-    // Reference: upsample into a tensor, crop as a view, convolve.
-    std::vector<float> up(static_cast<size_t>(4) * c.h * c.w * c.cin);
-    const ConstTensorView low_view = DenseView(const_cast<float*>(low.data()), c.h, c.w, c.cin);
-    const TensorView up_view = DenseView(up.data(), 2 * c.h, 2 * c.w, c.cin);
-    ref::UpsampleNearest(low_view, 2, 2, up_view);
-    ConstTensorView cropped = up_view;
-    cropped.data = up_view.pixel(c.crop_top, c.crop_left);
-    cropped.height = 2 * c.h - c.crop_top - c.crop_bottom;
-    cropped.width = 2 * c.w - c.crop_left - c.crop_right;
-    const int out_h = cropped.height + c.pads.top + c.pads.bottom - 2;
-    const int out_w = cropped.width + c.pads.left + c.pads.right - 2;
-    ASSERT_GT(out_h, 0);
-    ASSERT_GT(out_w, 0);
-    std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
-    ref::Conv2d(cropped, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const UpConvShape& c = cases[i];
+    SCOPED_TRACE(Describe(c));
+    const UpConvProblem pr = testing::MakeUpConvProblem(c, 100 + 3 * static_cast<uint32_t>(i));
+    ASSERT_FALSE(pr.want.empty());  // the shape has an output
+    const int out_h = pr.out_h, out_w = pr.out_w;
+    const ConvParams& p = pr.params;
+    const std::vector<float>& want = pr.want;
 
     for (const ConvKernelVariant* v : Variants()) {
-      Aligned packed(PackedConvFloats(p, v->nr, true));
+      AlignedFloats packed(PackedConvFloats(p, v->nr, true));
       PackedConv pc = PackConv(p, v->nr, true, packed.data);
       for (int cin_block : {pc.cin_block, 1, 5, 16}) {
         SCOPED_TRACE(std::string(v->upconv_name) + " cin_block " + std::to_string(cin_block));
@@ -284,13 +199,13 @@ TEST_P(Conv2dSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
         std::vector<float> got(want.size(), NAN);
         ConvArgs args;
         args.conv = &pc;
-        args.in = low_view;
+        args.in = pr.low_view;
         args.out = DenseView(got.data(), out_h, out_w, c.cout);
         args.pads = c.pads;
         args.crop_top = c.crop_top;
         args.crop_left = c.crop_left;
-        args.c_height = cropped.height;
-        args.c_width = cropped.width;
+        args.c_height = pr.cropped.height;
+        args.c_width = pr.cropped.width;
         v->upconv(args, 0, 1, 0, pc.blocks);
         v->upconv(args, 1, out_h, 0, pc.blocks);
         EXPECT_LE(MaxRelativeError(got, want), 4 * kTolerance);

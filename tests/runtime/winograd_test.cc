@@ -7,16 +7,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <memory>
-#include <random>
 #include <string>
 #include <vector>
 
+#include "common/conv_problems.h"
+#include "common/relative_error.h"
 #include "conv_packing.h"
 #include "kernels/conv_job.h"
-#include "kernels/ref/conv2d_ref.h"
-#include "kernels/ref/resample_ref.h"
 #include "kernels/ref/winograd_ref.h"
 #include "kernels/winograd_job.h"
 #include "sfrt/isa.h"
@@ -34,29 +32,11 @@ namespace {
 constexpr double kToleranceF2 = 1e-5;
 constexpr double kToleranceF4 = 1e-4;
 
-std::vector<float> Random(size_t n, uint32_t seed, float scale) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> dist(-scale, scale);
-  std::vector<float> v(n);
-  for (float& x : v) x = dist(rng);
-  return v;
-}
-
-struct Aligned {
-  explicit Aligned(size_t n) : data(static_cast<float*>(std::aligned_alloc(64, (n + 16) * 4))) {}
-  ~Aligned() { std::free(data); }
-  float* data;
-};
-
-double MaxRelativeError(const std::vector<float>& got, const std::vector<float>& want) {
-  double max_ref = 0.0, max_err = 0.0;
-  for (size_t i = 0; i < want.size(); ++i) {
-    if (!std::isfinite(got[i])) return INFINITY;
-    max_ref = std::max(max_ref, std::abs(double(want[i])));
-    max_err = std::max(max_err, std::abs(double(got[i]) - want[i]));
-  }
-  return max_ref > 0 ? max_err / max_ref : INFINITY;
-}
+using testing::AlignedFloats;
+using testing::ConvProblem;
+using testing::RelativeMaxError;
+using testing::UpConvProblem;
+using testing::UpConvShape;
 
 struct Case {
   int h, w, cin, cout;
@@ -86,40 +66,13 @@ const std::vector<Case>& Cases() {
   return cases;
 }
 
-struct Problem {
-  std::vector<float> input, weights, bias, want;
-  ConvParams p;
-  ConstTensorView in;
-  int out_h = 0, out_w = 0;
-};
-
-Problem Make(const Case& c, uint32_t seed) {
-  Problem pr;
-  pr.input = Random(static_cast<size_t>(c.h) * c.w * c.cin, seed, 1.0f);
-  pr.weights = Random(static_cast<size_t>(9) * c.cin * c.cout, seed + 1,
-                      1.0f / std::sqrt(9.0f * static_cast<float>(c.cin)));
-  pr.bias = Random(c.cout, seed + 2, 0.5f);
-  pr.p.in_channels = c.cin;
-  pr.p.out_channels = c.cout;
-  pr.p.kernel_h = pr.p.kernel_w = 3;
-  pr.p.activation = c.act;
-  pr.p.leaky_slope = 0.3f;
-  pr.p.weights = pr.weights.data();
-  pr.p.bias = pr.bias.data();
-  pr.in = DenseView(pr.input.data(), c.h, c.w, c.cin);
-  pr.out_h = c.h + c.pads.top + c.pads.bottom - 2;
-  pr.out_w = c.w + c.pads.left + c.pads.right - 2;
-  pr.want.resize(static_cast<size_t>(pr.out_h) * pr.out_w * c.cout);
-  ref::Conv2d(pr.in, pr.p, c.pads, DenseView(pr.want.data(), pr.out_h, pr.out_w, c.cout));
-  return pr;
-}
-
 // The problems of Cases(), built once: the direct reference on 1024 channels is slow.
-const Problem& ProblemOf(size_t index) {
-  static std::vector<std::unique_ptr<Problem>> problems(Cases().size());
+const ConvProblem& ProblemOf(size_t index) {
+  static std::vector<std::unique_ptr<ConvProblem>> problems(Cases().size());
   if (problems[index] == nullptr) {
-    problems[index] =
-        std::make_unique<Problem>(Make(Cases()[index], 3 * static_cast<uint32_t>(index) + 1));
+    const Case& c = Cases()[index];
+    problems[index] = std::make_unique<ConvProblem>(testing::MakeConvProblem(
+        {c.h, c.w, c.cin, c.cout, 3, 1, c.pads, 0, c.act}, 3 * static_cast<uint32_t>(index) + 1));
   }
   return *problems[index];
 }
@@ -131,11 +84,12 @@ TEST_P(WinogradRef, MatchesDirectReferenceOnEveryShapeOfTheTable) {
   for (size_t i = 0; i < Cases().size(); ++i) {
     const Case& c = Cases()[i];
     SCOPED_TRACE(Describe(c));
-    const Problem& pr = ProblemOf(i);
+    const ConvProblem& pr = ProblemOf(i);
     ASSERT_GT(pr.out_h, 0);
     std::vector<float> got(pr.want.size(), NAN);
-    ref::Conv2dWinograd(pr.in, pr.p, c.pads, m, DenseView(got.data(), pr.out_h, pr.out_w, c.cout));
-    EXPECT_LE(MaxRelativeError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
+    ref::Conv2dWinograd(pr.in, pr.params, c.pads, m,
+                        DenseView(got.data(), pr.out_h, pr.out_w, c.cout));
+    EXPECT_LE(RelativeMaxError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
   }
 }
 
@@ -171,12 +125,13 @@ TEST_P(WinogradSimd, MatchesDirectReferenceOnEveryShapeOfTheTable) {
                       std::to_string(m) + "_3x3__" + IsaName(GetParam().isa)),
             std::string::npos)
       << name;
+  EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;  // the product tile
   for (size_t i = 0; i < Cases().size(); ++i) {
     const Case& c = Cases()[i];
     SCOPED_TRACE(Describe(c) + " " + name);
-    const Problem& pr = ProblemOf(i);
-    Aligned packed(PackedWinogradFloats(pr.p, m, kernels_->nr));
-    const PackedWinograd w = PackWinograd(pr.p, m, kernels_->nr, packed.data);
+    const ConvProblem& pr = ProblemOf(i);
+    AlignedFloats packed(PackedWinogradFloats(pr.params, m, kernels_->nr));
+    const PackedWinograd w = PackWinograd(pr.params, m, kernels_->nr, packed.data);
     WinogradArgs args;
     args.conv = &w;
     args.in = pr.in;
@@ -189,7 +144,7 @@ TEST_P(WinogradSimd, MatchesDirectReferenceOnEveryShapeOfTheTable) {
     const int tiles = args.tiles_h * args.tiles_w;
     ASSERT_EQ(WinogradScratchFloats(w, pr.out_h, pr.out_w),
               points * tiles * (w.k_stride + w.n_stride));
-    Aligned scratch(WinogradScratchFloats(w, pr.out_h, pr.out_w));
+    AlignedFloats scratch(WinogradScratchFloats(w, pr.out_h, pr.out_w));
     args.v = scratch.data;
     args.m = scratch.data + points * tiles * w.k_stride;
     const int items = static_cast<int>(points) * w.blocks;
@@ -199,7 +154,7 @@ TEST_P(WinogradSimd, MatchesDirectReferenceOnEveryShapeOfTheTable) {
     kernels_->product(args, items / 3, items);
     kernels_->output(args, 0, tiles / 2);
     kernels_->output(args, tiles / 2, tiles);
-    EXPECT_LE(MaxRelativeError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
+    EXPECT_LE(RelativeMaxError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
   }
 }
 
@@ -212,12 +167,6 @@ INSTANTIATE_TEST_SUITE_P(EveryIsa, WinogradSimd,
                                   std::to_string(param.param.m) + "x" +
                                   std::to_string(param.param.m);
                          });
-
-struct UpCase {
-  int h, w, cin, cout;  // low-resolution input
-  int crop_top, crop_left, crop_bottom, crop_right;
-  Padding pads;
-};
 
 class WinogradUpSimd : public ::testing::TestWithParam<Isa> {
  protected:
@@ -243,7 +192,8 @@ TEST_P(WinogradUpSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
   EXPECT_NE(name.find(std::string("upconv2x_conv3x3_winograd_f2x2_2x2__") + IsaName(GetParam())),
             std::string::npos)
       << name;
-  const std::vector<UpCase> cases = {
+  EXPECT_TRUE(name.ends_with("x" + std::to_string(up_->nr))) << name;
+  const std::vector<UpConvShape> cases = {
       {17, 30, 128, 64, 4, 0, 0, 0, {1, 1, 1, 1}},  // conv9's channels, up4 + crop of 540x960
       {5, 8, 1024, 512, 0, 0, 0, 0, {1, 1, 1, 1}},  // conv6's channels
       {9, 12, 67, 70, 0, 0, 0, 0, {1, 1, 1, 1}},    // channel tails
@@ -254,61 +204,36 @@ TEST_P(WinogradUpSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
       {1, 1, 64, 64, 0, 0, 0, 0, {1, 1, 1, 1}},  // no interior pixel
       {2, 3, 64, 64, 1, 0, 0, 0, {1, 1, 1, 1}},
   };
-  uint32_t seed = 700;
-  for (const UpCase& c : cases) {
-    SCOPED_TRACE(std::to_string(c.h) + "x" + std::to_string(c.w) + "x" + std::to_string(c.cin) +
-                 "->" + std::to_string(c.cout) + " crop " + std::to_string(c.crop_top) + "," +
-                 std::to_string(c.crop_left) + " pads " + std::to_string(c.pads.top) + "," +
-                 std::to_string(c.pads.left) + "," + std::to_string(c.pads.bottom) + "," +
-                 std::to_string(c.pads.right));
-    const std::vector<float> low = Random(static_cast<size_t>(c.h) * c.w * c.cin, seed++, 1.0f);
-    const std::vector<float> weights =
-        Random(static_cast<size_t>(9) * c.cin * c.cout, seed++, 1.0f / std::sqrt(9.0f * c.cin));
-    const std::vector<float> bias = Random(c.cout, seed++, 0.5f);
-    ConvParams p;
-    p.in_channels = c.cin;
-    p.out_channels = c.cout;
-    p.kernel_h = p.kernel_w = 3;
-    p.activation = Activation::kLeakyRelu;
-    p.leaky_slope = 0.3f;
-    p.weights = weights.data();
-    p.bias = bias.data();
-    std::vector<float> up(static_cast<size_t>(4) * c.h * c.w * c.cin);
-    const ConstTensorView low_view = DenseView(const_cast<float*>(low.data()), c.h, c.w, c.cin);
-    const TensorView up_view = DenseView(up.data(), 2 * c.h, 2 * c.w, c.cin);
-    ref::UpsampleNearest(low_view, 2, 2, up_view);
-    ConstTensorView cropped = up_view;
-    cropped.data = up_view.pixel(c.crop_top, c.crop_left);
-    cropped.height = 2 * c.h - c.crop_top - c.crop_bottom;
-    cropped.width = 2 * c.w - c.crop_left - c.crop_right;
-    const int out_h = cropped.height + c.pads.top + c.pads.bottom - 2;
-    const int out_w = cropped.width + c.pads.left + c.pads.right - 2;
-    ASSERT_GT(out_h, 0);
-    ASSERT_GT(out_w, 0);
-    std::vector<float> want(static_cast<size_t>(out_h) * out_w * c.cout);
-    ref::Conv2d(cropped, p, c.pads, DenseView(want.data(), out_h, out_w, c.cout));
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const UpConvShape& c = cases[i];
+    SCOPED_TRACE(Describe(c));
+    const UpConvProblem pr = testing::MakeUpConvProblem(c, 700 + 3 * static_cast<uint32_t>(i));
+    ASSERT_FALSE(pr.want.empty());  // the shape has an output
+    const int out_h = pr.out_h, out_w = pr.out_w;
+    const ConvParams& p = pr.params;
+    const std::vector<float>& want = pr.want;
 
     const ConvKernelVariant& v = PickConvVariant(*conv_, c.cout);
-    Aligned border(PackedConvFloats(p, v.nr, false));
+    AlignedFloats border(PackedConvFloats(p, v.nr, false));
     const PackedConv pc = PackConv(p, v.nr, false, border.data);
-    Aligned packed(PackedWinogradUpFloats(p, up_->nr));
+    AlignedFloats packed(PackedWinogradUpFloats(p, up_->nr));
     const PackedWinograd w = PackWinogradUp(p, up_->nr, packed.data);
     ConvArgs args;
     args.conv = &pc;
-    args.in = low_view;
+    args.in = pr.low_view;
     args.pads = c.pads;
     args.crop_top = c.crop_top;
     args.crop_left = c.crop_left;
-    args.c_height = cropped.height;
-    args.c_width = cropped.width;
-    const UpGrid grid =
-        UpGridOf(out_h, out_w, c.pads, cropped.height, cropped.width, c.crop_top, c.crop_left);
+    args.c_height = pr.cropped.height;
+    args.c_width = pr.cropped.width;
+    const UpGrid grid = UpGridOf(out_h, out_w, c.pads, pr.cropped.height, pr.cropped.width,
+                                 c.crop_top, c.crop_left);
     for (int band_rows : {1, 2, UpWinogradBandRows(w, grid.tiles_h, grid.tiles_w)}) {
       SCOPED_TRACE("band rows " + std::to_string(band_rows));
       std::vector<float> got(want.size(), NAN);
       args.out = DenseView(got.data(), out_h, out_w, c.cout);
       args.skip_interior = false;
-      Aligned scratch(UpWinogradScratchFloats(w, band_rows, grid.tiles_w));
+      AlignedFloats scratch(UpWinogradScratchFloats(w, band_rows, grid.tiles_w));
       // As two threads would: each pass split in two ranges.
       auto parallel = [](int n, void (*fn)(void*, int, int), void* ctx) {
         fn(ctx, 0, n / 2);
@@ -317,7 +242,7 @@ TEST_P(WinogradUpSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
       RunUpWinogradBands(*up_, w, band_rows, scratch.data, args, parallel);
       args.skip_interior = true;
       v.upconv(args, 0, out_h, 0, pc.blocks);
-      EXPECT_LE(MaxRelativeError(got, want), kToleranceF2);
+      EXPECT_LE(RelativeMaxError(got, want), kToleranceF2);
     }
   }
 }

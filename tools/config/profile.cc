@@ -855,7 +855,8 @@ class Parser {
 
   void ParseLatency(const Field& field) {
     MapView m(c_, field,
-              {"budget_ms", "percentile", "on_miss", "fallback_height", "fallback_width"});
+              {"budget_ms", "percentile", "on_miss", "fallback_height", "fallback_width",
+               "recover_after_frames"});
     if (!field.present || !field.node.IsMap()) return;
     if (auto v = ReadNumber(c_, m.Require("budget_ms", "number > 0 and <= 60000 ms"),
                             {0, true, 60000, "ms"})) {
@@ -874,6 +875,9 @@ class Parser {
       const Field fw = m.Require("fallback_width", "integer 16..4096 pixels, below input_width");
       if (auto v = ReadInt(c_, fh, 16, 4096, "pixels")) p_.fallback_height = static_cast<int>(*v);
       if (auto v = ReadInt(c_, fw, 16, 4096, "pixels")) p_.fallback_width = static_cast<int>(*v);
+      if (auto v = ReadInt(c_, m.Get("recover_after_frames"), 1, 100000, "frames")) {
+        p_.recover_after_frames = static_cast<int>(*v);
+      }
       if (p_.fallback_height > 0 && p_.fallback_width > 0 && p_.input_height > 0 &&
           p_.input_width > 0 &&
           (p_.fallback_height > p_.input_height || p_.fallback_width > p_.input_width ||
@@ -887,6 +891,7 @@ class Parser {
     } else {
       m.Forbid("fallback_height", "only with on_miss: smaller-input");
       m.Forbid("fallback_width", "only with on_miss: smaller-input");
+      m.Forbid("recover_after_frames", "only with on_miss: smaller-input");
     }
   }
 

@@ -118,6 +118,7 @@ struct DeploymentProfile {
   MissAction on_miss = MissAction::kCountOnly;
   int fallback_height = 0;  // on_miss == kSmallerInput
   int fallback_width = 0;
+  int recover_after_frames = 30;  // on_miss == kSmallerInput: in-budget frames before full size
 
   std::string output_dir;  // absolute
   bool write_flow = true;

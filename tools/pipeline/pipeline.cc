@@ -13,7 +13,9 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <span>
 #include <thread>
 #include <utility>
 
@@ -95,6 +97,8 @@ class Runner {
   void InferStage();
   void OutputStage();
   void Fail(const Status& status, bool discard);
+  Status SetupFallback();
+  void UpdateFallback(const FrameMeta& m, bool miss);
   void Progress(bool final);
   Status WriteSummary(PipelineResult* result);
   WindowItem MakeWindow() const;
@@ -112,6 +116,15 @@ class Runner {
   std::unique_ptr<Session> session_;
   std::optional<camera::Preprocessor> preprocessor_;
   std::optional<camera::StereoRectifier> rectifier_;
+  // latency.on_miss: smaller-input (fallback_ = on): the fallback size's rectifier and
+  // preprocessor, made at setup; use_fallback_ is set and cleared by the output stage and read
+  // by the preprocess stage at the start of each window.
+  bool fallback_ = false;
+  int fb_height_ = 0;
+  int fb_width_ = 0;
+  std::optional<camera::Preprocessor> fb_preprocessor_;
+  std::optional<camera::StereoRectifier> fb_rectifier_;
+  std::atomic<bool> use_fallback_{false};
   QueuePolicy policy_ = QueuePolicy::kBlock;
   std::unique_ptr<LatestQueue<WindowItem>> q1_;
   std::unique_ptr<LatestQueue<InputItem>> q2_;
@@ -130,6 +143,11 @@ class Runner {
   int64_t discarded_after_max_ = 0;
   std::atomic<bool> skip_next_{false};  // drop_next_on_miss: set by output, taken by source
   int64_t skipped_after_miss_ = 0;      // written by the source stage
+  // smaller-input, written by the output stage:
+  int64_t fallback_streak_ = 0;     // consecutive in-budget windows at the fallback size
+  int64_t frames_at_fallback_ = 0;  // written windows that ran at the fallback size
+  int64_t fallback_entries_ = 0;    // switches to the fallback size
+  int64_t recoveries_ = 0;          // switches back to the model input size
   int64_t output_errors_ = 0;
   static constexpr size_t kMaxListedSkips = 100;        // summary.json lists at most this many
   std::vector<FrameSource::BadFrame> skipped_outputs_;  // {stem, error} under kSkip
@@ -230,6 +248,8 @@ Status Runner::Setup() {
     rectifier_.emplace(std::move(rect).value());
   }
 
+  if (Status s = SetupFallback(); !s.ok()) return s;
+
   SessionOptions so;
   so.max_height = height_;
   so.max_width = width_;
@@ -249,6 +269,20 @@ Status Runner::Setup() {
                          std::to_string(shape->width) + " for an input of " +
                          std::to_string(height_) + "x" + std::to_string(width_) +
                          "; the pipeline needs flow at the input size");
+  }
+  if (fallback_) {
+    Result<TensorShape> fb = session_->OutputShape(fb_height_, fb_width_);
+    if (!fb.ok()) {
+      return Status::Error("latency.on_miss smaller-input: the fallback size " +
+                           std::to_string(fb_height_) + "x" + std::to_string(fb_width_) + ": " +
+                           fb.message());
+    }
+    if (fb->height != fb_height_ || fb->width != fb_width_) {
+      return Status::Error(
+          "latency.on_miss smaller-input: the model's output is " + std::to_string(fb->height) +
+          "x" + std::to_string(fb->width) + " for the fallback size " + std::to_string(fb_height_) +
+          "x" + std::to_string(fb_width_) + "; the pipeline needs flow at the input size");
+    }
   }
   if (options_.write_flow && options_.flow_format == FlowFormat::kPfm && out_channels_ != 1 &&
       out_channels_ != 3) {
@@ -275,7 +309,9 @@ Status Runner::Setup() {
       return Status::Error("cannot open the latency log '" + options_.latency_log +
                            "': " + std::strerror(errno));
     }
-    std::fprintf(latency_log_, "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms\n");
+    std::fprintf(latency_log_,
+                 "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
+                 "input_width\n");
   }
 
   switch (options_.progress) {
@@ -293,6 +329,66 @@ Status Runner::Setup() {
       break;
   }
   return Status::Ok();
+}
+
+Status Runner::SetupFallback() {
+  const PipelineOptions::Size2& fb = options_.smaller_input_on_miss;
+  if (fb.height == 0 && fb.width == 0) return Status::Ok();
+  const std::string fb_text = std::to_string(fb.height) + "x" + std::to_string(fb.width);
+  const std::string size_text = std::to_string(height_) + "x" + std::to_string(width_);
+  if (fb.height <= 0 || fb.width <= 0 || fb.height > height_ || fb.width > width_ ||
+      (fb.height == height_ && fb.width == width_)) {
+    return Status::Error("latency.on_miss smaller-input: the fallback size " + fb_text +
+                         " must be positive, at most the model input size " + size_text +
+                         " and smaller in at least one dimension");
+  }
+  if (options_.recover_after < 1) {
+    return Status::Error("latency.on_miss smaller-input: recover_after is " +
+                         std::to_string(options_.recover_after) + "; it must be >= 1");
+  }
+  fallback_ = true;
+  fb_height_ = fb.height;
+  fb_width_ = fb.width;
+  Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
+  if (!params.ok()) return params.status();
+  auto pre = camera::Preprocessor::Create(*params, fb_height_, fb_width_);
+  if (!pre.ok()) return Status::Error(pre.message());
+  fb_preprocessor_.emplace(std::move(pre).value());
+  const cv::Size fb_size(fb_width_, fb_height_);
+  auto rect = options_.calibration
+                  ? camera::StereoRectifier::Create(*options_.calibration, source_size_,
+                                                    camera::RectifyOptions{fb_size})
+                  : camera::StereoRectifier::CreateResizeOnly(source_size_, fb_size);
+  if (!rect.ok()) return Status::Error(rect.message());
+  fb_rectifier_.emplace(std::move(rect).value());
+  if (options_.budget_ms <= 0 && !options_.miss_verdict) {
+    warnings_.push_back("latency.on_miss smaller-input " + fb_text +
+                        " without a budget (--budget-ms): no window misses, the size never "
+                        "changes");
+  }
+  return Status::Ok();
+}
+
+// The smaller-input state machine, on the output stage's thread: a miss switches to the fallback
+// size (a miss at the fallback size restarts the count); recover_after consecutive in-budget
+// windows that ran at the fallback size switch back. Windows already in flight at the old size
+// when the size changes neither count towards recovery nor switch again.
+void Runner::UpdateFallback(const FrameMeta& m, bool miss) {
+  const bool at_fallback = m.input_height != height_ || m.input_width != width_;
+  if (at_fallback) ++frames_at_fallback_;
+  if (miss) {
+    fallback_streak_ = 0;
+    if (!use_fallback_.load()) {
+      use_fallback_ = true;
+      ++fallback_entries_;
+    }
+  } else if (at_fallback && use_fallback_.load()) {
+    if (++fallback_streak_ >= options_.recover_after) {
+      use_fallback_ = false;
+      fallback_streak_ = 0;
+      ++recoveries_;
+    }
+  }
 }
 
 void Runner::SourceStage() {
@@ -334,8 +430,13 @@ void Runner::PreprocessStage() {
   InputItem in = MakeInput();
   cv::Mat l0, r0, l1, r1;  // rectified, model size
   for (cv::Mat* m : {&l0, &r0, &l1, &r1}) m->create(height_, width_, CV_8UC3);
+  cv::Mat fl0, fr0, fl1, fr1;  // rectified, fallback size (smaller-input)
+  if (fallback_) {
+    for (cv::Mat* m : {&fl0, &fr0, &fl1, &fr1}) m->create(fb_height_, fb_width_, CV_8UC3);
+  }
   while (q1_->Pop(&w)) {
     w.meta.stage_ns[1][0] = NowNs();
+    const bool small = fallback_ && use_fallback_.load();
     const cv::Size size = w.left0.size();
     if (w.left1.size() != size) {
       Fail(Status::Error("window at '" + w.meta.left0_path +
@@ -358,15 +459,40 @@ void Runner::PreprocessStage() {
         break;
       }
       rectifier_.emplace(std::move(rect).value());
+      if (fallback_) {
+        auto fb = camera::StereoRectifier::CreateResizeOnly(size, cv::Size(fb_width_, fb_height_));
+        if (!fb.ok()) {
+          Fail(Status::Error(fb.message()), true);
+          break;
+        }
+        fb_rectifier_.emplace(std::move(fb).value());
+      }
     }
-    camera::Status s = rectifier_->Apply(w.left0, w.right0, &l0, &r0);
-    if (s.ok()) s = rectifier_->Apply(w.left1, w.right1, &l1, &r1);
-    if (s.ok()) s = preprocessor_->Run(l0, r0, l1, r1, in.input.data(), in.input.size());
+    camera::Status s = camera::Status::Ok();
+    if (small) {
+      // The input buffer is sized for the model input size; the fallback input fills its start.
+      s = fb_rectifier_->Apply(w.left0, w.right0, &fl0, &fr0);
+      if (s.ok()) s = fb_rectifier_->Apply(w.left1, w.right1, &fl1, &fr1);
+      if (s.ok()) {
+        s = fb_preprocessor_->Run(fl0, fr0, fl1, fr1, in.input.data(),
+                                  fb_preprocessor_->output_floats());
+      }
+    } else {
+      s = rectifier_->Apply(w.left0, w.right0, &l0, &r0);
+      if (s.ok()) s = rectifier_->Apply(w.left1, w.right1, &l1, &r1);
+      if (s.ok()) s = preprocessor_->Run(l0, r0, l1, r1, in.input.data(), in.input.size());
+    }
     if (!s.ok()) {
       Fail(Status::Error(s.message()), true);
       break;
     }
-    l0.copyTo(in.left_vis);
+    if (small) {  // the visualisation keeps the model input size (into the existing buffer)
+      cv::resize(fl0, in.left_vis, in.left_vis.size(), 0, 0, cv::INTER_LINEAR);
+    } else {
+      l0.copyTo(in.left_vis);
+    }
+    w.meta.input_height = small ? fb_height_ : height_;
+    w.meta.input_width = small ? fb_width_ : width_;
     std::swap(in.meta, w.meta);
     in.meta.stage_ns[1][1] = NowNs();
     if (!q2_->Push(&in)) break;
@@ -381,9 +507,9 @@ void Runner::InferStage() {
   FlowItem out = MakeFlow();
   while (q2_->Pop(&in)) {
     in.meta.stage_ns[2][0] = NowNs();
-    Status s = out.step_ns.empty()
-                   ? session_->Run(in.input, height_, width_, out.flow)
-                   : session_->Run(in.input, height_, width_, out.flow, out.step_ns);
+    const int h = in.meta.input_height, w = in.meta.input_width;  // the size it was prepared at
+    Status s = out.step_ns.empty() ? session_->Run(in.input, h, w, out.flow)
+                                   : session_->Run(in.input, h, w, out.flow, out.step_ns);
     if (!s.ok()) {
       Fail(s, true);
       break;
@@ -406,6 +532,14 @@ void Runner::OutputStage() {
   const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
   cv::VideoWriter video;
   const std::filesystem::path dir(options_.out_dir);
+  // smaller-input: the flow of a fallback window upscaled to the model input size for the
+  // visualisation, so the PNG and the video keep one size.
+  std::vector<float> vis_flow;
+  cv::Mat vis_flow_mat;
+  if (fallback_) {
+    vis_flow.resize(static_cast<size_t>(height_) * width_ * out_channels_);
+    vis_flow_mat = cv::Mat(height_, width_, CV_32FC(out_channels_), vis_flow.data());
+  }
   while (q3_->Pop(&f)) {
     if (max_reached_.load()) {
       ++discarded_after_max_;
@@ -414,22 +548,31 @@ void Runner::OutputStage() {
     FrameMeta& m = f.meta;
     m.stage_ns[3][0] = NowNs();
     const std::string stem = OutputStem(m);
+    const int h = m.input_height, w = m.input_width;  // the size the window ran at
+    const std::span<const float> flow(f.flow.data(), static_cast<size_t>(h) * w * out_channels_);
     Status s = Status::Ok();
     std::vector<std::string> written;  // this window's files so far, removed if a later one fails
     if (options_.write_flow) {
       if (options_.flow_format == FlowFormat::kPfm) {
         written.push_back((dir / (stem + ".pfm")).string());
-        s = tools::WritePfm(written.back(), f.flow, height_, width_, out_channels_);
+        s = tools::WritePfm(written.back(), flow, h, w, out_channels_);
       } else {
-        const int64_t shape[3] = {height_, width_, out_channels_};
+        const int64_t shape[3] = {h, w, out_channels_};
         written.push_back((dir / (stem + ".npy")).string());
-        s = tools::WriteNpy(written.back(), shape, f.flow);
+        s = tools::WriteNpy(written.back(), shape, flow);
       }
       if (!s.ok()) written.pop_back();
     }
     if (s.ok() && (options_.write_png || !options_.video_path.empty())) {
       std::string label = stem;
-      vis.Render(f.left_vis, f.flow.data(), out_channels_, label, &canvas);
+      const float* vis_data = f.flow.data();
+      if (h != height_ || w != width_) {
+        const cv::Mat small(h, w, CV_32FC(out_channels_), f.flow.data());
+        cv::resize(small, vis_flow_mat, vis_flow_mat.size(), 0, 0, cv::INTER_LINEAR);
+        vis_data = vis_flow.data();
+        label += " (" + std::to_string(h) + "x" + std::to_string(w) + ")";
+      }
+      vis.Render(f.left_vis, vis_data, out_channels_, label, &canvas);
       if (options_.write_png) {
         if (!cv::imencode(".png", canvas, png, png_params)) {
           s = Status::Error("cannot encode the visualisation of " + stem + " as PNG");
@@ -472,16 +615,18 @@ void Runner::OutputStage() {
     const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
     e2e_ms_.Add(e2e);
     if (latency_log_ != nullptr) {
-      std::fprintf(latency_log_, "%lld,%.4f,%.4f,%.4f,%.4f,%.4f\n",
+      std::fprintf(latency_log_, "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d\n",
                    static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
                    Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
-                   Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e);
+                   Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w);
     }
-    const bool miss = options_.budget_ms > 0 && e2e > options_.budget_ms;
+    const bool over_budget = options_.budget_ms > 0 && e2e > options_.budget_ms;
+    const bool miss = options_.miss_verdict ? options_.miss_verdict(m, over_budget) : over_budget;
     if (miss) {
       ++misses_;
       if (options_.drop_next_on_miss) skip_next_ = true;
     }
+    if (fallback_) UpdateFallback(m, miss);
     if (options_.profiler) options_.profiler->Record(m, f.step_ns, miss);
     last_stem_ = stem;
     {
@@ -493,6 +638,7 @@ void Runner::OutputStage() {
       max_reached_ = true;
       halt_ = true;
     }
+    if (options_.after_window) options_.after_window(m);
   }
   if (video.isOpened()) video.release();
   if (video_written_) {
@@ -579,9 +725,18 @@ Status Runner::WriteSummary(PipelineResult* result) {
       {"policy", options_.on_output_error == OutputErrorPolicy::kStop ? "stop" : "skip"},
       {"count", output_errors_},
       {"skipped", skipped}};
-  j["deadline"] = {{"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
-                   {"misses", misses_},
-                   {"skipped_after_miss", skipped_after_miss_}};
+  j["deadline"] = {
+      {"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
+      {"misses", misses_},
+      {"on_miss", options_.drop_next_on_miss ? "drop-next"
+                  : fallback_                ? "smaller-input"
+                                             : "count-only"},
+      {"skipped_after_miss", skipped_after_miss_},
+      {"fallback_size", fallback_ ? json::array({fb_height_, fb_width_}) : json(nullptr)},
+      {"recover_after_frames", fallback_ ? json(options_.recover_after) : json(nullptr)},
+      {"fallback_entries", fallback_entries_},
+      {"recoveries", recoveries_},
+      {"frames_at_fallback_size", frames_at_fallback_}};
   json lat;
   for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
   lat["end_to_end"] = PercentilesJson(result->end_to_end);
@@ -616,7 +771,9 @@ PipelineResult Runner::Run() {
     error_ = setup;
     end_ns_ = NowNs();
     std::error_code ec;
-    if (std::filesystem::is_directory(options_.out_dir, ec)) (void)WriteSummary(&result);
+    if (options_.write_summary && std::filesystem::is_directory(options_.out_dir, ec)) {
+      (void)WriteSummary(&result);
+    }
     return result;
   }
   start_ns_ = NowNs();
@@ -654,12 +811,16 @@ PipelineResult Runner::Run() {
   result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
   for (int st = 0; st < 4; ++st) result.stage[st] = ComputePercentiles(stage_ms_[st].Values());
   result.end_to_end = ComputePercentiles(e2e_ms_.Values());
+  result.misses = misses_;
+  result.frames_at_fallback_size = frames_at_fallback_;
+  result.fallback_entries = fallback_entries_;
   if (latency_log_ != nullptr && std::fclose(latency_log_) != 0) {
     warnings_.push_back("the latency log '" + options_.latency_log +
                         "' was not written completely: " + std::strerror(errno));
   }
   latency_log_ = nullptr;
   result.warnings = warnings_;
+  if (!options_.write_summary) return result;
   Status s = WriteSummary(&result);
   if (!s.ok()) {
     if (result.status.ok()) {

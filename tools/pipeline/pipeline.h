@@ -26,7 +26,8 @@
 // windows already read are finished and written (at most one per queue slot and stage), so
 // every output file is complete (all are written to a temporary name and renamed). A fatal error
 // in a stage stops the source and discards the queued windows. The summary (summary.json in the
-// output directory) is written in every case and says how far the run got and why it stopped.
+// output directory) is written in every case (unless write_summary is false) and says how far
+// the run got and why it stopped.
 #pragma once
 
 #include <atomic>
@@ -64,6 +65,10 @@ struct FrameMeta {
   int64_t capture_ns[2] = {0, 0};  // capture time of pair t and t+1 (CLOCK_MONOTONIC)
   // [stage][0 start, 1 end], CLOCK_MONOTONIC ns; stages: source, preprocess, infer, output.
   int64_t stage_ns[4][2] = {};
+  // The network input size the window was preprocessed and inferred at (set by the preprocess
+  // stage): the model input size, or the fallback size under `smaller_input_on_miss`.
+  int input_height = 0;
+  int input_width = 0;
 };
 
 // A (t, t+1) window as read: four BGR images of the source's frame size.
@@ -150,6 +155,26 @@ struct PipelineOptions {
   std::function<void(int stage)> on_stage_start;
   bool prefault = false;           // one inference on zeros at setup: arena and weights paged in
   bool drop_next_on_miss = false;  // a deadline miss makes the source skip its next window
+  // latency.on_miss: smaller-input. {0, 0} = off. Otherwise, after a window over budget the
+  // following windows are preprocessed and inferred at this size (<= the model input size in
+  // both dimensions, smaller in one); after `recover_after` consecutive in-budget windows at
+  // this size the run returns to the model input size. A miss at the fallback size restarts
+  // the count (hysteresis). Buffers are sized for the model input size at start, so switching
+  // allocates nothing. Flow files have the size the window ran at; the PNG/video show the
+  // flow upscaled (bilinear) to the model input size, so they keep one size.
+  struct Size2 {
+    int height = 0;
+    int width = 0;
+  };
+  Size2 smaller_input_on_miss;
+  int recover_after = 30;     // >= 1
+  bool write_summary = true;  // false: no summary.json (outputs.summary: false)
+  // Test seams (null in the product). `miss_verdict` decides whether a written window counts as
+  // a deadline miss, given the budget's verdict (end to end > budget_ms), so a test need not
+  // depend on wall-clock speed. `after_window` is called by the output stage once it is done
+  // with a written window (after the on-miss state has changed), e.g. to pace a fake source.
+  std::function<bool(const FrameMeta& meta, bool over_budget)> miss_verdict;
+  std::function<void(const FrameMeta& meta)> after_window;
   // `--profile` (profiler.h): per-frame stage and step timestamps into this preallocated ring.
   FrameProfiler* profiler = nullptr;
 };
@@ -169,12 +194,16 @@ struct PipelineResult {
   std::string summary_path;   // "" if even the summary could not be written
   double fps = 0;             // frames / wall time
   Percentiles end_to_end;
-  Percentiles stage[4];  // source, preprocess, infer, output
+  Percentiles stage[4];                 // source, preprocess, infer, output
+  int64_t misses = 0;                   // windows over the budget (or miss_verdict)
+  int64_t frames_at_fallback_size = 0;  // written windows that ran at smaller_input_on_miss
+  int64_t fallback_entries = 0;         // switches from the model input size to the fallback
   std::vector<std::string> warnings;
 };
 
 // Runs the pipeline until the source ends, max_frames are written, *stop is set or a stage
-// fails. Writes summary.json in every case (unless the output directory is unusable).
+// fails. Writes summary.json in every case (unless the output directory is unusable or
+// write_summary is false).
 PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* source,
                            const PipelineOptions& options);
 

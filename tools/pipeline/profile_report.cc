@@ -60,6 +60,7 @@ struct Series {
   std::vector<double> e2e;
   std::vector<double> step_ms;  // frames with steps x steps, row-major (profiling::StepTable)
   int64_t misses = 0;
+  int64_t at_other_size = 0;  // frames that ran at a size other than the planned one
 };
 
 Series Collect(const FrameProfiler& prof) {
@@ -71,6 +72,9 @@ Series Collect(const FrameProfiler& prof) {
     }
     s.e2e.push_back(Ms(f.stage_ns[3][1] - f.capture_ns));
     if (f.miss) ++s.misses;
+    if (f.input_height > 0 && (f.input_height != prof.height() || f.input_width != prof.width())) {
+      ++s.at_other_size;
+    }
     if (f.has_steps) {
       std::span<const int64_t> t = prof.step_end_ns(i);
       for (size_t k = 0; k + 1 < t.size(); ++k) s.step_ms.push_back(Ms(t[k + 1] - t[k]));
@@ -252,7 +256,10 @@ std::string TraceJson(const FrameProfiler& prof, const ProfileReportInfo& info) 
       json e = TraceEvent("X", frame, st + 1, us(f.stage_ns[st][0]));
       e["cat"] = kProfileStageNames[st];
       e["dur"] = us(f.stage_ns[st][1]) - us(f.stage_ns[st][0]);
-      e["args"] = {{"window", f.window}, {"frame0", f.frame0}, {"frame1", f.frame1}};
+      e["args"] = {{"window", f.window},
+                   {"frame0", f.frame0},
+                   {"frame1", f.frame1},
+                   {"input_size", {f.input_height, f.input_width}}};
       if (st == 3) e["args"]["end_to_end_ms"] = Ms(f.stage_ns[3][1] - f.capture_ns);
       events.push_back(std::move(e));
     }
@@ -359,7 +366,8 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
                  {"overwritten", prof.overwritten()},
                  {"capacity", prof.capacity()}};
   j["deadline"] = {{"budget_ms", info.budget_ms > 0 ? json(info.budget_ms) : json(nullptr)},
-                   {"misses", s.misses}};
+                   {"misses", s.misses},
+                   {"frames_at_fallback_size", s.at_other_size}};
   json stages;
   for (int st = 0; st < kProfileStages; ++st) {
     stages[kProfileStageNames[st]] = StatsJson(stage_stats[st]);
@@ -426,7 +434,7 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
     csv += std::string(",") + name + "_start_ns," + name + "_end_ns";
   }
   for (const char* name : kProfileStageNames) csv += std::string(",") + name + "_ms";
-  csv += ",end_to_end_ms,miss";
+  csv += ",end_to_end_ms,miss,input_height,input_width";
   for (const ProfileStep& p : prof.steps()) csv += ",step_" + p.name + "_ms";
   csv += "\n";
   for (size_t i = 0; i < prof.size(); ++i) {
@@ -440,6 +448,7 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
       csv += "," + Fixed(Ms(f.stage_ns[st][1] - f.stage_ns[st][0]), 4);
     }
     csv += "," + Fixed(Ms(f.stage_ns[3][1] - f.capture_ns), 4) + (f.miss ? ",1" : ",0");
+    csv += "," + std::to_string(f.input_height) + "," + std::to_string(f.input_width);
     std::span<const int64_t> t = prof.step_end_ns(i);
     for (size_t k = 0; k < prof.steps().size(); ++k) {
       csv += f.has_steps ? "," + Fixed(Ms(t[k + 1] - t[k]), 4) : std::string(",");

@@ -57,6 +57,8 @@ void FrameProfiler::Record(const FrameMeta& meta, std::span<const int64_t> step_
     f.stage_ns[s][1] = meta.stage_ns[s][1];
   }
   f.miss = miss;
+  f.input_height = meta.input_height;
+  f.input_width = meta.input_width;
   const size_t n = steps_.size() + 1;
   f.has_steps = prepared_ && step_end_ns.size() == n;
   if (f.has_steps) std::copy(step_end_ns.begin(), step_end_ns.end(), step_ns_.begin() + slot * n);

@@ -46,6 +46,8 @@ struct ProfiledFrame {
   int64_t stage_ns[kProfileStages][2] = {};  // [stage][start, end]
   bool has_steps = false;                    // the step times are valid
   bool miss = false;                         // end to end over the budget
+  int input_height = 0;                      // the size the frame ran at (smaller-input)
+  int input_width = 0;
 };
 
 class FrameProfiler {

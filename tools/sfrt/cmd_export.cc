@@ -14,6 +14,7 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
@@ -379,11 +380,12 @@ bool SeededCheck(const std::shared_ptr<const Model>& model, int height, int widt
   return true;
 }
 
-// libhdf5 1.10 can crash (SIGSEGV in H5HG_read under H5Aread) on a damaged or crafted file
-// before the importer can see anything wrong; no HDF5 call validates a global-heap reference
-// first (tests/fuzz/open/README.md). So a Keras file is first read in a child process: if that
-// dies by a signal, the file is reported as unreadable and nothing is written; if it returns,
-// the same deterministic import is safe to run here. Empty string: the child survived.
+// Defence in depth: libhdf5 1.10 is not hardened against crafted files. The importer checks
+// every global-heap reference before libhdf5 follows it (exporter/src/hdf5_vlen_guard.h: the
+// SIGSEGV in H5HG_read that fuzzing found), but a Keras file is still first read in a child
+// process: if that dies by a signal, the file is reported as unreadable and nothing is written;
+// if it returns, the same deterministic import is safe to run here. Empty string: the child
+// survived. SFRT_TEST_KERAS_PROBE_CRASH (tests only) makes the child crash, to test this.
 std::string ProbeKerasImportInChild(const std::string& path,
                                     const exporter::KerasImportOptions& options) {
   std::fflush(nullptr);
@@ -393,6 +395,7 @@ std::string ProbeKerasImportInChild(const std::string& path,
     // Silence the child: the parent reports the import's own errors when it repeats it.
     std::freopen("/dev/null", "w", stderr);
     std::freopen("/dev/null", "w", stdout);
+    if (std::getenv("SFRT_TEST_KERAS_PROBE_CRASH") != nullptr) std::raise(SIGSEGV);
     (void)exporter::ImportKerasH5(path, options);
     ::_exit(0);
   }

@@ -62,6 +62,7 @@ struct RunArgs {
   std::string out;
   std::string flow_format = "pfm";
   bool no_png = false;
+  bool no_summary = false;
   std::string video;
   double video_fps = 10;
   double budget_ms = 0;
@@ -299,6 +300,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.on_output_error = args.on_output_error == "skip" ? pipeline::OutputErrorPolicy::kSkip
                                                            : pipeline::OutputErrorPolicy::kStop;
   options.write_png = !args.no_png;
+  options.write_summary = !args.no_summary;
   options.video_path = args.video;
   options.video_fps = args.video_fps;
   options.budget_ms = args.budget_ms;
@@ -401,11 +403,13 @@ Command AddRunCommand(CLI::App& parent) {
                   "output and end-to-end milliseconds (for soak runs)");
   cmd->add_option("--out", args->out,
                   "Output directory (created): <stem>.pfm|.npy flow, <stem>.png visualisation, "
-                  "summary.json; required unless --config");
+                  "summary.json (unless --no-summary); required unless --config");
   cmd->add_option("--flow-format", args->flow_format,
                   "Flow files: pfm (3-channel PFM), npy (float32 (H,W,3)) or none")
       ->capture_default_str();
   cmd->add_flag("--no-png", args->no_png, "Do not write visualisation PNGs");
+  cmd->add_flag("--no-summary", args->no_summary,
+                "Do not write summary.json (the console summary is still printed)");
   cmd->add_option("--video", args->video,
                   "Also write the visualisations as an MJPG AVI video to this file");
   cmd->add_option("--video-fps", args->video_fps, "Frame rate written into --video")

@@ -74,7 +74,8 @@ void AddRunConfigOptions(CLI::App* cmd, RunConfigState* state) {
                   "here it has a key for; an option given on the command line overrides the "
                   "profile (e.g. --replay DIR for frames elsewhere). Settings without an option "
                   "(stage CPUs and SCHED_FIFO priority, mlockall, memory cap, arena prefault, "
-                  "on_miss, log file) come only from the profile; those the process may not "
+                  "on_miss incl. smaller-input, log file) come only from the profile; those the "
+                  "process may not "
                   "apply are warnings naming the fix, and the run goes on");
   cmd->add_option("--profile", state->profile_dir,
                   "Record per-frame, per-stage and per-layer timestamps (CLOCK_MONOTONIC) into a "
@@ -197,6 +198,7 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
     maps.push_back({"outputs.flow_format", "--flow-format", config::FlowFormatName(p.flow_format)});
   }
   if (!p.visualisation) maps.push_back({"outputs.visualisation", "--no-png", "true"});
+  if (!p.summary) maps.push_back({"outputs.summary", "--no-summary", "true"});
   switch (p.log_level) {
     case config::LogLevel::kError:
     case config::LogLevel::kWarn:
@@ -254,15 +256,6 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
                                    ": this stage runs on one thread (only infer has a pool)");
     }
   }
-  if (p.on_miss == config::MissAction::kSmallerInput) {
-    state->not_applied.push_back(
-        "latency.on_miss: smaller-input (" + std::to_string(p.fallback_height) + "x" +
-        std::to_string(p.fallback_width) +
-        ") is not implemented yet: misses are only counted. Fix: use drop-next or count-only");
-  }
-  if (!p.summary) {
-    state->not_applied.push_back("outputs.summary: false: summary.json is always written");
-  }
   return kExitOk;
 }
 
@@ -319,6 +312,14 @@ int ConfigurePipeline(RunConfigState* state, pipeline::PipelineOptions* options)
     if (p.on_miss == config::MissAction::kDropNext) {
       options->drop_next_on_miss = true;
       state->applied.push_back("latency.on_miss drop-next");
+    }
+    if (p.on_miss == config::MissAction::kSmallerInput) {
+      options->smaller_input_on_miss = {p.fallback_height, p.fallback_width};
+      options->recover_after = p.recover_after_frames;
+      state->applied.push_back("latency.on_miss smaller-input " +
+                               std::to_string(p.fallback_height) + "x" +
+                               std::to_string(p.fallback_width) + " (full size again after " +
+                               std::to_string(p.recover_after_frames) + " in-budget frames)");
     }
     for (const std::string& s : state->not_applied) {
       std::cerr << "sfrt run: warning: " << s << std::endl;

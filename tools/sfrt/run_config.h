@@ -10,8 +10,8 @@
 //                                    its value from the profile (explicit flags win);
 //   ConfigurePipeline(state, opts)   the settings without a flag: stage affinity and SCHED_FIFO
 //                                    (through config::ProcessSettings), mlockall, memory cap,
-//                                    arena prefault, on_miss, log file; the profiler; prints the
-//                                    start banner;
+//                                    arena prefault, on_miss (drop-next, smaller-input), log
+//                                    file; the profiler; prints the start banner;
 //   RunConfiguredPipeline(...)       runs the pipeline on a thread that carries the infer stage's
 //                                    settings (so the runtime's pool inherits them), first
 //                                    without profiling when --profile-overhead asks for the A/B,

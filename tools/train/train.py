@@ -14,7 +14,9 @@ Recipes:
 Loss: EPE, the mean over pixels of the Euclidean distance between predicted and true 3D vectors.
 Input: L0,R0,L1,R1 BGR images; value = (pixel / 255 - 0.5) / 0.25 (recorded in the .sfrt).
 Augmentation (--augment): random horizontal crop offsets are NOT used (they would change the
-principal point); only a random brightness/contrast change, the same for all four images.
+principal point); a random brightness/contrast change, the same for all four images, and with
+--noise N a contrast difference of up to 5% per image and Gaussian noise of sigma up to N grey
+levels (real stereo pairs differ in exposure and carry sensor noise; the renderer's do not).
 
 Files in RUN/: log.csv (one row per logged iteration and per validation), checkpoint.pt (latest:
 model, optimiser, iteration; --resume continues from it), best.pt (lowest validation EPE when
@@ -23,6 +25,7 @@ model, optimiser, iteration; --resume continues from it), best.pt (lowest valida
 
 import argparse
 import csv
+import hashlib
 import json
 import math
 import os
@@ -71,11 +74,49 @@ def downsample(x, y, cam, factor):
     return x, y, cam
 
 
-def load_sets(dirs, factor=1):
+def tree_signature(root):
+    """Changes whenever a file of the tree is added, removed, resized or rewritten."""
+    entries = []
+    for dirpath, _, names in os.walk(root):
+        for n in names:
+            st = os.stat(os.path.join(dirpath, n))
+            entries.append((os.path.relpath(os.path.join(dirpath, n), root), st.st_size,
+                            st.st_mtime_ns))
+    entries.sort()
+    return hashlib.sha256(repr(entries).encode()).hexdigest()[:16]
+
+
+def load_tree_cached(root, factor, cache_dir):
+    """load_tree + downsample; with cache_dir, the arrays are kept there as .npy files keyed by
+    the tree's path, the factor and its signature, so a second run skips decoding the PNGs."""
+    cam = sfdata.read_camera(root)
+    if not cache_dir:
+        x, y = sfdata.load_tree(root)
+        return downsample(x, y, cam, factor)
+    key = hashlib.sha256(f"{os.path.abspath(root)}|{factor}|{tree_signature(root)}"
+                         .encode()).hexdigest()[:20]
+    base = os.path.join(cache_dir, key)
+    if os.path.isfile(base + ".done"):
+        x = np.load(base + "-x.npy", mmap_mode="r")
+        y = np.load(base + "-y.npy", mmap_mode="r")
+        with open(base + ".done", encoding="utf-8") as f:
+            cam = json.load(f)
+        return np.ascontiguousarray(x), np.ascontiguousarray(y), cam
+    x, y = sfdata.load_tree(root)
+    x, y, cam = downsample(x, y, cam, factor)
+    os.makedirs(cache_dir, exist_ok=True)
+    np.save(base + "-x.npy", x)
+    np.save(base + "-y.npy", y)
+    with open(base + ".done.tmp", "w", encoding="utf-8") as f:  # marker last: no half cache
+        json.dump(cam, f)
+    os.replace(base + ".done.tmp", base + ".done")
+    return x, y, cam
+
+
+def load_sets(dirs, factor=1, cache_dir=""):
     xs, ys, cams = [], [], []
     for d in dirs:
-        x, y = sfdata.load_tree(d)
-        x, y, cam = downsample(x, y, sfdata.read_camera(d), factor)
+        x, y, cam = load_tree_cached(d, factor, cache_dir)
         xs.append(x)
         ys.append(y)
         cams.append(cam)
@@ -187,7 +228,17 @@ def parse_args(argv):
     p.add_argument("--max-minutes", type=float, default=0,
                    help="stop after this much wall time; the cosine schedule is then laid "
                         "over the estimated number of iterations that fit")
-    p.add_argument("--augment", action="store_true", help="random brightness/contrast")
+    p.add_argument("--augment", action="store_true",
+                   help="random brightness/contrast (all four images), a small gain difference "
+                        "per image and Gaussian pixel noise (--noise)")
+    p.add_argument("--noise", type=float, default=0.0,
+                   help="with --augment: the largest noise sigma in 8-bit grey levels; each "
+                        "sample draws its sigma from [0, NOISE] (default 0: none)")
+    p.add_argument("--init", default="",
+                   help="start from these weights (a best.pt or checkpoint.pt), not from "
+                        "random ones; the optimiser and iteration count start fresh")
+    p.add_argument("--cache-dir", default="",
+                   help="keep decoded, downsampled data sets here as .npy (faster restarts)")
     p.add_argument("--flow-scale", type=float, default=1.0,
                    help="train the network to predict flow * S (e.g. 10 for metric data: "
                         "decimetres, targets near 1); the export divides the output conv by S, "
@@ -221,15 +272,16 @@ def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
+    gen = torch.Generator().manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     os.makedirs(args.out, exist_ok=True)
 
     if args.export_only:
         return export_only(args)
-    x, y, cam = load_sets(args.data, args.downsample)
+    x, y, cam = load_sets(args.data, args.downsample, args.cache_dir)
     vx = vy = None
     if args.val:
-        vx, vy, vcam = load_sets(args.val, args.downsample)
+        vx, vy, vcam = load_sets(args.val, args.downsample, args.cache_dir)
         if vcam != cam:
             print(f"warning validation camera {vcam} differs from training camera {cam}")
     n, height, width = x.shape[0], x.shape[1], x.shape[2]
@@ -243,6 +295,9 @@ def main(argv=None):
     best_path = os.path.join(args.out, "best.pt")
     it, best = 0, float("inf")
     spent = 0.0
+    if args.init and not (args.resume and os.path.isfile(ckpt_path)):
+        model.load_state_dict(torch.load(args.init)["model"])
+        print(f"init    weights of {args.init}", flush=True)
     if args.resume and os.path.isfile(ckpt_path):
         state = torch.load(ckpt_path)
         model.load_state_dict(state["model"])
@@ -308,6 +363,17 @@ def main(argv=None):
             gain = torch.from_numpy(rng.uniform(0.8, 1.2, size=(len(idx), 1, 1, 1))).float()
             bias = torch.from_numpy(rng.uniform(-0.3, 0.3, size=(len(idx), 1, 1, 1))).float()
             xb = xb * gain + bias
+            if args.noise > 0:
+                # Real stereo pairs differ slightly in exposure and carry sensor noise; the
+                # renderer's images do not.
+                per_image = torch.from_numpy(
+                    rng.uniform(0.95, 1.05, size=(len(idx), 4, 1, 1, 1))).float()
+                sigma = torch.from_numpy(
+                    rng.uniform(0.0, args.noise, size=(len(idx), 1, 1, 1))).float()
+                sigma = sigma * PIXEL_SCALE / PIXEL_STD
+                shape = xb.shape
+                xb = (xb.view(shape[0], 4, 3, shape[2], shape[3]) * per_image).view(shape)
+                xb = xb + sigma * torch.randn(shape, generator=gen)
         # With --max-minutes the cosine runs over the iterations estimated to fit the budget.
         sched_total = total_iters
         if args.max_minutes and it >= 20:

@@ -3,9 +3,7 @@
 // vectors + 1 broadcast of the 16 YMM registers) and 6 pixels x 8 channels (narrow).
 #include <immintrin.h>
 
-#include "kernels/simd/conv_driver_inl.h"
-#include "kernels/simd/conv_few_out_inl.h"
-#include "kernels/simd/winograd_driver_inl.h"
+#include "kernels/simd/kernel_tables_inl.h"
 
 namespace sfrt::avx2 {
 namespace {
@@ -45,75 +43,36 @@ struct V {
   }
 };
 
-void Conv6x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::ConvRows<V, 6, 2>(a, r0, r1, b0, b1);
-}
-void Conv6x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::ConvRows<V, 6, 1>(a, r0, r1, b0, b1);
-}
-void UpConv6x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::UpConvRows<V, 6, 2>(a, r0, r1, b0, b1);
-}
-void UpConv6x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::UpConvRows<V, 6, 1>(a, r0, r1, b0, b1);
-}
-void FewOut4(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::FewOutConvRows<V, 4>(a, r0, r1, b0, b1);
-}
-void WinogradUpIn(const WinogradArgs& a, int b, int e) {
-  simd::WinogradInput<V, WinogradPhaseTransform>(a, b, e);
-}
-void WinogradUpOut(const WinogradArgs& a, int b, int e) { simd::WinogradUpOutput<V>(a, b, e); }
-void WinogradIn2(const WinogradArgs& a, int b, int e) {
-  simd::WinogradInput<V, WinogradTransform<2>>(a, b, e);
-}
-void WinogradOut2(const WinogradArgs& a, int b, int e) {
-  simd::WinogradOutput<V, WinogradTransform<2>>(a, b, e);
-}
-void WinogradIn4(const WinogradArgs& a, int b, int e) {
-  simd::WinogradInput<V, WinogradTransform<4>>(a, b, e);
-}
-void WinogradOut4(const WinogradArgs& a, int b, int e) {
-  simd::WinogradOutput<V, WinogradTransform<4>>(a, b, e);
-}
-void WinogradProduct6x16(const WinogradArgs& a, int b, int e) {
-  simd::WinogradProduct<V, 6, 2>(a, b, e);
-}
-
 }  // namespace
 
 const IsaConvKernels& ConvKernels() {
   static const IsaConvKernels kernels = {
       {
-          {8, Conv6x8, UpConv6x8, "conv2d_f32__avx2_6x8", "upconv2x_conv3x3_f32__avx2_6x8"},
-          {16, Conv6x16, UpConv6x16, "conv2d_f32__avx2_6x16", "upconv2x_conv3x3_f32__avx2_6x16"},
+          simd::ConvVariant<V, 6, 1>("conv2d_f32__avx2_6x8", "upconv2x_conv3x3_f32__avx2_6x8"),
+          simd::ConvVariant<V, 6, 2>("conv2d_f32__avx2_6x16", "upconv2x_conv3x3_f32__avx2_6x16"),
       },
       2,
-      FewOut4,
+      simd::FewOutConvRows<V, 4>,
       "conv2d_fewout_f32__avx2_4xc",
   };
   return kernels;
 }
 
 const WinogradKernels& WinogradUpKernels() {
-  static const WinogradKernels kernels = {2,
-                                          16,
-                                          WinogradUpIn,
-                                          WinogradProduct6x16,
-                                          WinogradUpOut,
-                                          "upconv2x_conv3x3_winograd_f2x2_2x2__avx2_6x16"};
+  static const WinogradKernels kernels =
+      simd::WinogradUpConvKernels<V, 6, 2>("upconv2x_conv3x3_winograd_f2x2_2x2__avx2_6x16");
   return kernels;
 }
 
 const WinogradKernels& WinogradF2Kernels() {
-  static const WinogradKernels kernels = {
-      2, 16, WinogradIn2, WinogradProduct6x16, WinogradOut2, "conv2d_winograd_f2x2_3x3__avx2_6x16"};
+  static const WinogradKernels kernels =
+      simd::WinogradConvKernels<V, 2, 6, 2>("conv2d_winograd_f2x2_3x3__avx2_6x16");
   return kernels;
 }
 
 const WinogradKernels& WinogradF4Kernels() {
-  static const WinogradKernels kernels = {
-      4, 16, WinogradIn4, WinogradProduct6x16, WinogradOut4, "conv2d_winograd_f4x4_3x3__avx2_6x16"};
+  static const WinogradKernels kernels =
+      simd::WinogradConvKernels<V, 4, 6, 2>("conv2d_winograd_f4x4_3x3__avx2_6x16");
   return kernels;
 }
 

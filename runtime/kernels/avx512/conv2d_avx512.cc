@@ -5,9 +5,7 @@
 // 17..32, 8x16 for 9..16 and 12x8 (256-bit) for at most 8.
 #include <immintrin.h>
 
-#include "kernels/simd/conv_driver_inl.h"
-#include "kernels/simd/conv_few_out_inl.h"
-#include "kernels/simd/winograd_driver_inl.h"
+#include "kernels/simd/kernel_tables_inl.h"
 
 namespace sfrt::avx512 {
 namespace {
@@ -74,100 +72,42 @@ struct V8 {
   }
 };
 
-void Conv12x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::ConvRows<V8, 12, 1>(a, r0, r1, b0, b1);
-}
-void UpConv12x8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::UpConvRows<V8, 12, 1>(a, r0, r1, b0, b1);
-}
-void Conv6x64(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::ConvRows<V, 6, 4>(a, r0, r1, b0, b1);
-}
-void Conv12x32(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::ConvRows<V, 12, 2>(a, r0, r1, b0, b1);
-}
-void Conv8x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::ConvRows<V, 8, 1>(a, r0, r1, b0, b1);
-}
-void UpConv6x64(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::UpConvRows<V, 6, 4>(a, r0, r1, b0, b1);
-}
-void UpConv12x32(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::UpConvRows<V, 12, 2>(a, r0, r1, b0, b1);
-}
-void UpConv8x16(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::UpConvRows<V, 8, 1>(a, r0, r1, b0, b1);
-}
-void FewOut8(const ConvArgs& a, int r0, int r1, int b0, int b1) {
-  simd::FewOutConvRows<V, 8>(a, r0, r1, b0, b1);
-}
-void WinogradUpIn(const WinogradArgs& a, int b, int e) {
-  simd::WinogradInput<V, WinogradPhaseTransform>(a, b, e);
-}
-void WinogradUpOut(const WinogradArgs& a, int b, int e) { simd::WinogradUpOutput<V>(a, b, e); }
-void WinogradIn2(const WinogradArgs& a, int b, int e) {
-  simd::WinogradInput<V, WinogradTransform<2>>(a, b, e);
-}
-void WinogradOut2(const WinogradArgs& a, int b, int e) {
-  simd::WinogradOutput<V, WinogradTransform<2>>(a, b, e);
-}
-void WinogradIn4(const WinogradArgs& a, int b, int e) {
-  simd::WinogradInput<V, WinogradTransform<4>>(a, b, e);
-}
-void WinogradOut4(const WinogradArgs& a, int b, int e) {
-  simd::WinogradOutput<V, WinogradTransform<4>>(a, b, e);
-}
-void WinogradProduct6x64(const WinogradArgs& a, int b, int e) {
-  simd::WinogradProduct<V, 6, 4>(a, b, e);
-}
-
 }  // namespace
 
 const IsaConvKernels& ConvKernels() {
   static const IsaConvKernels kernels = {
       {
-          {8, Conv12x8, UpConv12x8, "conv2d_f32__avx512_12x8", "upconv2x_conv3x3_f32__avx512_12x8"},
-          {16, Conv8x16, UpConv8x16, "conv2d_f32__avx512_8x16",
-           "upconv2x_conv3x3_f32__avx512_8x16"},
-          {32, Conv12x32, UpConv12x32, "conv2d_f32__avx512_12x32",
-           "upconv2x_conv3x3_f32__avx512_12x32"},
-          {64, Conv6x64, UpConv6x64, "conv2d_f32__avx512_6x64",
-           "upconv2x_conv3x3_f32__avx512_6x64"},
+          simd::ConvVariant<V8, 12, 1>("conv2d_f32__avx512_12x8",
+                                       "upconv2x_conv3x3_f32__avx512_12x8"),
+          simd::ConvVariant<V, 8, 1>("conv2d_f32__avx512_8x16",
+                                     "upconv2x_conv3x3_f32__avx512_8x16"),
+          simd::ConvVariant<V, 12, 2>("conv2d_f32__avx512_12x32",
+                                      "upconv2x_conv3x3_f32__avx512_12x32"),
+          simd::ConvVariant<V, 6, 4>("conv2d_f32__avx512_6x64",
+                                     "upconv2x_conv3x3_f32__avx512_6x64"),
       },
       4,
-      FewOut8,
+      simd::FewOutConvRows<V, 8>,
       "conv2d_fewout_f32__avx512_8xc",
   };
   return kernels;
 }
 
 const WinogradKernels& WinogradUpKernels() {
-  static const WinogradKernels kernels = {2,
-                                          64,
-                                          WinogradUpIn,
-                                          WinogradProduct6x64,
-                                          WinogradUpOut,
-                                          "upconv2x_conv3x3_winograd_f2x2_2x2__avx512_6x64"};
+  static const WinogradKernels kernels =
+      simd::WinogradUpConvKernels<V, 6, 4>("upconv2x_conv3x3_winograd_f2x2_2x2__avx512_6x64");
   return kernels;
 }
 
 const WinogradKernels& WinogradF2Kernels() {
-  static const WinogradKernels kernels = {2,
-                                          64,
-                                          WinogradIn2,
-                                          WinogradProduct6x64,
-                                          WinogradOut2,
-                                          "conv2d_winograd_f2x2_3x3__avx512_6x64"};
+  static const WinogradKernels kernels =
+      simd::WinogradConvKernels<V, 2, 6, 4>("conv2d_winograd_f2x2_3x3__avx512_6x64");
   return kernels;
 }
 
 const WinogradKernels& WinogradF4Kernels() {
-  static const WinogradKernels kernels = {4,
-                                          64,
-                                          WinogradIn4,
-                                          WinogradProduct6x64,
-                                          WinogradOut4,
-                                          "conv2d_winograd_f4x4_3x3__avx512_6x64"};
+  static const WinogradKernels kernels =
+      simd::WinogradConvKernels<V, 4, 6, 4>("conv2d_winograd_f4x4_3x3__avx512_6x64");
   return kernels;
 }
 

@@ -109,6 +109,18 @@ static inline int MaxOf(int a, int b) { return a < b ? b : a; }
 // floor(a / b) for b > 0.
 static inline int FloorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
+// The output columns [lo, hi) of a kw-wide, stride-sw convolution with pl columns of left padding
+// whose whole window lies inside an in_w-wide input (ox * sw - pl >= 0 and
+// ox * sw - pl + kw <= in_w), so they need no bounds checks; lo == hi when there are none.
+struct ColumnRange {
+  int lo = 0;
+  int hi = 0;
+};
+static inline ColumnRange InsideColumns(int out_w, int in_w, int kw, int sw, int pl) {
+  const int lo = MinOf(out_w, (pl + sw - 1) / sw);
+  return {lo, MaxOf(lo, MinOf(out_w, FloorDiv(in_w - kw + pl, sw) + 1))};
+}
+
 // Plain convolution, any kernel size up to kMaxConvTaps taps, any stride.
 template <typename V, int MR, int NV>
 void ConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
@@ -124,9 +136,8 @@ void ConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, int 
   const int cout = p.out_channels;
   const Activation act = p.activation;
   const float slope = p.leaky_slope;
-  // Columns whose whole window is inside the input: ox*sw - pl >= 0, ox*sw - pl + kw <= in_w.
-  const int x_lo = MinOf(out_w, (pl + sw - 1) / sw);
-  const int x_hi = MaxOf(x_lo, MinOf(out_w, FloorDiv(in_w - kw + pl, sw) + 1));
+  const ColumnRange inside = InsideColumns(out_w, in_w, kw, sw, pl);
+  const int x_lo = inside.lo, x_hi = inside.hi;
   const ptrdiff_t x_step = static_cast<ptrdiff_t>(sw) * cin;
   const float* xs[kMaxConvTaps];
   const float* ws[kMaxConvTaps];

@@ -83,8 +83,8 @@ void FewOutRows(const ConvArgs& a, int row_begin, int row_end) {
   const int in_h = a.in.height, in_w = a.in.width, out_w = a.out.width;
   const Activation act = p.activation;
   const float slope = p.leaky_slope;
-  const int x_lo = MinOf(out_w, (pl + sw - 1) / sw);
-  const int x_hi = MaxOf(x_lo, MinOf(out_w, FloorDiv(in_w - kw + pl, sw) + 1));
+  const ColumnRange inside = InsideColumns(out_w, in_w, kw, sw, pl);
+  const int x_lo = inside.lo, x_hi = inside.hi;
   const ptrdiff_t x_step = static_cast<ptrdiff_t>(sw) * cin;
   const float* xs[kMaxConvTaps];
   const float* ws[kMaxConvTaps];

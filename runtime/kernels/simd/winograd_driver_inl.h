@@ -22,6 +22,53 @@ inline typename V::Reg WinogradTerm(float c, typename V::Reg x, typename V::Reg 
   return V::Fma(V::Set(c), x, acc);
 }
 
+// First half of an output transform, for the channels from c on: t = AT m, where m's point
+// (k, j) is at src + (k * alpha + j) * point_stride.
+template <typename V, typename T>
+inline void WinogradOutputColumns(const float* src, ptrdiff_t point_stride, int c,
+                                  typename V::Reg (&t)[T::kM][T::kAlpha]) {
+  constexpr int kA = T::kAlpha, kM = T::kM;
+  using Reg = typename V::Reg;
+  const Reg zero = V::Set(0.0f);
+#pragma GCC unroll 6
+  for (int j = 0; j < kA; ++j) {
+    Reg col[kA];
+#pragma GCC unroll 6
+    for (int k = 0; k < kA; ++k) col[k] = V::Load(src + (k * kA + j) * point_stride + c);
+#pragma GCC unroll 4
+    for (int i = 0; i < kM; ++i) {
+      Reg acc = zero;
+#pragma GCC unroll 6
+      for (int k = 0; k < kA; ++k) {
+        if (T::kAt[i][k] != 0.0f) acc = WinogradTerm<V>(T::kAt[i][k], col[k], acc);
+      }
+      t[i][j] = acc;
+    }
+  }
+}
+
+// Second half for output pixel column j of row t: act((t A)[j] + bias), stored as the first n
+// (<= kLanes) channels at dst.
+template <typename V, typename T>
+inline void WinogradStoreOutput(const typename V::Reg (&t)[T::kAlpha], int j, typename V::Reg bias,
+                                Activation act, float slope, float* dst, int n) {
+  typename V::Reg acc = bias;
+#pragma GCC unroll 6
+  for (int k = 0; k < T::kAlpha; ++k) {
+    if (T::kAt[j][k] != 0.0f) acc = WinogradTerm<V>(T::kAt[j][k], t[k], acc);
+  }
+  if (act == Activation::kLeakyRelu) {
+    acc = V::Leaky(acc, slope);
+  } else if (act == Activation::kRelu) {
+    acc = V::Relu(acc);
+  }
+  if (n == V::kLanes) {
+    V::Store(dst, acc);
+  } else {
+    V::StorePartial(dst, acc, n);
+  }
+}
+
 // Pass 1: v[p][tile][c] = (BT d B)[p] for tiles [begin, end).
 template <typename V, typename T>
 void WinogradInput(const WinogradArgs& a, int begin, int end) {
@@ -125,7 +172,6 @@ void WinogradOutput(const WinogradArgs& a, int begin, int end) {
   const ptrdiff_t point_stride = tiles * w.n_stride;
   const Activation act = w.activation;
   const float slope = w.leaky_slope;
-  const Reg zero = V::Set(0.0f);
   for (int tile = begin; tile < end; ++tile) {
     const int ty = tile / a.tiles_w, tx = tile % a.tiles_w;
     const int oy0 = ty * kM, ox0 = tx * kM;
@@ -135,21 +181,7 @@ void WinogradOutput(const WinogradArgs& a, int begin, int end) {
     for (int c = 0; c < cout; c += kL) {
       const int n = cout - c < kL ? cout - c : kL;
       Reg t[kM][kA];  // AT m
-#pragma GCC unroll 6
-      for (int j = 0; j < kA; ++j) {
-        Reg col[kA];
-#pragma GCC unroll 6
-        for (int k = 0; k < kA; ++k) col[k] = V::Load(src + (k * kA + j) * point_stride + c);
-#pragma GCC unroll 4
-        for (int i = 0; i < kM; ++i) {
-          Reg acc = zero;
-#pragma GCC unroll 6
-          for (int k = 0; k < kA; ++k) {
-            if (T::kAt[i][k] != 0.0f) acc = WinogradTerm<V>(T::kAt[i][k], col[k], acc);
-          }
-          t[i][j] = acc;
-        }
-      }
+      WinogradOutputColumns<V, T>(src, point_stride, c, t);
       const Reg bias = V::Load(w.bias + c);
 #pragma GCC unroll 4
       for (int i = 0; i < kM; ++i) {
@@ -158,31 +190,13 @@ void WinogradOutput(const WinogradArgs& a, int begin, int end) {
 #pragma GCC unroll 4
         for (int j = 0; j < kM; ++j) {
           if (j >= cols) break;
-          Reg acc = bias;
-#pragma GCC unroll 6
-          for (int k = 0; k < kA; ++k) {
-            if (T::kAt[j][k] != 0.0f) acc = WinogradTerm<V>(T::kAt[j][k], t[i][k], acc);
-          }
-          if (act == Activation::kLeakyRelu) {
-            acc = V::Leaky(acc, slope);
-          } else if (act == Activation::kRelu) {
-            acc = V::Relu(acc);
-          }
-          float* dst = orow + static_cast<ptrdiff_t>(j) * cout;
-          if (n == kL) {
-            V::Store(dst, acc);
-          } else {
-            V::StorePartial(dst, acc, n);
-          }
+          WinogradStoreOutput<V, T>(t[i], j, bias, act, slope,
+                                    orow + static_cast<ptrdiff_t>(j) * cout, n);
         }
       }
     }
   }
 }
-
-}  // namespace sfrt::simd
-
-namespace sfrt::simd {
 
 // Pass 3 of the fused upsample-conv (WinogradPhaseTransform): per tile, per phase, the 2x2 P
 // positions' outputs = AT m A + bias, activation, each stored at its output pixel when that
@@ -190,7 +204,7 @@ namespace sfrt::simd {
 template <typename V>
 void WinogradUpOutput(const WinogradArgs& a, int begin, int end) {
   using T = WinogradPhaseTransform;
-  constexpr int kA = T::kAlpha, kL = V::kLanes;
+  constexpr int kA = T::kAlpha, kM = T::kM, kL = V::kLanes;
   using Reg = typename V::Reg;
   const PackedWinograd& w = *a.conv;
   const int cout = w.out_channels;
@@ -198,16 +212,15 @@ void WinogradUpOutput(const WinogradArgs& a, int begin, int end) {
   const ptrdiff_t point_stride = tiles * w.n_stride;
   const Activation act = w.activation;
   const float slope = w.leaky_slope;
-  const Reg zero = V::Set(0.0f);
   for (int tile = begin; tile < end; ++tile) {
     const int ty = tile / a.tiles_w, tx = tile % a.tiles_w;
     const float* src = a.m + static_cast<ptrdiff_t>(tile) * w.n_stride;
     for (int ph = 0; ph < 4; ++ph) {
       const int py = ph >> 1, px = ph & 1;
-      float* dst[2][2];  // null: not an interior pixel of this output
+      float* dst[kM][kM];  // null: not an interior pixel of this output
       bool any = false;
-      for (int i = 0; i < 2; ++i) {
-        for (int j = 0; j < 2; ++j) {
+      for (int i = 0; i < kM; ++i) {
+        for (int j = 0; j < kM; ++j) {
           const int b = 2 * ty + i - a.pads.top, c = 2 * tx + j - a.pads.left;
           const int oy = 2 * b + py - a.crop_top + a.up_pad_top;
           const int ox = 2 * c + px - a.crop_left + a.up_pad_left;
@@ -220,43 +233,15 @@ void WinogradUpOutput(const WinogradArgs& a, int begin, int end) {
       const float* msrc = src + ph * w.phase_stride;
       for (int c = 0; c < cout; c += kL) {
         const int n = cout - c < kL ? cout - c : kL;
-        Reg t[2][kA];  // AT m
-#pragma GCC unroll 3
-        for (int j = 0; j < kA; ++j) {
-          Reg col[kA];
-#pragma GCC unroll 3
-          for (int k = 0; k < kA; ++k) col[k] = V::Load(msrc + (k * kA + j) * point_stride + c);
-#pragma GCC unroll 2
-          for (int i = 0; i < 2; ++i) {
-            Reg acc = zero;
-#pragma GCC unroll 3
-            for (int k = 0; k < kA; ++k) {
-              if (T::kAt[i][k] != 0.0f) acc = WinogradTerm<V>(T::kAt[i][k], col[k], acc);
-            }
-            t[i][j] = acc;
-          }
-        }
+        Reg t[kM][kA];  // AT m
+        WinogradOutputColumns<V, T>(msrc, point_stride, c, t);
         const Reg bias = V::Load(w.bias + ph * w.phase_stride + c);
 #pragma GCC unroll 2
-        for (int i = 0; i < 2; ++i) {
+        for (int i = 0; i < kM; ++i) {
 #pragma GCC unroll 2
-          for (int j = 0; j < 2; ++j) {
+          for (int j = 0; j < kM; ++j) {
             if (dst[i][j] == nullptr) continue;
-            Reg acc = bias;
-#pragma GCC unroll 3
-            for (int k = 0; k < kA; ++k) {
-              if (T::kAt[j][k] != 0.0f) acc = WinogradTerm<V>(T::kAt[j][k], t[i][k], acc);
-            }
-            if (act == Activation::kLeakyRelu) {
-              acc = V::Leaky(acc, slope);
-            } else if (act == Activation::kRelu) {
-              acc = V::Relu(acc);
-            }
-            if (n == kL) {
-              V::Store(dst[i][j] + c, acc);
-            } else {
-              V::StorePartial(dst[i][j] + c, acc, n);
-            }
+            WinogradStoreOutput<V, T>(t[i], j, bias, act, slope, dst[i][j] + c, n);
           }
         }
       }

@@ -7,10 +7,14 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <string>
+#include <thread>
 
 #include "pipeline/visualize.h"
+#include "sfrt/camera/rectifier.h"
+#include "sfrt/io/npy.h"
 #include "sfrt/io/pfm.h"
 #include "sfrt/session.h"
 
@@ -42,7 +46,16 @@ class FakeSource : public FrameSource {
  public:
   explicit FakeSource(int windows) : windows_(windows) {}
   Result<cv::Size> Open() override { return cv::Size(kW, kH); }
-  Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& /*stop*/) override {
+  Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& stop) override {
+    // Lockstep: window k is read only once window k - 1 has been written (and the pipeline's
+    // on-miss state updated), so which size each window runs at does not depend on timing.
+    if (done_ != nullptr) {
+      const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      while (done_->load() < next_ && next_ < windows_ && !stop.load() &&
+             std::chrono::steady_clock::now() < give_up) {
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
+    }
     if (next_ == fail_at_)
       return Status::Error("fake: frame 'k" + std::to_string(next_) + "' is bad");
     if (next_ == stop_at_ && stop_) {
@@ -78,6 +91,7 @@ class FakeSource : public FrameSource {
   int stop_at_ = -1;
   std::atomic<bool>* stop_ = nullptr;
   std::atomic<int>* stop_signal_ = nullptr;
+  const std::atomic<int64_t>* done_ = nullptr;  // windows written so far (lockstep), or null
 };
 
 class PipelineTest : public ::testing::Test {
@@ -250,6 +264,193 @@ TEST_F(PipelineTest, MaxFramesStopsAfterThatManyFrames) {
   EXPECT_EQ(r.frames, 3);
   EXPECT_EQ(r.stopped_by, "max-frames");
   EXPECT_EQ(Files(".npy").size(), 3u);
+}
+
+// ---- latency.on_miss: smaller-input
+constexpr int kFbH = 20;  // fallback size: smaller in both dimensions, another aspect ratio
+constexpr int kFbW = 36;
+
+// The flow of window k computed directly: the window's images resized to height x width the way
+// the pipeline's resize-only path does, preprocessed, and run by a fresh session planned for
+// exactly that size.
+std::vector<float> DirectFlow(const std::shared_ptr<const Model>& model, int k, int height,
+                              int width) {
+  auto params = PreprocessFromMetadata(model->metadata().input);
+  EXPECT_TRUE(params.ok());
+  auto pre = camera::Preprocessor::Create(*params, height, width);
+  EXPECT_TRUE(pre.ok());
+  auto rect = camera::StereoRectifier::CreateResizeOnly(cv::Size(kW, kH), cv::Size(width, height));
+  EXPECT_TRUE(rect.ok());
+  cv::Mat l0, r0, l1, r1;
+  EXPECT_TRUE(rect->Apply(PairImage(k, 0), PairImage(k, 1), &l0, &r0).ok());
+  EXPECT_TRUE(rect->Apply(PairImage(k + 1, 0), PairImage(k + 1, 1), &l1, &r1).ok());
+  std::vector<float> input(pre->output_floats());
+  EXPECT_TRUE(pre->Run(l0, r0, l1, r1, input.data(), input.size()).ok());
+  SessionOptions so;
+  so.max_height = height;
+  so.max_width = width;
+  auto session = Session::Create(model, so);
+  EXPECT_TRUE(session.ok());
+  std::vector<float> flow(static_cast<size_t>(height) * width * 3);
+  EXPECT_TRUE((*session)->Run(input, height, width, flow).ok());
+  return flow;
+}
+
+std::string Stem(int k) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "seq_%06d", k);
+  return name;
+}
+
+class SmallerInputTest : public PipelineTest {
+ protected:
+  void SetUp() override {
+    PipelineTest::SetUp();
+    options_.smaller_input_on_miss = {kFbH, kFbW};
+    options_.after_window = [this](const FrameMeta&) { ++done_; };
+  }
+  // Height and width of each written window's flow file, in window order.
+  std::vector<std::pair<int, int>> FlowSizes(int windows) {
+    std::vector<std::pair<int, int>> sizes;
+    for (int k = 0; k < windows; ++k) {
+      auto pfm = tools::ReadPfm((dir_ / (Stem(k) + ".pfm")).string());
+      EXPECT_TRUE(pfm.ok()) << pfm.message();
+      sizes.emplace_back(pfm.ok() ? pfm->height : -1, pfm.ok() ? pfm->width : -1);
+    }
+    return sizes;
+  }
+  std::atomic<int64_t> done_{0};
+};
+
+TEST_F(SmallerInputTest, ImpossibleBudgetRunsEveryLaterWindowAtTheFallbackSizeLikeADirectSession) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(5);
+  source.done_ = &done_;
+  options_.budget_ms = 0.001;  // every window misses
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.frames, 5);
+  const std::pair<int, int> full{kH, kW}, fb{kFbH, kFbW};
+  EXPECT_EQ(FlowSizes(5), (std::vector<std::pair<int, int>>{full, fb, fb, fb, fb}));
+  // The numbers, not only the shapes: bit-identical to sessions planned for each size (the
+  // runtime is deterministic for a given ISA and thread count; session_test checks that a
+  // session planned larger gives the same result).
+  for (int k = 0; k < 5; ++k) {
+    const int h = k == 0 ? kH : kFbH, w = k == 0 ? kW : kFbW;
+    const std::vector<float> want = DirectFlow(model, k, h, w);
+    auto got = tools::ReadPfm((dir_ / (Stem(k) + ".pfm")).string());
+    ASSERT_TRUE(got.ok()) << got.message();
+    ASSERT_EQ(got->data.size(), want.size()) << k;
+    for (size_t i = 0; i < want.size(); ++i) ASSERT_EQ(got->data[i], want[i]) << k << " " << i;
+  }
+  // The visualisation keeps one size whatever size the flow was computed at.
+  const cv::Mat first = cv::imread((dir_ / (Stem(0) + ".png")).string());
+  ASSERT_FALSE(first.empty());
+  for (int k = 1; k < 5; ++k) {
+    const cv::Mat png = cv::imread((dir_ / (Stem(k) + ".png")).string());
+    EXPECT_EQ(png.size(), first.size()) << k;
+  }
+  nlohmann::json d = Summary()["deadline"];
+  EXPECT_EQ(d["on_miss"], "smaller-input");
+  EXPECT_EQ(d["misses"], 5);
+  EXPECT_EQ(d["fallback_size"], nlohmann::json::array({kFbH, kFbW}));
+  EXPECT_EQ(d["recover_after_frames"], 30);
+  EXPECT_EQ(d["fallback_entries"], 1);
+  EXPECT_EQ(d["recoveries"], 0);
+  EXPECT_EQ(d["frames_at_fallback_size"], 4);
+  EXPECT_EQ(r.frames_at_fallback_size, 4);
+  EXPECT_EQ(r.fallback_entries, 1);
+}
+
+TEST_F(SmallerInputTest, GenerousBudgetNeverSwitches) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(4);
+  options_.budget_ms = 1e7;  // no window takes hours
+  options_.write_png = false;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  const std::pair<int, int> full{kH, kW};
+  EXPECT_EQ(FlowSizes(4), (std::vector<std::pair<int, int>>(4, full)));
+  nlohmann::json d = Summary()["deadline"];
+  EXPECT_EQ(d["misses"], 0);
+  EXPECT_EQ(d["fallback_entries"], 0);
+  EXPECT_EQ(d["frames_at_fallback_size"], 0);
+}
+
+TEST_F(SmallerInputTest, RecoversAfterNInBudgetFallbackWindowsAndAMissAtFallbackRestartsTheCount) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(11);
+  source.done_ = &done_;
+  // "In budget" decided by the test seam, not by the clock: misses at windows 0, 3 and 8.
+  options_.miss_verdict = [](const FrameMeta& m, bool) {
+    return m.window == 0 || m.window == 3 || m.window == 8;
+  };
+  options_.recover_after = 3;
+  options_.write_png = false;
+  options_.flow_format = FlowFormat::kNpy;
+  options_.latency_log = (dir_ / "latency.csv").string();
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.frames, 11);
+  // 0: full, miss -> fallback. 1, 2: in budget (count 2). 3: miss at fallback, count restarts.
+  // 4, 5, 6: three in budget -> full size from 7. 8: miss at full size -> fallback again.
+  const std::vector<bool> want_fb = {false, true,  true,  true, true, true,
+                                     true,  false, false, true, true};
+  for (int k = 0; k < 11; ++k) {
+    auto npy = tools::ReadNpy((dir_ / (Stem(k) + ".npy")).string());
+    ASSERT_TRUE(npy.ok()) << npy.message();
+    const std::vector<int64_t> want =
+        want_fb[k] ? std::vector<int64_t>{kFbH, kFbW, 3} : std::vector<int64_t>{kH, kW, 3};
+    EXPECT_EQ(npy->shape, want) << "window " << k;
+  }
+  // The latency log says which size each window ran at.
+  std::ifstream log(dir_ / "latency.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(log, line));
+  EXPECT_EQ(line,
+            "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
+            "input_width");
+  for (int k = 0; k < 11; ++k) {
+    ASSERT_TRUE(std::getline(log, line)) << k;
+    const std::string tail = want_fb[k] ? ",20,36" : ",32,48";
+    EXPECT_EQ(line.substr(line.size() - tail.size()), tail) << line;
+  }
+  nlohmann::json d = Summary()["deadline"];
+  EXPECT_EQ(d["misses"], 3);
+  EXPECT_EQ(d["recover_after_frames"], 3);
+  EXPECT_EQ(d["fallback_entries"], 2);
+  EXPECT_EQ(d["recoveries"], 1);
+  EXPECT_EQ(d["frames_at_fallback_size"], 8);
+}
+
+TEST_F(SmallerInputTest, FallbackNotSmallerThanTheInputSizeIsAnErrorNamingBothSizes) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(2);
+  options_.smaller_input_on_miss = {kH, kW + 8};
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_FALSE(r.status.ok());
+  EXPECT_NE(r.status.message().find("fallback size 32x56"), std::string::npos)
+      << r.status.message();
+  EXPECT_NE(r.status.message().find("model input size 32x48"), std::string::npos)
+      << r.status.message();
+  EXPECT_EQ(r.frames, 0);
+}
+
+TEST_F(PipelineTest, SummaryOffWritesNoSummaryJsonButEveryFrame) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(3);
+  options_.write_summary = false;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.frames, 3);
+  EXPECT_EQ(r.summary_path, "");
+  EXPECT_FALSE(fs::exists(dir_ / "summary.json"));
+  EXPECT_EQ(Files(".pfm").size(), 3u);
 }
 
 TEST(PreprocessFromMetadata, CopiesTheModelsPreprocessing) {

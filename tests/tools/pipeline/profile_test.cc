@@ -131,7 +131,8 @@ void ExpectValidReports(const fs::path& dir, size_t windows, size_t steps) {
   ASSERT_EQ(lines.size(), windows + 1);
   EXPECT_EQ(lines[0].rfind("window,frame0,frame1,capture_ns,capture_start_ns", 0), 0u);
   const auto columns = [](const std::string& l) { return std::count(l.begin(), l.end(), ',') + 1; };
-  EXPECT_EQ(columns(lines[0]), 4 + 8 + 4 + 2 + static_cast<long>(steps));
+  EXPECT_EQ(columns(lines[0]), 4 + 8 + 4 + 4 + static_cast<long>(steps));
+  EXPECT_NE(lines[0].find(",miss,input_height,input_width"), std::string::npos) << lines[0];
   for (size_t i = 1; i < lines.size(); ++i) EXPECT_EQ(columns(lines[i]), columns(lines[0]));
 
   // Chrome trace: one named track per stage, a complete event per frame on each, the steps
@@ -351,10 +352,13 @@ CliRun RunSfrt(const std::string& args, const fs::path& dir, const std::string& 
   return r;
 }
 
-// Frames (pairs 0..pairs-1) and a replay profile next to them; `extra` is spliced into the
-// profile's stages mapping, `budget` is the budget line's value.
+// Frames (pairs 0..pairs-1) and a replay profile next to them; `infer_stage` is the infer
+// stage's mapping, `budget` is the budget line's value, `on_miss` the lines after it (from the
+// on_miss key on) and `outputs` extra lines of the outputs mapping.
 fs::path MakeReplayProfile(const fs::path& dir, int pairs, const std::string& infer_stage,
-                           const std::string& budget) {
+                           const std::string& budget,
+                           const std::string& on_miss = "  on_miss: drop-next\n",
+                           const std::string& outputs = "") {
   fs::create_directories(dir / "frames");
   for (int k = 0; k < pairs; ++k) {
     char name[32];
@@ -383,14 +387,14 @@ fs::path MakeReplayProfile(const fs::path& dir, int pairs, const std::string& in
                             "  prefault_arena: true\n"
                             "latency:\n"
                             "  budget_ms: "
-                         << budget
-                         << "\n"
-                            "  on_miss: drop-next\n"
-                            "outputs:\n"
+                         << budget << "\n"
+                         << on_miss
+                         << "outputs:\n"
                             "  dir: out\n"
                             "  flow: true\n"
                             "  visualisation: false\n"
-                            "logging:\n"
+                         << outputs
+                         << "logging:\n"
                             "  level: warn\n";
   return profile;
 }
@@ -469,6 +473,95 @@ TEST(RunConfigCli, FifoPriorityWithoutPermissionWarnsNamesTheFixAndRuns) {
   EXPECT_NE(r.out.find("not applied   stages.infer.priority SCHED_FIFO 10: "), std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("frames      2"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
+TEST(RunConfigCli, SmallerInputProfileIsAppliedAndLaterFramesRunAtTheFallbackSize) {
+  const fs::path dir = TempDir("cli_smaller");
+  // An impossible budget: every frame misses, so after the first the run switches to 16x24 and
+  // stays there (recovery needs in-budget frames).
+  const fs::path profile =
+      MakeReplayProfile(dir, 10, "{threads: 1}", "0.001",
+                        "  on_miss: smaller-input\n  fallback_height: 16\n  fallback_width: 24\n"
+                        "  recover_after_frames: 5\n");
+  const CliRun r = RunSfrt("run --config " + profile.string() + " --profile", dir);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("applied       latency.on_miss smaller-input 16x24 (full size again after "
+                       "5 in-budget frames)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("not applied   latency.on_miss"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("not implemented"), std::string::npos) << r.err;
+  const json d = ReadJson(dir / "out" / "summary.json")["deadline"];
+  EXPECT_EQ(d["on_miss"], "smaller-input");
+  EXPECT_EQ(d["fallback_size"], json::array({16, 24}));
+  EXPECT_EQ(d["recover_after_frames"], 5);
+  EXPECT_EQ(d["fallback_entries"], 1);
+  EXPECT_EQ(d["misses"], 9);
+  // Frames already in the pipeline at the switch finish at the full size (at most one per
+  // stage and queue slot); the rest run at the fallback size.
+  const int at_fallback = d["frames_at_fallback_size"].get<int>();
+  EXPECT_GE(at_fallback, 3);
+  EXPECT_LE(at_fallback, 8);
+  // Each frame's record says its size: frames.csv, the flow file's own header.
+  std::istringstream csv(ReadText(dir / "out" / "profile" / "frames.csv"));
+  std::string line;
+  std::getline(csv, line);
+  int csv_fallback = 0, rows = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    if (line.find(",16,24,") != std::string::npos) ++csv_fallback;
+  }
+  EXPECT_EQ(rows, 9);
+  EXPECT_EQ(csv_fallback, at_fallback);
+  int pfm_fallback = 0;
+  for (const auto& e : fs::directory_iterator(dir / "out")) {
+    if (e.path().extension() != ".pfm") continue;
+    std::ifstream in(e.path());
+    std::string magic, size;
+    std::getline(in, magic);
+    std::getline(in, size);
+    if (size == "24 16") ++pfm_fallback;  // PFM: width height
+  }
+  EXPECT_EQ(pfm_fallback, at_fallback);
+  EXPECT_EQ(
+      ReadJson(dir / "out" / "profile" / "profile.json")["deadline"]["frames_at_fallback_size"],
+      at_fallback);
+  fs::remove_all(dir);
+}
+
+TEST(RunConfigCli, SummaryFalseWritesNoSummaryJson) {
+  const fs::path dir = TempDir("cli_nosummary");
+  const fs::path profile = MakeReplayProfile(dir, 3, "{threads: 1}", "1000",
+                                             "  on_miss: count-only\n", "  summary: false\n");
+  const CliRun r = RunSfrt("run --config " + profile.string(), dir);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("--no-summary  (outputs.summary)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("frames      2"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "summary.json"));
+  EXPECT_TRUE(fs::exists(dir / "out" / "left_000.pfm") || !fs::is_empty(dir / "out"));
+  fs::remove_all(dir);
+}
+
+TEST(RunConfigCli, RecoverAfterFramesIsCheckedAndOnlyAllowedWithSmallerInput) {
+  const fs::path dir = TempDir("cli_recover_check");
+  const fs::path zero =
+      MakeReplayProfile(dir, 2, "{threads: 1}", "40",
+                        "  on_miss: smaller-input\n  fallback_height: 16\n  fallback_width: 24\n"
+                        "  recover_after_frames: 0\n");
+  const CliRun r = RunSfrt("config check " + zero.string(), dir);
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  // Line 20 of the generated profile, the value at column 25.
+  EXPECT_NE(r.err.find(zero.string() + ":20:25: latency.recover_after_frames: "), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("1..100000"), std::string::npos) << r.err;
+  const fs::path counted = MakeReplayProfile(dir, 2, "{threads: 1}", "40",
+                                             "  on_miss: count-only\n  recover_after_frames: 5\n");
+  const CliRun c = RunSfrt("config check " + counted.string(), dir);
+  EXPECT_EQ(c.exit_code, 1) << c.out << c.err;
+  EXPECT_NE(c.err.find("latency.recover_after_frames"), std::string::npos) << c.err;
+  EXPECT_NE(c.err.find("only with on_miss: smaller-input"), std::string::npos) << c.err;
   fs::remove_all(dir);
 }
 

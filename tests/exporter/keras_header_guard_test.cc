@@ -1,0 +1,423 @@
+// The Keras importer against damaged object headers (fuzz_keras_import out-of-memory findings):
+// libhdf5 1.10.8 allocates an object-header chunk with the length the file gives before checking
+// it against the end of the file (4 GB for a flipped byte), so the importer checks each header
+// first (exporter/src/hdf5_header_guard.h): the root group's before H5Fopen, every other object's
+// before it is opened or looked through. Files: the two fuzz reproducers and variants of the
+// committed valid Keras file tests/fuzz/regression/keras_import/keras_seq_67x121.h5, each with
+// one field of an object header changed here.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "hdf5_header_guard.h"
+#include "message_text.h"
+#include "sfrt/exporter/keras_importer.h"
+
+namespace sfrt::exporter {
+namespace {
+
+const std::string kCorpus = std::string(SFRT_SOURCE_DIR) + "/tests/fuzz/regression/keras_import/";
+const std::string kValid = kCorpus + "keras_seq_67x121.h5";
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in) << path << " is missing";
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+void WriteFile(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_TRUE(out.good()) << path;
+}
+
+uint64_t GetLe(const std::string& s, size_t at, int bytes) {
+  uint64_t v = 0;
+  for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | static_cast<uint8_t>(s[at + i]);
+  return v;
+}
+
+void PutLe(std::string* s, size_t at, uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) (*s)[at + i] = static_cast<char>((v >> (8 * i)) & 0xff);
+}
+
+// The valid file's facts, found rather than assumed: superblock version 0 with 8-byte addresses
+// at byte 0; the root group's version-1 object header at address 96, whose chunk 0 holds one
+// continuation message (type 0x10) naming chunk 1.
+struct ValidFile {
+  std::string bytes;
+  size_t root = 0;          // root group object header
+  size_t continuation = 0;  // offset of the continuation message's data (address, length)
+  uint64_t chunk1 = 0;      // chunk 1's address and length
+  uint64_t chunk1_length = 0;
+};
+
+ValidFile LoadValid() {
+  ValidFile v;
+  v.bytes = ReadFile(kValid);
+  EXPECT_GE(v.bytes.size(), 200u);
+  if (v.bytes.size() < 200) return v;
+  EXPECT_EQ(v.bytes[8], 0) << "superblock version";
+  EXPECT_EQ(v.bytes[13], 8) << "size of offsets";
+  EXPECT_EQ(v.bytes[14], 8) << "size of lengths";
+  v.root = GetLe(v.bytes, 24 + 5 * 8, 8);  // root symbol table entry's object header address
+  EXPECT_EQ(v.root, 96u);
+  EXPECT_EQ(v.bytes[v.root], 1) << "object header version";
+  const size_t chunk0 = GetLe(v.bytes, v.root + 8, 4);
+  for (size_t at = v.root + 16; at + 8 <= v.root + 16 + chunk0;
+       at += 8 + GetLe(v.bytes, at + 2, 2)) {
+    if (GetLe(v.bytes, at, 2) == 0x10) {
+      v.continuation = at + 8;
+      break;
+    }
+  }
+  EXPECT_NE(v.continuation, 0u) << "no continuation message in the root header's chunk 0";
+  if (v.continuation == 0) return v;
+  v.chunk1 = GetLe(v.bytes, v.continuation, 8);
+  v.chunk1_length = GetLe(v.bytes, v.continuation + 8, 8);
+  EXPECT_LT(v.chunk1 + v.chunk1_length, v.bytes.size());
+  return v;
+}
+
+// Imports `bytes` from memory and through a file; both must fail with one line that names the
+// file and contains each of `expected`.
+void ExpectRejected(const std::string& bytes, const std::string& name,
+                    std::initializer_list<std::string> expected) {
+  SCOPED_TRACE(name);
+  const std::string label = "crafted/" + name;
+  auto in_memory = ImportKerasH5FromMemory(bytes, label);
+  ASSERT_FALSE(in_memory.ok());
+  const std::string path = ::testing::TempDir() + "/" + name;
+  WriteFile(path, bytes);
+  auto from_file = ImportKerasH5(path);
+  std::filesystem::remove(path);
+  ASSERT_FALSE(from_file.ok());
+  for (const auto& [message, prefix] : {std::pair{in_memory.message(), label + ": "},
+                                        std::pair{from_file.message(), path + ": "}}) {
+    EXPECT_EQ(message.rfind(prefix, 0), 0u) << message;
+    for (const std::string& e : expected) EXPECT_NE(message.find(e), std::string::npos) << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    EXPECT_EQ(message.find("HDF5:"), std::string::npos) << "libhdf5 got to the header: " << message;
+  }
+}
+
+// The address libhdf5 gives for the hard link `path` of the valid file.
+uint64_t LinkAddress(const std::string& path) {
+  const hid_t file = H5Fopen(kValid.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  EXPECT_GE(file, 0);
+  H5L_info_t info{};
+  const herr_t got = H5Lget_info(file, path.c_str(), &info, H5P_DEFAULT);
+  H5Fclose(file);
+  EXPECT_GE(got, 0) << path;
+  EXPECT_EQ(info.type, H5L_TYPE_HARD) << path;
+  return got >= 0 ? info.u.address : 0;
+}
+
+TEST(KerasHeaderGuard, ValidFileStillImportsFromMemoryAndFromItsPath) {
+  const ValidFile v = LoadValid();
+  auto in_memory = ImportKerasH5FromMemory(v.bytes, "valid.h5");
+  ASSERT_TRUE(in_memory.ok()) << in_memory.message();
+  auto from_file = ImportKerasH5(kValid);
+  ASSERT_TRUE(from_file.ok()) << from_file.message();
+  EXPECT_FALSE(in_memory->spec.layers.empty());
+}
+
+TEST(KerasHeaderGuard, FuzzReproducerWithA4GbRootContinuationLengthIsRejected) {
+  // The root group's continuation length 504 became 0xF40001F8.
+  ExpectRejected(ReadFile(kCorpus + "hdf5-continuation-length-4gb-malloc.h5"), "root-4gb.h5",
+                 {"object header of the root group at address 96",
+                  "a continuation message, gives chunk length 4093641208 at address 800, past the "
+                  "end of the file (59417 bytes"});
+}
+
+TEST(KerasHeaderGuard, FuzzReproducerWithA4GbModelWeightsContinuationLengthIsRejected) {
+  ExpectRejected(ReadFile(kCorpus + "hdf5-continuation-length-4gb-malloc-2.h5"),
+                 "model-weights-4gb.h5",
+                 {"object header of 'model_weights' at address",
+                  "a continuation message, gives chunk length 4294967904 at address 12840, past "
+                  "the end of the file (419239 bytes"});
+}
+
+TEST(KerasHeaderGuard, ContinuationLengthPastTheEndOfTheFileIsRejected) {
+  ValidFile v = LoadValid();
+  const uint64_t length = v.bytes.size() - v.chunk1 + 1;  // one byte too long
+  PutLe(&v.bytes, v.continuation + 8, length, 8);
+  ExpectRejected(v.bytes, "length.h5",
+                 {"object header of the root group at address 96: message 0 (type 16) of chunk 0",
+                  "gives chunk length " + std::to_string(length) + " at address " +
+                      std::to_string(v.chunk1) + ", past the end of the file"});
+}
+
+TEST(KerasHeaderGuard, ContinuationAddressPastTheEndOfTheFileIsRejected) {
+  ValidFile v = LoadValid();
+  PutLe(&v.bytes, v.continuation, uint64_t{1} << 40, 8);
+  ExpectRejected(v.bytes, "address.h5",
+                 {"object header of the root group",
+                  "gives chunk address 1099511627776, past the end of the file"});
+}
+
+TEST(KerasHeaderGuard, ContinuationLoopIsRejected) {
+  // The last message of chunk 1 (an attribute) becomes a continuation back to chunk 1.
+  ValidFile v = LoadValid();
+  size_t last = v.chunk1;
+  for (size_t at = v.chunk1; at + 8 <= v.chunk1 + v.chunk1_length;
+       at += 8 + GetLe(v.bytes, at + 2, 2)) {
+    last = at;
+  }
+  ASSERT_GE(GetLe(v.bytes, last + 2, 2), 16u);
+  PutLe(&v.bytes, last, 0x10, 2);
+  PutLe(&v.bytes, last + 8, v.chunk1, 8);
+  PutLe(&v.bytes, last + 16, v.chunk1_length, 8);
+  ExpectRejected(v.bytes, "loop.h5",
+                 {"object header of the root group", "continuation chunk 2 is at address " +
+                                                         std::to_string(v.chunk1) +
+                                                         ", a chunk already read (a loop)"});
+}
+
+TEST(KerasHeaderGuard, DatasetHeaderWithAHugeChunkZeroIsRejectedBeforeItIsOpened) {
+  // A weight dataset deep in model_weights: its version-1 prefix's chunk-0 size (4 bytes at +8).
+  ValidFile v = LoadValid();
+  const hid_t file = H5Fopen(kValid.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  // The first layer group with weights and its first weight, as the importer will read them.
+  std::string dataset;
+  H5Ovisit(
+      file, H5_INDEX_NAME, H5_ITER_NATIVE,
+      [](hid_t, const char* name, const H5O_info_t* info, void* out) -> herr_t {
+        const std::string n = name;
+        if (info->type == H5O_TYPE_DATASET && n.rfind("model_weights/", 0) == 0) {
+          *static_cast<std::string*>(out) = n;
+          return 1;
+        }
+        return 0;
+      },
+      &dataset);
+  H5Fclose(file);
+  ASSERT_FALSE(dataset.empty()) << "no dataset under model_weights";
+  const uint64_t address = LinkAddress(dataset);
+  ASSERT_EQ(v.bytes[address], 1) << "object header version";
+  PutLe(&v.bytes, address + 8, 0xF00001F8, 4);
+  ExpectRejected(v.bytes, "dataset.h5",
+                 {"object header of '" + dataset + "' at address " + std::to_string(address),
+                  "chunk 0 size 4026532344 runs past the end of the file"});
+}
+
+// Every object of the file at `path` that libhdf5 finds (name, header address).
+std::vector<std::pair<std::string, uint64_t>> Objects(const std::string& path) {
+  std::vector<std::pair<std::string, uint64_t>> objects;
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  EXPECT_GE(file, 0) << path;
+  H5Ovisit(
+      file, H5_INDEX_NAME, H5_ITER_NATIVE,
+      [](hid_t, const char* name, const H5O_info_t* info, void* data) -> herr_t {
+        static_cast<std::vector<std::pair<std::string, uint64_t>>*>(data)->emplace_back(name,
+                                                                                        info->addr);
+        return 0;
+      },
+      &objects);
+  H5Fclose(file);
+  return objects;
+}
+
+// The guard's verdicts on the root and `objects` of the file image `bytes` ("" when all pass).
+std::string CheckAll(const std::string& bytes,
+                     const std::vector<std::pair<std::string, uint64_t>>& objects) {
+  hdf5::HeaderGuard guard{std::string_view(bytes)};
+  std::string errors;
+  if (Status root = guard.CheckRoot(); !root.ok()) errors += root.message() + "; ";
+  for (const auto& [name, address] : objects) {
+    if (Status s = guard.CheckObject(address, Quote(name)); !s.ok()) errors += s.message() + "; ";
+  }
+  return errors;
+}
+
+TEST(KerasHeaderGuard, GuardAcceptsEveryObjectOfTheValidFile) {
+  const auto objects = Objects(kValid);
+  EXPECT_GT(objects.size(), 3u);
+  EXPECT_EQ(CheckAll(ReadFile(kValid), objects), "");
+}
+
+// A file in the newest format libhdf5 1.10 writes (superblock 3, "OHDR" version-2 headers with
+// times, attribute phase fields and creation order, "OCHK" continuation chunks from attributes
+// added after the header was written): the guard finds nothing wrong with any object.
+TEST(KerasHeaderGuard, GuardAcceptsEveryObjectOfAVersion2File) {
+  const std::string path = ::testing::TempDir() + "/header-guard-v2.h5";
+  const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  ASSERT_GE(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), 0);
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
+  ASSERT_GE(file, 0);
+  const hid_t gcpl = H5Pcreate(H5P_GROUP_CREATE);
+  ASSERT_GE(H5Pset_attr_creation_order(gcpl, H5P_CRT_ORDER_TRACKED), 0);
+  ASSERT_GE(H5Pset_attr_phase_change(gcpl, 40, 30), 0);
+  const hid_t group = H5Gcreate2(file, "model_weights", H5P_DEFAULT, gcpl, H5P_DEFAULT);
+  ASSERT_GE(group, 0);
+  const hsize_t dims[2] = {3, 5};
+  const hid_t space = H5Screate_simple(2, dims, nullptr);
+  const hid_t scalar = H5Screate(H5S_SCALAR);
+  const float values[15] = {};
+  for (int i = 0; i < 4; ++i) {
+    const std::string name = "w" + std::to_string(i);
+    const hid_t ds = H5Dcreate2(group, name.c_str(), H5T_IEEE_F32LE, space, H5P_DEFAULT,
+                                H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
+    H5Dclose(ds);
+    // Attributes added one by one to the group and the root grow their headers into new chunks.
+    for (hid_t obj : {group, file}) {
+      for (int a = 0; a < 8; ++a) {
+        const std::string attr = name + "_attribute_" + std::to_string(a);
+        const hid_t at =
+            H5Acreate2(obj, attr.c_str(), H5T_STD_I64LE, scalar, H5P_DEFAULT, H5P_DEFAULT);
+        ASSERT_GE(at, 0);
+        const int64_t v = a;
+        ASSERT_GE(H5Awrite(at, H5T_NATIVE_INT64, &v), 0);
+        H5Aclose(at);
+      }
+    }
+  }
+  H5Sclose(scalar);
+  H5Sclose(space);
+  H5Gclose(group);
+  H5Pclose(gcpl);
+  H5Fclose(file);
+  H5Pclose(fapl);
+  const std::string bytes = ReadFile(path);
+  const auto objects = Objects(path);
+  std::filesystem::remove(path);
+  ASSERT_EQ(bytes[8], 3) << "superblock version";
+  EXPECT_NE(bytes.find("OHDR"), std::string::npos);
+  const size_t ochk = bytes.find("OCHK");
+  ASSERT_NE(ochk, std::string::npos) << "no continuation chunk was written";
+  EXPECT_EQ(objects.size(), 6u);  // the root, the group, four datasets
+  EXPECT_EQ(CheckAll(bytes, objects), "");
+
+  // The continuation message naming that chunk (type 0x10, size 16, flags, [creation order]
+  // before its address), its length made one byte too long: the guard refuses it.
+  std::string address(8, '\0');
+  PutLe(&address, 0, ochk, 8);
+  size_t message = std::string::npos;
+  for (size_t at = bytes.find(address); at != std::string::npos; at = bytes.find(address, at + 1)) {
+    for (size_t header : {4, 6}) {
+      if (at >= header && bytes[at - header] == 0x10 && GetLe(bytes, at - header + 1, 2) == 16) {
+        message = at;
+      }
+    }
+  }
+  ASSERT_NE(message, std::string::npos) << "no continuation message names the chunk at " << ochk;
+  std::string damaged = bytes;
+  const uint64_t length = bytes.size() - ochk + 1;
+  PutLe(&damaged, message + 8, length, 8);
+  EXPECT_NE(CheckAll(damaged, objects)
+                .find("a continuation message, gives chunk length " + std::to_string(length) +
+                      " at address " + std::to_string(ochk) + ", past the end of the file"),
+            std::string::npos);
+  // Its signature damaged instead: refused too.
+  damaged = bytes;
+  damaged[ochk] = 'X';
+  EXPECT_NE(CheckAll(damaged, objects)
+                .find("continuation chunk 1 at address " + std::to_string(ochk) +
+                      " has no OCHK signature"),
+            std::string::npos);
+}
+
+// H5Fopen loads a version-2 superblock's extension (an object header) before the root group's:
+// a damaged chunk-0 size there is refused before libhdf5 opens the file.
+TEST(KerasHeaderGuard, DamagedSuperblockExtensionIsRejected) {
+  const std::string path = ::testing::TempDir() + "/header-guard-extension.h5";
+  const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  const hid_t fcpl = H5Pcreate(H5P_FILE_CREATE);
+  ASSERT_GE(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), 0);
+  ASSERT_GE(H5Pset_sym_k(fcpl, 32, 8), 0);  // not the default: stored in the extension
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, fapl);
+  ASSERT_GE(file, 0);
+  H5Fclose(file);
+  H5Pclose(fcpl);
+  H5Pclose(fapl);
+  std::string bytes = ReadFile(path);
+  std::filesystem::remove(path);
+  ASSERT_GE(bytes.size(), 48u);
+  ASSERT_EQ(bytes[8], 3) << "superblock version";
+  ASSERT_EQ(bytes[9], 8) << "size of offsets";
+  const uint64_t extension = GetLe(bytes, 12 + 8, 8);
+  ASSERT_LT(extension + 16, bytes.size()) << "no superblock extension was written";
+  ASSERT_EQ(bytes.compare(extension, 4, "OHDR"), 0);
+  const unsigned flags = static_cast<uint8_t>(bytes[extension + 5]);
+  const size_t size_at =
+      extension + 6 + ((flags & 0x20) != 0 ? 16 : 0) + ((flags & 0x10) != 0 ? 4 : 0);
+  const int width = 1 << (flags & 3);
+  ASSERT_GE(width, 1);
+  auto valid = ImportKerasH5FromMemory(bytes, "extension.h5");
+  ASSERT_FALSE(valid.ok());  // not a Keras file, but libhdf5 opened it
+  EXPECT_NE(valid.message().find("no attribute 'layer_names'"), std::string::npos)
+      << valid.message();
+  const uint64_t huge = width == 1 ? 0xFF : 0xFFF0;
+  PutLe(&bytes, size_at, huge, width);
+  ExpectRejected(
+      bytes, "extension.h5",
+      {"object header of the superblock extension at address " + std::to_string(extension),
+       "chunk 0 size " + std::to_string(huge) + " runs past the end of the file"});
+}
+
+// fuzz_keras_import (ASan heap-buffer-overflow in libhdf5's H5Aexists -> H5O__msg_iterate_real):
+// conv1's attribute weight_names claims 3 fixed-length strings of 14 bytes in a message with
+// room for 32; libhdf5 copies 42 bytes from the end of the header chunk.
+TEST(KerasHeaderGuard, FuzzReproducerWithAttributeDataPastItsMessageIsRejected) {
+  ExpectRejected(ReadFile(kCorpus + "hdf5-attribute-data-past-its-message.h5"), "attr-data.h5",
+                 {"object header of 'model_weights/conv1' at address 20168: message 1 (type 12) "
+                  "of chunk 1, an attribute message, holds 3 elements of 14 bytes in 32 bytes"});
+}
+
+TEST(KerasHeaderGuard, AttributeNameLongerThanItsMessageIsRejected) {
+  // The first attribute message (type 0x0C) of the root group's chunk 1: name size made 200.
+  ValidFile v = LoadValid();
+  size_t attribute = 0;
+  for (size_t at = v.chunk1; at + 8 <= v.chunk1 + v.chunk1_length;
+       at += 8 + GetLe(v.bytes, at + 2, 2)) {
+    if (GetLe(v.bytes, at, 2) == 0x0C) {
+      attribute = at;
+      break;
+    }
+  }
+  ASSERT_NE(attribute, 0u) << "no attribute message in the root group's chunk 1";
+  const uint64_t size = GetLe(v.bytes, attribute + 2, 2);
+  ASSERT_LT(size, 200u);
+  PutLe(&v.bytes, attribute + 8 + 2, 200, 2);
+  ExpectRejected(v.bytes, "attr-name.h5",
+                 {"object header of the root group at address 96: message",
+                  "an attribute message, has name size 200",
+                  "more than its " + std::to_string(size) + " bytes"});
+}
+
+// A soft link would make libhdf5 load a header the importer never got an address for (H5Lget_info
+// does not resolve it): refused; Keras writes hard links only.
+TEST(KerasHeaderGuard, SoftLinkOnTheImportersPathIsRejected) {
+  const std::string path = ::testing::TempDir() + "/header-guard-soft.h5";
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  const hid_t group = H5Gcreate2(file, "weights", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(group, 0);
+  H5Gclose(group);
+  ASSERT_GE(H5Lcreate_soft("/weights", file, "model_weights", H5P_DEFAULT, H5P_DEFAULT), 0);
+  H5Fclose(file);
+  const std::string bytes = ReadFile(path);
+  std::filesystem::remove(path);
+  ExpectRejected(bytes, "soft.h5", {"'model_weights' is a soft or external link (link type 1)"});
+}
+
+// fuzz_keras_import (the target's own abort: an accepted model the loader refused): a
+// ZeroPadding2D of [[1, 1], [2, 5]] folded into the next 3x3 Conv2D gave pads.right 5.
+TEST(KerasImportRegression, ZeroPaddingWiderThanTheKernelIsRejected) {
+  ExpectRejected(ReadFile(kCorpus + "zero-padding-wider-than-kernel-abort.h5"), "pad.h5",
+                 {"layer 'conv2d_2' (Conv2D): follows ZeroPadding2D 'zero_padding2d_1' whose "
+                  "padding gives it 5 on the right; a 3x3 kernel takes at most 2"});
+}
+
+}  // namespace
+}  // namespace sfrt::exporter
