@@ -14,7 +14,9 @@
 # history), so its median follows only the machine. The bound is checked on
 #   (last / first of the soak's end-to-end median) / (last / first of the reference medians
 #    taken during those two blocks of windows);
-# the raw ratio and the reference's are printed beside it.
+# the raw ratio and the reference's are printed beside it. Caveat: the reference runs 25
+# inferences back to back with warm caches and the soak one every 1/FPS s, so it does not follow
+# every swing (docs/reliability.md, "Soak", has a run where it did not).
 # Exit 0 when the bounds hold, 1 when one does not or the run fails, 2 on a usage error.
 #
 # usage: tools/soak.sh [FRAMES]        FRAMES windows (default 10000)
