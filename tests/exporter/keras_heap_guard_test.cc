@@ -16,24 +16,16 @@
 #include <vector>
 
 #include "hdf5_vlen_guard.h"
+#include "keras_crafted_file.h"
 #include "sfrt/exporter/keras_importer.h"
 
 namespace sfrt::exporter {
 namespace {
 
-const std::string kCorpus = std::string(SFRT_SOURCE_DIR) + "/tests/fuzz/regression/keras_import/";
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  EXPECT_TRUE(in) << path << " is missing";
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteFile(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  ASSERT_TRUE(out.good()) << path;
-}
+using testing::ExpectRejectedBothWays;
+using testing::ReadFile;
+using testing::WriteFile;
+const std::string kCorpus = testing::kKerasCorpus;
 
 void PutLe(std::string* s, size_t at, uint64_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) (*s)[at + i] = static_cast<char>((v >> (8 * i)) & 0xff);
@@ -61,27 +53,15 @@ ValidFile LoadValid() {
   return v;
 }
 
-// Imports `bytes` from memory and through a file; both must fail with one line that names the
-// file and the model_config attribute and contains `expected`.
+// Both ways of importing `bytes` fail with one line that names the file and the model_config
+// attribute and contains `expected`.
 void ExpectRejected(const std::string& bytes, const std::string& name,
                     const std::string& expected) {
-  SCOPED_TRACE(name);
-  const std::string label = "crafted/" + name;
-  auto in_memory = ImportKerasH5FromMemory(bytes, label);
-  ASSERT_FALSE(in_memory.ok());
-  const std::string path = ::testing::TempDir() + "/" + name;
-  WriteFile(path, bytes);
-  auto from_file = ImportKerasH5(path);
-  std::filesystem::remove(path);
-  ASSERT_FALSE(from_file.ok());
-  for (const auto& [message, prefix] : {std::pair{in_memory.message(), label + ": "},
-                                        std::pair{from_file.message(), path + ": "}}) {
-    EXPECT_EQ(message.rfind(prefix, 0), 0u) << message;
+  ExpectRejectedBothWays(bytes, name, [&](const std::string& message) {
     EXPECT_NE(message.find("attribute 'model_config' of the file root"), std::string::npos)
         << message;
     EXPECT_NE(message.find(expected), std::string::npos) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-  }
+  });
 }
 
 TEST(KerasHeapGuard, ValidFileStillImportsFromMemoryAndFromItsPath) {
