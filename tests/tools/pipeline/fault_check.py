@@ -236,20 +236,32 @@ def scenario_signals(a):
     frames = 160
     root = make_frames(os.path.join(a.work, "frames%d" % frames), frames)
     rng = random.Random(a.seed)
-    stopped = 0
-    for trial in range(a.trials):
-        sig = rng.choice([signal.SIGINT, signal.SIGTERM])
-        delay = rng.uniform(0.0, 1.5)
-        out = fresh(os.path.join(a.work, "signals"))
+
+    def start(out):
         cmd = [a.sfrt, "run", "--model", a.model, "--replay", root, "--out", out,
                "--progress", "off"]
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         # The handlers are installed when the pipeline starts (before, a signal ends the process
-        # with its default action and nothing is written): wait for the first file, then delay.
+        # with its default action and nothing is written): wait for the first file.
         deadline = time.monotonic() + 120
         while proc.poll() is None and time.monotonic() < deadline and not glob.glob(
                 os.path.join(out, "*.p??")):
             time.sleep(0.002)
+        return proc
+
+    # The signal must land while frames are still being written, whatever this machine's speed:
+    # time one undisturbed run from its first file to its exit and draw delays inside that span.
+    proc = start(fresh(os.path.join(a.work, "signals")))
+    t0 = time.monotonic()
+    proc.communicate(timeout=300)
+    span = time.monotonic() - t0
+    print("undisturbed run: %.3f s from the first file to exit" % span, flush=True)
+    stopped = 0
+    for trial in range(a.trials):
+        sig = rng.choice([signal.SIGINT, signal.SIGTERM])
+        delay = rng.uniform(0.0, 0.6 * span)
+        out = fresh(os.path.join(a.work, "signals"))
+        proc = start(out)
         time.sleep(delay)
         if proc.poll() is None:
             proc.send_signal(sig)
