@@ -7,16 +7,19 @@
 #     first 1000's (halves of the run if shorter), after dividing out the machine's own change of
 #     speed over the same minutes (below).
 #
-# Why a reference: this machine (a shared VM) changes speed by 10-20% over minutes on its own;
-# a quiet 200-second run measured the last 1000 windows 14% FASTER than the first 1000. So
-# every SOAK_REF_EVERY seconds a fresh `sfrt bench` process times the same model at the same
-# size on one thread: a new process carries no state from the long run (no heap, cache or queue
-# history), so its median follows only the machine. The bound is checked on
-#   (last / first of the soak's end-to-end median) / (last / first of the reference medians
-#    taken during those two blocks of windows);
-# the raw ratio and the reference's are printed beside it. Caveat: the reference runs 25
-# inferences back to back with warm caches and the soak one every 1/FPS s, so it does not follow
-# every swing (docs/reliability.md, "Soak", has a run where it did not).
+# Why a twin: this machine (a shared VM) changes speed by 10-20% over minutes on its own; quiet
+# 200-second runs measured the last 1000 windows anywhere from 14% faster to 18% slower than the
+# first 1000. A drift caused by sfrt would come from state the long run accumulates (heap,
+# caches, queues, counters). So beside the soak runs a twin: a chain of fresh `sfrt run`
+# processes on the same frames, model, size, threads and pace, each SOAK_TWIN_WINDOWS long (its
+# first 50 windows dropped as warm-up). A twin process carries no long-run state, so its latency
+# follows only the machine, at the same cadence and at the same moments. The bound is checked on
+#   (last / first of the soak's end-to-end median) / (last / first of the twin's median over
+#    the windows the twin finished while the soak ran those two blocks),
+# with both processes' windows placed in time by `--latency-log`'s done_monotonic_ms column.
+# The raw ratio, the twin's ratio and the CPU steal time of each block are printed beside it.
+# Two pipelines at 50 windows/s on two cores each keep a core busy ~7% of the time, so they
+# rarely meet; when they do, both see it.
 # Exit 0 when the bounds hold, 1 when one does not or the run fails, 2 on a usage error.
 #
 # usage: tools/soak.sh [FRAMES]        FRAMES windows (default 10000)
@@ -35,13 +38,14 @@
 #   SOAK_WRITE=0                       1: write every window's flow and PNG; off by default because
 #                                      10,000 windows leave ~4 GB in the work folder (tmpfs: RAM),
 #                                      and that growth, not sfrt, then shows as drift
-#   SOAK_REF_EVERY=2                   seconds between reference `sfrt bench` runs (0: none; then
-#                                      the raw ratio is the one bounded)
+#   SOAK_TWIN=1                        0: no twin; then the raw ratio is the one bounded
+#   SOAK_TWIN_WINDOWS=500              windows per twin process (10 s at 50 windows/s)
 #   SOAK_CHECK_LATENCY=1               0: check resident memory only (the test suite's short
 #                                      run: latency is wall-clock time, not a test)
 #
 # RSS is read from /proc/PID/status each time `sfrt run` prints a progress line (every 50
-# windows); latency comes from `sfrt run --latency-log` (one CSV line per window).
+# windows); latency comes from `sfrt run --latency-log` (one CSV line per window); steal time
+# from /proc/stat once a second.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 frames=${1:-10000}
@@ -57,7 +61,12 @@ threads=${SOAK_THREADS:-1}
 fps=${SOAK_FPS:-50}
 write=${SOAK_WRITE:-0}
 check_latency=${SOAK_CHECK_LATENCY:-1}
-ref_every=${SOAK_REF_EVERY:-2}
+twin=${SOAK_TWIN:-1}
+twin_windows=${SOAK_TWIN_WINDOWS:-500}
+if ! [[ $twin_windows =~ ^[0-9]+$ ]] || ((twin_windows < 100)); then
+  echo "soak: SOAK_TWIN_WINDOWS is '$twin_windows'; must be a whole number >= 100" >&2
+  exit 2
+fi
 for f in "$sfrt" "$model"; do
   [[ -f $f ]] || { echo "soak: '$f' does not exist (build first, or set SFRT / SOAK_MODEL)" >&2; exit 1; }
 done
@@ -78,9 +87,8 @@ windows_per_pass=$((pairs - 1))
 loops=$(((frames + windows_per_pass - 1) / windows_per_pass))
 
 /usr/bin/python3 - "$sfrt" "$model" "$work" "$frames" "$loops" "$threads" "$check_latency" \
-  "$size" "$pairs" "$fps" "$write" "$ref_every" <<'PY'
+  "$size" "$pairs" "$fps" "$write" "$twin" "$twin_windows" <<'PY'
 import csv
-import json
 import os
 import re
 import statistics
@@ -89,19 +97,33 @@ import sys
 import threading
 import time
 
-(sfrt, model, work, frames, loops, threads, check_latency, size, pairs, fps, write,
- ref_every) = sys.argv[1:]
+(sfrt, model, work, frames, loops, threads, check_latency, size, pairs, fps, write, twin,
+ twin_windows) = sys.argv[1:]
 frames, loops, check_latency = int(frames), int(loops), check_latency != "0"
-ref_every = float(ref_every) if check_latency else 0.0  # memory-only runs need no reference
+twin = twin != "0" and check_latency  # memory-only runs need no twin
+twin_windows = int(twin_windows)
+TWIN_WARMUP = 50  # first windows of each twin process, dropped
+
+
+def run_cmd(out, log, count, passes, extra):
+    return [sfrt, "run", "--model", model, "--replay", os.path.join(work, "frames"),
+            "--out", out, "--loop", str(passes), "--max-frames", str(count),
+            "--threads", threads, "--latency-log", log, "--replay-fps", fps] + extra + (
+                [] if write == "1" else ["--flow-format", "none", "--no-png"])
+
+
+def read_log(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
 out = os.path.join(work, "out")
 os.makedirs(out, exist_ok=True)
 log = os.path.join(work, "latency.csv")
-cmd = [sfrt, "run", "--model", model, "--replay", os.path.join(work, "frames"), "--out", out,
-       "--loop", str(loops), "--max-frames", str(frames), "--threads", threads,
-       "--latency-log", log, "--progress", "lines", "--progress-every", "50",
-       "--replay-fps", fps] + ([] if write == "1" else ["--flow-format", "none", "--no-png"])
+cmd = run_cmd(out, log, frames, loops, ["--progress", "lines", "--progress-every", "50"])
 print("+ " + " ".join(cmd), flush=True)
 proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+done = threading.Event()
 
 
 def rss_kb():
@@ -115,35 +137,55 @@ def rss_kb():
     return None
 
 
-reference = []  # (monotonic time at the middle of the run, median ms) of fresh bench processes
-done = threading.Event()
+twin_rows = []  # rows of every twin process, warm-up dropped
+twin_failures = []
 
 
-def time_reference():
-    path = os.path.join(work, "reference.json")
-    while not done.wait(ref_every):
-        t0 = time.monotonic()
-        rc = subprocess.call([sfrt, "bench", "--model", model, "--size", size, "--threads",
-                              threads, "--warmup", "3", "--runs", "25", "--peak-seconds", "0",
-                              "--json", path], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL)
-        if rc == 0:
-            with open(path) as f:
-                results = json.load(f)["results"]
-            medians = [r["median_ms"] for r in (results if isinstance(results, list)
-                                                else results.values())]
-            reference.append(((t0 + time.monotonic()) / 2, medians[0]))
+def run_twin():
+    """Fresh `sfrt run` processes, one after another, until the soak ends."""
+    twin_out = os.path.join(work, "twin-out")
+    twin_log = os.path.join(work, "twin-latency.csv")
+    os.makedirs(twin_out, exist_ok=True)
+    passes = (twin_windows + int(pairs) - 2) // (int(pairs) - 1)
+    while not done.is_set():
+        p = subprocess.run(run_cmd(twin_out, twin_log, twin_windows, passes,
+                                   ["--progress", "off", "--no-summary"]),
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if p.returncode != 0:
+            twin_failures.append(p.stderr.strip().splitlines()[-1:] or ["exit %d" % p.returncode])
+            if len(twin_failures) > 3:
+                return
+            continue
+        twin_rows.extend(read_log(twin_log)[TWIN_WARMUP:])
 
 
-if ref_every > 0:
-    threading.Thread(target=time_reference, daemon=True).start()
+cpu_samples = []  # (monotonic s, steal jiffies, total jiffies) of /proc/stat's "cpu" line
+
+
+def sample_cpu():
+    while True:
+        try:
+            with open("/proc/stat") as f:
+                fields = [int(x) for x in f.readline().split()[1:]]
+            # user nice system idle iowait irq softirq steal [guest guest_nice: inside user]
+            cpu_samples.append((time.monotonic(), fields[7] if len(fields) > 7 else 0,
+                                sum(fields[:8])))
+        except OSError:
+            return
+        if done.wait(1.0):
+            return
+
+
+threading.Thread(target=sample_cpu, daemon=True).start()
+twin_thread = None
+if twin:
+    twin_thread = threading.Thread(target=run_twin, daemon=True)
+    twin_thread.start()
 samples = []  # (windows written, VmRSS kB)
-progress = [(0, time.monotonic())]  # (windows written, monotonic time)
 other = []
 for line in proc.stderr:
     m = re.match(r"sfrt run: (\d+)(/\d+)? frames", line)
     if m:
-        progress.append((int(m.group(1)), time.monotonic()))
         rss = rss_kb()
         if rss is not None:
             samples.append((int(m.group(1)), rss))
@@ -152,6 +194,8 @@ for line in proc.stderr:
 stdout = proc.stdout.read()
 code = proc.wait()
 done.set()
+if twin_thread is not None:
+    twin_thread.join()  # the twin process under way finishes its windows
 failed = []
 if code != 0:
     sys.stdout.write(stdout + "".join(other))
@@ -177,12 +221,12 @@ print("rss growth after warm-up: %+.3f MB (bound < 1 MB): %s" % (growth_mb,
 if not ok_rss:
     failed.append("rss")
 
-with open(log) as f:
-    rows = list(csv.DictReader(f))
+rows = read_log(log)
 if len(rows) != frames:
     print("soak: the latency log has %d windows, expected %d" % (len(rows), frames))
     failed.append("frames")
 n = min(1000, len(rows) // 2)
+first_rows, last_rows = rows[:n], rows[-n:]
 # Where any drift comes from: the median of every stage, and end to end per block of n windows.
 blocks = [statistics.median(float(r["end_to_end_ms"]) for r in rows[i:i + n])
           for i in range(0, len(rows) - n + 1, n)]
@@ -190,51 +234,62 @@ print("median end-to-end latency per %d windows (ms): %s"
       % (n, " ".join("%.2f" % b for b in blocks)))
 for key, name in (("source_ms", "source"), ("preprocess_ms", "preprocess"),
                   ("output_ms", "output")):
-    first = statistics.median(float(r[key]) for r in rows[:n])
-    last = statistics.median(float(r[key]) for r in rows[-n:])
+    first = statistics.median(float(r[key]) for r in first_rows)
+    last = statistics.median(float(r[key]) for r in last_rows)
     print("median %s stage: first %d windows %.3f ms, last %d %.3f ms (not bounded)"
           % (name, n, first, n, last))
 
 
-def window_time(w):
-    """Monotonic time at which window w was written, from the progress lines (every 50)."""
-    for (w0, t0), (w1, t1) in zip(progress, progress[1:]):
-        if w0 <= w <= w1:
-            return t0 + (t1 - t0) * (w - w0) / max(1, w1 - w0)
-    return progress[-1][1]
+def span(block):
+    """Seconds on CLOCK_MONOTONIC from the first to the last window of a block."""
+    return (float(block[0]["done_monotonic_ms"]) / 1e3,
+            float(block[-1]["done_monotonic_ms"]) / 1e3)
 
 
-def reference_median(lo, hi):
-    """Median of the reference runs during [lo, hi]; the nearest run if none fell inside."""
-    inside = [ms for t, ms in reference if lo <= t <= hi]
-    if inside:
-        return statistics.median(inside), len(inside)
-    nearest = min(reference, key=lambda r: min(abs(r[0] - lo), abs(r[0] - hi)))
-    return nearest[1], 0
+def steal_percent(lo, hi):
+    inside = [c for c in cpu_samples if lo <= c[0] <= hi]
+    if len(inside) < 2 or inside[-1][2] == inside[0][2]:
+        return float("nan")
+    return 100.0 * (inside[-1][1] - inside[0][1]) / (inside[-1][2] - inside[0][2])
 
 
-machine = None
-if reference:
-    ref_first, k_first = reference_median(window_time(0), window_time(n))
-    ref_last, k_last = reference_median(window_time(len(rows) - n), window_time(len(rows)))
-    machine = ref_last / ref_first
-    print("machine speed reference (a fresh `sfrt bench` process every %g s, %d runs in all): "
-          "first %d windows %.3f ms (%d runs), last %d %.3f ms (%d runs), ratio %.4f"
-          % (ref_every, len(reference), n, ref_first, k_first, n, ref_last, k_last, machine))
-elif ref_every > 0:
-    print("machine speed reference: no reference run finished; the raw ratio is bounded")
+first_span, last_span = span(first_rows), span(last_rows)
+print("cpu steal time: first %d windows %.2f%%, last %d %.2f%% (of all CPU time, /proc/stat)"
+      % (n, steal_percent(*first_span), n, steal_percent(*last_span)))
+
+
+def twin_block(lo, hi):
+    return [r for r in twin_rows if lo <= float(r["done_monotonic_ms"]) / 1e3 <= hi]
+
+
+machine = {}
+if twin:
+    if twin_failures:
+        print("twin: %d process(es) failed: %s" % (len(twin_failures), twin_failures[-1][0]))
+    t_first, t_last = twin_block(*first_span), twin_block(*last_span)
+    if min(len(t_first), len(t_last)) < n // 4:
+        print("twin: too few twin windows beside the blocks (%d and %d, want >= %d); the raw "
+              "ratio is bounded" % (len(t_first), len(t_last), n // 4))
+    else:
+        for key, name in (("end_to_end_ms", "end-to-end"), ("infer_ms", "infer")):
+            first = statistics.median(float(r[key]) for r in t_first)
+            last = statistics.median(float(r[key]) for r in t_last)
+            machine[key] = last / first
+            print("twin (fresh processes of %d windows beside the soak), %s: %d windows during "
+                  "the first block %.3f ms, %d during the last %.3f ms, ratio %.4f"
+                  % (twin_windows, name, len(t_first), first, len(t_last), last, last / first))
 for key, name in (("end_to_end_ms", "end-to-end"), ("infer_ms", "infer")):
-    first = statistics.median(float(r[key]) for r in rows[:n])
-    last = statistics.median(float(r[key]) for r in rows[-n:])
+    first = statistics.median(float(r[key]) for r in first_rows)
+    last = statistics.median(float(r[key]) for r in last_rows)
     ratio = last / first if first > 0 else float("inf")
     print("median %s latency: first %d windows %.3f ms, last %d %.3f ms, raw ratio %.4f"
           % (name, n, first, n, last, ratio))
-    drift = ratio / machine if machine else ratio
+    drift = ratio / machine[key] if key in machine else ratio
     bounded = key == "end_to_end_ms" and check_latency
     ok = abs(drift - 1.0) <= 0.05
     verdict = ("ok" if ok else "FAIL") if bounded else "(not bounded)"
     print("  %s drift%s: %.4f%s %s"
-          % (name, " relative to the machine reference" if machine else "", drift,
+          % (name, " relative to the twin" if key in machine else "", drift,
              " (bound within 5%)" if bounded else "", verdict))
     if bounded and not ok:
         failed.append("latency")

@@ -79,7 +79,7 @@ struct FlowItem {
   std::vector<int64_t> step_ns;  // --profile: Session::Run's step end times (steps + 1)
 };
 
-json PercentilesJson(const Percentiles& p) {
+json PercentilesJson(const profiling::Summary& p) {
   return json{{"p50", p.p50}, {"p90", p.p90}, {"p99", p.p99}, {"max", p.max}, {"count", p.count}};
 }
 
@@ -311,7 +311,7 @@ Status Runner::Setup() {
     }
     std::fprintf(latency_log_,
                  "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
-                 "input_width\n");
+                 "input_width,done_monotonic_ms\n");
   }
 
   switch (options_.progress) {
@@ -615,10 +615,12 @@ void Runner::OutputStage() {
     const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
     e2e_ms_.Add(e2e);
     if (latency_log_ != nullptr) {
-      std::fprintf(latency_log_, "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d\n",
+      // done_monotonic_ms is on CLOCK_MONOTONIC, shared by every process on the machine, so
+      // logs of runs side by side line up (tools/soak.sh compares with a concurrent twin).
+      std::fprintf(latency_log_, "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
                    static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
                    Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
-                   Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w);
+                   Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w, Ms(m.stage_ns[3][1]));
     }
     const bool over_budget = options_.budget_ms > 0 && e2e > options_.budget_ms;
     const bool miss = options_.miss_verdict ? options_.miss_verdict(m, over_budget) : over_budget;
@@ -672,7 +674,7 @@ void Runner::Progress(bool final) {
     line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
                                                          : *total);
   line += " frames, " + Fixed(wall > 0 ? frames_ / wall : 0.0, 1) + " fps, p50 " +
-          Fixed(ComputePercentiles(e2e_ms_.Values()).p50, 1) + " ms end to end";
+          Fixed(profiling::Summarize(e2e_ms_.Values()).p50, 1) + " ms end to end";
   if (tty_progress_) {
     std::fprintf(stderr, "\r%s\x1b[K%s", line.c_str(), final ? "\n" : "");
   } else {
@@ -809,8 +811,8 @@ PipelineResult Runner::Run() {
   }
   const double wall = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
-  for (int st = 0; st < 4; ++st) result.stage[st] = ComputePercentiles(stage_ms_[st].Values());
-  result.end_to_end = ComputePercentiles(e2e_ms_.Values());
+  for (int st = 0; st < 4; ++st) result.stage[st] = profiling::Summarize(stage_ms_[st].Values());
+  result.end_to_end = profiling::Summarize(e2e_ms_.Values());
   result.misses = misses_;
   result.frames_at_fallback_size = frames_at_fallback_;
   result.fallback_entries = fallback_entries_;
@@ -868,24 +870,6 @@ Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) 
     p.mean[c] = input.mean[c];
     p.std[c] = input.std[c];
   }
-  return p;
-}
-
-Percentiles ComputePercentiles(std::vector<double> values) {
-  Percentiles p;
-  p.count = values.size();
-  if (values.empty()) return p;
-  std::sort(values.begin(), values.end());
-  auto at = [&](double q) {
-    const double pos = q * static_cast<double>(values.size() - 1);
-    const size_t lo = static_cast<size_t>(pos);
-    const size_t hi = std::min(lo + 1, values.size() - 1);
-    return values[lo] + (values[hi] - values[lo]) * (pos - static_cast<double>(lo));
-  };
-  p.p50 = at(0.50);
-  p.p90 = at(0.90);
-  p.p99 = at(0.99);
-  p.max = values.back();
   return p;
 }
 

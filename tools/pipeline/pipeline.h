@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "pipeline/latest_queue.h"
+#include "profiling/stats.h"
 #include "sfrt/camera/calibration.h"
 #include "sfrt/camera/preprocess.h"
 #include "sfrt/isa.h"
@@ -179,13 +180,6 @@ struct PipelineOptions {
   FrameProfiler* profiler = nullptr;
 };
 
-struct Percentiles {
-  double p50 = 0, p90 = 0, p99 = 0, max = 0;  // milliseconds
-  size_t count = 0;
-};
-// Linear interpolation between order statistics (numpy's default); all zero when empty.
-Percentiles ComputePercentiles(std::vector<double> values);
-
 struct PipelineResult {
   Status status;              // ok, or the error that ended the run
   int64_t frames = 0;         // windows whose outputs were written
@@ -193,8 +187,8 @@ struct PipelineResult {
   std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
   std::string summary_path;   // "" if even the summary could not be written
   double fps = 0;             // frames / wall time
-  Percentiles end_to_end;
-  Percentiles stage[4];                 // source, preprocess, infer, output
+  profiling::Summary end_to_end;        // milliseconds
+  profiling::Summary stage[4];          // source, preprocess, infer, output
   int64_t misses = 0;                   // windows over the budget (or miss_verdict)
   int64_t frames_at_fallback_size = 0;  // written windows that ran at smaller_input_on_miss
   int64_t fallback_entries = 0;         // switches from the model input size to the fallback

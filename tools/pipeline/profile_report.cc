@@ -143,7 +143,7 @@ void DrawAxes(cv::Mat* img, const Axes& a, const std::string& title, const std::
 
 cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms) {
   cv::Mat img(kPlotH, kPlotW, CV_8UC3, cv::Scalar(255, 255, 255));
-  const Percentiles p = ComputePercentiles(e2e);
+  const profiling::Summary p = profiling::Summarize(e2e);
   double lo = *std::min_element(e2e.begin(), e2e.end());
   double hi = p.max;
   if (budget_ms > 0 && budget_ms <= 2 * hi) hi = std::max(hi, budget_ms);

@@ -398,9 +398,11 @@ Command AddRunCommand(CLI::App& parent) {
                   "overwrite the same output files)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--latency-log", args->latency_log,
-                  "Also write a CSV line per written window: window, source/preprocess/infer/"
-                  "output and end-to-end milliseconds (for soak runs)");
+  cmd->add_option(
+      "--latency-log", args->latency_log,
+      "Also write a CSV line per written window: window, source/preprocess/infer/"
+      "output and end-to-end milliseconds, input size, and the time the window was done on "
+      "CLOCK_MONOTONIC in ms (for soak runs)");
   cmd->add_option("--out", args->out,
                   "Output directory (created): <stem>.pfm|.npy flow, <stem>.png visualisation, "
                   "summary.json (unless --no-summary); required unless --config");
