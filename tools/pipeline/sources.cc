@@ -202,12 +202,24 @@ class CameraSource : public FrameSource {
   Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& stop) override {
     const int64_t start = NowNs();
     while (!stop.load()) {
+      // A device already lost before this call is being reopened: a success is a reconnection,
+      // and a disconnect error that detected no new unplug is a failed reopen attempt (counted
+      // apart from the unplugs).
+      bool was_lost[2] = {false, false};
+      for (int i = 0; i < devices(); ++i) was_lost[i] = device(i).disconnected();
+      const uint64_t unplugs_before = Unplugs();
       camera::Status s = cap_.Next(&pair_);
+      for (int i = 0; i < devices(); ++i) {
+        if (was_lost[i] && !device(i).disconnected()) {
+          Log(device(i).config().device + ": reconnected at reopen attempt " +
+              std::to_string(device(i).stats().reopen_attempts));
+        }
+      }
       if (!s.ok()) {
         const bool lost = cap_.left().disconnected() || (!sbs() && cap_.right().disconnected());
         switch (s.kind()) {
           case camera::ErrorKind::kDisconnected:
-            ++disconnects_;
+            ++(Unplugs() > unplugs_before ? disconnects_ : reopen_failures_);
             have_prev_ = false;
             Log(s.message());
             continue;
@@ -229,6 +241,7 @@ class CameraSource : public FrameSource {
             continue;
           default:
             if (lost) {  // reopening after an unplug: keep trying with the back-off
+              ++reopen_failures_;
               Log(s.message());
               continue;
             }
@@ -300,6 +313,7 @@ class CameraSource : public FrameSource {
       j["unpaired_right"] = cap_.stats().unpaired_right;
     }
     j["disconnects"] = disconnects_;
+    j["reopen_failures"] = reopen_failures_;
     j["timeouts"] = timeouts_;
     j["io_errors"] = io_errors_;
     j["frame_errors"] = frame_errors_;
@@ -330,6 +344,7 @@ class CameraSource : public FrameSource {
       dev["eio"] = s.eio;
       dev["watchdog_timeouts"] = s.watchdog_timeouts;
       dev["disconnects"] = s.disconnects;
+      dev["reopen_attempts"] = s.reopen_attempts;
       dev["reopens"] = s.reopens;
       if (have_seq_) {
         dev["first_sequence"] = first_seq_[i];
@@ -344,6 +359,13 @@ class CameraSource : public FrameSource {
 
  private:
   bool sbs() const { return config_.mode == v4l2::StereoConfig::Mode::kSideBySide; }
+  int devices() const { return sbs() ? 1 : 2; }
+  const v4l2::CaptureDevice& device(int i) const { return i == 0 ? cap_.left() : cap_.right(); }
+  uint64_t Unplugs() const {
+    uint64_t n = 0;
+    for (int i = 0; i < devices(); ++i) n += device(i).stats().disconnects;
+    return n;
+  }
   static void Log(const std::string& message) {
     std::cerr << "sfrt run: camera: " << message << std::endl;
   }
@@ -360,6 +382,7 @@ class CameraSource : public FrameSource {
   uint32_t first_seq_[2] = {0, 0};
   uint32_t last_seq_[2] = {0, 0};
   uint64_t disconnects_ = 0, timeouts_ = 0, io_errors_ = 0, frame_errors_ = 0;
+  uint64_t reopen_failures_ = 0;  // failed reopen attempts after a disconnect (logged each)
   std::vector<BadFrame> bad_;
 };
 

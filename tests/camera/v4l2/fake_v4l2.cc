@@ -271,6 +271,10 @@ void FakeDevice::Render(uint8_t* dst, uint32_t seq, v4l2_buffer* meta) {
 
 void FakeDevice::Unplug() {
   std::lock_guard<std::mutex> lock(sys_->mu_);
+  UnplugLocked();
+}
+
+void FakeDevice::UnplugLocked() {
   unplugged_ = true;
   ++generation_;
   streaming_ = false;
@@ -285,6 +289,7 @@ void FakeDevice::Unplug() {
 void FakeDevice::Replug() {
   std::lock_guard<std::mutex> lock(sys_->mu_);
   unplugged_ = false;
+  replug_at_ = -1;
   ResetFormat();
 }
 
@@ -447,6 +452,11 @@ int FakeV4l2System::Open(const char* path, int flags) {
   std::lock_guard<std::mutex> lock(mu_);
   Log("open");
   FakeDevice* dev = Find(path);
+  if (dev != nullptr && dev->unplugged_ && dev->replug_at_ >= 0 && NowLocked() >= dev->replug_at_) {
+    dev->unplugged_ = false;  // the timed replug of unplug_after_dqbufs
+    dev->replug_at_ = -1;
+    dev->ResetFormat();
+  }
   if (dev == nullptr || dev->unplugged_) return Fail(ENOENT);
   if (dev->faults_.busy_on_open) return Fail(EBUSY);
   const int fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
@@ -761,6 +771,13 @@ int FakeV4l2System::Ioctl(int fd, unsigned long request, void* arg) {
       }
       *b = buf.meta;
       if (buf.mappings > 0) b->flags |= V4L2_BUF_FLAG_MAPPED;
+      ++dev->stats_.frames_dequeued;
+      if (dev->faults_.unplug_after_dqbufs > 0 && --dev->faults_.unplug_after_dqbufs == 0) {
+        // The caller's mapping of this buffer stays valid; its QBUF will fail with ENODEV.
+        dev->UnplugLocked();
+        const int64_t after = dev->faults_.replug_after_ns;
+        dev->replug_at_ = after < 0 ? -1 : NowLocked() + after;
+      }
       return 0;
     }
     case VIDIOC_STREAMON:

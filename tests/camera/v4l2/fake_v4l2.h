@@ -20,7 +20,8 @@
 //   instant. ClockMode::kReal uses CLOCK_MONOTONIC and really sleeps (for the LD_PRELOAD shim).
 //
 // Fault knobs (FakeFaults), mirroring vivid's error injection: unplug (ENODEV on ioctls,
-// POLLERR|POLLHUP on poll, ENOENT on open until Replug()), V4L2_BUF_FLAG_ERROR, dropped frames
+// POLLERR|POLLHUP on poll, ENOENT on open until Replug(); also by itself after N frames, with an
+// optional timed replug), V4L2_BUF_FLAG_ERROR, dropped frames
 // (sequence gaps), EIO on DQBUF (the buffer is lost as the kernel may do), EBUSY at open or
 // S_FMT, ENOSPC at STREAMON, stalls (no frames at all), short and corrupt frames (raw and MJPEG).
 //
@@ -80,10 +81,18 @@ struct FakeFaults {
   bool busy_on_s_fmt = false;      // S_FMT fails with EBUSY
   bool nospc_on_streamon = false;  // STREAMON fails with ENOSPC
   bool stalled = false;            // no frames are produced (sequence does not advance)
+  // The device unplugs itself (as FakeDevice::Unplug) right after the Nth successful DQBUF from
+  // now: that frame's data is handed out, then its fds see ENODEV and POLLERR|POLLHUP. Counted
+  // down; 0 = never.
+  int unplug_after_dqbufs = 0;
+  // With unplug_after_dqbufs: the device comes back this long after that unplug (an open() from
+  // then on succeeds, as after Replug(); the dead fds stay dead); < 0 = it stays away.
+  int64_t replug_after_ns = -1;
 };
 
 struct FakeDeviceStats {
   uint64_t frames_produced = 0;           // filled buffers
+  uint64_t frames_dequeued = 0;           // successful DQBUFs
   uint64_t frames_dropped_by_knob = 0;    // drop_next / drop_every
   uint64_t frames_dropped_no_buffer = 0;  // slot passed with no buffer queued
   uint64_t opens = 0;
@@ -120,6 +129,7 @@ class FakeDevice {
   FakeDevice(FakeV4l2System* sys, FakeDeviceConfig config);
   void ResetFormat();
   void FreeBuffers();
+  void UnplugLocked();
   int64_t FrameDue(uint64_t slot) const;
   void Render(uint8_t* dst, uint32_t seq, v4l2_buffer* meta);
 
@@ -130,6 +140,7 @@ class FakeDevice {
   v4l2_pix_format fmt_{};
   double fps_ = 30.0;
   bool unplugged_ = false;
+  int64_t replug_at_ = -1;  // unplug_after_dqbufs with replug_after_ns: when open() works again
   uint64_t generation_ = 0;
   int owner_fd_ = -1;
   int memfd_ = -1;

@@ -237,5 +237,50 @@ TEST_F(Faults, RepeatedUnplugCyclesLeakNothing) {
   EXPECT_EQ(sys_.live_mappings(), 0);
 }
 
+TEST_F(Faults, UnplugAfterDqbufsKnobUnplugsAfterTheNthFrameThenReplugsOnTime) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().unplug_after_dqbufs = 3;
+  dev_->faults().replug_after_ns = 250'000'000;
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  ASSERT_TRUE(cam.Read(&f).ok());
+  EXPECT_EQ(f.sequence, 1u);
+  // The third DQBUF hands out a frame and unplugs the device: requeueing it fails with ENODEV.
+  Status s = cam.Read(&f);
+  EXPECT_EQ(s.kind(), ErrorKind::kDisconnected);
+  EXPECT_TRUE(Contains(s.message(), "ENODEV")) << s.message();
+  EXPECT_EQ(dev_->stats().frames_dequeued, 3u);
+  EXPECT_EQ(cam.stats().disconnects, 1u);
+  EXPECT_EQ(sys_.open_fds(), 0);
+  EXPECT_EQ(sys_.live_mappings(), 0);
+  // Back-off 100 ms: still away (250 ms not passed); then 200 ms more: back, a new stream.
+  s = cam.Read(&f);
+  EXPECT_EQ(s.kind(), ErrorKind::kDisconnected);
+  EXPECT_TRUE(Contains(s.message(), "reopen attempt 1 failed")) << s.message();
+  ASSERT_TRUE(cam.Read(&f).ok()) << cam.stats().last_error;
+  EXPECT_EQ(cam.stats().reopens, 1u);
+  EXPECT_EQ(cam.stats().reopen_attempts, 2u);
+  EXPECT_EQ(f.sequence, 0u) << "a new stream";
+  // The knob fired once: the device stays plugged in.
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(cam.Read(&f).ok()) << cam.stats().last_error;
+  EXPECT_EQ(cam.stats().disconnects, 1u);
+}
+
+TEST_F(Faults, UnplugAfterDqbufsWithoutReplugStaysAway) {
+  CaptureDevice& cam = Cam();
+  ASSERT_TRUE(cam.Open().ok());
+  dev_->faults().unplug_after_dqbufs = 1;
+  Frame f;
+  EXPECT_EQ(cam.Read(&f).kind(), ErrorKind::kDisconnected);
+  for (int i = 1; i <= 6; ++i) {
+    Status s = cam.Read(&f);  // back-off 100, 200, 400, 800, 1600, 2000 ms
+    EXPECT_EQ(s.kind(), ErrorKind::kDisconnected);
+    EXPECT_TRUE(Contains(s.message(), "ENOENT")) << s.message();
+  }
+  EXPECT_EQ(cam.stats().reopens, 0u);
+  EXPECT_EQ(cam.stats().reopen_attempts, 6u);
+}
+
 }  // namespace
 }  // namespace sfrt::v4l2::testing

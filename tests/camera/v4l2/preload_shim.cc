@@ -6,8 +6,12 @@
 // Each ';'-separated entry is a path and optional comma-separated knobs: side (pattern 0/1),
 // sbs (1 = side-by-side pattern), fps, phase_ms, jitter_ms, drop_every, stalled (1 = never
 // delivers a frame), width, height (the defaults), formats (e.g. YUYV+MJPG+GREY, in ENUM_FMT
-// order). Frames come in real time, on a grid shared by all devices (align_to_epoch), like two
-// cameras on one clock.
+// order), unplug_after_frames=N (the device unplugs itself right after its Nth dequeued frame:
+// ioctls on its fds fail with ENODEV, poll says POLLERR|POLLHUP, open() fails with ENOENT; once
+// per process) and replug_after_ms=M (with unplug_after_frames: the device node comes back M ms
+// after that unplug, so a reopen succeeds with a new stream; without it the device stays away).
+// Frames come in real time, on a grid shared by all devices (align_to_epoch), like two cameras
+// on one clock.
 //
 // Interposed: open, open64, openat, openat64, __open_2, __open64_2, close, ioctl, mmap, mmap64,
 // munmap, poll. Calls on other paths/fds go straight to the kernel with syscall(2) (no dlsym, so
@@ -59,6 +63,8 @@ FakeV4l2System* Create() {
     std::string knobs = colon == std::string::npos ? "" : entry.substr(colon + 1);
     int drop_every = 0;
     bool stalled = false;
+    int unplug_after = 0;
+    int64_t replug_after_ns = -1;
     size_t k = 0;
     while (k < knobs.size()) {
       size_t comma = knobs.find(',', k);
@@ -77,6 +83,8 @@ FakeV4l2System* Create() {
       if (key == "jitter_ms") c.jitter_ns = static_cast<int64_t>(num * 1e6);
       if (key == "drop_every") drop_every = static_cast<int>(num);
       if (key == "stalled") stalled = num != 0;
+      if (key == "unplug_after_frames") unplug_after = static_cast<int>(num);
+      if (key == "replug_after_ms") replug_after_ns = static_cast<int64_t>(num * 1e6);
       if (key == "width") c.default_width = static_cast<int>(num);
       if (key == "height") c.default_height = static_cast<int>(num);
       if (key == "formats") {
@@ -88,6 +96,8 @@ FakeV4l2System* Create() {
     FakeDevice& device = sys->AddDevice(c);
     device.faults().drop_every = drop_every;
     device.faults().stalled = stalled;
+    device.faults().unplug_after_dqbufs = unplug_after;
+    device.faults().replug_after_ns = replug_after_ns;
   }
   return sys;
 }

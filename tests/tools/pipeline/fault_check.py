@@ -30,6 +30,17 @@ Scenarios (each is one ctest test named after the behaviour it checks):
       exit 0, 0 frames, timeouts counted in summary.json.
   camera_missing_at_start_is_an_error_naming_the_device
       the right camera is not there at the start: exit 1 with an error naming it, no hang.
+  camera_unplugged_mid_run_is_reported_naming_the_device_and_leaves_only_complete_files
+      the right camera unplugs itself after 20 frames (shim knob unplug_after_frames) and does
+      not come back: the disconnect and the failing reopen attempts are logged naming it, the
+      run does not end by itself, SIGTERM ends it with exit 0, "frames N (stopped by SIGTERM)"
+      and summary.json agree with the N complete windows on disk (all from before the unplug),
+      the disconnect is counted for /dev/video1 only, no temporary file.
+  camera_replugged_mid_run_resumes_and_counts_the_reconnect
+      the right camera unplugs itself after 20 frames and comes back 500 ms later
+      (replug_after_ms): the run reconnects it and goes on to --max-frames 40 (more windows than
+      the frames before the unplug allow), exit 0, one disconnect and one reopen counted for
+      /dev/video1, only complete files.
 """
 import argparse
 import glob
@@ -41,6 +52,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
@@ -350,6 +362,173 @@ def scenario_camera_missing(a):
           "the error does not name /dev/video1: %r" % last)
 
 
+class Lines:
+    """Collects the lines of a process's pipe on a thread, so a test can wait for one to appear
+    (the only reader of that pipe: do not also call communicate())."""
+
+    def __init__(self, stream):
+        self.lines = []
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._read, args=(stream,), daemon=True)
+        self._thread.start()
+
+    def _read(self, stream):
+        for line in stream:
+            with self._cond:
+                self.lines.append(line.rstrip("\n"))
+                self._cond.notify_all()
+        with self._cond:
+            self.lines.append(None)  # end of stream
+            self._cond.notify_all()
+
+    def wait_for(self, pattern, timeout):
+        """The first line matching `pattern`, or None after `timeout` s or at end of stream."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                for line in self.lines:
+                    if line is not None and re.search(pattern, line):
+                        return line
+                left = deadline - time.monotonic()
+                if (self.lines and self.lines[-1] is None) or left <= 0:
+                    return None
+                self._cond.wait(left)
+
+    def text(self):
+        self._thread.join(timeout=30)
+        with self._cond:
+            return "\n".join(l for l in self.lines if l is not None)
+
+
+def finish(proc, timeout):
+    """Waits for `proc` (its pipes read by Lines); kills it and returns False on timeout."""
+    try:
+        proc.wait(timeout=timeout)
+        return True
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        return False
+
+
+def device_stats(summary, device):
+    for d in summary["source"].get("devices", []):
+        if d["device"] == device:
+            return d
+    check(False, "summary.json has no entry for %s: %s" % (device, summary["source"]))
+    return None
+
+
+UNPLUG_AFTER = 20  # frames /dev/video1 delivers before it unplugs itself
+
+
+def scenario_camera_unplug(a):
+    out = fresh(os.path.join(a.work, "camera_unplug"))
+    proc = camera_run(a, "/dev/video0:side=0;/dev/video1:side=1,unplug_after_frames=%d"
+                      % UNPLUG_AFTER, out)
+    out_lines, err = Lines(proc.stdout), Lines(proc.stderr)
+    gone = err.wait_for(r"^sfrt run: camera: /dev/video1: .*the device was removed", 120)
+    check(gone is not None, "no line on stderr saying /dev/video1 was removed")
+    print("seen: %s" % gone, flush=True)
+    # Each reopen attempt sleeps the back-off first (100, 200, 400 ms, ...): three failures.
+    third = err.wait_for(r"^sfrt run: camera: reopen attempt 3 failed: /dev/video1: ", 60)
+    check(third is not None, "no third failed reopen attempt naming /dev/video1 on stderr")
+    check(proc.poll() is None, "sfrt run ended on its own after the unplug")
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    check(finish(proc, 30), "sfrt run did not end within 30 s of SIGTERM with an unplugged camera")
+    took = time.monotonic() - sent
+    stdout, stderr = out_lines.text(), err.text()
+    print(stdout + "\n" + stderr, flush=True)
+    print("ended %.2f s after SIGTERM" % took, flush=True)
+    check(proc.returncode == 0, "exit %d after SIGTERM, expected 0" % proc.returncode)
+    # The back-off sleep (at most 2 s) is not cut short by the signal; a generous margin.
+    check(took < 10, "took %.2f s to stop after SIGTERM" % took)
+    lines = [l for l in stderr.splitlines() if l.startswith("sfrt run: camera: ")]
+    check(all("/dev/video1" in l for l in lines) and lines,
+          "camera lines on stderr that do not name /dev/video1: %r" % lines)
+    check(any("ENODEV" in l for l in lines), "no camera line names ENODEV: %r" % lines)
+    retries = [l for l in lines if "reopen attempt" in l]
+    check(retries and all("ENOENT" in l for l in retries),
+          "reopen attempts do not say ENOENT: %r" % retries)
+    m = re.search(r"^frames\s+(\d+) \(stopped by ([^)]*)\)", stdout, re.M)
+    done = inspect_out(out)
+    if check(m is not None, "no summary line on stdout: %r" % stdout):
+        n = int(m.group(1))
+        check(m.group(2) == "SIGTERM", "stopped by %s" % m.group(2))
+        check(n == len(done), "summary line says %d frames, %d complete on disk" % (n, len(done)))
+        check(1 <= n < UNPLUG_AFTER, "%d windows, expected 1 to %d (from the frames before the "
+              "unplug)" % (n, UNPLUG_AFTER - 1))
+    s = load_summary(out)
+    if s:
+        check(s["stopped_by"] == "SIGTERM" and not s["completed"],
+              "summary stopped_by %s completed %s" % (s["stopped_by"], s["completed"]))
+        check(s["frames"]["written"] == len(done), "summary written %d, %d on disk"
+              % (s["frames"]["written"], len(done)))
+        check(s["source"]["disconnects"] == 1, "source.disconnects %s, expected 1"
+              % s["source"]["disconnects"])
+        check(s["source"]["reopen_failures"] == len(retries),
+              "source.reopen_failures %s, %d lines on stderr"
+              % (s["source"].get("reopen_failures"), len(retries)))
+        right, left = device_stats(s, "/dev/video1"), device_stats(s, "/dev/video0")
+        if right and left:
+            print("summary: stopped_by %s, written %d, source.disconnects %d, /dev/video1 %s"
+                  % (s["stopped_by"], s["frames"]["written"], s["source"]["disconnects"],
+                     {k: right[k] for k in ("disconnects", "reopens", "frames_dequeued")}),
+                  flush=True)
+            check(right["disconnects"] == 1 and right["reopens"] == 0,
+                  "/dev/video1 disconnects %d reopens %d" % (right["disconnects"],
+                                                             right["reopens"]))
+            check(right["frames_dequeued"] == UNPLUG_AFTER, "/dev/video1 dequeued %d frames"
+                  % right["frames_dequeued"])
+            check(left["disconnects"] == 0, "/dev/video0 disconnects %d" % left["disconnects"])
+
+
+def scenario_camera_replug(a):
+    out = fresh(os.path.join(a.work, "camera_replug"))
+    want = 2 * UNPLUG_AFTER
+    proc = camera_run(a, "/dev/video0:side=0;/dev/video1:side=1,unplug_after_frames=%d,"
+                      "replug_after_ms=500" % UNPLUG_AFTER, out, ["--max-frames", str(want)])
+    try:
+        stdout, stderr = proc.communicate(timeout=300)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        stdout, stderr = proc.communicate()
+        check(False, "sfrt run did not reach --max-frames %d after the camera came back" % want)
+    print(stdout + stderr, flush=True)
+    check(proc.returncode == 0, "exit %d, expected 0" % proc.returncode)
+    lines = [l for l in stderr.splitlines() if l.startswith("sfrt run: camera: ")]
+    check(any("/dev/video1" in l and "the device was removed" in l for l in lines),
+          "no line saying /dev/video1 was removed: %r" % lines)
+    check(any(re.match(r"sfrt run: camera: /dev/video1: reconnected at reopen attempt \d+$",
+                       l) for l in lines), "no line saying /dev/video1 reconnected: %r" % lines)
+    m = re.search(r"^frames\s+(\d+) \(stopped by ([^)]*)\)", stdout, re.M)
+    check(m is not None and int(m.group(1)) == want and m.group(2) == "max-frames",
+          "summary line: %r" % (m.group(0) if m else stdout))
+    done = inspect_out(out)
+    check(len(done) == want, "%d complete windows on disk, expected %d" % (len(done), want))
+    s = load_summary(out)
+    if s:
+        check(s["stopped_by"] == "max-frames" and s["frames"]["written"] == want,
+              "summary stopped_by %s written %d" % (s["stopped_by"], s["frames"]["written"]))
+        check(s["source"]["disconnects"] == 1, "source.disconnects %s, expected 1"
+              % s["source"]["disconnects"])
+        right, left = device_stats(s, "/dev/video1"), device_stats(s, "/dev/video0")
+        if right and left:
+            print("summary: stopped_by %s, written %d, source.disconnects %d, "
+                  "source.reopen_failures %d, /dev/video1 %s"
+                  % (s["stopped_by"], s["frames"]["written"], s["source"]["disconnects"],
+                     s["source"]["reopen_failures"],
+                     {k: right[k] for k in ("disconnects", "reopens", "reopen_attempts",
+                                            "frames_dequeued")}), flush=True)
+            check(right["disconnects"] == 1 and right["reopens"] == 1,
+                  "/dev/video1 disconnects %d reopens %d" % (right["disconnects"],
+                                                             right["reopens"]))
+            check(right["frames_dequeued"] > UNPLUG_AFTER,
+                  "/dev/video1 dequeued only %d frames" % right["frames_dequeued"])
+            check(left["disconnects"] == 0, "/dev/video0 disconnects %d" % left["disconnects"])
+
+
 SCENARIOS = {
     "full_disk_stops_the_run_naming_the_file_and_errno": scenario_full_disk_stop,
     "full_disk_with_skip_drops_the_window_and_goes_on": scenario_full_disk_skip,
@@ -358,6 +537,9 @@ SCENARIOS = {
     "signals_at_random_moments_leave_only_complete_files": scenario_signals,
     "stalled_camera_is_reported_naming_the_device_and_sigterm_still_stops": scenario_camera_stall,
     "camera_missing_at_start_is_an_error_naming_the_device": scenario_camera_missing,
+    "camera_unplugged_mid_run_is_reported_naming_the_device_and_leaves_only_complete_files":
+        scenario_camera_unplug,
+    "camera_replugged_mid_run_resumes_and_counts_the_reconnect": scenario_camera_replug,
 }
 
 
