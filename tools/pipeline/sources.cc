@@ -201,6 +201,7 @@ class CameraSource : public FrameSource {
 
   Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& stop) override {
     const int64_t start = NowNs();
+    cap_.set_cancel_flag(&stop);  // a stop ends a reopen back-off at once
     while (!stop.load()) {
       // A device already lost before this call is being reopened: a success is a reconnection,
       // and a disconnect error that detected no new unplug is a failed reopen attempt (counted
@@ -215,6 +216,7 @@ class CameraSource : public FrameSource {
               std::to_string(device(i).stats().reopen_attempts));
         }
       }
+      if (s.kind() == camera::ErrorKind::kCancelled) break;  // stop requested
       if (!s.ok()) {
         const bool lost = cap_.left().disconnected() || (!sbs() && cap_.right().disconnected());
         switch (s.kind()) {

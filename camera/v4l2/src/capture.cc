@@ -368,7 +368,15 @@ Status CaptureDevice::Lost(const std::string& what, int err) {
 
 Status CaptureDevice::Reconnect() {
   if (!lost_) return Status::Ok();
-  sys_.SleepNs(backoff_ns_);
+  constexpr int64_t kSliceNs = 20 * kNsPerMs;
+  const auto cancelled = [this] { return cancel_ != nullptr && cancel_->load(); };
+  for (int64_t left = backoff_ns_; left > 0 && !cancelled(); left -= kSliceNs) {
+    sys_.SleepNs(std::min(left, kSliceNs));
+  }
+  if (cancelled()) {
+    return Status::Error(ErrorKind::kCancelled,
+                         config_.device + ": reopen back-off cancelled (stop requested)");
+  }
   ++stats_.reopen_attempts;
   Status s = Open();
   if (s.ok()) {

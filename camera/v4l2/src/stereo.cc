@@ -53,6 +53,12 @@ Status StereoCapture::NextSideBySide(StereoPair* out) {
   return Status::Ok();
 }
 
+void StereoCapture::set_cancel_flag(const std::atomic<bool>* flag) {
+  for (auto& device : devices_) {
+    if (device) device->set_cancel_flag(flag);
+  }
+}
+
 Status StereoCapture::Next(StereoPair* out) {
   if (config_.mode == StereoConfig::Mode::kSideBySide) return NextSideBySide(out);
 

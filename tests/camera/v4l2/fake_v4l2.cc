@@ -361,14 +361,16 @@ int64_t FakeV4l2System::MonotonicNowNs() {
 
 void FakeV4l2System::SleepNs(int64_t ns) {
   if (ns <= 0) return;
+  bool slept = false;
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (mode_ == ClockMode::kVirtual) {
       virtual_now_ += ns;
-      return;
+      slept = true;
     }
   }
-  RawPoll(nullptr, 0, ns);
+  if (!slept) RawPoll(nullptr, 0, ns);
+  if (after_sleep_) after_sleep_(MonotonicNowNs());
 }
 
 void FakeV4l2System::UpdateReadable(FakeDevice* dev) {

@@ -35,6 +35,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -178,6 +179,9 @@ class FakeV4l2System final : public V4l2Syscalls {
   // without the VIDIOC_ prefix ("QUERYCAP", "DQBUF", ...).
   std::vector<std::string> call_log();
   void clear_call_log();
+  // Called after every SleepNs with the clock's time then, e.g. to raise a cancel flag at a
+  // given moment of a back-off. Set before the code under test runs.
+  void set_after_sleep(std::function<void(int64_t now_ns)> hook) { after_sleep_ = std::move(hook); }
 
   int Open(const char* path, int flags) override;
   int Close(int fd) override;
@@ -190,6 +194,7 @@ class FakeV4l2System final : public V4l2Syscalls {
 
  private:
   friend class FakeDevice;
+  std::function<void(int64_t)> after_sleep_;
   struct File {
     FakeDevice* dev = nullptr;
     uint64_t generation = 0;

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <linux/videodev2.h>
 
+#include <atomic>
 #include <string>
 
 #include "camera/v4l2/capture_test_util.h"
@@ -72,6 +73,42 @@ TEST_F(Faults, EioLosesABufferAndCaptureRequeuesIt) {
   // Without the requeue the fake would run out of buffers within a few frames.
   for (int i = 0; i < 20; ++i) ASSERT_TRUE(cam.Read(&f).ok());
   EXPECT_EQ(dev_->stats().frames_dropped_no_buffer, 0u);
+}
+
+TEST_F(Faults, CancelFlagEndsTheReopenBackOffWithinASliceWithoutAnAttempt) {
+  CaptureConfig config = MakeConfig("/dev/video0", V4L2_PIX_FMT_GREY, 64, 32);
+  config.reopen_backoff_initial_ms = 2000;
+  CaptureDevice cam(config, sys_);
+  std::atomic<bool> stop{false};
+  cam.set_cancel_flag(&stop);
+  ASSERT_TRUE(cam.Open().ok());
+  Frame f;
+  ASSERT_TRUE(cam.Read(&f).ok());
+  dev_->Unplug();
+  ASSERT_EQ(cam.Read(&f).kind(), ErrorKind::kDisconnected);
+
+  // A stop request 300 ms into the 2 s back-off, as a SIGTERM would set the pipeline's flag.
+  const int64_t t0 = sys_.MonotonicNowNs();
+  sys_.set_after_sleep([&](int64_t now) {
+    if (now - t0 >= 300'000'000) stop.store(true);
+  });
+  Status s = cam.Read(&f);
+  EXPECT_EQ(s.kind(), ErrorKind::kCancelled) << s.message();
+  EXPECT_TRUE(Contains(s.message(), "/dev/video0")) << s.message();
+  const int64_t slept = sys_.MonotonicNowNs() - t0;
+  EXPECT_GE(slept, 300'000'000);
+  EXPECT_LE(slept, 320'000'000) << "the back-off is slept in slices of at most 20 ms";
+  EXPECT_EQ(cam.stats().reopen_attempts, 0u) << "no reopen once a stop was requested";
+  EXPECT_TRUE(cam.disconnected());
+
+  // Without the flag the back-off is slept whole and the reopen goes ahead.
+  sys_.set_after_sleep(nullptr);
+  stop.store(false);
+  dev_->Replug();
+  const int64_t t1 = sys_.MonotonicNowNs();
+  ASSERT_TRUE(cam.Read(&f).ok()) << cam.stats().last_error;
+  EXPECT_GE(sys_.MonotonicNowNs() - t1, 2'000'000'000);
+  EXPECT_EQ(cam.stats().reopens, 1u);
 }
 
 TEST_F(Faults, UnplugIsReportedThenReopenedWithBackoff) {

@@ -35,6 +35,7 @@ enum class ErrorKind {
   kFrameError,       // one frame could not be used (corrupt MJPEG, short buffer); the next may
   kSystem,           // any other failing system call
   kGeneric,          // no particular kind; the message says what failed (Status::Error(message))
+  kCancelled,        // the caller's cancel flag ended a wait (a stop request during a back-off)
 };
 
 // A short lower-case name for a kind ("busy", "disconnected", ...), for logs.
@@ -64,6 +65,8 @@ constexpr const char* ErrorKindName(ErrorKind kind) {
       return "system error";
     case ErrorKind::kGeneric:
       return "error";
+    case ErrorKind::kCancelled:
+      return "cancelled";
   }
   return "unknown";
 }

@@ -43,6 +43,7 @@
 // CaptureDevice objects may run on different threads if their V4l2Syscalls is thread-safe.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -141,6 +142,10 @@ class CaptureDevice {
   camera::Status OnWatchdog(int waited_ms);
   // Sleeps the current back-off and tries Open() once. Only valid when disconnected().
   camera::Status Reconnect();
+  // While *flag is true, the reopen back-off ends early (it is slept in slices of at most
+  // 20 ms) and Reconnect() returns kCancelled without an attempt, so a stop request is not held
+  // up by up to reopen_backoff_max_ms. nullptr (the default): the back-off is always slept.
+  void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
   camera::Status Setup();  // the canonical sequence after open(), up to STREAMON
@@ -163,6 +168,7 @@ class CaptureDevice {
   bool streaming_ = false;
   bool lost_ = false;
   int64_t backoff_ns_ = 0;
+  const std::atomic<bool>* cancel_ = nullptr;
   int consecutive_timeouts_ = 0;
   bool have_sequence_ = false;
   uint32_t last_sequence_ = 0;

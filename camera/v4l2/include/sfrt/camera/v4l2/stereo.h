@@ -19,6 +19,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 
@@ -56,6 +57,9 @@ class StereoCapture {
   void Close();
   // Waits for and returns the newest pair (see the header comment).
   camera::Status Next(StereoPair* out);
+
+  // CaptureDevice::set_cancel_flag for every device of the pair.
+  void set_cancel_flag(const std::atomic<bool>* flag);
 
   const StereoConfig& config() const { return config_; }
   const StereoStats& stats() const { return stats_; }
