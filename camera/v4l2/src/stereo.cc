@@ -115,6 +115,8 @@ Status StereoCapture::Next(StereoPair* out) {
         Status s = devices_[0]->Convert(pending_[0], &out->left);
         if (s.ok()) s = devices_[1]->Convert(pending_[1], &out->right);
         if (!s.ok()) return s;
+        ++devices_[0]->stats_.frames_delivered;
+        ++devices_[1]->stats_.frames_delivered;
         out->skew_ns = skew;
         ++stats_.pairs;
         return Status::Ok();

@@ -55,6 +55,8 @@ TEST(Stereo, PairsFramesWithinToleranceDespitePhaseOffset) {
   }
   EXPECT_EQ(cap.stats().pairs, 10u);
   EXPECT_EQ(cap.stats().unpaired_left + cap.stats().unpaired_right, 0u);
+  EXPECT_EQ(cap.left().stats().frames_delivered, 10u) << "each camera delivered a frame a pair";
+  EXPECT_EQ(cap.right().stats().frames_delivered, 10u);
 }
 
 TEST(Stereo, JitteredCamerasStillPairWithinTolerance) {

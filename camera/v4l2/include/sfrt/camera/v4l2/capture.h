@@ -87,7 +87,7 @@ struct NegotiatedFormat {
 // Counters since construction (they survive reopen).
 struct CaptureStats {
   uint64_t frames_dequeued = 0;    // every successful DQBUF
-  uint64_t frames_delivered = 0;   // frames returned by Read()/ReadRaw()
+  uint64_t frames_delivered = 0;   // frames returned by Read()/ReadRaw() or in a StereoCapture pair
   uint64_t stale_dropped = 0;      // older frames skipped to deliver the newest
   uint64_t sequence_drops = 0;     // frames the driver dropped (gaps in the sequence numbers)
   uint64_t error_flag_frames = 0;  // buffers dequeued with V4L2_BUF_FLAG_ERROR
@@ -148,7 +148,8 @@ class CaptureDevice {
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
-  camera::Status Setup();  // the canonical sequence after open(), up to STREAMON
+  friend class StereoCapture;  // counts the frames it delivers in pairs (frames_delivered)
+  camera::Status Setup();      // the canonical sequence after open(), up to STREAMON
   camera::Status WaitNewest(RawFrame* out);
   camera::Status Fail(camera::Status s);  // records s.message() in stats_.last_error and returns s
   camera::Status Lost(const std::string& what, int err);
