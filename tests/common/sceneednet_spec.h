@@ -1,4 +1,4 @@
-// Builds SceneEDNet (docs: ../shared/docs/sceneednet.md) as an exporter ModelSpec with seeded
+// Builds SceneEDNet (Thakur and Mukherjee, ICARCV 2018) as an exporter ModelSpec with seeded
 // random weights, so runtime tests need neither Python nor files.
 #pragma once
 

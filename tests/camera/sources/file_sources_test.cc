@@ -110,7 +110,7 @@ TEST(DatasetSource, SceneFlowFinalPassOnRequest) {
 }
 
 TEST(DatasetSource, FlatSamplesLayoutHasOneSequencePerDirectory) {
-  TempDir tmp;  // like ../shared/data/sceneflow-samples
+  TempDir tmp;  // like tests/data/sceneflow-samples
   WriteStereoDir(tmp / "images/Monkaa", {6, 7, 8});
   WriteStereoDir(tmp / "images/Driving", {6, 7, 8});
   WriteText(tmp / "disparity/Driving/left/0006.pfm", "Pf\n1 1\n-1\n0000");

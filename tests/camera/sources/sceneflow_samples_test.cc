@@ -1,5 +1,6 @@
-// The real Scene Flow samples in ../shared/data/sceneflow-samples (Driving and Monkaa, frames
-// 0006-0008). CI has ../shared beside the clone; a missing directory is a failure, not a skip.
+// The real Scene Flow samples committed in tests/data/sceneflow-samples (Driving and Monkaa,
+// frames 0006-0008, cropped to 270x480; see tests/data/README.md). A missing directory is a
+// failure, not a skip.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -10,12 +11,12 @@
 namespace sfrt::camera {
 namespace {
 
-const std::string kSamples = std::string(SFRT_SHARED_DIR) + "/data/sceneflow-samples";
+const std::string kSamples = SFRT_SCENEFLOW_SAMPLES_DIR;
 
 TEST(SceneFlowSamples, DetectedAndReadAsTwoSequencesOfConsecutivePairs) {
   ASSERT_TRUE(std::filesystem::is_directory(kSamples))
-      << kSamples << " is missing: these tests need the shared data checked out beside the clone "
-      << "(../shared); SFRT_SHARED_DIR=" << SFRT_SHARED_DIR;
+      << kSamples << " is missing: these tests read the Scene Flow samples committed in "
+      << "tests/data/sceneflow-samples";
   Result<DatasetInfo> info = DetectDataset(kSamples);
   ASSERT_TRUE(info.ok()) << info.message();
   EXPECT_EQ(info->layout, DatasetLayout::kStereoDirs);
@@ -31,8 +32,8 @@ TEST(SceneFlowSamples, DetectedAndReadAsTwoSequencesOfConsecutivePairs) {
     ASSERT_TRUE(got.ok()) << got.message();
     if (*got == Fetched::kEnd) break;
     for (const FramePair* p : {&window.previous(), &window.current()}) {
-      EXPECT_EQ(p->left.size(), cv::Size(960, 540)) << p->left_path;
-      EXPECT_EQ(p->right.size(), cv::Size(960, 540)) << p->right_path;
+      EXPECT_EQ(p->left.size(), cv::Size(480, 270)) << p->left_path;
+      EXPECT_EQ(p->right.size(), cv::Size(480, 270)) << p->right_path;
       EXPECT_EQ(p->left.type(), CV_8UC3);
     }
     // The two views of a real stereo pair differ; frames t and t+1 differ.

@@ -4,8 +4,9 @@
 Scenarios:
   camera     under the LD_PRELOAD fake camera pair (drop knob on the right camera): flow files,
              a summary whose drop counts match the knob.
-  replay     --replay on the Scene Flow samples (Driving and Monkaa, 3 frames each -> 2 windows
-             each): flow files, PNGs, a video and the summary.
+  replay     --replay on the Scene Flow samples in tests/data/sceneflow-samples (Driving and
+             Monkaa, 3 frames each -> 2 windows each, 270x480): flow files, PNGs, a video and
+             the summary.
   corrupt    the samples copied with one PNG truncated: reported by path; --on-bad-frame skip
              goes on, stop exits 1.
   sigterm    a longer replay killed with SIGTERM: only complete files, no temporary files, a
@@ -97,12 +98,12 @@ def run(cmd, env=None):
     return p
 
 
-def samples_dir(shared):
-    images = os.path.join(shared, "data", "sceneflow-samples", "images")
+def samples_dir(samples):
+    images = os.path.join(samples, "images")
     if not os.path.isdir(os.path.join(images, "Driving")) or not os.path.isdir(
             os.path.join(images, "Monkaa")):
         print("FAIL: the Scene Flow samples are missing: %s (Driving/ and Monkaa/ needed; "
-              "this test reads ../shared next to the source tree)" % images)
+              "they are committed in tests/data/sceneflow-samples)" % images)
         sys.exit(1)
     return images
 
@@ -158,7 +159,7 @@ def scenario_camera(a):
 
 
 def scenario_replay(a):
-    images = samples_dir(a.shared)
+    images = samples_dir(a.samples)
     out = fresh(os.path.join(a.work, "replay_out"))
     video = os.path.join(out, "vis.avi")
     p = run([a.sfrt, "run", "--model", a.model, "--replay", images, "--out", out, "--size",
@@ -180,14 +181,14 @@ def scenario_replay(a):
     check(s["completed"] is True and s["stopped_by"] == "end of source", "completed")
     check(s["bad_frames"] == [], "bad frames %s" % s["bad_frames"])
     check(s["model"]["input_size"] == [135, 240], "input size %s" % s["model"]["input_size"])
-    check(s["source"]["frame_size"] == [540, 960], "frame size %s" % s["source"]["frame_size"])
+    check(s["source"]["frame_size"] == [270, 480], "frame size %s" % s["source"]["frame_size"])
     check(s["queue_policy"] == "block", "replays block")
     check(all(v == 0 for v in s["drops"].values()), "replay drops %s" % s["drops"])
     check("4/4 frames" in p.stderr, "progress line '4/4 frames' on stderr")
 
 
 def copy_samples(a, name):
-    images = samples_dir(a.shared)
+    images = samples_dir(a.samples)
     root = os.path.join(a.work, name)
     shutil.rmtree(root, ignore_errors=True)
     shutil.copytree(images, root)
@@ -225,7 +226,7 @@ def scenario_corrupt(a):
 
 
 def scenario_sigterm(a):
-    images = samples_dir(a.shared)
+    images = samples_dir(a.samples)
     root = os.path.join(a.work, "long_replay", "seq")
     shutil.rmtree(os.path.dirname(root), ignore_errors=True)
     frames = 40
@@ -267,7 +268,8 @@ def main():
     ap.add_argument("--sfrt", required=True)
     ap.add_argument("--model", required=True)
     ap.add_argument("--work", required=True)
-    ap.add_argument("--shared", default="")
+    ap.add_argument("--samples", default="",
+                    help="the sceneflow-samples folder (images/, disparity/)")
     ap.add_argument("--preload", default="")
     ap.add_argument("--drop-every", type=int, default=4)
     a = ap.parse_args()
