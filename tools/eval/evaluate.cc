@@ -448,9 +448,11 @@ std::string FormatJson(const EvalReport& r) {
   o << "  \"frames\": " << r.frames << ",\n";
   o << "  \"units\": \"scene units of the dataset's camera (baseline " << JsonNumber(r.baseline)
     << ")\",\n";
-  o << "  \"definitions\": {\"epe3d\": \"mean |pred - gt|\", \"epe_x\": \"mean |pred_x - gt_x|\", "
-       "\"acc05\": \"share with EPE < 0.05 or EPE/|gt| < 5%\", \"acc10\": \"share with EPE < 0.1 "
-       "or EPE/|gt| < 10%\", \"outliers\": \"share with EPE > 0.3 or EPE/|gt| > 10%\"}";
+  o << "  \"definitions\": {\"epe3d\": \"mean |pred - gt|\", \"epe_x\": \"mean |pred_x - gt_x|\"";
+  for (const ShareRule& rule : kShareRules) {
+    o << ", " << JsonString(rule.key) << ": " << JsonString(rule.Definition());
+  }
+  o << "}";
   for (int m = 0; m < kMethodCount; ++m) {
     if (!MethodShown(r, m)) continue;
     o << ",\n  \"" << kMethodNames[m]

@@ -1,9 +1,18 @@
 #include "eval/metrics.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace sfrt::eval {
+
+std::string ShareRule::Definition() const {
+  const char* op = above ? ">" : "<";
+  char text[96];
+  std::snprintf(text, sizeof(text), "share with EPE %s %g or EPE/|gt| %s %g%%", op, epe_threshold,
+                op, relative_threshold * 100);
+  return text;
+}
 
 void MetricsAccumulator::Add(const float* pred, const float* truth, size_t pixels) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -33,9 +42,9 @@ void MetricsAccumulator::Add(const float* pred, const float* truth, size_t pixel
         std::sqrt(static_cast<double>(g[0]) * g[0] + static_cast<double>(g[1]) * g[1] +
                   static_cast<double>(g[2]) * g[2]);
     const double rel = norm > 0 ? epe / norm : (epe > 0 ? kInf : 0.0);
-    if (epe < 0.05 || rel < 0.05) ++acc05_;
-    if (epe < 0.1 || rel < 0.1) ++acc10_;
-    if (epe > 0.3 || rel > 0.1) ++outliers_;
+    if (kAcc05.Counts(epe, rel)) ++acc05_;
+    if (kAcc10.Counts(epe, rel)) ++acc10_;
+    if (kOutliers.Counts(epe, rel)) ++outliers_;
   }
 }
 

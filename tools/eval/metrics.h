@@ -7,16 +7,42 @@
 //   epe3d     = mean EPE;  epe_x, epe_y, epe_z = mean |p_c - g_c| per component
 //   acc05     = share of pixels with EPE < 0.05 OR relative < 5%
 //   acc10     = share of pixels with EPE < 0.1  OR relative < 10%
-//   outliers  = share of pixels with EPE > 0.3  OR relative > 10%   (issue #7's wording,
-//               "EPE over 0.3 or over 10% relative"; the same as FlowNet3D's definition)
+//   outliers  = share of pixels with EPE > 0.3  OR relative > 10%
+// (the usual scene-flow definitions, FlowNet3D's (Liu et al., CVPR 2019): one of the two
+// conditions is enough). The thresholds are the ShareRule table below, which the metric, the
+// `sfrt eval --help` text and the JSON's "definitions" all read.
 // Thresholds are absolute, in scene units: they assume the FlyingThings3D scale (baseline 1).
 // Pixels with non-finite ground truth are skipped. A non-finite prediction at a valid pixel
 // counts as an infinite error (the mean EPE becomes infinite, the pixel is an outlier).
 #pragma once
 
 #include <cstddef>
+#include <string>
 
 namespace sfrt::eval {
+
+// One share metric: the pixels whose EPE or relative error passes a threshold. A "below" rule
+// (ACC) counts a pixel when EPE < epe_threshold OR relative < relative_threshold; an "above"
+// rule (outliers) when EPE > epe_threshold OR relative > relative_threshold.
+struct ShareRule {
+  const char* key;            // JSON key and FlowMetrics field, e.g. "acc05"
+  const char* label;          // column of the printed table, e.g. "ACC.05"
+  bool above;                 // true: counts errors above the thresholds
+  double epe_threshold;       // absolute, scene units
+  double relative_threshold;  // EPE / |gt|: 0.05 = 5%
+
+  constexpr bool Counts(double epe, double relative) const {
+    return above ? (epe > epe_threshold || relative > relative_threshold)
+                 : (epe < epe_threshold || relative < relative_threshold);
+  }
+  // "share with EPE > 0.3 or EPE/|gt| > 10%".
+  std::string Definition() const;
+};
+
+inline constexpr ShareRule kAcc05{"acc05", "ACC.05", false, 0.05, 0.05};
+inline constexpr ShareRule kAcc10{"acc10", "ACC.10", false, 0.1, 0.1};
+inline constexpr ShareRule kOutliers{"outliers", "outliers", true, 0.3, 0.1};
+inline constexpr ShareRule kShareRules[] = {kAcc05, kAcc10, kOutliers};
 
 struct FlowMetrics {
   double epe3d = 0;

@@ -115,6 +115,13 @@ Command AddEvalCommand(CLI::App& parent) {
   cmd->add_option("--max-frames", args->max_frames, "Evaluate at most N frames (default: all)");
   cmd->add_flag("--no-classical", args->no_classical, "Skip the classical OpenCV baseline");
   cmd->add_flag("--quiet", args->quiet, "No progress lines");
+  // The share metrics' lines come from the table the metric itself applies (eval/metrics.h).
+  std::string share_metrics;
+  for (const eval::ShareRule& rule : eval::kShareRules) {
+    char line[128];
+    std::snprintf(line, sizeof(line), "  %-9s %s\n", rule.label, rule.Definition().c_str());
+    share_metrics += line;
+  }
   cmd->footer(
       "Frames: DIR/frames_cleanpass/<seq>/{left,right}/NNNN.png with frame NNNN+1 present;\n"
       "ground truth DIR/scene_flow/<seq>/into_future/left/NNNN.pfm, or else computed from\n"
@@ -123,10 +130,9 @@ Command AddEvalCommand(CLI::App& parent) {
       "(StereoSGBM disparity at t and t+1, DIS optical flow on the left images, d1 read\n"
       "bilinearly where the pixel moved, then Z = f B / d etc.).\n"
       "Metrics over pixels with finite ground truth, in the dataset's scene units:\n"
-      "  EPE3D     mean |pred - gt|;  EPE_X/Y/Z mean |pred_c - gt_c|\n"
-      "  ACC.05    share with EPE < 0.05 or EPE/|gt| < 5%\n"
-      "  ACC.10    share with EPE < 0.1 or EPE/|gt| < 10%\n"
-      "  outliers  share with EPE > 0.3 or EPE/|gt| > 10%\n"
+      "  EPE3D     mean |pred - gt|;  EPE_X/Y/Z mean |pred_c - gt_c|\n" +
+      share_metrics +
+      "(one of the two conditions is enough: the usual definitions, FlowNet3D's).\n"
       "Per sequence and overall. JSON: keys sfrt, zero_flow, classical, each with epe3d,\n"
       "epe_x, epe_y, epe_z, acc05, acc10, outliers, valid_pixels, frames and sequences.\n"
       "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <iterator>
 #include <limits>
 #include <opencv2/core.hpp>
 #include <string>
@@ -79,6 +80,22 @@ TEST(Metrics, OutlierIsEpeOverPoint3OrRelativeOver10Percent) {
   // Both are accurate at 10% (relative 4%; absolute 0.05 < 0.1) and the first at 5% too.
   EXPECT_DOUBLE_EQ(m.acc10, 1.0);
   EXPECT_DOUBLE_EQ(m.acc05, 0.5);
+}
+
+// The text `sfrt eval --help` and the JSON print is generated from the rule the metric applies.
+TEST(Metrics, ShareRuleDefinitionsDescribeTheRuleTheMetricApplies) {
+  EXPECT_EQ(kAcc05.Definition(), "share with EPE < 0.05 or EPE/|gt| < 5%");
+  EXPECT_EQ(kAcc10.Definition(), "share with EPE < 0.1 or EPE/|gt| < 10%");
+  EXPECT_EQ(kOutliers.Definition(), "share with EPE > 0.3 or EPE/|gt| > 10%");
+  // "or": either condition alone is enough.
+  EXPECT_TRUE(kOutliers.Counts(0.4, 0.04));
+  EXPECT_TRUE(kOutliers.Counts(0.05, 0.5));
+  EXPECT_FALSE(kOutliers.Counts(0.3, 0.1));
+  EXPECT_TRUE(kAcc05.Counts(0.04, 0.9));
+  EXPECT_TRUE(kAcc05.Counts(0.9, 0.04));
+  EXPECT_FALSE(kAcc05.Counts(0.05, 0.05));
+  ASSERT_EQ(std::size(kShareRules), 3u);
+  EXPECT_STREQ(kShareRules[2].key, "outliers");
 }
 
 TEST(Metrics, ZeroFlowEpeEqualsMeanTruthMagnitude) {
