@@ -765,12 +765,15 @@ class Parser {
     const cv::Size size = calib->image_size;
     if (live_camera && size.width > 0 && p_.camera.width > 0) {
       const int w = p_.source == SourceKind::kSbsCamera ? p_.camera.width / 2 : p_.camera.width;
+      // An error, not a warning: sfrt run refuses it too (StereoRectifier::Create), since
+      // rectification maps made for another resolution would warp every frame wrongly.
       if (size.width != w || size.height != p_.camera.height) {
-        c_.Warning(f.pos, f.path,
-                   "calibrated at " + std::to_string(size.width) + "x" +
-                       std::to_string(size.height) + " (WxH) but the camera delivers " +
-                       std::to_string(w) + "x" + std::to_string(p_.camera.height) +
-                       " per eye; intrinsics will be scaled");
+        c_.Error(f.pos, f.path,
+                 calib->source + ": calibrated at " + std::to_string(size.height) + "x" +
+                     std::to_string(size.width) + " (HxW) but the camera delivers " +
+                     std::to_string(p_.camera.height) + "x" + std::to_string(w) + " (HxW) per eye",
+                 "a calibration made at the camera's resolution (recalibrate, or set "
+                 "camera.width and camera.height to the calibrated size)");
       }
     }
   }

@@ -383,7 +383,8 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--calibration", args->calibration,
                   "Stereo calibration to rectify with: ROS camera_info LEFT.yaml,RIGHT.yaml, a "
                   "Kalibr camchain, or OpenCV YAML (one or two files, comma-separated). "
-                  "Without it frames are only resized");
+                  "Without it frames are only resized. A calibration made at another "
+                  "resolution than the frames' is an error (exit 1)");
   cmd->add_option("--on-bad-frame", args->on_bad_frame,
                   "A missing/corrupt frame: skip (recorded in the summary) or stop (exit 1). "
                   "Default: stop for replays, skip for cameras");

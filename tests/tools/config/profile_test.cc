@@ -148,6 +148,12 @@ INSTANTIATE_TEST_SUITE_P(
                     "priority_out_of_range", "bad_pixel_format", "missing_required", "two_sources",
                     "smaller_input_without_size", "syntax_error", "sbs_odd_width"),
     [](const testing::TestParamInfo<std::string>& param_info) { return param_info.param; });
+// A calibration made at another resolution than the camera's is an error, as in sfrt run.
+INSTANTIATE_TEST_SUITE_P(Calibration, BrokenProfile,
+                         testing::Values("calibration_at_another_resolution"),
+                         [](const testing::TestParamInfo<std::string>& param_info) {
+                           return param_info.param;
+                         });
 
 // Every file in broken/ is listed above (a new one cannot be silently left out).
 TEST(BrokenProfiles, EveryFileIsInTheParameterList) {
@@ -164,7 +170,8 @@ TEST(BrokenProfiles, EveryFileIsInTheParameterList) {
                                            "two_sources",
                                            "smaller_input_without_size",
                                            "syntax_error",
-                                           "sbs_odd_width"};
+                                           "sbs_odd_width",
+                                           "calibration_at_another_resolution"};
   for (const auto& entry : fs::directory_iterator(kBroken)) {
     if (entry.path().extension() != ".yaml") continue;
     const std::string stem = entry.path().stem().string();
