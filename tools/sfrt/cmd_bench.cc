@@ -44,7 +44,7 @@ constexpr int kExitBudgetMissed = 3;
 
 struct BenchArgs {
   std::string model;
-  std::string size = "540x960";
+  std::string size;  // empty: the model's traced size (DefaultInputSize)
   std::string isas = "best";
   std::string threads = "1";
   int warmup = 1;
@@ -254,7 +254,7 @@ int RunBench(const BenchArgs& args) {
                        kExitUsage);
   }
   int height = 0, width = 0;
-  if (!ParseSize(args.size, &height, &width)) {
+  if (!args.size.empty() && !ParseSize(args.size, &height, &width)) {
     return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
                        kExitUsage);
   }
@@ -283,6 +283,8 @@ int RunBench(const BenchArgs& args) {
   }
   auto model = Model::LoadFile(args.model);
   if (!model.ok()) return ReportError(kName, model.message(), kExitFailure);
+  std::string size_source = "--size";
+  if (args.size.empty()) size_source = DefaultInputSize((*model)->metadata(), &height, &width);
   auto geometry = InferGeometry(**model, height, width);
   if (!geometry.ok()) return ReportError(kName, geometry.message(), kExitFailure);
   uint64_t macs = 0;
@@ -331,8 +333,9 @@ int RunBench(const BenchArgs& args) {
   for (float& v : input) v = dist(rng);
   std::vector<float> output(geometry->back().output.elements());
 
-  std::printf("model  %s at %dx%d: %.2f GMAC (%.1f GFLOP) per run\n", args.model.c_str(), height,
-              width, static_cast<double>(macs) / 1e9, 2.0 * static_cast<double>(macs) / 1e9);
+  std::printf("model  %s at %dx%d (%s): %.2f GMAC (%.1f GFLOP) per run\n", args.model.c_str(),
+              height, width, size_source.c_str(), static_cast<double>(macs) / 1e9,
+              2.0 * static_cast<double>(macs) / 1e9);
   PrintBuildAndCpu();
   for (const Config& c : configs) {
     const std::string flags = prof::IsaFlags(IsaName(c.isa));
@@ -566,6 +569,7 @@ int RunBench(const BenchArgs& args) {
     Json json{{"model", args.model},
               {"height", height},
               {"width", width},
+              {"size_source", size_source},
               {"macs", macs},
               {"peak_rss_kib", usage.max_rss_kib},
               {"peak_rss_mib", static_cast<double>(usage.max_rss_kib) / 1024.0},
@@ -597,7 +601,9 @@ Command AddBenchCommand(CLI::App& parent) {
       "bench",
       "Time a model per ISA and thread count in the same run, per layer, against a budget");
   cmd->add_option("--model", args->model, "Model file (.sfrt); required unless --peak");
-  cmd->add_option("--size", args->size, "Input size HxW (default 540x960)");
+  cmd->add_option("--size", args->size,
+                  "Input size HxW (default: the size the model was traced at, as sfrt inspect "
+                  "uses, else 540x960)");
   cmd->add_option("--isa", args->isas,
                   "Comma-separated ISAs to time: ref, avx2, avx512, neon, best (default), all");
   cmd->add_option("--threads", args->threads, "Comma-separated thread counts (default 1)");

@@ -16,8 +16,6 @@ namespace sfrt::tools {
 namespace {
 
 constexpr char kName[] = "inspect";
-constexpr int kDefaultHeight = 540;
-constexpr int kDefaultWidth = 960;
 
 struct InspectArgs {
   std::string model;
@@ -175,17 +173,7 @@ int RunInspect(const InspectArgs& args) {
   const ModelMetadata& meta = model->metadata();
 
   std::string size_source = "--size";
-  if (args.size.empty()) {
-    if (meta.input.traced_height > 0 && meta.input.traced_width > 0) {
-      height = meta.input.traced_height;
-      width = meta.input.traced_width;
-      size_source = "traced size";
-    } else {
-      height = kDefaultHeight;
-      width = kDefaultWidth;
-      size_source = "default; traced size unknown";
-    }
-  }
+  if (args.size.empty()) size_source = DefaultInputSize(meta, &height, &width);
 
   std::ostream& out = std::cout;
   const std::string traced =

@@ -14,6 +14,10 @@ namespace CLI {
 class App;
 }  // namespace CLI
 
+namespace sfrt {
+struct ModelMetadata;
+}  // namespace sfrt
+
 namespace sfrt::tools {
 
 inline constexpr int kExitOk = 0;
@@ -44,6 +48,14 @@ int ReportError(std::string_view command, std::string_view message, int exit_cod
 
 // Parses "HxW" (also "HXW" or "H,W") into positive height and width.
 bool ParseSize(std::string_view text, int* height, int* width);
+
+// The input size of a model-running command without --size (inspect, bench): the size the
+// model was traced at, else kFallbackInputHeight x kFallbackInputWidth (the Scene Flow frame
+// size). Returns how it was chosen, for the output: "traced size" or "default; traced size
+// unknown".
+inline constexpr int kFallbackInputHeight = 540;
+inline constexpr int kFallbackInputWidth = 960;
+const char* DefaultInputSize(const ModelMetadata& meta, int* height, int* width);
 
 // Empty when `path` names an existing regular file (or a symlink to one); otherwise a message
 // such as "model file 'x.sfrt' does not exist". `what` names the role ("model file").

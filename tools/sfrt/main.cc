@@ -91,6 +91,17 @@ std::string GroupDigits(unsigned long long value) {
   return out;
 }
 
+const char* DefaultInputSize(const ModelMetadata& meta, int* height, int* width) {
+  if (meta.input.traced_height > 0 && meta.input.traced_width > 0) {
+    *height = meta.input.traced_height;
+    *width = meta.input.traced_width;
+    return "traced size";
+  }
+  *height = kFallbackInputHeight;
+  *width = kFallbackInputWidth;
+  return "default; traced size unknown";
+}
+
 }  // namespace sfrt::tools
 
 namespace {
