@@ -71,20 +71,10 @@ const IsaConvKernels* ConvKernelsFor(Isa isa) {
 namespace {
 
 Result<Isa> ResolveIsa(Isa requested) {
-  std::string source = "SessionOptions::isa";
-  if (requested == Isa::kAuto) {
-    const char* env = std::getenv("SFRT_ISA");
-    if (env == nullptr || *env == '\0') return BestIsa();
-    source = "SFRT_ISA";
-    if (!ParseIsa(env, &requested)) {
-      return Status::Error(std::string("Session::Create: SFRT_ISA='") + env +
-                           "' is not one of auto, ref, avx2, avx512, neon");
-    }
-    if (requested == Isa::kAuto) return BestIsa();
-  }
+  if (requested == Isa::kAuto) return BestIsa();
   if (!IsaSupported(requested)) {
     return Status::Error(
-        std::string("Session::Create: ") + source + " asks for ISA '" + IsaName(requested) +
+        std::string("Session::Create: SessionOptions::isa asks for ISA '") + IsaName(requested) +
         "', which this CPU and build cannot run (supported: " + SupportedIsaList() + ")");
   }
   return requested;
@@ -142,24 +132,12 @@ void RefConvTrampoline(void* ctx, int begin, int end) {
   ref::Conv2d(job->in, *job->params, pads, rows);
 }
 
-// Tile side of the Winograd path: SFRT_WINOGRAD=off|f2|f4 if set (for experiments and tests),
-// else kDefaultWinogradTile. 0: off.
-constexpr int kDefaultWinogradTile = 2;
-Result<int> ResolveWinogradTile() {
-  const char* env = std::getenv("SFRT_WINOGRAD");
-  if (env == nullptr || *env == '\0') return kDefaultWinogradTile;
-  const std::string v = env;
-  if (v == "off") return 0;
-  if (v == "f2") return 2;
-  if (v == "f4") return 4;
-  return Status::Error("Session::Create: SFRT_WINOGRAD='" + v + "' is not one of off, f2, f4");
-}
-
-// SFRT_WINOGRAD_UPCONV=off turns the fused upsample-conv's Winograd phase path off (for
-// experiments and tests); anything else, or unset, leaves it on.
-bool UpConvWinogradEnabled() {
-  const char* env = std::getenv("SFRT_WINOGRAD_UPCONV");
-  return env == nullptr || std::string(env) != "off";
+Status CheckTuning(const KernelTuning& tuning) {
+  if (tuning.winograd_tile != 0 && tuning.winograd_tile != 2 && tuning.winograd_tile != 4) {
+    return Status::Error("Session::Create: KernelTuning::winograd_tile is " +
+                         std::to_string(tuning.winograd_tile) + "; use 0 (off), 2 or 4");
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -181,6 +159,7 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
     return Status::Error("Session::Create: SessionOptions::threads is " +
                          std::to_string(options.threads) + "; use 0 (one per CPU) or more");
   }
+  if (Status t = CheckTuning(options.tuning); !t.ok()) return t;
   Result<Isa> isa = ResolveIsa(options.isa);
   if (!isa.ok()) return isa.status();
 
@@ -204,7 +183,8 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
   }
   if (Status planned = session->Plan(); !planned.ok()) return planned;
   if (session->threads_ > 1) {
-    session->pool_ = std::make_unique<Pool>(session->threads_, options.pin_threads);
+    session->pool_ =
+        std::make_unique<Pool>(session->threads_, options.pin_threads, options.spin_us);
   }
   return session;
 }
@@ -213,12 +193,11 @@ Status Session::Plan() {
   const auto layers = model_->layers();
   const int n = static_cast<int>(layers.size());
   const IsaConvKernels* kernels = ConvKernelsFor(isa_);
-  Result<int> winograd_tile = ResolveWinogradTile();
-  if (!winograd_tile.ok()) return winograd_tile.status();
+  const KernelTuning& tuning = options_.tuning;
   const WinogradKernels* winograd =
-      *winograd_tile > 0 ? WinogradKernelsFor(isa_, *winograd_tile) : nullptr;
+      tuning.winograd_tile > 0 ? WinogradKernelsFor(isa_, tuning.winograd_tile) : nullptr;
   const WinogradKernels* upwinograd =
-      *winograd_tile > 0 && UpConvWinogradEnabled() ? WinogradUpKernelsFor(isa_) : nullptr;
+      tuning.winograd_tile > 0 && tuning.winograd_upconv ? WinogradUpKernelsFor(isa_) : nullptr;
 
   // 1. The steps, fusing upsample 2x (+ crop) + 3x3 stride-1 convolution where the ISA can.
   for (int i = 0; i < n; ++i) {
@@ -269,8 +248,7 @@ Status Session::Plan() {
   };
   auto few_out = [&](const Step& step) {
     const ConvParams& p = layers[step.last_layer].conv;
-    const char* env = std::getenv("SFRT_FEWOUT");  // "off": for experiments and tests
-    if (env != nullptr && std::string(env) == "off") return false;
+    if (!tuning.few_out) return false;
     return step.kind == Step::Kind::kConv && kernels->few_out != nullptr &&
            p.out_channels <= kFewOutChannels && p.in_channels >= kFewOutMinInputs;
   };
@@ -400,11 +378,7 @@ Result<TensorShape> Session::OutputShape(int height, int width) const {
                          " exceeds the session's maximum " + std::to_string(options_.max_height) +
                          "x" + std::to_string(options_.max_width));
   }
-  // Run() keeps the geometry scratch for itself; this is a const query, so use a copy.
-  std::vector<LayerGeometry> geometry(geometry_.size());
-  Status s = InferGeometry(*model_, height, width, geometry);
-  if (!s.ok()) return s;
-  return geometry.back().output;
+  return InferOutputShape(*model_, height, width);
 }
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output) {

@@ -28,12 +28,10 @@ int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
   return (padded - kernel) / stride + 1;
 }
 
-Status InferGeometry(const Model& model, int height, int width, std::span<LayerGeometry> out) {
-  const auto layers = model.layers();
-  if (out.size() != layers.size()) {
-    return Status::Error("internal: geometry buffer has " + std::to_string(out.size()) +
-                         " entries for " + std::to_string(layers.size()) + " layers");
-  }
+namespace {
+
+// The input size every query accepts, whatever the model.
+Status CheckInputSize(int height, int width) {
   if (height <= 0 || width <= 0) {
     return Status::Error("input size " + std::to_string(height) + "x" + std::to_string(width) +
                          " is not positive");
@@ -42,75 +40,103 @@ Status InferGeometry(const Model& model, int height, int width, std::span<LayerG
     return Status::Error("input size " + std::to_string(height) + "x" + std::to_string(width) +
                          " exceeds the largest supported side, " + std::to_string(kMaxTensorSide));
   }
-  TensorShape cur{height, width, model.metadata().input.channels};
-  for (size_t i = 0; i < layers.size(); ++i) {
-    const LayerDesc& layer = layers[i];
-    LayerGeometry& g = out[i];
-    g = LayerGeometry{};
-    g.input = cur;
-    switch (layer.kind) {
-      case LayerKind::kConv2D: {
-        const ConvParams& c = layer.conv;
-        const int oh = ConvOutputSize(cur.height, c.kernel_h, c.stride_h, c.padding_rule,
-                                      c.pads.top, c.pads.bottom, &g.pads.top, &g.pads.bottom);
-        const int ow = ConvOutputSize(cur.width, c.kernel_w, c.stride_w, c.padding_rule,
-                                      c.pads.left, c.pads.right, &g.pads.left, &g.pads.right);
-        if (oh <= 0 || ow <= 0) {
-          return Status::Error(Quote(layer, i) + ": input " + std::to_string(cur.height) + "x" +
-                               std::to_string(cur.width) + " is smaller than its " +
-                               std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
-                               " kernel with its padding");
-        }
-        g.output = {oh, ow, c.out_channels};
-        g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
-                   static_cast<uint64_t>(c.out_channels);
-        g.macs =
-            static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w * c.in_channels;
-        break;
+  return Status::Ok();
+}
+
+// Fills `g` for layer `i`, which receives `cur`, in a model whose input is height x width.
+Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
+                       const TensorShape& cur, LayerGeometry& g) {
+  g = LayerGeometry{};
+  g.input = cur;
+  switch (layer.kind) {
+    case LayerKind::kConv2D: {
+      const ConvParams& c = layer.conv;
+      const int oh = ConvOutputSize(cur.height, c.kernel_h, c.stride_h, c.padding_rule, c.pads.top,
+                                    c.pads.bottom, &g.pads.top, &g.pads.bottom);
+      const int ow = ConvOutputSize(cur.width, c.kernel_w, c.stride_w, c.padding_rule, c.pads.left,
+                                    c.pads.right, &g.pads.left, &g.pads.right);
+      if (oh <= 0 || ow <= 0) {
+        return Status::Error(Quote(layer, i) + ": input " + std::to_string(cur.height) + "x" +
+                             std::to_string(cur.width) + " is smaller than its " +
+                             std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
+                             " kernel with its padding");
       }
-      case LayerKind::kUpsample:
-        if (cur.height > kMaxTensorSide / layer.upsample.factor_h ||
-            cur.width > kMaxTensorSide / layer.upsample.factor_w) {
-          return Status::Error(
-              Quote(layer, i) + ": upsampling " + std::to_string(cur.height) + "x" +
-              std::to_string(cur.width) + " by " + std::to_string(layer.upsample.factor_h) + "x" +
-              std::to_string(layer.upsample.factor_w) + " exceeds the largest supported side, " +
-              std::to_string(kMaxTensorSide));
-        }
-        g.output = {cur.height * layer.upsample.factor_h, cur.width * layer.upsample.factor_w,
-                    cur.channels};
-        break;
-      case LayerKind::kCrop: {
-        const CropParams& c = layer.crop;
-        if (c.rule == CropRule::kExplicit) {
-          g.crop = c.amounts;
-        } else {
-          const int excess_rows = cur.height - height;
-          const int excess_cols = cur.width - width;
-          if (excess_rows < 0 || excess_cols < 0) {
-            return Status::Error(Quote(layer, i) + ": crops to the input size " +
-                                 std::to_string(height) + "x" + std::to_string(width) +
-                                 " but receives only " + std::to_string(cur.height) + "x" +
-                                 std::to_string(cur.width));
-          }
-          (c.excess_rows_from_top ? g.crop.top : g.crop.bottom) = excess_rows;
-          (c.excess_cols_from_left ? g.crop.left : g.crop.right) = excess_cols;
-        }
-        // In 64 bits: explicit amounts are any non-negative int in a (crafted) file.
-        const int64_t rows = int64_t{cur.height} - g.crop.top - g.crop.bottom;
-        const int64_t cols = int64_t{cur.width} - g.crop.left - g.crop.right;
-        if (rows <= 0 || cols <= 0) {
-          return Status::Error(Quote(layer, i) + ": removes everything of a " +
-                               std::to_string(cur.height) + "x" + std::to_string(cur.width) +
-                               " input");
-        }
-        g.output = {static_cast<int>(rows), static_cast<int>(cols), cur.channels};
-        break;
-      }
+      g.output = {oh, ow, c.out_channels};
+      g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+                 static_cast<uint64_t>(c.out_channels);
+      g.macs = static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w * c.in_channels;
+      break;
     }
-    cur = g.output;
+    case LayerKind::kUpsample:
+      if (cur.height > kMaxTensorSide / layer.upsample.factor_h ||
+          cur.width > kMaxTensorSide / layer.upsample.factor_w) {
+        return Status::Error(
+            Quote(layer, i) + ": upsampling " + std::to_string(cur.height) + "x" +
+            std::to_string(cur.width) + " by " + std::to_string(layer.upsample.factor_h) + "x" +
+            std::to_string(layer.upsample.factor_w) + " exceeds the largest supported side, " +
+            std::to_string(kMaxTensorSide));
+      }
+      g.output = {cur.height * layer.upsample.factor_h, cur.width * layer.upsample.factor_w,
+                  cur.channels};
+      break;
+    case LayerKind::kCrop: {
+      const CropParams& c = layer.crop;
+      if (c.rule == CropRule::kExplicit) {
+        g.crop = c.amounts;
+      } else {
+        const int excess_rows = cur.height - height;
+        const int excess_cols = cur.width - width;
+        if (excess_rows < 0 || excess_cols < 0) {
+          return Status::Error(Quote(layer, i) + ": crops to the input size " +
+                               std::to_string(height) + "x" + std::to_string(width) +
+                               " but receives only " + std::to_string(cur.height) + "x" +
+                               std::to_string(cur.width));
+        }
+        (c.excess_rows_from_top ? g.crop.top : g.crop.bottom) = excess_rows;
+        (c.excess_cols_from_left ? g.crop.left : g.crop.right) = excess_cols;
+      }
+      // In 64 bits: explicit amounts are any non-negative int in a (crafted) file.
+      const int64_t rows = int64_t{cur.height} - g.crop.top - g.crop.bottom;
+      const int64_t cols = int64_t{cur.width} - g.crop.left - g.crop.right;
+      if (rows <= 0 || cols <= 0) {
+        return Status::Error(Quote(layer, i) + ": removes everything of a " +
+                             std::to_string(cur.height) + "x" + std::to_string(cur.width) +
+                             " input");
+      }
+      g.output = {static_cast<int>(rows), static_cast<int>(cols), cur.channels};
+      break;
+    }
   }
   return Status::Ok();
+}
+
+}  // namespace
+
+Status InferGeometry(const Model& model, int height, int width, std::span<LayerGeometry> out) {
+  const auto layers = model.layers();
+  if (out.size() != layers.size()) {
+    return Status::Error("internal: geometry buffer has " + std::to_string(out.size()) +
+                         " entries for " + std::to_string(layers.size()) + " layers");
+  }
+  if (Status s = CheckInputSize(height, width); !s.ok()) return s;
+  TensorShape cur{height, width, model.metadata().input.channels};
+  for (size_t i = 0; i < layers.size(); ++i) {
+    if (Status s = GeometryOfLayer(layers[i], i, height, width, cur, out[i]); !s.ok()) return s;
+    cur = out[i].output;
+  }
+  return Status::Ok();
+}
+
+Result<TensorShape> InferOutputShape(const Model& model, int height, int width) {
+  if (Status s = CheckInputSize(height, width); !s.ok()) return s;
+  const auto layers = model.layers();
+  TensorShape cur{height, width, model.metadata().input.channels};
+  LayerGeometry g;
+  for (size_t i = 0; i < layers.size(); ++i) {
+    if (Status s = GeometryOfLayer(layers[i], i, height, width, cur, g); !s.ok()) return s;
+    cur = g.output;
+  }
+  return cur;
 }
 
 Result<std::vector<LayerGeometry>> InferGeometry(const Model& model, int height, int width) {

@@ -104,5 +104,25 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   }
 }
 
+TEST(ZeroAllocation, OutputShapeAllocatesNothing) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  SessionOptions options;
+  options.max_height = 96;
+  options.max_width = 128;
+  auto session = Session::Create(model, options);
+  ASSERT_TRUE(session.ok()) << session.message();
+  for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}}) {
+    const long before = g_allocations.load();
+    Result<TensorShape> shape = (*session)->OutputShape(h, w);
+    const long allocated = g_allocations.load() - before;
+    ASSERT_TRUE(shape.ok()) << shape.message();
+    EXPECT_EQ(shape->height, h);
+    EXPECT_EQ(shape->width, w);
+    EXPECT_EQ(shape->channels, 3);
+    EXPECT_EQ(allocated, 0) << "OutputShape(" << h << "x" << w << ") allocated " << allocated
+                            << " times";
+  }
+}
+
 }  // namespace
 }  // namespace sfrt

@@ -115,8 +115,8 @@ std::string MetricsJson(const FlowMetrics& m, int frames, const std::string& ind
 // Runs the model on the four images at (height, width) and returns the flow at the images' size.
 class ModelRunner {
  public:
-  static Result<std::unique_ptr<ModelRunner>> Create(const std::string& path, int height,
-                                                     int width) {
+  static Result<std::unique_ptr<ModelRunner>> Create(const std::string& path, int height, int width,
+                                                     const EvalOptions& eval) {
     Result<std::shared_ptr<const Model>> model = Model::LoadFile(path);
     if (!model.ok()) return model.status();
     auto runner = std::unique_ptr<ModelRunner>(new ModelRunner());
@@ -143,6 +143,8 @@ class ModelRunner {
     SessionOptions options;
     options.max_height = height;
     options.max_width = width;
+    options.isa = eval.isa;
+    options.tuning = eval.tuning;
     Result<std::unique_ptr<Session>> session = Session::Create(runner->model_, options);
     if (!session.ok()) return session.status();
     runner->session_ = std::move(session).value();
@@ -357,7 +359,7 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
     }
     if (report.has_model && !runner) {
       Result<std::unique_ptr<ModelRunner>> created =
-          ModelRunner::Create(options.model_path, report.model_height, report.model_width);
+          ModelRunner::Create(options.model_path, report.model_height, report.model_width, options);
       if (!created.ok()) return created.status();
       runner = std::move(created).value();
       const ModelMetadata& meta = runner->metadata();

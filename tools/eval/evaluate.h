@@ -23,6 +23,8 @@
 #include <vector>
 
 #include "eval/metrics.h"
+#include "sfrt/isa.h"
+#include "sfrt/session.h"
 #include "sfrt/status.h"
 
 namespace sfrt::eval {
@@ -37,6 +39,8 @@ struct EvalOptions {
   int model_width = 0;
   int max_frames = 0;  // 0: all
   bool classical = true;
+  Isa isa = Isa::kAuto;  // the model's session
+  KernelTuning tuning{};
 };
 
 struct FrameRef {

@@ -255,6 +255,7 @@ Status Runner::Setup() {
   so.max_width = width_;
   so.isa = options_.isa;
   so.threads = options_.threads;
+  so.tuning = options_.tuning;
   Result<std::unique_ptr<Session>> session = Session::Create(model_, so);
   if (!session.ok()) {
     return Status::Error("cannot create a session for " + std::to_string(height_) + "x" +

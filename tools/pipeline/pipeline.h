@@ -46,6 +46,7 @@
 #include "sfrt/camera/preprocess.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/session.h"
 #include "sfrt/status.h"
 
 namespace sfrt::pipeline {
@@ -138,6 +139,7 @@ struct PipelineOptions {
   int width = 0;
   Isa isa = Isa::kAuto;
   int threads = 1;
+  KernelTuning tuning{};  // the session's optimised-path switches (defaults: the fastest)
   std::optional<QueuePolicy> policy;  // default: kNewestWins for live sources, kBlock otherwise
   size_t queue_capacity = 1;
   std::optional<camera::StereoCalibration> calibration;  // rectify with it (else resize only)

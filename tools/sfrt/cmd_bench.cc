@@ -30,6 +30,7 @@
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
+#include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::tools {
@@ -302,6 +303,9 @@ int RunBench(const BenchArgs& args) {
       options.max_width = width;
       options.isa = isa;
       options.threads = threads;
+      if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
+        return ReportError(kName, env.message(), kExitUsage);
+      }
       auto session = Session::Create(*model, options);
       if (!session.ok()) return ReportError(kName, session.message(), kExitFailure);
       Config c;

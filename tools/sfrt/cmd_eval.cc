@@ -11,6 +11,7 @@
 #include "eval/evaluate.h"
 #include "sfrt/commands.h"
 #include "sfrt/io/atomic_write.h"
+#include "sfrt/session_environment.h"
 
 namespace sfrt::tools {
 namespace {
@@ -33,6 +34,14 @@ int RunEval(const EvalArgs& args) {
   options.dataset = args.dataset;
   options.max_frames = args.max_frames;
   options.classical = !args.no_classical;
+  {
+    SessionOptions session;
+    if (Status env = tools::ApplySessionEnvironment(session); !env.ok()) {
+      return ReportError(kName, env.message(), kExitUsage);
+    }
+    options.isa = session.isa;
+    options.tuning = session.tuning;
+  }
   if (!args.size.empty()) {
     if (args.model.empty()) {
       return ReportError(kName, "--size sets the model's input size; it needs --model", kExitUsage);

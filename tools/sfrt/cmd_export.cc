@@ -32,6 +32,7 @@
 #include "sfrt/io/npy.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
+#include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::tools {
@@ -189,6 +190,10 @@ bool RunOnce(const std::shared_ptr<const Model>& model, const std::vector<float>
   SessionOptions options;
   options.max_height = height;
   options.max_width = width;
+  if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
+    *failure = "check: " + env.message();
+    return false;
+  }
   Result<std::unique_ptr<Session>> session = Session::Create(model, options);
   if (!session.ok()) {
     *failure =

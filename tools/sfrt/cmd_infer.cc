@@ -23,6 +23,7 @@
 #include "sfrt/io/pfm.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
+#include "sfrt/session_environment.h"
 
 namespace sfrt::tools {
 namespace {
@@ -232,6 +233,9 @@ int RunInfer(const InferArgs& args) {
   SessionOptions options;
   options.max_height = height;
   options.max_width = width;
+  if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
+    return ReportError(kName, env.message(), kExitUsage);
+  }
   Result<std::unique_ptr<Session>> session = Session::Create(model, options);
   if (!session.ok()) {
     return ReportError(

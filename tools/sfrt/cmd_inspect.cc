@@ -10,6 +10,7 @@
 #include "sfrt/commands.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
+#include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::tools {
@@ -260,6 +261,9 @@ int RunInspect(const InspectArgs& args) {
   SessionOptions options;
   options.max_height = height;
   options.max_width = width;
+  if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
+    return ReportError(kName, env.message(), kExitUsage);
+  }
   Result<std::unique_ptr<Session>> session = Session::Create(model, options);
   if (!session.ok()) {
     return ReportError(kName,

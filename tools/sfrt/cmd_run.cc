@@ -22,6 +22,7 @@
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/run_config.h"
+#include "sfrt/session_environment.h"
 
 namespace sfrt::tools {
 namespace {
@@ -314,6 +315,16 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.stop = &g_stop;
   options.stop_signal = &g_signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
+  {
+    // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
+    SessionOptions session;
+    session.isa = options.isa;
+    if (Status env = tools::ApplySessionEnvironment(session); !env.ok()) {
+      return ReportError(kName, env.message(), kExitUsage);
+    }
+    options.isa = session.isa;
+    options.tuning = session.tuning;
+  }
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };

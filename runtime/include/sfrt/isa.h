@@ -1,8 +1,9 @@
 // Instruction sets the runtime has kernels for, and which of them this CPU can run.
 //
-// A Session picks one ISA at Create (SessionOptions::isa; when that is kAuto, the SFRT_ISA
-// environment variable, e.g. SFRT_ISA=avx2; otherwise the best the CPU runs) and keeps its
-// kernels as function pointers. kRef is the scalar reference path and always available.
+// A Session picks one ISA at Create (SessionOptions::isa; kAuto: the best the CPU runs) and
+// keeps its kernels as function pointers. kRef is the scalar reference path and always
+// available. (The `sfrt` tool maps its SFRT_ISA variable onto SessionOptions::isa; the library
+// itself reads no environment.)
 #pragma once
 
 #include <string>
@@ -12,7 +13,7 @@
 namespace sfrt {
 
 enum class Isa {
-  kAuto,    // SessionOptions only: SFRT_ISA if set, else BestIsa()
+  kAuto,    // SessionOptions only: BestIsa()
   kRef,     // scalar reference kernels (the oracle)
   kAvx2,    // x86-64 AVX2 + FMA
   kAvx512,  // x86-64 AVX-512 F/BW/VL/DQ (with the OS saving ZMM state)

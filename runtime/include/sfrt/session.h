@@ -3,7 +3,8 @@
 // Create() infers every layer's shape for the largest input the session must accept
 // (SessionOptions::max_height x max_width), plans one arena for all intermediate tensors
 // (see memory_planner.h) and allocates it once. Run() accepts any input size up to that maximum
-// and performs no heap allocation, no I/O and takes no lock on success.
+// and performs no heap allocation, no I/O and takes no lock on success. With threads > 1 it makes
+// no system call either while the pool's waits stay within SessionOptions::spin_us.
 //
 // Ownership: a Session shares ownership of its Model; the input and output buffers belong to the
 // caller and are only accessed during Run().
@@ -33,14 +34,34 @@
 
 namespace sfrt {
 
+// Switches for the optimised paths, for A/B measurements and tests; the defaults are the fastest
+// measured. Every combination computes the same function (within the kernels' tolerances).
+// The library reads no environment variable: the `sfrt` tool maps SFRT_WINOGRAD=off|f2|f4,
+// SFRT_WINOGRAD_UPCONV=off and SFRT_FEWOUT=off onto these fields.
+struct KernelTuning {
+  // Winograd tile side for the stride-1 3x3 convolutions it suits: 0 (off), 2 (F(2x2,3x3)) or
+  // 4 (F(4x4,3x3)). Other values fail Create().
+  int winograd_tile = 2;
+  // The fused upsample->conv phase convolutions through Winograd F(2x2,2x2) (needs a tile > 0).
+  bool winograd_upconv = true;
+  // The dedicated kernel for convolutions with few outputs (the 64->3 output layer).
+  bool few_out = true;
+};
+
 struct SessionOptions {
   int max_height = 540;
   int max_width = 960;
-  // kAuto: the SFRT_ISA environment variable if set (ref|avx2|avx512|neon), else BestIsa().
-  // Asking for an ISA this CPU cannot run (here or through SFRT_ISA) fails Create().
+  // kAuto: BestIsa(). Asking for an ISA this CPU cannot run fails Create(). (The `sfrt` tool
+  // maps SFRT_ISA=ref|avx2|avx512|neon onto this field.)
   Isa isa = Isa::kAuto;
   int threads = 1;           // threads Run() uses, the caller's included; 0: one per CPU
   bool pin_threads = false;  // bind thread i to the i-th CPU this process may use
+  // With threads > 1: how long, in microseconds, a waiting thread (a worker between steps, or
+  // Run() waiting for the workers) busy-waits before it sleeps in the kernel. While waits stay
+  // within it, Run() makes no system call. < 0: never sleep (cores reserved for inference);
+  // 0: sleep at once (least CPU, a wake-up per worker per step). See runtime/src/thread_pool.h.
+  int spin_us = 1000;
+  KernelTuning tuning{};
 };
 
 // One entry of the flat list Run() walks.
@@ -66,7 +87,8 @@ class Session {
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
 
-  // Output shape for an input of height x width (no allocation).
+  // Output shape for an input of height x width. Allocates nothing on success (only an error's
+  // message is built on the heap).
   Result<TensorShape> OutputShape(int height, int width) const;
 
   // input: height x width x input channels, NHWC float32 in the model's channel order.

@@ -45,6 +45,10 @@ int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
 // `out.size() == model.layers().size()`. Errors name the layer and the offending size.
 Status InferGeometry(const Model& model, int height, int width, std::span<LayerGeometry> out);
 
+// The last layer's output shape for an input of height x width, without per-layer storage:
+// allocates nothing on success (the message of an error is the only allocation).
+Result<TensorShape> InferOutputShape(const Model& model, int height, int width);
+
 // Convenience for tools: allocates the vector.
 Result<std::vector<LayerGeometry>> InferGeometry(const Model& model, int height, int width);
 

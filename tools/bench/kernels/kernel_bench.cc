@@ -30,6 +30,7 @@
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
+#include "sfrt/session_environment.h"
 
 namespace sfrt {
 namespace {
@@ -140,6 +141,10 @@ void RunLayer(benchmark::State& state, const LayerCase& c, Isa isa, int threads)
   options.max_width = c.in_width;
   options.isa = isa;
   options.threads = threads;
+  if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
+    state.SkipWithError(env.message().c_str());
+    return;
+  }
   auto session = Session::Create(cached_model, options);
   if (!session.ok()) {
     state.SkipWithError(("Session::Create: " + session.message()).c_str());

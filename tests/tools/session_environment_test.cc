@@ -1,0 +1,94 @@
+// The `sfrt` tool's mapping of SFRT_ISA, SFRT_WINOGRAD, SFRT_WINOGRAD_UPCONV and SFRT_FEWOUT onto
+// SessionOptions (tools/sfrt/session_environment.h); the runtime itself reads none of them.
+#include "sfrt/session_environment.h"
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <string>
+
+#include "sfrt/isa.h"
+#include "sfrt/session.h"
+
+namespace sfrt::tools {
+namespace {
+
+// Sets (or, with nullptr, unsets) an environment variable for one scope.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = getenv(name)) old_ = old, had_ = true;
+    if (value != nullptr) {
+      setenv(name, value, 1);
+    } else {
+      unsetenv(name);
+    }
+  }
+  ~ScopedEnv() {
+    if (had_) {
+      setenv(name_, old_.c_str(), 1);
+    } else {
+      unsetenv(name_);
+    }
+  }
+
+ private:
+  const char* name_;
+  std::string old_;
+  bool had_ = false;
+};
+
+TEST(SessionEnvironment, NoVariablesLeaveTheDefaults) {
+  ScopedEnv a("SFRT_ISA", nullptr), b("SFRT_WINOGRAD", nullptr), c("SFRT_WINOGRAD_UPCONV", nullptr),
+      d("SFRT_FEWOUT", nullptr);
+  SessionOptions options;
+  ASSERT_TRUE(ApplySessionEnvironment(options).ok());
+  EXPECT_EQ(options.isa, Isa::kAuto);
+  EXPECT_EQ(options.tuning.winograd_tile, KernelTuning{}.winograd_tile);
+  EXPECT_TRUE(options.tuning.winograd_upconv);
+  EXPECT_TRUE(options.tuning.few_out);
+}
+
+TEST(SessionEnvironment, SfrtIsaChoosesThePathWhenOptionsSayAutoAndAFlagWins) {
+  ScopedEnv env("SFRT_ISA", "ref");
+  SessionOptions automatic;
+  ASSERT_TRUE(ApplySessionEnvironment(automatic).ok());
+  EXPECT_EQ(automatic.isa, Isa::kRef);
+  SessionOptions flagged;
+  flagged.isa = BestIsa();
+  ASSERT_TRUE(ApplySessionEnvironment(flagged).ok());
+  EXPECT_EQ(flagged.isa, BestIsa());
+}
+
+TEST(SessionEnvironment, KernelSwitchesMapOntoTheTuningFields) {
+  ScopedEnv a("SFRT_WINOGRAD", "f4"), b("SFRT_WINOGRAD_UPCONV", "off"), c("SFRT_FEWOUT", "off");
+  SessionOptions options;
+  ASSERT_TRUE(ApplySessionEnvironment(options).ok());
+  EXPECT_EQ(options.tuning.winograd_tile, 4);
+  EXPECT_FALSE(options.tuning.winograd_upconv);
+  EXPECT_FALSE(options.tuning.few_out);
+  ScopedEnv off("SFRT_WINOGRAD", "off");
+  ASSERT_TRUE(ApplySessionEnvironment(options).ok());
+  EXPECT_EQ(options.tuning.winograd_tile, 0);
+}
+
+TEST(SessionEnvironment, AnUnknownValueIsAnErrorNamingTheVariableAndTheAcceptedValues) {
+  const struct {
+    const char* name;
+    const char* value;
+    const char* accepted;
+  } cases[] = {{"SFRT_ISA", "mmx", "auto, ref, avx2, avx512, neon"},
+               {"SFRT_WINOGRAD", "f3", "off, f2, f4"},
+               {"SFRT_WINOGRAD_UPCONV", "no", "off, on"},
+               {"SFRT_FEWOUT", "0", "off, on"}};
+  for (const auto& c : cases) {
+    ScopedEnv env(c.name, c.value);
+    SessionOptions options;
+    const Status s = ApplySessionEnvironment(options);
+    ASSERT_FALSE(s.ok()) << c.name;
+    EXPECT_EQ(s.message(), std::string(c.name) + "='" + c.value + "' is not one of " + c.accepted);
+  }
+}
+
+}  // namespace
+}  // namespace sfrt::tools
