@@ -22,6 +22,7 @@
 #include "sfrt/io/npy.h"
 #include "sfrt/io/pfm.h"
 #include "sfrt/model.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/session.h"
 
 namespace sfrt::tools {
@@ -220,6 +221,9 @@ int RunInfer(const InferArgs& args) {
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
   std::shared_ptr<const Model> model = std::move(loaded).value();
   const ModelMetadata& meta = model->metadata();
+  if (std::string notice = UntrainedNotice(args.model, meta.training); !notice.empty()) {
+    std::cout << notice << "\n";
+  }
 
   // Input.
   Result<InputTensor> input = args.input_npy.empty()
@@ -275,7 +279,7 @@ int RunInfer(const InferArgs& args) {
     }
   }
   std::cout << "output  " << out_shape->height << "x" << out_shape->width << "x"
-            << out_shape->channels << " (" << meta.output.units << ")\n";
+            << out_shape->channels << " (units: " << UnitsText(meta) << ")\n";
   size_t nan = 0;
   size_t inf = 0;
   for (size_t c = 0; c < channels; ++c) {
