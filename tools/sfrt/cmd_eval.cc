@@ -11,6 +11,7 @@
 #include "eval/evaluate.h"
 #include "sfrt/commands.h"
 #include "sfrt/io/atomic_write.h"
+#include "sfrt/model_notes.h"
 
 namespace sfrt::tools {
 namespace {
@@ -25,6 +26,7 @@ struct EvalArgs {
   int max_frames = 0;
   bool no_classical = false;
   bool quiet = false;
+  bool allow_camera_mismatch = false;
 };
 
 int RunEval(const EvalArgs& args) {
@@ -33,6 +35,7 @@ int RunEval(const EvalArgs& args) {
   options.dataset = args.dataset;
   options.max_frames = args.max_frames;
   options.classical = !args.no_classical;
+  options.allow_camera_mismatch = args.allow_camera_mismatch;
   if (!args.size.empty()) {
     if (args.model.empty()) {
       return ReportError(kName, "--size sets the model's input size; it needs --model", kExitUsage);
@@ -81,6 +84,10 @@ int RunEval(const EvalArgs& args) {
   if (report->has_model) {
     std::cout << "model     " << report->model_path << " (" << report->model_name << ") at "
               << report->model_height << "x" << report->model_width << "\n";
+    if (std::string notice = UntrainedNotice(report->model_path, report->model_training);
+        !notice.empty()) {
+      std::cout << notice << "\n";
+    }
   }
   if (!report->camera_note.empty()) std::cout << "warning   " << report->camera_note << "\n";
   std::cout << "\n" << eval::FormatTable(*report) << "\n";
@@ -115,6 +122,9 @@ Command AddEvalCommand(CLI::App& parent) {
   cmd->add_option("--max-frames", args->max_frames, "Evaluate at most N frames (default: all)");
   cmd->add_flag("--no-classical", args->no_classical, "Skip the classical OpenCV baseline");
   cmd->add_flag("--quiet", args->quiet, "No progress lines");
+  cmd->add_flag("--allow-camera-mismatch", args->allow_camera_mismatch,
+                "Score a model on a dataset whose camera differs from its training camera "
+                "(otherwise refused, exit 1); the output then carries a warning");
   cmd->footer(
       "Frames: DIR/frames_cleanpass/<seq>/{left,right}/NNNN.png with frame NNNN+1 present;\n"
       "ground truth DIR/scene_flow/<seq>/into_future/left/NNNN.pfm, or else computed from\n"
@@ -122,6 +132,11 @@ Command AddEvalCommand(CLI::App& parent) {
       "cx, cy) from DIR/camera.json. Methods: sfrt (the model), zero_flow, classical\n"
       "(StereoSGBM disparity at t and t+1, DIS optical flow on the left images, d1 read\n"
       "bilinearly where the pixel moved, then Z = f B / d etc.).\n"
+      "Camera check: the model sees the dataset's camera scaled to its input size (--size).\n"
+      "When that focal length or the baseline differs from the model's training camera\n"
+      "(stored in the model file) by more than 5%, eval refuses, exit 1, naming both, since\n"
+      "the model's predictions would be in another camera's geometry and units; with\n"
+      "--allow-camera-mismatch it runs and prints a warning.\n"
       "Metrics over pixels with finite ground truth, in the dataset's scene units:\n"
       "  EPE3D     mean |pred - gt|;  EPE_X/Y/Z mean |pred_c - gt_c|\n"
       "  ACC.05    share with EPE < 0.05 or EPE/|gt| < 5%\n"
