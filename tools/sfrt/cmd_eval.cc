@@ -134,7 +134,9 @@ Command AddEvalCommand(CLI::App& parent) {
       "bilinearly where the pixel moved, then Z = f B / d etc.).\n"
       "Camera check: the model sees the dataset's camera scaled to its input size (--size).\n"
       "When that focal length or the baseline differs from the model's training camera\n"
-      "(stored in the model file) by more than 5%, eval refuses, exit 1, naming both, since\n"
+      "(stored in the model file) by more than " +
+      std::to_string(static_cast<int>(eval::kCameraTolerance * 100 + 0.5)) +
+      "%, eval refuses, exit 1, naming both, since\n"
       "the model's predictions would be in another camera's geometry and units; with\n"
       "--allow-camera-mismatch it runs and prints a warning.\n"
       "Metrics over pixels with finite ground truth, in the dataset's scene units:\n"

@@ -342,8 +342,9 @@ Command AddInferCommand(CLI::App& parent) {
       "image order, converted to RGB if the model says so and normalised as its metadata\n"
       "prescribes; or a float32 .npy already in the model's channel order. The session is\n"
       "planned for exactly the input size. Output: dX, dY, dZ per pixel of left0, in the\n"
-      "training camera's units. Prints the input size, the time Session::Run took, per-channel\n"
-      "min/max/mean of the output and whether every value is finite.\n"
+      "training camera's units. Prints the input size, the time Session::Run took, the units\n"
+      "the model file states (unknown for files before schema 1.2), per-channel min/max/mean\n"
+      "of the output and whether every value is finite.\n"
       "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
   return Command{cmd, [args] { return RunInfer(*args); }};
 }
