@@ -121,9 +121,9 @@ Status UpdateFileChecksum(std::span<uint8_t> file) {
 
 Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
                                             const SerializeOptions& options) {
-  if (options.schema_minor != 0 && options.schema_minor != kSchemaVersionMinor) {
+  if (options.schema_minor < 0 || options.schema_minor > kSchemaVersionMinor) {
     return Status::Error("schema version 1." + std::to_string(options.schema_minor) +
-                         " cannot be written; this exporter writes 1.0 and 1." +
+                         " cannot be written; this exporter writes 1.0 to 1." +
                          std::to_string(kSchemaVersionMinor));
   }
   if (spec.layers.empty()) return Status::Error("model '" + spec.name + "' has no layers");
@@ -200,9 +200,13 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       b.CreateVector(spec.input.std.data(), 3), spec.input.traced_height, spec.input.traced_width);
   std::vector<flatbuffers::Offset<flatbuffers::String>> names;
   for (const auto& n : spec.output.channel_names) names.push_back(b.CreateString(n));
+  // Before 1.2 the field held a fixed text, which 1.0 files keep.
+  const std::string units = options.schema_minor < 2 ? "training-camera scene units (baseline = 1)"
+                            : spec.output.units.empty() ? "unknown"
+                                                        : spec.output.units;
   const auto output =
       fb::CreateOutputDesc(b, b.CreateString(spec.output.name), spec.output.channels,
-                           b.CreateVector(names), b.CreateString(spec.output.units));
+                           b.CreateVector(names), b.CreateString(units));
   const auto camera = fb::CreateCamera(b, spec.camera.focal_px, spec.camera.baseline,
                                        spec.camera.cx, spec.camera.cy);
   const fb::Version version(static_cast<uint16_t>(kSchemaVersionMajor),
@@ -210,9 +214,14 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
   // 1.1: file_crc32c is written with a non-default placeholder (so that the field is stored) and
   // patched once the buffer is finished.
   const bool file_checksum = options.schema_minor >= 1;
+  const fb::TrainingState training =
+      options.schema_minor < 2                     ? fb::TrainingState::Unknown
+      : spec.training == TrainingState::kTrained   ? fb::TrainingState::Trained
+      : spec.training == TrainingState::kUntrained ? fb::TrainingState::Untrained
+                                                   : fb::TrainingState::Unknown;
   const auto model =
       fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input, output, camera,
-                      layers_offset, w.crc(), file_checksum ? 0xFFFFFFFFu : 0u);
+                      layers_offset, w.crc(), file_checksum ? 0xFFFFFFFFu : 0u, training);
   fb::FinishModelBuffer(b, model);
   std::vector<uint8_t> file(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
   if (file_checksum) {

@@ -328,6 +328,7 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     metadata_.output.name = Str(out->name());
     metadata_.output.channels = out->channels();
     metadata_.output.units = Str(out->units());
+    metadata_.output.units_declared = metadata_.schema_minor >= 2;
     if (out->channel_names() != nullptr) {
       for (const auto* s : *out->channel_names()) metadata_.output.channel_names.push_back(Str(s));
     }
@@ -336,6 +337,18 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     metadata_.camera = {cam->focal_px(), cam->baseline(), cam->cx(), cam->cy()};
   }
   metadata_.weights_crc32c = m->weights_crc32c();
+  // A value from a later minor version that this runtime does not know reads as unknown.
+  switch (m->training()) {
+    case fb::TrainingState::Trained:
+      metadata_.training = TrainingState::kTrained;
+      break;
+    case fb::TrainingState::Untrained:
+      metadata_.training = TrainingState::kUntrained;
+      break;
+    default:
+      metadata_.training = TrainingState::kUnknown;
+      break;
+  }
 
   // 5. Layers: the chain, parameters and weights.
   if (m->layers() == nullptr || m->layers()->size() == 0)

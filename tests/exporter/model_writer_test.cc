@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
 #include "common/sceneednet_spec.h"
 #include "sfrt/crc32c.h"
+#include "sfrt/exporter/sfrt_importer.h"
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
 
@@ -133,6 +135,110 @@ TEST(ModelWriter, RejectsWrongWeightCounts) {
   auto bytes = SerializeModel(spec);
   ASSERT_FALSE(bytes.ok());
   EXPECT_NE(bytes.message().find("'conv0'"), std::string::npos) << bytes.message();
+}
+
+TEST(ModelWriter, UnitsAndTrainingStateRoundTripFromSchema12) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  spec.output.units = "metres";
+  spec.training = TrainingState::kTrained;
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  const ModelMetadata& md = (*model)->metadata();
+  EXPECT_EQ(md.schema_minor, 2);
+  EXPECT_EQ(md.output.units, "metres");
+  EXPECT_TRUE(md.output.units_declared);
+  EXPECT_EQ(md.training, TrainingState::kTrained);
+}
+
+TEST(ModelWriter, UnitsNotStatedAreWrittenAsUnknown) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_EQ((*model)->metadata().output.units, "unknown");
+  EXPECT_EQ((*model)->metadata().training, TrainingState::kUnknown);
+}
+
+TEST(ModelWriter, OlderLayoutsCarryNeitherUnitsNorTrainingState) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  spec.output.units = "metres";
+  spec.training = TrainingState::kUntrained;
+  for (int minor : {0, 1}) {
+    SerializeOptions options;
+    options.schema_minor = minor;
+    auto bytes = SerializeModel(spec, options);
+    ASSERT_TRUE(bytes.ok()) << bytes.message();
+    auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+    ASSERT_TRUE(model.ok()) << model.message();
+    const ModelMetadata& md = (*model)->metadata();
+    EXPECT_EQ(md.schema_minor, minor);
+    EXPECT_FALSE(md.output.units_declared);
+    EXPECT_EQ(md.training, TrainingState::kUnknown);
+  }
+}
+
+// The committed default model as it was before schema 1.2: re-exported from the .sfrt file, it
+// keeps every weight bit for bit and all its metadata, and takes the units and state given.
+TEST(SfrtImporter, ReexportKeepsEveryWeightBitForBitAndTheMetadata) {
+  const std::string legacy =
+      std::string(SFRT_SOURCE_DIR) + "/tests/data/models/sceneednet-default-schema-1.1.sfrt";
+  auto original = Model::LoadFile(legacy);
+  ASSERT_TRUE(original.ok()) << original.message();
+  auto spec = ImportSfrt(legacy);
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  EXPECT_EQ(spec->output.units, "");  // a 1.1 file states no units
+  spec->output.units = "metres";
+  spec->training = TrainingState::kTrained;
+  auto bytes = SerializeModel(*spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto again = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(again.ok()) << again.message();
+
+  const ModelMetadata& a = (*original)->metadata();
+  const ModelMetadata& b = (*again)->metadata();
+  EXPECT_EQ(b.schema_minor, kSchemaVersionMinor);
+  EXPECT_EQ(b.output.units, "metres");
+  EXPECT_EQ(b.training, TrainingState::kTrained);
+  EXPECT_EQ(b.weights_crc32c, a.weights_crc32c);
+  EXPECT_EQ(b.name, a.name);
+  EXPECT_EQ(b.source_format, a.source_format);
+  EXPECT_EQ(b.source_file, a.source_file);
+  EXPECT_EQ(b.source_sha256, a.source_sha256);
+  EXPECT_EQ(b.input.image_order, a.input.image_order);
+  EXPECT_EQ(b.input.color_order, a.input.color_order);
+  EXPECT_EQ(b.input.scale, a.input.scale);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(b.input.mean[c], a.input.mean[c]);
+    EXPECT_EQ(b.input.std[c], a.input.std[c]);
+  }
+  EXPECT_EQ(b.input.traced_height, a.input.traced_height);
+  EXPECT_EQ(b.input.traced_width, a.input.traced_width);
+  EXPECT_EQ(b.camera.focal_px, a.camera.focal_px);
+  EXPECT_EQ(b.camera.baseline, a.camera.baseline);
+  EXPECT_EQ(b.camera.cx, a.camera.cx);
+  EXPECT_EQ(b.camera.cy, a.camera.cy);
+  EXPECT_EQ(b.output.channel_names, a.output.channel_names);
+  ASSERT_EQ((*again)->layers().size(), (*original)->layers().size());
+  for (size_t i = 0; i < (*original)->layers().size(); ++i) {
+    const LayerDesc& la = (*original)->layers()[i];
+    const LayerDesc& lb = (*again)->layers()[i];
+    ASSERT_EQ(lb.name, la.name);
+    ASSERT_EQ(lb.kind, la.kind);
+    if (la.kind != LayerKind::kConv2D) continue;
+    const ConvParams& ca = la.conv;
+    const ConvParams& cb = lb.conv;
+    ASSERT_EQ(cb.padding_rule, ca.padding_rule);
+    ASSERT_EQ(cb.pads, ca.pads);
+    ASSERT_EQ(cb.activation, ca.activation);
+    ASSERT_EQ(cb.leaky_slope, ca.leaky_slope);
+    const size_t n = static_cast<size_t>(ca.kernel_h) * ca.kernel_w * ca.in_channels *
+                     static_cast<size_t>(ca.out_channels);
+    ASSERT_EQ(std::memcmp(cb.weights, ca.weights, n * sizeof(float)), 0) << la.name;
+    ASSERT_EQ(std::memcmp(cb.bias, ca.bias, ca.out_channels * sizeof(float)), 0) << la.name;
+  }
 }
 
 }  // namespace

@@ -429,7 +429,9 @@ TEST_F(ModelFaultInjection, Schema10FileLoadsWithItsWeightsChecksumOnly) {
 }
 
 TEST(ModelFileDamage, CommittedSchema10DemoModelStillLoads) {
-  const std::string path = std::string(SFRT_SOURCE_DIR) + "/tools/demo/sceneednet-w16-demo.sfrt";
+  // The demo model as it was committed before schema 1.1 (tools/demo/ now holds a 1.2 re-stamp).
+  const std::string path =
+      std::string(SFRT_SOURCE_DIR) + "/tests/data/models/sceneednet-w16-demo-schema-1.0.sfrt";
   auto model = Model::LoadFile(path);
   ASSERT_TRUE(model.ok()) << model.message();
   EXPECT_EQ((*model)->metadata().schema_major, 1);

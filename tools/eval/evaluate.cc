@@ -299,6 +299,26 @@ Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameR
   return out;
 }
 
+namespace {
+
+// Empty when the dataset's camera (focal already scaled to the model's input size) is within
+// kCameraTolerance of the model's training camera; else a message naming both.
+std::string CompareCameras(const CameraDesc& model, double focal, double baseline, int height,
+                           int width, const std::string& camera_json) {
+  auto relative = [](double a, double b) { return std::fabs(a - b) / std::fabs(b); };
+  const double df = relative(focal, model.focal_px);
+  const double db = relative(baseline, model.baseline);
+  if (!(df > kCameraTolerance) && !(db > kCameraTolerance)) return "";
+  return "camera mismatch: " + camera_json + " gives f " + Fmt(focal, "%g") +
+         " px at the model's " + std::to_string(height) + "x" + std::to_string(width) +
+         " and baseline " + Fmt(baseline, "%g") + ", but the model's training camera has f " +
+         Fmt(model.focal_px, "%g") + " px and baseline " + Fmt(model.baseline, "%g") + " (off by " +
+         Fmt(100 * df, "%.0f") + "% and " + Fmt(100 * db, "%.0f") + "%; tolerance " +
+         Fmt(100 * kCameraTolerance, "%.0f") + "%)";
+}
+
+}  // namespace
+
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress) {
   EvalReport report;
@@ -364,16 +384,19 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
       runner = std::move(created).value();
       const ModelMetadata& meta = runner->metadata();
       report.model_name = meta.name;
-      const CameraDesc& c = meta.camera;
-      auto differs = [](double a, double b) { return std::fabs(a - b) > 1e-3 * std::fabs(b); };
-      // Focal and principal point are compared at the model's input size.
+      report.model_training = meta.training;
+      // The camera the model sees is the dataset's scaled to the model's input size.
       const double sx = static_cast<double>(report.model_width) / w;
-      if (differs(c.focal_px, camera->focal * sx) || differs(c.baseline, camera->baseline)) {
-        report.camera_note = "the model's training camera (f " + Fmt(c.focal_px, "%g") +
-                             " px, baseline " + Fmt(c.baseline, "%g") +
-                             ") differs from the dataset's (f " + Fmt(camera->focal * sx, "%g") +
-                             " px at the model's size, baseline " + Fmt(camera->baseline, "%g") +
-                             "): its predictions are in its own camera's units";
+      const std::string mismatch =
+          CompareCameras(meta.camera, camera->focal * sx, camera->baseline, report.model_height,
+                         report.model_width, camera_json);
+      if (!mismatch.empty()) {
+        if (!options.allow_camera_mismatch) {
+          return Status::Error(mismatch +
+                               "; evaluate on data from the model's camera, or pass "
+                               "--allow-camera-mismatch to score it anyway");
+        }
+        report.camera_note = mismatch + ": its predictions are in its own camera's units";
       }
     }
     if (report.sequences.empty() || report.sequences.back().name != f.sequence) {

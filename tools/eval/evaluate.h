@@ -24,6 +24,7 @@
 
 #include "eval/metrics.h"
 #include "sfrt/isa.h"
+#include "sfrt/model.h"
 #include "sfrt/session.h"
 #include "sfrt/status.h"
 
@@ -31,6 +32,10 @@ namespace sfrt::eval {
 
 inline constexpr const char* kMethodNames[] = {"sfrt", "zero_flow", "classical"};
 inline constexpr int kMethodCount = 3;
+
+// How far the dataset's camera may be from the model's training camera (focal length at the
+// model's input size, and baseline; relative) before RunEvaluation refuses the pair.
+inline constexpr double kCameraTolerance = 0.05;
 
 struct EvalOptions {
   std::string model_path;  // .sfrt; empty: baselines only
@@ -41,6 +46,9 @@ struct EvalOptions {
   bool classical = true;
   Isa isa = Isa::kAuto;  // the model's session
   KernelTuning tuning{};
+  // A dataset camera more than kCameraTolerance from the model's training camera: false fails
+  // (naming both cameras), true evaluates anyway with EvalReport::camera_note saying so.
+  bool allow_camera_mismatch = false;
 };
 
 struct FrameRef {
@@ -60,8 +68,9 @@ struct EvalReport {
   std::string model_path;
   std::string model_name;
   double focal = 0, baseline = 0, cx = 0, cy = 0;  // the dataset's camera
-  std::string camera_note;    // a warning when the model's training camera differs, else empty
-  int height = 0, width = 0;  // the dataset's image size
+  std::string camera_note;  // with allow_camera_mismatch: why the cameras differ, else empty
+  TrainingState model_training = TrainingState::kUnknown;
+  int height = 0, width = 0;              // the dataset's image size
   int model_height = 0, model_width = 0;  // what the model ran at
   int frames = 0;
   bool has_model = false;

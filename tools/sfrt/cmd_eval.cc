@@ -11,6 +11,7 @@
 #include "eval/evaluate.h"
 #include "sfrt/commands.h"
 #include "sfrt/io/atomic_write.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/session_environment.h"
 
 namespace sfrt::tools {
@@ -26,6 +27,7 @@ struct EvalArgs {
   int max_frames = 0;
   bool no_classical = false;
   bool quiet = false;
+  bool allow_camera_mismatch = false;
 };
 
 int RunEval(const EvalArgs& args) {
@@ -42,6 +44,7 @@ int RunEval(const EvalArgs& args) {
     options.isa = session.isa;
     options.tuning = session.tuning;
   }
+  options.allow_camera_mismatch = args.allow_camera_mismatch;
   if (!args.size.empty()) {
     if (args.model.empty()) {
       return ReportError(kName, "--size sets the model's input size; it needs --model", kExitUsage);
@@ -90,6 +93,10 @@ int RunEval(const EvalArgs& args) {
   if (report->has_model) {
     std::cout << "model     " << report->model_path << " (" << report->model_name << ") at "
               << report->model_height << "x" << report->model_width << "\n";
+    if (std::string notice = UntrainedNotice(report->model_path, report->model_training);
+        !notice.empty()) {
+      std::cout << notice << "\n";
+    }
   }
   if (!report->camera_note.empty()) std::cout << "warning   " << report->camera_note << "\n";
   std::cout << "\n" << eval::FormatTable(*report) << "\n";
@@ -124,6 +131,9 @@ Command AddEvalCommand(CLI::App& parent) {
   cmd->add_option("--max-frames", args->max_frames, "Evaluate at most N frames (default: all)");
   cmd->add_flag("--no-classical", args->no_classical, "Skip the classical OpenCV baseline");
   cmd->add_flag("--quiet", args->quiet, "No progress lines");
+  cmd->add_flag("--allow-camera-mismatch", args->allow_camera_mismatch,
+                "Score a model on a dataset whose camera differs from its training camera "
+                "(otherwise refused, exit 1); the output then carries a warning");
   // The share metrics' lines come from the table the metric itself applies (eval/metrics.h).
   std::string share_metrics;
   for (const eval::ShareRule& rule : eval::kShareRules) {
@@ -138,6 +148,13 @@ Command AddEvalCommand(CLI::App& parent) {
       "cx, cy) from DIR/camera.json. Methods: sfrt (the model), zero_flow, classical\n"
       "(StereoSGBM disparity at t and t+1, DIS optical flow on the left images, d1 read\n"
       "bilinearly where the pixel moved, then Z = f B / d etc.).\n"
+      "Camera check: the model sees the dataset's camera scaled to its input size (--size).\n"
+      "When that focal length or the baseline differs from the model's training camera\n"
+      "(stored in the model file) by more than " +
+      std::to_string(static_cast<int>(eval::kCameraTolerance * 100 + 0.5)) +
+      "%, eval refuses, exit 1, naming both, since\n"
+      "the model's predictions would be in another camera's geometry and units; with\n"
+      "--allow-camera-mismatch it runs and prints a warning.\n"
       "Metrics over pixels with finite ground truth, in the dataset's scene units:\n"
       "  EPE3D     mean |pred - gt|;  EPE_X/Y/Z mean |pred_c - gt_c|\n" +
       share_metrics +

@@ -21,6 +21,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "sfrt/commands.h"
@@ -28,9 +29,11 @@
 #include "sfrt/exporter/model_spec.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
+#include "sfrt/exporter/sfrt_importer.h"
 #include "sfrt/io/atomic_write.h"
 #include "sfrt/io/npy.h"
 #include "sfrt/model.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
@@ -64,7 +67,39 @@ struct ExportArgs {
   std::string check_output;
   std::string check_size;
   double tolerance = -1;  // < 0: the default for the weight type
+  std::string units;
+  std::string training_state;
+  // The metadata flags given on the command line: a .sfrt source keeps its own value of the rest.
+  std::vector<std::string> given;
 };
+
+// The flags that set metadata; with a .sfrt source only the given ones replace the file's values.
+constexpr const char* kMetadataFlags[] = {
+    "--name",  "--color-order", "--image-order", "--scale", "--mean",  "--std",
+    "--focal", "--baseline",    "--cx",          "--cy",    "--units", "--training-state"};
+constexpr size_t kMaxUnitsLength = 64;
+
+bool Given(const ExportArgs& args, std::string_view flag) {
+  return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
+}
+
+// Empty when `units` can be stored: 1..64 printable ASCII characters.
+std::string CheckUnits(const std::string& units) {
+  if (units.empty() || units.size() > kMaxUnitsLength) {
+    return "--units: must be 1 to " + std::to_string(kMaxUnitsLength) + " characters, got " +
+           std::to_string(units.size());
+  }
+  for (char c : units) {
+    if (c < 0x20 || c > 0x7E) return "--units: printable ASCII only, got '" + units + "'";
+  }
+  return "";
+}
+
+exporter::TrainingState ParseTrainingState(const std::string& text) {
+  if (text == "trained") return exporter::TrainingState::kTrained;
+  if (text == "untrained") return exporter::TrainingState::kUntrained;
+  return exporter::TrainingState::kUnknown;
+}
 
 std::string Upper(std::string s) {
   for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
@@ -510,8 +545,14 @@ int RunExport(const ExportArgs& args) {
         kName, "--padding: expected auto, same-upper or explicit, got '" + args.padding + "'",
         kExitUsage);
   }
+  if (!args.units.empty() || Given(args, "--units")) {
+    if (std::string problem = CheckUnits(args.units); !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
+    }
+  }
   const std::string ext = LowerExtension(args.input);
   const bool keras = ext == ".h5" || ext == ".hdf5";
+  const bool sfrt_source = ext == ".sfrt";
   if (ext == ".keras") {
     return ReportError(kName,
                        args.input +
@@ -519,11 +560,15 @@ int RunExport(const ExportArgs& args) {
                            "Keras 2 / tf.keras as HDF5 (model.save('model.h5')) and pass that",
                        kExitUsage);
   }
-  if (ext != ".onnx" && !keras) {
+  if (ext != ".onnx" && !keras && !sfrt_source) {
     return ReportError(kName,
                        args.input + ": unsupported input format '" +
                            (ext.empty() ? std::string("(no extension)") : ext) +
-                           "' (supported: .onnx, Keras 2 .h5/.hdf5)",
+                           "' (supported: .onnx, Keras 2 .h5/.hdf5, .sfrt to rewrite metadata)",
+                       kExitUsage);
+  }
+  if (sfrt_source && args.padding != "auto") {
+    return ReportError(kName, "--padding applies to ONNX input only (a .sfrt file keeps its rules)",
                        kExitUsage);
   }
   if (keras && args.padding != "auto") {
@@ -566,24 +611,33 @@ int RunExport(const ExportArgs& args) {
     if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
     spec = std::move(imported->spec);
     notes = std::move(imported->notes);
+  } else if (sfrt_source) {
+    Result<exporter::ModelSpec> imported = exporter::ImportSfrt(args.input);
+    if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
+    spec = std::move(imported).value();
+    notes.push_back("rewritten from a .sfrt file: weights and layers unchanged, metadata from " +
+                    args.input + " except the flags given");
   } else {
     Result<exporter::ModelSpec> imported = exporter::ImportOnnx(args.input, import_options);
     if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
     spec = std::move(imported).value();
   }
-  spec.weight_type = weight_type;
+  if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
 
-  // Apply the flags.
+  // Apply the flags (a .sfrt source keeps its own value of each flag not given).
+  auto apply = [&](std::string_view flag) { return !sfrt_source || Given(args, flag); };
   if (!args.name.empty()) spec.name = args.name;
-  spec.input.image_order = image_order;
-  spec.input.color_order = color_order;
-  spec.input.scale = args.scale;
-  spec.input.mean = mean;
-  spec.input.std = stddev;
-  spec.camera.focal_px = args.focal;
-  spec.camera.baseline = args.baseline;
-  spec.camera.cx = args.cx;
-  spec.camera.cy = args.cy;
+  if (apply("--image-order")) spec.input.image_order = image_order;
+  if (apply("--color-order")) spec.input.color_order = color_order;
+  if (apply("--scale")) spec.input.scale = args.scale;
+  if (apply("--mean")) spec.input.mean = mean;
+  if (apply("--std")) spec.input.std = stddev;
+  if (apply("--focal")) spec.camera.focal_px = args.focal;
+  if (apply("--baseline")) spec.camera.baseline = args.baseline;
+  if (apply("--cx")) spec.camera.cx = args.cx;
+  if (apply("--cy")) spec.camera.cy = args.cy;
+  if (apply("--units")) spec.output.units = args.units;
+  if (apply("--training-state")) spec.training = ParseTrainingState(args.training_state);
 
   // Serialise, then check the bytes load and verify exactly as a deployment would load them
   // before anything is written: a model that fails here never reaches the disk.
@@ -675,6 +729,8 @@ int RunExport(const ExportArgs& args) {
             << "  camera      f " << FormatFloat(meta.camera.focal_px) << " px, baseline "
             << FormatFloat(meta.camera.baseline) << ", cx " << FormatFloat(meta.camera.cx)
             << ", cy " << FormatFloat(meta.camera.cy) << "\n"
+            << "  units       " << UnitsText(meta) << "\n"
+            << "  training    " << TrainingStateName(meta.training) << "\n"
             << "  weights     " << WeightsLine(model) << "\n"
             << "  file        " << GroupDigits(model.file_bytes())
             << " bytes, loads and verifies (CRC-32C ok)\n";
@@ -696,7 +752,10 @@ Command AddExportCommand(CLI::App& parent) {
 
   CLI::App* cmd = parent.add_subcommand(
       "export", "Convert a trained network (.onnx, Keras .h5) into a .sfrt model file");
-  cmd->add_option("model", args->input, "Source network (.onnx, or Keras 2 .h5/.hdf5)")->required();
+  cmd->add_option("model", args->input,
+                  "Source network (.onnx, or Keras 2 .h5/.hdf5), or a .sfrt file whose metadata "
+                  "to rewrite")
+      ->required();
   cmd->add_option("-o,--output", args->output, "Model file to write (.sfrt)")->required();
   cmd->add_option("--name", args->name,
                   "Model name stored in the file (default: " + defaults.name + ")");
@@ -723,12 +782,20 @@ Command AddExportCommand(CLI::App& parent) {
                   "Per-channel divisor a,b,c in the model's color order (default: 1,1,1)");
   cmd->add_option("--focal", args->focal, "Training camera focal length in pixels")
       ->capture_default_str();
-  cmd->add_option("--baseline", args->baseline, "Training camera stereo baseline (scene units)")
+  cmd->add_option("--baseline", args->baseline,
+                  "Training camera stereo baseline, in the units of --units")
       ->capture_default_str();
   cmd->add_option("--cx", args->cx, "Training camera principal point x (pixels)")
       ->capture_default_str();
   cmd->add_option("--cy", args->cy, "Training camera principal point y (pixels)")
       ->capture_default_str();
+  cmd->add_option("--units", args->units,
+                  "What the output values measure, as stored in the file (1-64 printable "
+                  "characters), e.g. metres; default: unknown");
+  cmd->add_option("--training-state", args->training_state,
+                  "Whether the weights were trained: trained, untrained (sfrt run, infer, eval and "
+                  "inspect then say so) or unknown (default)")
+      ->check(CLI::IsMember({"trained", "untrained", "unknown"}));
   cmd->add_option("--architecture", args->architecture,
                   "Keras only: architecture JSON (model.to_json()); needed for a weights-only "
                   ".h5 from save_weights(), replaces a full model's own model_config");
@@ -759,11 +826,21 @@ Command AddExportCommand(CLI::App& parent) {
       "defaults are the SceneEDNet authors' setup (BGR, L0,R0,L1,R1, raw 0..255 pixels,\n"
       "FlyingThings3D camera). Serialises, loads the bytes back and verifies them, runs the\n"
       "checks asked for, and only then writes the file (atomically).\n"
+      "A .sfrt source is rewritten at the current schema version with the same layers and\n"
+      "weights: its metadata is kept except for the flags given (e.g. sfrt export m.sfrt\n"
+      "-o m.sfrt --units metres --training-state trained).\n"
       "Parity check: prints max abs error, max error relative to the reference's largest\n"
       "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
       "written (an existing file at -o is left unchanged) and the exit code is 1.\n"
       "Exit codes: 0 success, 1 import/check/write/verify failure, 2 usage error.");
-  return Command{cmd, [args] { return RunExport(*args); }};
+  return Command{cmd, [args, cmd] {
+                   args->given.clear();
+                   for (const char* flag : kMetadataFlags) {
+                     if (cmd->count(flag) > 0) args->given.push_back(flag);
+                   }
+                   if (cmd->count("--weights") > 0) args->given.push_back("--weights");
+                   return RunExport(*args);
+                 }};
 }
 
 }  // namespace sfrt::tools

@@ -22,6 +22,7 @@
 #include "sfrt/io/npy.h"
 #include "sfrt/io/pfm.h"
 #include "sfrt/model.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 
@@ -221,6 +222,9 @@ int RunInfer(const InferArgs& args) {
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
   std::shared_ptr<const Model> model = std::move(loaded).value();
   const ModelMetadata& meta = model->metadata();
+  if (std::string notice = UntrainedNotice(args.model, meta.training); !notice.empty()) {
+    std::cout << notice << "\n";
+  }
 
   // Input.
   Result<InputTensor> input = args.input_npy.empty()
@@ -279,7 +283,7 @@ int RunInfer(const InferArgs& args) {
     }
   }
   std::cout << "output  " << out_shape->height << "x" << out_shape->width << "x"
-            << out_shape->channels << " (" << meta.output.units << ")\n";
+            << out_shape->channels << " (units: " << UnitsText(meta) << ")\n";
   size_t nan = 0;
   size_t inf = 0;
   for (size_t c = 0; c < channels; ++c) {
@@ -342,8 +346,9 @@ Command AddInferCommand(CLI::App& parent) {
       "image order, converted to RGB if the model says so and normalised as its metadata\n"
       "prescribes; or a float32 .npy already in the model's channel order. The session is\n"
       "planned for exactly the input size. Output: dX, dY, dZ per pixel of left0, in the\n"
-      "training camera's units. Prints the input size, the time Session::Run took, per-channel\n"
-      "min/max/mean of the output and whether every value is finite.\n"
+      "training camera's units. Prints the input size, the time Session::Run took, the units\n"
+      "the model file states (unknown for files before schema 1.2), per-channel min/max/mean\n"
+      "of the output and whether every value is finite.\n"
       "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
   return Command{cmd, [args] { return RunInfer(*args); }};
 }

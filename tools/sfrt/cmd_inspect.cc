@@ -9,6 +9,7 @@
 
 #include "sfrt/commands.h"
 #include "sfrt/model.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
@@ -177,6 +178,9 @@ int RunInspect(const InspectArgs& args) {
   if (args.size.empty()) size_source = DefaultInputSize(meta, &height, &width);
 
   std::ostream& out = std::cout;
+  if (std::string notice = UntrainedNotice(args.model, meta.training); !notice.empty()) {
+    std::cout << notice << "\n";
+  }
   const std::string traced =
       meta.input.traced_height > 0
           ? std::to_string(meta.input.traced_height) + "x" + std::to_string(meta.input.traced_width)
@@ -187,6 +191,7 @@ int RunInspect(const InspectArgs& args) {
       << "  name            " << meta.name << "\n"
       << "  schema version  " << meta.schema_major << "." << meta.schema_minor << "\n"
       << "  file size       " << GroupDigits(model->file_bytes()) << " bytes\n"
+      << "  training        " << TrainingStateName(meta.training) << "\n"
       << "producer\n"
       << "  exporter        " << meta.exporter_version << "\n"
       << "  source          " << meta.source_format << " file " << meta.source_file << "\n"
@@ -202,10 +207,10 @@ int RunInspect(const InspectArgs& args) {
       << "output    " << meta.output.name << "\n"
       << "  channels        " << meta.output.channels << " ("
       << Join(meta.output.channel_names, ", ") << ")\n"
-      << "  units           " << meta.output.units << "\n"
+      << "  units           " << UnitsText(meta) << "\n"
       << "camera    (training)\n"
       << "  focal           " << FormatFloat(meta.camera.focal_px) << " px\n"
-      << "  baseline        " << FormatFloat(meta.camera.baseline) << "\n"
+      << "  baseline        " << BaselineText(meta) << "\n"
       << "  cx, cy          " << FormatFloat(meta.camera.cx) << ", " << FormatFloat(meta.camera.cy)
       << "\n"
       << "weights\n"

@@ -21,6 +21,7 @@
 #include "sfrt/commands.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
 
@@ -240,6 +241,10 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
   Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
+  if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
+      !notice.empty()) {
+    std::cout << notice << "\n";
+  }
 
   std::unique_ptr<pipeline::FrameSource> source;
   std::optional<pipeline::ReplaySpec> replay_spec;  // --profile-overhead replays it again

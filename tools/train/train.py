@@ -188,7 +188,9 @@ def export(model, args, cam, height, width):
            "--scale", repr(PIXEL_SCALE), "--mean", f"{PIXEL_MEAN},{PIXEL_MEAN},{PIXEL_MEAN}",
            "--std", f"{PIXEL_STD},{PIXEL_STD},{PIXEL_STD}",
            "--focal", repr(cam["focal"]), "--baseline", repr(cam["baseline"]),
-           "--cx", repr(cam["cx"]), "--cy", repr(cam["cy"])]
+           "--cx", repr(cam["cx"]), "--cy", repr(cam["cy"]), "--training-state", "trained"]
+    if args.units:
+        cmd += ["--units", args.units]
     print("export  " + " ".join(cmd), flush=True)
     rc = subprocess.call(cmd)
     if rc != 0:
@@ -257,6 +259,9 @@ def parse_args(argv):
                    help="weights to export (best: lowest validation EPE, if --val was given)")
     p.add_argument("--sfrt", default="", help="sfrt binary, for the .sfrt export")
     p.add_argument("--name", default="sceneednet", help="model name stored in the .sfrt")
+    p.add_argument("--units", default="",
+                   help="units of the data's scene flow, stored in the .sfrt (e.g. metres for "
+                        "sfrt synth --scene robot); default: unknown")
     p.add_argument("--require-decrease", action="store_true",
                    help="exit 1 unless the mean loss of the last 3 logged iterations is below "
                         "the first iteration's loss (smoke tests)")

@@ -29,13 +29,15 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 1;
+inline constexpr int kSchemaVersionMinor = 2;
 
 enum class LayerKind { kConv2D, kUpsample, kCrop };
 enum class Activation { kNone, kRelu, kLeakyRelu };
 enum class PaddingRule { kExplicit, kSameUpper };
 enum class CropRule { kExplicit, kToInputSize };
 enum class WeightType { kFloat32, kFloat16 };
+// Whether a model's weights were learned (schema 1.2; kUnknown in older files).
+enum class TrainingState { kUnknown, kTrained, kUntrained };
 
 struct Padding {
   int top = 0;
@@ -96,7 +98,9 @@ struct OutputDesc {
   std::string name;
   int channels = 0;
   std::vector<std::string> channel_names;
-  std::string units;
+  std::string units;            // as stored
+  bool units_declared = false;  // schema 1.2 or later: `units` is what the author stated; older
+                                // exporters wrote a fixed text, so the units are unknown
 };
 
 struct CameraDesc {
@@ -120,6 +124,7 @@ struct ModelMetadata {
   uint32_t weights_crc32c = 0;
   std::optional<uint32_t> file_crc32c;            // whole-file CRC-32C; absent in schema 1.0 files
   WeightType weight_type = WeightType::kFloat32;  // as stored in the file
+  TrainingState training = TrainingState::kUnknown;  // schema 1.2; kUnknown before
 };
 
 struct LoadOptions {

@@ -21,6 +21,8 @@ const std::string kSource = SFRT_SOURCE_DIR;
 const std::string kFirmware = kSource + "/firmware-cfg";
 const std::string kBroken = kSource + "/tests/tools/config/broken";
 const std::string kDemoModel = kSource + "/tools/demo/sceneednet-w16-demo.sfrt";
+// What the shipped profiles run: the trained default model (issue 15).
+const std::string kDefaultModel = kSource + "/models/sceneednet-default.sfrt";
 
 std::string ReadText(const std::string& path) {
   std::ifstream in(path);
@@ -64,12 +66,12 @@ TEST(ShippedProfiles, ReplayDemoLoadsWithPathsResolvedAgainstItsDirectory) {
   ASSERT_TRUE(p.ok()) << p.message();
   EXPECT_TRUE(report.warnings.empty());
   EXPECT_EQ(p->source, SourceKind::kReplayGlobs);
-  EXPECT_EQ(p->replay.left, kSource + "/tools/demo/frames/left*.png");
-  EXPECT_EQ(p->replay.right, kSource + "/tools/demo/frames/right*.png");
+  EXPECT_EQ(p->replay.left, kSource + "/tools/demo/robot-frames/left*.png");
+  EXPECT_EQ(p->replay.right, kSource + "/tools/demo/robot-frames/right*.png");
   EXPECT_EQ(p->replay.on_bad_frame, BadFrameAction::kStop);
-  EXPECT_EQ(p->model_file, kDemoModel);
-  EXPECT_EQ(p->input_height, 128);
-  EXPECT_EQ(p->input_width, 224);
+  EXPECT_EQ(p->model_file, kDefaultModel);
+  EXPECT_EQ(p->input_height, 96);
+  EXPECT_EQ(p->input_width, 128);
   EXPECT_TRUE(p->calibration.empty());
   EXPECT_EQ(p->stage(Stage::kInfer).threads, 2);
   EXPECT_FALSE(p->stage(Stage::kInfer).rt_priority.has_value());
@@ -94,6 +96,9 @@ TEST(ShippedProfiles, X86UsbStereoHasTwoCamerasAndRealTimeStages) {
   EXPECT_EQ(p->camera.height, 480);
   EXPECT_EQ(p->camera.fps, 30);
   EXPECT_EQ(p->camera.pair_tolerance_ms, 8);
+  EXPECT_EQ(p->model_file, kDefaultModel);
+  EXPECT_EQ(p->input_height, 96);
+  EXPECT_EQ(p->input_width, 128);
   ASSERT_EQ(p->calibration.size(), 1u);
   EXPECT_EQ(p->calibration[0], kFirmware + "/calib/usb-stereo-640x480.camchain.yaml");
   EXPECT_EQ(p->stage(Stage::kInfer).cpus, (std::vector<int>{0, 1}));
@@ -115,8 +120,11 @@ TEST(ShippedProfiles, Aarch64SbsFallsBackToSmallerInput) {
   EXPECT_EQ(p->camera.pixel_format, PixelFormat::kYuyv);
   EXPECT_EQ(p->camera.width, 1280);
   EXPECT_EQ(p->on_miss, MissAction::kSmallerInput);
-  EXPECT_EQ(p->fallback_height, 192);
-  EXPECT_EQ(p->fallback_width, 256);
+  EXPECT_EQ(p->model_file, kDefaultModel);
+  EXPECT_EQ(p->input_height, 96);
+  EXPECT_EQ(p->input_width, 128);
+  EXPECT_EQ(p->fallback_height, 72);
+  EXPECT_EQ(p->fallback_width, 96);
   EXPECT_EQ(p->stage(Stage::kInfer).cpus, (std::vector<int>{2, 3}));
 }
 
@@ -370,13 +378,13 @@ TEST_F(ProfileParser, SummaryNamesEverySetting) {
       {"source", "side-by-side camera /dev/video0 (left-right)"},
       {"capture", "YUYV 1280x480 (WxH) at 30 fps, 4 buffers"},
       {"calibration", kFirmware + "/calib/sbs-stereo-1280x480.camchain.yaml"},
-      {"model", kDemoModel + " at 256x320 (HxW)"},
+      {"model", kDefaultModel + " at 96x128 (HxW)"},
       {"stage capture", "1 thread, CPUs 0, SCHED_FIFO 50"},
       {"stage preprocess", "1 thread, CPUs 1, SCHED_FIFO 45"},
       {"stage infer", "2 threads, CPUs 2,3, SCHED_FIFO 40"},
       {"stage output", "1 thread, CPUs 1, SCHED_OTHER"},
       {"memory", "mlockall on, arena prefault on, cap 768 MiB"},
-      {"latency", "p99 <= 150 ms; on miss smaller-input 192x256"},
+      {"latency", "p99 <= 150 ms; on miss smaller-input 72x96"},
       {"outputs", "/var/lib/sfrt/out: flow pfm, visualisation off, video off, summary on"},
       {"logging", "warn to /var/log/sfrt/sfrt.log"}};
   EXPECT_EQ(rows, want);

@@ -17,6 +17,7 @@ namespace sfrt::exporter {
 using sfrt::Activation;
 using sfrt::CropRule;
 using sfrt::PaddingRule;
+using sfrt::TrainingState;
 using sfrt::WeightType;
 using Pads = sfrt::Padding;
 
@@ -72,7 +73,9 @@ struct OutputSpec {
   std::string name = "scene_flow";
   int channels = 3;
   std::vector<std::string> channel_names = {"dX", "dY", "dZ"};
-  std::string units = "training-camera scene units (baseline = 1)";
+  // What the values measure, as the author states it (sfrt export --units), e.g. "metres".
+  // Empty: not stated (the writer stores "unknown").
+  std::string units;
 };
 
 struct CameraSpec {  // defaults: FlyingThings3D, as the authors trained
@@ -97,6 +100,7 @@ struct ModelSpec {
   CameraSpec camera;
   std::vector<LayerSpec> layers;  // a chain: layer i consumes layer i-1's output
   WeightType weight_type = WeightType::kFloat32;
+  TrainingState training = TrainingState::kUnknown;  // written from schema 1.2
 };
 
 }  // namespace sfrt::exporter

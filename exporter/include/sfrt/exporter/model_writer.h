@@ -14,11 +14,13 @@ namespace sfrt::exporter {
 const char* ExporterVersion();
 
 struct SerializeOptions {
-  // Schema minor version to write (major is always kSchemaVersionMajor). 1 (the default) writes
-  // Model.file_crc32c, the CRC-32C of the whole file; 0 writes the 1.0 layout, whose only checksum
-  // covers the weights. Every 1.x runtime reads both; 0 exists so tests can keep checking that
-  // this runtime still reads 1.0 files.
-  int schema_minor = 1;
+  // Schema minor version to write (major is always kSchemaVersionMajor). kSchemaVersionMinor
+  // (2, the default) writes Model.file_crc32c, the CRC-32C of the whole file, and the 1.2 fields
+  // (Model.training; OutputDesc.units as stated); 1 the 1.1 layout (the file CRC, a fixed units
+  // text, no training state); 0 the 1.0 layout, whose only checksum covers the weights. Every
+  // 1.x runtime reads all three; 0 and 1 exist so tests can keep checking that this runtime
+  // still reads older files.
+  int schema_minor = kSchemaVersionMinor;
 };
 
 // Checks the spec (chain consistency, weight counts) and returns the file's bytes. Tensor data

@@ -1,0 +1,92 @@
+#include "sfrt/exporter/sfrt_importer.h"
+
+#include <memory>
+#include <utility>
+
+#include "sfrt/model.h"
+
+namespace sfrt::exporter {
+namespace {
+
+ImageSlot SlotFromName(const std::string& name) {
+  if (name == "right0") return ImageSlot::kRight0;
+  if (name == "left1") return ImageSlot::kLeft1;
+  if (name == "right1") return ImageSlot::kRight1;
+  return ImageSlot::kLeft0;
+}
+
+LayerSpec LayerFromDesc(const LayerDesc& layer) {
+  switch (layer.kind) {
+    case LayerKind::kConv2D: {
+      const ConvParams& p = layer.conv;
+      ConvSpec c;
+      c.name = layer.name;
+      c.in_channels = p.in_channels;
+      c.out_channels = p.out_channels;
+      c.kernel_h = p.kernel_h;
+      c.kernel_w = p.kernel_w;
+      c.stride_h = p.stride_h;
+      c.stride_w = p.stride_w;
+      c.padding_rule = p.padding_rule;
+      c.pads = p.pads;
+      c.activation = p.activation;
+      c.leaky_slope = p.leaky_slope;
+      const size_t count = static_cast<size_t>(p.kernel_h) * p.kernel_w * p.in_channels *
+                           static_cast<size_t>(p.out_channels);
+      c.weights_hwio.assign(p.weights, p.weights + count);
+      c.bias.assign(p.bias, p.bias + p.out_channels);
+      return c;
+    }
+    case LayerKind::kUpsample:
+      return UpsampleSpec{layer.name, layer.upsample.factor_h, layer.upsample.factor_w};
+    case LayerKind::kCrop:
+      break;
+  }
+  CropSpec c;
+  c.name = layer.name;
+  c.rule = layer.crop.rule;
+  c.amounts = layer.crop.amounts;
+  c.excess_rows_from_top = layer.crop.excess_rows_from_top;
+  c.excess_cols_from_left = layer.crop.excess_cols_from_left;
+  return c;
+}
+
+}  // namespace
+
+Result<ModelSpec> ImportSfrt(const std::string& path) {
+  Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(path);
+  if (!loaded.ok()) return loaded.status();
+  const Model& model = **loaded;
+  const ModelMetadata& meta = model.metadata();
+
+  ModelSpec spec;
+  spec.name = meta.name;
+  spec.producer.source_format = meta.source_format;
+  spec.producer.source_file = meta.source_file;
+  spec.producer.source_sha256 = meta.source_sha256;
+  spec.input.name = meta.input.name;
+  spec.input.channels = meta.input.channels;
+  spec.input.image_order.clear();
+  for (const std::string& slot : meta.input.image_order) {
+    spec.input.image_order.push_back(SlotFromName(slot));
+  }
+  spec.input.color_order = meta.input.color_order == "RGB" ? ColorOrder::kRGB : ColorOrder::kBGR;
+  spec.input.scale = meta.input.scale;
+  for (int c = 0; c < 3; ++c) {
+    spec.input.mean[static_cast<size_t>(c)] = meta.input.mean[c];
+    spec.input.std[static_cast<size_t>(c)] = meta.input.std[c];
+  }
+  spec.input.traced_height = meta.input.traced_height;
+  spec.input.traced_width = meta.input.traced_width;
+  spec.output.name = meta.output.name;
+  spec.output.channels = meta.output.channels;
+  spec.output.channel_names = meta.output.channel_names;
+  spec.output.units = meta.output.units_declared ? meta.output.units : "";
+  spec.camera = {meta.camera.focal_px, meta.camera.baseline, meta.camera.cx, meta.camera.cy};
+  spec.weight_type = meta.weight_type;
+  spec.training = meta.training;
+  for (const LayerDesc& layer : model.layers()) spec.layers.push_back(LayerFromDesc(layer));
+  return spec;
+}
+
+}  // namespace sfrt::exporter
