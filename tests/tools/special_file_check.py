@@ -20,6 +20,12 @@ Scenarios (each is one ctest test named after the behaviour it checks):
   run_video_to_a_character_device_is_refused_before_starting
       sfrt run --video FULL: exit 2 before the first frame, naming FULL and saying the AVI
       writer needs a regular file; FULL still a character device, no summary.json written.
+  video_on_a_full_disk_fails_the_run_and_replaces_nothing
+      sfrt run --video LINK (a symbolic link to an earlier video) under the shim's ENOSPC after
+      20 kB of .avi: exit 1, "the video 'LINK' was not written (nothing replaced it)" (OpenCV's
+      VideoWriter reports no write errors; the finished file's index is read back), the earlier
+      video is unchanged, no temporary file; then without the fault: exit 0, the link is kept
+      and names the new AVI.
   latency_log_to_a_full_device_stops_the_run_naming_the_file
       sfrt run --latency-log FULL: exit 1, "the latency log: cannot write 'FULL' (write): No
       space left on device", FULL still a character device.
@@ -86,8 +92,9 @@ def sfrt(a, args, env_extra=None):
         env.update(env_extra)
     print("+ %s%s" % ("".join("%s=%s " % kv for kv in (env_extra or {}).items()), " ".join(cmd)),
           flush=True)
+    # errors="replace": OpenCV's AVI reader prints raw bytes of a damaged file.
     p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                       timeout=300)
+                       errors="replace", timeout=300)
     print(p.stdout + p.stderr, flush=True)
     return p
 
@@ -157,6 +164,33 @@ def scenario_video(a):
     check(want in p.stderr, "stderr does not say: " + want)
     check(is_char_device(full), full + " is no longer a character device")
     check(os.listdir(out) == [], "files written before the refusal: %s" % os.listdir(out))
+
+
+def scenario_video_full_disk(a):
+    root = dataset(a)
+    video = os.path.join(a.work, "v.avi")
+    link = os.path.join(a.work, "latest.avi")
+    for p in (video, link):
+        if os.path.lexists(p):
+            os.unlink(p)
+    with open(video, "w") as f:
+        f.write("the previous video")
+    os.symlink("v.avi", link)
+    fault = {"LD_PRELOAD": a.preload, "SFRT_FAULT_ERRNO": "ENOSPC", "SFRT_FAULT_MATCH": ".avi",
+             "SFRT_FAULT_AFTER_BYTES": "20000"}
+    args = ["run", "--model", a.model, "--replay", root, "--progress", "off", "--video", link]
+    p = sfrt(a, args + ["--out", fresh(os.path.join(a.work, "out_full"))], fault)
+    check(p.returncode == 1, "full disk: exit %d, expected 1" % p.returncode)
+    want = "the video '%s' was not written (nothing replaced it)" % link
+    check(want in p.stderr, "full disk: stderr does not say: " + want)
+    with open(video) as f:
+        check(f.read() == "the previous video", "full disk: the previous video was replaced")
+    check(not glob.glob(os.path.join(a.work, "*.tmp.avi")), "full disk: temporary video left")
+    p = sfrt(a, args + ["--out", fresh(os.path.join(a.work, "out_clean"))])
+    check(p.returncode == 0, "clean: exit %d, expected 0" % p.returncode)
+    check(os.path.islink(link) and os.readlink(link) == "v.avi", "clean: the link was replaced")
+    with open(video, "rb") as f:
+        check(f.read(4) == b"RIFF", "clean: the link's target is not the new AVI")
 
 
 def scenario_latency_full(a):
@@ -254,6 +288,7 @@ SCENARIOS = {
     "eval_json_to_a_full_device_exits_1_with_enospc": scenario_eval_full,
     "eval_json_to_a_fifo_writes_in_place": scenario_eval_fifo,
     "run_video_to_a_character_device_is_refused_before_starting": scenario_video,
+    "video_on_a_full_disk_fails_the_run_and_replaces_nothing": scenario_video_full_disk,
     "latency_log_to_a_full_device_stops_the_run_naming_the_file": scenario_latency_full,
     "latency_log_on_a_full_disk_mid_run_stops_or_warns_by_policy": scenario_latency_mid_run,
     "latency_log_to_a_fifo_is_written_in_place": scenario_latency_fifo,

@@ -42,6 +42,19 @@ int64_t NowNs() {
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
+// Whether the AVI at `path` holds `frames` frames, by its index (nothing is decoded).
+Status CheckVideoComplete(const std::string& path, int64_t frames) {
+  cv::VideoCapture cap(path, cv::CAP_OPENCV_MJPEG);
+  const double indexed = cap.isOpened() ? cap.get(cv::CAP_PROP_FRAME_COUNT) : -1;
+  if (indexed == static_cast<double>(frames)) return Status::Ok();
+  const std::string found =
+      indexed < 0 ? "cannot be read back"
+                  : "holds " + std::to_string(static_cast<int64_t>(indexed)) + " frames";
+  return Status::Error("'" + path + "' " + found + " though " + std::to_string(frames) +
+                       " were written (a failed write, such as a full disk; OpenCV's "
+                       "VideoWriter does not report those)");
+}
+
 std::string Fixed(double v, int digits) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
@@ -159,6 +172,7 @@ class Runner {
   std::string video_final_;  // --video after following symbolic links: renamed onto at the end
   std::string video_tmp_;
   bool video_written_ = false;
+  int64_t video_frames_ = 0;  // frames handed to the VideoWriter
   int64_t start_ns_ = 0;
   int64_t end_ns_ = 0;
   int64_t last_progress_ns_ = 0;
@@ -601,6 +615,7 @@ void Runner::OutputStage() {
         if (s.ok()) {
           video.write(canvas);
           video_written_ = true;
+          ++video_frames_;
         }
       }
     }
@@ -669,6 +684,16 @@ void Runner::OutputStage() {
   }
   if (video.isOpened()) video.release();
   if (video_written_) {
+    // VideoWriter reports no failed write (a full disk truncates the file silently): read the
+    // finished file's index back before it replaces anything.
+    if (Status complete = CheckVideoComplete(video_tmp_, video_frames_); !complete.ok()) {
+      ::unlink(video_tmp_.c_str());
+      video_written_ = false;
+      Fail(Status::Error("the video '" + options_.video_path +
+                         "' was not written (nothing replaced it): " + complete.message()),
+           false);
+      return;
+    }
     std::error_code ec;
     std::filesystem::rename(video_tmp_, video_final_, ec);
     if (ec) {
