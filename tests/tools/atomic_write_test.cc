@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <thread>
 
 namespace sfrt::tools {
 namespace {
@@ -38,12 +37,14 @@ class AtomicWriteTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  // A character device that fails every write with ENOSPC: a private node of /dev/full's device
-  // (1,7) where this process may create one, so a regression replaces only that node; otherwise
-  // /dev/full itself (whose directory an unprivileged process cannot write, so cannot replace).
-  std::string FullDevice() const {
-    const std::string node = (dir_ / "full").string();
-    if (::mknod(node.c_str(), S_IFCHR | 0666, ::makedev(1, 7)) == 0) {
+  // A private node of the character device `major`,`minor` where this process may create one,
+  // so a regression replaces only that node; otherwise `fallback` itself (/dev/..., whose
+  // directory an unprivileged process cannot write, so cannot replace). Never the real device
+  // as root.
+  std::string PrivateDevice(const char* name, unsigned major, unsigned minor,
+                            const std::string& fallback) const {
+    const std::string node = (dir_ / name).string();
+    if (::mknod(node.c_str(), S_IFCHR | 0666, ::makedev(major, minor)) == 0) {
       const int fd = ::open(node.c_str(), O_WRONLY);  // fails on a nodev mount
       if (fd >= 0) {
         ::close(fd);
@@ -51,8 +52,12 @@ class AtomicWriteTest : public ::testing::Test {
       }
       ::unlink(node.c_str());
     }
-    return "/dev/full";
+    return fallback;
   }
+  // Fails every write with ENOSPC, like /dev/full (1,7).
+  std::string FullDevice() const { return PrivateDevice("full", 1, 7, "/dev/full"); }
+  // Discards every write, like /dev/null (1,3).
+  std::string NullDevice() const { return PrivateDevice("null", 1, 3, "/dev/null"); }
 
   static bool IsCharDevice(const std::string& p) {
     struct stat st;
@@ -83,19 +88,26 @@ TEST_F(AtomicWriteTest, ExportToACharacterDeviceWritesInPlaceAndReportsENOSPC) {
 }
 
 TEST_F(AtomicWriteTest, AtomicWriteToDevNullWritesInPlace) {
-  ASSERT_TRUE(WriteFileAtomically("/dev/null", Bytes("discarded")).ok());
-  EXPECT_TRUE(IsCharDevice("/dev/null"));
+  const std::string dev = NullDevice();
+  ASSERT_TRUE(IsCharDevice(dev)) << dev;
+  ASSERT_TRUE(WriteFileAtomically(dev, Bytes("discarded")).ok());
+  EXPECT_TRUE(IsCharDevice(dev)) << dev << " was replaced";
 }
 
 TEST_F(AtomicWriteTest, AtomicWriteToAFifoWritesInPlace) {
   const fs::path fifo = dir_ / "pipe";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  std::string received;
-  std::thread reader([&] { received = Slurp(fifo); });
+  // The read end, opened first without blocking, so the writer's open does not wait; the data
+  // fits the pipe buffer, so the write does not either. A writer that replaced the FIFO would
+  // leave this end empty.
+  const int rfd = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+  ASSERT_GE(rfd, 0);
   const Status s = WriteFileAtomically(fifo.string(), Bytes("through the pipe"));
-  reader.join();
+  char buf[64] = {};
+  const ssize_t n = ::read(rfd, buf, sizeof(buf));
+  ::close(rfd);
   ASSERT_TRUE(s.ok()) << s.message();
-  EXPECT_EQ(received, "through the pipe");
+  EXPECT_EQ(std::string(buf, n > 0 ? static_cast<size_t>(n) : 0), "through the pipe");
   EXPECT_TRUE(fs::is_fifo(fs::symlink_status(fifo)));
 }
 
