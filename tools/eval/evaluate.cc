@@ -16,6 +16,7 @@
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 #include "synth/annotate.h"
+#include "synth/dataset.h"
 
 namespace sfrt::eval {
 namespace {
@@ -327,6 +328,9 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
   report.has_model = !options.model_path.empty();
   report.has_classical = options.classical;
 
+  if (Status complete = synth::CheckDatasetComplete(options.dataset); !complete.ok()) {
+    return complete;
+  }
   const std::string camera_json = (fs::path(options.dataset) / "camera.json").string();
   Result<synth::Intrinsics> camera = synth::ReadCameraJson(camera_json);
   if (!camera.ok()) return camera.status();

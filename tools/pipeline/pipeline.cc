@@ -42,6 +42,19 @@ int64_t NowNs() {
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
+// Whether the AVI at `path` holds `frames` frames, by its index (nothing is decoded).
+Status CheckVideoComplete(const std::string& path, int64_t frames) {
+  cv::VideoCapture cap(path, cv::CAP_OPENCV_MJPEG);
+  const double indexed = cap.isOpened() ? cap.get(cv::CAP_PROP_FRAME_COUNT) : -1;
+  if (indexed == static_cast<double>(frames)) return Status::Ok();
+  const std::string found =
+      indexed < 0 ? "cannot be read back"
+                  : "holds " + std::to_string(static_cast<int64_t>(indexed)) + " frames";
+  return Status::Error("'" + path + "' " + found + " though " + std::to_string(frames) +
+                       " were written (a failed write, such as a full disk; OpenCV's "
+                       "VideoWriter does not report those)");
+}
+
 std::string Fixed(double v, int digits) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
@@ -153,10 +166,13 @@ class Runner {
   std::vector<FrameSource::BadFrame> skipped_outputs_;  // {stem, error} under kSkip
   LatencyWindow stage_ms_[4];
   LatencyWindow e2e_ms_;
-  std::FILE* latency_log_ = nullptr;  // --latency-log
+  tools::StreamedFile latency_log_;  // --latency-log
+  std::string latency_log_lost_;     // under kSkip: why the log stopped (a warning at the end)
   std::string last_stem_;
+  std::string video_final_;  // --video after following symbolic links: renamed onto at the end
   std::string video_tmp_;
   bool video_written_ = false;
+  int64_t video_frames_ = 0;  // frames handed to the VideoWriter
   int64_t start_ns_ = 0;
   int64_t end_ns_ = 0;
   int64_t last_progress_ns_ = 0;
@@ -304,15 +320,21 @@ Status Runner::Setup() {
   q1_ = std::make_unique<LatestQueue<WindowItem>>(cap, policy_, [this] { return MakeWindow(); });
   q2_ = std::make_unique<LatestQueue<InputItem>>(cap, policy_, [this] { return MakeInput(); });
   q3_ = std::make_unique<LatestQueue<FlowItem>>(cap, policy_, [this] { return MakeFlow(); });
+  if (!options_.video_path.empty()) {
+    // The AVI writer seeks back to finish the file, so only a regular file (or a new path) will
+    // do; a symbolic link is followed and the file it names is replaced (atomic_write.h).
+    Result<std::string> video = ResolveVideoPath(options_.video_path);
+    if (!video.ok()) return video.status();
+    video_final_ = std::move(video).value();
+  }
   if (!options_.latency_log.empty()) {
-    latency_log_ = std::fopen(options_.latency_log.c_str(), "w");
-    if (latency_log_ == nullptr) {
-      return Status::Error("cannot open the latency log '" + options_.latency_log +
-                           "': " + std::strerror(errno));
-    }
-    std::fprintf(latency_log_,
-                 "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
-                 "input_width,done_monotonic_ms\n");
+    Result<tools::StreamedFile> log = tools::StreamedFile::Open(options_.latency_log);
+    if (!log.ok()) return Status::Error("the latency log: " + log.message());
+    latency_log_ = std::move(log).value();
+    Status header = latency_log_.Write(
+        "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
+        "input_width,done_monotonic_ms\n");
+    if (!header.ok()) return Status::Error("the latency log: " + header.message());
   }
 
   switch (options_.progress) {
@@ -583,7 +605,7 @@ void Runner::OutputStage() {
       }
       if (s.ok() && !options_.video_path.empty()) {
         if (!video.isOpened()) {
-          video_tmp_ = options_.video_path + ".tmp.avi";
+          video_tmp_ = video_final_ + ".tmp.avi";
           video.open(video_tmp_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), options_.video_fps,
                      canvas.size());
           if (!video.isOpened()) {
@@ -594,6 +616,7 @@ void Runner::OutputStage() {
         if (s.ok()) {
           video.write(canvas);
           video_written_ = true;
+          ++video_frames_;
         }
       }
     }
@@ -615,13 +638,30 @@ void Runner::OutputStage() {
     for (int st = 0; st < 4; ++st) stage_ms_[st].Add(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
     const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
     e2e_ms_.Add(e2e);
-    if (latency_log_ != nullptr) {
+    if (latency_log_.is_open()) {
       // done_monotonic_ms is on CLOCK_MONOTONIC, shared by every process on the machine, so
       // logs of runs side by side line up (tools/soak.sh compares with a concurrent twin).
-      std::fprintf(latency_log_, "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
-                   static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
-                   Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
-                   Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w, Ms(m.stage_ns[3][1]));
+      char line[256];
+      const int n = std::snprintf(
+          line, sizeof(line), "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
+          static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
+          Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
+          Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w, Ms(m.stage_ns[3][1]));
+      Status logged = latency_log_.Write(
+          std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))));
+      if (!logged.ok()) {
+        logged = Status::Error("the latency log: " + logged.message());
+        if (options_.on_output_error == OutputErrorPolicy::kStop) {
+          Fail(logged, true);
+          break;
+        }
+        // kSkip: the window's files are written; the log stops here, as a partial CSV line
+        // would make the rest unreadable, and the run says so at the end.
+        std::fprintf(stderr, "sfrt run: warning: %s; no more latency lines are written\n",
+                     logged.message().c_str());
+        latency_log_lost_ = logged.message() + " (from window " + stem + " on)";
+        (void)latency_log_.Close();
+      }
     }
     const bool over_budget = options_.budget_ms > 0 && e2e > options_.budget_ms;
     const bool miss = options_.miss_verdict ? options_.miss_verdict(m, over_budget) : over_budget;
@@ -645,10 +685,20 @@ void Runner::OutputStage() {
   }
   if (video.isOpened()) video.release();
   if (video_written_) {
+    // VideoWriter reports no failed write (a full disk truncates the file silently): read the
+    // finished file's index back before it replaces anything.
+    if (Status complete = CheckVideoComplete(video_tmp_, video_frames_); !complete.ok()) {
+      ::unlink(video_tmp_.c_str());
+      video_written_ = false;
+      Fail(Status::Error("the video '" + options_.video_path +
+                         "' was not written (nothing replaced it): " + complete.message()),
+           false);
+      return;
+    }
     std::error_code ec;
-    std::filesystem::rename(video_tmp_, options_.video_path, ec);
+    std::filesystem::rename(video_tmp_, video_final_, ec);
     if (ec) {
-      Fail(Status::Error("cannot rename '" + video_tmp_ + "' to '" + options_.video_path +
+      Fail(Status::Error("cannot rename '" + video_tmp_ + "' to '" + video_final_ +
                          "': " + ec.message()),
            false);
     }
@@ -817,11 +867,19 @@ PipelineResult Runner::Run() {
   result.misses = misses_;
   result.frames_at_fallback_size = frames_at_fallback_;
   result.fallback_entries = fallback_entries_;
-  if (latency_log_ != nullptr && std::fclose(latency_log_) != 0) {
-    warnings_.push_back("the latency log '" + options_.latency_log +
-                        "' was not written completely: " + std::strerror(errno));
+  if (Status closed = latency_log_.Close(); !closed.ok()) {
+    closed = Status::Error("the latency log: " + closed.message());
+    if (options_.on_output_error == OutputErrorPolicy::kStop) {
+      if (result.status.ok()) {
+        result.status = closed;
+        result.stopped_by = "error";
+        error_ = closed;
+      }
+    } else {
+      latency_log_lost_ = closed.message();
+    }
   }
-  latency_log_ = nullptr;
+  if (!latency_log_lost_.empty()) warnings_.push_back(latency_log_lost_);
   result.warnings = warnings_;
   if (!options_.write_summary) return result;
   Status s = WriteSummary(&result);
@@ -836,6 +894,17 @@ PipelineResult Runner::Run() {
 }
 
 }  // namespace
+
+Result<std::string> ResolveVideoPath(const std::string& path) {
+  Result<tools::OutputTarget> target = tools::ResolveOutputTarget(path);
+  if (!target.ok()) return Status::Error("--video: " + target.message());
+  if (target->kind != tools::OutputTarget::Kind::kReplace) {
+    return Status::Error("--video '" + path + "' is " + target->what +
+                         ": the MJPG/AVI writer seeks back to finish the file, so it writes "
+                         "only a regular file; give a file path");
+  }
+  return target->path;
+}
 
 Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) {
   if (input.channels != 3 * static_cast<int>(input.image_order.size()) ||

@@ -203,6 +203,11 @@ struct PipelineResult {
 PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* source,
                            const PipelineOptions& options);
 
+// Where --video will be written: `path` after following symbolic links (the file renamed onto
+// at the end). The MJPG/AVI writer seeks back to finish the file, so it needs a regular file or
+// a new path; a character device or FIFO is refused with a message saying so, naming the path.
+Result<std::string> ResolveVideoPath(const std::string& path);
+
 // Output file stem of a window: "<sequence with '/' as '_'>_<frame0, 6 digits>", or
 // "frame_<frame0>" when the sequence is empty.
 std::string OutputStem(const FrameMeta& meta);

@@ -122,9 +122,12 @@ Command AddEvalCommand(CLI::App& parent) {
       "eval", "Score scene flow against ground truth: a model, zero flow and a classical baseline");
   cmd->add_option("--model", args->model, "Model file (.sfrt); without it, baselines only");
   cmd->add_option("--dataset", args->dataset,
-                  "Dataset root in the Scene Flow layout with camera.json (as sfrt synth writes)")
+                  "Dataset root in the Scene Flow layout with camera.json (as sfrt synth "
+                  "writes; one sfrt synth did not finish, without \"complete\": true, is refused)")
       ->required();
-  cmd->add_option("--json", args->json, "Also write the results as JSON to this file");
+  cmd->add_option("--json", args->json,
+                  "Also write the results as JSON to this file (replaced atomically; a device "
+                  "or FIFO such as /dev/stdout is written in place)");
   cmd->add_option("--size", args->size,
                   "Run the model at HxW (images resized, flow resized back; default: the "
                   "dataset's size)");

@@ -227,6 +227,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     if (std::string problem = CheckOutputDirectory(args.video); !problem.empty()) {
       return ReportError(kName, problem, kExitFailure);
     }
+    if (Result<std::string> video = pipeline::ResolveVideoPath(args.video); !video.ok()) {
+      return ReportError(kName, video.message(), kExitUsage);
+    }
   }
   if (!args.calibration.empty()) {
     std::vector<std::string> files = SplitComma(args.calibration);
@@ -419,7 +422,9 @@ Command AddRunCommand(CLI::App& parent) {
       "--latency-log", args->latency_log,
       "Also write a CSV line per written window: window, source/preprocess/infer/"
       "output and end-to-end milliseconds, input size, and the time the window was done on "
-      "CLOCK_MONOTONIC in ms (for soak runs)");
+      "CLOCK_MONOTONIC in ms (for soak runs). Written as the run goes; a device or FIFO "
+      "(e.g. /dev/stdout) is written in place; a failed write is an output error "
+      "(--on-output-error)");
   cmd->add_option("--out", args->out,
                   "Output directory (created): <stem>.pfm|.npy flow, <stem>.png visualisation, "
                   "summary.json (unless --no-summary); required unless --config");
@@ -430,7 +435,8 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_flag("--no-summary", args->no_summary,
                 "Do not write summary.json (the console summary is still printed)");
   cmd->add_option("--video", args->video,
-                  "Also write the visualisations as an MJPG AVI video to this file");
+                  "Also write the visualisations as an MJPG AVI video to this file (a regular "
+                  "file, replaced at the end; a symbolic link is followed and kept)");
   cmd->add_option("--video-fps", args->video_fps, "Frame rate written into --video")
       ->capture_default_str();
   cmd->add_option("--budget-ms", args->budget_ms,

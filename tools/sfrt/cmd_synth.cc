@@ -71,21 +71,30 @@ int RunSynth(const SynthArgs& args) {
     if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
 
-  // The output directory: new, empty, or --force.
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::exists(args.out, ec)) {
-    if (!fs::is_directory(args.out, ec)) {
-      return ReportError(kName, "--out '" + args.out + "' exists and is not a directory",
-                         kExitFailure);
-    }
-    if (!fs::is_empty(args.out, ec) && !args.force) {
+  // The output directory: new, empty, or (--force) a data set sfrt synth wrote earlier.
+  switch (synth::ClassifyDestination(args.out)) {
+    case synth::Destination::kAbsent:
+    case synth::Destination::kEmptyDirectory:
+      break;
+    case synth::Destination::kSynthDataset:
+      if (!args.force) {
+        return ReportError(kName,
+                           "--out '" + args.out +
+                               "' is not empty (use --force to replace the data set in it once "
+                               "the new one is complete)",
+                           kExitFailure);
+      }
+      break;
+    case synth::Destination::kOtherDirectory:
       return ReportError(kName,
                          "--out '" + args.out +
-                             "' is not empty (use --force to write into it; files with the same "
-                             "names are replaced, others are kept)",
+                             "' is not empty and holds no data set sfrt synth wrote (no "
+                             "camera.json with \"generator\": \"sfrt synth\"); even --force "
+                             "replaces only those: give a new or empty directory",
                          kExitFailure);
-    }
+    case synth::Destination::kNotADirectory:
+      return ReportError(kName, "--out '" + args.out + "' exists and is not a directory",
+                         kExitFailure);
   }
   if (!args.textures.empty()) {
     Result<std::vector<std::string>> files = synth::ListTextureImages(args.textures);
@@ -119,15 +128,16 @@ int RunSynth(const SynthArgs& args) {
   };
   const int total = args.sequences * args.frames;
   const int every = std::max(1, total / 100);
-  Status status = synth::WriteDataset(options, args.out, [&](const synth::DatasetProgress& p) {
-    if (p.frames_done % every != 0 && p.frames_done != p.frames_total) return;
-    char line[160];
-    const double s = seconds();
-    std::snprintf(line, sizeof(line), "frame     seq %04d frame %04d  (%d/%d, %.2f frames/s)",
-                  p.sequence, p.frame, p.frames_done, p.frames_total,
-                  s > 0 ? p.frames_done / s : 0.0);
-    std::cout << line << "\n" << std::flush;
-  });
+  Status status =
+      synth::WriteDataset(options, args.out, args.force, [&](const synth::DatasetProgress& p) {
+        if (p.frames_done % every != 0 && p.frames_done != p.frames_total) return;
+        char line[160];
+        const double s = seconds();
+        std::snprintf(line, sizeof(line), "frame     seq %04d frame %04d  (%d/%d, %.2f frames/s)",
+                      p.sequence, p.frame, p.frames_done, p.frames_total,
+                      s > 0 ? p.frames_done / s : 0.0);
+        std::cout << line << "\n" << std::flush;
+      });
   if (!status.ok()) return ReportError(kName, status.message(), kExitFailure);
   char line[200];
   const double s = seconds();
@@ -143,7 +153,8 @@ Command AddSynthCommand(CLI::App& parent) {
   auto args = std::make_shared<SynthArgs>();
   CLI::App* cmd = parent.add_subcommand(
       "synth", "Generate synthetic stereo sequences with exact scene-flow ground truth");
-  cmd->add_option("--out", args->out, "Output directory (new or empty, unless --force)")
+  cmd->add_option("--out", args->out,
+                  "Output directory: new or empty, or with --force a data set sfrt synth wrote")
       ->required();
   cmd->add_option("--seed", args->seed, "Random seed; the same seed gives the same data")
       ->capture_default_str();
@@ -173,13 +184,19 @@ Command AddSynthCommand(CLI::App& parent) {
   cmd->add_option("--blur", args->blur, "Gaussian blur of the images, sigma in px (default 0)");
   cmd->add_option("--threads", args->threads,
                   "Rendering threads (default: all cores; the output does not depend on it)");
-  cmd->add_flag("--force", args->force, "Write into a non-empty --out directory");
+  cmd->add_flag("--force", args->force,
+                "Replace the data set sfrt synth wrote at --out, once the new one is complete "
+                "(other non-empty directories are refused)");
   cmd->footer(
       "Scenes: a rectified pinhole stereo rig (right camera at +baseline along x) inside a\n"
       "textured box room, and textured spheres, boxes and flat cards moving and rotating\n"
       "rigidly; occlusion by ray casting per pixel centre. --scene room: the room moves\n"
       "slightly (ego-motion). --scene robot: metric, the rig drives through the room (speed up\n"
       "to 0.1 m and turns up to 1.7 degrees per frame), some objects static.\n"
+      "Writing: the data set is written under <out>.partial-<pid> and renamed to --out only\n"
+      "when every file is written and flushed; camera.json, with \"complete\": true, comes\n"
+      "last (sfrt eval refuses an sfrt synth data set without it). On a failure (e.g. a full\n"
+      "disk) the partial tree is removed and --out is left as it was.\n"
       "Output (Scene Flow datasets' layout, <seq> and NNNN from 0000):\n"
       "  camera.json, camera_data/<seq>/camera_data.txt\n"
       "  frames_cleanpass/<seq>/{left,right}/NNNN.png\n"

@@ -1,6 +1,10 @@
 #include "synth/dataset.h"
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -58,6 +62,41 @@ Status WritePng(const fs::path& path, const std::vector<uint8_t>& bgr, int heigh
   return tools::WriteFileAtomically(path.string(), bytes);
 }
 
+// The value after `"key":` in a camera.json as sfrt synth writes it, up to the next ',', '}' or
+// newline (strings keep their quotes); "" when the key is absent.
+std::string JsonValue(const std::string& text, const std::string& key) {
+  const std::string quoted = "\"" + key + "\"";
+  size_t pos = text.find(quoted);
+  if (pos == std::string::npos) return "";
+  pos = text.find(':', pos + quoted.size());
+  if (pos == std::string::npos) return "";
+  pos = text.find_first_not_of(" \t", pos + 1);
+  if (pos == std::string::npos) return "";
+  const size_t end = text.find_first_of(",}\n", pos);
+  std::string v = text.substr(pos, end == std::string::npos ? std::string::npos : end - pos);
+  while (!v.empty() && (v.back() == ' ' || v.back() == '\t' || v.back() == '\r')) v.pop_back();
+  return v;
+}
+
+constexpr char kGenerator[] = "\"sfrt synth\"";
+
+// Whether `dir`/camera.json says sfrt synth wrote it; its text in *text.
+bool WrittenBySynth(const fs::path& dir, std::string* text) {
+  std::error_code ec;
+  if (!fs::is_regular_file(dir / "camera.json", ec)) return false;
+  Result<std::string> read = tools::ReadWholeFile((dir / "camera.json").string());
+  if (!read.ok()) return false;
+  *text = std::move(read).value();
+  return JsonValue(*text, "generator") == kGenerator;
+}
+
+// `path` without trailing separators, so that "<out>.partial-<pid>" is a sibling of it.
+fs::path Trimmed(const std::string& path) {
+  std::string p = path;
+  while (p.size() > 1 && p.back() == '/') p.pop_back();
+  return fs::path(p);
+}
+
 std::string CameraJson(const DatasetOptions& o) {
   const Camera& c = o.scene.camera;
   std::string s = "{\n";
@@ -79,7 +118,8 @@ std::string CameraJson(const DatasetOptions& o) {
   s += "  \"textures\": " +
        (o.texture_dir.empty() ? std::string("\"procedural\"") : JsonString(o.texture_dir)) + ",\n";
   s += "  \"noise_sigma\": " + Number(o.noise_sigma) + ",\n";
-  s += "  \"blur_sigma\": " + Number(o.blur_sigma) + "\n";
+  s += "  \"blur_sigma\": " + Number(o.blur_sigma) + ",\n";
+  s += "  \"complete\": true\n";  // camera.json is written last: see WriteDataset
   s += "}\n";
   return s;
 }
@@ -124,11 +164,12 @@ RenderOptions MakeRenderOptions(const DatasetOptions& options, int sequence) {
   return r;
 }
 
-Status WriteDataset(const DatasetOptions& options, const std::string& out_dir,
-                    const std::function<void(const DatasetProgress&)>& progress) {
-  const fs::path root(out_dir);
+namespace {
+
+// Writes the whole data set into `root` (a new directory), camera.json last.
+Status WriteTree(const DatasetOptions& options, const fs::path& root,
+                 const std::function<void(const DatasetProgress&)>& progress) {
   if (Status s = MakeDirs(root); !s.ok()) return s;
-  if (Status s = WriteText(root / "camera.json", CameraJson(options)); !s.ok()) return s;
 
   TextureSource source;
   if (!options.texture_dir.empty()) {
@@ -179,7 +220,100 @@ Status WriteDataset(const DatasetOptions& options, const std::string& out_dir,
       if (progress) progress(p);
     }
   }
+  return WriteText(root / "camera.json", CameraJson(options));
+}
+
+// Renames the finished tree `tmp` to `out`, replacing an existing data set there only now.
+Status MoveIntoPlace(const fs::path& tmp, const fs::path& out) {
+  std::error_code ec;
+  const bool occupied = fs::exists(out, ec) && !fs::is_empty(out, ec);
+  if (!occupied) {  // rename(2) replaces an empty directory
+    if (::rename(tmp.c_str(), out.c_str()) != 0) {
+      return Status::Error("cannot rename '" + tmp.string() + "' to '" + out.string() +
+                           "': " + std::strerror(errno));
+    }
+    return Status::Ok();
+  }
+  const fs::path old = out.string() + ".old-" + std::to_string(::getpid());
+  fs::remove_all(old, ec);
+  if (::rename(out.c_str(), old.c_str()) != 0) {
+    return Status::Error("cannot move the data set being replaced, '" + out.string() + "', to '" +
+                         old.string() + "': " + std::strerror(errno));
+  }
+  if (::rename(tmp.c_str(), out.c_str()) != 0) {
+    const int err = errno;
+    (void)::rename(old.c_str(), out.c_str());
+    return Status::Error("cannot rename '" + tmp.string() + "' to '" + out.string() +
+                         "': " + std::strerror(err));
+  }
+  fs::remove_all(old, ec);
+  if (ec) {
+    return Status::Error("wrote '" + out.string() +
+                         "' but cannot remove the data set it replaced, '" + old.string() +
+                         "': " + ec.message());
+  }
   return Status::Ok();
+}
+
+}  // namespace
+
+Destination ClassifyDestination(const std::string& out_dir) {
+  const fs::path out = Trimmed(out_dir);
+  std::error_code ec;
+  const fs::file_status st = fs::status(out, ec);  // follows a symbolic link
+  if (!fs::exists(st)) return Destination::kAbsent;
+  if (!fs::is_directory(st)) return Destination::kNotADirectory;
+  if (fs::is_empty(out, ec)) return Destination::kEmptyDirectory;
+  std::string text;
+  return WrittenBySynth(out, &text) ? Destination::kSynthDataset : Destination::kOtherDirectory;
+}
+
+Status WriteDataset(const DatasetOptions& options, const std::string& out_dir, bool replace,
+                    const std::function<void(const DatasetProgress&)>& progress) {
+  if (out_dir.empty()) return Status::Error("the data set needs an output directory name");
+  fs::path out = Trimmed(out_dir);
+  switch (ClassifyDestination(out_dir)) {
+    case Destination::kAbsent:
+    case Destination::kEmptyDirectory:
+      break;
+    case Destination::kSynthDataset:
+      if (!replace) return Status::Error("'" + out_dir + "' is not empty (it holds a data set)");
+      break;
+    case Destination::kOtherDirectory:
+      return Status::Error("'" + out_dir +
+                           "' is not empty and is not a data set sfrt synth wrote (no camera.json "
+                           "with \"generator\": \"sfrt synth\"); it is never replaced");
+    case Destination::kNotADirectory:
+      return Status::Error("'" + out_dir + "' exists and is not a directory");
+  }
+  std::error_code ec;
+  if (fs::is_symlink(out, ec)) {  // the data set goes where the link points; the link survives
+    const fs::path target = fs::canonical(out, ec);
+    if (!ec) out = target;
+  }
+  if (out.has_parent_path()) {
+    if (Status s = MakeDirs(out.parent_path()); !s.ok()) return s;
+  }
+  const fs::path tmp = out.string() + ".partial-" + std::to_string(::getpid());
+  fs::remove_all(tmp, ec);  // left by an earlier process that had this pid and was killed
+  Status s = WriteTree(options, tmp, progress);
+  if (s.ok()) s = MoveIntoPlace(tmp, out);
+  if (!s.ok()) {
+    fs::remove_all(tmp, ec);
+    return Status::Error(s.message() + "; the partial data set was removed, '" + out_dir +
+                         "' is as it was");
+  }
+  return Status::Ok();
+}
+
+Status CheckDatasetComplete(const std::string& dir) {
+  std::string text;
+  if (!WrittenBySynth(Trimmed(dir), &text)) return Status::Ok();
+  if (JsonValue(text, "complete") == "true") return Status::Ok();
+  return Status::Error("data set '" + dir +
+                       "' is incomplete: its camera.json (sfrt synth) has no \"complete\": true, "
+                       "which sfrt synth writes last, so its generation failed or was interrupted "
+                       "(or an sfrt older than this marker wrote it); generate it again");
 }
 
 }  // namespace sfrt::synth

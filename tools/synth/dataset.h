@@ -1,7 +1,7 @@
 // Writes synthetic sequences in the layout of the Scene Flow datasets (FlyingThings3D, Driving,
 // Monkaa), so the same loaders read real and synthetic data:
 //
-//   DIR/camera.json                                          rig and generator settings
+//   DIR/camera.json                                          rig, generator settings, "complete"
 //   DIR/camera_data/<seq>/camera_data.txt                    poses in the datasets' format
 //   DIR/frames_cleanpass/<seq>/{left,right}/NNNN.png         8-bit BGR images
 //   DIR/disparity/<seq>/left/NNNN.pfm                        1 channel, positive, px
@@ -50,10 +50,27 @@ struct DatasetProgress {
 std::string SequenceName(int sequence);
 std::string FrameName(int frame);
 
-// Generates the data set into `out_dir` (created if missing; existing files are overwritten).
-// Every file is written atomically. `progress` (optional) is called after each frame.
-Status WriteDataset(const DatasetOptions& options, const std::string& out_dir,
+// What is at a data set's destination. WriteDataset writes to kAbsent and kEmptyDirectory, and
+// with `replace` to kSynthDataset (a folder whose camera.json says "generator": "sfrt synth",
+// complete or not); it refuses the others, so replacing never deletes a folder sfrt did not make.
+// A symbolic link is followed.
+enum class Destination { kAbsent, kEmptyDirectory, kSynthDataset, kOtherDirectory, kNotADirectory };
+Destination ClassifyDestination(const std::string& out_dir);
+
+// Generates the data set at `out_dir` (see ClassifyDestination). Everything is written under
+// a temporary sibling, "<out_dir>.partial-<pid>", and flushed file by file; camera.json, with
+// "complete": true, is written last; only then is the tree renamed to `out_dir` (an existing
+// data set there is replaced only at this point). On any failure the temporary tree is removed
+// and `out_dir` is left as it was: a full disk leaves no partial data set behind.
+// `progress` (optional) is called after each frame.
+Status WriteDataset(const DatasetOptions& options, const std::string& out_dir, bool replace = false,
                     const std::function<void(const DatasetProgress&)>& progress = {});
+
+// sfrt eval's guard: a folder whose camera.json says sfrt synth wrote it must also say
+// "complete": true (written last; missing after an interrupted or failed generation, and in
+// data sets from sfrt versions before the marker). Data sets sfrt synth did not write (a
+// camera.json without that generator, e.g. written by hand for Scene Flow data) are not checked.
+Status CheckDatasetComplete(const std::string& dir);
 
 // Renders frames of sequence `sequence` without writing them (for tests and tools).
 Result<Scene> MakeDatasetScene(const DatasetOptions& options, int sequence);

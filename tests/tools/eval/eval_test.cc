@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iterator>
 #include <limits>
 #include <opencv2/core.hpp>
@@ -324,6 +325,47 @@ TEST(Evaluate, GroundTruthFromDisparityAndFlowWhenSceneFlowIsMissing) {
     max_rel = std::max(max_rel, std::fabs(d - e) / std::max(1e-3, std::fabs(d)));
   }
   EXPECT_LT(max_rel, 1e-3);
+}
+
+// A data set sfrt synth did not finish (camera.json without "complete": true, as after a full
+// disk, or from an sfrt before the marker) is refused, naming the folder.
+TEST(Evaluate, EvalRefusesAnIncompleteSynthDataset) {
+  TempDir dir("tree");
+  ASSERT_TRUE(synth::WriteDataset(SmallOptions(23), dir.str()).ok());
+  const fs::path camera = fs::path(dir.str()) / "camera.json";
+  std::string text;
+  {
+    std::ifstream in(camera);
+    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const size_t marker = text.find(",\n  \"complete\": true");
+  ASSERT_NE(marker, std::string::npos) << text;
+  text.erase(marker, std::string(",\n  \"complete\": true").size());
+  std::ofstream(camera) << text;
+  EvalOptions options;
+  options.dataset = dir.str();
+  Result<EvalReport> report = RunEvaluation(options);
+  ASSERT_FALSE(report.ok());
+  EXPECT_NE(report.message().find("data set '" + dir.str() + "' is incomplete"), std::string::npos)
+      << report.message();
+}
+
+// camera.json written by someone else (e.g. by hand for Scene Flow data) carries no marker and is
+// not an sfrt synth data set: it is read as before.
+TEST(Evaluate, EvalReadsADatasetSfrtSynthDidNotWrite) {
+  TempDir dir("tree");
+  synth::DatasetOptions o = SmallOptions(24);
+  ASSERT_TRUE(synth::WriteDataset(o, dir.str()).ok());
+  const auto& c = o.scene.camera;
+  std::ofstream(fs::path(dir.str()) / "camera.json")
+      << "{\"focal\": " << c.focal << ", \"baseline\": " << c.baseline << ", \"cx\": " << c.cx
+      << ", \"cy\": " << c.cy << "}\n";
+  EvalOptions options;
+  options.dataset = dir.str();
+  options.classical = false;
+  Result<EvalReport> report = RunEvaluation(options);
+  ASSERT_TRUE(report.ok()) << report.message();
+  EXPECT_EQ(report->frames, 2);
 }
 
 TEST(Evaluate, NamesTheMissingDirectory) {

@@ -94,6 +94,49 @@ TEST(SynthDataset, SameSeedGivesIdenticalBytesWhateverTheThreadCount) {
   }
 }
 
+// The tree is built beside --out and renamed into place; camera.json, written last, says so.
+TEST(SynthDataset, WriteDatasetMarksItCompleteAndLeavesNoTemporaryTree) {
+  TempDir parent("parent");
+  const fs::path out = parent.path() / "data";
+  DatasetOptions o = SmallOptions(7);
+  o.sequences = 1;
+  o.scene.frames = 2;
+  ASSERT_TRUE(WriteDataset(o, out.string() + "/").ok());
+  EXPECT_NE(ReadBytes(out / "camera.json").find("\"complete\": true"), std::string::npos);
+  EXPECT_TRUE(CheckDatasetComplete(out.string()).ok());
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(parent.path())) {
+    names.push_back(e.path().filename().string());
+  }
+  EXPECT_EQ(names, std::vector<std::string>{"data"});
+}
+
+TEST(SynthDataset, WriteDatasetReplacesAnEarlierDataSetOnlyWhenAskedTo) {
+  TempDir out("out");
+  DatasetOptions o = SmallOptions(8);
+  o.sequences = 1;
+  o.scene.frames = 2;
+  ASSERT_TRUE(WriteDataset(o, out.path().string()).ok());
+  EXPECT_EQ(ClassifyDestination(out.path().string()), Destination::kSynthDataset);
+  const Status refused = WriteDataset(o, out.path().string());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("is not empty"), std::string::npos) << refused.message();
+  o.scene.frames = 3;
+  ASSERT_TRUE(WriteDataset(o, out.path().string(), /*replace=*/true).ok());
+  EXPECT_EQ(ListFiles(out.path()).size(), 3u * 6u + 1u + 1u);  // the new data set only
+}
+
+TEST(SynthDataset, WriteDatasetNeverReplacesAFolderSfrtSynthDidNotWrite) {
+  TempDir out("out");
+  std::ofstream(out.path() / "notes.txt") << "keep me\n";
+  EXPECT_EQ(ClassifyDestination(out.path().string()), Destination::kOtherDirectory);
+  const Status s = WriteDataset(SmallOptions(9), out.path().string(), /*replace=*/true);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("is not a data set sfrt synth wrote"), std::string::npos)
+      << s.message();
+  EXPECT_EQ(ReadBytes(out.path() / "notes.txt"), "keep me\n");
+}
+
 TEST(SynthDataset, DifferentSeedsGiveDifferentScenes) {
   const DatasetOptions oa = SmallOptions(1);
   const DatasetOptions ob = SmallOptions(2);
