@@ -778,6 +778,7 @@ PipelineResult Runner::Run() {
     }
     return result;
   }
+  result.started = true;
   start_ns_ = NowNs();
   std::thread threads[4] = {
       std::thread([this] { SourceStage(); }), std::thread([this] { PreprocessStage(); }),

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "config/limits.h"
 #include "pipeline/pipeline.h"
 #include "profiling/stats.h"
 #include "sfrt/camera/preprocess.h"
@@ -143,6 +144,11 @@ Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc)
                          std::to_string(desc.channels) + ") or (1, H, W, " +
                          std::to_string(desc.channels) + ")");
   }
+  if (std::string problem = config::CheckSize(
+          config::kInputSide, path + ": shape " + array->ShapeString() + ":", shape[0], shape[1]);
+      !problem.empty()) {
+    return Status::Error(problem);
+  }
   if (shape[2] != desc.channels) {
     return Status::Error(path + ": shape " + array->ShapeString() + " has " +
                          std::to_string(shape[2]) + " channels but the model takes " +
@@ -197,6 +203,10 @@ int RunInfer(const InferArgs& args) {
     if (!args.input_npy.empty()) {
       return ReportError(kName, "--size resizes images; it cannot be used with --input-npy",
                          kExitUsage);
+    }
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", resize_h, resize_w);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
     }
   }
   const std::string out_ext = LowerExtension(args.output);

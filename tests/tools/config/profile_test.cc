@@ -361,7 +361,7 @@ TEST_F(ProfileParser, SummaryNamesEverySetting) {
   const std::map<std::string, std::string> want = {
       {"name", "aarch64-4core-sbs"},
       {"source", "side-by-side camera /dev/video0 (left-right)"},
-      {"capture", "YUYV 1280x480 (WxH) at 30 fps, 4 buffers"},
+      {"capture", "YUYV 480x1280 (HxW) at 30 fps, 4 buffers"},
       {"calibration", kFirmware + "/calib/sbs-stereo-1280x480.camchain.yaml"},
       {"model", kDemoModel + " at 256x320 (HxW)"},
       {"stage capture", "1 thread, CPUs 0, SCHED_FIFO 50"},
