@@ -67,7 +67,8 @@ def frames(root, count, grey=False, seed=3):
 
 
 def run(a, args):
-    cmd = [a.sfrt, "run", "--model", a.model, "--progress", "off"] + args
+    quiet = [] if "--progress" in args else ["--progress", "off"]
+    cmd = [a.sfrt, "run", "--model", a.model] + quiet + args
     print("+ " + " ".join(cmd), flush=True)
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     print("--- exit %d; stdout:\n%s--- stderr:\n%s---" % (p.returncode, p.stdout, p.stderr))
