@@ -470,7 +470,7 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--isa", args->isa,
                   "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, neon")
       ->capture_default_str();
-  cmd->add_option("--threads", args->threads, "Threads for inference (0: one per CPU)")
+  cmd->add_option("--threads", args->threads, "Threads for inference, 0..256 (0: one per CPU)")
       ->capture_default_str();
   cmd->add_option("--queue", args->queue,
                   "When a stage falls behind: newest-wins (drop the older queued frame, counted) "
@@ -492,7 +492,10 @@ Command AddRunCommand(CLI::App& parent) {
       "source; frames already read are finished, every file is written to a temporary name and\n"
       "renamed, and summary.json says how far the run got. Exit codes: 0 success (also after a\n"
       "stop by signal), 1 runtime or input failure (incl. a bad frame under --on-bad-frame\n"
-      "stop), 2 usage error (incl. an invalid --config profile).\n"
+      "stop), 2 usage error (incl. an invalid --config profile, and anything checked before the\n"
+      "first frame: an ISA this CPU cannot run, a --size outside 16..4096 per side or one the\n"
+      "model cannot take, an --out where files cannot be created, an empty replay folder, left\n"
+      "and right folders with different frame counts; then nothing is written).\n"
       "With --config FILE the profile gives every option above it has a key for (the start\n"
       "banner lists them); an option given on the command line overrides the profile. The final\n"
       "summary lists the settings applied and not applied.");

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "config/limits.h"
 #include "config/profile.h"
@@ -115,6 +116,54 @@ TEST(ProfileInput, BinaryProfileIsCalledBinaryNotEmpty) {
   for (const Diagnostic& d : text.errors) {
     EXPECT_EQ(d.problem.find("binary"), std::string::npos) << d.ToString();
   }
+}
+
+TEST(Limits, TheReadmeTableMatchesTheCode) {
+  std::ifstream in(std::string(SFRT_SOURCE_DIR) + "/firmware-cfg/README.md");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string doc = text.str();
+  const std::string begin = "<!-- limits table: generated from tools/config/limits.h";
+  const size_t start = doc.find(begin);
+  const size_t end = doc.find("<!-- end of limits table -->");
+  ASSERT_NE(start, std::string::npos);
+  ASSERT_NE(end, std::string::npos);
+  std::istringstream table(doc.substr(start, end - start));
+  std::vector<std::string> rows;
+  std::string line;
+  while (std::getline(table, line)) {
+    if (line.rfind("| ", 0) == 0 && line.rfind("| limit ", 0) != 0) rows.push_back(line);
+  }
+  const std::vector<std::string> want = LimitsMarkdownRows();
+  EXPECT_EQ(rows, want);
+}
+
+TEST(Limits, ThreadsZeroIsOnePerCpuAndTheSameTextEverywhere) {
+  EXPECT_GE(ResolveThreads(0), 1);
+  EXPECT_EQ(ResolveThreads(3), 3);
+  EXPECT_EQ(CheckRange(kThreads, "--threads", 1000),
+            "--threads: 1000 is outside the threads limits 0..256 (0: one per CPU)");
+  EXPECT_EQ(CheckRange(kThreads, "--threads", 0), "");
+  EXPECT_EQ(CheckSize(kInputSide, "--size", 5000, 96),
+            "--size: 5000x96 (HxW) is outside the input size limits 16..4096 pixels per side");
+  // A profile refuses the same values with the same range.
+  ValidationReport report;
+  (void)LoadProfileFromString(
+      "version: 1\nmodel:\n  file: m.sfrt\n  input_height: 5000\n  input_width: 96\n"
+      "stages:\n  infer:\n    threads: 1000\n",
+      "limits.yaml", &report);
+  bool size = false, threads = false;
+  for (const Diagnostic& d : report.errors) {
+    if (d.key == "model.input_height") {
+      size = true;
+      EXPECT_EQ(d.allowed, "integer 16..4096 pixels per side");
+    }
+    if (d.key == "stages.infer.threads") {
+      threads = true;
+      EXPECT_EQ(d.allowed, "integer 0..256 (0: one per CPU)");
+    }
+  }
+  EXPECT_TRUE(size && threads);
 }
 
 }  // namespace
