@@ -446,10 +446,10 @@ void Runner::PreprocessStage() {
     }
     if (size != rectifier_->input_size()) {
       if (options_.calibration) {
-        Fail(Status::Error("frame size changed to " + std::to_string(size.width) + "x" +
-                           std::to_string(size.height) + " but the calibration is for " +
-                           std::to_string(rectifier_->input_size().width) + "x" +
-                           std::to_string(rectifier_->input_size().height)),
+        Fail(Status::Error("frame size changed to " + std::to_string(size.height) + "x" +
+                           std::to_string(size.width) + " (HxW) but the calibration is for " +
+                           std::to_string(rectifier_->input_size().height) + "x" +
+                           std::to_string(rectifier_->input_size().width)),
              true);
         break;
       }

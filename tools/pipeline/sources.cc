@@ -221,9 +221,10 @@ class CameraSource : public FrameSource {
     const v4l2::NegotiatedFormat& right = cap_.right().format();
     if (right.width != left.width || right.height != left.height) {
       return Status::Error(config_.right.device + ": the driver granted " +
-                           std::to_string(right.width) + "x" + std::to_string(right.height) +
-                           " but " + config_.left.device + " has " + std::to_string(left.width) +
-                           "x" + std::to_string(left.height) + " (both cameras need one size)");
+                           std::to_string(right.height) + "x" + std::to_string(right.width) +
+                           " (HxW) but " + config_.left.device + " has " +
+                           std::to_string(left.height) + "x" + std::to_string(left.width) +
+                           " (both cameras need one size)");
     }
     return cv::Size(left.width, left.height);
   }
