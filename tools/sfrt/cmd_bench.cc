@@ -10,8 +10,8 @@
 // tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <chrono>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
