@@ -15,10 +15,12 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <ostream>
 #include <set>
 #include <sstream>
 #include <utility>
 
+#include "config/limits.h"
 #include "sfrt/camera/calibration.h"
 #include "sfrt/model.h"
 
@@ -349,6 +351,13 @@ std::optional<long long> ReadInt(Checker& c, const Field& f, long long lo, long 
   return v;
 }
 
+// An integer within a limit of the shared table (limits.h), described as the table says.
+std::optional<long long> ReadInt(Checker& c, const Field& f, const IntRange& range) {
+  std::string unit = range.unit;
+  if (range.note[0] != '\0') unit += (unit.empty() ? "(" : " (") + std::string(range.note) + ")";
+  return ReadInt(c, f, range.lo, range.hi, unit);
+}
+
 struct Range {
   double lo;
   bool lo_open;  // lo itself not allowed
@@ -607,10 +616,10 @@ class Parser {
     const Field fmt_field = m.Require("pixel_format", "YUYV, MJPEG, GREY, NV12, BGR24, RGB24");
     const auto fmt = ReadEnum(c_, fmt_field, kPixelFormats);
     if (fmt) cam.pixel_format = *fmt;
-    const Field width = m.Require("width", "integer 16..8192 pixels");
-    const Field height = m.Require("height", "integer 16..8192 pixels");
-    if (auto v = ReadInt(c_, width, 16, 8192, "pixels")) cam.width = static_cast<int>(*v);
-    if (auto v = ReadInt(c_, height, 16, 8192, "pixels")) cam.height = static_cast<int>(*v);
+    const Field width = m.Require("width", "integer " + RangeText(kFrameSide));
+    const Field height = m.Require("height", "integer " + RangeText(kFrameSide));
+    if (auto v = ReadInt(c_, width, kFrameSide)) cam.width = static_cast<int>(*v);
+    if (auto v = ReadInt(c_, height, kFrameSide)) cam.height = static_cast<int>(*v);
     if (cam.width > 0 && cam.width % 2 != 0) {
       if (mode == SourceKind::kSbsCamera) {
         c_.Error(width.pos, width.path,
@@ -632,7 +641,7 @@ class Parser {
                             {0, true, 1000, "frames per second"})) {
       cam.fps = *v;
     }
-    if (auto v = ReadInt(c_, m.Get("buffer_count"), 2, 32, "buffers")) {
+    if (auto v = ReadInt(c_, m.Get("buffer_count"), kCameraBuffers)) {
       cam.buffer_count = static_cast<int>(*v);
     }
     if (mode == SourceKind::kStereoCameras) {
@@ -793,12 +802,11 @@ class Parser {
         }
       }
     }
-    if (auto v =
-            ReadInt(c_, m.Require("input_height", "integer 16..4096 pixels"), 16, 4096, "pixels")) {
+    const std::string side = "integer " + RangeText(kInputSide);
+    if (auto v = ReadInt(c_, m.Require("input_height", side), kInputSide)) {
       p_.input_height = static_cast<int>(*v);
     }
-    if (auto v =
-            ReadInt(c_, m.Require("input_width", "integer 16..4096 pixels"), 16, 4096, "pixels")) {
+    if (auto v = ReadInt(c_, m.Require("input_width", side), kInputSide)) {
       p_.input_width = static_cast<int>(*v);
     }
   }
@@ -814,7 +822,7 @@ class Parser {
       MapView sm(c_, sf, {"threads", "cpus", "priority"});
       if (!sf.node.IsMap()) continue;
       StageSettings& st = p_.stages[s];
-      if (auto v = ReadInt(c_, sm.Get("threads"), 1, 256, "threads")) {
+      if (auto v = ReadInt(c_, sm.Get("threads"), kThreads)) {
         st.threads = static_cast<int>(*v);
       }
       if (auto v = ReadNoneOrInt(c_, sm.Get("priority"), 1, 99, "(SCHED_FIFO)")) {
@@ -874,10 +882,11 @@ class Parser {
                                             {"count-only", MissAction::kCountOnly}});
     if (miss) p_.on_miss = *miss;
     if (miss == MissAction::kSmallerInput) {
-      const Field fh = m.Require("fallback_height", "integer 16..4096 pixels, below input_height");
-      const Field fw = m.Require("fallback_width", "integer 16..4096 pixels, below input_width");
-      if (auto v = ReadInt(c_, fh, 16, 4096, "pixels")) p_.fallback_height = static_cast<int>(*v);
-      if (auto v = ReadInt(c_, fw, 16, 4096, "pixels")) p_.fallback_width = static_cast<int>(*v);
+      const std::string side = "integer " + RangeText(kInputSide);
+      const Field fh = m.Require("fallback_height", side + ", below input_height");
+      const Field fw = m.Require("fallback_width", side + ", below input_width");
+      if (auto v = ReadInt(c_, fh, kInputSide)) p_.fallback_height = static_cast<int>(*v);
+      if (auto v = ReadInt(c_, fw, kInputSide)) p_.fallback_width = static_cast<int>(*v);
       if (auto v = ReadInt(c_, m.Get("recover_after_frames"), 1, 100000, "frames")) {
         p_.recover_after_frames = static_cast<int>(*v);
       }
@@ -949,6 +958,66 @@ Result<DeploymentProfile> Finish(DeploymentProfile profile, ValidationReport& re
 
 }  // namespace
 
+namespace {
+
+// Where the first NUL byte or invalid UTF-8 sequence is, as "line L, column C" (1-based, column in
+// bytes); "" for text.
+std::string FindBinary(const std::string& text, std::string* what) {
+  int line = 1;
+  size_t line_start = 0;
+  for (size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    size_t len = 1;
+    bool bad = c == 0;
+    if (c >= 0x80) {
+      len = (c & 0xE0) == 0xC0 ? 2 : (c & 0xF0) == 0xE0 ? 3 : (c & 0xF8) == 0xF0 ? 4 : 0;
+      bad = len == 0 || c == 0xC0 || c == 0xC1 || c > 0xF4 || i + len > text.size();
+      for (size_t k = 1; !bad && k < len; ++k) {
+        bad = (static_cast<unsigned char>(text[i + k]) & 0xC0) != 0x80;
+      }
+    }
+    if (bad) {
+      *what = c == 0 ? "a NUL byte" : "invalid UTF-8";
+      return "line " + std::to_string(line) + ", column " + std::to_string(i - line_start + 1);
+    }
+    if (c == '\n') {
+      ++line;
+      line_start = i + 1;
+    }
+    i += len;
+  }
+  return "";
+}
+
+// The first tab in the indentation of a line at or before `last_line` (1-based), or {0, 0}.
+Pos FindIndentationTab(const std::string& text, int last_line) {
+  int line = 1;
+  size_t start = 0;
+  while (start <= text.size() && (last_line <= 0 || line <= last_line)) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    for (size_t i = start; i < end && (text[i] == ' ' || text[i] == '\t'); ++i) {
+      if (text[i] == '\t') return {line, static_cast<int>(i - start) + 1};
+    }
+    if (end == text.size()) break;
+    start = end + 1;
+    ++line;
+  }
+  return {};
+}
+
+}  // namespace
+
+void PrintErrors(const std::vector<Diagnostic>& errors, std::ostream& out) {
+  const size_t shown = std::min(errors.size(), kMaxPrintedErrors);
+  for (size_t i = 0; i < shown; ++i) out << errors[i].ToString() << "\n";
+  if (errors.size() > shown) {
+    const size_t more = errors.size() - shown;
+    out << "... and " << more << " more error" << (more == 1 ? "" : "s") << " (the first "
+        << kMaxPrintedErrors << " are shown)\n";
+  }
+}
+
 Result<DeploymentProfile> LoadProfileFromString(const std::string& yaml, const std::string& path,
                                                 ValidationReport* report) {
   ValidationReport local;
@@ -959,6 +1028,18 @@ Result<DeploymentProfile> LoadProfileFromString(const std::string& yaml, const s
   fs::path dir = fs::path(path).parent_path();
   profile.dir = fs::absolute(dir.empty() ? fs::path(".") : dir, ec).lexically_normal().string();
   if (profile.dir.size() > 1 && profile.dir.back() == '/') profile.dir.pop_back();
+  if (yaml.size() > kMaxProfileBytes) {
+    checker.Error({}, "",
+                  "the profile is " + std::to_string(yaml.size()) + " bytes; the limit is " +
+                      std::to_string(kMaxProfileBytes) + " bytes (1 MiB)");
+    return Finish(std::move(profile), local, report);
+  }
+  std::string binary_what;
+  if (const std::string where = FindBinary(yaml, &binary_what); !where.empty()) {
+    checker.Error({}, "",
+                  "a binary file, not a YAML profile (" + binary_what + " at " + where + ")");
+    return Finish(std::move(profile), local, report);
+  }
   try {
     const YAML::Node root = YAML::Load(yaml);
     Parser(checker, profile).Parse(root);
@@ -966,7 +1047,11 @@ Result<DeploymentProfile> LoadProfileFromString(const std::string& yaml, const s
     // Syntax errors (and anything yaml-cpp rejects) stop the walk: the tree is unusable.
     Pos pos;
     if (!e.mark.is_null()) pos = {e.mark.line + 1, e.mark.column + 1};
-    checker.Error(pos, "", "YAML syntax error: " + e.msg);
+    if (const Pos tab = FindIndentationTab(yaml, pos.line); tab.line > 0) {
+      checker.Error(tab, "", "a tab in the indentation; YAML indents with spaces only");
+    } else {
+      checker.Error(pos, "", "YAML syntax error: " + e.msg);
+    }
   }
   return Finish(std::move(profile), local, report);
 }
@@ -979,9 +1064,25 @@ Result<DeploymentProfile> LoadProfile(const std::string& path, ValidationReport*
     local.errors.push_back({path, 0, 0, "", std::string("cannot read profile: ") + why, ""});
     return Finish(DeploymentProfile{}, local, report);
   }
-  std::stringstream text;
-  text << in.rdbuf();
-  return LoadProfileFromString(text.str(), path, report);
+  // At most one byte over the limit is read (the file may be a pipe or a device, with no size).
+  std::string text(kMaxProfileBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (text.size() > kMaxProfileBytes) {
+    ValidationReport local;
+    std::error_code ec;
+    const std::uintmax_t size = fs::is_regular_file(path, ec) ? fs::file_size(path, ec) : 0;
+    const std::string how_big = size > 0 && !ec
+                                    ? std::to_string(size) + " bytes"
+                                    : "more than " + std::to_string(kMaxProfileBytes) + " bytes";
+    local.errors.push_back({path, 0, 0, "",
+                            "the profile is " + how_big + "; the limit is " +
+                                std::to_string(kMaxProfileBytes) +
+                                " bytes (1 MiB); nothing was parsed",
+                            ""});
+    return Finish(DeploymentProfile{}, local, report);
+  }
+  return LoadProfileFromString(text, path, report);
 }
 
 std::string FormatProfileSummary(const DeploymentProfile& p) {
@@ -1013,7 +1114,7 @@ std::string FormatProfileSummary(const DeploymentProfile& p) {
   row("source", source);
   if (p.source == SourceKind::kStereoCameras || p.source == SourceKind::kSbsCamera) {
     std::string c = std::string(PixelFormatName(cam.pixel_format)) + " " +
-                    std::to_string(cam.width) + "x" + std::to_string(cam.height) + " (WxH) at " +
+                    std::to_string(cam.height) + "x" + std::to_string(cam.width) + " (HxW) at " +
                     FormatNumber(cam.fps) + " fps, " + std::to_string(cam.buffer_count) +
                     " buffers";
     if (p.source == SourceKind::kStereoCameras) {

@@ -20,6 +20,7 @@
 // Thread-safety: the functions are reentrant; they share no state.
 #pragma once
 
+#include <iosfwd>
 #include <optional>
 #include <string>
 #include <vector>
@@ -149,14 +150,21 @@ struct ValidationReport {
   bool ok() const { return errors.empty(); }
 };
 
-// Parses and validates `path`. `report` (optional) receives every error and warning. On failure
-// the Status is one line: the first error, plus "(and N more errors)" when there are more.
+// Parses and validates `path`. A file over kMaxProfileBytes (limits.h) is refused with its size
+// before anything is parsed; a binary file (a NUL byte or invalid UTF-8) is refused as binary; a
+// tab in the indentation is reported as such, with its line and column. `report` (optional)
+// receives every error and warning. On failure the Status is one line: the first error, plus "(and
+// N more errors)" when there are more.
 Result<DeploymentProfile> LoadProfile(const std::string& path, ValidationReport* report = nullptr);
 
 // Same checks on YAML held in memory; `path` names it in diagnostics and its directory is the
 // base of relative paths.
 Result<DeploymentProfile> LoadProfileFromString(const std::string& yaml, const std::string& path,
                                                 ValidationReport* report = nullptr);
+
+// Prints `errors` one a line (Diagnostic::ToString), at most kMaxPrintedErrors (limits.h) of
+// them, then "... and N more errors (the first 50 are shown)".
+void PrintErrors(const std::vector<Diagnostic>& errors, std::ostream& out);
 
 // A multi-line human summary of a valid profile (what `sfrt config check` prints after OK).
 std::string FormatProfileSummary(const DeploymentProfile& profile);

@@ -469,10 +469,10 @@ void Runner::PreprocessStage() {
     }
     if (size != rectifier_->input_size()) {
       if (options_.calibration) {
-        Fail(Status::Error("frame size changed to " + std::to_string(size.width) + "x" +
-                           std::to_string(size.height) + " but the calibration is for " +
-                           std::to_string(rectifier_->input_size().width) + "x" +
-                           std::to_string(rectifier_->input_size().height)),
+        Fail(Status::Error("frame size changed to " + std::to_string(size.height) + "x" +
+                           std::to_string(size.width) + " (HxW) but the calibration is for " +
+                           std::to_string(rectifier_->input_size().height) + "x" +
+                           std::to_string(rectifier_->input_size().width)),
              true);
         break;
       }
@@ -829,6 +829,7 @@ PipelineResult Runner::Run() {
     }
     return result;
   }
+  result.started = true;
   start_ns_ = NowNs();
   std::thread threads[4] = {
       std::thread([this] { SourceStage(); }), std::thread([this] { PreprocessStage(); }),

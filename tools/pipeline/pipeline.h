@@ -184,6 +184,7 @@ struct PipelineOptions {
 
 struct PipelineResult {
   Status status;              // ok, or the error that ended the run
+  bool started = false;       // false: setup failed (source open, session), no stage ran
   int64_t frames = 0;         // windows whose outputs were written
   int64_t output_errors = 0;  // windows whose outputs could not be written (skipped or the stop)
   std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "sfrt/camera/v4l2/pixel_format.h"
+#include "sfrt/io/imread.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -28,6 +29,7 @@ class ReplaySource : public FrameSource {
     }
     Result<cv::Size> size = OpenPass();
     if (size.ok() && total_) total_ = *total_ * spec_.loops;
+    if (size.ok() && !quiet_) NoteImageFormat(window_->previous().left_path);
     return size;
   }
 
@@ -99,6 +101,24 @@ class ReplaySource : public FrameSource {
   }
 
  private:
+  // A note, once per run, when the first frame is not 8-bit colour: grayscale is used as BGR with
+  // three equal channels, 16-bit is scaled to 8 bits (cv::IMREAD_COLOR).
+  static void NoteImageFormat(const std::string& path) {
+    if (path.empty()) return;
+    const cv::Mat raw = tools::ReadImageOrEmpty(path, cv::IMREAD_UNCHANGED);
+    if (raw.empty()) return;
+    std::string what;
+    if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";
+    if (raw.depth() == CV_16U || raw.depth() == CV_16S) {
+      what += what.empty() ? "16-bit" : ", 16-bit";
+    }
+    if (what.empty()) return;
+    std::cerr << "sfrt run: note: '" << path << "' is " << what
+              << "; frames are read as 8-bit BGR (grey copied to three channels, 16-bit "
+                 "scaled to 8 bits)"
+              << std::endl;
+  }
+
   // Opens the files for one pass and reads the first pair of the first window.
   Result<cv::Size> OpenPass() {
     // Always skip inside camera/sources and apply the policy here, so a bad frame that stops
@@ -154,6 +174,12 @@ class ReplaySource : public FrameSource {
     const size_t bad_before = bad_.size();
     camera::Result<camera::Fetched> next = window_->Next();
     if (!next.ok()) return Status::Error(next.message());
+    if (spec_.on_bad_frame == camera::BadFramePolicy::kSkip && !quiet_) {
+      for (size_t i = bad_before; i < bad_.size(); ++i) {
+        std::cerr << "sfrt run: warning: bad frame skipped: '" << bad_[i].path
+                  << "': " << bad_[i].reason << std::endl;
+      }
+    }
     if (spec_.on_bad_frame == camera::BadFramePolicy::kStop && bad_.size() > bad_before) {
       const camera::BadFrame& bad = bad_[bad_before];
       return Status::Error("bad frame '" + bad.path + "': " + bad.reason +
@@ -169,6 +195,9 @@ class ReplaySource : public FrameSource {
   std::optional<int64_t> total_;
   int64_t pass_ = 0;
   bool primed_ = false;
+
+ public:
+  bool quiet_ = false;  // ProbeReplay: no console lines
 };
 
 // ------------------------------------------------------------------------------------ camera
@@ -192,9 +221,10 @@ class CameraSource : public FrameSource {
     const v4l2::NegotiatedFormat& right = cap_.right().format();
     if (right.width != left.width || right.height != left.height) {
       return Status::Error(config_.right.device + ": the driver granted " +
-                           std::to_string(right.width) + "x" + std::to_string(right.height) +
-                           " but " + config_.left.device + " has " + std::to_string(left.width) +
-                           "x" + std::to_string(left.height) + " (both cameras need one size)");
+                           std::to_string(right.height) + "x" + std::to_string(right.width) +
+                           " (HxW) but " + config_.left.device + " has " +
+                           std::to_string(left.height) + "x" + std::to_string(left.width) +
+                           " (both cameras need one size)");
     }
     return cv::Size(left.width, left.height);
   }
@@ -389,6 +419,29 @@ class CameraSource : public FrameSource {
 };
 
 }  // namespace
+
+Result<int64_t> ProbeReplay(const ReplaySpec& spec) {
+  if (spec.kind == ReplaySpec::Kind::kPlain) {
+    auto left = camera::ListFrameFiles(spec.left);
+    if (!left.ok()) return Status::Error("left frames: " + left.message());
+    auto right = camera::ListFrameFiles(spec.right);
+    if (!right.ok()) return Status::Error("right frames: " + right.message());
+    if (left->size() != right->size()) {
+      return Status::Error("left frames '" + spec.left + "' has " + std::to_string(left->size()) +
+                           " images but right frames '" + spec.right + "' has " +
+                           std::to_string(right->size()) +
+                           "; left and right pair by position, so the counts must match");
+    }
+  }
+  ReplaySpec once = spec;
+  once.loops = 1;
+  once.on_bad_frame = camera::BadFramePolicy::kSkip;
+  ReplaySource probe(once);
+  probe.quiet_ = true;
+  Result<cv::Size> size = probe.Open();
+  if (!size.ok()) return size.status();
+  return probe.total_windows().value_or(0);
+}
 
 std::unique_ptr<FrameSource> MakeReplaySource(const ReplaySpec& spec) {
   return std::make_unique<ReplaySource>(spec);

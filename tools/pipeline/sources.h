@@ -38,6 +38,12 @@ struct ReplaySpec {
   int64_t loops = 1;
 };
 
+// Checks a replay before a run, as far as that can be done without running it: the inputs exist
+// and list frames, left and right list the same number of frames (kPlain), and a first (t, t+1)
+// window can be formed. Bad frames do not fail the check (the run applies on_bad_frame to them).
+// Returns the windows of one pass.
+Result<int64_t> ProbeReplay(const ReplaySpec& spec);
+
 // The source opens in FrameSource::Open().
 std::unique_ptr<FrameSource> MakeReplaySource(const ReplaySpec& spec);
 std::unique_ptr<FrameSource> MakeCameraSource(const v4l2::StereoConfig& config,

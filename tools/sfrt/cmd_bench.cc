@@ -10,6 +10,7 @@
 // tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "config/limits.h"
 #include "profiling/peak_fma.h"
 #include "profiling/stats.h"
 #include "profiling/system_info.h"
@@ -131,10 +133,16 @@ std::string ParseLists(const BenchArgs& args, std::vector<Isa>* isas,
   }
   for (const std::string& t : SplitList(args.threads)) {
     int n = 0;
-    if (!ParseSize("1x" + t, &n, &n) || n < 1) {
-      return "--threads: '" + t + "' is not a positive integer";
+    const char* end = t.data() + t.size();
+    auto [ptr, ec] = std::from_chars(t.data(), end, n);
+    if (t.empty() || ec != std::errc() || ptr != end) {
+      return "--threads: '" + t + "' is not an integer";
     }
-    thread_counts->push_back(n);
+    if (std::string problem = config::CheckRange(config::kThreads, "--threads", n);
+        !problem.empty()) {
+      return problem;
+    }
+    thread_counts->push_back(config::ResolveThreads(n));
   }
   if (isas->empty() || thread_counts->empty()) {
     return "--isa and --threads need at least one value";
@@ -258,6 +266,10 @@ int RunBench(const BenchArgs& args) {
   if (!args.size.empty() && !ParseSize(args.size, &height, &width)) {
     return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
                        kExitUsage);
+  }
+  if (std::string problem = config::CheckSize(config::kInputSide, "--size", height, width);
+      !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
   }
   if (args.runs < 1 || args.warmup < 0 || args.min_seconds < 0 || args.top < 0) {
     return ReportError(kName, "--runs must be >= 1, --warmup, --min-seconds and --top >= 0",
@@ -610,7 +622,8 @@ Command AddBenchCommand(CLI::App& parent) {
                   "uses, else 540x960)");
   cmd->add_option("--isa", args->isas,
                   "Comma-separated ISAs to time: ref, avx2, avx512, neon, best (default), all");
-  cmd->add_option("--threads", args->threads, "Comma-separated thread counts (default 1)");
+  cmd->add_option("--threads", args->threads,
+                  "Comma-separated thread counts, each 0..256 (0: one per CPU; default 1)");
   cmd->add_option("--warmup", args->warmup, "Untimed runs per configuration first (default 1)");
   cmd->add_option("--runs", args->runs, "Timed runs per configuration, at least (default 5)");
   cmd->add_option("--min-seconds", args->min_seconds,

@@ -32,7 +32,7 @@ int RunConfigCheck(const ConfigCheckArgs& args) {
   for (const std::string& file : args.files) {
     config::ValidationReport report;
     Result<config::DeploymentProfile> profile = config::LoadProfile(file, &report);
-    for (const config::Diagnostic& d : report.errors) std::cerr << d.ToString() << "\n";
+    config::PrintErrors(report.errors, std::cerr);
     if (!profile.ok()) {
       ++failed;
       const size_t n = report.errors.size();

@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "config/limits.h"
 #include "eval/evaluate.h"
 #include "sfrt/commands.h"
 #include "sfrt/io/atomic_write.h"
@@ -54,6 +55,11 @@ int RunEval(const EvalArgs& args) {
           kName,
           "--size: expected HxW with positive integers (e.g. 128x224), got '" + args.size + "'",
           kExitUsage);
+    }
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", options.model_height,
+                                                options.model_width);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
     }
   }
   if (args.max_frames < 0) {

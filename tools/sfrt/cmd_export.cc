@@ -66,7 +66,8 @@ struct ExportArgs {
   std::string check_input;
   std::string check_output;
   std::string check_size;
-  double tolerance = -1;  // < 0: the default for the weight type
+  double tolerance = -1;                 // < 0: the default for the weight type
+  CLI::Option* tolerance_opt = nullptr;  // given on the command line: must be > 0
   std::string units;
   std::string training_state;
   // The metadata flags given on the command line: a .sfrt source keeps its own value of the rest.
@@ -516,8 +517,10 @@ int RunExport(const ExportArgs& args) {
     return ReportError(kName, "--weights: expected fp32 or fp16, got '" + args.weights + "'",
                        kExitUsage);
   }
-  if (args.tolerance != -1 && !(args.tolerance > 0 && std::isfinite(args.tolerance))) {
-    return ReportError(kName, "--tolerance: must be a positive number", kExitUsage);
+  if (args.tolerance_opt->count() > 0 && !(args.tolerance > 0 && std::isfinite(args.tolerance))) {
+    return ReportError(kName,
+                       "--tolerance: must be a positive number, got " + FormatFloat(args.tolerance),
+                       kExitUsage);
   }
   if (!args.check_output.empty() && args.check_input.empty()) {
     return ReportError(kName, "--check-output needs --check-input (the input it was computed from)",
@@ -815,9 +818,10 @@ Command AddExportCommand(CLI::App& parent) {
   cmd->add_option("--check-output", args->check_output,
                   "Parity check reference: the source framework's output for --check-input, "
                   "float32 .npy (H,W,3) or (1,H,W,3)");
-  cmd->add_option("--tolerance", args->tolerance,
-                  "Parity tolerance: largest allowed |error| relative to the reference's "
-                  "largest |value| (default 1e-4; 1e-2 with --weights fp16)");
+  args->tolerance_opt =
+      cmd->add_option("--tolerance", args->tolerance,
+                      "Parity tolerance: largest allowed |error| relative to the reference's "
+                      "largest |value| (default 1e-4; 1e-2 with --weights fp16)");
   cmd->footer(
       "Reads ONNX as torch.onnx.export writes it (opsets 11-17), and Keras 2 HDF5 (.h5/.hdf5)\n"
       "from model.save() (functional or Sequential; a multi_gpu_model checkpoint exports its\n"

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "config/limits.h"
 #include "pipeline/pipeline.h"
 #include "profiling/stats.h"
 #include "sfrt/camera/preprocess.h"
@@ -90,6 +91,20 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
                            "' did not decode to 8-bit BGR");
     }
   }
+  // One note for the run when an image is not 8-bit colour (read as 8-bit BGR all the same).
+  for (const Source& s : sources) {
+    const cv::Mat raw = ReadImageOrEmpty(*s.path, cv::IMREAD_UNCHANGED);
+    std::string what;
+    if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";
+    if (raw.depth() == CV_16U || raw.depth() == CV_16S)
+      what += what.empty() ? "16-bit" : ", 16-bit";
+    if (raw.empty() || what.empty()) continue;
+    std::cerr << "sfrt infer: note: " << s.flag << " image '" << *s.path << "' is " << what
+              << "; images are read as 8-bit BGR (grey copied to three channels, 16-bit scaled "
+                 "to 8 bits)"
+              << std::endl;
+    break;
+  }
   for (size_t i = 1; i < 4; ++i) {
     if (sources[i].image.size() != sources[0].image.size()) {
       return Status::Error(std::string(sources[i].flag) + " image '" + *sources[i].path + "' is " +
@@ -145,10 +160,26 @@ Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc)
                          std::to_string(desc.channels) + ") or (1, H, W, " +
                          std::to_string(desc.channels) + ")");
   }
+  if (std::string problem = config::CheckSize(
+          config::kInputSide, path + ": shape " + array->ShapeString() + ":", shape[0], shape[1]);
+      !problem.empty()) {
+    return Status::Error(problem);
+  }
   if (shape[2] != desc.channels) {
     return Status::Error(path + ": shape " + array->ShapeString() + " has " +
                          std::to_string(shape[2]) + " channels but the model takes " +
                          std::to_string(desc.channels));
+  }
+  // A NaN or infinity would only come out as a NaN flow: refuse it, naming the first one.
+  for (size_t i = 0; i < array->data.size(); ++i) {
+    const float v = array->data[i];
+    if (std::isfinite(v)) continue;
+    const size_t c = i % static_cast<size_t>(shape[2]);
+    const size_t x = i / static_cast<size_t>(shape[2]) % static_cast<size_t>(shape[1]);
+    const size_t y = i / static_cast<size_t>(shape[2]) / static_cast<size_t>(shape[1]);
+    return Status::Error(path + ": element [" + std::to_string(y) + ", " + std::to_string(x) +
+                         ", " + std::to_string(c) + "] (flat index " + std::to_string(i) + ") is " +
+                         (std::isnan(v) ? "NaN" : "infinite") + "; the input must be finite");
   }
   InputTensor input;
   input.height = static_cast<int>(shape[0]);
@@ -199,6 +230,10 @@ int RunInfer(const InferArgs& args) {
     if (!args.input_npy.empty()) {
       return ReportError(kName, "--size resizes images; it cannot be used with --input-npy",
                          kExitUsage);
+    }
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", resize_h, resize_w);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
     }
   }
   const std::string out_ext = LowerExtension(args.output);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "config/limits.h"
 #include "sfrt/commands.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
@@ -165,6 +166,12 @@ int RunInspect(const InspectArgs& args) {
         kName,
         "--size: expected HxW with positive integers (e.g. 540x960), got '" + args.size + "'",
         kExitUsage);
+  }
+  if (!args.size.empty()) {
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", height, width);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
+    }
   }
   if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "config/limits.h"
 #include "pipeline/pipeline.h"
 #include "pipeline/sources.h"
 #include "sfrt/commands.h"
@@ -24,6 +25,7 @@
 #include "sfrt/model_notes.h"
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
+#include "sfrt/shapes.h"
 
 namespace sfrt::tools {
 namespace {
@@ -180,6 +182,12 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     return ReportError(
         kName, "--isa: '" + args.isa + "' is not one of auto, ref, avx2, avx512, neon", kExitUsage);
   }
+  if (options.isa != Isa::kAuto && !IsaSupported(options.isa)) {
+    return ReportError(kName,
+                       "--isa " + args.isa + ": this CPU (or this build) cannot run it; it runs " +
+                           SupportedIsaList(),
+                       kExitUsage);
+  }
   if (!args.queue.empty()) {
     if (args.queue == "newest-wins") {
       options.policy = pipeline::QueuePolicy::kNewestWins;
@@ -203,29 +211,41 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
                        "--progress: expected auto, tty, lines or off, got '" + args.progress + "'",
                        kExitUsage);
   }
-  if (args.threads < 0 || args.queue_depth < 1 || args.max_frames < 0 || args.budget_ms < 0 ||
-      args.buffers < 2 || !(args.fps >= 0) || args.pair_tolerance_ms < 0 ||
-      args.camera_timeout_ms <= 0 || !(args.video_fps > 0)) {
+  for (const std::string& problem :
+       {args.size.empty()
+            ? std::string()
+            : config::CheckSize(config::kInputSide, "--size", options.height, options.width),
+        live ? config::CheckSize(config::kFrameSide, "--camera-size", cam_h, cam_w) : "",
+        config::CheckRange(config::kThreads, "--threads", args.threads),
+        live ? config::CheckRange(config::kCameraBuffers, "--buffers", args.buffers) : ""}) {
+    if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
+  }
+  if (args.queue_depth < 1 || args.max_frames < 0 || args.budget_ms < 0 || args.buffers < 2 ||
+      !(args.fps >= 0) || args.pair_tolerance_ms < 0 || args.camera_timeout_ms <= 0 ||
+      !(args.video_fps > 0)) {
     return ReportError(kName,
-                       "--threads, --max-frames, --budget-ms, --pair-tolerance-ms must be >= 0; "
+                       "--max-frames, --budget-ms, --pair-tolerance-ms must be >= 0; "
                        "--queue-depth >= 1; --buffers >= 2; --camera-timeout-ms and --video-fps "
                        "> 0",
                        kExitUsage);
   }
 
-  // ---- files
+  // ---- files: everything that can be checked is checked before the output directory is
+  // created or the source opened for the run, so a run that cannot start writes nothing.
   if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
-  std::error_code ec;
-  std::filesystem::create_directories(args.out, ec);
-  if (!std::filesystem::is_directory(args.out, ec)) {
-    return ReportError(kName, "--out: cannot create the output directory '" + args.out + "'",
-                       kExitFailure);
+  if (std::string problem = CheckWritableDirectory(args.out, "--out"); !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
   }
-  if (!args.video.empty()) {
-    if (std::string problem = CheckOutputDirectory(args.video); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
+  for (const auto& [flag, path] :
+       {std::pair<const char*, const std::string&>{"--video", args.video},
+        {"--latency-log", args.latency_log}}) {
+    if (path.empty()) continue;
+    const std::string parent = std::filesystem::path(path).parent_path().string();
+    if (std::string problem = CheckWritableDirectory(parent.empty() ? "." : parent, flag);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
     }
     if (Result<std::string> video = pipeline::ResolveVideoPath(args.video); !video.ok()) {
       return ReportError(kName, video.message(), kExitUsage);
@@ -244,11 +264,17 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
   Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
+  if (!args.size.empty()) {
+    if (auto geometry = InferGeometry(**loaded, options.height, options.width); !geometry.ok()) {
+      return ReportError(kName, "--size " + args.size + ": " + geometry.message(), kExitUsage);
+    }
+  }
   if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
       !notice.empty()) {
     std::cout << notice << "\n";
   }
 
+  std::error_code ec;
   std::unique_ptr<pipeline::FrameSource> source;
   std::optional<pipeline::ReplaySpec> replay_spec;  // --profile-overhead replays it again
   if (live) {
@@ -301,8 +327,19 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     spec.video_left_first = !args.right_first;
     spec.on_bad_frame = on_bad;
     spec.loops = args.loop;
+    const char* flag = !args.replay.empty() ? "--replay"
+                       : plain              ? "--replay-left/--replay-right"
+                                            : "--replay-video";
+    if (Result<int64_t> probe = pipeline::ProbeReplay(spec); !probe.ok()) {
+      return ReportError(kName, std::string(flag) + ": " + probe.message(), kExitUsage);
+    }
     replay_spec = spec;
     source = pipeline::MakeReplaySource(spec);
+  }
+  std::filesystem::create_directories(args.out, ec);
+  if (!std::filesystem::is_directory(args.out, ec)) {
+    return ReportError(kName, "--out: cannot create the output directory '" + args.out + "'",
+                       kExitFailure);
   }
 
   options.out_dir = args.out;
@@ -338,6 +375,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };
   pipeline::PipelineResult result =
       RunConfiguredPipeline(rc, *loaded, source.get(), options, again);
+  if (!result.started) {  // nothing ran: no statistics to show
+    return ReportError(kName, result.status.message(), kExitFailure);
+  }
 
   std::cout << "source      " << source->Describe() << "\n"
             << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n"
@@ -454,7 +494,7 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--isa", args->isa,
                   "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, neon")
       ->capture_default_str();
-  cmd->add_option("--threads", args->threads, "Threads for inference (0: one per CPU)")
+  cmd->add_option("--threads", args->threads, "Threads for inference, 0..256 (0: one per CPU)")
       ->capture_default_str();
   cmd->add_option("--queue", args->queue,
                   "When a stage falls behind: newest-wins (drop the older queued frame, counted) "
@@ -476,7 +516,10 @@ Command AddRunCommand(CLI::App& parent) {
       "source; frames already read are finished, every file is written to a temporary name and\n"
       "renamed, and summary.json says how far the run got. Exit codes: 0 success (also after a\n"
       "stop by signal), 1 runtime or input failure (incl. a bad frame under --on-bad-frame\n"
-      "stop), 2 usage error (incl. an invalid --config profile).\n"
+      "stop), 2 usage error (incl. an invalid --config profile, and anything checked before the\n"
+      "first frame: an ISA this CPU cannot run, a --size outside 16..4096 per side or one the\n"
+      "model cannot take, an --out where files cannot be created, an empty replay folder, left\n"
+      "and right folders with different frame counts; then nothing is written).\n"
       "With --config FILE the profile gives every option above it has a key for (the start\n"
       "banner lists them); an option given on the command line overrides the profile. The final\n"
       "summary lists the settings applied and not applied.");

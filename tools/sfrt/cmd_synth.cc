@@ -10,6 +10,7 @@
 #include <string>
 #include <thread>
 
+#include "config/limits.h"
 #include "sfrt/commands.h"
 #include "synth/dataset.h"
 #include "synth/texture.h"
@@ -44,12 +45,17 @@ struct SynthArgs {
 int RunSynth(const SynthArgs& args) {
   int height = 0;
   int width = 0;
-  if (!ParseSize(args.size, &height, &width) || height < 8 || width < 8 || height > 8192 ||
-      width > 8192) {
-    return ReportError(
-        kName,
-        "--size: expected HxW with integers from 8 to 8192 (e.g. 540x960), got '" + args.size + "'",
-        kExitUsage);
+  if (!ParseSize(args.size, &height, &width)) {
+    return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
+                       kExitUsage);
+  }
+  if (std::string problem = config::CheckSize(config::kFrameSide, "--size", height, width);
+      !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
+  }
+  if (std::string problem = config::CheckRange(config::kThreads, "--threads", args.threads);
+      !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
   }
   auto range = [](const char* flag, double value, double lo, double hi) -> std::string {
     if (std::isfinite(value) && value >= lo && value <= hi) return "";
@@ -59,15 +65,13 @@ int RunSynth(const SynthArgs& args) {
   const double focal = args.focal_opt->count() > 0 ? args.focal : 1050.0 * width / 960.0;
   const double cx = args.cx_opt->count() > 0 ? args.cx : (width - 1) / 2.0;
   const double cy = args.cy_opt->count() > 0 ? args.cy : (height - 1) / 2.0;
-  const int threads = args.threads > 0
-                          ? args.threads
-                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = config::ResolveThreads(args.threads);
   for (const std::string& problem :
        {range("--frames", args.frames, 1, 9999), range("--sequences", args.sequences, 1, 9999),
         range("--objects", args.objects, 0, 200), range("--focal", focal, 1e-3, 1e7),
         range("--baseline", args.baseline, 1e-6, 1e6), range("--cx", cx, -1e6, 1e6),
         range("--cy", cy, -1e6, 1e6), range("--noise", args.noise, 0, 255),
-        range("--blur", args.blur, 0, 50), range("--threads", threads, 1, 64)}) {
+        range("--blur", args.blur, 0, 50)}) {
     if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
 
@@ -182,8 +186,9 @@ Command AddSynthCommand(CLI::App& parent) {
   cmd->add_option("--noise", args->noise,
                   "Photometric noise, standard deviation in 8-bit grey levels (default 0)");
   cmd->add_option("--blur", args->blur, "Gaussian blur of the images, sigma in px (default 0)");
-  cmd->add_option("--threads", args->threads,
-                  "Rendering threads (default: all cores; the output does not depend on it)");
+  cmd->add_option(
+      "--threads", args->threads,
+      "Rendering threads, 0..256 (0, the default: one per CPU; the output does not depend on it)");
   cmd->add_flag("--force", args->force,
                 "Replace the data set sfrt synth wrote at --out, once the new one is complete "
                 "(other non-empty directories are refused)");

@@ -65,6 +65,11 @@ std::string CheckInputFile(const std::string& path, std::string_view what);
 // "output directory 'out' does not exist (for -o out/flow.pfm)".
 std::string CheckOutputDirectory(const std::string& path);
 
+// Empty when files can be created in the directory `path`, or, if it does not exist yet, in its
+// nearest existing ancestor (so creating it would work); otherwise a message naming `flag`, the
+// path and the reason. Tests by creating and removing a file: nothing is left behind.
+std::string CheckWritableDirectory(const std::string& path, std::string_view flag);
+
 // Lower-cased extension of `path` including the dot (".onnx"), or "" if it has none.
 std::string LowerExtension(const std::string& path);
 

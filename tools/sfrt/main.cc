@@ -3,10 +3,15 @@
 //                                           (built with the exporter only)
 //   sfrt inspect model.sfrt                 metadata, per-layer shapes and costs, arena size
 //   sfrt infer   --model model.sfrt ...     run one frame pair and write the scene flow
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <iostream>
@@ -14,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "config/profile.h"
 #include "sfrt/commands.h"
 #include "sfrt/model.h"
 
@@ -69,6 +75,29 @@ std::string CheckOutputDirectory(const std::string& path) {
   return "output directory '" + parent.string() + "' does not exist (for -o " + path + ")";
 }
 
+std::string CheckWritableDirectory(const std::string& path, std::string_view flag) {
+  namespace fs = std::filesystem;
+  const std::string head = std::string(flag) + " '" + path + "': ";
+  fs::path dir = fs::path(path).lexically_normal();
+  if (!dir.empty() && dir.filename().empty()) dir = dir.parent_path();  // "out/" -> "out"
+  std::error_code ec;
+  while (!dir.empty() && !fs::exists(fs::symlink_status(dir, ec)) && !fs::exists(dir, ec)) {
+    dir = dir.parent_path();
+  }
+  if (dir.empty()) dir = ".";
+  if (!fs::is_directory(dir, ec)) {
+    return head + "'" + dir.string() + "' exists and is not a directory";
+  }
+  std::string probe = (dir / ".sfrt-write-test-XXXXXX").string();
+  const int fd = ::mkstemp(probe.data());
+  if (fd < 0) {
+    return head + "cannot create files in '" + dir.string() + "' (" + std::strerror(errno) + ")";
+  }
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return "";
+}
+
 std::string LowerExtension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -120,6 +149,40 @@ std::string CommandName(const CLI::App& app, int argc, char** argv) {
   return "";
 }
 
+// "unknown option --modle (did you mean --model?)" for the first long option on the command
+// line that the (sub)command it follows does not have; "" when every option is known. CLI11
+// would report a missing required option first, which hides the typo.
+std::string UnknownOption(const CLI::App& app, int argc, char** argv) {
+  const CLI::App* cmd = &app;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--") break;
+    if (arg.rfind("--", 0) != 0) {
+      for (const CLI::App* sub : cmd->get_subcommands({})) {
+        if (sub->get_name() == arg) cmd = sub;
+      }
+      continue;
+    }
+    const std::string name = arg.substr(0, arg.find('='));
+    if (name == "--help" || name.size() < 3 || cmd->get_option_no_throw(name) != nullptr) continue;
+    std::string best;
+    int best_distance = 1 << 30;
+    for (const CLI::Option* opt : cmd->get_options()) {
+      for (const std::string& lname : opt->get_lnames()) {
+        const int d = sfrt::config::EditDistance(name.substr(2), lname);
+        if (d < best_distance) {
+          best_distance = d;
+          best = "--" + lname;
+        }
+      }
+    }
+    const int limit = std::max(2, static_cast<int>(name.size() - 2) / 3);
+    return "unknown option " + name +
+           (best_distance <= limit ? " (did you mean " + best + "?)" : std::string());
+  }
+  return "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -158,7 +221,9 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     std::string name = CommandName(app, argc, argv);
     std::string hint = name.empty() ? "run 'sfrt --help'" : "run 'sfrt " + name + " --help'";
-    return ReportError(name, std::string(e.what()) + " (" + hint + ")", kExitUsage);
+    const std::string unknown = UnknownOption(app, argc, argv);
+    return ReportError(
+        name, (unknown.empty() ? std::string(e.what()) : unknown) + " (" + hint + ")", kExitUsage);
   }
 
   for (const sfrt::tools::Command& command : commands) {

@@ -103,7 +103,7 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
   config::ValidationReport report;
   Result<config::DeploymentProfile> loaded = config::LoadProfile(state->config_path, &report);
   if (!loaded.ok()) {
-    for (const config::Diagnostic& d : report.errors) std::cerr << d.ToString() << "\n";
+    config::PrintErrors(report.errors, std::cerr);
     const size_t n = report.errors.size();
     std::cerr << "sfrt run: --config " << state->config_path << ": " << n
               << (n == 1 ? " error" : " errors") << "; nothing was opened" << std::endl;

@@ -250,9 +250,9 @@ class FileListSource final : public StereoSource {
         bad = {e.right_path, why_r, index};
       } else if (pair->left.size() != pair->right.size()) {
         bad = {e.right_path,
-               "is " + std::to_string(pair->right.cols) + "x" + std::to_string(pair->right.rows) +
-                   " (WxH) but its left frame " + e.left_path + " is " +
-                   std::to_string(pair->left.cols) + "x" + std::to_string(pair->left.rows),
+               "is " + std::to_string(pair->right.rows) + "x" + std::to_string(pair->right.cols) +
+                   " (HxW) but its left frame " + e.left_path + " is " +
+                   std::to_string(pair->left.rows) + "x" + std::to_string(pair->left.cols),
                index};
       }
       if (!bad.path.empty()) {
@@ -407,6 +407,10 @@ Result<DatasetInfo> DetectDataset(const std::string& root) {
 
 Result<std::unique_ptr<StereoSource>> OpenDatasetSource(const std::string& root) {
   return OpenDatasetSource(root, DatasetOptions());
+}
+
+Result<std::vector<std::string>> ListFrameFiles(const std::string& spec) {
+  return ResolveSpec(spec);
 }
 
 Result<std::unique_ptr<StereoSource>> OpenPlainSource(const std::string& left_spec,

@@ -8,16 +8,16 @@ namespace sfrt::camera {
 namespace {
 
 std::string SizeText(cv::Size s) {
-  return std::to_string(s.width) + "x" + std::to_string(s.height);
+  return std::to_string(s.height) + "x" + std::to_string(s.width);
 }
 
 Status CheckSizes(cv::Size input, cv::Size output) {
   if (input.width < 2 || input.height < 2) {
-    return Status::Error("rectifier: input size " + SizeText(input) + " (WxH) is too small");
+    return Status::Error("rectifier: input size " + SizeText(input) + " (HxW) is too small");
   }
   if (output.width < 2 || output.height < 2 || output.width > 16384 || output.height > 16384) {
     return Status::Error("rectifier: output size " + SizeText(output) +
-                         " (WxH) is outside 2..16384");
+                         " (HxW) is outside 2..16384");
   }
   return Status::Ok();
 }
@@ -39,7 +39,7 @@ Result<StereoRectifier> StereoRectifier::Create(const StereoCalibration& calibra
   if (calibration.image_size.area() > 0 && calibration.image_size != input_size) {
     return Status::Error(calibration.source + ": calibrated image size " +
                          SizeText(calibration.image_size) + " differs from the frame size " +
-                         SizeText(input_size) + " (WxH); recalibrate at the capture resolution");
+                         SizeText(input_size) + " (HxW); recalibrate at the capture resolution");
   }
   if (!(options.alpha == -1 || (options.alpha >= 0 && options.alpha <= 1))) {
     return Status::Error("rectifier: alpha " + std::to_string(options.alpha) +
@@ -119,7 +119,7 @@ Status StereoRectifier::ApplyOne(const cv::Mat& in, const cv::Mat& map1, const c
   if (in.type() != CV_8UC3 || in.size() != input_size_) {
     return Status::Error(std::string("rectifier: ") + side + " image is " + SizeText(in.size()) +
                          " with " + std::to_string(in.channels()) +
-                         " channels; expected 8-bit BGR " + SizeText(input_size_) + " (WxH)");
+                         " channels; expected 8-bit BGR " + SizeText(input_size_) + " (HxW)");
   }
   out->create(output_size_, CV_8UC3);
   if (resize_only_) {

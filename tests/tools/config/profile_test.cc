@@ -376,7 +376,7 @@ TEST_F(ProfileParser, SummaryNamesEverySetting) {
   const std::map<std::string, std::string> want = {
       {"name", "aarch64-4core-sbs"},
       {"source", "side-by-side camera /dev/video0 (left-right)"},
-      {"capture", "YUYV 1280x480 (WxH) at 30 fps, 4 buffers"},
+      {"capture", "YUYV 480x1280 (HxW) at 30 fps, 4 buffers"},
       {"calibration", kFirmware + "/calib/sbs-stereo-1280x480.camchain.yaml"},
       {"model", kDefaultModel + " at 96x128 (HxW)"},
       {"stage capture", "1 thread, CPUs 0, SCHED_FIFO 50"},

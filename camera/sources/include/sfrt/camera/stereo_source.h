@@ -147,6 +147,9 @@ Result<std::unique_ptr<StereoSource>> OpenPlainSource(const std::string& left_sp
                                                       const SourceOptions& options);
 Result<std::unique_ptr<StereoSource>> OpenPlainSource(const std::string& left_spec,
                                                       const std::string& right_spec);
+// The image files one side of OpenPlainSource would read, in its order (an error when the
+// directory lists none or the glob matches none).
+Result<std::vector<std::string>> ListFrameFiles(const std::string& spec);
 
 // ---- Side-by-side stereo video ----
 
