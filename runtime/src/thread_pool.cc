@@ -82,7 +82,7 @@ ThreadPool::ThreadPool(int threads, bool pin, int spin_us)
 }
 
 ThreadPool::~ThreadPool() {
-  stop_ = true;  // published by the bump below
+  stop_.store(true, std::memory_order_seq_cst);
   generation_.fetch_add(1, std::memory_order_seq_cst);
   WakeAll(generation_);
   for (std::thread& t : workers_) t.join();
@@ -109,12 +109,45 @@ void ThreadPool::WaitWhileEqual(std::atomic<uint32_t>& word, uint32_t value,
   sleepers.fetch_sub(1, std::memory_order_relaxed);
 }
 
-void ThreadPool::Work() {
+namespace {
+
+constexpr uint32_t kClosed = 0xffffffffu;  // the item field of a closed job
+
+constexpr uint64_t Claim(uint32_t generation, uint32_t next) {
+  return uint64_t{generation} << 32 | next;
+}
+
+}  // namespace
+
+// Why the job's fields may be read before the claim succeeds: the caller writes them only while
+// the job is closed (claim_ holds kClosed, stored before the writes), and every access here and
+// there is seq_cst. If this thread's read of a field saw the next job's value, that write, and
+// so the closing store before it, precede this thread's compare-and-swap in the single total
+// order, so the swap compares against a closed word and fails. A successful swap therefore
+// means the fields read belong to `generation`, and the items [begin, end) are this thread's.
+void ThreadPool::Work(uint32_t generation) {
   for (;;) {
-    const int begin = next_.fetch_add(grain_, std::memory_order_relaxed);
-    if (begin >= n_) return;
-    const int end = begin + grain_ < n_ ? begin + grain_ : n_;
-    fn_(ctx_, begin, end);
+    uint64_t claim = claim_.load(std::memory_order_seq_cst);
+    if (static_cast<uint32_t>(claim >> 32) != generation) return;
+    const uint32_t begin = static_cast<uint32_t>(claim);
+    if (begin == kClosed) return;
+    const int n = n_.load(std::memory_order_seq_cst);
+    const int grain = grain_.load(std::memory_order_seq_cst);
+    const Fn fn = fn_.load(std::memory_order_seq_cst);
+    void* ctx = ctx_.load(std::memory_order_seq_cst);
+    if (begin >= static_cast<uint32_t>(n)) return;
+    const uint32_t end = begin + grain < static_cast<uint32_t>(n) ? begin + grain : n;
+    if (!claim_.compare_exchange_weak(claim, Claim(generation, end), std::memory_order_seq_cst)) {
+      continue;
+    }
+    fn(ctx, static_cast<int>(begin), static_cast<int>(end));
+    // The last chunk wakes the caller if it sleeps. The add releases this chunk's outputs to the
+    // caller, which acquires the final count.
+    const uint32_t finished = done_.fetch_add(end - begin, std::memory_order_seq_cst) + end - begin;
+    if (finished == static_cast<uint32_t>(n) &&
+        done_sleepers_.load(std::memory_order_seq_cst) > 0) {
+      WakeAll(done_);
+    }
   }
 }
 
@@ -123,14 +156,8 @@ void ThreadPool::WorkerLoop() {
   for (;;) {
     WaitWhileEqual(generation_, seen, generation_sleepers_);
     seen = generation_.load(std::memory_order_acquire);
-    if (stop_) return;
-    Work();
-    // The last worker out wakes the caller if it sleeps. The decrement releases this worker's
-    // outputs to the caller, which acquires the final zero.
-    if (pending_.fetch_sub(1, std::memory_order_seq_cst) == 1 &&
-        pending_sleepers_.load(std::memory_order_seq_cst) > 0) {
-      WakeAll(pending_);
-    }
+    if (stop_.load(std::memory_order_acquire)) return;
+    Work(seen);
   }
 }
 
@@ -140,20 +167,25 @@ void ThreadPool::ParallelFor(int n, Fn fn, void* ctx) {
     fn(ctx, 0, n);
     return;
   }
-  // Every worker has finished the previous job (pending_ was zero), so nobody reads these now.
-  fn_ = fn;
-  ctx_ = ctx;
-  n_ = n;
+  // The previous job is complete (every item done), so closing it stops nothing; a worker that
+  // wakes late for it finds it closed and claims nothing.
+  claim_.store(Claim(jobs_, kClosed), std::memory_order_seq_cst);
+  const uint32_t generation = ++jobs_;
+  fn_.store(fn, std::memory_order_seq_cst);
+  ctx_.store(ctx, std::memory_order_seq_cst);
+  n_.store(n, std::memory_order_seq_cst);
   // About four chunks per thread: balance against a core shared with other work.
   const int chunks = 4 * threads();
-  grain_ = n / chunks > 0 ? n / chunks : 1;
-  next_.store(0, std::memory_order_relaxed);
-  pending_.store(static_cast<uint32_t>(workers_.size()), std::memory_order_relaxed);
-  generation_.fetch_add(1, std::memory_order_seq_cst);
+  grain_.store(n / chunks > 0 ? n / chunks : 1, std::memory_order_seq_cst);
+  done_.store(0, std::memory_order_seq_cst);
+  claim_.store(Claim(generation, 0), std::memory_order_seq_cst);  // open
+  generation_.store(generation, std::memory_order_seq_cst);
   if (generation_sleepers_.load(std::memory_order_seq_cst) > 0) WakeAll(generation_);
-  Work();
-  for (uint32_t left; (left = pending_.load(std::memory_order_acquire)) != 0;) {
-    WaitWhileEqual(pending_, left, pending_sleepers_);
+  Work(generation);
+  // Only chunks that a worker claimed can still be running.
+  for (uint32_t finished;
+       (finished = done_.load(std::memory_order_acquire)) != static_cast<uint32_t>(n);) {
+    WaitWhileEqual(done_, finished, done_sleepers_);
   }
 }
 

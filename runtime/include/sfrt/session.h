@@ -57,10 +57,12 @@ struct SessionOptions {
   int threads = 1;           // threads Run() uses, the caller's included; 0: one per CPU
   bool pin_threads = false;  // bind thread i to the i-th CPU this process may use
   // With threads > 1: how long, in microseconds, a waiting thread (a worker between steps, or
-  // Run() waiting for the workers) busy-waits before it sleeps in the kernel. While waits stay
-  // within it, Run() makes no system call. < 0: never sleep (cores reserved for inference);
-  // 0: sleep at once (least CPU, a wake-up per worker per step). See runtime/src/thread_pool.h.
-  int spin_us = 1000;
+  // Run() waiting for a chunk a worker runs) busy-waits before it sleeps in the kernel. While
+  // waits stay within it, Run() makes no system call. < 0: never sleep (cores reserved for
+  // inference); 0: sleep at once (least CPU, a wake-up per worker per step). Run() never waits
+  // for a worker that has not started: it does the unclaimed work itself. See
+  // runtime/src/thread_pool.h.
+  int spin_us = 200;
   KernelTuning tuning{};
 };
 
