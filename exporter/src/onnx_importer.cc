@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "sfrt/exporter/sha256.h"
+#include "sfrt/model_limits.h"
 
 #define SFRT_ONNX_CONCAT_INNER(a, b) a##b
 #define SFRT_ONNX_CONCAT(a, b) SFRT_ONNX_CONCAT_INNER(a, b)
@@ -936,6 +937,9 @@ class Importer {
   Status ProcessResize(int idx, ChainOp& op);
   Status ProcessSlice(int idx, ChainOp& op);
   Result<ModelSpec> Assemble();
+  // The pads of Conv node `idx` (its own plus those of the Pad nodes `pad_nodes` folded into it)
+  // against the loader's limit, kernel - 1 per side.
+  Status CheckConvPads(int idx, const ConvSpec& conv, const std::vector<int>& pad_nodes) const;
 
   bool IsConst(const std::string& name) const {
     return consts_.count(name) > 0 || initializers_.count(name) > 0;
@@ -1167,6 +1171,10 @@ Status Importer::ReadInput() {
   if (input_shape_[0] != 1) {
     return FileError(what + " has batch size " + std::to_string(input_shape_[0]) +
                      ", expected 1 (shape (1, C, H, W))");
+  }
+  if (input_shape_[1] > model_limits::kMaxChannels) {
+    return FileError(what + " has " + std::to_string(input_shape_[1]) + " channels; at most " +
+                     std::to_string(model_limits::kMaxChannels) + " are supported");
   }
   runtime_[input_name_] = input_shape_;
   return Status::Ok();
@@ -1594,6 +1602,21 @@ Status Importer::ProcessConv(int idx, ChainOp& op) {
   if (out_ch < 1 || kh < 1 || kw < 1) {
     return NodeError(idx, "weight " + Quote(n.input(1)) + " has an empty shape " + JoinInts(wdims));
   }
+  if (kh > model_limits::kMaxKernel || kw > model_limits::kMaxKernel) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts({kh, kw}) +
+                              " exceeds the largest kernel side " +
+                              std::to_string(model_limits::kMaxKernel));
+  }
+  if (strides[0] > model_limits::kMaxStride || strides[1] > model_limits::kMaxStride) {
+    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) +
+                              " exceeds the largest stride " +
+                              std::to_string(model_limits::kMaxStride));
+  }
+  if (out_ch > model_limits::kMaxChannels) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has " + std::to_string(out_ch) +
+                              " output channels; at most " +
+                              std::to_string(model_limits::kMaxChannels) + " are supported");
+  }
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
   SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
   const int64_t in_h = op.in_shape[2];
@@ -1784,6 +1807,12 @@ Status Importer::ProcessResize(int idx, ChainOp& op) {
                                 "round_prefer_ceil at factors up to 2)");
     }
   }
+  if (factors[2] > model_limits::kMaxUpsample || factors[3] > model_limits::kMaxUpsample) {
+    return NodeError(idx, std::string(scales.empty() ? "input 'sizes'" : "input 'scales'") +
+                              " gives factors " + JoinInts({factors[2], factors[3]}) +
+                              ", above the largest upsampling factor " +
+                              std::to_string(model_limits::kMaxUpsample));
+  }
   op.factor_h = static_cast<int>(factors[2]);
   op.factor_w = static_cast<int>(factors[3]);
   op.out_shape = {op.in_shape[0], op.in_shape[1], op.in_shape[2] * factors[2],
@@ -1938,6 +1967,26 @@ Status Importer::ProcessNode(int idx) {
   return ProcessRuntimeNode(idx, runtime_.at(n.input(0)));
 }
 
+Status Importer::CheckConvPads(int idx, const ConvSpec& conv,
+                               const std::vector<int>& pad_nodes) const {
+  const Pads& p = conv.pads;
+  if (p.top <= model_limits::MaxPad(conv.kernel_h) &&
+      p.bottom <= model_limits::MaxPad(conv.kernel_h) &&
+      p.left <= model_limits::MaxPad(conv.kernel_w) &&
+      p.right <= model_limits::MaxPad(conv.kernel_w)) {
+    return Status::Ok();
+  }
+  std::string folded;
+  for (int pad : pad_nodes) folded += (folded.empty() ? "" : ", ") + NodeLabel(pad);
+  return NodeError(idx, "attribute 'pads' = " + JoinInts({p.top, p.left, p.bottom, p.right}) +
+                            (folded.empty() ? "" : " (with " + folded + " folded in)") +
+                            " exceed kernel - 1 (at most " +
+                            std::to_string(model_limits::MaxPad(conv.kernel_h)) + " top/bottom, " +
+                            std::to_string(model_limits::MaxPad(conv.kernel_w)) +
+                            " left/right for the " + std::to_string(conv.kernel_h) + "x" +
+                            std::to_string(conv.kernel_w) + " kernel)");
+}
+
 Result<ModelSpec> Importer::Assemble() {
   if (graph().output_size() != 1) {
     return FileError("graph has " + std::to_string(graph().output_size()) +
@@ -2045,6 +2094,7 @@ Result<ModelSpec> Importer::Assemble() {
         conv.pads.left += pending.left;
         conv.pads.bottom += pending.bottom;
         conv.pads.right += pending.right;
+        SFRT_ONNX_RETURN_IF_ERROR(CheckConvPads(op.node_index, conv, pending_pads));
         pending = Pads{};
         pending_pads.clear();
         conv.name = unique_name(conv.name, "conv", num_convs++);
@@ -2108,6 +2158,10 @@ Result<ModelSpec> Importer::Assemble() {
                      "padding), but it ends the graph");
   }
   if (spec.layers.empty()) return FileError("graph has no layers between input and output");
+  if (spec.layers.size() > static_cast<size_t>(model_limits::kMaxLayers)) {
+    return FileError("graph gives " + std::to_string(spec.layers.size()) + " layers; at most " +
+                     std::to_string(model_limits::kMaxLayers) + " are supported");
+  }
 
   // Padding rule.
   bool all_same_upper = true;

@@ -17,6 +17,8 @@
 #include <variant>
 #include <vector>
 
+#include "sfrt/model_limits.h"
+
 namespace sfrt::exporter {
 namespace {
 
@@ -1186,6 +1188,116 @@ TEST_F(OnnxImporter, ErrorMessagesStayOnOneLineWhateverTheNames) {
   m.Node("Sigmoid", {"x"}, {"y"}, "bad\nname");
   m.Output("y");
   ExpectImportError(m.Save("newline.onnx"), {"bad?name", "(op Sigmoid)"});
+}
+
+// ------------------------------------------------------------------------------ loader limits
+// Each limit of sfrt/model_limits.h is checked at import, naming the node and the attribute, so
+// an imported model never serialises to a file the loader rejects (tests/exporter/model_limits_test
+// checks the loader enforces the same numbers).
+
+TEST_F(OnnxImporter, ConvKernelAboveTheLoaderLimitNamesNodeAndKernelShape) {
+  const int64_t k = model_limits::kMaxKernel + 1;
+  OnnxModel m;
+  m.Input("x", {1, 1, k + 2, k + 2});
+  m.Conv("big", "x", "y", 1, 1, k, 1, {});
+  m.Output("y");
+  ExpectImportError(
+      m.Save("kernel.onnx"),
+      {"node 'big' (op Conv)", "attribute 'kernel_shape' = [32, 32]", "largest kernel side 31"});
+}
+
+TEST_F(OnnxImporter, ConvStrideAboveTheLoaderLimitNamesNodeAndStrides) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 40, 40});
+  m.Conv("far", "x", "y", 1, 1, 1, model_limits::kMaxStride + 1, {});
+  m.Output("y");
+  ExpectImportError(m.Save("stride.onnx"), {"node 'far' (op Conv)",
+                                            "attribute 'strides' = [17, 17]", "largest stride 16"});
+}
+
+TEST_F(OnnxImporter, ConvOutputChannelsAboveTheLoaderLimitNameNodeAndWeight) {
+  const int64_t c = model_limits::kMaxChannels + 1;
+  OnnxModel m;
+  m.Input("x", {1, 1, 2, 2});
+  m.Conv("wide", "x", "y", 1, c, 1, 1, {}, /*bias=*/false);
+  m.Output("y");
+  ExpectImportError(
+      m.Save("channels.onnx"),
+      {"node 'wide' (op Conv)", "weight 'wide.w' has 65537 output channels", "at most 65536"});
+}
+
+TEST_F(OnnxImporter, InputChannelsAboveTheLoaderLimitNameTheGraphInput) {
+  OnnxModel m;
+  m.Input("x", {1, model_limits::kMaxChannels + 1, 1, 1});
+  m.Node("Identity", {"x"}, {"y"}, "id");
+  m.Output("y");
+  ExpectImportError(m.Save("input_channels.onnx"),
+                    {"graph input 'x' has 65537 channels", "at most 65536"});
+}
+
+TEST_F(OnnxImporter, ConvPadsAboveKernelMinusOneNameNodeAndPads) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 8, 8});
+  m.Conv("conv0", "x", "y", 1, 1, 3, 1, {0, 1152, 0, 0});
+  m.Output("y");
+  const std::string path = m.Save("pads.onnx");
+  ExpectImportError(path, {"node 'conv0' (op Conv): attribute 'pads' = [0, 1152, 0, 0]",
+                           "exceed kernel - 1", "at most 2 top/bottom, 2 left/right"});
+  // One past the limit on each side is refused; the limit itself imports.
+  for (int side = 0; side < 4; ++side) {
+    std::vector<int64_t> pads = {0, 0, 0, 0};
+    pads[side] = model_limits::MaxPad(3) + 1;
+    OnnxModel one;
+    one.Input("x", {1, 1, 8, 8});
+    one.Conv("conv0", "x", "y", 1, 1, 3, 1, pads);
+    one.Output("y");
+    ExpectImportError(one.Save("pads_side.onnx"), {"node 'conv0' (op Conv)", "attribute 'pads'"});
+    pads[side] = model_limits::MaxPad(3);
+    OnnxModel ok;
+    ok.Input("x", {1, 1, 8, 8});
+    ok.Conv("conv0", "x", "y", 1, 1, 3, 1, pads);
+    ok.Output("y");
+    EXPECT_TRUE(ImportOk(ok.Save("pads_ok.onnx")).ok()) << "side " << side;
+  }
+}
+
+TEST_F(OnnxImporter, PadNodeFoldedIntoConvPastKernelMinusOneNamesBothNodes) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 8, 8});
+  m.Int64s("pads", {0, 0, 0, 2, 0, 0, 0, 0});
+  m.Node("Pad", {"x", "pads"}, {"p"}, "wide_pad");
+  m.Conv("conv0", "p", "y", 1, 1, 3, 1, {0, 1, 0, 0});
+  m.Output("y");
+  ExpectImportError(m.Save("pad_fold.onnx"),
+                    {"node 'conv0' (op Conv): attribute 'pads' = [0, 3, 0, 0]",
+                     "node 'wide_pad' (op Pad) folded in", "exceed kernel - 1"});
+}
+
+TEST_F(OnnxImporter, UpsampleFactorAboveTheLoaderLimitNamesNodeAndScales) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 2, 2});
+  m.Conv("c", "x", "t", 1, 1, 1, 1, {});
+  m.Floats("scales", {4}, {1, 1, 1, static_cast<float>(model_limits::kMaxUpsample + 1)});
+  m.Node("Resize", {"t", "", "scales"}, {"y"}, "up");
+  m.Output("y");
+  ExpectImportError(m.Save("upsample.onnx"),
+                    {"node 'up' (op Resize)", "input 'scales' gives factors [1, 65]",
+                     "largest upsampling factor 64"});
+}
+
+TEST_F(OnnxImporter, MoreLayersThanTheLoaderLimitAreRefusedWithTheirCount) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 2, 2});
+  m.Conv("c", "x", "t0", 1, 1, 1, 1, {});
+  m.Floats("ones", {4}, {1, 1, 1, 1});
+  std::string in = "t0";
+  for (int i = 1; i <= model_limits::kMaxLayers; ++i) {
+    const std::string out = i == model_limits::kMaxLayers ? "y" : "t" + std::to_string(i);
+    m.Node("Resize", {in, "", "ones"}, {out}, "up" + std::to_string(i));
+    in = out;
+  }
+  m.Output("y");
+  ExpectImportError(m.Save("layers.onnx"), {"graph gives 4097 layers; at most 4096"});
 }
 
 }  // namespace
