@@ -76,6 +76,8 @@ constexpr int64_t kMaxOpset = 17;
 // Upper bound on the elements of one evaluated constant: shape arithmetic is tiny, and this keeps
 // a hostile file from making the importer allocate without limit.
 constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
+// Unsupported nodes named in one message; the rest are counted (a screenful at most).
+constexpr size_t kMaxListedNodes = 20;
 
 // Ops that may carry the network input (the chain).
 constexpr std::string_view kRuntimeOps[] = {"Conv",   "Pad",      "LeakyRelu", "Relu",
@@ -928,6 +930,11 @@ class Importer {
   Status ReadInitializers();
   Status ReadInput();
   std::vector<bool> LiveNodes() const;
+  // Live nodes whose op type (or domain) the importer does not know at all.
+  std::vector<int> UnknownOpNodes(const std::vector<bool>& live) const;
+  // One message listing `nodes` (at most kMaxListedNodes, then a count), with a note for
+  // BatchNormalization, which an eval-mode export folds into the preceding Conv.
+  Status UnsupportedNodesError(const std::vector<int>& nodes) const;
   Status ProcessNode(int idx);
   Status ProcessConstant(int idx);
   Status FoldNode(int idx);
@@ -1201,6 +1208,56 @@ std::vector<bool> Importer::LiveNodes() const {
     }
   }
   return live;
+}
+
+std::vector<int> Importer::UnknownOpNodes(const std::vector<bool>& live) const {
+  std::vector<int> unknown;
+  for (int i = 0; i < graph().node_size(); ++i) {
+    if (!live[i]) continue;
+    const onnx::NodeProto& n = graph().node(i);
+    const bool default_domain = n.domain().empty() || n.domain() == "ai.onnx";
+    if (!default_domain ||
+        (!Contains(kRuntimeOps, n.op_type()) && !Contains(kFoldableOps, n.op_type()))) {
+      unknown.push_back(i);
+    }
+  }
+  return unknown;
+}
+
+Status Importer::UnsupportedNodesError(const std::vector<int>& nodes) const {
+  // A training-mode BatchNormalization: training_mode = 1 (opset 14+), or the running mean and
+  // variance outputs that a training-mode export adds (opset < 14).
+  int batch_norm = -1;
+  bool training_mode = false;
+  for (int idx : nodes) {
+    const onnx::NodeProto& n = graph().node(idx);
+    if (n.op_type() != "BatchNormalization") continue;
+    const auto* mode = FindAttr(idx, "training_mode");
+    const bool training = (mode != nullptr && mode->i() != 0) || n.output_size() > 1;
+    if (batch_norm < 0 || (training && !training_mode)) batch_norm = idx;
+    training_mode = training_mode || training;
+  }
+  std::string note;
+  if (batch_norm >= 0) {
+    note = "; " + NodeLabel(batch_norm) +
+           (training_mode ? " is a training-mode BatchNormalization (training_mode = 1)" : "") +
+           ": an eval-mode export (model.eval() before torch.onnx.export) folds "
+           "BatchNormalization into the preceding Conv";
+  }
+  const onnx::NodeProto& first = graph().node(nodes[0]);
+  if (nodes.size() == 1) {
+    const bool default_domain = first.domain().empty() || first.domain() == "ai.onnx";
+    return Unsupported(nodes[0], (default_domain ? std::string()
+                                                 : "; domain " + Quote(first.domain()) +
+                                                       " is not the default ONNX domain") +
+                                     note);
+  }
+  std::string list;
+  const size_t listed = std::min(nodes.size(), kMaxListedNodes);
+  for (size_t k = 0; k < listed; ++k) list += (k > 0 ? ", " : "") + NodeLabel(nodes[k]);
+  if (nodes.size() > listed) list += " and " + std::to_string(nodes.size() - listed) + " more";
+  return FileError(std::to_string(nodes.size()) + " nodes are unsupported: " + list +
+                   "; supported ops (default ONNX domain): " + SupportedOpsText() + note);
 }
 
 Status Importer::ProcessConstant(int idx) {
@@ -2216,6 +2273,9 @@ Result<ModelSpec> Importer::Run() {
   SFRT_ONNX_RETURN_IF_ERROR(ReadInitializers());
   SFRT_ONNX_RETURN_IF_ERROR(ReadInput());
   const std::vector<bool> live = LiveNodes();
+  if (const std::vector<int> unknown = UnknownOpNodes(live); !unknown.empty()) {
+    return UnsupportedNodesError(unknown);
+  }
   for (int i = 0; i < graph().node_size(); ++i) {
     if (live[i]) SFRT_ONNX_RETURN_IF_ERROR(ProcessNode(i));
   }

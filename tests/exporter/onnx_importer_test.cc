@@ -919,6 +919,74 @@ TEST_F(OnnxImporter, RejectsUnsupportedOpNamingNodeAndOpType) {
                     {"node 'squash' (op Sigmoid): unsupported; supported ops: Conv, Pad"});
 }
 
+TEST_F(OnnxImporter, ExportListsEveryUnsupportedOnnxNodeWithItsOp) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t0", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Sigmoid", {"t0"}, {"t1"}, "squash");
+  m.Node("Tanh", {"t1"}, {"t2"}, "");  // unnamed: labelled by its index
+  m.Node("Softplus", {"t2"}, {"y"}, "soft");
+  m.Output("y");
+  ExpectImportError(m.Save("three.onnx"),
+                    {"3 nodes are unsupported: node 'squash' (op Sigmoid), node #2 (op Tanh), "
+                     "node 'soft' (op Softplus); supported ops (default ONNX domain): Conv, Pad"});
+}
+
+TEST_F(OnnxImporter, ExportListsAtMostTwentyUnsupportedNodesThenTheirCount) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t0", 2, 2, 3, 1, {1, 1, 1, 1});
+  constexpr int kNodes = 26;
+  for (int i = 0; i < kNodes; ++i) {
+    m.Node("Sigmoid", {"t" + std::to_string(i)},
+           {i + 1 == kNodes ? "y" : "t" + std::to_string(i + 1)}, "s" + std::to_string(i));
+  }
+  m.Output("y");
+  const std::string path = m.Save("many.onnx");
+  ExpectImportError(path, {"26 nodes are unsupported: node 's0' (op Sigmoid)",
+                           "node 's19' (op Sigmoid) and 6 more;"});
+  const Result<ModelSpec> r = ImportOnnx(path);
+  EXPECT_EQ(r.message().find("'s20'"), std::string::npos) << r.message();
+}
+
+// BatchNormalization inputs: X, scale, B, mean, var.
+onnx::NodeProto& AddBatchNorm(OnnxModel& m, const std::string& in,
+                              const std::vector<std::string>& outputs) {
+  m.Floats("bn.scale", {2}, {1, 1});
+  m.Floats("bn.b", {2}, {0, 0});
+  m.Floats("bn.mean", {2}, {0, 0});
+  m.Floats("bn.var", {2}, {1, 1});
+  return m.Node("BatchNormalization", {in, "bn.scale", "bn.b", "bn.mean", "bn.var"}, outputs, "bn");
+}
+
+TEST_F(OnnxImporter, TrainingModeBatchNormSaysEvalModeExportFoldsIt) {
+  {  // opset 14+: the training_mode attribute
+    OnnxModel m(15);
+    m.Input("x", {1, 2, 5, 5});
+    m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+    SetInt(AddBatchNorm(m, "t", {"y"}), "training_mode", 1);
+    m.Output("y");
+    ExpectImportError(m.Save("bn_training.onnx"),
+                      {"node 'bn' (op BatchNormalization): unsupported",
+                       "is a training-mode BatchNormalization (training_mode = 1)",
+                       "an eval-mode export (model.eval() before torch.onnx.export) folds "
+                       "BatchNormalization into the preceding Conv"});
+  }
+  {  // opset < 14: a training-mode export adds the running mean and variance outputs
+    OnnxModel m(12);
+    m.Input("x", {1, 2, 5, 5});
+    m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+    AddBatchNorm(m, "t", {"y", "running_mean", "running_var"});
+    m.Node("Sigmoid", {"y"}, {"z"}, "squash");
+    m.Output("z");
+    ExpectImportError(m.Save("bn_training_outputs.onnx"),
+                      {"2 nodes are unsupported",
+                       "node 'bn' (op BatchNormalization) is a "
+                       "training-mode BatchNormalization",
+                       "model.eval() before torch.onnx.export"});
+  }
+}
+
 TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});
