@@ -1132,6 +1132,11 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
     }
   }
   spec->input.channels = model.channels;
+  // The default image order (four RGB images) only fits 12 channels; for any other count the file
+  // does not say which images the channels hold, so the spec names none (as the loader accepts).
+  if (spec->input.channels != 3 * static_cast<int>(spec->input.image_order.size())) {
+    spec->input.image_order.clear();
+  }
   spec->input.traced_height = model.height;
   spec->input.traced_width = model.width;
   spec->output.channels = c;

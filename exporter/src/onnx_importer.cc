@@ -2261,6 +2261,11 @@ Result<ModelSpec> Importer::Assemble() {
 
   const Shape4& out_shape = runtime_.at(out_name);
   spec.input.channels = static_cast<int>(input_shape_[1]);
+  // The default image order (four RGB images) only fits 12 channels; for any other count the file
+  // does not say which images the channels hold, so the spec names none (as the loader accepts).
+  if (spec.input.channels != 3 * static_cast<int>(spec.input.image_order.size())) {
+    spec.input.image_order.clear();
+  }
   spec.input.traced_height = static_cast<int>(input_shape_[2]);
   spec.input.traced_width = static_cast<int>(input_shape_[3]);
   spec.output.channels = static_cast<int>(out_shape[1]);

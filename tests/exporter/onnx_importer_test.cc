@@ -17,6 +17,8 @@
 #include <variant>
 #include <vector>
 
+#include "sfrt/exporter/model_writer.h"
+#include "sfrt/model.h"
 #include "sfrt/model_limits.h"
 
 namespace sfrt::exporter {
@@ -1256,6 +1258,30 @@ TEST_F(OnnxImporter, ErrorMessagesStayOnOneLineWhateverTheNames) {
   m.Node("Sigmoid", {"x"}, {"y"}, "bad\nname");
   m.Output("y");
   ExpectImportError(m.Save("newline.onnx"), {"bad?name", "(op Sigmoid)"});
+}
+
+// Found by fuzz_onnx_import: a 1-channel network kept the default image order (four images, 12
+// channels), which the loader rejects. The file does not say which images other channel counts
+// hold, so the spec names none, and the written file loads.
+TEST_F(OnnxImporter, InputThatIsNotTwelveChannelsGetsNoImageOrderAndTheWrittenFileLoads) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 4, 4});
+  m.Conv("c", "x", "y", 1, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("one_channel.onnx"));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_TRUE(spec->input.image_order.empty());
+  auto bytes = SerializeModel(*spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  EXPECT_TRUE(model.ok()) << model.message();
+  OnnxModel twelve;
+  twelve.Input("x", {1, 12, 4, 4});
+  twelve.Conv("c", "x", "y", 12, 3, 3, 1, {1, 1, 1, 1});
+  twelve.Output("y");
+  auto stereo = ImportOk(twelve.Save("twelve.onnx"));
+  ASSERT_TRUE(stereo.ok());
+  EXPECT_EQ(stereo->input.image_order.size(), 4u);
 }
 
 // ------------------------------------------------------------------------------ loader limits

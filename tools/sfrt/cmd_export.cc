@@ -568,7 +568,15 @@ int RunExport(const ExportArgs& args) {
   }
   spec.weight_type = weight_type;
 
-  // Apply the flags.
+  // Apply the flags. The image order must account for every input channel (3 per image).
+  if (3 * static_cast<int>(image_order.size()) != spec.input.channels) {
+    return ReportError(kName,
+                       args.input + ": the network's input has " +
+                           std::to_string(spec.input.channels) + " channels; sfrt models take " +
+                           std::to_string(3 * image_order.size()) +
+                           " (the four RGB images L0, R0, L1, R1, ordered by --image-order)",
+                       kExitFailure);
+  }
   if (!args.name.empty()) spec.name = args.name;
   spec.input.image_order = image_order;
   spec.input.color_order = color_order;
