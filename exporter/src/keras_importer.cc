@@ -36,6 +36,7 @@
 #include "hdf5_vlen_guard.h"
 #include "message_text.h"
 #include "sfrt/exporter/sha256.h"
+#include "sfrt/model_limits.h"
 
 // Returns the Status of `expr` from the enclosing function when it is an error.
 #define SFRT_KERAS_RETURN_IF_ERROR(expr)        \
@@ -613,9 +614,10 @@ Status Importer::ReadInputShape(const ChainLayer& l, const json& shape, ChainMod
     return GetInt(&shape[i], 1, kMaxDim, out);
   };
   if (!dim(1, &model->height) || !dim(2, &model->width) || !dim(3, &model->channels) ||
-      model->channels == 0) {
+      model->channels == 0 || model->channels > model_limits::kMaxChannels) {
     return LayerFail(l, "batch_input_shape " + JsonText(shape) +
-                            ": height and width must be positive or None, channels positive");
+                            ": height and width must be positive or None, channels in 1.." +
+                            std::to_string(model_limits::kMaxChannels));
   }
   if (model->height == 0 || model->width == 0) model->height = model->width = 0;
   return Status::Ok();
@@ -863,18 +865,21 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       auto field = [&](const char* key) { return Find(cfg, key); };
       int filters_value = 0;
       std::array<int, 2> kernel_value{};
-      if (!GetInt(field("filters"), 1, kMaxDim, &filters_value)) {
-        return LayerFail(l, "'filters' is missing or not a positive integer");
+      if (!GetInt(field("filters"), 1, model_limits::kMaxChannels, &filters_value)) {
+        return LayerFail(l, "'filters' is missing or not an integer in 1.." +
+                                std::to_string(model_limits::kMaxChannels));
       }
-      if (!GetPair(field("kernel_size"), 1, kMaxDim, &kernel_value)) {
-        return LayerFail(l, "'kernel_size' is missing or not positive integers");
+      if (!GetPair(field("kernel_size"), 1, model_limits::kMaxKernel, &kernel_value)) {
+        return LayerFail(l, "'kernel_size' is missing or not integers in 1.." +
+                                std::to_string(model_limits::kMaxKernel));
       }
       const int* filters = &filters_value;
       const std::array<int, 2>* kernel = &kernel_value;
       std::array<int, 2> strides{1, 1};
       if (const json* s = field("strides")) {
-        if (!GetPair(s, 1, kMaxDim, &strides)) {
-          return LayerFail(l, "strides " + JsonText(*s) + " are not positive integers");
+        if (!GetPair(s, 1, model_limits::kMaxStride, &strides)) {
+          return LayerFail(l, "strides " + JsonText(*s) + " are not integers in 1.." +
+                                  std::to_string(model_limits::kMaxStride));
         }
       }
       if (const json* d = field("dilation_rate")) {
@@ -941,13 +946,13 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
               std::tuple{conv.pads.bottom, "bottom", conv.kernel_h},
               std::tuple{conv.pads.left, "left", conv.kernel_w},
               std::tuple{conv.pads.right, "right", conv.kernel_w}}) {
-          if (amount >= size) {
+          if (amount > model_limits::MaxPad(size)) {
             return LayerFail(l, "follows ZeroPadding2D " +
                                     Quote(pending_pad != nullptr ? pending_pad->name : "") +
                                     " whose padding gives it " + std::to_string(amount) +
                                     " on the " + side + "; a " + std::to_string(conv.kernel_h) +
                                     "x" + std::to_string(conv.kernel_w) + " kernel takes at most " +
-                                    std::to_string(size - 1));
+                                    std::to_string(model_limits::MaxPad(size)));
           }
         }
       }
@@ -1025,8 +1030,9 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
       std::array<int, 2> factors_value{};
       const std::array<int, 2>* factors = &factors_value;
-      if (!GetPair(Find(cfg, "size"), 1, 64, &factors_value)) {
-        return LayerFail(l, "'size' is missing or not integers in 1..64");
+      if (!GetPair(Find(cfg, "size"), 1, model_limits::kMaxUpsample, &factors_value)) {
+        return LayerFail(l, "'size' is missing or not integers in 1.." +
+                                std::to_string(model_limits::kMaxUpsample));
       }
       if (const json* interp = Find(cfg, "interpolation")) {
         if (!interp->is_string() || interp->get<std::string>() != "nearest") {
@@ -1095,6 +1101,10 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
                      "padding 'valid'");
   }
   if (convs == 0) return Fail("the model has no Conv2D layer between input and output");
+  if (spec->layers.size() > static_cast<size_t>(model_limits::kMaxLayers)) {
+    return Fail("the model gives " + std::to_string(spec->layers.size()) + " layers; at most " +
+                std::to_string(model_limits::kMaxLayers) + " are supported");
+  }
 
   for (const CropTrace& t : crops) {
     auto& crop = std::get<CropSpec>(spec->layers[t.layer]);
@@ -1122,6 +1132,11 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
     }
   }
   spec->input.channels = model.channels;
+  // The default image order (four RGB images) only fits 12 channels; for any other count the file
+  // does not say which images the channels hold, so the spec names none (as the loader accepts).
+  if (spec->input.channels != 3 * static_cast<int>(spec->input.image_order.size())) {
+    spec->input.image_order.clear();
+  }
   spec->input.traced_height = model.height;
   spec->input.traced_width = model.width;
   spec->output.channels = c;

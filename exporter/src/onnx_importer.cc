@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "sfrt/exporter/sha256.h"
+#include "sfrt/model_limits.h"
 
 #define SFRT_ONNX_CONCAT_INNER(a, b) a##b
 #define SFRT_ONNX_CONCAT(a, b) SFRT_ONNX_CONCAT_INNER(a, b)
@@ -75,6 +76,8 @@ constexpr int64_t kMaxOpset = 17;
 // Upper bound on the elements of one evaluated constant: shape arithmetic is tiny, and this keeps
 // a hostile file from making the importer allocate without limit.
 constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
+// Unsupported nodes named in one message; the rest are counted (a screenful at most).
+constexpr size_t kMaxListedNodes = 20;
 
 // Ops that may carry the network input (the chain).
 constexpr std::string_view kRuntimeOps[] = {"Conv",   "Pad",      "LeakyRelu", "Relu",
@@ -927,6 +930,11 @@ class Importer {
   Status ReadInitializers();
   Status ReadInput();
   std::vector<bool> LiveNodes() const;
+  // Live nodes whose op type (or domain) the importer does not know at all.
+  std::vector<int> UnknownOpNodes(const std::vector<bool>& live) const;
+  // One message listing `nodes` (at most kMaxListedNodes, then a count), with a note for
+  // BatchNormalization, which an eval-mode export folds into the preceding Conv.
+  Status UnsupportedNodesError(const std::vector<int>& nodes) const;
   Status ProcessNode(int idx);
   Status ProcessConstant(int idx);
   Status FoldNode(int idx);
@@ -936,6 +944,9 @@ class Importer {
   Status ProcessResize(int idx, ChainOp& op);
   Status ProcessSlice(int idx, ChainOp& op);
   Result<ModelSpec> Assemble();
+  // The pads of Conv node `idx` (its own plus those of the Pad nodes `pad_nodes` folded into it)
+  // against the loader's limit, kernel - 1 per side.
+  Status CheckConvPads(int idx, const ConvSpec& conv, const std::vector<int>& pad_nodes) const;
 
   bool IsConst(const std::string& name) const {
     return consts_.count(name) > 0 || initializers_.count(name) > 0;
@@ -1168,6 +1179,10 @@ Status Importer::ReadInput() {
     return FileError(what + " has batch size " + std::to_string(input_shape_[0]) +
                      ", expected 1 (shape (1, C, H, W))");
   }
+  if (input_shape_[1] > model_limits::kMaxChannels) {
+    return FileError(what + " has " + std::to_string(input_shape_[1]) + " channels; at most " +
+                     std::to_string(model_limits::kMaxChannels) + " are supported");
+  }
   runtime_[input_name_] = input_shape_;
   return Status::Ok();
 }
@@ -1193,6 +1208,56 @@ std::vector<bool> Importer::LiveNodes() const {
     }
   }
   return live;
+}
+
+std::vector<int> Importer::UnknownOpNodes(const std::vector<bool>& live) const {
+  std::vector<int> unknown;
+  for (int i = 0; i < graph().node_size(); ++i) {
+    if (!live[i]) continue;
+    const onnx::NodeProto& n = graph().node(i);
+    const bool default_domain = n.domain().empty() || n.domain() == "ai.onnx";
+    if (!default_domain ||
+        (!Contains(kRuntimeOps, n.op_type()) && !Contains(kFoldableOps, n.op_type()))) {
+      unknown.push_back(i);
+    }
+  }
+  return unknown;
+}
+
+Status Importer::UnsupportedNodesError(const std::vector<int>& nodes) const {
+  // A training-mode BatchNormalization: training_mode = 1 (opset 14+), or the running mean and
+  // variance outputs that a training-mode export adds (opset < 14).
+  int batch_norm = -1;
+  bool training_mode = false;
+  for (int idx : nodes) {
+    const onnx::NodeProto& n = graph().node(idx);
+    if (n.op_type() != "BatchNormalization") continue;
+    const auto* mode = FindAttr(idx, "training_mode");
+    const bool training = (mode != nullptr && mode->i() != 0) || n.output_size() > 1;
+    if (batch_norm < 0 || (training && !training_mode)) batch_norm = idx;
+    training_mode = training_mode || training;
+  }
+  std::string note;
+  if (batch_norm >= 0) {
+    note = "; " + NodeLabel(batch_norm) +
+           (training_mode ? " is a training-mode BatchNormalization (training_mode = 1)" : "") +
+           ": an eval-mode export (model.eval() before torch.onnx.export) folds "
+           "BatchNormalization into the preceding Conv";
+  }
+  const onnx::NodeProto& first = graph().node(nodes[0]);
+  if (nodes.size() == 1) {
+    const bool default_domain = first.domain().empty() || first.domain() == "ai.onnx";
+    return Unsupported(nodes[0], (default_domain ? std::string()
+                                                 : "; domain " + Quote(first.domain()) +
+                                                       " is not the default ONNX domain") +
+                                     note);
+  }
+  std::string list;
+  const size_t listed = std::min(nodes.size(), kMaxListedNodes);
+  for (size_t k = 0; k < listed; ++k) list += (k > 0 ? ", " : "") + NodeLabel(nodes[k]);
+  if (nodes.size() > listed) list += " and " + std::to_string(nodes.size() - listed) + " more";
+  return FileError(std::to_string(nodes.size()) + " nodes are unsupported: " + list +
+                   "; supported ops (default ONNX domain): " + SupportedOpsText() + note);
 }
 
 Status Importer::ProcessConstant(int idx) {
@@ -1594,6 +1659,21 @@ Status Importer::ProcessConv(int idx, ChainOp& op) {
   if (out_ch < 1 || kh < 1 || kw < 1) {
     return NodeError(idx, "weight " + Quote(n.input(1)) + " has an empty shape " + JoinInts(wdims));
   }
+  if (kh > model_limits::kMaxKernel || kw > model_limits::kMaxKernel) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts({kh, kw}) +
+                              " exceeds the largest kernel side " +
+                              std::to_string(model_limits::kMaxKernel));
+  }
+  if (strides[0] > model_limits::kMaxStride || strides[1] > model_limits::kMaxStride) {
+    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) +
+                              " exceeds the largest stride " +
+                              std::to_string(model_limits::kMaxStride));
+  }
+  if (out_ch > model_limits::kMaxChannels) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has " + std::to_string(out_ch) +
+                              " output channels; at most " +
+                              std::to_string(model_limits::kMaxChannels) + " are supported");
+  }
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
   SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
   const int64_t in_h = op.in_shape[2];
@@ -1784,6 +1864,12 @@ Status Importer::ProcessResize(int idx, ChainOp& op) {
                                 "round_prefer_ceil at factors up to 2)");
     }
   }
+  if (factors[2] > model_limits::kMaxUpsample || factors[3] > model_limits::kMaxUpsample) {
+    return NodeError(idx, std::string(scales.empty() ? "input 'sizes'" : "input 'scales'") +
+                              " gives factors " + JoinInts({factors[2], factors[3]}) +
+                              ", above the largest upsampling factor " +
+                              std::to_string(model_limits::kMaxUpsample));
+  }
   op.factor_h = static_cast<int>(factors[2]);
   op.factor_w = static_cast<int>(factors[3]);
   op.out_shape = {op.in_shape[0], op.in_shape[1], op.in_shape[2] * factors[2],
@@ -1938,6 +2024,26 @@ Status Importer::ProcessNode(int idx) {
   return ProcessRuntimeNode(idx, runtime_.at(n.input(0)));
 }
 
+Status Importer::CheckConvPads(int idx, const ConvSpec& conv,
+                               const std::vector<int>& pad_nodes) const {
+  const Pads& p = conv.pads;
+  if (p.top <= model_limits::MaxPad(conv.kernel_h) &&
+      p.bottom <= model_limits::MaxPad(conv.kernel_h) &&
+      p.left <= model_limits::MaxPad(conv.kernel_w) &&
+      p.right <= model_limits::MaxPad(conv.kernel_w)) {
+    return Status::Ok();
+  }
+  std::string folded;
+  for (int pad : pad_nodes) folded += (folded.empty() ? "" : ", ") + NodeLabel(pad);
+  return NodeError(idx, "attribute 'pads' = " + JoinInts({p.top, p.left, p.bottom, p.right}) +
+                            (folded.empty() ? "" : " (with " + folded + " folded in)") +
+                            " exceed kernel - 1 (at most " +
+                            std::to_string(model_limits::MaxPad(conv.kernel_h)) + " top/bottom, " +
+                            std::to_string(model_limits::MaxPad(conv.kernel_w)) +
+                            " left/right for the " + std::to_string(conv.kernel_h) + "x" +
+                            std::to_string(conv.kernel_w) + " kernel)");
+}
+
 Result<ModelSpec> Importer::Assemble() {
   if (graph().output_size() != 1) {
     return FileError("graph has " + std::to_string(graph().output_size()) +
@@ -2045,6 +2151,7 @@ Result<ModelSpec> Importer::Assemble() {
         conv.pads.left += pending.left;
         conv.pads.bottom += pending.bottom;
         conv.pads.right += pending.right;
+        SFRT_ONNX_RETURN_IF_ERROR(CheckConvPads(op.node_index, conv, pending_pads));
         pending = Pads{};
         pending_pads.clear();
         conv.name = unique_name(conv.name, "conv", num_convs++);
@@ -2108,6 +2215,10 @@ Result<ModelSpec> Importer::Assemble() {
                      "padding), but it ends the graph");
   }
   if (spec.layers.empty()) return FileError("graph has no layers between input and output");
+  if (spec.layers.size() > static_cast<size_t>(model_limits::kMaxLayers)) {
+    return FileError("graph gives " + std::to_string(spec.layers.size()) + " layers; at most " +
+                     std::to_string(model_limits::kMaxLayers) + " are supported");
+  }
 
   // Padding rule.
   bool all_same_upper = true;
@@ -2150,6 +2261,11 @@ Result<ModelSpec> Importer::Assemble() {
 
   const Shape4& out_shape = runtime_.at(out_name);
   spec.input.channels = static_cast<int>(input_shape_[1]);
+  // The default image order (four RGB images) only fits 12 channels; for any other count the file
+  // does not say which images the channels hold, so the spec names none (as the loader accepts).
+  if (spec.input.channels != 3 * static_cast<int>(spec.input.image_order.size())) {
+    spec.input.image_order.clear();
+  }
   spec.input.traced_height = static_cast<int>(input_shape_[2]);
   spec.input.traced_width = static_cast<int>(input_shape_[3]);
   spec.output.channels = static_cast<int>(out_shape[1]);
@@ -2162,6 +2278,9 @@ Result<ModelSpec> Importer::Run() {
   SFRT_ONNX_RETURN_IF_ERROR(ReadInitializers());
   SFRT_ONNX_RETURN_IF_ERROR(ReadInput());
   const std::vector<bool> live = LiveNodes();
+  if (const std::vector<int> unknown = UnknownOpNodes(live); !unknown.empty()) {
+    return UnsupportedNodesError(unknown);
+  }
   for (int i = 0; i < graph().node_size(); ++i) {
     if (live[i]) SFRT_ONNX_RETURN_IF_ERROR(ProcessNode(i));
   }

@@ -13,6 +13,7 @@
 #include <string_view>
 
 #include "sfrt/crc32c.h"
+#include "sfrt/model_limits.h"
 #include "sfrt_model_generated.h"
 
 namespace sfrt {
@@ -42,12 +43,13 @@ struct Model::Storage {
 namespace {
 
 constexpr size_t kTensorAlignment = 64;
-// Limits that keep a hostile file from making verification or planning pathological.
-constexpr int kMaxLayers = 4096;
-constexpr int kMaxChannels = 1 << 16;
-constexpr int kMaxKernel = 31;
-constexpr int kMaxStride = 16;
-constexpr int kMaxUpsample = 64;
+// Limits that keep a hostile file from making verification or planning pathological; the
+// importers check the same table (sfrt/model_limits.h).
+using model_limits::kMaxChannels;
+using model_limits::kMaxKernel;
+using model_limits::kMaxLayers;
+using model_limits::kMaxStride;
+using model_limits::kMaxUpsample;
 
 std::string Hex32(uint32_t v) {
   char buf[16];
@@ -485,9 +487,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                                                   std::tuple{p.pads.bottom, "bottom", p.kernel_h},
                                                   std::tuple{p.pads.left, "left", p.kernel_w},
                                                   std::tuple{p.pads.right, "right", p.kernel_w}}) {
-          if (amount < 0 || amount >= limit) {
+          if (amount < 0 || amount > model_limits::MaxPad(limit)) {
             return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
-                              "; must be in 0.." + std::to_string(limit - 1));
+                              "; must be in 0.." + std::to_string(model_limits::MaxPad(limit)));
           }
         }
         switch (c->activation()) {

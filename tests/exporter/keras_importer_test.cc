@@ -321,5 +321,51 @@ TEST(KerasImport, ArchitectureNotMatchingTheWeightsIsRejected) {
   std::filesystem::remove(json_path);
 }
 
+// Each limit of sfrt/model_limits.h is checked while the architecture is read, naming the layer
+// and the field (the loader would reject the written file otherwise).
+TEST(KerasImport, LayerPastTheLoaderLimitsNamesTheLayerAndField) {
+  const std::string json_path =
+      (std::filesystem::temp_directory_path() / "sfrt_keras_limits_arch.json").string();
+  const std::string conv0 =
+      R"({"class_name": "Conv2D", "config": {"name": "conv0", "filters": 4, "kernel_size": [3, 3],
+          "strides": [2, 2], "padding": "same", "batch_input_shape": [null, 67, 121, 12]}})";
+  struct Case {
+    std::string layers;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {R"({"class_name": "Conv2D", "config": {"name": "conv0", "filters": 4,
+          "kernel_size": [32, 3], "padding": "same", "batch_input_shape": [null, 67, 121, 12]}})",
+       "layer 'conv0' (Conv2D): 'kernel_size' is missing or not integers in 1..31"},
+      {R"({"class_name": "Conv2D", "config": {"name": "conv0", "filters": 4,
+          "kernel_size": [3, 3], "strides": [1, 17], "padding": "same",
+          "batch_input_shape": [null, 67, 121, 12]}})",
+       "layer 'conv0' (Conv2D): strides [1,17] are not integers in 1..16"},
+      {R"({"class_name": "Conv2D", "config": {"name": "conv0", "filters": 65537,
+          "kernel_size": [3, 3], "padding": "same", "batch_input_shape": [null, 67, 121, 12]}})",
+       "layer 'conv0' (Conv2D): 'filters' is missing or not an integer in 1..65536"},
+      {R"({"class_name": "Conv2D", "config": {"name": "conv0", "filters": 4,
+          "kernel_size": [3, 3], "padding": "same", "batch_input_shape": [null, 67, 121, 65537]}})",
+       "channels in 1..65536"},
+      {conv0 + R"(, {"class_name": "UpSampling2D", "config": {"name": "up", "size": [65, 1]}})",
+       "layer 'up' (UpSampling2D): 'size' is missing or not integers in 1..64"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.expected);
+    std::FILE* f = std::fopen(json_path.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    const std::string text =
+        R"({"class_name": "Sequential", "config": {"name": "s", "layers": [)" + c.layers + "]}}";
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+    KerasImportOptions options;
+    options.architecture_json = json_path;
+    auto r = ImportKerasH5(Fixture("keras_weights_w16_67x121.h5"), options);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find(c.expected), std::string::npos) << r.message();
+  }
+  std::filesystem::remove(json_path);
+}
+
 }  // namespace
 }  // namespace sfrt::exporter

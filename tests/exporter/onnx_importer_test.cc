@@ -17,6 +17,10 @@
 #include <variant>
 #include <vector>
 
+#include "sfrt/exporter/model_writer.h"
+#include "sfrt/model.h"
+#include "sfrt/model_limits.h"
+
 namespace sfrt::exporter {
 namespace {
 
@@ -917,6 +921,74 @@ TEST_F(OnnxImporter, RejectsUnsupportedOpNamingNodeAndOpType) {
                     {"node 'squash' (op Sigmoid): unsupported; supported ops: Conv, Pad"});
 }
 
+TEST_F(OnnxImporter, ExportListsEveryUnsupportedOnnxNodeWithItsOp) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t0", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Sigmoid", {"t0"}, {"t1"}, "squash");
+  m.Node("Tanh", {"t1"}, {"t2"}, "");  // unnamed: labelled by its index
+  m.Node("Softplus", {"t2"}, {"y"}, "soft");
+  m.Output("y");
+  ExpectImportError(m.Save("three.onnx"),
+                    {"3 nodes are unsupported: node 'squash' (op Sigmoid), node #2 (op Tanh), "
+                     "node 'soft' (op Softplus); supported ops (default ONNX domain): Conv, Pad"});
+}
+
+TEST_F(OnnxImporter, ExportListsAtMostTwentyUnsupportedNodesThenTheirCount) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t0", 2, 2, 3, 1, {1, 1, 1, 1});
+  constexpr int kNodes = 26;
+  for (int i = 0; i < kNodes; ++i) {
+    m.Node("Sigmoid", {"t" + std::to_string(i)},
+           {i + 1 == kNodes ? "y" : "t" + std::to_string(i + 1)}, "s" + std::to_string(i));
+  }
+  m.Output("y");
+  const std::string path = m.Save("many.onnx");
+  ExpectImportError(path, {"26 nodes are unsupported: node 's0' (op Sigmoid)",
+                           "node 's19' (op Sigmoid) and 6 more;"});
+  const Result<ModelSpec> r = ImportOnnx(path);
+  EXPECT_EQ(r.message().find("'s20'"), std::string::npos) << r.message();
+}
+
+// BatchNormalization inputs: X, scale, B, mean, var.
+onnx::NodeProto& AddBatchNorm(OnnxModel& m, const std::string& in,
+                              const std::vector<std::string>& outputs) {
+  m.Floats("bn.scale", {2}, {1, 1});
+  m.Floats("bn.b", {2}, {0, 0});
+  m.Floats("bn.mean", {2}, {0, 0});
+  m.Floats("bn.var", {2}, {1, 1});
+  return m.Node("BatchNormalization", {in, "bn.scale", "bn.b", "bn.mean", "bn.var"}, outputs, "bn");
+}
+
+TEST_F(OnnxImporter, TrainingModeBatchNormSaysEvalModeExportFoldsIt) {
+  {  // opset 14+: the training_mode attribute
+    OnnxModel m(15);
+    m.Input("x", {1, 2, 5, 5});
+    m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+    SetInt(AddBatchNorm(m, "t", {"y"}), "training_mode", 1);
+    m.Output("y");
+    ExpectImportError(m.Save("bn_training.onnx"),
+                      {"node 'bn' (op BatchNormalization): unsupported",
+                       "is a training-mode BatchNormalization (training_mode = 1)",
+                       "an eval-mode export (model.eval() before torch.onnx.export) folds "
+                       "BatchNormalization into the preceding Conv"});
+  }
+  {  // opset < 14: a training-mode export adds the running mean and variance outputs
+    OnnxModel m(12);
+    m.Input("x", {1, 2, 5, 5});
+    m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+    AddBatchNorm(m, "t", {"y", "running_mean", "running_var"});
+    m.Node("Sigmoid", {"y"}, {"z"}, "squash");
+    m.Output("z");
+    ExpectImportError(m.Save("bn_training_outputs.onnx"),
+                      {"2 nodes are unsupported",
+                       "node 'bn' (op BatchNormalization) is a "
+                       "training-mode BatchNormalization",
+                       "model.eval() before torch.onnx.export"});
+  }
+}
+
 TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});
@@ -1186,6 +1258,140 @@ TEST_F(OnnxImporter, ErrorMessagesStayOnOneLineWhateverTheNames) {
   m.Node("Sigmoid", {"x"}, {"y"}, "bad\nname");
   m.Output("y");
   ExpectImportError(m.Save("newline.onnx"), {"bad?name", "(op Sigmoid)"});
+}
+
+// Found by fuzz_onnx_import: a 1-channel network kept the default image order (four images, 12
+// channels), which the loader rejects. The file does not say which images other channel counts
+// hold, so the spec names none, and the written file loads.
+TEST_F(OnnxImporter, InputThatIsNotTwelveChannelsGetsNoImageOrderAndTheWrittenFileLoads) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 4, 4});
+  m.Conv("c", "x", "y", 1, 2, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("one_channel.onnx"));
+  ASSERT_TRUE(spec.ok());
+  EXPECT_TRUE(spec->input.image_order.empty());
+  auto bytes = SerializeModel(*spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  EXPECT_TRUE(model.ok()) << model.message();
+  OnnxModel twelve;
+  twelve.Input("x", {1, 12, 4, 4});
+  twelve.Conv("c", "x", "y", 12, 3, 3, 1, {1, 1, 1, 1});
+  twelve.Output("y");
+  auto stereo = ImportOk(twelve.Save("twelve.onnx"));
+  ASSERT_TRUE(stereo.ok());
+  EXPECT_EQ(stereo->input.image_order.size(), 4u);
+}
+
+// ------------------------------------------------------------------------------ loader limits
+// Each limit of sfrt/model_limits.h is checked at import, naming the node and the attribute, so
+// an imported model never serialises to a file the loader rejects (tests/exporter/model_limits_test
+// checks the loader enforces the same numbers).
+
+TEST_F(OnnxImporter, ConvKernelAboveTheLoaderLimitNamesNodeAndKernelShape) {
+  const int64_t k = model_limits::kMaxKernel + 1;
+  OnnxModel m;
+  m.Input("x", {1, 1, k + 2, k + 2});
+  m.Conv("big", "x", "y", 1, 1, k, 1, {});
+  m.Output("y");
+  ExpectImportError(
+      m.Save("kernel.onnx"),
+      {"node 'big' (op Conv)", "attribute 'kernel_shape' = [32, 32]", "largest kernel side 31"});
+}
+
+TEST_F(OnnxImporter, ConvStrideAboveTheLoaderLimitNamesNodeAndStrides) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 40, 40});
+  m.Conv("far", "x", "y", 1, 1, 1, model_limits::kMaxStride + 1, {});
+  m.Output("y");
+  ExpectImportError(m.Save("stride.onnx"), {"node 'far' (op Conv)",
+                                            "attribute 'strides' = [17, 17]", "largest stride 16"});
+}
+
+TEST_F(OnnxImporter, ConvOutputChannelsAboveTheLoaderLimitNameNodeAndWeight) {
+  const int64_t c = model_limits::kMaxChannels + 1;
+  OnnxModel m;
+  m.Input("x", {1, 1, 2, 2});
+  m.Conv("wide", "x", "y", 1, c, 1, 1, {}, /*bias=*/false);
+  m.Output("y");
+  ExpectImportError(
+      m.Save("channels.onnx"),
+      {"node 'wide' (op Conv)", "weight 'wide.w' has 65537 output channels", "at most 65536"});
+}
+
+TEST_F(OnnxImporter, InputChannelsAboveTheLoaderLimitNameTheGraphInput) {
+  OnnxModel m;
+  m.Input("x", {1, model_limits::kMaxChannels + 1, 1, 1});
+  m.Node("Identity", {"x"}, {"y"}, "id");
+  m.Output("y");
+  ExpectImportError(m.Save("input_channels.onnx"),
+                    {"graph input 'x' has 65537 channels", "at most 65536"});
+}
+
+TEST_F(OnnxImporter, ConvPadsAboveKernelMinusOneNameNodeAndPads) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 8, 8});
+  m.Conv("conv0", "x", "y", 1, 1, 3, 1, {0, 1152, 0, 0});
+  m.Output("y");
+  const std::string path = m.Save("pads.onnx");
+  ExpectImportError(path, {"node 'conv0' (op Conv): attribute 'pads' = [0, 1152, 0, 0]",
+                           "exceed kernel - 1", "at most 2 top/bottom, 2 left/right"});
+  // One past the limit on each side is refused; the limit itself imports.
+  for (int side = 0; side < 4; ++side) {
+    std::vector<int64_t> pads = {0, 0, 0, 0};
+    pads[side] = model_limits::MaxPad(3) + 1;
+    OnnxModel one;
+    one.Input("x", {1, 1, 8, 8});
+    one.Conv("conv0", "x", "y", 1, 1, 3, 1, pads);
+    one.Output("y");
+    ExpectImportError(one.Save("pads_side.onnx"), {"node 'conv0' (op Conv)", "attribute 'pads'"});
+    pads[side] = model_limits::MaxPad(3);
+    OnnxModel ok;
+    ok.Input("x", {1, 1, 8, 8});
+    ok.Conv("conv0", "x", "y", 1, 1, 3, 1, pads);
+    ok.Output("y");
+    EXPECT_TRUE(ImportOk(ok.Save("pads_ok.onnx")).ok()) << "side " << side;
+  }
+}
+
+TEST_F(OnnxImporter, PadNodeFoldedIntoConvPastKernelMinusOneNamesBothNodes) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 8, 8});
+  m.Int64s("pads", {0, 0, 0, 2, 0, 0, 0, 0});
+  m.Node("Pad", {"x", "pads"}, {"p"}, "wide_pad");
+  m.Conv("conv0", "p", "y", 1, 1, 3, 1, {0, 1, 0, 0});
+  m.Output("y");
+  ExpectImportError(m.Save("pad_fold.onnx"),
+                    {"node 'conv0' (op Conv): attribute 'pads' = [0, 3, 0, 0]",
+                     "node 'wide_pad' (op Pad) folded in", "exceed kernel - 1"});
+}
+
+TEST_F(OnnxImporter, UpsampleFactorAboveTheLoaderLimitNamesNodeAndScales) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 2, 2});
+  m.Conv("c", "x", "t", 1, 1, 1, 1, {});
+  m.Floats("scales", {4}, {1, 1, 1, static_cast<float>(model_limits::kMaxUpsample + 1)});
+  m.Node("Resize", {"t", "", "scales"}, {"y"}, "up");
+  m.Output("y");
+  ExpectImportError(m.Save("upsample.onnx"),
+                    {"node 'up' (op Resize)", "input 'scales' gives factors [1, 65]",
+                     "largest upsampling factor 64"});
+}
+
+TEST_F(OnnxImporter, MoreLayersThanTheLoaderLimitAreRefusedWithTheirCount) {
+  OnnxModel m;
+  m.Input("x", {1, 1, 2, 2});
+  m.Conv("c", "x", "t0", 1, 1, 1, 1, {});
+  m.Floats("ones", {4}, {1, 1, 1, 1});
+  std::string in = "t0";
+  for (int i = 1; i <= model_limits::kMaxLayers; ++i) {
+    const std::string out = i == model_limits::kMaxLayers ? "y" : "t" + std::to_string(i);
+    m.Node("Resize", {in, "", "ones"}, {out}, "up" + std::to_string(i));
+    in = out;
+  }
+  m.Output("y");
+  ExpectImportError(m.Save("layers.onnx"), {"graph gives 4097 layers; at most 4096"});
 }
 
 }  // namespace

@@ -548,7 +548,7 @@ void Runner::InferStage() {
 void Runner::OutputStage() {
   if (options_.on_stage_start) options_.on_stage_start(3);
   FlowItem f = MakeFlow();
-  Visualizer vis;
+  Visualizer vis({options_.vis_scale, model_->metadata().output.units});
   cv::Mat canvas;
   std::vector<uint8_t> png;
   // zlib level 1: several times faster than OpenCV's default for a slightly larger file.

@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "pipeline/latest_queue.h"
+#include "pipeline/visualize.h"
 #include "profiling/stats.h"
 #include "sfrt/camera/calibration.h"
 #include "sfrt/camera/preprocess.h"
@@ -129,6 +130,7 @@ struct PipelineOptions {
   bool write_png = true;
   OutputErrorPolicy on_output_error = OutputErrorPolicy::kStop;
   std::string video_path;  // "" = no video; written as MJPG AVI
+  VisScale vis_scale;      // colour scale of the PNGs and the video (visualize.h)
   double video_fps = 10;
   double budget_ms = 0;    // 0 = no deadline accounting
   int64_t max_frames = 0;  // 0 = until the source ends or a stop

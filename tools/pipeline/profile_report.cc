@@ -86,7 +86,9 @@ Series Collect(const FrameProfiler& prof) {
 // ---- plots (OpenCV drawing)
 
 constexpr int kPlotW = 900, kPlotH = 500;
-constexpr int kLeft = 80, kRight = 30, kTop = 50, kBottom = 60;
+constexpr int kLeft = 80, kRight = 30, kTop = 70, kBottom = 60;
+constexpr double kLabelScale = 0.5;
+constexpr int kLabelGap = 6;  // between a line and its label
 
 // "Nice" tick step for a range: 1, 2 or 5 times a power of ten, about `count` ticks.
 double TickStep(double range, int count) {
@@ -121,8 +123,8 @@ struct Axes {
   }
 };
 
-void DrawAxes(cv::Mat* img, const Axes& a, const std::string& title, const std::string& xlabel,
-              const std::string& ylabel) {
+void DrawAxes(cv::Mat* img, const Axes& a, const std::string& title, const std::string& subtitle,
+              const std::string& xlabel, const std::string& ylabel) {
   const cv::Scalar grid(225, 225, 225), axis(60, 60, 60);
   double xs = TickStep(a.x1 - a.x0, 8), ys = TickStep(a.y1 - a.y0, 6);
   if (a.integer_x) xs = std::max(xs, 1.0);
@@ -136,12 +138,23 @@ void DrawAxes(cv::Mat* img, const Axes& a, const std::string& title, const std::
     Text(img, TickLabel(y, ys), {8, a.Y(y) + 5}, 0.42);
   }
   cv::rectangle(*img, {kLeft, kTop}, {kPlotW - kRight, kPlotH - kBottom}, axis, 1);
-  Text(img, title, {kLeft, 30}, 0.6);
+  Text(img, title, {kLeft, 24}, 0.6);
+  Text(img, subtitle, {kLeft, 48}, 0.45);
   Text(img, xlabel, {kPlotW / 2 - 80, kPlotH - 15});
   Text(img, ylabel, {8, kTop - 12});
 }
 
-cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms) {
+cv::Rect PlotArea() { return {kLeft, kTop, kPlotW - kRight - kLeft, kPlotH - kBottom - kTop}; }
+
+// Draws `text` in `box` (as LabelBeside* computed it).
+void DrawLabel(cv::Mat* img, const std::string& text, const cv::Rect& box, cv::Scalar color) {
+  int descent = 0;
+  const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, kLabelScale, 1, &descent);
+  Text(img, text, {box.x, box.y + size.height}, kLabelScale, color);
+}
+
+cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms,
+                      const std::string& subtitle) {
   cv::Mat img(kPlotH, kPlotW, CV_8UC3, cv::Scalar(255, 255, 255));
   const profiling::Summary p = profiling::Summarize(e2e);
   double lo = *std::min_element(e2e.begin(), e2e.end());
@@ -165,7 +178,7 @@ cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms) {
   DrawAxes(&img, a,
            "end-to-end latency, " + std::to_string(e2e.size()) + " frames: p50 " + Fixed(p.p50, 2) +
                " ms, p99 " + Fixed(p.p99, 2) + " ms, max " + Fixed(p.max, 2) + " ms",
-           "end-to-end latency (ms)", "frames");
+           subtitle, "end-to-end latency (ms)", "frames");
   for (int b = 0; b < kBins; ++b) {
     if (count[b] == 0) continue;
     const double b0 = lo + (hi - lo) * b / kBins, b1 = lo + (hi - lo) * (b + 1) / kBins;
@@ -176,8 +189,9 @@ cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms) {
     if (budget_ms <= hi) {
       cv::line(img, {a.X(budget_ms), kTop}, {a.X(budget_ms), kPlotH - kBottom},
                cv::Scalar(30, 30, 220), 2);
-      Text(&img, "budget " + Fixed(budget_ms, 1) + " ms", {a.X(budget_ms) - 110, kTop + 18}, 0.5,
-           cv::Scalar(30, 30, 220));
+      const std::string label = "budget " + Fixed(budget_ms, 1) + " ms";
+      DrawLabel(&img, label, LabelBesideVerticalLine(label, a.X(budget_ms), 2, PlotArea()),
+                cv::Scalar(30, 30, 220));
     } else {
       Text(&img, "budget " + Fixed(budget_ms, 1) + " ms (beyond the axis)",
            {kPlotW - kRight - 300, kTop + 18}, 0.5, cv::Scalar(30, 30, 220));
@@ -187,15 +201,15 @@ cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms) {
 }
 
 cv::Mat SeriesPlot(const std::vector<double>& e2e, const std::vector<double>& infer,
-                   double budget_ms) {
+                   double budget_ms, const std::string& subtitle) {
   cv::Mat img(kPlotH, kPlotW, CV_8UC3, cv::Scalar(255, 255, 255));
   double hi = *std::max_element(e2e.begin(), e2e.end());
   if (budget_ms > 0 && budget_ms <= 2 * hi) hi = std::max(hi, budget_ms);
   hi = hi > 0 ? hi * 1.1 : 1;
   const double n = static_cast<double>(std::max<size_t>(e2e.size(), 2) - 1);
   const Axes a{0, n, 0, hi, true, false};
-  DrawAxes(&img, a, "latency per frame (blue: end to end, orange: infer, red: budget)", "frame",
-           "ms");
+  DrawAxes(&img, a, "latency per frame (blue: end to end, orange: infer, red: budget)", subtitle,
+           "frame", "ms");
   auto draw = [&](const std::vector<double>& v, cv::Scalar color) {
     std::vector<cv::Point> pts;
     for (size_t i = 0; i < v.size(); ++i) pts.emplace_back(a.X(static_cast<double>(i)), a.Y(v[i]));
@@ -211,8 +225,9 @@ cv::Mat SeriesPlot(const std::vector<double>& e2e, const std::vector<double>& in
     if (budget_ms <= hi) {
       cv::line(img, {kLeft, a.Y(budget_ms)}, {kPlotW - kRight, a.Y(budget_ms)},
                cv::Scalar(30, 30, 220), 2);
-      Text(&img, "budget " + Fixed(budget_ms, 1) + " ms",
-           {kPlotW - kRight - 170, a.Y(budget_ms) - 6}, 0.5, cv::Scalar(30, 30, 220));
+      const std::string label = "budget " + Fixed(budget_ms, 1) + " ms";
+      DrawLabel(&img, label, LabelBesideHorizontalLine(label, a.Y(budget_ms), 2, PlotArea()),
+                cv::Scalar(30, 30, 220));
     } else {
       Text(&img, "budget " + Fixed(budget_ms, 1) + " ms (above the axis)",
            {kPlotW - kRight - 300, kTop + 18}, 0.5, cv::Scalar(30, 30, 220));
@@ -330,6 +345,39 @@ Result<json> ReadProfileJson(const std::string& path) {
 }
 
 }  // namespace
+
+std::string ProfilePlotSubtitle(const FrameProfiler& profiler, const ProfileReportInfo& info) {
+  std::string model = std::filesystem::path(info.model_path).filename().string();
+  std::string text =
+      "model " + (model.empty() ? std::string("?") : model) + ", ISA " + profiler.isa();
+  if (!info.precision.empty()) text += ", " + info.precision;
+  return text + ", " + std::to_string(profiler.height()) + "x" + std::to_string(profiler.width()) +
+         " (HxW), " + std::to_string(profiler.threads()) +
+         (profiler.threads() == 1 ? " thread" : " threads");
+}
+
+cv::Rect LabelBesideVerticalLine(const std::string& text, int line_x, int line_width,
+                                 const cv::Rect& plot) {
+  int descent = 0;
+  const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, kLabelScale, 1, &descent);
+  const int w = size.width + 1, h = size.height + descent + 1;
+  const int half = (line_width + 1) / 2;
+  int x = line_x - half - kLabelGap - w;                                 // left of the line
+  if (x < plot.x + 2) x = line_x + half + kLabelGap;                     // else right of it
+  if (x + w > plot.x + plot.width - 2) x = plot.x + plot.width - 2 - w;  // (never: too narrow)
+  return {x, plot.y + 8, w, h};
+}
+
+cv::Rect LabelBesideHorizontalLine(const std::string& text, int line_y, int line_width,
+                                   const cv::Rect& plot) {
+  int descent = 0;
+  const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, kLabelScale, 1, &descent);
+  const int w = size.width + 1, h = size.height + descent + 1;
+  const int half = (line_width + 1) / 2;
+  int y = line_y - half - kLabelGap - h;              // above the line
+  if (y < plot.y + 2) y = line_y + half + kLabelGap;  // else below it
+  return {plot.x + plot.width - 8 - w, y, w, h};
+}
 
 Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
                                                const ProfileReportInfo& info, std::string* table) {
@@ -459,10 +507,13 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
 
   // ---- trace and plots
   if (Status st = WriteText(files.trace, TraceJson(prof, info)); !st.ok()) return st;
-  if (Status st = WritePng(files.histogram_png, HistogramPlot(s.e2e, info.budget_ms)); !st.ok()) {
+  const std::string subtitle = ProfilePlotSubtitle(prof, info);
+  if (Status st = WritePng(files.histogram_png, HistogramPlot(s.e2e, info.budget_ms, subtitle));
+      !st.ok()) {
     return st;
   }
-  if (Status st = WritePng(files.series_png, SeriesPlot(s.e2e, s.stage[2], info.budget_ms));
+  if (Status st =
+          WritePng(files.series_png, SeriesPlot(s.e2e, s.stage[2], info.budget_ms, subtitle));
       !st.ok()) {
     return st;
   }

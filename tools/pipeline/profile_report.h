@@ -17,6 +17,7 @@
 //   latency_series.png  end-to-end and infer latency per frame, budget as a horizontal line
 #pragma once
 
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 
@@ -39,7 +40,8 @@ struct ProfileReportInfo {
   std::string dir;  // must exist
   double budget_ms = 0;
   std::string model_path;
-  std::string source;  // one-line description
+  std::string precision;  // e.g. "fp32", "fp16 weights"; "" = not shown
+  std::string source;     // one-line description
   std::string stopped_by;
   std::optional<OverheadComparison> ab;
 };
@@ -53,6 +55,18 @@ struct ProfileReportFiles {
 // profiler recorded no frame or a file cannot be written; the message names the file.
 Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& profiler,
                                                const ProfileReportInfo& info, std::string* table);
+
+// The plots' second title line: model file name, ISA, precision, input size (HxW), threads.
+std::string ProfilePlotSubtitle(const FrameProfiler& profiler, const ProfileReportInfo& info);
+
+// Where a line's label goes (its full text box, pixels) so that the line never crosses it and it
+// stays inside the plot area `plot`: beside a vertical line at x = `line_x` (left of it when it
+// fits, else right), at the top of the plot; above a horizontal line at y = `line_y` at the right
+// of the plot (below it when there is no room above). The line is `line_width` pixels wide.
+cv::Rect LabelBesideVerticalLine(const std::string& text, int line_x, int line_width,
+                                 const cv::Rect& plot);
+cv::Rect LabelBesideHorizontalLine(const std::string& text, int line_y, int line_width,
+                                   const cv::Rect& plot);
 
 // `sfrt report compare A B`: per stage and per step, p50 of A and B and the change in ms and
 // percent, sorted by the largest absolute change. Fails (naming the file and what is wrong) on

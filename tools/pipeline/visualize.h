@@ -2,14 +2,24 @@
 //
 //   +-------------+-------------+-------------+
 //   | left image  | X/Y flow    | Z flow      |   H rows (the model input size)
-//   | (t)         | hue = direction, value =  | diverging: blue (negative), white (0),
-//   |             | |(X,Y)| / scale           | red (positive), |Z| / scale
+//   | (t)         | hue = direction, value =  | diverging: blue (-Z, towards the camera),
+//   |             | |(X,Y)| / scale           | white (0), red (+Z, away from the camera)
 //   +-------------+-------------+-------------+
-//   | legend: frame name | colour wheel + "|XY| max" | colour bar + "Z +-max" |  kLegendRows rows
+//   | legend strip: frame label | colour wheel with +X/+Y, X/Y scale | colour bar, Z scale,
+//   | units and the meaning of +Z (blocks wrap onto further rows when they do not fit)
 //
-// Scales are per frame: the largest finite |(X,Y)| and |Z| (1 when the flow is all zero), printed
-// in the legend, so colours are comparable within a frame, not across frames.
-// Direction: hue 0 (red) points along +X, going round through +Y (image down); X right, Y down.
+// The legend strip is sized from its text, not from the image: ComputeLegendLayout() places
+// every text box, the wheel and the bar so that none overlaps another or leaves the canvas, at
+// any image size. The canvas is at least 3 * W wide, wider when the legend needs it (the
+// panels stay at the top left). The layout is computed once, from the first frame's label and
+// the widest number the scale can print, so every frame of a run has the same size (a video
+// needs that); a longer label later is clipped to its box.
+//
+// Scales (VisScale): kFixed maps the same flow to the same colour in every frame (the default
+// for videos); kAuto uses the frame's largest finite |(X,Y)| and |Z| (1 when all zero), so
+// colours are comparable within a frame only. Flow beyond the scale saturates.
+// Direction: hue 0 (red) points along +X (image right), going round through +Y (image down).
+// Axes are the left camera's: x right, y down, z forward (away from the camera).
 //
 // Render() reuses the canvas and its scratch images once they have the right size (no
 // allocation in steady state apart from OpenCV's text rendering). Not thread-safe: one
@@ -18,12 +28,65 @@
 
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
+
+#include "sfrt/status.h"
 
 namespace sfrt::pipeline {
 
+struct VisScale {
+  enum class Mode { kAuto, kFixed };
+  Mode mode = Mode::kAuto;
+  double value = 0;  // kFixed: the |(X,Y)| and |Z| shown at full colour, in the model's units
+};
+
+// The fixed scale `sfrt run` uses for videos unless told otherwise: 0.15 model units per frame
+// (for the default model, metres: above the 0.1 m per frame its training scenes move at most).
+inline constexpr double kDefaultFixedVisScale = 0.15;
+
+// VALUE as the legend and --help print it ("%.3g").
+std::string FormatVisScaleValue(double value);
+
+// "auto" or "fixed:VALUE" (VALUE finite and > 0). The error names the text and the forms.
+Result<VisScale> ParseVisScale(const std::string& text);
+
+struct VisualizerOptions {
+  VisScale scale;     // kAuto by default
+  std::string units;  // the model's output units; "" prints "model units"
+};
+
+// Where everything of the canvas goes (pixels, canvas coordinates).
+struct LegendLayout {
+  cv::Size canvas;
+  cv::Rect left, xy, z;  // the three image panels
+  cv::Rect strip;        // the legend strip below them
+  cv::Rect wheel;        // the X/Y colour wheel (square)
+  cv::Rect bar;          // the Z colour bar
+  struct TextBox {
+    std::string text;  // as laid out (numbers at their widest)
+    cv::Rect box;      // the text's full extent, ascent to descent
+    int baseline = 0;  // y of the text baseline
+  };
+  // label, "+X", "+Y", the X/Y lines, "-", "+", the Z lines, in that order.
+  std::vector<TextBox> texts;
+};
+
+// The legend lines for a scale and units (numbers at `xy`/`z`); used by the layout (with the
+// widest numbers) and by Render (with the frame's).
+struct LegendText {
+  std::vector<std::string> xy_lines;
+  std::vector<std::string> z_lines;
+};
+LegendText MakeLegendText(const VisScale& scale, const std::string& units, double xy, double z);
+
+// The layout for panels of `height` x `width` and the given label and legend lines.
+LegendLayout ComputeLegendLayout(int height, int width, const std::string& label,
+                                 const LegendText& text);
+
 class Visualizer {
  public:
-  static constexpr int kLegendRows = 36;
+  Visualizer() = default;
+  explicit Visualizer(VisualizerOptions options) : options_(std::move(options)) {}
 
   // left: CV_8UC3 of height x width; flow: height*width*channels floats (HWC, channels >= 3
   // uses channels 0, 1, 2 as X, Y, Z; 1 or 2 channels draw what exists). label: legend text.
@@ -32,8 +95,11 @@ class Visualizer {
 
   double last_xy_scale() const { return xy_scale_; }
   double last_z_scale() const { return z_scale_; }
+  const LegendLayout& layout() const { return layout_; }
 
  private:
+  VisualizerOptions options_;
+  LegendLayout layout_;
   cv::Mat hsv_;
   cv::Mat wheel_;
   double xy_scale_ = 1;

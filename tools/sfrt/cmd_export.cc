@@ -627,6 +627,15 @@ int RunExport(const ExportArgs& args) {
   }
   if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
 
+  // The image order must account for every input channel (3 per image).
+  if (3 * static_cast<int>(image_order.size()) != spec.input.channels) {
+    return ReportError(kName,
+                       args.input + ": the network's input has " +
+                           std::to_string(spec.input.channels) + " channels; sfrt models take " +
+                           std::to_string(3 * image_order.size()) +
+                           " (the four RGB images L0, R0, L1, R1, ordered by --image-order)",
+                       kExitFailure);
+  }
   // Apply the flags (a .sfrt source keeps its own value of each flag not given).
   auto apply = [&](std::string_view flag) { return !sfrt_source || Given(args, flag); };
   if (!args.name.empty()) spec.name = args.name;

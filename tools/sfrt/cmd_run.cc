@@ -69,6 +69,7 @@ struct RunArgs {
   bool no_summary = false;
   std::string video;
   double video_fps = 10;
+  std::string vis_scale;  // "" = fixed:<default> with --video, auto without
   double budget_ms = 0;
   int64_t max_frames = 0;
   double replay_fps = 0;
@@ -228,6 +229,17 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
                        "--queue-depth >= 1; --buffers >= 2; --camera-timeout-ms and --video-fps "
                        "> 0",
                        kExitUsage);
+  }
+
+  {
+    const std::string vis_scale =
+        !args.vis_scale.empty() ? args.vis_scale
+        : args.video.empty()
+            ? std::string("auto")
+            : "fixed:" + pipeline::FormatVisScaleValue(pipeline::kDefaultFixedVisScale);
+    Result<pipeline::VisScale> scale = pipeline::ParseVisScale(vis_scale);
+    if (!scale.ok()) return ReportError(kName, scale.message(), kExitUsage);
+    options.vis_scale = *scale;
   }
 
   // ---- files: everything that can be checked is checked before the output directory is
@@ -479,6 +491,12 @@ Command AddRunCommand(CLI::App& parent) {
                   "file, replaced at the end; a symbolic link is followed and kept)");
   cmd->add_option("--video-fps", args->video_fps, "Frame rate written into --video")
       ->capture_default_str();
+  cmd->add_option("--vis-scale", args->vis_scale,
+                  "Colour scale of the PNGs and --video: 'fixed:VALUE' (the same flow, in the "
+                  "model's units, gets the same colour in every frame; full colour at |d| = "
+                  "VALUE) or 'auto' (each frame's largest |d|). Default: fixed:" +
+                      pipeline::FormatVisScaleValue(pipeline::kDefaultFixedVisScale) +
+                      " with --video, auto without");
   cmd->add_option("--budget-ms", args->budget_ms,
                   "Deadline per frame, capture to written output; misses are counted (0: none)")
       ->capture_default_str();

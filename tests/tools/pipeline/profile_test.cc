@@ -270,6 +270,51 @@ TEST(ProfiledPipeline, RecordsEveryFrameOnOneClockAndWritesValidReports) {
   fs::remove_all(dir);
 }
 
+TEST(ProfileReports, PlotTitlesNameTheModelIsaPrecisionSizeAndThreads) {
+  auto model = DemoModel();
+  ASSERT_NE(model, nullptr);
+  const fs::path dir = TempDir("subtitle");
+  CountingSource source(2);
+  FrameProfiler prof(10);
+  PipelineOptions o;
+  o.out_dir = dir.string();
+  o.write_png = false;
+  o.progress = ProgressMode::kOff;
+  o.threads = 2;
+  o.profiler = &prof;
+  const PipelineResult r = RunPipeline(model, &source, o);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ProfileReportInfo info;
+  info.model_path = DemoModelPath();
+  info.precision = "fp32";
+  const std::string sub = ProfilePlotSubtitle(prof, info);
+  const std::string size = std::to_string(prof.height()) + "x" + std::to_string(prof.width());
+  for (const std::string& part :
+       {"model " + fs::path(DemoModelPath()).filename().string(), "ISA " + prof.isa(),
+        std::string("fp32"), size + " (HxW)", std::string("2 threads")}) {
+    EXPECT_NE(sub.find(part), std::string::npos) << "'" << part << "' missing in: " << sub;
+  }
+  EXPECT_FALSE(prof.isa().empty());
+  fs::remove_all(dir);
+}
+
+// The budget line at every position across the plot: its label stays inside the plot and off
+// the line (2 px wide), vertical (histogram) and horizontal (series).
+TEST(ProfileReports, BudgetLineNeverCrossesItsOwnLabel) {
+  const cv::Rect plot(80, 70, 790, 370);
+  const std::string label = "budget 1234.5 ms";
+  for (int x = plot.x; x <= plot.x + plot.width; ++x) {
+    const cv::Rect box = LabelBesideVerticalLine(label, x, 2, plot);
+    EXPECT_TRUE((box & cv::Rect(x - 1, plot.y, 3, plot.height)).empty()) << "x " << x;
+    EXPECT_EQ(box & plot, box) << "x " << x;
+  }
+  for (int y = plot.y; y <= plot.y + plot.height; ++y) {
+    const cv::Rect box = LabelBesideHorizontalLine(label, y, 2, plot);
+    EXPECT_TRUE((box & cv::Rect(plot.x, y - 1, plot.width, 3)).empty()) << "y " << y;
+    EXPECT_EQ(box & plot, box) << "y " << y;
+  }
+}
+
 TEST(ProfileReports, NothingRecordedIsAnErrorNamingTheDirectory) {
   FrameProfiler prof(4);
   ProfileReportInfo info;

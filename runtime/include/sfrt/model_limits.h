@@ -1,0 +1,21 @@
+// The limits the model loader enforces (Model::Load*), in one table. The importers (ONNX, Keras)
+// check the same numbers before they write a file, so an imported model is never one the loader
+// rejects; tests/runtime/model_limits_test.cc builds a model at each limit and one past it.
+#pragma once
+
+namespace sfrt::model_limits {
+
+// Layers in one model.
+inline constexpr int kMaxLayers = 4096;
+// Channels of the input and of every Conv2D output.
+inline constexpr int kMaxChannels = 1 << 16;
+// Each side of a Conv2D kernel: 1..kMaxKernel.
+inline constexpr int kMaxKernel = 31;
+// Each Conv2D stride: 1..kMaxStride.
+inline constexpr int kMaxStride = 16;
+// Each Upsample factor: 1..kMaxUpsample.
+inline constexpr int kMaxUpsample = 64;
+// Explicit Conv2D pads on a side: 0..MaxPad(kernel side along that axis).
+constexpr int MaxPad(int kernel) { return kernel - 1; }
+
+}  // namespace sfrt::model_limits
