@@ -11,6 +11,7 @@
 
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
+#include "common/scoped_env.h"
 #include "common/session_compare.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
@@ -133,26 +134,7 @@ TEST(SessionIsaSelection, AnUnsupportedRequestFailsNamingTheIsaAndWhatIsSupporte
   EXPECT_NE(session.message().find(SupportedIsaList()), std::string::npos) << session.message();
 }
 
-// Sets an environment variable for one scope.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = getenv(name)) old_ = old, had_ = true;
-    setenv(name, value, 1);
-  }
-  ~ScopedEnv() {
-    if (had_) {
-      setenv(name_, old_.c_str(), 1);
-    } else {
-      unsetenv(name_);
-    }
-  }
-
- private:
-  const char* name_;
-  std::string old_;
-  bool had_ = false;
-};
+using testing::ScopedEnv;
 
 // The library takes options and reads no environment: SFRT_ISA is the `sfrt` tool's to map
 // (tests/tools/session_environment_test.cc), and kAuto means BestIsa() whatever it says.

@@ -7,36 +7,14 @@
 
 #include <string>
 
+#include "common/scoped_env.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
 namespace sfrt::tools {
 namespace {
 
-// Sets (or, with nullptr, unsets) an environment variable for one scope.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = getenv(name)) old_ = old, had_ = true;
-    if (value != nullptr) {
-      setenv(name, value, 1);
-    } else {
-      unsetenv(name);
-    }
-  }
-  ~ScopedEnv() {
-    if (had_) {
-      setenv(name_, old_.c_str(), 1);
-    } else {
-      unsetenv(name_);
-    }
-  }
-
- private:
-  const char* name_;
-  std::string old_;
-  bool had_ = false;
-};
+using testing::ScopedEnv;
 
 TEST(SessionEnvironment, NoVariablesLeaveTheDefaults) {
   ScopedEnv a("SFRT_ISA", nullptr), b("SFRT_WINOGRAD", nullptr), c("SFRT_WINOGRAD_UPCONV", nullptr),
