@@ -40,9 +40,9 @@ Status CheckSize(const tools::PfmImage& img, const tools::PfmImage& ref, int cha
                          std::to_string(channels));
   }
   if (img.height != ref.height || img.width != ref.width) {
-    return Status::Error(path + ": is " + std::to_string(img.width) + "x" +
-                         std::to_string(img.height) + " (WxH) but " + ref_path + " is " +
-                         std::to_string(ref.width) + "x" + std::to_string(ref.height));
+    return Status::Error(path + ": is " + std::to_string(img.height) + "x" +
+                         std::to_string(img.width) + " (HxW) but " + ref_path + " is " +
+                         std::to_string(ref.height) + "x" + std::to_string(ref.width));
   }
   return Status::Ok();
 }
