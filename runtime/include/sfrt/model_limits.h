@@ -1,6 +1,6 @@
 // The limits the model loader enforces (Model::Load*), in one table. The importers (ONNX, Keras)
 // check the same numbers before they write a file, so an imported model is never one the loader
-// rejects; tests/runtime/model_limits_test.cc builds a model at each limit and one past it.
+// rejects; tests/exporter/model_limits_test.cc builds a model at each limit and one past it.
 #pragma once
 
 namespace sfrt::model_limits {
