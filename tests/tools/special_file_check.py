@@ -132,6 +132,7 @@ def scenario_eval_full(a):
     root = dataset(a)
     full = full_device(a.work)
     p = sfrt(a, ["eval", "--model", a.model, "--dataset", root, "--no-classical", "--quiet",
+                 "--allow-camera-mismatch",
                  "--json", full])
     expect_enospc(p, full)
 
@@ -146,6 +147,7 @@ def scenario_eval_fifo(a):
     reader = threading.Thread(target=read_fifo, args=(fifo, got), daemon=True)
     reader.start()
     p = sfrt(a, ["eval", "--model", a.model, "--dataset", root, "--no-classical", "--quiet",
+                 "--allow-camera-mismatch",
                  "--json", fifo])
     reader.join(60)
     check(p.returncode == 0, "exit %d, expected 0" % p.returncode)

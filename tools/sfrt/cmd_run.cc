@@ -20,6 +20,7 @@
 #include "pipeline/pipeline.h"
 #include "pipeline/sources.h"
 #include "sfrt/commands.h"
+#include "sfrt/io/atomic_write.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
@@ -250,17 +251,25 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   if (std::string problem = CheckWritableDirectory(args.out, "--out"); !problem.empty()) {
     return ReportError(kName, problem, kExitUsage);
   }
+  // The AVI writer takes only a regular file; the latency log may be a device or FIFO too.
+  if (!args.video.empty()) {
+    if (Result<std::string> video = pipeline::ResolveVideoPath(args.video); !video.ok()) {
+      return ReportError(kName, video.message(), kExitUsage);
+    }
+  }
   for (const auto& [flag, path] :
        {std::pair<const char*, const std::string&>{"--video", args.video},
         {"--latency-log", args.latency_log}}) {
     if (path.empty()) continue;
-    const std::string parent = std::filesystem::path(path).parent_path().string();
+    Result<OutputTarget> target = ResolveOutputTarget(path);
+    if (!target.ok())
+      return ReportError(kName, std::string(flag) + ": " + target.message(), kExitUsage);
+    // A device or FIFO is written in place: there is no directory to create a file in.
+    if (target->kind != OutputTarget::Kind::kReplace) continue;
+    const std::string parent = std::filesystem::path(target->path).parent_path().string();
     if (std::string problem = CheckWritableDirectory(parent.empty() ? "." : parent, flag);
         !problem.empty()) {
       return ReportError(kName, problem, kExitUsage);
-    }
-    if (Result<std::string> video = pipeline::ResolveVideoPath(args.video); !video.ok()) {
-      return ReportError(kName, video.message(), kExitUsage);
     }
   }
   if (!args.calibration.empty()) {
