@@ -290,10 +290,6 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
       return ReportError(kName, "--size " + args.size + ": " + geometry.message(), kExitUsage);
     }
   }
-  if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
-      !notice.empty()) {
-    std::cout << notice << "\n";
-  }
 
   std::error_code ec;
   std::unique_ptr<pipeline::FrameSource> source;
@@ -394,6 +390,11 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };
+  // Every check has passed: the note belongs to a run that starts.
+  if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
+      !notice.empty()) {
+    std::cout << notice << "\n";
+  }
   pipeline::PipelineResult result =
       RunConfiguredPipeline(rc, *loaded, source.get(), options, again);
   if (!result.started) {  // nothing ran: no statistics to show
