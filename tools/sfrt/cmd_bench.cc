@@ -267,9 +267,11 @@ int RunBench(const BenchArgs& args) {
     return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
                        kExitUsage);
   }
-  if (std::string problem = config::CheckSize(config::kInputSide, "--size", height, width);
-      !problem.empty()) {
-    return ReportError(kName, problem, kExitUsage);
+  if (!args.size.empty()) {  // without --size: the model's traced size, once it is loaded
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", height, width);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
+    }
   }
   if (args.runs < 1 || args.warmup < 0 || args.min_seconds < 0 || args.top < 0) {
     return ReportError(kName, "--runs must be >= 1, --warmup, --min-seconds and --top >= 0",

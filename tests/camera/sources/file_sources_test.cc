@@ -296,7 +296,7 @@ TEST(BadFrames, LeftRightSizeMismatchIsABadFrame) {
   ASSERT_FALSE(r.error.ok());
   EXPECT_NE(r.error.message().find(tmp / "seq/right/0002.png"), std::string::npos)
       << r.error.message();
-  EXPECT_NE(r.error.message().find("9x6"), std::string::npos) << r.error.message();
+  EXPECT_NE(r.error.message().find("6x9 (HxW)"), std::string::npos) << r.error.message();
 }
 
 TEST(BadFrames, PolicyParses) {

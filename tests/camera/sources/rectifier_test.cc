@@ -174,8 +174,8 @@ TEST(StereoRectifier, PointLandsOnTheSameRowInBothViews) {
 TEST(StereoRectifier, RejectsMismatchedSizesNamingThem) {
   Result<StereoRectifier> wrong = StereoRectifier::Create(IdealRig(0.1), cv::Size(1280, 720), {});
   ASSERT_FALSE(wrong.ok());
-  EXPECT_NE(wrong.message().find("640x480"), std::string::npos) << wrong.message();
-  EXPECT_NE(wrong.message().find("1280x720"), std::string::npos) << wrong.message();
+  EXPECT_NE(wrong.message().find("480x640"), std::string::npos) << wrong.message();
+  EXPECT_NE(wrong.message().find("720x1280 (HxW)"), std::string::npos) << wrong.message();
 
   Result<StereoRectifier> r = StereoRectifier::Create(IdealRig(0.1), kRaw, {});
   ASSERT_TRUE(r.ok()) << r.message();
