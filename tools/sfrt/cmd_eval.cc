@@ -37,13 +37,8 @@ int RunEval(const EvalArgs& args) {
   options.dataset = args.dataset;
   options.max_frames = args.max_frames;
   options.classical = !args.no_classical;
-  {
-    SessionOptions session;
-    if (Status env = tools::ApplySessionEnvironment(session); !env.ok()) {
-      return ReportError(kName, env.message(), kExitUsage);
-    }
-    options.isa = session.isa;
-    options.tuning = session.tuning;
+  if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
+    return ReportError(kName, env.message(), kExitUsage);
   }
   options.allow_camera_mismatch = args.allow_camera_mismatch;
   if (!args.size.empty()) {

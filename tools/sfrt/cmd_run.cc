@@ -262,8 +262,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
         {"--latency-log", args.latency_log}}) {
     if (path.empty()) continue;
     Result<OutputTarget> target = ResolveOutputTarget(path);
-    if (!target.ok())
+    if (!target.ok()) {
       return ReportError(kName, std::string(flag) + ": " + target.message(), kExitUsage);
+    }
     // A device or FIFO is written in place: there is no directory to create a file in.
     if (target->kind != OutputTarget::Kind::kReplace) continue;
     const std::string parent = std::filesystem::path(target->path).parent_path().string();
@@ -377,15 +378,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.stop = &g_stop;
   options.stop_signal = &g_signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
-  {
-    // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
-    SessionOptions session;
-    session.isa = options.isa;
-    if (Status env = tools::ApplySessionEnvironment(session); !env.ok()) {
-      return ReportError(kName, env.message(), kExitUsage);
-    }
-    options.isa = session.isa;
-    options.tuning = session.tuning;
+  // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
+  if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
+    return ReportError(kName, env.message(), kExitUsage);
   }
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;

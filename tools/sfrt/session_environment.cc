@@ -30,29 +30,33 @@ Status ApplySwitch(const char* name, bool& field) {
 }  // namespace
 
 Status ApplySessionEnvironment(SessionOptions& options) {
-  if (const char* value = Variable("SFRT_ISA"); value != nullptr && options.isa == Isa::kAuto) {
-    Isa isa = Isa::kAuto;
-    if (!ParseIsa(value, &isa)) {
+  return ApplySessionEnvironment(options.isa, options.tuning);
+}
+
+Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
+  if (const char* value = Variable("SFRT_ISA"); value != nullptr && isa == Isa::kAuto) {
+    Isa parsed = Isa::kAuto;
+    if (!ParseIsa(value, &parsed)) {
       return Invalid("SFRT_ISA", value, "auto, ref, avx2, avx512, neon");
     }
-    options.isa = isa;
+    isa = parsed;
   }
   if (const char* value = Variable("SFRT_WINOGRAD"); value != nullptr) {
     const std::string v = value;
     if (v == "off") {
-      options.tuning.winograd_tile = 0;
+      tuning.winograd_tile = 0;
     } else if (v == "f2") {
-      options.tuning.winograd_tile = 2;
+      tuning.winograd_tile = 2;
     } else if (v == "f4") {
-      options.tuning.winograd_tile = 4;
+      tuning.winograd_tile = 4;
     } else {
       return Invalid("SFRT_WINOGRAD", v, "off, f2, f4");
     }
   }
-  if (Status s = ApplySwitch("SFRT_WINOGRAD_UPCONV", options.tuning.winograd_upconv); !s.ok()) {
+  if (Status s = ApplySwitch("SFRT_WINOGRAD_UPCONV", tuning.winograd_upconv); !s.ok()) {
     return s;
   }
-  return ApplySwitch("SFRT_FEWOUT", options.tuning.few_out);
+  return ApplySwitch("SFRT_FEWOUT", tuning.few_out);
 }
 
 }  // namespace sfrt::tools

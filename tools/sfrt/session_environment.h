@@ -15,5 +15,7 @@ namespace sfrt::tools {
 // Applies every variable above that is set and not empty to `options`. An explicit ISA (a
 // --isa flag) wins over SFRT_ISA. Errors name the variable, its value and the accepted values.
 Status ApplySessionEnvironment(SessionOptions& options);
+// The same on the two session fields that other options structs carry (pipeline, eval).
+Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning);
 
 }  // namespace sfrt::tools
