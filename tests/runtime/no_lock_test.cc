@@ -11,8 +11,10 @@
 #include <sys/syscall.h>
 
 #include <atomic>
+#include <chrono>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/model_builders.h"
@@ -113,14 +115,26 @@ TEST_F(NoLock, CountingHooksSeeAMutexAndAFutex) {
   std::mutex m;
   m.lock();
   m.unlock();
+  EXPECT_GE(Since(before).mutex_locks, 1);
+
+  // A pool that sleeps at once, given time to fall asleep before each run: its worker's futex
+  // sleeps (and the caller's wakes) must be counted. Without the pauses a worker descheduled
+  // throughout would leave every run to the caller, and nothing to count.
+  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
   SessionOptions sleepy;
   sleepy.max_height = 96;
   sleepy.max_width = 128;
   sleepy.threads = 2;
-  sleepy.spin_us = 0;  // workers sleep at once, so every step wakes them through a futex
-  const Counts pool = CountDuringRuns(sleepy, 1, 3);
-  EXPECT_GE(Since(before).mutex_locks, 1);
-  EXPECT_GT(pool.futex_calls, 0);
+  sleepy.spin_us = 0;
+  auto session = Session::Create(model, sleepy);
+  ASSERT_TRUE(session.ok()) << session.message();
+  std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
+  const Counts pool_before = Snapshot();
+  for (int i = 0; i < 20; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ASSERT_TRUE((*session)->Run(input, 96, 128, output).ok());
+  }
+  EXPECT_GT(Since(pool_before).futex_calls, 0);
 }
 
 TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
