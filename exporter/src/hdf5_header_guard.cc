@@ -40,7 +40,8 @@ const uint8_t* Bytes(const std::string& s) { return reinterpret_cast<const uint8
 // size, dataspace size (2 bytes each), the encoding (version 3), then the name (with its NUL),
 // datatype and dataspace, each padded to 8 bytes in version 1. libhdf5 1.10.8 decodes them
 // without comparing these sizes with the message's (H5O_attr_decode). "" when sound.
-std::string AttributeProblem(const uint8_t* p, uint64_t size, unsigned sizeof_size) {
+std::string AttributeProblem(const uint8_t* p, uint64_t size, unsigned sizeof_addr,
+                             unsigned sizeof_size) {
   if (size < 8) return "is " + std::to_string(size) + " bytes (under 8)";
   const unsigned version = p[0];
   if (version < 1 || version > 3) return "has version " + std::to_string(version) + " (1 to 3)";
@@ -69,6 +70,14 @@ std::string AttributeProblem(const uint8_t* p, uint64_t size, unsigned sizeof_si
   const uint64_t data_at = at + padded_name + type + space;
   if (LittleEndian(p + 4, 2) < 8 || LittleEndian(p + 6, 2) < 4) return "has no room for its types";
   const uint64_t element = LittleEndian(dt + 4, 4);
+  // A variable-length datatype (class 9) stores a global-heap ID per element: a 4-byte length,
+  // the collection's address and a 4-byte index. libhdf5 replaces the size the message gives with
+  // that when it opens the attribute (H5T_set_loc) and then copies that many bytes per element
+  // from data it allocated at the message's size, so the two must agree.
+  if ((dt[0] & 0x0F) == 9 && element != 8 + uint64_t{sizeof_addr}) {
+    return "has a variable-length datatype of " + std::to_string(element) +
+           " bytes per element; a heap ID takes " + std::to_string(8 + sizeof_addr);
+  }
   const unsigned rank = ds[1];
   const uint64_t dims_at = ds[0] == 1 ? 8 : 4;
   uint64_t points = ds[0] == 2 && ds[3] == 2 ? 0 : 1;
@@ -193,7 +202,8 @@ Status HeaderGuard::WalkMessages(const std::string& where, int index, const uint
                            std::to_string(size - pos) + " bytes left)");
     }
     if (type == kAttribute && (flags & kSharedFlag) == 0) {
-      if (std::string problem = AttributeProblem(p + pos, data, sizeof_size_); !problem.empty()) {
+      if (std::string problem = AttributeProblem(p + pos, data, sizeof_addr_, sizeof_size_);
+          !problem.empty()) {
         return Status::Error(what + ", an attribute message, " + problem);
       }
     }

@@ -375,6 +375,29 @@ TEST(KerasHeaderGuard, AttributeNameLongerThanItsMessageIsRejected) {
                   "more than its " + std::to_string(size) + " bytes"});
 }
 
+// fuzz_keras_import (ASan heap-buffer-overflow in libhdf5's H5Aread -> H5A__read -> memcpy): the
+// root attribute model_config's variable-length string datatype says 9 bytes per element;
+// libhdf5 allocates the data at that size, then copies a 16-byte heap ID out of it.
+TEST(KerasHeaderGuard, FuzzReproducerWithAVariableLengthStringOfNineBytesIsRejected) {
+  ExpectRejected(ReadFile(kCorpus + "vlen-string-size-not-a-heap-id.h5"), "vlen-size.h5",
+                 {"object header of the root group at address 96: message",
+                  "an attribute message, has a variable-length datatype of 9 bytes per element; a "
+                  "heap ID takes 16"});
+}
+
+TEST(KerasHeaderGuard, VariableLengthStringWithAHeapIdLargerThanSixteenBytesIsRejected) {
+  // model_config's datatype (version 1 attribute message: name padded to 8 bytes) made 24 bytes.
+  ValidFile v = LoadValid();
+  const size_t name = v.bytes.find("model_config");
+  ASSERT_NE(name, std::string::npos);
+  const size_t datatype = name + 16;
+  ASSERT_EQ(static_cast<uint8_t>(v.bytes[datatype]) & 0x0F, 9) << "not a variable-length type";
+  ASSERT_EQ(GetLe(v.bytes, datatype + 4, 4), 16u);
+  PutLe(&v.bytes, datatype + 4, 24, 4);
+  ExpectRejected(v.bytes, "vlen-24.h5",
+                 {"an attribute message, has a variable-length datatype of 24 bytes per element"});
+}
+
 // A soft link would make libhdf5 load a header the importer never got an address for (H5Lget_info
 // does not resolve it): refused; Keras writes hard links only.
 TEST(KerasHeaderGuard, SoftLinkOnTheImportersPathIsRejected) {
