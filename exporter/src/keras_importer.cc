@@ -142,6 +142,43 @@ class QuietHdf5 {
   void* data_ = nullptr;
 };
 
+// Whether dataset `ds` (datatype `type`, `count` values) stores its values in the file. Storage
+// never written reads as the fill value, so a damaged dataspace could make an import allocate
+// gigabytes of fill for a file of kilobytes: a dataset without filters must store every value's
+// bytes, inside the file; a filtered (compressed) one at most kMaxCompression times its stored
+// bytes. Keras writes contiguous datasets without filters. The message reads "<what is wrong>".
+constexpr uint64_t kMaxCompression = 1024;
+Status CheckStoredSize(hid_t ds, hid_t type, uint64_t count) {
+  if (count == 0) return Status::Ok();
+  const size_t element = H5Tget_size(type);
+  H5Handle dcpl(H5Dget_create_plist(ds), H5Pclose);
+  const int filters = dcpl.valid() ? H5Pget_nfilters(dcpl.get()) : -1;
+  H5Handle file(H5Iget_file_id(ds), H5Fclose);
+  hsize_t file_size = 0;
+  if (element == 0 || element > 16 || filters < 0 || !file.valid() ||
+      H5Fget_filesize(file.get(), &file_size) < 0) {
+    return Status::Error("has an unreadable layout" + Hdf5Error());
+  }
+  const uint64_t bytes = count * element;  // count <= 2^30
+  const uint64_t stored = H5Dget_storage_size(ds);
+  const std::string holds = "holds " + std::to_string(count) + " values of " +
+                            std::to_string(element) + " bytes (" + std::to_string(bytes) +
+                            " bytes)";
+  if (filters == 0 && stored < bytes) {
+    return Status::Error(holds + " but stores " + std::to_string(stored) +
+                         " (values never written: a damaged file)");
+  }
+  if (filters == 0 && bytes > file_size) {
+    return Status::Error(holds + ", more than the file's " + std::to_string(file_size));
+  }
+  if (filters > 0 && bytes / kMaxCompression > stored) {
+    return Status::Error(holds + " from " + std::to_string(stored) +
+                         " compressed bytes (more than " + std::to_string(kMaxCompression) +
+                         " times)");
+  }
+  return Status::Ok();
+}
+
 // Reads a string attribute (scalar or 1-D; fixed- or variable-length) of `obj`. `where` names the
 // object in errors. Returns std::nullopt-like empty optional when the attribute does not exist.
 Result<std::optional<std::vector<std::string>>> ReadStringsAttr(hid_t obj, const char* name,
@@ -814,6 +851,9 @@ Result<std::vector<float>> Importer::ReadDataset(const ChainLayer& l, const std:
   for (uint64_t d : want) {
     if (d != 0 && n > kMaxTensorElements / d) return LayerFail(l, label + " is too large");
     n *= d;
+  }
+  if (Status stored = CheckStoredSize(ds.get(), type.get(), n); !stored.ok()) {
+    return LayerFail(l, label + " " + stored.message());
   }
   std::vector<float> values(static_cast<size_t>(n));
   if (n > 0 &&

@@ -11,9 +11,11 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <string>
 #include <utility>
+#include <variant>
 #include <vector>
 
 #include "hdf5_header_guard.h"
@@ -420,6 +422,91 @@ TEST(KerasImportRegression, ZeroPaddingWiderThanTheKernelIsRejected) {
   ExpectRejected(ReadFile(kCorpus + "zero-padding-wider-than-kernel-abort.h5"), "pad.h5",
                  {"layer 'conv2d_2' (Conv2D): follows ZeroPadding2D 'zero_padding2d_1' whose "
                   "padding gives it 5 on the right; a 3x3 kernel takes at most 2"});
+}
+
+// The first 4-D dataset (a Conv2D kernel) of the valid file, by path from the file root.
+herr_t FindKernel(hid_t obj, const char* name, const H5O_info_t* info, void* out) {
+  if (info->type != H5O_TYPE_DATASET) return 0;
+  const hid_t ds = H5Dopen2(obj, name, H5P_DEFAULT);
+  const hid_t space = H5Dget_space(ds);
+  const int rank = H5Sget_simple_extent_ndims(space);
+  H5Sclose(space);
+  H5Dclose(ds);
+  if (rank != 4) return 0;
+  *static_cast<std::string*>(out) = name;
+  return 1;
+}
+
+// A copy of the valid file whose first Conv2D kernel is made again with the same shape by
+// `make(file, path, space)` (which returns the new dataset), then imported both ways.
+std::string RemakeFirstKernel(const std::string& name,
+                              const std::function<hid_t(hid_t, const char*, hid_t)>& make) {
+  const std::string path = ::testing::TempDir() + "/" + name;
+  std::filesystem::copy_file(kValid, path, std::filesystem::copy_options::overwrite_existing);
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  EXPECT_GE(file, 0);
+  std::string kernel;
+  H5Ovisit(file, H5_INDEX_NAME, H5_ITER_NATIVE, FindKernel, &kernel);
+  EXPECT_FALSE(kernel.empty()) << "no 4-D dataset in " << kValid;
+  const hid_t old = H5Dopen2(file, kernel.c_str(), H5P_DEFAULT);
+  const hid_t space = H5Dget_space(old);
+  std::vector<float> values(static_cast<size_t>(H5Sget_simple_extent_npoints(space)));
+  EXPECT_GE(H5Dread(old, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  H5Dclose(old);
+  EXPECT_GE(H5Ldelete(file, kernel.c_str(), H5P_DEFAULT), 0);
+  const hid_t made = make(file, kernel.c_str(), space);
+  EXPECT_GE(made, 0);
+  if (made >= 0 && H5Dget_storage_size(made) == 0 && name.find("unwritten") == std::string::npos) {
+    EXPECT_GE(H5Dwrite(made, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  }
+  H5Dclose(made);
+  H5Sclose(space);
+  H5Fclose(file);
+  const std::string bytes = ReadFile(path);
+  std::filesystem::remove(path);
+  return bytes;
+}
+
+// fuzz_keras_import (libFuzzer out-of-memory, RSS over 2 GB in one import): a dataset whose values
+// were never written reads as its fill value, so a damaged dataspace made the importer allocate up
+// to 4 GB for a file of kilobytes. A kernel made with its shape but no data is refused.
+TEST(KerasStoredSize, DatasetWhoseValuesWereNeverWrittenIsRejected) {
+  const std::string bytes = RemakeFirstKernel("unwritten.h5", [](hid_t f, const char* p, hid_t s) {
+    return H5Dcreate2(f, p, H5T_IEEE_F32LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  });
+  ExpectRejected(bytes, "unwritten.h5",
+                 {"values of 4 bytes", "but stores 0 (values never written: a damaged file)"});
+}
+
+// Compressed weights (chunked, deflate) are not what Keras writes, but they are a sound file: they
+// still import, to the same weights.
+TEST(KerasStoredSize, CompressedKernelStillImportsToTheSameWeights) {
+  const std::string bytes = RemakeFirstKernel("deflate.h5", [](hid_t f, const char* p, hid_t s) {
+    hsize_t dims[4] = {};
+    H5Sget_simple_extent_dims(s, dims, nullptr);
+    const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    H5Pset_chunk(dcpl, 4, dims);
+    H5Pset_deflate(dcpl, 6);
+    const hid_t ds = H5Dcreate2(f, p, H5T_IEEE_F32LE, s, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    H5Pclose(dcpl);
+    return ds;
+  });
+  auto remade = ImportKerasH5FromMemory(bytes, "deflate.h5");
+  ASSERT_TRUE(remade.ok()) << remade.message();
+  auto valid = ImportKerasH5(kValid);
+  ASSERT_TRUE(valid.ok()) << valid.message();
+  ASSERT_EQ(remade->spec.layers.size(), valid->spec.layers.size());
+  int convs = 0;
+  for (size_t i = 0; i < valid->spec.layers.size(); ++i) {
+    const auto* want = std::get_if<ConvSpec>(&valid->spec.layers[i]);
+    const auto* got = std::get_if<ConvSpec>(&remade->spec.layers[i]);
+    ASSERT_EQ(want == nullptr, got == nullptr) << "layer " << i;
+    if (want == nullptr) continue;
+    ++convs;
+    EXPECT_EQ(got->weights_hwio, want->weights_hwio) << "layer " << i;
+    EXPECT_EQ(got->bias, want->bias) << "layer " << i;
+  }
+  EXPECT_GT(convs, 0);
 }
 
 }  // namespace

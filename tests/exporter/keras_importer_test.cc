@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "sfrt/exporter/model_writer.h"
-#include "sfrt/io/npy.h"
 #include "sfrt/model.h"
+#include "sfrt/pipeline/io/npy.h"
 #include "sfrt/session.h"
 
 namespace sfrt::exporter {
@@ -35,8 +35,7 @@ KerasImportResult Import(const std::string& name, const std::string& architectur
 }
 
 // Serialises `spec`, loads it and runs it on `input` (H x W x 12). Empty on failure.
-std::vector<float> RunModel(const ModelSpec& spec, const tools::NpyArray& input,
-                            size_t* file_bytes) {
+std::vector<float> RunModel(const ModelSpec& spec, const io::NpyArray& input, size_t* file_bytes) {
   auto bytes = SerializeModel(spec);
   EXPECT_TRUE(bytes.ok()) << bytes.message();
   if (!bytes.ok()) return {};
@@ -61,10 +60,10 @@ std::vector<float> RunModel(const ModelSpec& spec, const tools::NpyArray& input,
   return s.ok() ? out : std::vector<float>{};
 }
 
-tools::NpyArray Npy(const std::string& file) {
-  auto a = tools::ReadNpy(Fixture(file));
+io::NpyArray Npy(const std::string& file) {
+  auto a = io::ReadNpy(Fixture(file));
   EXPECT_TRUE(a.ok()) << a.message();
-  return a.ok() ? std::move(a).value() : tools::NpyArray{};
+  return a.ok() ? std::move(a).value() : io::NpyArray{};
 }
 
 // Max |actual - expected| over max |expected|; infinity on size mismatch or non-finite values.
@@ -234,7 +233,7 @@ TEST(KerasImport, SequentialFoldsZeroPaddingAndFusesActivations) {
 
 TEST(KerasImport, Fp16WeightsHalveTheFileAndStayWithin1e2OfFp32) {
   ModelSpec spec = Import("keras_w1_35x61").spec;  // full width: 21.3 M parameters
-  const tools::NpyArray input = Npy("keras_w1_35x61.input.npy");
+  const io::NpyArray input = Npy("keras_w1_35x61.input.npy");
   size_t fp32_bytes = 0;
   size_t fp16_bytes = 0;
   const std::vector<float> fp32 = RunModel(spec, input, &fp32_bytes);

@@ -7,18 +7,18 @@
 #include <cstring>
 #include <string_view>
 
-#include "sfrt/io/pfm.h"
+#include "sfrt/pipeline/io/pfm.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);
-  auto image = sfrt::tools::ParsePfm(bytes, "fuzz.pfm");
+  auto image = sfrt::io::ParsePfm(bytes, "fuzz.pfm");
   if (!image.ok()) return 0;
-  auto again = sfrt::tools::SerializePfm(image->data, image->height, image->width, image->channels);
+  auto again = sfrt::io::SerializePfm(image->data, image->height, image->width, image->channels);
   if (!again.ok()) {
     std::fprintf(stderr, "accepted PFM does not serialise: %s\n", again.message().c_str());
     std::abort();
   }
-  auto back = sfrt::tools::ParsePfm(
+  auto back = sfrt::io::ParsePfm(
       std::string_view(reinterpret_cast<const char*>(again->data()), again->size()), "again.pfm");
   if (!back.ok() || back->height != image->height || back->width != image->width ||
       back->channels != image->channels || back->data.size() != image->data.size() ||

@@ -15,8 +15,8 @@
 #include <string>
 #include <string_view>
 
-#include "config/profile.h"
 #include "fuzz/scratch_dir.h"
+#include "sfrt/config/profile.h"
 
 namespace {
 

@@ -10,9 +10,9 @@
 
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
-#include "sfrt/io/npy.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/pipeline/io/npy.h"
 #include "sfrt/session.h"
 
 namespace sfrt {
@@ -56,8 +56,8 @@ double RelativeErrorAgainstPyTorch(const std::string& model_case, const FixtureC
   if (!bytes.ok()) return INFINITY;
   auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
   EXPECT_TRUE(model.ok()) << model.message();
-  auto input = tools::ReadNpy(dir + data_case.name + ".input.npy");
-  auto expected = tools::ReadNpy(dir + data_case.name + ".output.npy");
+  auto input = io::ReadNpy(dir + data_case.name + ".input.npy");
+  auto expected = io::ReadNpy(dir + data_case.name + ".output.npy");
   EXPECT_TRUE(input.ok()) << input.message();
   EXPECT_TRUE(expected.ok()) << expected.message();
   if (!model.ok() || !input.ok() || !expected.ok()) return INFINITY;

@@ -1,6 +1,6 @@
 // The output rule of sfrt/io/atomic_write.h: regular files are replaced atomically, devices and
 // FIFOs are written in place, symbolic links are followed and survive, failures are reported.
-#include "sfrt/io/atomic_write.h"
+#include "sfrt/pipeline/io/atomic_write.h"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -12,7 +12,7 @@
 #include <fstream>
 #include <string>
 
-namespace sfrt::tools {
+namespace sfrt::io {
 namespace {
 
 namespace fs = std::filesystem;
@@ -179,4 +179,4 @@ TEST_F(AtomicWriteTest, StreamedFileWritesARegularFileAsItGoes) {
 }
 
 }  // namespace
-}  // namespace sfrt::tools
+}  // namespace sfrt::io

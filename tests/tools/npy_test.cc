@@ -1,4 +1,4 @@
-#include "sfrt/io/npy.h"
+#include "sfrt/pipeline/io/npy.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace sfrt::tools {
+namespace sfrt::io {
 namespace {
 
 namespace fs = std::filesystem;
@@ -236,4 +236,4 @@ TEST_F(NpyTest, WritesAtomicallyAndLeavesNoTemporaryFiles) {
 }
 
 }  // namespace
-}  // namespace sfrt::tools
+}  // namespace sfrt::io

@@ -1,4 +1,4 @@
-#include "sfrt/io/pfm.h"
+#include "sfrt/pipeline/io/pfm.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-namespace sfrt::tools {
+namespace sfrt::io {
 namespace {
 
 namespace fs = std::filesystem;
@@ -190,4 +190,4 @@ TEST_F(PfmTest, FailedWriteLeavesExistingFileUntouched) {
 }
 
 }  // namespace
-}  // namespace sfrt::tools
+}  // namespace sfrt::io

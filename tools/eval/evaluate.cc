@@ -11,9 +11,9 @@
 #include <sstream>
 
 #include "eval/classical.h"
-#include "sfrt/io/imread.h"
-#include "sfrt/io/pfm.h"
 #include "sfrt/model.h"
+#include "sfrt/pipeline/io/imread.h"
+#include "sfrt/pipeline/io/pfm.h"
 #include "sfrt/session.h"
 #include "synth/annotate.h"
 #include "synth/dataset.h"
@@ -64,7 +64,7 @@ bool IsFile(const std::string& path) {
 }
 
 Result<cv::Mat> ReadImage(const std::string& path) {
-  cv::Mat image = tools::ReadImageOrEmpty(path);
+  cv::Mat image = io::ReadImageOrEmpty(path);
   if (image.empty() || image.type() != CV_8UC3) {
     return Status::Error(path + ": cannot be decoded as an 8-bit colour image");
   }
@@ -268,7 +268,7 @@ Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameR
                                            int* height, int* width) {
   const std::string sf = SceneFlowPath(root, frame);
   if (IsFile(sf)) {
-    Result<tools::PfmImage> gt = tools::ReadPfm(sf);
+    Result<io::PfmImage> gt = io::ReadPfm(sf);
     if (!gt.ok()) return gt.status();
     if (gt->channels != 3) {
       return Status::Error(sf + ": " + std::to_string(gt->channels) +
@@ -279,11 +279,11 @@ Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameR
     return std::move(gt->data);
   }
   const GtInputs in = GtInputPaths(root, frame);
-  Result<tools::PfmImage> d0 = tools::ReadPfm(in.disparity);
+  Result<io::PfmImage> d0 = io::ReadPfm(in.disparity);
   if (!d0.ok()) return d0.status();
-  Result<tools::PfmImage> change = tools::ReadPfm(in.change);
+  Result<io::PfmImage> change = io::ReadPfm(in.change);
   if (!change.ok()) return change.status();
-  Result<tools::PfmImage> flow = tools::ReadPfm(in.flow);
+  Result<io::PfmImage> flow = io::ReadPfm(in.flow);
   if (!flow.ok()) return flow.status();
   if (d0->channels != 1 || change->channels != 1 || flow->channels != 3 ||
       change->height != d0->height || change->width != d0->width || flow->height != d0->height ||

@@ -24,13 +24,13 @@
 #include <utility>
 #include <vector>
 
-#include "config/limits.h"
 #include "profiling/peak_fma.h"
-#include "profiling/stats.h"
 #include "profiling/system_info.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/pipeline/stats.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "config/capabilities.h"
-#include "config/profile.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/capabilities.h"
+#include "sfrt/config/profile.h"
 
 namespace sfrt::tools {
 namespace {

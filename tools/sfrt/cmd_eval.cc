@@ -8,11 +8,11 @@
 #include <memory>
 #include <string>
 
-#include "config/limits.h"
 #include "eval/evaluate.h"
 #include "sfrt/commands.h"
-#include "sfrt/io/atomic_write.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/model_notes.h"
+#include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/session_environment.h"
 
 namespace sfrt::tools {
@@ -106,7 +106,7 @@ int RunEval(const EvalArgs& args) {
   std::cout << done << "\n";
   if (!args.json.empty()) {
     const std::string json = eval::FormatJson(*report);
-    Status written = WriteFileAtomically(
+    Status written = io::WriteFileAtomically(
         args.json,
         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
     if (!written.ok()) return ReportError(kName, written.message(), kExitFailure);

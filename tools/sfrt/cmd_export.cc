@@ -30,10 +30,10 @@
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
 #include "sfrt/exporter/sfrt_importer.h"
-#include "sfrt/io/atomic_write.h"
-#include "sfrt/io/npy.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/io/npy.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
@@ -254,9 +254,9 @@ bool RunOnce(const std::shared_ptr<const Model>& model, const std::vector<float>
 }
 
 // Reads a float32 .npy of shape (H, W, C) or (1, H, W, C).
-bool ReadImageArray(const std::string& path, const char* flag, tools::NpyArray* array, int* height,
+bool ReadImageArray(const std::string& path, const char* flag, io::NpyArray* array, int* height,
                     int* width, int* channels, std::string* failure) {
-  Result<tools::NpyArray> read = tools::ReadNpy(path);
+  Result<io::NpyArray> read = io::ReadNpy(path);
   if (!read.ok()) {
     *failure = std::string(flag) + ": " + read.message();
     return false;
@@ -281,7 +281,7 @@ bool ReadImageArray(const std::string& path, const char* flag, tools::NpyArray* 
 bool ParityCheck(const std::shared_ptr<const Model>& model, const std::string& input_path,
                  const std::string& output_path, double tolerance, std::vector<std::string>* lines,
                  std::string* failure) {
-  tools::NpyArray input;
+  io::NpyArray input;
   int h = 0, w = 0, c = 0;
   if (!ReadImageArray(input_path, "--check-input", &input, &h, &w, &c, failure)) return false;
   if (c != model->metadata().input.channels) {
@@ -290,7 +290,7 @@ bool ParityCheck(const std::shared_ptr<const Model>& model, const std::string& i
                std::to_string(model->metadata().input.channels);
     return false;
   }
-  tools::NpyArray reference;
+  io::NpyArray reference;
   int rh = 0, rw = 0, rc = 0;
   if (!output_path.empty() &&
       !ReadImageArray(output_path, "--check-output", &reference, &rh, &rw, &rc, failure)) {
@@ -703,7 +703,7 @@ int RunExport(const ExportArgs& args) {
     }
   }
 
-  if (Status s = WriteFileAtomically(args.output, *bytes); !s.ok()) {
+  if (Status s = io::WriteFileAtomically(args.output, *bytes); !s.ok()) {
     return ReportError(kName, s.message(), kExitFailure);
   }
 

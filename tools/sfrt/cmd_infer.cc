@@ -13,17 +13,17 @@
 #include <string>
 #include <vector>
 
-#include "config/limits.h"
-#include "pipeline/pipeline.h"
-#include "profiling/stats.h"
 #include "sfrt/camera/preprocess.h"
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/commands.h"
-#include "sfrt/io/imread.h"
-#include "sfrt/io/npy.h"
-#include "sfrt/io/pfm.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
+#include "sfrt/pipeline/io/imread.h"
+#include "sfrt/pipeline/io/npy.h"
+#include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/stats.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 
@@ -81,7 +81,7 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
         !problem.empty()) {
       return Status::Error(problem);
     }
-    s.image = ReadImageOrEmpty(*s.path);  // 8-bit, BGR
+    s.image = io::ReadImageOrEmpty(*s.path);  // 8-bit, BGR
     if (s.image.empty()) {
       return Status::Error(std::string(s.flag) + " image '" + *s.path +
                            "' could not be decoded (not an image format OpenCV reads)");
@@ -93,7 +93,7 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   }
   // One note for the run when an image is not 8-bit colour (read as 8-bit BGR all the same).
   for (const Source& s : sources) {
-    const cv::Mat raw = ReadImageOrEmpty(*s.path, cv::IMREAD_UNCHANGED);
+    const cv::Mat raw = io::ReadImageOrEmpty(*s.path, cv::IMREAD_UNCHANGED);
     std::string what;
     if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";
     if (raw.depth() == CV_16U || raw.depth() == CV_16S)
@@ -150,7 +150,7 @@ Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc)
   if (std::string problem = CheckInputFile(path, "--input-npy file"); !problem.empty()) {
     return Status::Error(problem);
   }
-  Result<NpyArray> array = ReadNpy(path);
+  Result<io::NpyArray> array = io::ReadNpy(path);
   if (!array.ok()) return array.status();
   std::vector<int64_t> shape = array->shape;
   if (shape.size() == 4 && shape[0] == 1) shape.erase(shape.begin());
@@ -346,10 +346,10 @@ int RunInfer(const InferArgs& args) {
   Status written = Status::Ok();
   if (out_ext == ".pfm") {
     written =
-        WritePfm(args.output, output, out_shape->height, out_shape->width, out_shape->channels);
+        io::WritePfm(args.output, output, out_shape->height, out_shape->width, out_shape->channels);
   } else {
     const int64_t shape[3] = {out_shape->height, out_shape->width, out_shape->channels};
-    written = WriteNpy(args.output, shape, output);
+    written = io::WriteNpy(args.output, shape, output);
   }
   if (!written.ok()) return ReportError(kName, written.message(), kExitFailure);
   std::cout << "wrote   " << args.output << "\n";

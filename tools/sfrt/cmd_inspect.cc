@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "config/limits.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
 #include "sfrt/session.h"

@@ -1,12 +1,12 @@
 // sfrt report compare A.json B.json: the change per stage and per layer between two
-// `sfrt run --profile` reports (tools/pipeline/profile_report.h).
+// `sfrt run --profile` reports (sfrt/pipeline/profile_report.h).
 #include <CLI/CLI.hpp>
 #include <iostream>
 #include <memory>
 #include <string>
 
-#include "pipeline/profile_report.h"
 #include "sfrt/commands.h"
+#include "sfrt/pipeline/profile_report.h"
 
 namespace sfrt::tools {
 namespace {

@@ -1,4 +1,4 @@
-// sfrt run: the real-time pipeline (tools/pipeline) from a camera pair or recorded files to
+// sfrt run: the real-time pipeline (pipeline/) from a camera pair or recorded files to
 // scene-flow files, visualisations and a run summary.
 #include <linux/videodev2.h>
 
@@ -16,14 +16,14 @@
 #include <string>
 #include <vector>
 
-#include "config/limits.h"
-#include "pipeline/pipeline.h"
-#include "pipeline/sources.h"
 #include "sfrt/commands.h"
-#include "sfrt/io/atomic_write.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/sources.h"
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
@@ -261,12 +261,12 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
        {std::pair<const char*, const std::string&>{"--video", args.video},
         {"--latency-log", args.latency_log}}) {
     if (path.empty()) continue;
-    Result<OutputTarget> target = ResolveOutputTarget(path);
+    Result<io::OutputTarget> target = io::ResolveOutputTarget(path);
     if (!target.ok()) {
       return ReportError(kName, std::string(flag) + ": " + target.message(), kExitUsage);
     }
     // A device or FIFO is written in place: there is no directory to create a file in.
-    if (target->kind != OutputTarget::Kind::kReplace) continue;
+    if (target->kind != io::OutputTarget::Kind::kReplace) continue;
     const std::string parent = std::filesystem::path(target->path).parent_path().string();
     if (std::string problem = CheckWritableDirectory(parent.empty() ? "." : parent, flag);
         !problem.empty()) {

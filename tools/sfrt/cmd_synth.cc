@@ -10,8 +10,8 @@
 #include <string>
 #include <thread>
 
-#include "config/limits.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/limits.h"
 #include "synth/dataset.h"
 #include "synth/texture.h"
 

@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
-#include "config/profile.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/profile.h"
 #include "sfrt/model.h"
 
 #ifndef SFRT_WITH_EXPORTER

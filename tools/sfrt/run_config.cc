@@ -12,8 +12,8 @@
 #include <iostream>
 #include <thread>
 
-#include "config/capabilities.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/capabilities.h"
 
 namespace sfrt::tools {
 namespace {

@@ -26,11 +26,11 @@
 #include <string>
 #include <vector>
 
-#include "config/process_settings.h"
-#include "config/profile.h"
-#include "pipeline/pipeline.h"
-#include "pipeline/profile_report.h"
-#include "pipeline/profiler.h"
+#include "sfrt/config/process_settings.h"
+#include "sfrt/config/profile.h"
+#include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/profile_report.h"
+#include "sfrt/pipeline/profiler.h"
 
 namespace CLI {
 class App;

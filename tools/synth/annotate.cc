@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <limits>
 
-#include "sfrt/io/atomic_write.h"
-#include "sfrt/io/pfm.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/io/pfm.h"
 
 namespace sfrt::synth {
 namespace {
@@ -33,7 +33,7 @@ bool IsFile(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
-Status CheckSize(const tools::PfmImage& img, const tools::PfmImage& ref, int channels,
+Status CheckSize(const io::PfmImage& img, const io::PfmImage& ref, int channels,
                  const std::string& path, const std::string& ref_path) {
   if (img.channels != channels) {
     return Status::Error(path + ": has " + std::to_string(img.channels) + " channel(s), expected " +
@@ -63,7 +63,7 @@ bool SubsetIntrinsics(const std::string& subset, Intrinsics* out) {
 }
 
 Result<Intrinsics> ReadCameraJson(const std::string& path) {
-  Result<std::string> text = tools::ReadWholeFile(path);
+  Result<std::string> text = io::ReadWholeFile(path);
   if (!text.ok()) return text.status();
   Intrinsics k;
   auto field = [&](const char* key, double* value) -> Status {
@@ -175,18 +175,18 @@ Result<AnnotateSummary> AnnotateTree(
       ++summary.frames_skipped;
       continue;
     }
-    Result<tools::PfmImage> d0 = tools::ReadPfm(d0_path.string());
+    Result<io::PfmImage> d0 = io::ReadPfm(d0_path.string());
     if (!d0.ok()) return d0.status();
     if (d0->channels != 1) {
       return Status::Error(d0_path.string() + ": has " + std::to_string(d0->channels) +
                            " channels, expected 1 (disparity)");
     }
-    Result<tools::PfmImage> second = tools::ReadPfm(d1_path.string());
+    Result<io::PfmImage> second = io::ReadPfm(d1_path.string());
     if (!second.ok()) return second.status();
     if (Status s = CheckSize(*second, *d0, 1, d1_path.string(), d0_path.string()); !s.ok()) {
       return s;
     }
-    Result<tools::PfmImage> flow = tools::ReadPfm(flow_path.string());
+    Result<io::PfmImage> flow = io::ReadPfm(flow_path.string());
     if (!flow.ok()) return flow.status();
     if (Status s = CheckSize(*flow, *d0, 3, flow_path.string(), d0_path.string()); !s.ok()) {
       return s;
@@ -201,7 +201,7 @@ Result<AnnotateSummary> AnnotateTree(
       return Status::Error("cannot create directory '" + out_dir.string() + "': " + ec.message());
     }
     const std::string out_path = (out_dir / (name + ".pfm")).string();
-    if (Status s = tools::WritePfm(out_path, sf, d0->height, d0->width, 3); !s.ok()) return s;
+    if (Status s = io::WritePfm(out_path, sf, d0->height, d0->width, 3); !s.ok()) return s;
     ++summary.frames_written;
     summary.pixels += n;
     summary.invalid_pixels += invalid;

@@ -9,8 +9,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "sfrt/io/atomic_write.h"
-#include "sfrt/io/pfm.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/io/pfm.h"
 
 namespace sfrt::synth {
 namespace {
@@ -41,7 +41,7 @@ std::string JsonString(const std::string& s) {
 }
 
 Status WriteText(const fs::path& path, const std::string& text) {
-  return tools::WriteFileAtomically(
+  return io::WriteFileAtomically(
       path.string(),
       std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
@@ -59,7 +59,7 @@ Status WritePng(const fs::path& path, const std::vector<uint8_t>& bgr, int heigh
   if (!cv::imencode(".png", img, bytes)) {
     return Status::Error("cannot encode '" + path.string() + "' as PNG");
   }
-  return tools::WriteFileAtomically(path.string(), bytes);
+  return io::WriteFileAtomically(path.string(), bytes);
 }
 
 // The value after `"key":` in a camera.json as sfrt synth writes it, up to the next ',', '}' or
@@ -84,7 +84,7 @@ constexpr char kGenerator[] = "\"sfrt synth\"";
 bool WrittenBySynth(const fs::path& dir, std::string* text) {
   std::error_code ec;
   if (!fs::is_regular_file(dir / "camera.json", ec)) return false;
-  Result<std::string> read = tools::ReadWholeFile((dir / "camera.json").string());
+  Result<std::string> read = io::ReadWholeFile((dir / "camera.json").string());
   if (!read.ok()) return false;
   *text = std::move(read).value();
   return JsonValue(*text, "generator") == kGenerator;
@@ -204,15 +204,15 @@ Status WriteTree(const DatasetOptions& options, const fs::path& root,
       const std::string name = FrameName(f);
       Status st = WritePng(images / "left" / (name + ".png"), fr.left, h, w);
       if (st.ok()) st = WritePng(images / "right" / (name + ".png"), fr.right, h, w);
-      if (st.ok()) st = tools::WritePfm((disp / (name + ".pfm")).string(), fr.disparity, h, w, 1);
+      if (st.ok()) st = io::WritePfm((disp / (name + ".pfm")).string(), fr.disparity, h, w, 1);
       if (st.ok()) {
-        st = tools::WritePfm((dchange / (name + ".pfm")).string(), fr.disparity_change, h, w, 1);
+        st = io::WritePfm((dchange / (name + ".pfm")).string(), fr.disparity_change, h, w, 1);
       }
       if (st.ok()) {
-        st = tools::WritePfm((flow / ("OpticalFlowIntoFuture_" + name + "_L.pfm")).string(),
-                             fr.optical_flow, h, w, 3);
+        st = io::WritePfm((flow / ("OpticalFlowIntoFuture_" + name + "_L.pfm")).string(),
+                          fr.optical_flow, h, w, 3);
       }
-      if (st.ok()) st = tools::WritePfm((sflow / (name + ".pfm")).string(), fr.scene_flow, h, w, 3);
+      if (st.ok()) st = io::WritePfm((sflow / (name + ".pfm")).string(), fr.scene_flow, h, w, 3);
       if (!st.ok()) return st;
       p.sequence = s;
       p.frame = f;

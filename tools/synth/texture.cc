@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
-#include "sfrt/io/imread.h"
+#include "sfrt/pipeline/io/imread.h"
 
 namespace sfrt::synth {
 namespace {
@@ -232,7 +232,7 @@ Texture MakeProceduralTexture(Rng& rng, int size) {
 }
 
 Result<Texture> LoadTextureImage(const std::string& path) {
-  cv::Mat img = tools::ReadImageOrEmpty(path);
+  cv::Mat img = io::ReadImageOrEmpty(path);
   if (img.empty()) return Status::Error("texture '" + path + "': cannot read it as an image");
   if (img.depth() != CV_8U || img.channels() != 3 || img.rows < 2 || img.cols < 2) {
     return Status::Error("texture '" + path + "': expected an 8-bit colour image of 2x2 or more");

@@ -1,6 +1,6 @@
-// The capability check (tools/config/capabilities.h), driven through hand-made
+// The capability check (sfrt/config/capabilities.h), driven through hand-made
 // ProcessCapabilities snapshots, and the /proc parsing and system query behind it.
-#include "config/capabilities.h"
+#include "sfrt/config/capabilities.h"
 
 #include <gtest/gtest.h>
 #include <sched.h>

@@ -1,7 +1,7 @@
-// Applying a profile's process settings (tools/config/process_settings.h) through the seams:
+// Applying a profile's process settings (sfrt/config/process_settings.h) through the seams:
 // hand-made ProcessCapabilities and ThreadOps that record calls instead of making them, so the
 // outcome does not depend on who runs the test (root or not, container or not).
-#include "config/process_settings.h"
+#include "sfrt/config/process_settings.h"
 
 #include <gtest/gtest.h>
 

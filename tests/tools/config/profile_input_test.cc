@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "config/limits.h"
-#include "config/profile.h"
+#include "sfrt/config/limits.h"
+#include "sfrt/config/profile.h"
 
 namespace sfrt::config {
 namespace {
@@ -123,7 +123,8 @@ TEST(Limits, TheReadmeTableMatchesTheCode) {
   std::stringstream text;
   text << in.rdbuf();
   const std::string doc = text.str();
-  const std::string begin = "<!-- limits table: generated from tools/config/limits.h";
+  const std::string begin =
+      "<!-- limits table: generated from firmware-cfg/include/sfrt/config/limits.h";
   const size_t start = doc.find(begin);
   const size_t end = doc.find("<!-- end of limits table -->");
   ASSERT_NE(start, std::string::npos);

@@ -1,6 +1,6 @@
-// Profile parsing and validation (tools/config/profile.h): the shipped profiles, the exact errors
+// Profile parsing and validation (sfrt/config/profile.h): the shipped profiles, the exact errors
 // of every broken profile, defaults, and relative path resolution.
-#include "config/profile.h"
+#include "sfrt/config/profile.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

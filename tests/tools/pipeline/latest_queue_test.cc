@@ -1,4 +1,4 @@
-#include "pipeline/latest_queue.h"
+#include "sfrt/pipeline/latest_queue.h"
 
 #include <gtest/gtest.h>
 

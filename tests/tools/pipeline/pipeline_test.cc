@@ -1,5 +1,5 @@
 // The pipeline with a fake frame source and the bundled 1/16-width demo model.
-#include "pipeline/pipeline.h"
+#include "sfrt/pipeline/pipeline.h"
 
 #include <gtest/gtest.h>
 
@@ -12,10 +12,10 @@
 #include <string>
 #include <thread>
 
-#include "pipeline/visualize.h"
 #include "sfrt/camera/rectifier.h"
-#include "sfrt/io/npy.h"
-#include "sfrt/io/pfm.h"
+#include "sfrt/pipeline/io/npy.h"
+#include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
 
 namespace sfrt::pipeline {
@@ -163,7 +163,7 @@ TEST_F(PipelineTest, ReplayWritesEveryWindowAndMatchesDirectInference) {
     ASSERT_TRUE((*session)->Run(input, kH, kW, flow).ok());
     char name[32];
     std::snprintf(name, sizeof(name), "seq_%06d.pfm", k);
-    auto written = tools::ReadPfm((dir_ / name).string());
+    auto written = io::ReadPfm((dir_ / name).string());
     ASSERT_TRUE(written.ok()) << written.message();
     ASSERT_EQ(written->data.size(), flow.size());
     for (size_t i = 0; i < flow.size(); ++i)
@@ -233,7 +233,7 @@ TEST_F(PipelineTest, StopRequestFinishesWindowsInFlightAndSaysSo) {
   EXPECT_EQ(written, j["frames"]["read"].get<int64_t>());
   EXPECT_FALSE(AnyTempFile());
   for (const std::string& f : Files(".pfm")) {
-    auto pfm = tools::ReadPfm((dir_ / f).string());
+    auto pfm = io::ReadPfm((dir_ / f).string());
     EXPECT_TRUE(pfm.ok()) << pfm.message();
   }
 }
@@ -313,7 +313,7 @@ class SmallerInputTest : public PipelineTest {
   std::vector<std::pair<int, int>> FlowSizes(int windows) {
     std::vector<std::pair<int, int>> sizes;
     for (int k = 0; k < windows; ++k) {
-      auto pfm = tools::ReadPfm((dir_ / (Stem(k) + ".pfm")).string());
+      auto pfm = io::ReadPfm((dir_ / (Stem(k) + ".pfm")).string());
       EXPECT_TRUE(pfm.ok()) << pfm.message();
       sizes.emplace_back(pfm.ok() ? pfm->height : -1, pfm.ok() ? pfm->width : -1);
     }
@@ -339,7 +339,7 @@ TEST_F(SmallerInputTest, ImpossibleBudgetRunsEveryLaterWindowAtTheFallbackSizeLi
   for (int k = 0; k < 5; ++k) {
     const int h = k == 0 ? kH : kFbH, w = k == 0 ? kW : kFbW;
     const std::vector<float> want = DirectFlow(model, k, h, w);
-    auto got = tools::ReadPfm((dir_ / (Stem(k) + ".pfm")).string());
+    auto got = io::ReadPfm((dir_ / (Stem(k) + ".pfm")).string());
     ASSERT_TRUE(got.ok()) << got.message();
     ASSERT_EQ(got->data.size(), want.size()) << k;
     for (size_t i = 0; i < want.size(); ++i) ASSERT_EQ(got->data[i], want[i]) << k << " " << i;
@@ -400,7 +400,7 @@ TEST_F(SmallerInputTest, RecoversAfterNInBudgetFallbackWindowsAndAMissAtFallback
   const std::vector<bool> want_fb = {false, true,  true,  true, true, true,
                                      true,  false, false, true, true};
   for (int k = 0; k < 11; ++k) {
-    auto npy = tools::ReadNpy((dir_ / (Stem(k) + ".npy")).string());
+    auto npy = io::ReadNpy((dir_ / (Stem(k) + ".npy")).string());
     ASSERT_TRUE(npy.ok()) << npy.message();
     const std::vector<int64_t> want =
         want_fb[k] ? std::vector<int64_t>{kFbH, kFbW, 3} : std::vector<int64_t>{kH, kW, 3};

@@ -14,9 +14,9 @@
 #include <sstream>
 #include <string>
 
-#include "pipeline/pipeline.h"
-#include "pipeline/profile_report.h"
-#include "pipeline/profiler.h"
+#include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/profile_report.h"
+#include "sfrt/pipeline/profiler.h"
 #include "sfrt/session.h"
 
 namespace sfrt::pipeline {

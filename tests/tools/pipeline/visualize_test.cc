@@ -1,6 +1,6 @@
 // The visualisation's legend layout (no overlaps at any size), its colour scales and the
 // --vis-scale syntax.
-#include "pipeline/visualize.h"
+#include "sfrt/pipeline/visualize.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
-// tools/profiling/stats.h: percentiles against hand-computed values, summaries, the step
+// sfrt/pipeline/stats.h: percentiles against hand-computed values, summaries, the step
 // recorder and tables, and step labels on the bundled demo model.
-#include "profiling/stats.h"
+#include "sfrt/pipeline/stats.h"
 
 #include <gtest/gtest.h>
 

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "sfrt/io/atomic_write.h"
-#include "sfrt/io/pfm.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/io/pfm.h"
 #include "synth/annotate.h"
 #include "synth/dataset.h"
 #include "synth/render.h"
@@ -339,8 +339,8 @@ TEST(SynthAnnotate, ReproducesGeneratorSceneFlowWithin1e3Relative) {
     for (int f = 0; f < 3; ++f) {
       const fs::path rel = fs::path("scene_flow") / SequenceName(seq) / "into_future" / "left" /
                            (FrameName(f) + ".pfm");
-      Result<tools::PfmImage> a = tools::ReadPfm((out.path() / rel).string());
-      Result<tools::PfmImage> g = tools::ReadPfm((data.path() / rel).string());
+      Result<io::PfmImage> a = io::ReadPfm((out.path() / rel).string());
+      Result<io::PfmImage> g = io::ReadPfm((data.path() / rel).string());
       ASSERT_TRUE(a.ok() && g.ok());
       ASSERT_EQ(a->data.size(), g->data.size());
       for (size_t i = 0; i < a->data.size(); i += 3) {
@@ -378,13 +378,13 @@ TEST(SynthAnnotate, FormulaAndAuthorsPublishedConventionsMatchHandComputation) {
     flow[i * 3] = 1.5f;
     flow[i * 3 + 1] = -0.5f;
   }
-  ASSERT_TRUE(tools::WritePfm((root / "disparity/s/left/0006.pfm").string(), d0, h, w, 1).ok());
-  ASSERT_TRUE(tools::WritePfm((root / "disparity/s/left/0007.pfm").string(), d1, h, w, 1).ok());
-  ASSERT_TRUE(tools::WritePfm((root / "disparity_change/s/into_future/left/0006.pfm").string(),
-                              change, h, w, 1)
+  ASSERT_TRUE(io::WritePfm((root / "disparity/s/left/0006.pfm").string(), d0, h, w, 1).ok());
+  ASSERT_TRUE(io::WritePfm((root / "disparity/s/left/0007.pfm").string(), d1, h, w, 1).ok());
+  ASSERT_TRUE(io::WritePfm((root / "disparity_change/s/into_future/left/0006.pfm").string(), change,
+                           h, w, 1)
                   .ok());
   ASSERT_TRUE(
-      tools::WritePfm(
+      io::WritePfm(
           (root / "optical_flow/s/into_future/left/OpticalFlowIntoFuture_0006_L.pfm").string(),
           flow, h, w, 3)
           .ok());
@@ -399,7 +399,7 @@ TEST(SynthAnnotate, FormulaAndAuthorsPublishedConventionsMatchHandComputation) {
     EXPECT_EQ(s->frames_written, 1);  // 0007 has no disparity change or flow
     EXPECT_EQ(s->frames_skipped, 1);
     EXPECT_EQ(s->invalid_pixels, 1u);
-    Result<tools::PfmImage> sf = tools::ReadPfm(result.string());
+    Result<io::PfmImage> sf = io::ReadPfm(result.string());
     ASSERT_TRUE(sf.ok());
     const double z0 = 200.0 / 10.0, z1 = 200.0 / 12.0;  // d1 = 10 + 2
     EXPECT_NEAR(sf->data[i + 0], (3 + 1.5 - 1.5) * z1 / 100 - (3 - 1.5) * z0 / 100, 1e-6);
@@ -412,7 +412,7 @@ TEST(SynthAnnotate, FormulaAndAuthorsPublishedConventionsMatchHandComputation) {
         AnnotateTree(root.string(), out.path().string(), k, ConventionKind::kAuthorsPublished);
     ASSERT_TRUE(s.ok()) << s.message();
     EXPECT_EQ(s->frames_written, 1);  // 0007 has no 0008
-    Result<tools::PfmImage> sf = tools::ReadPfm(result.string());
+    Result<io::PfmImage> sf = io::ReadPfm(result.string());
     ASSERT_TRUE(sf.ok());
     const double z0 = 200.0 / 10.0, z1 = 200.0 / 12.5;  // d1 = next frame's disparity
     // Row index with cx and u; column with cy and v.
@@ -440,16 +440,15 @@ TEST(SynthAnnotate, ReadsRealSceneFlowDisparityWithTrailingSpaceHeader) {
   fs::copy_file(sample, root / "disparity/Driving/left/0006.pfm");
   const int h = 270, w = 480;
   std::vector<float> zeros1(h * w, 0.0f), zeros3(h * w * 3, 0.0f);
-  ASSERT_TRUE(
-      tools::WritePfm((root / "disparity_change/Driving/into_future/left/0006.pfm").string(),
-                      zeros1, h, w, 1)
-          .ok());
-  ASSERT_TRUE(tools::WritePfm(
-                  (root / "optical_flow/Driving/into_future/left/OpticalFlowIntoFuture_0006_L.pfm")
-                      .string(),
-                  zeros3, h, w, 3)
+  ASSERT_TRUE(io::WritePfm((root / "disparity_change/Driving/into_future/left/0006.pfm").string(),
+                           zeros1, h, w, 1)
                   .ok());
-  Result<tools::PfmImage> disp = tools::ReadPfm(sample.string());
+  ASSERT_TRUE(
+      io::WritePfm((root / "optical_flow/Driving/into_future/left/OpticalFlowIntoFuture_0006_L.pfm")
+                       .string(),
+                   zeros3, h, w, 3)
+          .ok());
+  Result<io::PfmImage> disp = io::ReadPfm(sample.string());
   ASSERT_TRUE(disp.ok()) << disp.message();
   ASSERT_EQ(disp->height, h);
   ASSERT_EQ(disp->width, w);
@@ -473,8 +472,8 @@ TEST(SynthAnnotate, ReadsRealSceneFlowDisparityWithTrailingSpaceHeader) {
   ASSERT_TRUE(s.ok()) << s.message();
   EXPECT_EQ(s->frames_written, 1);
   EXPECT_EQ(s->invalid_pixels, non_positive);
-  Result<tools::PfmImage> sf =
-      tools::ReadPfm((out.path() / "scene_flow/Driving/into_future/left/0006.pfm").string());
+  Result<io::PfmImage> sf =
+      io::ReadPfm((out.path() / "scene_flow/Driving/into_future/left/0006.pfm").string());
   ASSERT_TRUE(sf.ok());
   size_t nan = 0;
   for (size_t i = 0; i < sf->data.size(); i += 3) {

@@ -1,0 +1,218 @@
+// The real-time scene-flow pipeline behind `sfrt run` (issue #5).
+//
+// Four stages, each on its own thread, connected by bounded LatestQueues (latest_queue.h):
+//
+//   source ──q1──> preprocess ──q2──> infer ──q3──> output
+//   (camera or     (rectify/resize,    (Session::Run  (flow .pfm/.npy, visualisation PNG,
+//    replay: one    the model's         into a        optional AVI, statistics, progress)
+//    (t, t+1)       normalisation)      preallocated
+//    window)                            output)
+//
+// Every window carries the capture timestamps of its two stereo pairs and the start and end of
+// each stage, all on one clock: CLOCK_MONOTONIC (std::chrono::steady_clock on Linux, the clock
+// V4L2 stamps buffers with). For files the capture time is when the source finished reading.
+// End-to-end latency = end of output - capture of pair t+1; a window over --budget-ms is a
+// deadline miss.
+//
+// Queue policy: kNewestWins (live cameras) discards the older queued window when a newer one
+// arrives, so no stage ever works on a stale frame; the discards are counted per stage. kBlock
+// (replays) makes the source wait, so every window is processed.
+//
+// Memory: every buffer (raw images, network input, flow, visualisation) is allocated before the
+// threads start, at the source's frame size and the model input size, and circulates between
+// the stages by swapping. The infer stage only swaps and calls Session::Run: no allocation.
+//
+// Stopping: `stop` (set from a signal handler by the caller) makes the source stop reading;
+// windows already read are finished and written (at most one per queue slot and stage), so
+// every output file is complete (all are written to a temporary name and renamed). A fatal error
+// in a stage stops the source and discards the queued windows. The summary (summary.json in the
+// output directory) is written in every case (unless write_summary is false) and says how far
+// the run got and why it stopped.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <nlohmann/json_fwd.hpp>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sfrt/camera/calibration.h"
+#include "sfrt/camera/preprocess.h"
+#include "sfrt/isa.h"
+#include "sfrt/model.h"
+#include "sfrt/pipeline/latest_queue.h"
+#include "sfrt/pipeline/stats.h"
+#include "sfrt/pipeline/visualize.h"
+#include "sfrt/session.h"
+#include "sfrt/status.h"
+
+namespace sfrt::pipeline {
+
+class FrameProfiler;  // profiler.h
+
+// The model's input metadata as camera/ preprocessing parameters (image order, colour order,
+// scale, mean, std). Errors name the metadata field and value.
+Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input);
+
+// What is known about a window before preprocessing.
+struct FrameMeta {
+  int64_t window = -1;             // number of the window in source order (0, 1, ...)
+  std::string sequence;            // "" for single-sequence sources
+  int64_t frame0 = -1;             // frame number of pair t (file number, or the camera's sequence)
+  int64_t frame1 = -1;             // frame number of pair t+1
+  std::string left0_path;          // where the left image at t came from ("" for cameras)
+  int64_t capture_ns[2] = {0, 0};  // capture time of pair t and t+1 (CLOCK_MONOTONIC)
+  // [stage][0 start, 1 end], CLOCK_MONOTONIC ns; stages: source, preprocess, infer, output.
+  int64_t stage_ns[4][2] = {};
+  // The network input size the window was preprocessed and inferred at (set by the preprocess
+  // stage): the model input size, or the fallback size under `smaller_input_on_miss`.
+  int input_height = 0;
+  int input_width = 0;
+};
+
+// A (t, t+1) window as read: four BGR images of the source's frame size.
+struct WindowItem {
+  FrameMeta meta;
+  cv::Mat left0, right0, left1, right1;
+};
+
+enum class Fetch { kWindow, kEnd };
+
+// A source of (t, t+1) windows, driven by the source stage's thread.
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  // Opens the source and returns the frame size of the raw images (width x height). Called once,
+  // on the caller's thread, before the stages start.
+  virtual Result<cv::Size> Open() = 0;
+  // Fills item->meta (sequence, frame numbers, path, capture times) and the four images (reusing
+  // their memory when the size matches). Must return within about a second when `stop` is set.
+  // An error ends the run (a bad frame under --on-bad-frame stop, a lost device that cannot be
+  // reopened, ...).
+  virtual Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& stop) = 0;
+  // One line, e.g. "replay: Scene Flow dataset ... (2 sequences)".
+  virtual std::string Describe() const = 0;
+  virtual std::string kind() const = 0;  // "camera", "sbs-camera", "replay", ...
+  // Windows the source will deliver, when known up front (replays).
+  virtual std::optional<int64_t> total_windows() const { return std::nullopt; }
+  // Live sources default to kNewestWins, files to kBlock.
+  virtual bool live() const = 0;
+  // Source-specific facts for summary.json (camera formats and counters, bad frames).
+  virtual void ToJson(nlohmann::json* out) const = 0;
+  // Frames the source itself lost before the pipeline saw them (driver sequence gaps, frames
+  // left without a stereo partner), for the summary's per-stage drop counts.
+  virtual uint64_t drops() const { return 0; }
+  // Bad frames skipped (or the one that stopped the run), by path.
+  struct BadFrame {
+    std::string path;
+    std::string reason;
+  };
+  virtual std::vector<BadFrame> bad_frames() const { return {}; }
+};
+
+enum class FlowFormat { kPfm, kNpy };
+// What a failed output write (disk full, read-only or vanished directory, ...) does to the run.
+// Either way the window's files are all or nothing: every file is written to a temporary name and
+// renamed, and the files of a window already written are removed when a later one fails.
+//   kStop: the run ends with the error (exit 1), queued windows are discarded.
+//   kSkip: the window is dropped, counted and listed in the summary; the run goes on.
+enum class OutputErrorPolicy { kStop, kSkip };
+enum class ProgressMode { kAuto, kTty, kLines, kOff };
+
+struct PipelineOptions {
+  std::string out_dir;  // must exist
+  FlowFormat flow_format = FlowFormat::kPfm;
+  bool write_flow = true;
+  bool write_png = true;
+  OutputErrorPolicy on_output_error = OutputErrorPolicy::kStop;
+  std::string video_path;  // "" = no video; written as MJPG AVI
+  VisScale vis_scale;      // colour scale of the PNGs and the video (visualize.h)
+  double video_fps = 10;
+  double budget_ms = 0;    // 0 = no deadline accounting
+  int64_t max_frames = 0;  // 0 = until the source ends or a stop
+  // > 0: the source reads at most this many windows a second, on a fixed schedule (never in a
+  // burst to catch up), as a camera would deliver them; 0 = as fast as the pipeline takes them.
+  double source_fps = 0;
+  int height = 0;  // model input size; 0 = the source's frame size
+  int width = 0;
+  Isa isa = Isa::kAuto;
+  int threads = 1;
+  KernelTuning tuning{};  // the session's optimised-path switches (defaults: the fastest)
+  std::optional<QueuePolicy> policy;  // default: kNewestWins for live sources, kBlock otherwise
+  size_t queue_capacity = 1;
+  std::optional<camera::StereoCalibration> calibration;  // rectify with it (else resize only)
+  ProgressMode progress = ProgressMode::kAuto;
+  int progress_every = 10;  // kLines: one line every this many frames
+  std::string model_path;   // for the summary
+  // "" = none; else a CSV file, one line per written window: window number, the four stage
+  // durations and end to end (ms). For soak runs (tools/soak.sh); --profile has more.
+  std::string latency_log;
+  // Set asynchronously (signal handler) to stop; stop_signal says which signal (0 = none).
+  const std::atomic<bool>* stop = nullptr;
+  const std::atomic<int>* stop_signal = nullptr;
+  // Deployment settings (`sfrt run --config`, issue #6):
+  // called first on each stage's thread with its index (0 source, 1 preprocess, 2 infer,
+  // 3 output), e.g. to set the thread's CPU affinity and SCHED_FIFO priority.
+  std::function<void(int stage)> on_stage_start;
+  bool prefault = false;           // one inference on zeros at setup: arena and weights paged in
+  bool drop_next_on_miss = false;  // a deadline miss makes the source skip its next window
+  // latency.on_miss: smaller-input. {0, 0} = off. Otherwise, after a window over budget the
+  // following windows are preprocessed and inferred at this size (<= the model input size in
+  // both dimensions, smaller in one); after `recover_after` consecutive in-budget windows at
+  // this size the run returns to the model input size. A miss at the fallback size restarts
+  // the count (hysteresis). Buffers are sized for the model input size at start, so switching
+  // allocates nothing. Flow files have the size the window ran at; the PNG/video show the
+  // flow upscaled (bilinear) to the model input size, so they keep one size.
+  struct Size2 {
+    int height = 0;
+    int width = 0;
+  };
+  Size2 smaller_input_on_miss;
+  int recover_after = 30;     // >= 1
+  bool write_summary = true;  // false: no summary.json (outputs.summary: false)
+  // Test seams (null in the product). `miss_verdict` decides whether a written window counts as
+  // a deadline miss, given the budget's verdict (end to end > budget_ms), so a test need not
+  // depend on wall-clock speed. `after_window` is called by the output stage once it is done
+  // with a written window (after the on-miss state has changed), e.g. to pace a fake source.
+  std::function<bool(const FrameMeta& meta, bool over_budget)> miss_verdict;
+  std::function<void(const FrameMeta& meta)> after_window;
+  // `--profile` (profiler.h): per-frame stage and step timestamps into this preallocated ring.
+  FrameProfiler* profiler = nullptr;
+};
+
+struct PipelineResult {
+  Status status;              // ok, or the error that ended the run
+  bool started = false;       // false: setup failed (source open, session), no stage ran
+  int64_t frames = 0;         // windows whose outputs were written
+  int64_t output_errors = 0;  // windows whose outputs could not be written (skipped or the stop)
+  std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
+  std::string summary_path;   // "" if even the summary could not be written
+  double fps = 0;             // frames / wall time
+  profiling::Summary end_to_end;        // milliseconds
+  profiling::Summary stage[4];          // source, preprocess, infer, output
+  int64_t misses = 0;                   // windows over the budget (or miss_verdict)
+  int64_t frames_at_fallback_size = 0;  // written windows that ran at smaller_input_on_miss
+  int64_t fallback_entries = 0;         // switches from the model input size to the fallback
+  std::vector<std::string> warnings;
+};
+
+// Runs the pipeline until the source ends, max_frames are written, *stop is set or a stage
+// fails. Writes summary.json in every case (unless the output directory is unusable or
+// write_summary is false).
+PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* source,
+                           const PipelineOptions& options);
+
+// Where --video will be written: `path` after following symbolic links (the file renamed onto
+// at the end). The MJPG/AVI writer seeks back to finish the file, so it needs a regular file or
+// a new path; a character device or FIFO is refused with a message saying so, naming the path.
+Result<std::string> ResolveVideoPath(const std::string& path);
+
+// Output file stem of a window: "<sequence with '/' as '_'>_<frame0, 6 digits>", or
+// "frame_<frame0>" when the sequence is empty.
+std::string OutputStem(const FrameMeta& meta);
+
+}  // namespace sfrt::pipeline

@@ -1,0 +1,964 @@
+#include "sfrt/pipeline/pipeline.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <span>
+#include <thread>
+#include <utility>
+
+#include "sfrt/camera/rectifier.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/io/npy.h"
+#include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/profiler.h"
+#include "sfrt/pipeline/visualize.h"
+#include "sfrt/session.h"
+
+namespace sfrt::pipeline {
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kStageNames[4] = {"source", "preprocess", "infer", "output"};
+
+int64_t NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
+// Whether the AVI at `path` holds `frames` frames, by its index (nothing is decoded).
+Status CheckVideoComplete(const std::string& path, int64_t frames) {
+  cv::VideoCapture cap(path, cv::CAP_OPENCV_MJPEG);
+  const double indexed = cap.isOpened() ? cap.get(cv::CAP_PROP_FRAME_COUNT) : -1;
+  if (indexed == static_cast<double>(frames)) return Status::Ok();
+  const std::string found =
+      indexed < 0 ? "cannot be read back"
+                  : "holds " + std::to_string(static_cast<int64_t>(indexed)) + " frames";
+  return Status::Error("'" + path + "' " + found + " though " + std::to_string(frames) +
+                       " were written (a failed write, such as a full disk; OpenCV's "
+                       "VideoWriter does not report those)");
+}
+
+std::string Fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
+  return buf;
+}
+
+// The latest kLatencyWindow latencies of one kind, in memory allocated and touched once (before
+// the stages start), so a run of any length keeps a constant resident size. Percentiles in the
+// summary describe these latest windows (all of them in runs up to kLatencyWindow windows).
+constexpr size_t kLatencyWindow = size_t{1} << 16;
+class LatencyWindow {
+ public:
+  LatencyWindow() : values_(kLatencyWindow, -1.0) {}
+  void Add(double ms) { values_[added_++ % values_.size()] = ms; }
+  std::vector<double> Values() const {
+    return {values_.begin(),
+            values_.begin() + static_cast<ptrdiff_t>(std::min(added_, values_.size()))};
+  }
+
+ private:
+  std::vector<double> values_;
+  size_t added_ = 0;
+};
+
+struct InputItem {
+  FrameMeta meta;
+  cv::Mat left_vis;          // rectified left image at t, model size (for the visualisation)
+  std::vector<float> input;  // height x width x 12
+};
+
+struct FlowItem {
+  FrameMeta meta;
+  cv::Mat left_vis;
+  std::vector<float> flow;       // height x width x output channels
+  std::vector<int64_t> step_ns;  // --profile: Session::Run's step end times (steps + 1)
+};
+
+json PercentilesJson(const profiling::Summary& p) {
+  return json{{"p50", p.p50}, {"p90", p.p90}, {"p99", p.p99}, {"max", p.max}, {"count", p.count}};
+}
+
+class Runner {
+ public:
+  Runner(std::shared_ptr<const Model> model, FrameSource* source, const PipelineOptions& options)
+      : model_(std::move(model)), source_(source), options_(options) {}
+
+  PipelineResult Run();
+
+ private:
+  Status Setup();
+  void SourceStage();
+  void PreprocessStage();
+  void InferStage();
+  void OutputStage();
+  void Fail(const Status& status, bool discard);
+  Status SetupFallback();
+  void UpdateFallback(const FrameMeta& m, bool miss);
+  void Progress(bool final);
+  Status WriteSummary(PipelineResult* result);
+  WindowItem MakeWindow() const;
+  InputItem MakeInput() const;
+  FlowItem MakeFlow() const;
+
+  std::shared_ptr<const Model> model_;
+  FrameSource* source_;
+  PipelineOptions options_;
+
+  cv::Size source_size_;
+  int height_ = 0;
+  int width_ = 0;
+  int out_channels_ = 0;
+  std::unique_ptr<Session> session_;
+  std::optional<camera::Preprocessor> preprocessor_;
+  std::optional<camera::StereoRectifier> rectifier_;
+  // latency.on_miss: smaller-input (fallback_ = on): the fallback size's rectifier and
+  // preprocessor, made at setup; use_fallback_ is set and cleared by the output stage and read
+  // by the preprocess stage at the start of each window.
+  bool fallback_ = false;
+  int fb_height_ = 0;
+  int fb_width_ = 0;
+  std::optional<camera::Preprocessor> fb_preprocessor_;
+  std::optional<camera::StereoRectifier> fb_rectifier_;
+  std::atomic<bool> use_fallback_{false};
+  QueuePolicy policy_ = QueuePolicy::kBlock;
+  std::unique_ptr<LatestQueue<WindowItem>> q1_;
+  std::unique_ptr<LatestQueue<InputItem>> q2_;
+  std::unique_ptr<LatestQueue<FlowItem>> q3_;
+
+  std::atomic<bool> halt_{false};  // the source stops reading
+  std::atomic<bool> max_reached_{false};
+  std::mutex mu_;  // guards error_ and the counters the main thread reads while running
+  Status error_ = Status::Ok();
+  std::vector<std::string> warnings_;
+
+  // Written by one stage each; read after the threads are joined.
+  int64_t windows_read_ = 0;
+  int64_t frames_ = 0;
+  int64_t misses_ = 0;
+  int64_t discarded_after_max_ = 0;
+  std::atomic<bool> skip_next_{false};  // drop_next_on_miss: set by output, taken by source
+  int64_t skipped_after_miss_ = 0;      // written by the source stage
+  // smaller-input, written by the output stage:
+  int64_t fallback_streak_ = 0;     // consecutive in-budget windows at the fallback size
+  int64_t frames_at_fallback_ = 0;  // written windows that ran at the fallback size
+  int64_t fallback_entries_ = 0;    // switches to the fallback size
+  int64_t recoveries_ = 0;          // switches back to the model input size
+  int64_t output_errors_ = 0;
+  static constexpr size_t kMaxListedSkips = 100;        // summary.json lists at most this many
+  std::vector<FrameSource::BadFrame> skipped_outputs_;  // {stem, error} under kSkip
+  LatencyWindow stage_ms_[4];
+  LatencyWindow e2e_ms_;
+  io::StreamedFile latency_log_;  // --latency-log
+  std::string latency_log_lost_;  // under kSkip: why the log stopped (a warning at the end)
+  std::string last_stem_;
+  std::string video_final_;  // --video after following symbolic links: renamed onto at the end
+  std::string video_tmp_;
+  bool video_written_ = false;
+  int64_t video_frames_ = 0;  // frames handed to the VideoWriter
+  int64_t start_ns_ = 0;
+  int64_t end_ns_ = 0;
+  int64_t last_progress_ns_ = 0;
+  bool tty_progress_ = false;
+  bool line_progress_ = false;
+};
+
+WindowItem Runner::MakeWindow() const {
+  WindowItem w;
+  for (cv::Mat* m : {&w.left0, &w.right0, &w.left1, &w.right1}) {
+    m->create(source_size_, CV_8UC3);
+  }
+  return w;
+}
+
+InputItem Runner::MakeInput() const {
+  InputItem in;
+  in.left_vis.create(height_, width_, CV_8UC3);
+  in.input.resize(preprocessor_->output_floats());
+  return in;
+}
+
+FlowItem Runner::MakeFlow() const {
+  FlowItem f;
+  f.left_vis.create(height_, width_, CV_8UC3);
+  f.flow.resize(static_cast<size_t>(height_) * width_ * out_channels_);
+  if (options_.profiler) f.step_ns.resize(session_->steps().size() + 1);
+  return f;
+}
+
+void Runner::Fail(const Status& status, bool discard) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (error_.ok()) error_ = status;
+  }
+  halt_ = true;
+  if (discard) {
+    q1_->Discard();
+    q2_->Discard();
+    q3_->Discard();
+  }
+}
+
+Status Runner::Setup() {
+  Result<cv::Size> size = source_->Open();
+  if (!size.ok()) return size.status();
+  source_size_ = *size;
+  height_ = options_.height > 0 ? options_.height : source_size_.height;
+  width_ = options_.width > 0 ? options_.width : source_size_.width;
+
+  Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
+  if (!params.ok()) return params.status();
+  auto pre = camera::Preprocessor::Create(*params, height_, width_);
+  if (!pre.ok()) return Status::Error(pre.message());
+  preprocessor_.emplace(std::move(pre).value());
+
+  const cv::Size model_size(width_, height_);
+  if (options_.calibration) {
+    auto rect = camera::StereoRectifier::Create(*options_.calibration, source_size_,
+                                                camera::RectifyOptions{model_size});
+    if (!rect.ok()) return Status::Error(rect.message());
+    rectifier_.emplace(std::move(rect).value());
+    // The network was trained on one camera; a different rectified camera scales its output.
+    const CameraDesc& trained = model_->metadata().camera;
+    const camera::RectifiedCamera& cam = rectifier_->camera();
+    auto differs = [](double a, double b, double rel) {
+      return std::fabs(a - b) > rel * std::max(std::fabs(a), std::fabs(b));
+    };
+    auto warn = [&](const std::string& what, double got, double want) {
+      warnings_.push_back("rectified camera " + what + " " + Fixed(got, 4) +
+                          " differs from the model's training camera (" + Fixed(want, 4) +
+                          "); the flow's scale may be off");
+    };
+    if (trained.focal_px > 0 && differs(cam.fx, trained.focal_px, 0.01)) {
+      warn("focal length (px)", cam.fx, trained.focal_px);
+    }
+    if (trained.baseline > 0 && differs(cam.baseline, trained.baseline, 0.01)) {
+      warn("baseline", cam.baseline, trained.baseline);
+    }
+    if (trained.focal_px > 0 &&
+        (std::fabs(cam.cx - trained.cx) > 2.0 || std::fabs(cam.cy - trained.cy) > 2.0)) {
+      warnings_.push_back("rectified principal point (" + Fixed(cam.cx, 1) + ", " +
+                          Fixed(cam.cy, 1) + ") differs from the training camera's (" +
+                          Fixed(trained.cx, 1) + ", " + Fixed(trained.cy, 1) + ")");
+    }
+  } else {
+    auto rect = camera::StereoRectifier::CreateResizeOnly(source_size_, model_size);
+    if (!rect.ok()) return Status::Error(rect.message());
+    rectifier_.emplace(std::move(rect).value());
+  }
+
+  if (Status s = SetupFallback(); !s.ok()) return s;
+
+  SessionOptions so;
+  so.max_height = height_;
+  so.max_width = width_;
+  so.isa = options_.isa;
+  so.threads = options_.threads;
+  so.tuning = options_.tuning;
+  Result<std::unique_ptr<Session>> session = Session::Create(model_, so);
+  if (!session.ok()) {
+    return Status::Error("cannot create a session for " + std::to_string(height_) + "x" +
+                         std::to_string(width_) + ": " + session.message());
+  }
+  session_ = std::move(session).value();
+  Result<TensorShape> shape = session_->OutputShape(height_, width_);
+  if (!shape.ok()) return shape.status();
+  out_channels_ = shape->channels;
+  if (shape->height != height_ || shape->width != width_) {
+    return Status::Error("the model's output is " + std::to_string(shape->height) + "x" +
+                         std::to_string(shape->width) + " for an input of " +
+                         std::to_string(height_) + "x" + std::to_string(width_) +
+                         "; the pipeline needs flow at the input size");
+  }
+  if (fallback_) {
+    Result<TensorShape> fb = session_->OutputShape(fb_height_, fb_width_);
+    if (!fb.ok()) {
+      return Status::Error("latency.on_miss smaller-input: the fallback size " +
+                           std::to_string(fb_height_) + "x" + std::to_string(fb_width_) + ": " +
+                           fb.message());
+    }
+    if (fb->height != fb_height_ || fb->width != fb_width_) {
+      return Status::Error(
+          "latency.on_miss smaller-input: the model's output is " + std::to_string(fb->height) +
+          "x" + std::to_string(fb->width) + " for the fallback size " + std::to_string(fb_height_) +
+          "x" + std::to_string(fb_width_) + "; the pipeline needs flow at the input size");
+    }
+  }
+  if (options_.write_flow && options_.flow_format == FlowFormat::kPfm && out_channels_ != 1 &&
+      out_channels_ != 3) {
+    return Status::Error("the model outputs " + std::to_string(out_channels_) +
+                         " channels; PFM holds 1 or 3 (use --flow-format npy)");
+  }
+
+  if (options_.prefault) {  // page in the arena and packed weights before the first frame
+    std::vector<float> zeros(preprocessor_->output_floats(), 0.0f);
+    std::vector<float> flow(static_cast<size_t>(height_) * width_ * out_channels_);
+    if (Status s = session_->Run(zeros, height_, width_, flow); !s.ok()) return s;
+  }
+  if (options_.profiler) options_.profiler->Prepare(*session_, height_, width_);
+
+  policy_ =
+      options_.policy.value_or(source_->live() ? QueuePolicy::kNewestWins : QueuePolicy::kBlock);
+  const size_t cap = std::max<size_t>(1, options_.queue_capacity);
+  q1_ = std::make_unique<LatestQueue<WindowItem>>(cap, policy_, [this] { return MakeWindow(); });
+  q2_ = std::make_unique<LatestQueue<InputItem>>(cap, policy_, [this] { return MakeInput(); });
+  q3_ = std::make_unique<LatestQueue<FlowItem>>(cap, policy_, [this] { return MakeFlow(); });
+  if (!options_.video_path.empty()) {
+    // The AVI writer seeks back to finish the file, so only a regular file (or a new path) will
+    // do; a symbolic link is followed and the file it names is replaced (atomic_write.h).
+    Result<std::string> video = ResolveVideoPath(options_.video_path);
+    if (!video.ok()) return video.status();
+    video_final_ = std::move(video).value();
+  }
+  if (!options_.latency_log.empty()) {
+    Result<io::StreamedFile> log = io::StreamedFile::Open(options_.latency_log);
+    if (!log.ok()) return Status::Error("the latency log: " + log.message());
+    latency_log_ = std::move(log).value();
+    Status header = latency_log_.Write(
+        "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
+        "input_width,done_monotonic_ms\n");
+    if (!header.ok()) return Status::Error("the latency log: " + header.message());
+  }
+
+  switch (options_.progress) {
+    case ProgressMode::kAuto:
+      tty_progress_ = ::isatty(STDERR_FILENO) == 1;
+      line_progress_ = !tty_progress_;
+      break;
+    case ProgressMode::kTty:
+      tty_progress_ = true;
+      break;
+    case ProgressMode::kLines:
+      line_progress_ = true;
+      break;
+    case ProgressMode::kOff:
+      break;
+  }
+  return Status::Ok();
+}
+
+Status Runner::SetupFallback() {
+  const PipelineOptions::Size2& fb = options_.smaller_input_on_miss;
+  if (fb.height == 0 && fb.width == 0) return Status::Ok();
+  const std::string fb_text = std::to_string(fb.height) + "x" + std::to_string(fb.width);
+  const std::string size_text = std::to_string(height_) + "x" + std::to_string(width_);
+  if (fb.height <= 0 || fb.width <= 0 || fb.height > height_ || fb.width > width_ ||
+      (fb.height == height_ && fb.width == width_)) {
+    return Status::Error("latency.on_miss smaller-input: the fallback size " + fb_text +
+                         " must be positive, at most the model input size " + size_text +
+                         " and smaller in at least one dimension");
+  }
+  if (options_.recover_after < 1) {
+    return Status::Error("latency.on_miss smaller-input: recover_after is " +
+                         std::to_string(options_.recover_after) + "; it must be >= 1");
+  }
+  fallback_ = true;
+  fb_height_ = fb.height;
+  fb_width_ = fb.width;
+  Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
+  if (!params.ok()) return params.status();
+  auto pre = camera::Preprocessor::Create(*params, fb_height_, fb_width_);
+  if (!pre.ok()) return Status::Error(pre.message());
+  fb_preprocessor_.emplace(std::move(pre).value());
+  const cv::Size fb_size(fb_width_, fb_height_);
+  auto rect = options_.calibration
+                  ? camera::StereoRectifier::Create(*options_.calibration, source_size_,
+                                                    camera::RectifyOptions{fb_size})
+                  : camera::StereoRectifier::CreateResizeOnly(source_size_, fb_size);
+  if (!rect.ok()) return Status::Error(rect.message());
+  fb_rectifier_.emplace(std::move(rect).value());
+  if (options_.budget_ms <= 0 && !options_.miss_verdict) {
+    warnings_.push_back("latency.on_miss smaller-input " + fb_text +
+                        " without a budget (--budget-ms): no window misses, the size never "
+                        "changes");
+  }
+  return Status::Ok();
+}
+
+// The smaller-input state machine, on the output stage's thread: a miss switches to the fallback
+// size (a miss at the fallback size restarts the count); recover_after consecutive in-budget
+// windows that ran at the fallback size switch back. Windows already in flight at the old size
+// when the size changes neither count towards recovery nor switch again.
+void Runner::UpdateFallback(const FrameMeta& m, bool miss) {
+  const bool at_fallback = m.input_height != height_ || m.input_width != width_;
+  if (at_fallback) ++frames_at_fallback_;
+  if (miss) {
+    fallback_streak_ = 0;
+    if (!use_fallback_.load()) {
+      use_fallback_ = true;
+      ++fallback_entries_;
+    }
+  } else if (at_fallback && use_fallback_.load()) {
+    if (++fallback_streak_ >= options_.recover_after) {
+      use_fallback_ = false;
+      fallback_streak_ = 0;
+      ++recoveries_;
+    }
+  }
+}
+
+void Runner::SourceStage() {
+  if (options_.on_stage_start) options_.on_stage_start(0);
+  WindowItem item = MakeWindow();
+  const auto period =
+      options_.source_fps > 0
+          ? std::chrono::nanoseconds(static_cast<int64_t>(1e9 / options_.source_fps))
+          : std::chrono::nanoseconds(0);
+  auto due = std::chrono::steady_clock::now();
+  while (!halt_.load()) {
+    if (period.count() > 0) {
+      // Paced like a camera: wait for this window's slot; a late window moves the schedule on
+      // instead of letting the next ones arrive in a burst.
+      std::this_thread::sleep_until(due);
+      due = std::max(due, std::chrono::steady_clock::now()) + period;
+    }
+    Result<Fetch> next = source_->Next(&item, halt_);
+    if (!next.ok()) {
+      Fail(next.status(), /*discard=*/false);  // windows already read are still written
+      break;
+    }
+    if (*next == Fetch::kEnd) break;
+    if (skip_next_.exchange(false)) {  // latency.on_miss: drop-next
+      ++skipped_after_miss_;
+      ++windows_read_;
+      continue;
+    }
+    item.meta.window = windows_read_++;
+    item.meta.stage_ns[0][1] = NowNs();
+    if (!q1_->Push(&item)) break;
+  }
+  q1_->Close();
+}
+
+void Runner::PreprocessStage() {
+  if (options_.on_stage_start) options_.on_stage_start(1);
+  WindowItem w = MakeWindow();
+  InputItem in = MakeInput();
+  cv::Mat l0, r0, l1, r1;  // rectified, model size
+  for (cv::Mat* m : {&l0, &r0, &l1, &r1}) m->create(height_, width_, CV_8UC3);
+  cv::Mat fl0, fr0, fl1, fr1;  // rectified, fallback size (smaller-input)
+  if (fallback_) {
+    for (cv::Mat* m : {&fl0, &fr0, &fl1, &fr1}) m->create(fb_height_, fb_width_, CV_8UC3);
+  }
+  while (q1_->Pop(&w)) {
+    w.meta.stage_ns[1][0] = NowNs();
+    const bool small = fallback_ && use_fallback_.load();
+    const cv::Size size = w.left0.size();
+    if (w.left1.size() != size) {
+      Fail(Status::Error("window at '" + w.meta.left0_path +
+                         "': the images at t and t+1 differ in size"),
+           true);
+      break;
+    }
+    if (size != rectifier_->input_size()) {
+      if (options_.calibration) {
+        Fail(Status::Error("frame size changed to " + std::to_string(size.height) + "x" +
+                           std::to_string(size.width) + " (HxW) but the calibration is for " +
+                           std::to_string(rectifier_->input_size().height) + "x" +
+                           std::to_string(rectifier_->input_size().width)),
+             true);
+        break;
+      }
+      auto rect = camera::StereoRectifier::CreateResizeOnly(size, cv::Size(width_, height_));
+      if (!rect.ok()) {
+        Fail(Status::Error(rect.message()), true);
+        break;
+      }
+      rectifier_.emplace(std::move(rect).value());
+      if (fallback_) {
+        auto fb = camera::StereoRectifier::CreateResizeOnly(size, cv::Size(fb_width_, fb_height_));
+        if (!fb.ok()) {
+          Fail(Status::Error(fb.message()), true);
+          break;
+        }
+        fb_rectifier_.emplace(std::move(fb).value());
+      }
+    }
+    camera::Status s = camera::Status::Ok();
+    if (small) {
+      // The input buffer is sized for the model input size; the fallback input fills its start.
+      s = fb_rectifier_->Apply(w.left0, w.right0, &fl0, &fr0);
+      if (s.ok()) s = fb_rectifier_->Apply(w.left1, w.right1, &fl1, &fr1);
+      if (s.ok()) {
+        s = fb_preprocessor_->Run(fl0, fr0, fl1, fr1, in.input.data(),
+                                  fb_preprocessor_->output_floats());
+      }
+    } else {
+      s = rectifier_->Apply(w.left0, w.right0, &l0, &r0);
+      if (s.ok()) s = rectifier_->Apply(w.left1, w.right1, &l1, &r1);
+      if (s.ok()) s = preprocessor_->Run(l0, r0, l1, r1, in.input.data(), in.input.size());
+    }
+    if (!s.ok()) {
+      Fail(Status::Error(s.message()), true);
+      break;
+    }
+    if (small) {  // the visualisation keeps the model input size (into the existing buffer)
+      cv::resize(fl0, in.left_vis, in.left_vis.size(), 0, 0, cv::INTER_LINEAR);
+    } else {
+      l0.copyTo(in.left_vis);
+    }
+    w.meta.input_height = small ? fb_height_ : height_;
+    w.meta.input_width = small ? fb_width_ : width_;
+    std::swap(in.meta, w.meta);
+    in.meta.stage_ns[1][1] = NowNs();
+    if (!q2_->Push(&in)) break;
+  }
+  q2_->Close();
+}
+
+void Runner::InferStage() {
+  if (options_.on_stage_start) options_.on_stage_start(2);
+  // Both items are allocated here, before the first frame; the loop only swaps and runs.
+  InputItem in = MakeInput();
+  FlowItem out = MakeFlow();
+  while (q2_->Pop(&in)) {
+    in.meta.stage_ns[2][0] = NowNs();
+    const int h = in.meta.input_height, w = in.meta.input_width;  // the size it was prepared at
+    Status s = out.step_ns.empty() ? session_->Run(in.input, h, w, out.flow)
+                                   : session_->Run(in.input, h, w, out.flow, out.step_ns);
+    if (!s.ok()) {
+      Fail(s, true);
+      break;
+    }
+    std::swap(out.meta, in.meta);
+    std::swap(out.left_vis, in.left_vis);
+    out.meta.stage_ns[2][1] = NowNs();
+    if (!q3_->Push(&out)) break;
+  }
+  q3_->Close();
+}
+
+void Runner::OutputStage() {
+  if (options_.on_stage_start) options_.on_stage_start(3);
+  FlowItem f = MakeFlow();
+  Visualizer vis({options_.vis_scale, model_->metadata().output.units});
+  cv::Mat canvas;
+  std::vector<uint8_t> png;
+  // zlib level 1: several times faster than OpenCV's default for a slightly larger file.
+  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
+  cv::VideoWriter video;
+  const std::filesystem::path dir(options_.out_dir);
+  // smaller-input: the flow of a fallback window upscaled to the model input size for the
+  // visualisation, so the PNG and the video keep one size.
+  std::vector<float> vis_flow;
+  cv::Mat vis_flow_mat;
+  if (fallback_) {
+    vis_flow.resize(static_cast<size_t>(height_) * width_ * out_channels_);
+    vis_flow_mat = cv::Mat(height_, width_, CV_32FC(out_channels_), vis_flow.data());
+  }
+  while (q3_->Pop(&f)) {
+    if (max_reached_.load()) {
+      ++discarded_after_max_;
+      continue;
+    }
+    FrameMeta& m = f.meta;
+    m.stage_ns[3][0] = NowNs();
+    const std::string stem = OutputStem(m);
+    const int h = m.input_height, w = m.input_width;  // the size the window ran at
+    const std::span<const float> flow(f.flow.data(), static_cast<size_t>(h) * w * out_channels_);
+    Status s = Status::Ok();
+    std::vector<std::string> written;  // this window's files so far, removed if a later one fails
+    if (options_.write_flow) {
+      if (options_.flow_format == FlowFormat::kPfm) {
+        written.push_back((dir / (stem + ".pfm")).string());
+        s = io::WritePfm(written.back(), flow, h, w, out_channels_);
+      } else {
+        const int64_t shape[3] = {h, w, out_channels_};
+        written.push_back((dir / (stem + ".npy")).string());
+        s = io::WriteNpy(written.back(), shape, flow);
+      }
+      if (!s.ok()) written.pop_back();
+    }
+    if (s.ok() && (options_.write_png || !options_.video_path.empty())) {
+      std::string label = stem;
+      const float* vis_data = f.flow.data();
+      if (h != height_ || w != width_) {
+        const cv::Mat small(h, w, CV_32FC(out_channels_), f.flow.data());
+        cv::resize(small, vis_flow_mat, vis_flow_mat.size(), 0, 0, cv::INTER_LINEAR);
+        vis_data = vis_flow.data();
+        label += " (" + std::to_string(h) + "x" + std::to_string(w) + ")";
+      }
+      vis.Render(f.left_vis, vis_data, out_channels_, label, &canvas);
+      if (options_.write_png) {
+        if (!cv::imencode(".png", canvas, png, png_params)) {
+          s = Status::Error("cannot encode the visualisation of " + stem + " as PNG");
+        } else {
+          s = io::WriteFileAtomically((dir / (stem + ".png")).string(), png);
+        }
+      }
+      if (s.ok() && !options_.video_path.empty()) {
+        if (!video.isOpened()) {
+          video_tmp_ = video_final_ + ".tmp.avi";
+          video.open(video_tmp_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), options_.video_fps,
+                     canvas.size());
+          if (!video.isOpened()) {
+            s = Status::Error("cannot open '" + video_tmp_ +
+                              "' for writing with OpenCV VideoWriter (MJPG/AVI)");
+          }
+        }
+        if (s.ok()) {
+          video.write(canvas);
+          video_written_ = true;
+          ++video_frames_;
+        }
+      }
+    }
+    if (!s.ok()) {
+      for (const std::string& path : written) ::unlink(path.c_str());
+      ++output_errors_;
+      if (options_.on_output_error == OutputErrorPolicy::kStop) {
+        Fail(s, true);
+        break;
+      }
+      std::fprintf(stderr, "sfrt run: warning: window %s skipped: %s\n", stem.c_str(),
+                   s.message().c_str());
+      if (skipped_outputs_.size() < kMaxListedSkips) {
+        skipped_outputs_.push_back({stem, s.message()});
+      }
+      continue;
+    }
+    m.stage_ns[3][1] = NowNs();
+    for (int st = 0; st < 4; ++st) stage_ms_[st].Add(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
+    const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
+    e2e_ms_.Add(e2e);
+    if (latency_log_.is_open()) {
+      // done_monotonic_ms is on CLOCK_MONOTONIC, shared by every process on the machine, so
+      // logs of runs side by side line up (tools/soak.sh compares with a concurrent twin).
+      char line[256];
+      const int n = std::snprintf(
+          line, sizeof(line), "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
+          static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
+          Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
+          Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w, Ms(m.stage_ns[3][1]));
+      Status logged = latency_log_.Write(
+          std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))));
+      if (!logged.ok()) {
+        logged = Status::Error("the latency log: " + logged.message());
+        if (options_.on_output_error == OutputErrorPolicy::kStop) {
+          Fail(logged, true);
+          break;
+        }
+        // kSkip: the window's files are written; the log stops here, as a partial CSV line
+        // would make the rest unreadable, and the run says so at the end.
+        std::fprintf(stderr, "sfrt run: warning: %s; no more latency lines are written\n",
+                     logged.message().c_str());
+        latency_log_lost_ = logged.message() + " (from window " + stem + " on)";
+        (void)latency_log_.Close();
+      }
+    }
+    const bool over_budget = options_.budget_ms > 0 && e2e > options_.budget_ms;
+    const bool miss = options_.miss_verdict ? options_.miss_verdict(m, over_budget) : over_budget;
+    if (miss) {
+      ++misses_;
+      if (options_.drop_next_on_miss) skip_next_ = true;
+    }
+    if (fallback_) UpdateFallback(m, miss);
+    if (options_.profiler) options_.profiler->Record(m, f.step_ns, miss);
+    last_stem_ = stem;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      ++frames_;
+    }
+    Progress(false);
+    if (options_.max_frames > 0 && frames_ >= options_.max_frames) {
+      max_reached_ = true;
+      halt_ = true;
+    }
+    if (options_.after_window) options_.after_window(m);
+  }
+  if (video.isOpened()) video.release();
+  if (video_written_) {
+    // VideoWriter reports no failed write (a full disk truncates the file silently): read the
+    // finished file's index back before it replaces anything.
+    if (Status complete = CheckVideoComplete(video_tmp_, video_frames_); !complete.ok()) {
+      ::unlink(video_tmp_.c_str());
+      video_written_ = false;
+      Fail(Status::Error("the video '" + options_.video_path +
+                         "' was not written (nothing replaced it): " + complete.message()),
+           false);
+      return;
+    }
+    std::error_code ec;
+    std::filesystem::rename(video_tmp_, video_final_, ec);
+    if (ec) {
+      Fail(Status::Error("cannot rename '" + video_tmp_ + "' to '" + video_final_ +
+                         "': " + ec.message()),
+           false);
+    }
+  }
+}
+
+void Runner::Progress(bool final) {
+  if (!tty_progress_ && !line_progress_) return;
+  const int64_t now = NowNs();
+  if (tty_progress_ && !final && now - last_progress_ns_ < 250'000'000) return;
+  if (line_progress_ && !final &&
+      (options_.progress_every <= 0 || frames_ % options_.progress_every != 0)) {
+    return;
+  }
+  if (line_progress_ && final && options_.progress_every > 0 &&
+      frames_ % options_.progress_every == 0 && frames_ > 0) {
+    return;  // already printed
+  }
+  last_progress_ns_ = now;
+  const double wall = static_cast<double>(now - start_ns_) / 1e9;
+  const std::optional<int64_t> total = source_->total_windows();
+  std::string line = "sfrt run: " + std::to_string(frames_);
+  if (total)
+    line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
+                                                         : *total);
+  line += " frames, " + Fixed(wall > 0 ? frames_ / wall : 0.0, 1) + " fps, p50 " +
+          Fixed(profiling::Summarize(e2e_ms_.Values()).p50, 1) + " ms end to end";
+  if (tty_progress_) {
+    std::fprintf(stderr, "\r%s\x1b[K%s", line.c_str(), final ? "\n" : "");
+  } else {
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
+  std::fflush(stderr);
+}
+
+Status Runner::WriteSummary(PipelineResult* result) {
+  json j;
+  const ModelMetadata& meta = model_->metadata();
+  j["model"] = {{"path", options_.model_path},
+                {"name", meta.name},
+                {"input_size", {height_, width_}},
+                {"output_channels", out_channels_}};
+  j["isa"] = session_ ? IsaName(session_->isa()) : "";
+  j["threads"] = session_ ? session_->threads() : options_.threads;
+  json src;
+  src["kind"] = source_->kind();
+  src["description"] = source_->Describe();
+  src["frame_size"] = {source_size_.height, source_size_.width};
+  source_->ToJson(&src);
+  j["source"] = src;
+  const std::optional<int64_t> total = source_->total_windows();
+  j["frames"] = {{"written", frames_},
+                 {"read", windows_read_},
+                 {"total", total ? json(*total) : json(nullptr)}};
+  j["completed"] = result->stopped_by == "end of source" || result->stopped_by == "max-frames";
+  j["stopped_by"] = result->stopped_by;
+  j["error"] = error_.ok() ? json(nullptr) : json(error_.message());
+  const uint64_t discarded = (q1_ ? q1_->discarded() : 0) + (q2_ ? q2_->discarded() : 0) +
+                             (q3_ ? q3_->discarded() : 0) +
+                             static_cast<uint64_t>(discarded_after_max_);
+  j["queue_policy"] = policy_ == QueuePolicy::kNewestWins ? "newest-wins" : "block";
+  j["drops"] = {{"source", source_->drops()},
+                {"preprocess", q1_ ? q1_->drops() : 0},
+                {"infer", q2_ ? q2_->drops() : 0},
+                {"output", q3_ ? q3_->drops() : 0},
+                {"discarded_at_stop", discarded}};
+  json bad = json::array();
+  for (const FrameSource::BadFrame& b : source_->bad_frames()) {
+    bad.push_back({{"path", b.path}, {"reason", b.reason}});
+  }
+  j["bad_frames"] = bad;
+  json skipped = json::array();
+  for (const FrameSource::BadFrame& b : skipped_outputs_) {
+    skipped.push_back({{"window", b.path}, {"error", b.reason}});
+  }
+  j["output_errors"] = {
+      {"policy", options_.on_output_error == OutputErrorPolicy::kStop ? "stop" : "skip"},
+      {"count", output_errors_},
+      {"skipped", skipped}};
+  j["deadline"] = {
+      {"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
+      {"misses", misses_},
+      {"on_miss", options_.drop_next_on_miss ? "drop-next"
+                  : fallback_                ? "smaller-input"
+                                             : "count-only"},
+      {"skipped_after_miss", skipped_after_miss_},
+      {"fallback_size", fallback_ ? json::array({fb_height_, fb_width_}) : json(nullptr)},
+      {"recover_after_frames", fallback_ ? json(options_.recover_after) : json(nullptr)},
+      {"fallback_entries", fallback_entries_},
+      {"recoveries", recoveries_},
+      {"frames_at_fallback_size", frames_at_fallback_}};
+  json lat;
+  for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
+  lat["end_to_end"] = PercentilesJson(result->end_to_end);
+  j["latency_ms"] = lat;
+  j["wall_s"] = static_cast<double>(end_ns_ - start_ns_) / 1e9;
+  j["fps"] = result->fps;
+  j["clock"] = "CLOCK_MONOTONIC";
+  j["outputs"] = {{"dir", options_.out_dir},
+                  {"flow_format", !options_.write_flow                       ? "none"
+                                  : options_.flow_format == FlowFormat::kPfm ? "pfm"
+                                                                             : "npy"},
+                  {"png", options_.write_png},
+                  {"video", video_written_ ? json(options_.video_path) : json(nullptr)},
+                  {"last", last_stem_}};
+  j["warnings"] = warnings_;
+  const std::string path = (std::filesystem::path(options_.out_dir) / "summary.json").string();
+  const std::string text = j.dump(2) + "\n";
+  Status s = io::WriteFileAtomically(
+      path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+  if (s.ok()) result->summary_path = path;
+  return s;
+}
+
+PipelineResult Runner::Run() {
+  PipelineResult result;
+  start_ns_ = NowNs();
+  Status setup = Setup();
+  for (const std::string& w : warnings_) std::fprintf(stderr, "sfrt run: warning: %s\n", w.c_str());
+  if (!setup.ok()) {
+    result.status = setup;
+    result.stopped_by = "error";
+    error_ = setup;
+    end_ns_ = NowNs();
+    std::error_code ec;
+    if (options_.write_summary && std::filesystem::is_directory(options_.out_dir, ec)) {
+      (void)WriteSummary(&result);
+    }
+    return result;
+  }
+  result.started = true;
+  start_ns_ = NowNs();
+  std::thread threads[4] = {
+      std::thread([this] { SourceStage(); }), std::thread([this] { PreprocessStage(); }),
+      std::thread([this] { InferStage(); }), std::thread([this] { OutputStage(); })};
+  // Relay an asynchronous stop (signal) to the stages until the source has finished.
+  std::atomic<bool> done{false};
+  std::thread watcher([&] {
+    while (!done.load()) {
+      if (options_.stop && options_.stop->load()) halt_ = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  });
+  for (std::thread& t : threads) t.join();
+  done = true;
+  watcher.join();
+  end_ns_ = NowNs();
+  Progress(true);
+
+  result.frames = frames_;
+  result.output_errors = output_errors_;
+  result.status = error_;
+  const int sig = options_.stop_signal ? options_.stop_signal->load() : 0;
+  if (!error_.ok()) {
+    result.stopped_by = "error";
+  } else if (max_reached_) {
+    result.stopped_by = "max-frames";
+  } else if (options_.stop && options_.stop->load()) {
+    result.stopped_by = sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "stop request";
+  } else {
+    result.stopped_by = "end of source";
+  }
+  const double wall = static_cast<double>(end_ns_ - start_ns_) / 1e9;
+  result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
+  for (int st = 0; st < 4; ++st) result.stage[st] = profiling::Summarize(stage_ms_[st].Values());
+  result.end_to_end = profiling::Summarize(e2e_ms_.Values());
+  result.misses = misses_;
+  result.frames_at_fallback_size = frames_at_fallback_;
+  result.fallback_entries = fallback_entries_;
+  if (Status closed = latency_log_.Close(); !closed.ok()) {
+    closed = Status::Error("the latency log: " + closed.message());
+    if (options_.on_output_error == OutputErrorPolicy::kStop) {
+      if (result.status.ok()) {
+        result.status = closed;
+        result.stopped_by = "error";
+        error_ = closed;
+      }
+    } else {
+      latency_log_lost_ = closed.message();
+    }
+  }
+  if (!latency_log_lost_.empty()) warnings_.push_back(latency_log_lost_);
+  result.warnings = warnings_;
+  if (!options_.write_summary) return result;
+  Status s = WriteSummary(&result);
+  if (!s.ok()) {
+    if (result.status.ok()) {
+      result.status = s;
+    } else {
+      std::fprintf(stderr, "sfrt run: warning: no summary: %s\n", s.message().c_str());
+    }
+  }
+  return result;
+}
+
+}  // namespace
+
+Result<std::string> ResolveVideoPath(const std::string& path) {
+  Result<io::OutputTarget> target = io::ResolveOutputTarget(path);
+  if (!target.ok()) return Status::Error("--video: " + target.message());
+  if (target->kind != io::OutputTarget::Kind::kReplace) {
+    return Status::Error("--video '" + path + "' is " + target->what +
+                         ": the MJPG/AVI writer seeks back to finish the file, so it writes "
+                         "only a regular file; give a file path");
+  }
+  return target->path;
+}
+
+Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) {
+  if (input.channels != 3 * static_cast<int>(input.image_order.size()) ||
+      input.image_order.size() != 4) {
+    return Status::Error("the model takes " + std::to_string(input.channels) +
+                         " input channels and its image order lists " +
+                         std::to_string(input.image_order.size()) +
+                         " images; expected 12 channels from left0, right0, left1, right1");
+  }
+  camera::PreprocessParams p;
+  for (size_t g = 0; g < 4; ++g) {
+    auto slot = camera::ParseImageSlot(input.image_order[g]);
+    if (!slot.ok()) {
+      return Status::Error("the model's image order names an unknown image '" +
+                           input.image_order[g] + "' (known: left0, right0, left1, right1)");
+    }
+    p.image_order[g] = *slot;
+  }
+  auto order = camera::ParseImageOrder(input.image_order);
+  if (!order.ok()) return Status::Error("the model's image order: " + order.message());
+  auto color = camera::ParseColorOrder(input.color_order);
+  if (!color.ok()) {
+    return Status::Error("the model's color order '" + input.color_order +
+                         "' is neither BGR nor RGB");
+  }
+  p.color_order = *color;
+  p.scale = input.scale;
+  for (int c = 0; c < 3; ++c) {
+    if (!(input.std[c] != 0) || !std::isfinite(input.std[c])) {
+      return Status::Error("the model's std[" + std::to_string(c) + "] is " +
+                           Fixed(input.std[c], 6) + "; cannot normalise");
+    }
+    p.mean[c] = input.mean[c];
+    p.std[c] = input.std[c];
+  }
+  return p;
+}
+
+std::string OutputStem(const FrameMeta& meta) {
+  char num[32];
+  std::snprintf(num, sizeof(num), "%06lld", static_cast<long long>(meta.frame0));
+  if (meta.sequence.empty()) return std::string("frame_") + num;
+  std::string seq = meta.sequence;
+  for (char& c : seq) {
+    if (c == '/' || c == '\\' || c == ' ') c = '_';
+  }
+  return seq + "_" + num;
+}
+
+PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* source,
+                           const PipelineOptions& options) {
+  Runner runner(std::move(model), source, options);
+  return runner.Run();
+}
+
+}  // namespace sfrt::pipeline
