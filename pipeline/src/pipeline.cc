@@ -24,6 +24,7 @@
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
 #include "sfrt/pipeline/profiler.h"
+#include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
 
@@ -110,6 +111,8 @@ class Runner {
   void InferStage();
   void OutputStage();
   void Fail(const Status& status, bool discard);
+  Status DeliverToSinks(const FlowItem& f, std::span<const float> flow);
+  void StopSinks();
   Status SetupFallback();
   void UpdateFallback(const FrameMeta& m, bool miss);
   void Progress(bool final);
@@ -143,6 +146,7 @@ class Runner {
   std::unique_ptr<LatestQueue<InputItem>> q2_;
   std::unique_ptr<LatestQueue<FlowItem>> q3_;
 
+  size_t sinks_started_ = 0;       // options_.sinks whose Start() succeeded
   std::atomic<bool> halt_{false};  // the source stops reading
   std::atomic<bool> max_reached_{false};
   std::mutex mu_;  // guards error_ and the counters the main thread reads while running
@@ -313,6 +317,12 @@ Status Runner::Setup() {
     if (Status s = session_->Run(zeros, height_, width_, flow); !s.ok()) return s;
   }
   if (options_.profiler) options_.profiler->Prepare(*session_, height_, width_);
+  for (FlowSink* sink : options_.sinks) {
+    if (sink == nullptr) return Status::Error("PipelineOptions::sinks holds a null sink");
+    Status started = sink->Start();
+    if (!started.ok()) return Status::Error("sink '" + sink->name() + "': " + started.message());
+    ++sinks_started_;
+  }
 
   policy_ =
       options_.policy.value_or(source_->live() ? QueuePolicy::kNewestWins : QueuePolicy::kBlock);
@@ -545,6 +555,33 @@ void Runner::InferStage() {
   q3_->Close();
 }
 
+// Hands the window to each of options_.sinks in order (sink.h); when one fails, the ones before it
+// retract it, and the error names the sink.
+Status Runner::DeliverToSinks(const FlowItem& f, std::span<const float> flow) {
+  FlowFrame frame;
+  frame.meta = &f.meta;
+  frame.flow = flow;
+  frame.height = f.meta.input_height;
+  frame.width = f.meta.input_width;
+  frame.channels = out_channels_;
+  frame.left_image = &f.left_vis;
+  for (size_t i = 0; i < options_.sinks.size(); ++i) {
+    frame.latency_ms = Ms(NowNs() - f.meta.capture_ns[1]);
+    frame.over_budget = options_.budget_ms > 0 && frame.latency_ms > options_.budget_ms;
+    Status s = options_.sinks[i]->Write(frame);
+    if (!s.ok()) {
+      for (size_t j = 0; j < i; ++j) options_.sinks[j]->Retract();
+      return Status::Error("sink '" + options_.sinks[i]->name() + "': " + s.message());
+    }
+  }
+  return Status::Ok();
+}
+
+void Runner::StopSinks() {
+  for (size_t i = 0; i < sinks_started_; ++i) options_.sinks[i]->Stop();
+  sinks_started_ = 0;
+}
+
 void Runner::OutputStage() {
   if (options_.on_stage_start) options_.on_stage_start(3);
   FlowItem f = MakeFlow();
@@ -600,7 +637,9 @@ void Runner::OutputStage() {
         if (!cv::imencode(".png", canvas, png, png_params)) {
           s = Status::Error("cannot encode the visualisation of " + stem + " as PNG");
         } else {
-          s = io::WriteFileAtomically((dir / (stem + ".png")).string(), png);
+          const std::string png_path = (dir / (stem + ".png")).string();
+          s = io::WriteFileAtomically(png_path, png);
+          if (s.ok()) written.push_back(png_path);
         }
       }
       if (s.ok() && !options_.video_path.empty()) {
@@ -620,6 +659,7 @@ void Runner::OutputStage() {
         }
       }
     }
+    if (s.ok() && !options_.sinks.empty()) s = DeliverToSinks(f, flow);
     if (!s.ok()) {
       for (const std::string& path : written) ::unlink(path.c_str());
       ++output_errors_;
@@ -819,6 +859,7 @@ PipelineResult Runner::Run() {
   Status setup = Setup();
   for (const std::string& w : warnings_) std::fprintf(stderr, "sfrt run: warning: %s\n", w.c_str());
   if (!setup.ok()) {
+    StopSinks();
     result.status = setup;
     result.stopped_by = "error";
     error_ = setup;
@@ -845,6 +886,7 @@ PipelineResult Runner::Run() {
   for (std::thread& t : threads) t.join();
   done = true;
   watcher.join();
+  StopSinks();
   end_ns_ = NowNs();
   Progress(true);
 

@@ -15,6 +15,7 @@
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
 
@@ -458,6 +459,150 @@ TEST_F(PipelineTest, SummaryOffWritesNoSummaryJsonButEveryFrame) {
   EXPECT_EQ(r.summary_path, "");
   EXPECT_FALSE(fs::exists(dir_ / "summary.json"));
   EXPECT_EQ(Files(".pfm").size(), 3u);
+}
+
+// A robot program's view: with no file outputs, a callback sink receives every window in order,
+// without a copy (the views point into the pipeline's buffers), with the flow a direct Session
+// gives, the sequence numbers and capture times, and nothing lands in the output directory but
+// the summary.
+TEST_F(PipelineTest, CallbackSinkReceivesEveryFlowFrameInOrderMatchingDirectInference) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(4);
+  options_.write_flow = false;
+  options_.write_png = false;
+  struct Seen {
+    int64_t frame0, frame1, capture1;
+    int height, width, channels;
+    std::vector<float> flow;
+    bool image_at_model_size;
+  };
+  std::vector<Seen> seen;
+  bool started = false, stopped = false;
+  class RecordingSink : public FlowSink {
+   public:
+    RecordingSink(std::vector<Seen>* seen, bool* started, bool* stopped)
+        : seen_(seen), started_(started), stopped_(stopped) {}
+    std::string name() const override { return "recording"; }
+    Status Start() override {
+      *started_ = true;
+      return Status::Ok();
+    }
+    Status Write(const FlowFrame& f) override {
+      seen_->push_back({f.meta->frame0, f.meta->frame1, f.meta->capture_ns[1], f.height, f.width,
+                        f.channels, std::vector<float>(f.flow.begin(), f.flow.end()),
+                        f.left_image->rows == kH && f.left_image->cols == kW});
+      return Status::Ok();
+    }
+    void Stop() override { *stopped_ = true; }
+
+   private:
+    std::vector<Seen>* seen_;
+    bool* started_;
+    bool* stopped_;
+  } sink(&seen, &started, &stopped);
+  options_.sinks.push_back(&sink);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_TRUE(started);
+  EXPECT_TRUE(stopped);
+  ASSERT_EQ(seen.size(), 4u);
+  EXPECT_TRUE(Files(".pfm").empty());
+  EXPECT_TRUE(Files(".png").empty());
+
+  auto params = PreprocessFromMetadata(model->metadata().input);
+  ASSERT_TRUE(params.ok());
+  auto pre = camera::Preprocessor::Create(*params, kH, kW);
+  ASSERT_TRUE(pre.ok());
+  SessionOptions so;
+  so.max_height = kH;
+  so.max_width = kW;
+  auto session = Session::Create(model, so);
+  ASSERT_TRUE(session.ok());
+  std::vector<float> input(pre->output_floats());
+  std::vector<float> flow(static_cast<size_t>(kH) * kW * 3);
+  for (int k = 0; k < 4; ++k) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(seen[k].frame0, k);
+    EXPECT_EQ(seen[k].frame1, k + 1);
+    EXPECT_GT(seen[k].capture1, 0);
+    EXPECT_EQ(seen[k].height, kH);
+    EXPECT_EQ(seen[k].width, kW);
+    EXPECT_EQ(seen[k].channels, 3);
+    EXPECT_TRUE(seen[k].image_at_model_size);
+    ASSERT_TRUE(pre->Run(PairImage(k, 0), PairImage(k, 1), PairImage(k + 1, 0), PairImage(k + 1, 1),
+                         input.data(), input.size())
+                    .ok());
+    ASSERT_TRUE((*session)->Run(input, kH, kW, flow).ok());
+    EXPECT_EQ(seen[k].flow, flow);
+  }
+}
+
+// A sink that fails: under kSkip the window is dropped everywhere (its flow file is removed and
+// the sinks before it retract it) and the run goes on; under kStop the run ends naming the sink.
+TEST_F(PipelineTest, FailingSinkDropsTheWindowEverywhereOrStopsTheRunNamingTheSink) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  class CountingSink : public FlowSink {
+   public:
+    std::string name() const override { return "counting"; }
+    Status Write(const FlowFrame&) override {
+      ++writes;
+      return Status::Ok();
+    }
+    void Retract() override { ++retracts; }
+    int writes = 0, retracts = 0;
+  } first;
+  CallbackSink failing(
+      [](const FlowFrame& f) {
+        return f.meta->frame0 == 1 ? Status::Error("planner queue full") : Status::Ok();
+      },
+      "planner");
+  options_.write_png = false;
+  options_.sinks = {&first, &failing};
+  options_.on_output_error = OutputErrorPolicy::kSkip;
+  {
+    FakeSource source(3);
+    PipelineResult r = RunPipeline(model, &source, options_);
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    EXPECT_EQ(r.frames, 2);
+    EXPECT_EQ(r.output_errors, 1);
+    EXPECT_EQ(first.writes, 3);
+    EXPECT_EQ(first.retracts, 1);
+    EXPECT_EQ(Files(".pfm"), (std::vector<std::string>{"seq_000000.pfm", "seq_000002.pfm"}));
+    const nlohmann::json skipped = Summary()["output_errors"]["skipped"];
+    ASSERT_EQ(skipped.size(), 1u);
+    EXPECT_EQ(skipped[0]["error"], "sink 'planner': planner queue full");
+  }
+  options_.on_output_error = OutputErrorPolicy::kStop;
+  FakeSource source(3);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  EXPECT_FALSE(r.status.ok());
+  EXPECT_EQ(r.status.message(), "sink 'planner': planner queue full");
+  EXPECT_EQ(r.frames, 1);
+}
+
+// A sink whose Start() fails ends the run before any stage starts, naming the sink.
+TEST_F(PipelineTest, SinkThatCannotStartEndsTheRunBeforeTheFirstFrame) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  class NoStart : public FlowSink {
+   public:
+    std::string name() const override { return "robot-link"; }
+    Status Start() override { return Status::Error("socket refused"); }
+    Status Write(const FlowFrame&) override {
+      ++writes;
+      return Status::Ok();
+    }
+    int writes = 0;
+  } sink;
+  options_.sinks.push_back(&sink);
+  FakeSource source(3);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  EXPECT_FALSE(r.started);
+  EXPECT_EQ(r.status.message(), "sink 'robot-link': socket refused");
+  EXPECT_EQ(sink.writes, 0);
+  EXPECT_TRUE(Files(".pfm").empty());
 }
 
 TEST(PreprocessFromMetadata, CopiesTheModelsPreprocessing) {

@@ -53,6 +53,7 @@
 namespace sfrt::pipeline {
 
 class FrameProfiler;  // profiler.h
+class FlowSink;       // sink.h
 
 // The model's input metadata as camera/ preprocessing parameters (image order, colour order,
 // scale, mean, std). Errors name the metadata field and value.
@@ -182,6 +183,10 @@ struct PipelineOptions {
   std::function<void(const FrameMeta& meta)> after_window;
   // `--profile` (profiler.h): per-frame stage and step timestamps into this preallocated ring.
   FrameProfiler* profiler = nullptr;
+  // Called for every window after the files above are written, in this order (sink.h: the
+  // callback sink hands a robot program each flow frame in-process). Not owned; each must outlive
+  // RunPipeline().
+  std::vector<FlowSink*> sinks;
 };
 
 struct PipelineResult {
