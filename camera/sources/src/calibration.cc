@@ -493,9 +493,11 @@ Result<StereoCalibration> ReadKalibrCamchain(const std::string& path) {
     }
     Result<std::vector<double>> res = GetList(path, cam + ".resolution", node["resolution"], {2});
     if (!res.ok()) return res.status();
-    if (!((*res)[0] >= 1) || !((*res)[1] >= 1)) {
+    const auto pixels = [](double v) { return v >= 1 && v <= 1e6 && v == std::floor(v); };
+    if (!pixels((*res)[0]) || !pixels((*res)[1])) {
       return Status::Error(path + ": key '" + cam + ".resolution' value " +
-                           Show(node["resolution"]) + " is not [width, height] in pixels");
+                           Show(node["resolution"]) +
+                           " is not [width, height] in whole pixels (1 to 1000000)");
     }
     sizes[i] = cv::Size(static_cast<int>((*res)[0]), static_cast<int>((*res)[1]));
     if (i == 0) {

@@ -185,6 +185,22 @@ TEST(KalibrCamchain, ErrorsNameFileKeyAndValue) {
   ASSERT_FALSE(nan.ok());
   EXPECT_NE(nan.message().find("cam0.intrinsics[0]"), std::string::npos) << nan.message();
   EXPECT_NE(nan.message().find("'abc'"), std::string::npos) << nan.message();
+
+  // fuzz_calibration (UBSan: 4.4e89 converted to int): a resolution past any camera's, or not a
+  // whole number, is refused naming the key.
+  for (const char* bad : {"[640, 4444444444444444444444448]", "[640.5, 480]"}) {
+    text = KalibrYaml(rig);
+    const size_t at = text.rfind("resolution: [");
+    text.replace(at, text.find('\n', at) - at, std::string("resolution: ") + bad);
+    WriteText(tmp / "res.yaml", text);
+    Result<StereoCalibration> res = ReadKalibrCamchain(tmp / "res.yaml");
+    ASSERT_FALSE(res.ok()) << bad;
+    EXPECT_NE(res.message().find("key 'cam1.resolution' value"), std::string::npos)
+        << res.message();
+    EXPECT_NE(res.message().find("is not [width, height] in whole pixels (1 to 1000000)"),
+              std::string::npos)
+        << res.message();
+  }
 }
 
 void WriteOpenCv(const std::string& path, const Rig& rig, bool m_names, bool with_size) {
