@@ -1,10 +1,14 @@
 """Installs the build tree to a fresh prefix, builds tests/install/consumer against it with
 find_package(sfrt 0.2), runs it (static and shared) on the default model and checks that its
-flow equals `sfrt infer --input-npy` bit for bit.
+flow equals `sfrt infer --input-npy` bit for bit. With --example and --preload it also builds
+the example robot program (examples/robot_flow, sfrt::pipeline) against the same prefix and runs
+it on the fake V4L2 camera pair (the LD_PRELOAD shim): every one of --frames flow frames must
+reach its callback sink, each with a finite latency and mean dZ, and it must exit 0.
 
 usage: check_install.py --build DIR --sfrt BIN --model M --work DIR [--cxx C] [--cxx-flags F]
-       [--linker-flags F]
+       [--linker-flags F] [--example DIR --preload SHIM [--frames N]]
 """
+import re
 import argparse
 import os
 import shutil
@@ -35,6 +39,9 @@ def main():
     ap.add_argument("--cxx", default="")
     ap.add_argument("--cxx-flags", default="")
     ap.add_argument("--linker-flags", default="")
+    ap.add_argument("--example", default="")
+    ap.add_argument("--preload", default="")
+    ap.add_argument("--frames", type=int, default=12)
     a = ap.parse_args()
 
     shutil.rmtree(a.work, ignore_errors=True)
@@ -58,6 +65,10 @@ def main():
         cfg.append("-DCMAKE_EXE_LINKER_FLAGS=" + a.linker_flags)
     run(cfg)
     run(["cmake", "--build", build, "-j2"])
+    if a.example:
+        example_build = os.path.join(a.work, "example-build")
+        run(cfg[:2] + [a.example, "-B", example_build] + cfg[5:])
+        run(["cmake", "--build", example_build, "-j2"])
 
     rng = np.random.default_rng(7)
     x = rng.uniform(0, 255, size=(HEIGHT, WIDTH, 12)).astype(np.float32)
@@ -84,9 +95,39 @@ def main():
             ok = False
         else:
             print("%s consumer: %d values, bit-identical to sfrt infer" % (kind, got.size))
+    if a.example and not check_example(a, os.path.join(a.work, "example-build", "robot_flow")):
+        ok = False
     if not ok:
         sys.exit(1)
     print("PASS")
+
+
+def check_example(a, binary):
+    env = dict(os.environ)
+    env["LD_PRELOAD"] = a.preload
+    env["SFRT_FAKE_V4L2"] = "/dev/video0:side=0;/dev/video1:side=1,phase_ms=2"
+    # ASan wants its runtime first in the library list; the shim is preloaded before it.
+    env["ASAN_OPTIONS"] = env.get("ASAN_OPTIONS", "") + ":verify_asan_link_order=0"
+    out = run([binary, a.model, "/dev/video0", "/dev/video1", str(a.frames)], env=env)
+    frames = re.findall(r"^window (\d+) frames (\d+)-(\d+) latency ([0-9.]+) ms dZ (\S+)$",
+                        out, re.M)
+    ok = len(frames) == a.frames
+    if not ok:
+        print("FAIL: the example printed %d flow frames, expected %d" % (len(frames), a.frames))
+    windows = [int(f[0]) for f in frames]
+    if windows != sorted(windows) or len(set(windows)) != len(windows):
+        print("FAIL: the example's windows are not strictly increasing: %s" % windows)
+        ok = False
+    for f in frames:
+        if not (float(f[3]) > 0 and np.isfinite(float(f[4]))):
+            print("FAIL: frame %s: latency %s ms, dZ %s" % (f[0], f[3], f[4]))
+            ok = False
+    if not re.search(r"^received %d frames \(max-frames\)" % a.frames, out, re.M):
+        print("FAIL: the example's summary line does not say %d frames (max-frames)" % a.frames)
+        ok = False
+    if ok:
+        print("example robot_flow: %d flow frames through the callback sink" % a.frames)
+    return ok
 
 
 if __name__ == "__main__":
