@@ -3,10 +3,11 @@
 #include <chrono>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <utility>
 
+#include "sfrt/camera/image_file.h"
 #include "sfrt/camera/v4l2/pixel_format.h"
-#include "sfrt/pipeline/io/imread.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -105,7 +106,8 @@ class ReplaySource : public FrameSource {
   // three equal channels, 16-bit is scaled to 8 bits (cv::IMREAD_COLOR).
   static void NoteImageFormat(const std::string& path) {
     if (path.empty()) return;
-    const cv::Mat raw = io::ReadImageOrEmpty(path, cv::IMREAD_UNCHANGED);
+    cv::Mat raw;
+    (void)camera::ReadImageFile(path, cv::IMREAD_UNCHANGED, &raw);
     if (raw.empty()) return;
     std::string what;
     if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";

@@ -11,8 +11,8 @@
 #include <sstream>
 
 #include "eval/classical.h"
+#include "sfrt/camera/image_file.h"
 #include "sfrt/model.h"
-#include "sfrt/pipeline/io/imread.h"
 #include "sfrt/pipeline/io/pfm.h"
 #include "sfrt/session.h"
 #include "synth/annotate.h"
@@ -64,8 +64,11 @@ bool IsFile(const std::string& path) {
 }
 
 Result<cv::Mat> ReadImage(const std::string& path) {
-  cv::Mat image = io::ReadImageOrEmpty(path);
-  if (image.empty() || image.type() != CV_8UC3) {
+  cv::Mat image;
+  if (std::string why = camera::ReadImageFile(path, cv::IMREAD_COLOR, &image); !why.empty()) {
+    return Status::Error(path + ": " + why);
+  }
+  if (image.type() != CV_8UC3) {
     return Status::Error(path + ": cannot be decoded as an 8-bit colour image");
   }
   return image;

@@ -13,13 +13,13 @@
 #include <string>
 #include <vector>
 
+#include "sfrt/camera/image_file.h"
 #include "sfrt/camera/preprocess.h"
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
-#include "sfrt/pipeline/io/imread.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
 #include "sfrt/pipeline/pipeline.h"
@@ -81,10 +81,10 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
         !problem.empty()) {
       return Status::Error(problem);
     }
-    s.image = io::ReadImageOrEmpty(*s.path);  // 8-bit, BGR
-    if (s.image.empty()) {
-      return Status::Error(std::string(s.flag) + " image '" + *s.path +
-                           "' could not be decoded (not an image format OpenCV reads)");
+    // 8-bit, BGR
+    if (std::string why = camera::ReadImageFile(*s.path, cv::IMREAD_COLOR, &s.image);
+        !why.empty()) {
+      return Status::Error(std::string(s.flag) + " image '" + *s.path + "' " + why);
     }
     if (s.image.type() != CV_8UC3) {
       return Status::Error(std::string(s.flag) + " image '" + *s.path +
@@ -93,7 +93,8 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   }
   // One note for the run when an image is not 8-bit colour (read as 8-bit BGR all the same).
   for (const Source& s : sources) {
-    const cv::Mat raw = io::ReadImageOrEmpty(*s.path, cv::IMREAD_UNCHANGED);
+    cv::Mat raw;
+    (void)camera::ReadImageFile(*s.path, cv::IMREAD_UNCHANGED, &raw);
     std::string what;
     if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";
     if (raw.depth() == CV_16U || raw.depth() == CV_16S)

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
-#include "sfrt/pipeline/io/imread.h"
+#include "sfrt/camera/image_file.h"
 
 namespace sfrt::synth {
 namespace {
@@ -232,8 +232,10 @@ Texture MakeProceduralTexture(Rng& rng, int size) {
 }
 
 Result<Texture> LoadTextureImage(const std::string& path) {
-  cv::Mat img = io::ReadImageOrEmpty(path);
-  if (img.empty()) return Status::Error("texture '" + path + "': cannot read it as an image");
+  cv::Mat img;
+  if (std::string why = camera::ReadImageFile(path, cv::IMREAD_COLOR, &img); !why.empty()) {
+    return Status::Error("texture '" + path + "': " + why);
+  }
   if (img.depth() != CV_8U || img.channels() != 3 || img.rows < 2 || img.cols < 2) {
     return Status::Error("texture '" + path + "': expected an 8-bit colour image of 2x2 or more");
   }

@@ -13,6 +13,7 @@
 #include <system_error>
 #include <utility>
 
+#include "sfrt/camera/image_file.h"
 #include "sfrt/camera/stereo_source.h"
 
 namespace sfrt::camera {
@@ -207,21 +208,7 @@ Result<std::vector<std::string>> ResolveSpec(const std::string& spec) {
 
 // Reads one image as 8-bit BGR; empty string when fine, otherwise the reason.
 std::string ReadImage(const std::string& path, cv::Mat* out) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return "missing";
-  if (!fs::is_regular_file(path, ec)) return "not a regular file";
-  try {
-    *out = cv::imread(path, cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    // imread throws, not fails, on some damaged headers (a PBM claiming a height over
-    // CV_IO_MAX_IMAGE_HEIGHT: found by fuzz_image).
-    out->release();
-    return "could not be decoded as an image (" + e.err + ")";
-  } catch (const std::exception& e) {  // std::bad_alloc for a huge declared size
-    out->release();
-    return std::string("could not be decoded as an image (") + e.what() + ")";
-  }
-  if (out->empty()) return "could not be decoded as an image (corrupt or unsupported)";
+  if (std::string why = ReadImageFile(path, cv::IMREAD_COLOR, out); !why.empty()) return why;
   if (out->type() != CV_8UC3) return "did not decode to 8-bit BGR";
   return "";
 }
