@@ -170,6 +170,7 @@ class Runner {
   std::vector<FrameSource::BadFrame> skipped_outputs_;  // {stem, error} under kSkip
   LatencyWindow stage_ms_[4];
   LatencyWindow e2e_ms_;
+  LatencyWindow part_ms_[kLatencyParts];
   io::StreamedFile latency_log_;  // --latency-log
   std::string latency_log_lost_;  // under kSkip: why the log stopped (a warning at the end)
   std::string last_stem_;
@@ -678,6 +679,9 @@ void Runner::OutputStage() {
     for (int st = 0; st < 4; ++st) stage_ms_[st].Add(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
     const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
     e2e_ms_.Add(e2e);
+    double parts[kLatencyParts];
+    SplitLatency(m, parts);
+    for (int p = 0; p < kLatencyParts; ++p) part_ms_[p].Add(parts[p]);
     if (latency_log_.is_open()) {
       // done_monotonic_ms is on CLOCK_MONOTONIC, shared by every process on the machine, so
       // logs of runs side by side line up (tools/soak.sh compares with a concurrent twin).
@@ -834,6 +838,16 @@ Status Runner::WriteSummary(PipelineResult* result) {
   for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
   lat["end_to_end"] = PercentilesJson(result->end_to_end);
   j["latency_ms"] = lat;
+  // The end to end split into consecutive parts (LatencyPart); the per-window parts add up to
+  // the window's end to end, their p50s need not add up to its p50.
+  json parts = json::object();
+  double p50_sum = 0;
+  for (int p = 0; p < kLatencyParts; ++p) {
+    parts[LatencyPartName(static_cast<LatencyPart>(p))] = PercentilesJson(result->parts[p]);
+    p50_sum += result->parts[p].p50;
+  }
+  j["latency_attribution_ms"] = {
+      {"parts", parts}, {"sum_of_p50", p50_sum}, {"end_to_end_p50", result->end_to_end.p50}};
   j["wall_s"] = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   j["fps"] = result->fps;
   j["clock"] = "CLOCK_MONOTONIC";
@@ -906,6 +920,9 @@ PipelineResult Runner::Run() {
   const double wall = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
   for (int st = 0; st < 4; ++st) result.stage[st] = profiling::Summarize(stage_ms_[st].Values());
+  for (int p = 0; p < kLatencyParts; ++p) {
+    result.parts[p] = profiling::Summarize(part_ms_[p].Values());
+  }
   result.end_to_end = profiling::Summarize(e2e_ms_.Values());
   result.misses = misses_;
   result.frames_at_fallback_size = frames_at_fallback_;
@@ -984,6 +1001,31 @@ Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) 
     p.std[c] = input.std[c];
   }
   return p;
+}
+
+const char* LatencyPartName(LatencyPart part) {
+  static constexpr const char* kNames[kLatencyParts] = {
+      "capture_to_dequeue", "stereo_partner", "convert", "source_handoff", "queue_preprocess",
+      "preprocess",         "queue_infer",    "infer",   "queue_output",   "output"};
+  const int i = static_cast<int>(part);
+  return i >= 0 && i < kLatencyParts ? kNames[i] : "?";
+}
+
+void SplitLatency(const FrameMeta& m, double out_ms[kLatencyParts]) {
+  // Boundaries on one clock, from the capture of pair t+1 to the end of the output stage. A live
+  // source's dequeue, pairing and conversion times (0 for files) fall back to the previous
+  // boundary, so a part a source does not have is 0.
+  int64_t b[kLatencyParts + 1];
+  b[0] = m.capture_ns[1];
+  b[1] = m.dequeue_ns > 0 ? m.dequeue_ns : b[0];
+  b[2] = m.paired_ns > 0 ? m.paired_ns : b[1];
+  b[3] = m.converted_ns > 0 ? m.converted_ns : b[2];
+  b[4] = m.stage_ns[0][1];
+  for (int st = 1; st < 4; ++st) {
+    b[2 * st + 3] = m.stage_ns[st][0];
+    b[2 * st + 4] = m.stage_ns[st][1];
+  }
+  for (int p = 0; p < kLatencyParts; ++p) out_ms[p] = Ms(b[p + 1] - b[p]);
 }
 
 std::string OutputStem(const FrameMeta& meta) {

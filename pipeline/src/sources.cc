@@ -307,6 +307,9 @@ class CameraSource : public FrameSource {
         m.capture_ns[0] = prev_ts_;
         m.capture_ns[1] = ts;
         m.stage_ns[0][0] = start;
+        m.dequeue_ns = l.timestamp_ns >= r.timestamp_ns ? l.dequeue_ns : r.dequeue_ns;
+        m.paired_ns = pair_.paired_ns;
+        m.converted_ns = pair_.converted_ns;
       }
       lm.copyTo(prev_left_);
       rm.copyTo(prev_right_);

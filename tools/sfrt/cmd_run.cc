@@ -407,6 +407,17 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   std::cout << "end to end  p50 " << Fixed(result.end_to_end.p50, 2) << " ms, p99 "
             << Fixed(result.end_to_end.p99, 2) << " ms, max " << Fixed(result.end_to_end.max, 2)
             << " ms\n";
+  // Where the end to end went: consecutive parts of each window's latency (they add up to it).
+  std::cout << "end to end, by part (p50 / p99 ms):\n";
+  double p50_sum = 0;
+  for (int p = 0; p < pipeline::kLatencyParts; ++p) {
+    const std::string name = pipeline::LatencyPartName(static_cast<pipeline::LatencyPart>(p));
+    std::cout << "  " << name << std::string(20 - name.size(), ' ') << Fixed(result.parts[p].p50, 2)
+              << " / " << Fixed(result.parts[p].p99, 2) << "\n";
+    p50_sum += result.parts[p].p50;
+  }
+  std::cout << "  sum of p50s         " << Fixed(p50_sum, 2) << " (end to end p50 "
+            << Fixed(result.end_to_end.p50, 2) << ")\n";
   if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
   PrintRunConfigReport(*rc, result, std::cout);
   if (!result.status.ok()) return ReportError(kName, result.status.message(), kExitFailure);

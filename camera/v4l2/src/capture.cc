@@ -439,6 +439,7 @@ Status CaptureDevice::DrainNewest(RawFrame* out, bool* got) {
       RequiredBytes(format_.fourcc, format_.width, format_.height, format_.bytesperline);
   bool holding = false;
   v4l2_buffer held{};
+  int64_t held_dequeue_ns = 0;
   size_t eio_rounds = 0;
   for (;;) {
     v4l2_buffer b{};
@@ -496,6 +497,7 @@ Status CaptureDevice::DrainNewest(RawFrame* out, bool* got) {
     }
     held = b;
     holding = true;
+    held_dequeue_ns = sys_.MonotonicNowNs();
   }
   if (!holding) return Status::Ok();
 
@@ -507,6 +509,7 @@ Status CaptureDevice::DrainNewest(RawFrame* out, bool* got) {
   out->bytesperline = MinBytesPerLine(format_.fourcc, format_.width) ? format_.bytesperline : 0;
   out->bytes.assign(start, start + held.bytesused);
   out->sequence = held.sequence;
+  out->dequeue_ns = held_dequeue_ns;
   if ((held.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC) {
     out->timestamp_ns =
         int64_t{held.timestamp.tv_sec} * 1'000'000'000 + int64_t{held.timestamp.tv_usec} * 1000;

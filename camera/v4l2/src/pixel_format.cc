@@ -71,13 +71,27 @@ size_t RequiredBytes(uint32_t fourcc, int width, int height, int bytesperline) {
   return stride * static_cast<size_t>(height - 1) + row;
 }
 
-void YuvToBgrPixel(int y, int cb, int cr, uint8_t* bgr) {
-  const int c = 298 * (y - 16);
+// BT.601 limited range, 8-bit fixed point. The chroma terms of a pixel (with the rounding
+// constant) are computed once per chroma sample and shared by the pixels that use it.
+struct Chroma {
+  int b, g, r;
+};
+
+inline Chroma ChromaTerms(int cb, int cr) {
   const int d = cb - 128;
   const int e = cr - 128;
-  bgr[0] = Clamp8((c + 516 * d + 128) >> 8);
-  bgr[1] = Clamp8((c - 100 * d - 208 * e + 128) >> 8);
-  bgr[2] = Clamp8((c + 409 * e + 128) >> 8);
+  return {516 * d + 128, -100 * d - 208 * e + 128, 409 * e + 128};
+}
+
+inline void ChromaToBgrPixel(int y, const Chroma& k, uint8_t* bgr) {
+  const int c = 298 * (y - 16);
+  bgr[0] = Clamp8((c + k.b) >> 8);
+  bgr[1] = Clamp8((c + k.g) >> 8);
+  bgr[2] = Clamp8((c + k.r) >> 8);
+}
+
+void YuvToBgrPixel(int y, int cb, int cr, uint8_t* bgr) {
+  ChromaToBgrPixel(y, ChromaTerms(cb, cr), bgr);
 }
 
 void YuyvToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
@@ -86,11 +100,13 @@ void YuyvToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_
     const uint8_t* s = src + static_cast<size_t>(row) * src_stride;
     uint8_t* d = dst + static_cast<size_t>(row) * dst_stride;
     // Each 4-byte group Y0 Cb Y1 Cr holds two pixels sharing one chroma sample.
-    for (int x = 0; x < width; ++x) {
-      const uint8_t* group = s + (x / 2) * 4;
-      const int y = group[(x % 2) * 2];
-      YuvToBgrPixel(y, group[1], group[3], d + 3 * x);
+    int x = 0;
+    for (; x + 1 < width; x += 2, s += 4, d += 6) {
+      const Chroma k = ChromaTerms(s[1], s[3]);
+      ChromaToBgrPixel(s[0], k, d);
+      ChromaToBgrPixel(s[2], k, d + 3);
     }
+    if (x < width) ChromaToBgrPixel(s[0], ChromaTerms(s[1], s[3]), d);  // odd width: last pixel
   }
 }
 
@@ -101,9 +117,11 @@ void Nv12ToBgr(const uint8_t* y_plane, int y_stride, const uint8_t* uv_plane, in
     // One Cb Cr pair covers a 2x2 block of luma samples.
     const uint8_t* uvs = uv_plane + static_cast<size_t>(row / 2) * uv_stride;
     uint8_t* d = dst + static_cast<size_t>(row) * dst_stride;
-    for (int x = 0; x < width; ++x) {
-      const uint8_t* uv = uvs + (x / 2) * 2;
-      YuvToBgrPixel(ys[x], uv[0], uv[1], d + 3 * x);
+    for (int x = 0; x < width; x += 2) {
+      const uint8_t* uv = uvs + x;
+      const Chroma k = ChromaTerms(uv[0], uv[1]);
+      ChromaToBgrPixel(ys[x], k, d + 3 * x);
+      if (x + 1 < width) ChromaToBgrPixel(ys[x + 1], k, d + 3 * x + 3);
     }
   }
 }
@@ -158,6 +176,7 @@ Status PixelConverter::ToBgr(const RawFrame& raw, Frame* out) {
   }
   out->timestamp_ns = raw.timestamp_ns;
   out->sequence = raw.sequence;
+  out->dequeue_ns = raw.dequeue_ns;
   const int w = raw.width;
   const int h = raw.height;
   const int dst_stride = 3 * w;
@@ -261,6 +280,7 @@ Status SplitSideBySide(const Frame& both, bool left_first, Frame* left, Frame* r
     f->height = both.height;
     f->timestamp_ns = both.timestamp_ns;
     f->sequence = both.sequence;
+    f->dequeue_ns = both.dequeue_ns;
     f->bgr.resize(static_cast<size_t>(half) * both.height * 3);
   }
   const size_t half_row = static_cast<size_t>(half) * 3;

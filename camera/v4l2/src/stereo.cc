@@ -49,6 +49,8 @@ Status StereoCapture::NextSideBySide(StereoPair* out) {
   s = SplitSideBySide(sbs_frame_, config_.sbs_left_first, &out->left, &out->right);
   if (!s.ok()) return s;
   out->skew_ns = 0;
+  out->paired_ns = sbs_frame_.dequeue_ns;
+  out->converted_ns = sys_.MonotonicNowNs();
   ++stats_.pairs;
   return Status::Ok();
 }
@@ -112,9 +114,11 @@ Status StereoCapture::Next(StereoPair* out) {
       tried_pair = true;
       if (std::llabs(skew) <= config_.pair_tolerance_ns) {
         has_pending_ = {false, false};
+        out->paired_ns = sys_.MonotonicNowNs();
         Status s = devices_[0]->Convert(pending_[0], &out->left);
         if (s.ok()) s = devices_[1]->Convert(pending_[1], &out->right);
         if (!s.ok()) return s;
+        out->converted_ns = sys_.MonotonicNowNs();
         ++devices_[0]->stats_.frames_delivered;
         ++devices_[1]->stats_.frames_delivered;
         out->skew_ns = skew;

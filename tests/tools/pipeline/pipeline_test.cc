@@ -605,6 +605,67 @@ TEST_F(PipelineTest, SinkThatCannotStartEndsTheRunBeforeTheFirstFrame) {
   EXPECT_TRUE(Files(".pfm").empty());
 }
 
+// The end to end latency split into consecutive parts (LatencyPart): a live window's parts from
+// its capture, dequeue, pairing and conversion times and the stage times; a file window's first
+// three parts are 0. Each window's parts add up to its end to end exactly.
+TEST(SplitLatency, PartsAreConsecutiveAndAddUpToTheEndToEnd) {
+  FrameMeta m;
+  const int64_t ms = 1'000'000;
+  m.capture_ns[1] = 100 * ms;
+  m.dequeue_ns = 101 * ms;
+  m.paired_ns = 103 * ms;
+  m.converted_ns = 106 * ms;
+  const int64_t stages[4][2] = {
+      {90 * ms, 110 * ms}, {115 * ms, 121 * ms}, {128 * ms, 136 * ms}, {145 * ms, 155 * ms}};
+  for (int st = 0; st < 4; ++st) {
+    m.stage_ns[st][0] = stages[st][0];
+    m.stage_ns[st][1] = stages[st][1];
+  }
+  double parts[kLatencyParts];
+  SplitLatency(m, parts);
+  const double want[kLatencyParts] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
+  double sum = 0;
+  for (int p = 0; p < kLatencyParts; ++p) {
+    EXPECT_DOUBLE_EQ(parts[p], want[p]) << LatencyPartName(static_cast<LatencyPart>(p));
+    sum += parts[p];
+  }
+  EXPECT_DOUBLE_EQ(sum, 55.0);  // output end 155 ms - capture 100 ms
+  EXPECT_STREQ(LatencyPartName(LatencyPart::kCaptureToDequeue), "capture_to_dequeue");
+  EXPECT_STREQ(LatencyPartName(LatencyPart::kOutput), "output");
+
+  m.dequeue_ns = m.paired_ns = m.converted_ns = 0;  // a file: captured when the read ended
+  m.capture_ns[1] = 104 * ms;
+  SplitLatency(m, parts);
+  EXPECT_EQ(parts[0], 0);
+  EXPECT_EQ(parts[1], 0);
+  EXPECT_EQ(parts[2], 0);
+  EXPECT_DOUBLE_EQ(parts[3], 6.0);
+}
+
+// summary.json carries the split for every part, with the p50 sum beside the end-to-end p50.
+TEST_F(PipelineTest, SummaryAttributesTheEndToEndToNamedParts) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(5);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  const nlohmann::json a = Summary()["latency_attribution_ms"];
+  ASSERT_TRUE(a.is_object()) << Summary().dump();
+  double sum = 0;
+  for (int p = 0; p < kLatencyParts; ++p) {
+    const char* name = LatencyPartName(static_cast<LatencyPart>(p));
+    ASSERT_TRUE(a["parts"].contains(name)) << name;
+    EXPECT_EQ(a["parts"][name]["count"], 5) << name;
+    EXPECT_GE(a["parts"][name]["p50"].get<double>(), 0) << name;
+    sum += a["parts"][name]["p50"].get<double>();
+  }
+  EXPECT_NEAR(a["sum_of_p50"].get<double>(), sum, 1e-9);
+  EXPECT_EQ(a["end_to_end_p50"].get<double>(), r.end_to_end.p50);
+  // A file source: nothing is dequeued, paired or converted.
+  EXPECT_EQ(a["parts"]["capture_to_dequeue"]["max"], 0);
+  EXPECT_EQ(a["parts"]["convert"]["max"], 0);
+}
+
 TEST(PreprocessFromMetadata, CopiesTheModelsPreprocessing) {
   InputDesc d;
   d.channels = 12;

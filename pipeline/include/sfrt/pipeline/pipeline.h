@@ -69,6 +69,12 @@ struct FrameMeta {
   int64_t capture_ns[2] = {0, 0};  // capture time of pair t and t+1 (CLOCK_MONOTONIC)
   // [stage][0 start, 1 end], CLOCK_MONOTONIC ns; stages: source, preprocess, infer, output.
   int64_t stage_ns[4][2] = {};
+  // Live sources, for pair t+1 (0 for files): when the frame with the later capture time was
+  // dequeued, when the pair formed (its partner dequeued too) and when both were converted to BGR.
+  // With capture_ns[1] and stage_ns they split the end-to-end latency (LatencyPart).
+  int64_t dequeue_ns = 0;
+  int64_t paired_ns = 0;
+  int64_t converted_ns = 0;
   // The network input size the window was preprocessed and inferred at (set by the preprocess
   // stage): the model input size, or the fallback size under `smaller_input_on_miss`.
   int input_height = 0;
@@ -82,6 +88,28 @@ struct WindowItem {
 };
 
 enum class Fetch { kWindow, kEnd };
+
+// The end-to-end latency of a window (end of the output stage - capture of pair t+1) in
+// consecutive parts on one clock; they add up to it exactly. For files the capture time is the
+// end of the read, so the first three parts are 0.
+enum class LatencyPart {
+  kCaptureToDequeue,  // the driver's capture timestamp to this process's dequeue
+  kStereoPartner,     // dequeued, waiting for the partner frame to be dequeued and matched
+  kConvert,           // both frames converted to BGR
+  kSourceHandoff,     // the window assembled and handed to the queue
+  kQueuePreprocess,   // waiting in the queue before preprocess
+  kPreprocess,
+  kQueueInfer,
+  kInfer,
+  kQueueOutput,
+  kOutput,
+};
+inline constexpr int kLatencyParts = 10;
+// "capture_to_dequeue", "stereo_partner", "convert", "source_handoff", "queue_preprocess",
+// "preprocess", "queue_infer", "infer", "queue_output", "output".
+const char* LatencyPartName(LatencyPart part);
+// The parts of `meta` (all stages done) in milliseconds, in LatencyPart order.
+void SplitLatency(const FrameMeta& meta, double out_ms[kLatencyParts]);
 
 // A source of (t, t+1) windows, driven by the source stage's thread.
 class FrameSource {
@@ -197,11 +225,12 @@ struct PipelineResult {
   std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
   std::string summary_path;   // "" if even the summary could not be written
   double fps = 0;             // frames / wall time
-  profiling::Summary end_to_end;        // milliseconds
-  profiling::Summary stage[4];          // source, preprocess, infer, output
-  int64_t misses = 0;                   // windows over the budget (or miss_verdict)
-  int64_t frames_at_fallback_size = 0;  // written windows that ran at smaller_input_on_miss
-  int64_t fallback_entries = 0;         // switches from the model input size to the fallback
+  profiling::Summary end_to_end;            // milliseconds
+  profiling::Summary stage[4];              // source, preprocess, infer, output
+  profiling::Summary parts[kLatencyParts];  // the end to end split (LatencyPart order)
+  int64_t misses = 0;                       // windows over the budget (or miss_verdict)
+  int64_t frames_at_fallback_size = 0;      // written windows that ran at smaller_input_on_miss
+  int64_t fallback_entries = 0;             // switches from the model input size to the fallback
   std::vector<std::string> warnings;
 };
 

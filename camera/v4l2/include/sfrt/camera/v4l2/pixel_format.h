@@ -31,6 +31,7 @@ struct Frame {
   std::vector<uint8_t> bgr;  // width * height * 3 bytes, rows top to bottom
   int64_t timestamp_ns = 0;  // CLOCK_MONOTONIC at capture (the driver's buffer timestamp)
   uint32_t sequence = 0;     // the driver's frame counter (counts dropped frames too)
+  int64_t dequeue_ns = 0;    // CLOCK_MONOTONIC when this process dequeued the buffer
 };
 
 // The bytes of one dequeued buffer, copied out of the driver's memory, with what is needed to
@@ -43,6 +44,7 @@ struct RawFrame {
   std::vector<uint8_t> bytes;  // bytes.size() == bytesused of the buffer
   int64_t timestamp_ns = 0;
   uint32_t sequence = 0;
+  int64_t dequeue_ns = 0;  // CLOCK_MONOTONIC when the buffer was dequeued (VIDIOC_DQBUF)
 };
 
 // "YUYV", "MJPG", ... for a V4L2 fourcc (non-printable bytes shown as '?').

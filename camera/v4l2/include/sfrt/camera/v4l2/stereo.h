@@ -41,6 +41,10 @@ struct StereoPair {
   Frame left;
   Frame right;
   int64_t skew_ns = 0;  // left.timestamp_ns - right.timestamp_ns
+  // CLOCK_MONOTONIC: when the pair formed (the later of the two frames was dequeued and matched)
+  // and when both were converted to BGR (the latency attribution of pipeline/).
+  int64_t paired_ns = 0;
+  int64_t converted_ns = 0;
 };
 
 struct StereoStats {
