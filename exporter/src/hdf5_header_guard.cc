@@ -78,6 +78,17 @@ std::string AttributeProblem(const uint8_t* p, uint64_t size, unsigned sizeof_ad
     return "has a variable-length datatype of " + std::to_string(element) +
            " bytes per element; a heap ID takes " + std::to_string(8 + sizeof_addr);
   }
+  // Its base type (the 8 bytes after the variable-length type's own) sizes each item of a
+  // sequence; libhdf5 allocates length x that size per element when it converts. The importer
+  // reads variable-length strings only, whose items are 1-byte characters.
+  if ((dt[0] & 0x0F) == 9) {
+    if (LittleEndian(p + 4, 2) < 16) return "has a variable-length datatype without its base type";
+    const uint64_t item = LittleEndian(dt + 8 + 4, 4);
+    if (item != 1) {
+      return "has a variable-length datatype of " + std::to_string(item) +
+             "-byte items; strings have 1-byte characters";
+    }
+  }
   const unsigned rank = ds[1];
   const uint64_t dims_at = ds[0] == 1 ? 8 : 4;
   uint64_t points = ds[0] == 2 && ds[3] == 2 ? 0 : 1;

@@ -387,6 +387,15 @@ TEST(KerasHeaderGuard, FuzzReproducerWithAVariableLengthStringOfNineBytesIsRejec
                   "heap ID takes 16"});
 }
 
+// fuzz_keras_import (libFuzzer out-of-memory, 1.7 GB in libhdf5's H5T__conv_vlen under
+// H5Aread): model_config's variable-length string says its characters are 524289 bytes each.
+TEST(KerasHeaderGuard, FuzzReproducerWithHalfMegabyteCharactersIsRejected) {
+  ExpectRejected(ReadFile(kCorpus + "oom-vlen-string-half-megabyte-characters.h5"), "vlen-item.h5",
+                 {"object header of the root group at address 96: message",
+                  "an attribute message, has a variable-length datatype of 524289-byte items; "
+                  "strings have 1-byte characters"});
+}
+
 TEST(KerasHeaderGuard, VariableLengthStringWithAHeapIdLargerThanSixteenBytesIsRejected) {
   // model_config's datatype (version 1 attribute message: name padded to 8 bytes) made 24 bytes.
   ValidFile v = LoadValid();
