@@ -382,6 +382,15 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
     return ReportError(kName, env.message(), kExitUsage);
   }
+  // An ISA from SFRT_ISA (or the profile) gets the same check as --isa: refused before the run.
+  if (options.isa != Isa::kAuto && !IsaSupported(options.isa)) {
+    return ReportError(kName,
+                       std::string("ISA ") + IsaName(options.isa) +
+                           " (from --isa, the profile or SFRT_ISA): this CPU (or this build) "
+                           "cannot run it; it runs " +
+                           SupportedIsaList(),
+                       kExitUsage);
+  }
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };

@@ -66,17 +66,19 @@ def frames(root, count, grey=False, seed=3):
     return root
 
 
-def run(a, args):
+def run(a, args, env=None):
     quiet = [] if "--progress" in args else ["--progress", "off"]
     cmd = [a.sfrt, "run", "--model", a.model] + quiet + args
-    print("+ " + " ".join(cmd), flush=True)
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    print("+ %s%s" % ("".join("%s=%s " % kv for kv in (env or {}).items()), " ".join(cmd)),
+          flush=True)
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, **env) if env else None)
     print("--- exit %d; stdout:\n%s--- stderr:\n%s---" % (p.returncode, p.stdout, p.stderr))
     return p
 
 
-def expect_rejected(a, args, out, patterns):
-    p = run(a, args + ["--out", out])
+def expect_rejected(a, args, out, patterns, env=None):
+    p = run(a, args + ["--out", out], env)
     check(p.returncode == 2, "exit %d, expected 2" % p.returncode)
     lines = p.stderr.splitlines()
     check(len(lines) == 1 and lines[0].startswith("sfrt run: "),
@@ -127,6 +129,10 @@ def scenario_isa(a):
         print("this CPU cannot run %s" % isa)
         expect_rejected(a, args + ["--isa", isa], out,
                         [r"--isa %s: this CPU \(or this build\) cannot run it; it runs ref" % isa])
+        # The same ISA through SFRT_ISA: refused before the run too, as a usage error.
+        expect_rejected(a, args, fresh(out), [
+            r"ISA %s \(from --isa, the profile or SFRT_ISA\): this CPU \(or this build\) "
+            r"cannot run it; it runs ref" % isa], env={"SFRT_ISA": isa})
     else:  # a CPU with every ISA: a name the build does not know is refused the same way
         print("this CPU runs every ISA; testing an unknown ISA name instead")
         expect_rejected(a, args + ["--isa", "sve9"], out, [r"--isa: 'sve9' is not one of"])
