@@ -94,6 +94,10 @@ class ReplaySource : public FrameSource {
     if (spec_.kind == ReplaySpec::Kind::kVideo) j["video"] = spec_.video;
     if (total_) j["windows_expected"] = *total_;
     j["loops"] = spec_.loops;
+    // Each image is decoded once: pair t+1 of a window is pair t of the next (camera::PairWindow),
+    // so images_decoded equals images_listed when every pass ran to its end without bad frames.
+    j["images_decoded"] = decoded_before_ + (source_ ? source_->images_decoded() : 0);
+    j["images_listed"] = images_listed_;
   }
   std::vector<BadFrame> bad_frames() const override {
     std::vector<BadFrame> out;
@@ -106,14 +110,9 @@ class ReplaySource : public FrameSource {
   // three equal channels, 16-bit is scaled to 8 bits (cv::IMREAD_COLOR).
   static void NoteImageFormat(const std::string& path) {
     if (path.empty()) return;
-    cv::Mat raw;
-    (void)camera::ReadImageFile(path, cv::IMREAD_UNCHANGED, &raw);
-    if (raw.empty()) return;
-    std::string what;
-    if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";
-    if (raw.depth() == CV_16U || raw.depth() == CV_16S) {
-      what += what.empty() ? "16-bit" : ", 16-bit";
-    }
+    // From the header: the first frame is not decoded a second time.
+    camera::Result<camera::ImageHeader> header = camera::ReadImageHeader(path);
+    const std::string what = header.ok() ? camera::NotEightBitColour(*header) : "";
     if (what.empty()) return;
     std::cerr << "sfrt run: note: '" << path << "' is " << what
               << "; frames are read as 8-bit BGR (grey copied to three channels, 16-bit "
@@ -128,6 +127,7 @@ class ReplaySource : public FrameSource {
     camera::SourceOptions base;
     base.on_bad_frame = camera::BadFramePolicy::kSkip;
     base.on_bad_frame_callback = [this](const camera::BadFrame& bad) { bad_.push_back(bad); };
+    if (source_) decoded_before_ += source_->images_decoded();  // the previous pass's
     switch (spec_.kind) {
       case ReplaySpec::Kind::kDataset: {
         camera::DatasetOptions options;
@@ -161,6 +161,9 @@ class ReplaySource : public FrameSource {
       }
     }
     window_ = std::make_unique<camera::PairWindow>(source_.get());
+    // Images each pass holds: two files per pair, one video frame per pair.
+    if (auto n = source_->size())
+      images_listed_ += *n * (spec_.kind == ReplaySpec::Kind::kVideo ? 1 : 2);
     Result<Fetch> first = Advance();
     if (!first.ok()) return first.status();
     if (*first == Fetch::kEnd) {
@@ -192,6 +195,8 @@ class ReplaySource : public FrameSource {
 
   ReplaySpec spec_;
   std::unique_ptr<camera::StereoSource> source_;
+  uint64_t decoded_before_ = 0;  // images decoded by earlier passes' sources
+  int64_t images_listed_ = 0;    // images of the passes opened so far
   std::unique_ptr<camera::PairWindow> window_;
   std::vector<camera::BadFrame> bad_;
   std::optional<int64_t> total_;

@@ -93,13 +93,9 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   }
   // One note for the run when an image is not 8-bit colour (read as 8-bit BGR all the same).
   for (const Source& s : sources) {
-    cv::Mat raw;
-    (void)camera::ReadImageFile(*s.path, cv::IMREAD_UNCHANGED, &raw);
-    std::string what;
-    if (raw.channels() == 1 || raw.channels() == 2) what = "grayscale";
-    if (raw.depth() == CV_16U || raw.depth() == CV_16S)
-      what += what.empty() ? "16-bit" : ", 16-bit";
-    if (raw.empty() || what.empty()) continue;
+    camera::Result<camera::ImageHeader> header = camera::ReadImageHeader(*s.path);
+    const std::string what = header.ok() ? camera::NotEightBitColour(*header) : "";
+    if (what.empty()) continue;
     std::cerr << "sfrt infer: note: " << s.flag << " image '" << *s.path << "' is " << what
               << "; images are read as 8-bit BGR (grey copied to three channels, 16-bit scaled "
                  "to 8 bits)"

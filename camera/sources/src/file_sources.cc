@@ -207,8 +207,11 @@ Result<std::vector<std::string>> ResolveSpec(const std::string& spec) {
 }
 
 // Reads one image as 8-bit BGR; empty string when fine, otherwise the reason.
-std::string ReadImage(const std::string& path, cv::Mat* out) {
-  if (std::string why = ReadImageFile(path, cv::IMREAD_COLOR, out); !why.empty()) return why;
+// `decoded` counts the images handed to the decoder.
+std::string ReadImage(const std::string& path, cv::Mat* out, uint64_t* decoded) {
+  if (std::string why = ReadImageFile(path, cv::IMREAD_COLOR, out, decoded); !why.empty()) {
+    return why;
+  }
   if (out->type() != CV_8UC3) return "did not decode to 8-bit BGR";
   return "";
 }
@@ -231,9 +234,11 @@ class FileListSource final : public StereoSource {
         const bool left_side = e.missing_reason.rfind("left:", 0) == 0;
         bad.path = left_side ? e.left_path : e.right_path;
         bad.reason = e.missing_reason.substr(e.missing_reason.find(':') + 1);
-      } else if (std::string why = ReadImage(e.left_path, &pair->left); !why.empty()) {
+      } else if (std::string why = ReadImage(e.left_path, &pair->left, &images_decoded_);
+                 !why.empty()) {
         bad = {e.left_path, why, index};
-      } else if (std::string why_r = ReadImage(e.right_path, &pair->right); !why_r.empty()) {
+      } else if (std::string why_r = ReadImage(e.right_path, &pair->right, &images_decoded_);
+                 !why_r.empty()) {
         bad = {e.right_path, why_r, index};
       } else if (pair->left.size() != pair->right.size()) {
         bad = {e.right_path,

@@ -32,7 +32,14 @@ Result<ImageHeader> Png(std::string_view b) {
   if (b.size() < 24 || b.substr(12, 4) != "IHDR") {
     return Status::Error("is a PNG without its IHDR header");
   }
-  return ImageHeader{"PNG", static_cast<int64_t>(Be(b, 16, 4)), static_cast<int64_t>(Be(b, 20, 4))};
+  ImageHeader h{"PNG", static_cast<int64_t>(Be(b, 16, 4)), static_cast<int64_t>(Be(b, 20, 4))};
+  if (b.size() >= 26) {
+    h.bits = static_cast<uint8_t>(b[24]);
+    static constexpr int kChannels[7] = {1, 0, 3, 3, 2, 0, 4};  // by colour type (palette: 3)
+    const uint8_t type = static_cast<uint8_t>(b[25]);
+    h.channels = type < 7 ? kChannels[type] : 0;
+  }
+  return h;
 }
 
 // The first start-of-frame marker (SOF0-3, 5-7, 9-11, 13-15) before the scan.
@@ -55,8 +62,11 @@ Result<ImageHeader> Jpeg(std::string_view b) {
     if (sof) {
       if (length < 7 || at + 9 > b.size())
         return Status::Error("is a JPEG with a short frame header");
-      return ImageHeader{"JPEG", static_cast<int64_t>(Be(b, at + 7, 2)),
-                         static_cast<int64_t>(Be(b, at + 5, 2))};
+      ImageHeader h{"JPEG", static_cast<int64_t>(Be(b, at + 7, 2)),
+                    static_cast<int64_t>(Be(b, at + 5, 2))};
+      h.bits = static_cast<uint8_t>(b[at + 4]);
+      if (at + 10 <= b.size()) h.channels = static_cast<uint8_t>(b[at + 9]);
+      return h;
     }
     if (m == 0xDA || m == 0xD9 || length < 2) break;  // scan or end before any frame header
     at += 2 + length;
@@ -105,7 +115,10 @@ Result<ImageHeader> Pnm(std::string_view b, uint64_t file_size) {
                            " bytes");
     }
   }
-  return ImageHeader{"PNM", w, h};
+  ImageHeader header{"PNM", w, h};
+  header.channels = kind == '3' || kind == '6' ? 3 : 1;
+  header.bits = bitmap ? 1 : v[2] > 255 ? 16 : 8;
+  return header;
 }
 
 Result<ImageHeader> Bmp(std::string_view b, uint64_t file_size) {
@@ -135,7 +148,10 @@ Result<ImageHeader> Bmp(std::string_view b, uint64_t file_size) {
                            std::to_string(file_size) + " bytes");
     }
   }
-  return ImageHeader{"BMP", w, h};
+  ImageHeader header{"BMP", w, h};
+  header.channels = bpp == 32 ? 4 : bpp >= 16 ? 3 : bpp > 0 ? 3 : 0;  // palettes hold colours
+  header.bits = 8;
+  return header;
 }
 
 Result<ImageHeader> Webp(std::string_view b) {
@@ -213,6 +229,18 @@ Result<ImageHeader> Peek(std::string_view b, uint64_t file_size, const ReadAt& r
 
 constexpr size_t kHeadBytes = size_t{1} << 16;
 
+// Reads from `in` at an offset, at most 16 x kHeadBytes at a time (a TIFF directory).
+ReadAt FileReader(std::ifstream& in) {
+  return [&in](uint64_t offset, size_t n) {
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(offset));
+    std::string s(std::min<size_t>(n, kHeadBytes * 16), '\0');
+    in.read(s.data(), static_cast<std::streamsize>(s.size()));
+    s.resize(static_cast<size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+    return s;
+  };
+}
+
 }  // namespace
 
 Result<ImageHeader> PeekImageHeader(std::string_view bytes, uint64_t file_size) {
@@ -223,7 +251,22 @@ Result<ImageHeader> PeekImageHeader(std::string_view bytes, uint64_t file_size) 
   return Peek(bytes.substr(0, kHeadBytes), file_size, read);
 }
 
-std::string ReadImageFile(const std::string& path, int flags, cv::Mat* out) {
+std::string NotEightBitColour(const ImageHeader& h) {
+  std::string what = h.channels == 1 || h.channels == 2 ? "grayscale" : "";
+  if (h.bits == 16) what += what.empty() ? "16-bit" : ", 16-bit";
+  return what;
+}
+
+Result<ImageHeader> ReadImageHeader(const std::string& path) {
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(path, ec);
+  std::ifstream in(path, std::ios::binary);
+  if (ec || !in) return Status::Error("cannot be read");
+  const ReadAt read = FileReader(in);
+  return Peek(read(0, kHeadBytes), size, read);
+}
+
+std::string ReadImageFile(const std::string& path, int flags, cv::Mat* out, uint64_t* decoded) {
   namespace fs = std::filesystem;
   out->release();
   std::error_code ec;
@@ -232,17 +275,11 @@ std::string ReadImageFile(const std::string& path, int flags, cv::Mat* out) {
   const uint64_t size = fs::file_size(path, ec);
   std::ifstream in(path, std::ios::binary);
   if (ec || !in) return "cannot be read";
-  const ReadAt read = [&in](uint64_t offset, size_t n) {
-    in.clear();
-    in.seekg(static_cast<std::streamoff>(offset));
-    std::string s(std::min<size_t>(n, kHeadBytes * 16), '\0');
-    in.read(s.data(), static_cast<std::streamsize>(s.size()));
-    s.resize(static_cast<size_t>(std::max<std::streamsize>(in.gcount(), 0)));
-    return s;
-  };
+  const ReadAt read = FileReader(in);
   const std::string head = read(0, kHeadBytes);
   Result<ImageHeader> header = Peek(head, size, read);
   if (!header.ok()) return "could not be decoded: it " + header.message();
+  if (decoded != nullptr) ++*decoded;
   try {
     *out = cv::imread(path, flags);
   } catch (const cv::Exception& e) {

@@ -29,6 +29,7 @@ class SbsVideoSource final : public StereoSource {
     if (!stopped_.ok()) return stopped_;
     if (ended_) return Fetched::kEnd;
     const int64_t frame = next_frame_;
+    ++images_decoded_;
     if (!capture_.read(frame_) || frame_.empty()) {
       ended_ = true;
       if (announced_ > 0 && frame < announced_) {

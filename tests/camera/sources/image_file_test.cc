@@ -121,5 +121,27 @@ TEST_F(ImageFileTest, OtherContentAndMissingFilesAreRefusedWithTheReason) {
             "data, in a file of 123 bytes");
 }
 
+// What the header says about samples: grey and 16-bit files are told apart without decoding.
+TEST_F(ImageFileTest, HeaderTellsGreyAndSixteenBitImagesApartWithoutDecoding) {
+  struct Case {
+    std::string name;
+    cv::Mat image;
+    std::string want;
+  };
+  const std::vector<Case> cases = {
+      {"colour.png", cv::Mat(8, 8, CV_8UC3, cv::Scalar(1, 2, 3)), ""},
+      {"grey.png", cv::Mat(8, 8, CV_8UC1, cv::Scalar(9)), "grayscale"},
+      {"deep.png", cv::Mat(8, 8, CV_16UC3, cv::Scalar(900)), "16-bit"},
+      {"grey16.pgm", cv::Mat(8, 8, CV_16UC1, cv::Scalar(900)), "grayscale, 16-bit"},
+      {"grey.jpg", cv::Mat(8, 8, CV_8UC1, cv::Scalar(9)), "grayscale"}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    ASSERT_TRUE(cv::imwrite((dir_ / c.name).string(), c.image));
+    Result<ImageHeader> h = ReadImageHeader((dir_ / c.name).string());
+    ASSERT_TRUE(h.ok()) << h.message();
+    EXPECT_EQ(NotEightBitColour(*h), c.want);
+  }
+}
+
 }  // namespace
 }  // namespace sfrt::camera

@@ -185,6 +185,14 @@ def scenario_replay(a):
     check(s["queue_policy"] == "block", "replays block")
     check(all(v == 0 for v in s["drops"].values()), "replay drops %s" % s["drops"])
     check("4/4 frames" in p.stderr, "progress line '4/4 frames' on stderr")
+    # Two sequences of three pairs: 12 image files, each decoded once (pair t+1 of a window is
+    # pair t of the next), for the 4 windows.
+    listed, decoded = s["source"].get("images_listed"), s["source"].get("images_decoded")
+    check(listed == 12, "images listed %s" % listed)
+    check(decoded == 12, "images decoded %s, expected each of the 12 once" % decoded)
+    parts = s.get("latency_attribution_ms", {}).get("parts", {})
+    check(len(parts) == 10 and all(parts[k]["count"] == 4 for k in parts),
+          "latency attribution parts %s" % sorted(parts))
 
 
 def copy_samples(a, name):

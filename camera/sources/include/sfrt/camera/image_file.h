@@ -26,6 +26,8 @@ struct ImageHeader {
   std::string format;  // "PNG", "JPEG", "PNM", "BMP", "WebP", "TIFF"
   int64_t width = 0;
   int64_t height = 0;
+  int channels = 0;  // samples per pixel the file stores (grey 1, colour 3, ...); 0: not read
+  int bits = 0;      // bits per sample; 0: not read (WebP, TIFF)
 };
 
 // The format and size `bytes` (the start of a file, at least its first 64 KiB or all of it)
@@ -35,7 +37,13 @@ Result<ImageHeader> PeekImageHeader(std::string_view bytes, uint64_t file_size);
 
 // Checks the header as above, then decodes with cv::imread(path, flags). "" when it decoded,
 // otherwise the reason, e.g. "missing", "could not be decoded as an image (...)". *out is empty
-// unless it decoded.
-std::string ReadImageFile(const std::string& path, int flags, cv::Mat* out);
+// unless it decoded. `decoded`, when given, is incremented when the file reaches the decoder.
+std::string ReadImageFile(const std::string& path, int flags, cv::Mat* out,
+                          uint64_t* decoded = nullptr);
+// The header of the file at `path` alone (nothing is decoded).
+Result<ImageHeader> ReadImageHeader(const std::string& path);
+// How an image differs from the 8-bit colour every reader here delivers (grey is copied to three
+// channels, 16 bits scaled to 8): "grayscale", "16-bit", "grayscale, 16-bit" or "".
+std::string NotEightBitColour(const ImageHeader& header);
 
 }  // namespace sfrt::camera

@@ -89,9 +89,13 @@ class StereoSource {
   virtual std::optional<int64_t> size() const = 0;
   // Bad frames skipped so far under BadFramePolicy::kSkip, in order.
   const std::vector<BadFrame>& skipped() const { return skipped_; }
+  // Images decoded so far: two per pair of image files (one per video frame); a file's header
+  // read before decoding does not count.
+  uint64_t images_decoded() const { return images_decoded_; }
 
  protected:
   std::vector<BadFrame> skipped_;
+  uint64_t images_decoded_ = 0;
 };
 
 // ---- Dataset roots (layout detected) ----
