@@ -28,6 +28,13 @@ uint64_t Le(std::string_view b, size_t at, int n) {
 
 std::string Dims(int64_t w, int64_t h) { return std::to_string(w) + "x" + std::to_string(h); }
 
+// The refusal of an image of w x h pixels (both > 0) over kMaxImagePixels, or "".
+std::string OverLimit(const std::string& format, int64_t w, int64_t h) {
+  if (w <= kMaxImagePixels / h) return "";
+  return "is a " + format + " declaring " + Dims(w, h) + " pixels, more than the " +
+         std::to_string(kMaxImagePixels >> 20) + " Mpx (8192x8192) an image may have";
+}
+
 Result<ImageHeader> Png(std::string_view b) {
   if (b.size() < 24 || b.substr(12, 4) != "IHDR") {
     return Status::Error("is a PNG without its IHDR header");
@@ -100,7 +107,8 @@ Result<ImageHeader> Pnm(std::string_view b, uint64_t file_size) {
     v[k] = n;
   }
   const int64_t w = v[0], h = v[1];
-  if (w > 0 && h > 0 && w <= (int64_t{1} << 32) && h <= (int64_t{1} << 32)) {
+  if (w > 0 && h > 0) {
+    if (std::string over = OverLimit("PNM", w, h); !over.empty()) return Status::Error(over);
     // Raw: the pixel data's exact size. ASCII: at least one character per sample.
     const int64_t channels = kind == '3' || kind == '6' ? 3 : 1;
     const int64_t bytes_per_sample = v[2] > 255 ? 2 : 1;
@@ -140,6 +148,10 @@ Result<ImageHeader> Bmp(std::string_view b, uint64_t file_size) {
   }
   h = h < 0 ? -h : h;
   if (w < 0) return Status::Error("is a BMP with a negative width");
+  if (bpp > 64) return Status::Error("is a BMP of " + std::to_string(bpp) + " bits per pixel");
+  if (w > 0 && h > 0) {
+    if (std::string over = OverLimit("BMP", w, h); !over.empty()) return Status::Error(over);
+  }
   if (compression == 0 && bpp > 0 && w > 0 && h > 0) {
     const int64_t row = (static_cast<int64_t>(bpp) * w + 31) / 32 * 4;
     if (row * h > static_cast<int64_t>(file_size)) {
@@ -219,10 +231,8 @@ Result<ImageHeader> Peek(std::string_view b, uint64_t file_size, const ReadAt& r
     return Status::Error("is a " + h->format + " declaring " + Dims(h->width, h->height) +
                          " pixels");
   }
-  if (h->width > kMaxImagePixels / h->height) {
-    return Status::Error("is a " + h->format + " declaring " + Dims(h->width, h->height) +
-                         " pixels, more than the " + std::to_string(kMaxImagePixels >> 20) +
-                         " Mpx (8192x8192) an image may have");
+  if (std::string over = OverLimit(h->format, h->width, h->height); !over.empty()) {
+    return Status::Error(over);
   }
   return h;
 }

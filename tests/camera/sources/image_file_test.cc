@@ -83,8 +83,13 @@ TEST_F(ImageFileTest, FuzzReproducerPbmClaimingGigabytesIsRefusedBeforeDecoding)
   EXPECT_TRUE(got.empty());
   Write(frame, "P4\n42242 20206\n" + std::string(9, '\xff'));
   EXPECT_EQ(ReadImageFile(frame.string(), cv::IMREAD_COLOR, &got),
-            "could not be decoded: it is a PNM (P4) declaring 42242x20206 pixels, 106707886 bytes "
-            "of pixel data, in a file of 24 bytes");
+            "could not be decoded: it is a PNM declaring 42242x20206 pixels, more than the 64 Mpx "
+            "(8192x8192) an image may have");
+  // Under the limit, a raw bitmap whose data the file cannot hold.
+  Write(frame, "P4\n4000 3000\n" + std::string(9, '\xff'));
+  EXPECT_EQ(ReadImageFile(frame.string(), cv::IMREAD_COLOR, &got),
+            "could not be decoded: it is a PNM (P4) declaring 4000x3000 pixels, 1500000 bytes of "
+            "pixel data, in a file of 22 bytes");
 }
 
 // A PNG whose IHDR claims 10000x10000 is refused by the pixel limit, naming it.
@@ -141,6 +146,26 @@ TEST_F(ImageFileTest, HeaderTellsGreyAndSixteenBitImagesApartWithoutDecoding) {
     ASSERT_TRUE(h.ok()) << h.message();
     EXPECT_EQ(NotEightBitColour(*h), c.want);
   }
+}
+
+// fuzz_image (UBSan: signed overflow computing a BMP's pixel data size): a BMP header declaring
+// 2147483647 x 2147483647 pixels is refused by the pixel limit before any size arithmetic.
+TEST_F(ImageFileTest, BmpDeclaringHugeDimensionsIsRefusedWithoutOverflow) {
+  std::string bmp(54, '\0');
+  bmp[0] = 'B';
+  bmp[1] = 'M';
+  auto put = [&bmp](size_t at, uint32_t v, int n) {
+    for (int i = 0; i < n; ++i) bmp[at + i] = static_cast<char>((v >> (8 * i)) & 0xFF);
+  };
+  put(14, 40, 4);          // BITMAPINFOHEADER
+  put(18, 0x7FFFFFFF, 4);  // width
+  put(22, 0x7FFFFFFF, 4);  // height
+  put(28, 64, 2);          // bits per pixel
+  Result<ImageHeader> h = PeekImageHeader(bmp, bmp.size());
+  ASSERT_FALSE(h.ok());
+  EXPECT_EQ(h.message(),
+            "is a BMP declaring 2147483647x2147483647 pixels, more than the 64 Mpx (8192x8192) "
+            "an image may have");
 }
 
 }  // namespace
