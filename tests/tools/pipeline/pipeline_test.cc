@@ -42,6 +42,28 @@ cv::Mat PairImage(int k, int side) {
   return m;
 }
 
+// Independent path: Preprocessor + a fresh Session on window k's images (default ISA and
+// threads), the flow the pipeline must give for that window.
+std::vector<float> DirectFlow(const std::shared_ptr<const Model>& model, int k) {
+  std::vector<float> flow(static_cast<size_t>(kH) * kW * 3);
+  auto params = PreprocessFromMetadata(model->metadata().input);
+  EXPECT_TRUE(params.ok());
+  auto pre = camera::Preprocessor::Create(*params, kH, kW);
+  EXPECT_TRUE(pre.ok());
+  SessionOptions so;
+  so.max_height = kH;
+  so.max_width = kW;
+  auto session = Session::Create(model, so);
+  EXPECT_TRUE(session.ok());
+  if (!params.ok() || !pre.ok() || !session.ok()) return {};
+  std::vector<float> input(pre->output_floats());
+  EXPECT_TRUE(pre->Run(PairImage(k, 0), PairImage(k, 1), PairImage(k + 1, 0), PairImage(k + 1, 1),
+                       input.data(), input.size())
+                  .ok());
+  EXPECT_TRUE((*session)->Run(input, kH, kW, flow).ok());
+  return flow;
+}
+
 // Windows (k, k+1) for k < windows; optionally live, failing or raising `stop` after some.
 class FakeSource : public FrameSource {
  public:
@@ -145,23 +167,8 @@ TEST_F(PipelineTest, ReplayWritesEveryWindowAndMatchesDirectInference) {
   EXPECT_EQ(Files(".png").size(), 4u);
   EXPECT_FALSE(AnyTempFile());
 
-  // Independent path: Preprocessor + a fresh Session on the same images, same ISA and threads.
-  auto params = PreprocessFromMetadata(model->metadata().input);
-  ASSERT_TRUE(params.ok());
-  auto pre = camera::Preprocessor::Create(*params, kH, kW);
-  ASSERT_TRUE(pre.ok());
-  SessionOptions so;
-  so.max_height = kH;
-  so.max_width = kW;
-  auto session = Session::Create(model, so);
-  ASSERT_TRUE(session.ok());
-  std::vector<float> input(pre->output_floats());
-  std::vector<float> flow(static_cast<size_t>(kH) * kW * 3);
   for (int k = 0; k < 4; ++k) {
-    ASSERT_TRUE(pre->Run(PairImage(k, 0), PairImage(k, 1), PairImage(k + 1, 0), PairImage(k + 1, 1),
-                         input.data(), input.size())
-                    .ok());
-    ASSERT_TRUE((*session)->Run(input, kH, kW, flow).ok());
+    const std::vector<float> flow = DirectFlow(model, k);
     char name[32];
     std::snprintf(name, sizeof(name), "seq_%06d.pfm", k);
     auto written = io::ReadPfm((dir_ / name).string());
@@ -510,17 +517,6 @@ TEST_F(PipelineTest, CallbackSinkReceivesEveryFlowFrameInOrderMatchingDirectInfe
   EXPECT_TRUE(Files(".pfm").empty());
   EXPECT_TRUE(Files(".png").empty());
 
-  auto params = PreprocessFromMetadata(model->metadata().input);
-  ASSERT_TRUE(params.ok());
-  auto pre = camera::Preprocessor::Create(*params, kH, kW);
-  ASSERT_TRUE(pre.ok());
-  SessionOptions so;
-  so.max_height = kH;
-  so.max_width = kW;
-  auto session = Session::Create(model, so);
-  ASSERT_TRUE(session.ok());
-  std::vector<float> input(pre->output_floats());
-  std::vector<float> flow(static_cast<size_t>(kH) * kW * 3);
   for (int k = 0; k < 4; ++k) {
     SCOPED_TRACE(k);
     EXPECT_EQ(seen[k].frame0, k);
@@ -530,10 +526,7 @@ TEST_F(PipelineTest, CallbackSinkReceivesEveryFlowFrameInOrderMatchingDirectInfe
     EXPECT_EQ(seen[k].width, kW);
     EXPECT_EQ(seen[k].channels, 3);
     EXPECT_TRUE(seen[k].image_at_model_size);
-    ASSERT_TRUE(pre->Run(PairImage(k, 0), PairImage(k, 1), PairImage(k + 1, 0), PairImage(k + 1, 1),
-                         input.data(), input.size())
-                    .ok());
-    ASSERT_TRUE((*session)->Run(input, kH, kW, flow).ok());
+    const std::vector<float> flow = DirectFlow(model, k);
     EXPECT_EQ(seen[k].flow, flow);
   }
 }
