@@ -476,9 +476,10 @@ std::string RemakeFirstKernel(const std::string& name,
   return bytes;
 }
 
-// fuzz_keras_import (libFuzzer out-of-memory, RSS over 2 GB in one import): a dataset whose values
-// were never written reads as its fill value, so a damaged dataspace made the importer allocate up
-// to 4 GB for a file of kilobytes. A kernel made with its shape but no data is refused.
+// A dataset whose values were never written reads as its fill value, so a damaged dataspace could
+// make the importer allocate up to 4 GB for a file of kilobytes (found reading the importer while
+// looking for the cause of a fuzz_keras_import out-of-memory whose input libFuzzer did not keep).
+// A kernel made with its shape but no data is refused.
 TEST(KerasStoredSize, DatasetWhoseValuesWereNeverWrittenIsRejected) {
   const std::string bytes = RemakeFirstKernel("unwritten.h5", [](hid_t f, const char* p, hid_t s) {
     return H5Dcreate2(f, p, H5T_IEEE_F32LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
