@@ -22,7 +22,7 @@ set(SFRT_PACKAGE_HAS_PIPELINE OFF)
 if(TARGET sfrt_pipeline)
   set(SFRT_PACKAGE_HAS_PIPELINE ON)
   list(APPEND SFRT_INSTALLED_TARGETS sfrt_camera sfrt_camera_common sfrt_camera_v4l2
-       sfrt_camera_sources sfrt_config sfrt_pipeline_io sfrt_pipeline)
+       sfrt_camera_sources sfrt_config_vocabulary sfrt_config sfrt_pipeline_io sfrt_pipeline)
   list(APPEND SFRT_INSTALLED_HEADER_DIRS ${PROJECT_SOURCE_DIR}/camera/common/include/sfrt
        ${PROJECT_SOURCE_DIR}/camera/v4l2/include/sfrt
        ${PROJECT_SOURCE_DIR}/camera/sources/include/sfrt

@@ -82,8 +82,6 @@ const char* MissActionName(MissAction a) {
   return "?";
 }
 
-const char* FlowFormatName(FlowFormat f) { return f == FlowFormat::kPfm ? "pfm" : "npy"; }
-
 const char* LogLevelName(LogLevel l) {
   switch (l) {
     case LogLevel::kError:
@@ -94,20 +92,6 @@ const char* LogLevelName(LogLevel l) {
       return "info";
     case LogLevel::kDebug:
       return "debug";
-  }
-  return "?";
-}
-
-const char* StageName(Stage s) {
-  switch (s) {
-    case Stage::kCapture:
-      return "capture";
-    case Stage::kPreprocess:
-      return "preprocess";
-    case Stage::kInfer:
-      return "infer";
-    case Stage::kOutput:
-      return "output";
   }
   return "?";
 }
@@ -814,10 +798,23 @@ class Parser {
   void ParseStages(const Field& field) {
     std::vector<std::string> names;
     for (int s = 0; s < kStageCount; ++s) names.push_back(StageName(static_cast<Stage>(s)));
-    MapView m(c_, field, names);
+    std::vector<std::string> keys = names;
+    keys.push_back(kOldSourceStageName);
+    MapView m(c_, field, keys);
     if (!field.present || !field.node.IsMap()) return;
     for (int s = 0; s < kStageCount; ++s) {
-      const Field sf = m.Get(names[s]);
+      Field sf = m.Get(names[s]);
+      if (s == static_cast<int>(Stage::kSource)) {
+        const Field old = m.Get(kOldSourceStageName);
+        if (old.present && sf.present) {
+          c_.Error(old.key_pos, "stages." + std::string(kOldSourceStageName),
+                   "names the source stage a second time (beside stages.source)", "");
+        } else if (old.present) {
+          c_.Warning(old.key_pos, "stages." + std::string(kOldSourceStageName),
+                     "is the old name of the source stage; write stages.source", "");
+          sf = old;
+        }
+      }
       if (!sf.present) continue;
       MapView sm(c_, sf, {"threads", "cpus", "priority"});
       if (!sf.node.IsMap()) continue;

@@ -33,7 +33,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kStageNames[4] = {"source", "preprocess", "infer", "output"};
+using config::kStageNames;  // "source", "preprocess", "infer", "output"
 
 int64_t NowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(

@@ -257,7 +257,7 @@ std::string TraceJson(const FrameProfiler& prof, const ProfileReportInfo& info) 
                           {"name", "thread_name"},
                           {"pid", 1},
                           {"tid", st + 1},
-                          {"args", {{"name", kProfileStageNames[st]}}}});
+                          {"args", {{"name", kStageNames[st]}}}});
     events.push_back(json{{"ph", "M"},
                           {"name", "thread_sort_index"},
                           {"pid", 1},
@@ -269,7 +269,7 @@ std::string TraceJson(const FrameProfiler& prof, const ProfileReportInfo& info) 
     const std::string frame = "frame " + std::to_string(f.window);
     for (int st = 0; st < kProfileStages; ++st) {
       json e = TraceEvent("X", frame, st + 1, us(f.stage_ns[st][0]));
-      e["cat"] = kProfileStageNames[st];
+      e["cat"] = kStageNames[st];
       e["dur"] = us(f.stage_ns[st][1]) - us(f.stage_ns[st][0]);
       e["args"] = {{"window", f.window},
                    {"frame0", f.frame0},
@@ -418,7 +418,7 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
                    {"frames_at_fallback_size", s.at_other_size}};
   json stages;
   for (int st = 0; st < kProfileStages; ++st) {
-    stages[kProfileStageNames[st]] = StatsJson(stage_stats[st]);
+    stages[kStageNames[st]] = StatsJson(stage_stats[st]);
   }
   stages["end_to_end"] = StatsJson(e2e);
   j["stages"] = stages;
@@ -478,10 +478,10 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
 
   // ---- CSV
   std::string csv = "window,frame0,frame1,capture_ns";
-  for (const char* name : kProfileStageNames) {
+  for (const char* name : kStageNames) {
     csv += std::string(",") + name + "_start_ns," + name + "_end_ns";
   }
-  for (const char* name : kProfileStageNames) csv += std::string(",") + name + "_ms";
+  for (const char* name : kStageNames) csv += std::string(",") + name + "_ms";
   csv += ",end_to_end_ms,miss,input_height,input_width";
   for (const ProfileStep& p : prof.steps()) csv += ",step_" + p.name + "_ms";
   csv += "\n";
@@ -534,7 +534,7 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
            Pad(Fixed(st.p90, 3), 10, true) + Pad(Fixed(st.p99, 3), 10, true) +
            Pad(Fixed(st.max, 3), 10, true) + "\n";
     };
-    for (int st = 0; st < kProfileStages; ++st) row(kProfileStageNames[st], stage_stats[st]);
+    for (int st = 0; st < kProfileStages; ++st) row(kStageNames[st], stage_stats[st]);
     row("end to end", e2e);
     if (info.budget_ms > 0) {
       t += "  budget " + Fixed(info.budget_ms, 2) + " ms: " + std::to_string(s.misses) + " of " +

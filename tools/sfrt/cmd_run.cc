@@ -408,9 +408,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   std::cout << "source      " << source->Describe() << "\n"
             << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n"
             << "throughput  " << Fixed(result.fps, 2) << " fps\n";
-  static const char* kStages[4] = {"source", "preprocess", "infer", "output"};
-  for (int st = 0; st < 4; ++st) {
-    std::cout << "p50 " << kStages[st] << std::string(11 - std::string(kStages[st]).size(), ' ')
+  for (int st = 0; st < config::kStageCount; ++st) {
+    const std::string name = config::kStageNames[st];
+    std::cout << "p50 " << name << std::string(11 - name.size(), ' ')
               << Fixed(result.stage[st].p50, 2) << " ms\n";
   }
   std::cout << "end to end  p50 " << Fixed(result.end_to_end.p50, 2) << " ms, p99 "

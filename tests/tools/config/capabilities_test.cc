@@ -16,7 +16,7 @@ DeploymentProfile ProfileWith(std::optional<int> capture_priority,
                               std::optional<int> infer_priority, std::vector<int> infer_cpus,
                               bool mlockall, std::optional<long long> cap_mib) {
   DeploymentProfile p;
-  p.stages[static_cast<int>(Stage::kCapture)].rt_priority = capture_priority;
+  p.stages[static_cast<int>(Stage::kSource)].rt_priority = capture_priority;
   p.stages[static_cast<int>(Stage::kInfer)].rt_priority = infer_priority;
   p.stages[static_cast<int>(Stage::kInfer)].cpus = std::move(infer_cpus);
   p.mlockall = mlockall;
@@ -67,10 +67,10 @@ TEST(CheckCapabilities, FifoPriorityNeedsCapSysNiceOrAHighEnoughRtprioLimit) {
   ProcessCapabilities caps = Unprivileged();
   std::vector<CapabilityWarning> w = CheckCapabilities(p, caps);
   EXPECT_EQ(Settings(w),
-            (std::vector<std::string>{"stages.capture.priority", "stages.infer.priority"}));
+            (std::vector<std::string>{"stages.source.priority", "stages.infer.priority"}));
   ASSERT_FALSE(w.empty());
   const std::string text = w[0].ToString();
-  EXPECT_EQ(text.rfind("stages.capture.priority: SCHED_FIFO priority 50 cannot be applied: the "
+  EXPECT_EQ(text.rfind("stages.source.priority: SCHED_FIFO priority 50 cannot be applied: the "
                        "process lacks CAP_SYS_NICE and RLIMIT_RTPRIO is 0; the stage runs under "
                        "SCHED_OTHER. Fix: grant CAP_SYS_NICE",
                        0),
@@ -80,7 +80,7 @@ TEST(CheckCapabilities, FifoPriorityNeedsCapSysNiceOrAHighEnoughRtprioLimit) {
 
   caps.rlimit_rtprio = 45;  // enough for infer (40), not for capture (50)
   EXPECT_EQ(Settings(CheckCapabilities(p, caps)),
-            (std::vector<std::string>{"stages.capture.priority"}));
+            (std::vector<std::string>{"stages.source.priority"}));
   caps.rlimit_rtprio = 50;
   EXPECT_TRUE(CheckCapabilities(p, caps).empty());
   caps.rlimit_rtprio = 0;

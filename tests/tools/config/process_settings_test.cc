@@ -49,7 +49,7 @@ ThreadOps Recording(Calls* calls) {
 
 DeploymentProfile FifoProfile() {
   DeploymentProfile p;
-  p.stages[static_cast<int>(Stage::kCapture)].rt_priority = 50;
+  p.stages[static_cast<int>(Stage::kSource)].rt_priority = 50;
   p.stages[static_cast<int>(Stage::kInfer)].rt_priority = 40;
   p.stages[static_cast<int>(Stage::kInfer)].cpus = {1, 7};
   return p;
@@ -81,7 +81,7 @@ TEST(ProcessSettings, FifoWithoutCapSysNiceIsNotAttemptedAndNamesTheFix) {
   EXPECT_TRUE(calls.fifo.empty()) << "SCHED_FIFO must not be attempted without permission";
   EXPECT_EQ(calls.other, 2);  // both threads explicitly back to SCHED_OTHER
   const std::vector<SettingOutcome> out = ps.Outcomes();
-  for (const char* key : {"stages.capture.priority", "stages.infer.priority"}) {
+  for (const char* key : {"stages.source.priority", "stages.infer.priority"}) {
     const SettingOutcome* o = Find(out, key);
     ASSERT_NE(o, nullptr) << key;
     EXPECT_FALSE(o->applied) << key;
@@ -90,7 +90,7 @@ TEST(ProcessSettings, FifoWithoutCapSysNiceIsNotAttemptedAndNamesTheFix) {
   }
   const std::vector<std::string> warnings = ps.Warnings();
   ASSERT_FALSE(warnings.empty());
-  EXPECT_EQ(warnings[0].rfind("stages.capture.priority: ", 0), 0u) << warnings[0];
+  EXPECT_EQ(warnings[0].rfind("stages.source.priority: ", 0), 0u) << warnings[0];
 }
 
 TEST(ProcessSettings, FifoWithCapSysNiceIsAppliedAtTheProfilesPriority) {
@@ -104,7 +104,7 @@ TEST(ProcessSettings, FifoWithCapSysNiceIsAppliedAtTheProfilesPriority) {
   EXPECT_TRUE(o->applied);
   EXPECT_EQ(o->value, "SCHED_FIFO 40");
   // The capture stage has not started: its outcome says so.
-  const SettingOutcome* c = Find(outcomes, "stages.capture.priority");
+  const SettingOutcome* c = Find(outcomes, "stages.source.priority");
   ASSERT_NE(c, nullptr);
   EXPECT_FALSE(c->applied);
   EXPECT_EQ(c->note, "the stage did not start");

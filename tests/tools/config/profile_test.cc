@@ -102,7 +102,7 @@ TEST(ShippedProfiles, X86UsbStereoHasTwoCamerasAndRealTimeStages) {
   ASSERT_EQ(p->calibration.size(), 1u);
   EXPECT_EQ(p->calibration[0], kFirmware + "/calib/usb-stereo-640x480.camchain.yaml");
   EXPECT_EQ(p->stage(Stage::kInfer).cpus, (std::vector<int>{0, 1}));
-  EXPECT_EQ(p->stage(Stage::kCapture).rt_priority, 50);
+  EXPECT_EQ(p->stage(Stage::kSource).rt_priority, 50);
   EXPECT_FALSE(p->stage(Stage::kOutput).rt_priority.has_value());
   EXPECT_TRUE(p->mlockall);
   EXPECT_EQ(p->memory_cap_mib, 512);
@@ -295,6 +295,25 @@ TEST_F(ProfileParser, StereoPairToleranceDefaultsToHalfAFramePeriod) {
                 ":1:1: calibration: not given: live frames go to the network unrectified");
 }
 
+TEST_F(ProfileParser, OldSourceStageNameCaptureIsReadWithAWarningAndNotBesideSource) {
+  ValidationReport report;
+  auto p = LoadProfileFromString(Minimal("stages:\n  capture: {priority: 50}\n"),
+                                 (dir_ / "old.yaml").string(), &report);
+  ASSERT_TRUE(p.ok()) << p.message();
+  EXPECT_EQ(p->stage(Stage::kSource).rt_priority, 50);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_EQ(report.warnings[0].key, "stages.capture");
+  EXPECT_EQ(report.warnings[0].problem, "is the old name of the source stage; write stages.source");
+
+  auto both = LoadProfileFromString(
+      Minimal("stages:\n  source: {priority: 50}\n  capture: {priority: 40}\n"),
+      (dir_ / "both.yaml").string());
+  ASSERT_FALSE(both.ok());
+  EXPECT_NE(both.message().find("stages.capture: names the source stage a second time"),
+            std::string::npos)
+      << both.message();
+}
+
 TEST_F(ProfileParser, DuplicateKeyIsAnError) {
   const std::string path = (dir_ / "p.yaml").string();
   ValidationReport report;
@@ -379,7 +398,7 @@ TEST_F(ProfileParser, SummaryNamesEverySetting) {
       {"capture", "YUYV 480x1280 (HxW) at 30 fps, 4 buffers"},
       {"calibration", kFirmware + "/calib/sbs-stereo-1280x480.camchain.yaml"},
       {"model", kDefaultModel + " at 96x128 (HxW)"},
-      {"stage capture", "1 thread, CPUs 0, SCHED_FIFO 50"},
+      {"stage source", "1 thread, CPUs 0, SCHED_FIFO 50"},
       {"stage preprocess", "1 thread, CPUs 1, SCHED_FIFO 45"},
       {"stage infer", "2 threads, CPUs 2,3, SCHED_FIFO 40"},
       {"stage output", "1 thread, CPUs 1, SCHED_OTHER"},

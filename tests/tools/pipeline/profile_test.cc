@@ -108,7 +108,7 @@ void ExpectValidReports(const fs::path& dir, size_t windows, size_t steps) {
   EXPECT_EQ(j["format"], "sfrt-profile");
   EXPECT_EQ(j["version"], 1);
   EXPECT_EQ(j["frames"]["retained"].get<size_t>(), windows);
-  for (const char* st : {"capture", "preprocess", "infer", "output", "end_to_end"}) {
+  for (const char* st : {"source", "preprocess", "infer", "output", "end_to_end"}) {
     ASSERT_TRUE(j["stages"].contains(st)) << st;
     const json& s = j["stages"][st];
     EXPECT_EQ(s["count"].get<size_t>(), windows) << st;
@@ -129,7 +129,7 @@ void ExpectValidReports(const fs::path& dir, size_t windows, size_t steps) {
   std::vector<std::string> lines;
   while (std::getline(csv, line)) lines.push_back(line);
   ASSERT_EQ(lines.size(), windows + 1);
-  EXPECT_EQ(lines[0].rfind("window,frame0,frame1,capture_ns,capture_start_ns", 0), 0u);
+  EXPECT_EQ(lines[0].rfind("window,frame0,frame1,capture_ns,source_start_ns", 0), 0u);
   const auto columns = [](const std::string& l) { return std::count(l.begin(), l.end(), ',') + 1; };
   EXPECT_EQ(columns(lines[0]), 4 + 8 + 4 + 4 + static_cast<long>(steps));
   EXPECT_NE(lines[0].find(",miss,input_height,input_width"), std::string::npos) << lines[0];
@@ -160,7 +160,7 @@ void ExpectValidReports(const fs::path& dir, size_t windows, size_t steps) {
     }
   }
   EXPECT_EQ(track_names, (std::map<int, std::string>{
-                             {1, "capture"}, {2, "preprocess"}, {3, "infer"}, {4, "output"}}));
+                             {1, "source"}, {2, "preprocess"}, {3, "infer"}, {4, "output"}}));
   for (int tid = 1; tid <= 4; ++tid) EXPECT_EQ(frame_events[tid], windows) << "tid " << tid;
   ASSERT_EQ(layers.size(), windows * steps);
   for (const json& e : layers) {

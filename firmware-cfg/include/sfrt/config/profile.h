@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "sfrt/config/vocabulary.h"
 #include "sfrt/status.h"
 
 namespace sfrt::config {
@@ -42,7 +43,6 @@ enum class SourceKind {
 enum class SbsOrder { kLeftRight, kRightLeft };  // which half is the left image
 enum class BadFrameAction { kSkip, kStop };
 enum class MissAction { kDropNext, kSmallerInput, kCountOnly };
-enum class FlowFormat { kPfm, kNpy };
 enum class LogLevel { kError, kWarn, kInfo, kDebug };
 
 // Canonical spellings as written in profiles ("MJPEG", "drop-next", "pfm", ...).
@@ -51,7 +51,6 @@ const char* SourceKindName(SourceKind k);  // "stereo cameras", "side-by-side ca
 const char* SbsOrderName(SbsOrder o);
 const char* BadFrameActionName(BadFrameAction a);
 const char* MissActionName(MissAction a);
-const char* FlowFormatName(FlowFormat f);
 const char* LogLevelName(LogLevel l);
 
 // camera: (live capture). width/height are the device frame; for a side-by-side camera the full
@@ -79,10 +78,6 @@ struct ReplaySettings {
   BadFrameAction on_bad_frame = BadFrameAction::kSkip;
   bool loop = false;
 };
-
-enum class Stage { kCapture = 0, kPreprocess, kInfer, kOutput };
-inline constexpr int kStageCount = 4;
-const char* StageName(Stage s);  // "capture", "preprocess", "infer", "output"
 
 struct StageSettings {
   int threads = 1;

@@ -42,6 +42,7 @@
 
 #include "sfrt/camera/calibration.h"
 #include "sfrt/camera/preprocess.h"
+#include "sfrt/config/vocabulary.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/pipeline/latest_queue.h"
@@ -143,7 +144,7 @@ class FrameSource {
   virtual std::vector<BadFrame> bad_frames() const { return {}; }
 };
 
-enum class FlowFormat { kPfm, kNpy };
+using config::FlowFormat;  // sfrt/config/vocabulary.h: "pfm", "npy"
 // What a failed output write (disk full, read-only or vanished directory, ...) does to the run.
 // Either way the window's files are all or nothing: every file is written to a temporary name and
 // renamed, and the files of a window already written are removed when a later one fails.

@@ -30,10 +30,10 @@
 
 namespace sfrt::pipeline {
 
-// Stage names in profiles and reports: index 0 is the source stage (camera capture or file read).
-inline constexpr int kProfileStages = 4;
-inline constexpr const char* kProfileStageNames[kProfileStages] = {"capture", "preprocess", "infer",
-                                                                   "output"};
+// Stage names in profiles and reports (sfrt/config/vocabulary.h): index 0 is the source stage
+// (camera capture or file read).
+inline constexpr int kProfileStages = config::kStageCount;
+using config::kStageNames;
 
 // One planned step of the session (Session::steps()): layers, op type and kernel.
 using ProfileStep = profiling::StepLabel;
