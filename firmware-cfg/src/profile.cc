@@ -66,10 +66,6 @@ const char* SbsOrderName(SbsOrder o) {
   return o == SbsOrder::kLeftRight ? "left-right" : "right-left";
 }
 
-const char* BadFrameActionName(BadFrameAction a) {
-  return a == BadFrameAction::kSkip ? "skip" : "stop";
-}
-
 const char* MissActionName(MissAction a) {
   switch (a) {
     case MissAction::kDropNext:
@@ -684,9 +680,12 @@ class Parser {
       if (auto v = ReadEnum(c_, m.Get("order"), kOrders)) r.video_order = *v;
     }
     if (!video) m.Forbid("order", "order applies to a side-by-side video");
-    if (auto v = ReadEnum<BadFrameAction>(
+    if (auto v = ReadEnum<camera::BadFramePolicy>(
             c_, m.Get("on_bad_frame"),
-            {{"skip", BadFrameAction::kSkip}, {"stop", BadFrameAction::kStop}})) {
+            {{camera::BadFramePolicyName(camera::BadFramePolicy::kSkip),
+              camera::BadFramePolicy::kSkip},
+             {camera::BadFramePolicyName(camera::BadFramePolicy::kStop),
+              camera::BadFramePolicy::kStop}})) {
       r.on_bad_frame = *v;
     }
     if (auto v = ReadBool(c_, m.Get("loop"))) r.loop = *v;
@@ -1119,8 +1118,8 @@ std::string FormatProfileSummary(const DeploymentProfile& p) {
     }
     row("capture", c);
   } else {
-    row("on bad frame",
-        std::string(BadFrameActionName(p.replay.on_bad_frame)) + (p.replay.loop ? ", loop" : ""));
+    row("on bad frame", std::string(camera::BadFramePolicyName(p.replay.on_bad_frame)) +
+                            (p.replay.loop ? ", loop" : ""));
   }
   row("calibration", p.calibration.empty() ? "none (no rectification)" : Join(p.calibration));
   row("model", p.model_file + " at " + std::to_string(p.input_height) + "x" +

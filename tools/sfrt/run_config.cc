@@ -169,7 +169,7 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
     }
   } else {
     maps.push_back({"replay.on_bad_frame", "--on-bad-frame",
-                    config::BadFrameActionName(p.replay.on_bad_frame)});
+                    camera::BadFramePolicyName(p.replay.on_bad_frame)});
     if (p.replay.loop) {
       if (cmd->get_option_no_throw("--loop") != nullptr) {
         maps.push_back({"replay.loop", "--loop", "1000000"});

@@ -354,9 +354,14 @@ Result<Detected> Detect(const std::string& root, const DatasetOptions& options) 
 
 }  // namespace
 
+const char* BadFramePolicyName(BadFramePolicy policy) {
+  return policy == BadFramePolicy::kSkip ? "skip" : "stop";
+}
+
 Result<BadFramePolicy> ParseBadFramePolicy(const std::string& text) {
-  if (text == "skip") return BadFramePolicy::kSkip;
-  if (text == "stop") return BadFramePolicy::kStop;
+  for (BadFramePolicy p : {BadFramePolicy::kSkip, BadFramePolicy::kStop}) {
+    if (text == BadFramePolicyName(p)) return p;
+  }
   return Status::Error("bad-frame policy '" + text + "' is neither skip nor stop");
 }
 

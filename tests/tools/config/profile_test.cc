@@ -68,7 +68,7 @@ TEST(ShippedProfiles, ReplayDemoLoadsWithPathsResolvedAgainstItsDirectory) {
   EXPECT_EQ(p->source, SourceKind::kReplayGlobs);
   EXPECT_EQ(p->replay.left, kSource + "/tools/demo/robot-frames/left*.png");
   EXPECT_EQ(p->replay.right, kSource + "/tools/demo/robot-frames/right*.png");
-  EXPECT_EQ(p->replay.on_bad_frame, BadFrameAction::kStop);
+  EXPECT_EQ(p->replay.on_bad_frame, camera::BadFramePolicy::kStop);
   EXPECT_EQ(p->model_file, kDefaultModel);
   EXPECT_EQ(p->input_height, 96);
   EXPECT_EQ(p->input_width, 128);
@@ -243,7 +243,7 @@ TEST_F(ProfileParser, MinimalProfileGetsTheDocumentedDefaults) {
   EXPECT_FALSE(p->video);
   EXPECT_TRUE(p->summary);
   EXPECT_EQ(p->log_level, LogLevel::kInfo);
-  EXPECT_EQ(p->replay.on_bad_frame, BadFrameAction::kSkip);
+  EXPECT_EQ(p->replay.on_bad_frame, camera::BadFramePolicy::kSkip);
   EXPECT_EQ(p->output_dir, (dir_ / "out").string());
 }
 

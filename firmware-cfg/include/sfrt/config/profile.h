@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "sfrt/camera/stereo_source.h"
 #include "sfrt/config/vocabulary.h"
 #include "sfrt/status.h"
 
@@ -41,7 +42,6 @@ enum class SourceKind {
   kReplayVideo,    // a side-by-side stereo video file
 };
 enum class SbsOrder { kLeftRight, kRightLeft };  // which half is the left image
-enum class BadFrameAction { kSkip, kStop };
 enum class MissAction { kDropNext, kSmallerInput, kCountOnly };
 enum class LogLevel { kError, kWarn, kInfo, kDebug };
 
@@ -49,7 +49,6 @@ enum class LogLevel { kError, kWarn, kInfo, kDebug };
 const char* PixelFormatName(PixelFormat f);
 const char* SourceKindName(SourceKind k);  // "stereo cameras", "side-by-side camera", ...
 const char* SbsOrderName(SbsOrder o);
-const char* BadFrameActionName(BadFrameAction a);
 const char* MissActionName(MissAction a);
 const char* LogLevelName(LogLevel l);
 
@@ -75,7 +74,7 @@ struct ReplaySettings {
   std::string right;
   std::string video;  // kReplayVideo: absolute
   SbsOrder video_order = SbsOrder::kLeftRight;
-  BadFrameAction on_bad_frame = BadFrameAction::kSkip;
+  camera::BadFramePolicy on_bad_frame = camera::BadFramePolicy::kSkip;  // "skip", "stop"
   bool loop = false;
 };
 

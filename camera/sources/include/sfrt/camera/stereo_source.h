@@ -62,8 +62,9 @@ struct BadFrame {
   int64_t index = -1;  // FramePair::index the bad pair would have had
 };
 
-// "skip" / "stop" (as `--on-bad-frame` spells them).
+// "skip" / "stop" (as `--on-bad-frame` and profiles' `on_bad_frame` spell them).
 Result<BadFramePolicy> ParseBadFramePolicy(const std::string& text);
+const char* BadFramePolicyName(BadFramePolicy policy);
 
 struct SourceOptions {
   BadFramePolicy on_bad_frame = BadFramePolicy::kStop;
