@@ -24,7 +24,8 @@
 // Errors: a Write() that fails is a failed output of that window, handled as a failed file write
 // (PipelineOptions::on_output_error: kStop ends the run with the message, kSkip drops the window
 // and goes on). The window's files already written are removed and the sinks before it are told
-// through Retract(), so a window is delivered everywhere or nowhere.
+// through Retract(), so a window is delivered everywhere or nowhere (except a frame already added
+// to the --video AVI, which cannot be taken out).
 #pragma once
 
 #include <cstdint>
