@@ -74,14 +74,14 @@ std::string AttributeProblem(const uint8_t* p, uint64_t size, unsigned sizeof_ad
   // the collection's address and a 4-byte index. libhdf5 replaces the size the message gives with
   // that when it opens the attribute (H5T_set_loc) and then copies that many bytes per element
   // from data it allocated at the message's size, so the two must agree.
-  if ((dt[0] & 0x0F) == 9 && element != 8 + uint64_t{sizeof_addr}) {
-    return "has a variable-length datatype of " + std::to_string(element) +
-           " bytes per element; a heap ID takes " + std::to_string(8 + sizeof_addr);
-  }
   // Its base type (the 8 bytes after the variable-length type's own) sizes each item of a
   // sequence; libhdf5 allocates length x that size per element when it converts. The importer
   // reads variable-length strings only, whose items are 1-byte characters.
   if ((dt[0] & 0x0F) == 9) {
+    if (element != 8 + uint64_t{sizeof_addr}) {
+      return "has a variable-length datatype of " + std::to_string(element) +
+             " bytes per element; a heap ID takes " + std::to_string(8 + sizeof_addr);
+    }
     if (LittleEndian(p + 4, 2) < 16) return "has a variable-length datatype without its base type";
     const uint64_t item = LittleEndian(dt + 8 + 4, 4);
     if (item != 1) {

@@ -238,6 +238,7 @@ Result<ImageHeader> Peek(std::string_view b, uint64_t file_size, const ReadAt& r
 }
 
 constexpr size_t kHeadBytes = size_t{1} << 16;
+constexpr const char* kCannotRead = "cannot be read";
 
 // Reads from `in` at an offset, at most 16 x kHeadBytes at a time (a TIFF directory).
 ReadAt FileReader(std::ifstream& in) {
@@ -271,7 +272,7 @@ Result<ImageHeader> ReadImageHeader(const std::string& path) {
   std::error_code ec;
   const uint64_t size = std::filesystem::file_size(path, ec);
   std::ifstream in(path, std::ios::binary);
-  if (ec || !in) return Status::Error("cannot be read");
+  if (ec || !in) return Status::Error(kCannotRead);
   const ReadAt read = FileReader(in);
   return Peek(read(0, kHeadBytes), size, read);
 }
@@ -282,13 +283,11 @@ std::string ReadImageFile(const std::string& path, int flags, cv::Mat* out, uint
   std::error_code ec;
   if (!fs::exists(path, ec)) return "missing";
   if (!fs::is_regular_file(path, ec)) return "not a regular file";
-  const uint64_t size = fs::file_size(path, ec);
-  std::ifstream in(path, std::ios::binary);
-  if (ec || !in) return "cannot be read";
-  const ReadAt read = FileReader(in);
-  const std::string head = read(0, kHeadBytes);
-  Result<ImageHeader> header = Peek(head, size, read);
-  if (!header.ok()) return "could not be decoded: it " + header.message();
+  Result<ImageHeader> header = ReadImageHeader(path);
+  if (!header.ok()) {
+    return header.message() == kCannotRead ? header.message()
+                                           : "could not be decoded: it " + header.message();
+  }
   if (decoded != nullptr) ++*decoded;
   try {
     *out = cv::imread(path, flags);
