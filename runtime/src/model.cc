@@ -106,7 +106,58 @@ class Checker {
   const std::string& label_;
 };
 
+Status CheckQuant(const Checker& check, const std::string& where, const char* field,
+                  const fb::QuantParams* q, QuantParams* out) {
+  if (q == nullptr) return check.Fail(where + ": precision is int8 but " + field + " is missing");
+  if (!(q->scale() > 0.0f) || !std::isfinite(q->scale())) {
+    return check.Fail(where + ": " + field + ".scale is " + std::to_string(q->scale()) +
+                      "; must be positive and finite");
+  }
+  if (q->zero_point() < 0 || q->zero_point() > 255) {
+    return check.Fail(where + ": " + field + ".zero_point is " + std::to_string(q->zero_point()) +
+                      "; must be in 0..255");
+  }
+  *out = {q->scale(), q->zero_point()};
+  return Status::Ok();
+}
+
+// The quantisation fields of an int8 convolution (schema 1.3).
+Status TakeInt8Params(const Checker& check, const std::string& where, const fb::Conv2D& c,
+                      ConvParams& p) {
+  const auto* scales = c.weight_scales();
+  if (scales == nullptr || scales->size() != static_cast<unsigned>(p.out_channels)) {
+    return check.Fail(where + ": weight_scales holds " +
+                      std::to_string(scales == nullptr ? 0 : scales->size()) +
+                      " values; an int8 layer needs one per output channel (" +
+                      std::to_string(p.out_channels) + ")");
+  }
+  for (unsigned o = 0; o < scales->size(); ++o) {
+    const float v = scales->Get(o);
+    if (!(v > 0.0f) || !std::isfinite(v)) {
+      return check.Fail(where + ": weight_scales[" + std::to_string(o) + "] is " +
+                        std::to_string(v) + "; must be positive and finite");
+    }
+  }
+  // FlatBuffers vectors of float are little-endian and 4-byte aligned: usable in place.
+  p.weight_scales = scales->data();
+  if (Status s = CheckQuant(check, where, "input_quant", c.input_quant(), &p.input_quant);
+      !s.ok()) {
+    return s;
+  }
+  return CheckQuant(check, where, "output_quant", c.output_quant(), &p.output_quant);
+}
+
 }  // namespace
+
+const char* PrecisionName(Precision precision) {
+  switch (precision) {
+    case Precision::kFloat32:
+      return "fp32";
+    case Precision::kInt8:
+      return "int8";
+  }
+  return "?";
+}
 
 Model::~Model() = default;
 
@@ -370,9 +421,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     if (layer.name.empty()) layer.name = "#" + std::to_string(i);
     const std::string where = "layer " + std::to_string(i) + " '" + layer.name + "'";
 
-    // Checks one weight tensor and returns fp32 data for it (in place, or widened).
+    // Checks one weight tensor and returns fp32 data for it (in place, or widened), or, for an
+    // Int8 tensor (allowed only where int8_dst is given), its bytes in place.
     auto take_tensor = [&](const fb::Tensor* t, const char* field, std::initializer_list<int> shape,
-                           const float** dst) -> Status {
+                           const float** dst, const int8_t** int8_dst = nullptr) -> Status {
       const std::string tf = where + ": " + field;
       if (t == nullptr || t->data() == nullptr) return check.Fail(tf + " is missing");
       size_t count = 1;
@@ -402,6 +454,13 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         case fb::DataType::Float16:
           elem = 2;
           break;
+        case fb::DataType::Int8:
+          if (int8_dst == nullptr) {
+            return check.Fail(tf + ".dtype is int8, which only the weights of an int8 layer "
+                                   "may be");
+          }
+          elem = 1;
+          break;
         default:
           return check.Fail(tf + ".dtype is unknown value " +
                             std::to_string(static_cast<int>(t->dtype())));
@@ -409,7 +468,8 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
       const size_t bytes = t->data()->size();
       if (bytes != count * elem) {
         return check.Fail(tf + ".data holds " + std::to_string(bytes) + " bytes; shape (" +
-                          want_shape + ") of " + (elem == 4 ? "float32" : "float16") + " needs " +
+                          want_shape + ") of " +
+                          (elem == 4 ? "float32" : elem == 2 ? "float16" : "int8") + " needs " +
                           std::to_string(count * elem));
       }
       const uint8_t* bytes_ptr = t->data()->data();
@@ -418,7 +478,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                           ", not a multiple of 64 as the format requires");
       }
       if (options.verify_checksum) crc = Crc32c(crc, bytes_ptr, bytes);
-      if (elem == 4) {
+      if (elem == 1) {
+        *int8_dst = reinterpret_cast<const int8_t*>(bytes_ptr);
+      } else if (elem == 4) {
         *dst = reinterpret_cast<const float*>(bytes_ptr);
       } else {
         saw_fp16 = true;
@@ -508,11 +570,33 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         p.leaky_slope = c->leaky_slope();
         if (!std::isfinite(p.leaky_slope)) return check.Fail(where + ": leaky_slope is not finite");
-        if (Status s =
-                take_tensor(c->weights(), "weights",
-                            {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels}, &p.weights);
+        switch (c->precision()) {
+          case fb::Precision::Float32:
+            p.precision = Precision::kFloat32;
+            break;
+          case fb::Precision::Int8:
+            p.precision = Precision::kInt8;
+            break;
+          default:
+            return check.Fail(where + ": precision is value " +
+                              std::to_string(static_cast<int>(c->precision())) +
+                              ", which this runtime (schema " + std::to_string(kSchemaVersionMajor) +
+                              "." + std::to_string(kSchemaVersionMinor) +
+                              ") does not know; it runs fp32 and int8");
+        }
+        if (p.precision == Precision::kInt8) {
+          if (Status s = TakeInt8Params(check, where, *c, p); !s.ok()) return s;
+          metadata_.has_int8 = true;
+        }
+        if (Status s = take_tensor(c->weights(), "weights",
+                                   {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels},
+                                   &p.weights,
+                                   p.precision == Precision::kInt8 ? &p.weights_q : nullptr);
             !s.ok()) {
           return s;
+        }
+        if (p.precision == Precision::kInt8 && p.weights_q == nullptr) {
+          return check.Fail(where + ": precision is int8 but weights.dtype is not int8");
         }
         if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
         channels = p.out_channels;
@@ -567,6 +651,45 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                       " but the last layer produces " + std::to_string(channels));
   }
   metadata_.weight_type = saw_fp16 ? WeightType::kFloat16 : WeightType::kFloat32;
+
+  // An int8 convolution that feeds an int8 convolution (through upsamplings and crops) hands it
+  // bytes quantised with its output_quant: the reader must read them with the same parameters.
+  for (size_t i = 0, prev = layers_.size(); i < layers_.size(); ++i) {
+    if (layers_[i].kind != LayerKind::kConv2D) continue;
+    if (prev < layers_.size()) {
+      const ConvParams& a = layers_[prev].conv;
+      const ConvParams& b = layers_[i].conv;
+      if (a.precision == Precision::kInt8 && b.precision == Precision::kInt8 &&
+          !(a.output_quant == b.input_quant)) {
+        return check.Fail("layer " + std::to_string(i) + " '" + layers_[i].name +
+                          "': input_quant (scale " + std::to_string(b.input_quant.scale) +
+                          ", zero_point " + std::to_string(b.input_quant.zero_point) +
+                          ") differs from the output_quant of layer '" + layers_[prev].name +
+                          "' (scale " + std::to_string(a.output_quant.scale) + ", zero_point " +
+                          std::to_string(a.output_quant.zero_point) + ") that feeds it");
+      }
+    }
+    prev = i;
+  }
+  if (const fb::Calibration* cal = m->calibration()) {
+    CalibrationDesc c;
+    c.method = Str(cal->method());
+    c.data_sha256 = Str(cal->data_sha256());
+    c.frames = cal->frames();
+    c.height = cal->height();
+    c.width = cal->width();
+    c.output_max_rel = cal->output_max_rel();
+    c.output_rms_rel = cal->output_rms_rel();
+    if (cal->layers() != nullptr) {
+      for (const fb::LayerError* e : *cal->layers()) {
+        c.layers.push_back({Str(e->layer()),
+                            e->precision() == fb::Precision::Int8 ? Precision::kInt8
+                                                                  : Precision::kFloat32,
+                            e->relative_rms()});
+      }
+    }
+    metadata_.calibration = std::move(c);
+  }
 
   // 6. Checksum last, over exactly the bytes the layers use.
   if (options.verify_checksum && crc != metadata_.weights_crc32c) {

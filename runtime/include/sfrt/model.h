@@ -29,13 +29,24 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 2;
+inline constexpr int kSchemaVersionMinor = 3;
 
 enum class LayerKind { kConv2D, kUpsample, kCrop };
 enum class Activation { kNone, kRelu, kLeakyRelu };
 enum class PaddingRule { kExplicit, kSameUpper };
 enum class CropRule { kExplicit, kToInputSize };
 enum class WeightType { kFloat32, kFloat16 };
+// The arithmetic a convolution runs in (schema 1.3; every layer of an older file is kFloat32).
+// kInt8: see ConvParams and docs/model-format.md, "Int8 arithmetic".
+enum class Precision { kFloat32, kInt8 };
+// "fp32", "int8".
+const char* PrecisionName(Precision precision);
+// Affine quantisation of an activation tensor: real = scale * (q - zero_point), q in 0..255.
+struct QuantParams {
+  float scale = 1.0f;
+  int zero_point = 0;
+  friend bool operator==(const QuantParams&, const QuantParams&) = default;
+};
 // Whether a model's weights were learned (schema 1.2; kUnknown in older files).
 enum class TrainingState { kUnknown, kTrained, kUntrained };
 
@@ -58,8 +69,18 @@ struct ConvParams {
   Padding pads;  // the rule when kExplicit; as stored (the traced size's amounts) otherwise
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
-  const float* weights = nullptr;  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]
-  const float* bias = nullptr;     // [out_channels]
+  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]. Null when precision is kInt8.
+  const float* weights = nullptr;
+  const float* bias = nullptr;  // [out_channels], every precision
+  Precision precision = Precision::kFloat32;
+  // kInt8 only: weights_q in HWIO like `weights`, real weight = weight_scales[o] * q (symmetric,
+  // per output channel); the input is quantised with input_quant; when the next convolution is
+  // kInt8 too, the output is quantised with output_quant (which equals that layer's
+  // input_quant), otherwise it is float32.
+  const int8_t* weights_q = nullptr;
+  const float* weight_scales = nullptr;  // [out_channels]
+  QuantParams input_quant;
+  QuantParams output_quant;
 };
 
 struct UpsampleParams {  // nearest neighbour
@@ -110,6 +131,24 @@ struct CameraDesc {
   float cy = 0;
 };
 
+// How a reduced-precision file's quantisation was chosen (schema 1.3, `sfrt export
+// --calibration`), with the errors the exporter measured against float32.
+struct LayerErrorDesc {
+  std::string layer;
+  Precision precision = Precision::kFloat32;
+  float relative_rms = 0;  // RMS(layer output - float32 layer output) / RMS(float32 output)
+};
+struct CalibrationDesc {
+  std::string method;
+  std::string data_sha256;
+  int frames = 0;
+  int height = 0;
+  int width = 0;
+  float output_max_rel = 0;  // max |out - fp32 out| / max |fp32 out|
+  float output_rms_rel = 0;  // RMS(out - fp32 out) / RMS(fp32 out)
+  std::vector<LayerErrorDesc> layers;
+};
+
 struct ModelMetadata {
   std::string name;
   int schema_major = 0;
@@ -125,6 +164,8 @@ struct ModelMetadata {
   std::optional<uint32_t> file_crc32c;            // whole-file CRC-32C; absent in schema 1.0 files
   WeightType weight_type = WeightType::kFloat32;  // as stored in the file
   TrainingState training = TrainingState::kUnknown;  // schema 1.2; kUnknown before
+  bool has_int8 = false;  // some convolution is kInt8 (schema 1.3)
+  std::optional<CalibrationDesc> calibration;  // schema 1.3, reduced-precision files
 };
 
 struct LoadOptions {

@@ -1,0 +1,27 @@
+// The model's forward pass on the scalar reference kernels, layer by layer, written for clarity:
+// the oracle a Session is tested against (bit for bit where both compute in int8), and what the
+// exporter's calibration observes. It allocates every tensor and is slow: not for the hot path.
+#pragma once
+
+#include <functional>
+#include <span>
+
+#include "sfrt/model.h"
+#include "sfrt/shapes.h"
+#include "sfrt/status.h"
+
+namespace sfrt {
+
+// Called after each layer with its output as real numbers: float32 values, or a uint8 tensor's
+// values dequantised (scale * (q - zero_point)). `values` is valid during the call only.
+using LayerObserver =
+    std::function<void(int layer, const TensorShape& shape, std::span<const float> values)>;
+
+// Runs `model` on `input` (height x width x input channels, NHWC float32) and writes the last
+// layer's output (float32) to `output`. Each layer computes in its own precision: an int8
+// convolution reads uint8 (the float32 input or a float32 layer's output quantised with its
+// input_quant) and writes uint8 for a following int8 convolution, float32 otherwise.
+Status RunReferenceForward(const Model& model, std::span<const float> input, int height, int width,
+                           std::span<float> output, const LayerObserver& observer = {});
+
+}  // namespace sfrt

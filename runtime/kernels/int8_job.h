@@ -1,0 +1,164 @@
+// What an int8 convolution kernel is given, for every tier (the scalar reference in
+// kernels/ref/conv2d_int8_ref.cc and the SIMD kernels), and the arithmetic they all share.
+//
+// Int8 arithmetic (docs/model-format.md, "Int8 arithmetic"): activations are uint8 with a
+// per-tensor scale and zero point, weights int8 symmetric per output channel. For output pixel p
+// and channel o, over the taps whose input pixel lies inside the input (padding is real zero):
+//   acc = sum (x_q - in_zero_point) * w_q                         (int32, exact)
+//   y   = float(acc) * multiplier[o]                               (one float multiply)
+//   y   = y + bias[o]                                              (one float add, not fused)
+//   y   = activation(y)        leaky: y < 0 ? y * slope : y;  relu: y > 0 ? y : 0
+// and the output is y (float32), or, quantised,
+//   t   = min(max(y * out_inv_scale, -512), 512)
+//   q   = clamp(round_half_even(t) + out_zero_point, 0, 255)
+// Every step is a single IEEE-754 operation in round-to-nearest-even (int32 -> float included),
+// so every tier produces the same bytes: the kernels must not fuse the multiply and the add (the
+// runtime is compiled without floating-point contraction) and use the rounding conversion
+// (cvtps2dq, fcvtns), not truncation. multiplier[o] = input scale * weight_scales[o] and
+// out_inv_scale = 1 / output scale are computed once, at Session::Create, in float.
+//
+// The fused nearest-2x upsample (+ crop) -> convolution reads C, the upsampled map with crop_top
+// rows and crop_left columns removed (c_height x c_width): C(cy, cx) is
+// in((cy + crop_top) / 2, (cx + crop_left) / 2). It is the same integer sum as upsampling the
+// bytes first, so its results are those of the unfused reference, bit for bit.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include "kernels/tensor_view.h"
+#include "sfrt/isa.h"
+#include "sfrt/model.h"
+
+namespace sfrt {
+
+struct ConstByteView {
+  const uint8_t* data = nullptr;
+  int height = 0;
+  int width = 0;
+  int channels = 0;
+  ptrdiff_t row_stride = 0;  // in bytes
+
+  const uint8_t* pixel(int y, int x) const {
+    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
+  }
+};
+
+struct ByteView {
+  uint8_t* data = nullptr;
+  int height = 0;
+  int width = 0;
+  int channels = 0;
+  ptrdiff_t row_stride = 0;  // in bytes
+
+  uint8_t* pixel(int y, int x) const {
+    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
+  }
+  operator ConstByteView() const { return {data, height, width, channels, row_stride}; }
+};
+
+inline ByteView DenseByteView(uint8_t* data, int height, int width, int channels) {
+  return {data, height, width, channels, static_cast<ptrdiff_t>(width) * channels};
+}
+
+// Bytes a kernel may read past the last pixel of a uint8 tensor: the SIMD kernels read input
+// channels four at a time, so a tensor whose channel count is not a multiple of 4 is read up to
+// 3 bytes beyond its end (multiplied by zero weights). The session's arena leaves this much
+// room after every uint8 tensor.
+inline constexpr size_t kInt8TensorSlack = 64;
+
+// The per-channel epilogue of the int8 arithmetic above, written once for every tier.
+inline float Int8Dequantize(int32_t acc, float multiplier, float bias, Activation act,
+                            float slope) {
+  float y = static_cast<float>(acc) * multiplier;
+  y = y + bias;
+  if (act == Activation::kLeakyRelu) {
+    y = y < 0.0f ? y * slope : y;
+  } else if (act == Activation::kRelu) {
+    y = y > 0.0f ? y : 0.0f;
+  }
+  return y;
+}
+
+inline uint8_t Int8Quantize(float y, float inv_scale, int zero_point) {
+  float t = y * inv_scale;
+  t = t < -512.0f ? -512.0f : t;
+  t = t > 512.0f ? 512.0f : t;
+  const int q = static_cast<int>(std::nearbyint(t)) + zero_point;
+  return static_cast<uint8_t>(q < 0 ? 0 : (q > 255 ? 255 : q));
+}
+
+// One int8 convolution as the session prepared it at Create.
+struct PackedInt8Conv {
+  int in_channels = 0;
+  int out_channels = 0;
+  int kernel_h = 0;
+  int kernel_w = 0;
+  int stride_h = 1;
+  int stride_w = 1;
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+  int in_zero_point = 0;
+  // Output: float32 when out_float, else uint8 quantised with out_inv_scale / out_zero_point.
+  bool out_float = false;
+  float out_inv_scale = 1.0f;
+  int out_zero_point = 0;
+  // Per output channel, blocks * nr values (zero beyond out_channels; out_channels values when
+  // nr == 0).
+  const float* multiplier = nullptr;
+  const float* bias = nullptr;
+  // The model's weights, HWIO int8 (what the reference reads).
+  const int8_t* weights_hwio = nullptr;
+  // The SIMD layout, for kernels with nr > 0 (null when nr == 0): output channels in blocks of
+  // nr (the last zero-padded), input channels in groups of 4 (cin4 = in_channels rounded up to
+  // 4, zero-padded):
+  //   weights[block][tap][ci / 4][nr][ci % 4]        (int8, 64-byte aligned)
+  //   tap_sums[block][tap][nr] = sum over ci of weights (int32), for the zero-point correction:
+  //   sum (x - z) * w = sum x * w - z * (sum of the tap_sums of the taps inside the input).
+  int nr = 0;
+  int blocks = 1;
+  int cin4 = 0;
+  const int8_t* weights = nullptr;
+  const int32_t* tap_sums = nullptr;
+};
+
+// One kernel call; see the fused upsample above for the `upsampled` fields.
+struct Int8ConvArgs {
+  const PackedInt8Conv* conv = nullptr;
+  ConstByteView in;
+  ByteView out_u8;     // when !conv->out_float
+  TensorView out_f32;  // when conv->out_float
+  Padding pads;        // in effect at this size (only top/left are read)
+  bool upsampled = false;
+  int crop_top = 0;
+  int crop_left = 0;
+  int c_height = 0;
+  int c_width = 0;
+};
+
+// Computes output rows [row_begin, row_end), output-channel blocks [blk_begin, blk_end) (the
+// reference has one block). Safe to call concurrently on disjoint (rows x blocks) rectangles.
+using Int8ConvRowsFn = void (*)(const Int8ConvArgs& args, int row_begin, int row_end,
+                                int blk_begin, int blk_end);
+
+// An ISA's int8 kernels (one register tile; nr output channels per block).
+struct IsaInt8Kernels {
+  int nr = 0;
+  Int8ConvRowsFn conv = nullptr;    // any kernel size up to kMaxInt8Taps, any stride
+  Int8ConvRowsFn upconv = nullptr;  // fused nearest-2x upsample (+ crop) -> 3x3 stride 1
+  const char* conv_name = "";
+  const char* upconv_name = "";
+};
+inline constexpr int kMaxInt8Taps = 64;
+
+// The int8 kernels of `isa` that this CPU can run, or null (the session then uses the
+// reference, ref::Conv2dInt8Rows).
+const IsaInt8Kernels* Int8KernelsFor(Isa isa);
+
+namespace avx512 {
+// Null when the CPU lacks AVX-512 VNNI.
+const IsaInt8Kernels* Int8Kernels();
+}
+
+}  // namespace sfrt

@@ -1,0 +1,87 @@
+#include "kernels/ref/conv2d_int8_ref.h"
+
+#include <cassert>
+#include <cstring>
+
+namespace sfrt::ref {
+
+void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk_begin*/,
+                    int /*blk_end*/) {
+  const PackedInt8Conv& p = *a.conv;
+  assert(a.in.channels == p.in_channels);
+  const int cin = p.in_channels;
+  const int cout = p.out_channels;
+  const int zp = p.in_zero_point;
+  // The map the convolution reads: the input itself, or C.
+  const int src_h = a.upsampled ? a.c_height : a.in.height;
+  const int src_w = a.upsampled ? a.c_width : a.in.width;
+  auto source = [&](int y, int x) -> const uint8_t* {
+    if (!a.upsampled) return a.in.pixel(y, x);
+    return a.in.pixel((y + a.crop_top) / 2, (x + a.crop_left) / 2);
+  };
+  const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
+  constexpr int kChunk = 256;  // output channels summed at once (the sums live on the stack)
+  int32_t acc[kChunk];
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    for (int ox = 0; ox < out_w; ++ox) {
+      for (int c0 = 0; c0 < cout; c0 += kChunk) {
+        const int cn = cout - c0 < kChunk ? cout - c0 : kChunk;
+        for (int co = 0; co < cn; ++co) acc[co] = 0;
+        for (int ky = 0; ky < p.kernel_h; ++ky) {
+          const int iy = oy * p.stride_h - a.pads.top + ky;
+          if (iy < 0 || iy >= src_h) continue;  // padding is real zero: adds nothing
+          for (int kx = 0; kx < p.kernel_w; ++kx) {
+            const int ix = ox * p.stride_w - a.pads.left + kx;
+            if (ix < 0 || ix >= src_w) continue;
+            const uint8_t* x = source(iy, ix);
+            const int8_t* w =
+                p.weights_hwio + static_cast<ptrdiff_t>(ky * p.kernel_w + kx) * cin * cout + c0;
+            for (int ci = 0; ci < cin; ++ci) {
+              const int32_t xv = static_cast<int32_t>(x[ci]) - zp;
+              const int8_t* w_row = w + static_cast<ptrdiff_t>(ci) * cout;
+              for (int co = 0; co < cn; ++co) acc[co] += xv * static_cast<int32_t>(w_row[co]);
+            }
+          }
+        }
+        for (int co = 0; co < cn; ++co) {
+          const int o = c0 + co;
+          const float y =
+              Int8Dequantize(acc[co], p.multiplier[o], p.bias[o], p.activation, p.leaky_slope);
+          if (p.out_float) {
+            a.out_f32.pixel(oy, ox)[o] = y;
+          } else {
+            a.out_u8.pixel(oy, ox)[o] = Int8Quantize(y, p.out_inv_scale, p.out_zero_point);
+          }
+        }
+      }
+    }
+  }
+}
+
+void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
+                  int row_begin, int row_end) {
+  for (int y = row_begin; y < row_end; ++y) {
+    for (int x = 0; x < in.width; ++x) {
+      const float* s = in.pixel(y, x);
+      uint8_t* d = out.pixel(y, x);
+      for (int c = 0; c < in.channels; ++c) d[c] = Int8Quantize(s[c], inv_scale, zero_point);
+    }
+  }
+}
+
+void UpsampleNearestU8(const ConstByteView& in, int factor_h, int factor_w, const ByteView& out) {
+  for (int y = 0; y < out.height; ++y) {
+    for (int x = 0; x < out.width; ++x) {
+      std::memcpy(out.pixel(y, x), in.pixel(y / factor_h, x / factor_w),
+                  static_cast<size_t>(in.channels));
+    }
+  }
+}
+
+void CopyU8(const ConstByteView& in, const ByteView& out) {
+  for (int y = 0; y < out.height; ++y) {
+    std::memcpy(out.pixel(y, 0), in.pixel(y, 0), static_cast<size_t>(in.width) * in.channels);
+  }
+}
+
+}  // namespace sfrt::ref

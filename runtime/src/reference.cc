@@ -1,0 +1,157 @@
+#include "sfrt/reference.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "int8_packing.h"
+#include "kernels/int8_job.h"
+#include "kernels/ref/conv2d_int8_ref.h"
+#include "kernels/ref/conv2d_ref.h"
+#include "kernels/ref/resample_ref.h"
+
+namespace sfrt {
+namespace {
+
+// The index of the next convolution after layer i, or -1.
+int NextConv(std::span<const LayerDesc> layers, size_t i) {
+  for (size_t k = i + 1; k < layers.size(); ++k) {
+    if (layers[k].kind == LayerKind::kConv2D) return static_cast<int>(k);
+  }
+  return -1;
+}
+
+// A tensor in one of the two element types.
+struct Tensor {
+  TensorShape shape;
+  bool is_u8 = false;
+  QuantParams quant;  // when is_u8
+  std::vector<float> f;
+  std::vector<uint8_t> q;
+
+  ConstTensorView fview() const {
+    return {f.data(), shape.height, shape.width, shape.channels,
+            static_cast<ptrdiff_t>(shape.width) * shape.channels};
+  }
+  ConstByteView qview() const {
+    return {q.data(), shape.height, shape.width, shape.channels,
+            static_cast<ptrdiff_t>(shape.width) * shape.channels};
+  }
+  std::vector<float> Real() const {
+    if (!is_u8) return f;
+    std::vector<float> r(q.size());
+    for (size_t k = 0; k < q.size(); ++k) {
+      r[k] = quant.scale * static_cast<float>(static_cast<int>(q[k]) - quant.zero_point);
+    }
+    return r;
+  }
+};
+
+Tensor Quantized(const Tensor& t, const QuantParams& quant) {
+  Tensor out;
+  out.shape = t.shape;
+  out.is_u8 = true;
+  out.quant = quant;
+  out.q.resize(t.shape.elements());
+  ref::QuantizeRows(t.fview(), 1.0f / quant.scale, quant.zero_point,
+                    DenseByteView(out.q.data(), t.shape.height, t.shape.width, t.shape.channels),
+                    0, t.shape.height);
+  return out;
+}
+
+}  // namespace
+
+Status RunReferenceForward(const Model& model, std::span<const float> input, int height, int width,
+                           std::span<float> output, const LayerObserver& observer) {
+  Result<std::vector<LayerGeometry>> geometry = InferGeometry(model, height, width);
+  if (!geometry.ok()) return geometry.status();
+  const std::vector<LayerGeometry>& g = *geometry;
+  const auto layers = model.layers();
+  if (input.size() < g.front().input.elements()) {
+    return Status::Error("reference forward: input holds " + std::to_string(input.size()) +
+                         " floats; " + std::to_string(g.front().input.elements()) + " needed");
+  }
+  if (output.size() < g.back().output.elements()) {
+    return Status::Error("reference forward: output holds " + std::to_string(output.size()) +
+                         " floats; " + std::to_string(g.back().output.elements()) + " needed");
+  }
+  Tensor cur;
+  cur.shape = g.front().input;
+  cur.f.assign(input.begin(), input.begin() + static_cast<ptrdiff_t>(cur.shape.elements()));
+  for (size_t i = 0; i < layers.size(); ++i) {
+    const LayerDesc& layer = layers[i];
+    Tensor next;
+    next.shape = g[i].output;
+    const TensorShape& s = next.shape;
+    const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
+    if (layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kInt8) {
+      const ConvParams& p = layer.conv;
+      if (!cur.is_u8) cur = Quantized(cur, p.input_quant);
+      const int consumer = NextConv(layers, i);
+      const bool out_float =
+          consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kInt8;
+      std::vector<uint8_t> packing(PackedInt8Bytes(p, 0) + 64);
+      void* aligned = packing.data() + (64 - reinterpret_cast<uintptr_t>(packing.data()) % 64) % 64;
+      const PackedInt8Conv packed = PackInt8Conv(p, 0, out_float, aligned);
+      Int8ConvArgs args;
+      args.conv = &packed;
+      args.in = cur.qview();
+      args.pads = g[i].pads;
+      if (out_float) {
+        next.f.resize(s.elements());
+        args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
+      } else {
+        next.is_u8 = true;
+        next.quant = p.output_quant;
+        next.q.resize(s.elements());
+        args.out_u8 = {next.q.data(), s.height, s.width, s.channels, row};
+      }
+      ref::Conv2dInt8Rows(args, 0, s.height, 0, 1);
+    } else if (layer.kind == LayerKind::kConv2D) {
+      next.f.resize(s.elements());
+      ref::Conv2d(cur.fview(), layer.conv, g[i].pads,
+                  {next.f.data(), s.height, s.width, s.channels, row});
+    } else if (layer.kind == LayerKind::kUpsample) {
+      next.is_u8 = cur.is_u8;
+      next.quant = cur.quant;
+      if (cur.is_u8) {
+        next.q.resize(s.elements());
+        ref::UpsampleNearestU8(cur.qview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                               {next.q.data(), s.height, s.width, s.channels, row});
+      } else {
+        next.f.resize(s.elements());
+        ref::UpsampleNearest(cur.fview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                             {next.f.data(), s.height, s.width, s.channels, row});
+      }
+    } else {  // crop
+      next.is_u8 = cur.is_u8;
+      next.quant = cur.quant;
+      const Padding& c = g[i].crop;
+      if (cur.is_u8) {
+        next.q.resize(s.elements());
+        ConstByteView v = cur.qview();
+        v.data = v.pixel(c.top, c.left);
+        v.height = s.height;
+        v.width = s.width;
+        ref::CopyU8(v, {next.q.data(), s.height, s.width, s.channels, row});
+      } else {
+        next.f.resize(s.elements());
+        ConstTensorView v = cur.fview();
+        v.data = v.pixel(c.top, c.left);
+        v.height = s.height;
+        v.width = s.width;
+        ref::Copy(v, {next.f.data(), s.height, s.width, s.channels, row});
+      }
+    }
+    cur = std::move(next);
+    if (observer) {
+      const std::vector<float> real = cur.Real();
+      observer(static_cast<int>(i), cur.shape, real);
+    }
+  }
+  const std::vector<float> out = cur.Real();
+  std::copy(out.begin(), out.end(), output.begin());
+  return Status::Ok();
+}
+
+}  // namespace sfrt
