@@ -57,6 +57,17 @@ class Writer {
         shape_offset, data_offset);
   }
 
+  // Int8 weights (schema 1.3): the bytes as they are, aligned and checksummed like the others.
+  flatbuffers::Offset<fb::Tensor> AddInt8Tensor(const std::vector<int8_t>& values,
+                                                std::initializer_list<int> shape) {
+    const auto* bytes = reinterpret_cast<const uint8_t*>(values.data());
+    crc_ = Crc32c(crc_, bytes, values.size());
+    const auto shape_offset = builder_.CreateVector(std::vector<int>(shape));
+    builder_.ForceVectorAlignment(values.size(), 1, kTensorAlignment);
+    const auto data_offset = builder_.CreateVector(bytes, values.size());
+    return fb::CreateTensor(builder_, fb::DataType::Int8, shape_offset, data_offset);
+  }
+
   flatbuffers::FlatBufferBuilder& builder() { return builder_; }
   uint32_t crc() const { return crc_; }
 
@@ -94,6 +105,38 @@ fb::ImageSlot ToSchema(ImageSlot s) {
 
 std::string LayerLabel(size_t i, const std::string& name) {
   return "layer " + std::to_string(i) + " '" + name + "'";
+}
+
+fb::Precision ToSchema(Precision p) {
+  return p == Precision::kInt8 ? fb::Precision::Int8 : fb::Precision::Float32;
+}
+
+// The counts an int8 convolution's fields must have; empty when they do.
+std::string Int8CountProblem(const ConvSpec& c, size_t want) {
+  if (!c.weights_hwio.empty()) {
+    return "precision is int8 but weights_hwio holds " + std::to_string(c.weights_hwio.size()) +
+           " float weights (an int8 layer stores weights_q only)";
+  }
+  if (c.weights_q.size() != want || c.bias.size() != static_cast<size_t>(c.out_channels) ||
+      c.weight_scales.size() != static_cast<size_t>(c.out_channels)) {
+    return "holds " + std::to_string(c.weights_q.size()) + " int8 weights, " +
+           std::to_string(c.weight_scales.size()) + " weight scales and " +
+           std::to_string(c.bias.size()) + " biases; needs " + std::to_string(want) + ", " +
+           std::to_string(c.out_channels) + " and " + std::to_string(c.out_channels);
+  }
+  return "";
+}
+
+flatbuffers::Offset<fb::Calibration> AddCalibration(flatbuffers::FlatBufferBuilder& b,
+                                                    const CalibrationDesc& c) {
+  std::vector<flatbuffers::Offset<fb::LayerError>> errors;
+  for (const LayerErrorDesc& e : c.layers) {
+    errors.push_back(
+        fb::CreateLayerError(b, b.CreateString(e.layer), ToSchema(e.precision), e.relative_rms));
+  }
+  return fb::CreateCalibration(b, b.CreateString(c.method), b.CreateString(c.data_sha256), c.frames,
+                               c.height, c.width, c.output_max_rel, c.output_rms_rel,
+                               b.CreateVector(errors));
 }
 
 }  // namespace
@@ -146,21 +189,38 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       }
       const size_t want =
           static_cast<size_t>(c->kernel_h) * c->kernel_w * c->in_channels * c->out_channels;
-      if (c->weights_hwio.size() != want ||
-          c->bias.size() != static_cast<size_t>(c->out_channels)) {
+      const bool int8 = c->precision == Precision::kInt8;
+      if (int8 && options.schema_minor < 3) {
+        return Status::Error(where + ": precision int8 needs schema 1.3; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      if (int8) {
+        if (std::string problem = Int8CountProblem(*c, want); !problem.empty()) {
+          return Status::Error(where + ": " + problem);
+        }
+      } else if (c->weights_hwio.size() != want ||
+                 c->bias.size() != static_cast<size_t>(c->out_channels)) {
         return Status::Error(where + ": holds " + std::to_string(c->weights_hwio.size()) +
                              " weights and " + std::to_string(c->bias.size()) + " biases; needs " +
                              std::to_string(want) + " and " + std::to_string(c->out_channels));
       }
       const auto weights =
-          w.AddTensor(c->weights_hwio, {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels});
+          int8 ? w.AddInt8Tensor(c->weights_q,
+                                 {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels})
+               : w.AddTensor(c->weights_hwio,
+                             {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels});
       const auto bias = w.AddTensor(c->bias, {c->out_channels});
       const fb::Padding pads(c->pads.top, c->pads.left, c->pads.bottom, c->pads.right);
+      // Float32 layers leave the 1.3 fields out: their tables are as before 1.3.
+      const fb::QuantParams input_quant(c->input_quant.scale, c->input_quant.zero_point);
+      const fb::QuantParams output_quant(c->output_quant.scale, c->output_quant.zero_point);
       const auto conv = fb::CreateConv2D(
           b, c->in_channels, c->out_channels, c->kernel_h, c->kernel_w, c->stride_h, c->stride_w,
           c->padding_rule == PaddingRule::kSameUpper ? fb::PaddingRule::SameUpper
                                                      : fb::PaddingRule::Explicit,
-          &pads, ToSchema(c->activation), c->leaky_slope, weights, bias);
+          &pads, ToSchema(c->activation), c->leaky_slope, weights, bias, ToSchema(c->precision),
+          int8 ? b.CreateVector(c->weight_scales) : 0, int8 ? &input_quant : nullptr,
+          int8 ? &output_quant : nullptr);
       layers.push_back(
           fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union()));
       channels = c->out_channels;
@@ -219,9 +279,14 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       : spec.training == TrainingState::kTrained   ? fb::TrainingState::Trained
       : spec.training == TrainingState::kUntrained ? fb::TrainingState::Untrained
                                                    : fb::TrainingState::Unknown;
-  const auto model =
-      fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input, output, camera,
-                      layers_offset, w.crc(), file_checksum ? 0xFFFFFFFFu : 0u, training);
+  if (spec.calibration && options.schema_minor < 3) {
+    return Status::Error("a calibration record needs schema 1.3; writing 1." +
+                         std::to_string(options.schema_minor));
+  }
+  const auto calibration = spec.calibration ? AddCalibration(b, *spec.calibration) : 0;
+  const auto model = fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input,
+                                     output, camera, layers_offset, w.crc(),
+                                     file_checksum ? 0xFFFFFFFFu : 0u, training, calibration);
   fb::FinishModelBuffer(b, model);
   std::vector<uint8_t> file(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
   if (file_checksum) {

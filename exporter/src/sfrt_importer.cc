@@ -33,8 +33,16 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       c.leaky_slope = p.leaky_slope;
       const size_t count = static_cast<size_t>(p.kernel_h) * p.kernel_w * p.in_channels *
                            static_cast<size_t>(p.out_channels);
-      c.weights_hwio.assign(p.weights, p.weights + count);
       c.bias.assign(p.bias, p.bias + p.out_channels);
+      c.precision = p.precision;
+      if (p.precision == Precision::kInt8) {
+        c.weights_q.assign(p.weights_q, p.weights_q + count);
+        c.weight_scales.assign(p.weight_scales, p.weight_scales + p.out_channels);
+        c.input_quant = p.input_quant;
+        c.output_quant = p.output_quant;
+      } else {
+        c.weights_hwio.assign(p.weights, p.weights + count);
+      }
       return c;
     }
     case LayerKind::kUpsample:
@@ -85,6 +93,7 @@ Result<ModelSpec> ImportSfrt(const std::string& path) {
   spec.camera = {meta.camera.focal_px, meta.camera.baseline, meta.camera.cx, meta.camera.cy};
   spec.weight_type = meta.weight_type;
   spec.training = meta.training;
+  spec.calibration = meta.calibration;
   for (const LayerDesc& layer : model.layers()) spec.layers.push_back(LayerFromDesc(layer));
   return spec;
 }

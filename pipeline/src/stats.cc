@@ -146,6 +146,15 @@ std::vector<StepLabel> LabelSteps(const Session& session) {
     label.first_layer = step.first_layer;
     label.last_layer = step.last_layer;
     label.kernel = step.kernel;
+    label.precision = PrecisionName(step.precision);
+    if (step.quantize) {
+      // Computes no layer: it quantises the float32 tensor the next (int8) layer reads.
+      const size_t next = static_cast<size_t>(step.first_layer);
+      label.name = "quantize>" + (next < layers.size() ? layers[next].name : std::string("?"));
+      label.op = "quantize uint8";
+      labels.push_back(std::move(label));
+      continue;
+    }
     for (int i = step.first_layer; i <= step.last_layer; ++i) {
       if (i < 0 || static_cast<size_t>(i) >= layers.size()) continue;
       if (!label.name.empty()) {
@@ -156,6 +165,7 @@ std::vector<StepLabel> LabelSteps(const Session& session) {
       label.op += LayerOp(layers[static_cast<size_t>(i)]);
     }
     if (step.last_layer > step.first_layer) label.op += " (fused)";
+    if (step.precision == Precision::kInt8) label.op = "int8 " + label.op;
     labels.push_back(std::move(label));
   }
   return labels;

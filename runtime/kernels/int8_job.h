@@ -139,8 +139,8 @@ struct Int8ConvArgs {
 
 // Computes output rows [row_begin, row_end), output-channel blocks [blk_begin, blk_end) (the
 // reference has one block). Safe to call concurrently on disjoint (rows x blocks) rectangles.
-using Int8ConvRowsFn = void (*)(const Int8ConvArgs& args, int row_begin, int row_end,
-                                int blk_begin, int blk_end);
+using Int8ConvRowsFn = void (*)(const Int8ConvArgs& args, int row_begin, int row_end, int blk_begin,
+                                int blk_end);
 
 // An ISA's int8 kernels (one register tile; nr output channels per block).
 struct IsaInt8Kernels {
@@ -159,6 +159,6 @@ const IsaInt8Kernels* Int8KernelsFor(Isa isa);
 namespace avx512 {
 // Null when the CPU lacks AVX-512 VNNI.
 const IsaInt8Kernels* Int8Kernels();
-}
+}  // namespace avx512
 
 }  // namespace sfrt

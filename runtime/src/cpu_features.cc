@@ -41,8 +41,10 @@ CpuFeatures Detect() {
   const bool avx512dq = (ebx >> 17) & 1;
   const bool avx512bw = (ebx >> 30) & 1;
   const bool avx512vl = (ebx >> 31) & 1;
+  const bool avx512vnni = (ecx >> 11) & 1;
   f.avx2_fma = avx2 && fma && ymm_state;
   f.avx512 = f.avx2_fma && avx512f && avx512dq && avx512bw && avx512vl && zmm_state;
+  f.avx512_vnni = f.avx512 && avx512vnni;
 #elif defined(__aarch64__)
   f.neon = (getauxval(AT_HWCAP) & HWCAP_ASIMD) != 0;
 #endif

@@ -8,9 +8,10 @@
 namespace sfrt {
 
 struct CpuFeatures {
-  bool avx2_fma = false;  // AVX2 and FMA, with YMM state enabled by the OS
-  bool avx512 = false;    // AVX-512 F, BW, VL and DQ, with opmask and ZMM state enabled
-  bool neon = false;      // aarch64 Advanced SIMD
+  bool avx2_fma = false;     // AVX2 and FMA, with YMM state enabled by the OS
+  bool avx512 = false;       // AVX-512 F, BW, VL and DQ, with opmask and ZMM state enabled
+  bool avx512_vnni = false;  // avx512 and AVX512_VNNI (vpdpbusd)
+  bool neon = false;         // aarch64 Advanced SIMD
 };
 
 const CpuFeatures& HostCpuFeatures();

@@ -456,8 +456,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           break;
         case fb::DataType::Int8:
           if (int8_dst == nullptr) {
-            return check.Fail(tf + ".dtype is int8, which only the weights of an int8 layer "
-                                   "may be");
+            return check.Fail(tf +
+                              ".dtype is int8, which only the weights of an int8 layer "
+                              "may be");
           }
           elem = 1;
           break;
@@ -469,8 +470,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
       if (bytes != count * elem) {
         return check.Fail(tf + ".data holds " + std::to_string(bytes) + " bytes; shape (" +
                           want_shape + ") of " +
-                          (elem == 4 ? "float32" : elem == 2 ? "float16" : "int8") + " needs " +
-                          std::to_string(count * elem));
+                          (elem == 4   ? "float32"
+                           : elem == 2 ? "float16"
+                                       : "int8") +
+                          " needs " + std::to_string(count * elem));
       }
       const uint8_t* bytes_ptr = t->data()->data();
       if (static_cast<size_t>(bytes_ptr - data_) % kTensorAlignment != 0) {
@@ -578,20 +581,18 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
             p.precision = Precision::kInt8;
             break;
           default:
-            return check.Fail(where + ": precision is value " +
-                              std::to_string(static_cast<int>(c->precision())) +
-                              ", which this runtime (schema " + std::to_string(kSchemaVersionMajor) +
-                              "." + std::to_string(kSchemaVersionMinor) +
-                              ") does not know; it runs fp32 and int8");
+            return check.Fail(
+                where + ": precision is value " + std::to_string(static_cast<int>(c->precision())) +
+                ", which this runtime (schema " + std::to_string(kSchemaVersionMajor) + "." +
+                std::to_string(kSchemaVersionMinor) + ") does not know; it runs fp32 and int8");
         }
         if (p.precision == Precision::kInt8) {
           if (Status s = TakeInt8Params(check, where, *c, p); !s.ok()) return s;
           metadata_.has_int8 = true;
         }
-        if (Status s = take_tensor(c->weights(), "weights",
-                                   {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels},
-                                   &p.weights,
-                                   p.precision == Precision::kInt8 ? &p.weights_q : nullptr);
+        if (Status s = take_tensor(
+                c->weights(), "weights", {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels},
+                &p.weights, p.precision == Precision::kInt8 ? &p.weights_q : nullptr);
             !s.ok()) {
           return s;
         }
@@ -682,10 +683,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     c.output_rms_rel = cal->output_rms_rel();
     if (cal->layers() != nullptr) {
       for (const fb::LayerError* e : *cal->layers()) {
-        c.layers.push_back({Str(e->layer()),
-                            e->precision() == fb::Precision::Int8 ? Precision::kInt8
-                                                                  : Precision::kFloat32,
-                            e->relative_rms()});
+        c.layers.push_back(
+            {Str(e->layer()),
+             e->precision() == fb::Precision::Int8 ? Precision::kInt8 : Precision::kFloat32,
+             e->relative_rms()});
       }
     }
     metadata_.calibration = std::move(c);

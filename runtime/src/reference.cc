@@ -54,8 +54,8 @@ Tensor Quantized(const Tensor& t, const QuantParams& quant) {
   out.quant = quant;
   out.q.resize(t.shape.elements());
   ref::QuantizeRows(t.fview(), 1.0f / quant.scale, quant.zero_point,
-                    DenseByteView(out.q.data(), t.shape.height, t.shape.width, t.shape.channels),
-                    0, t.shape.height);
+                    DenseByteView(out.q.data(), t.shape.height, t.shape.width, t.shape.channels), 0,
+                    t.shape.height);
   return out;
 }
 

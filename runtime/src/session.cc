@@ -7,7 +7,10 @@
 #include <thread>
 
 #include "conv_packing.h"
+#include "int8_packing.h"
 #include "kernels/conv_job.h"
+#include "kernels/int8_job.h"
+#include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/resample_ref.h"
 #include "kernels/winograd_job.h"
@@ -21,12 +24,16 @@ namespace sfrt {
 // One entry of the flat list Run() walks.
 struct Session::Step {
   enum class Kind {
-    kConv,      // SIMD convolution (packed weights)
-    kUpConv,    // SIMD fused upsample 2x (+ crop) + 3x3 convolution
-    kRefConv,   // ref::Conv2d
-    kUpsample,  // ref::UpsampleNearest
-    kCrop,      // a view of the previous tensor (a copy only when it is the model's output)
-    kWinograd,  // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
+    kConv,        // SIMD convolution (packed weights)
+    kUpConv,      // SIMD fused upsample 2x (+ crop) + 3x3 convolution
+    kRefConv,     // ref::Conv2d
+    kUpsample,    // ref::UpsampleNearest
+    kCrop,        // a view of the previous tensor (a copy only when it is the model's output)
+    kWinograd,    // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
+    kQuantize,    // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
+    kInt8Conv,    // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
+                  // or first_layer says so (kernels/int8_job.h)
+    kUpsampleU8,  // ref::UpsampleNearestU8 (an upsampling no int8 convolution fuses)
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -41,7 +48,15 @@ struct Session::Step {
   size_t scratch_offset = 0;  // kWinograd: bytes from the arena start of its v and m buffers
   // kUpConv on the Winograd phase path (interior pixels; the direct kernel does the border):
   const WinogradKernels* upwinograd = nullptr;
-  int band_rows = 0;  // tile rows per pass, so that v and m stay small (planned at Create)
+  int band_rows = 0;    // tile rows per pass, so that v and m stay small (planned at Create)
+  bool out_u8 = false;  // the step writes uint8 (else float32)
+  Precision precision = Precision::kFloat32;
+  // kInt8Conv:
+  Int8ConvRowsFn fn8 = nullptr;
+  PackedInt8Conv packed8;
+  bool upsampled = false;  // reads the nearest-2x upsampling of its input (first_layer)
+  // kQuantize:
+  QuantParams quant;
 };
 
 class Session::Pool : public ThreadPool {
@@ -113,6 +128,40 @@ int ConvChunks(int blocks, int rows, int threads) {
   return chunks < 1 ? 1 : chunks;
 }
 
+// An int8 convolution split like ConvJob.
+struct Int8ConvJob {
+  Int8ConvRowsFn fn;
+  const Int8ConvArgs* args;
+  int rows;
+  int chunks;
+};
+
+void Int8ConvTrampoline(void* ctx, int begin, int end) {
+  const Int8ConvJob* job = static_cast<const Int8ConvJob*>(ctx);
+  for (int item = begin; item < end;) {
+    const int blk = item / job->chunks;
+    const int chunk = item % job->chunks;
+    const int last_chunk =
+        end - blk * job->chunks < job->chunks ? end - blk * job->chunks : job->chunks;
+    const int r0 = static_cast<int>(static_cast<long long>(job->rows) * chunk / job->chunks);
+    const int r1 = static_cast<int>(static_cast<long long>(job->rows) * last_chunk / job->chunks);
+    job->fn(*job->args, r0, r1, blk, blk + 1);
+    item = blk * job->chunks + last_chunk;
+  }
+}
+
+struct QuantizeJob {
+  ConstTensorView in;
+  ByteView out;
+  float inv_scale;
+  int zero_point;
+};
+
+void QuantizeTrampoline(void* ctx, int begin, int end) {
+  const QuantizeJob* job = static_cast<const QuantizeJob*>(ctx);
+  ref::QuantizeRows(job->in, job->inv_scale, job->zero_point, job->out, begin, end);
+}
+
 struct RefConvJob {
   const ConvParams* params;
   ConstTensorView in;
@@ -145,6 +194,7 @@ Status CheckTuning(const KernelTuning& tuning) {
 Session::~Session() {
   std::free(arena_);
   std::free(packed_);
+  std::free(packed8_);
 }
 
 Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> model,
@@ -199,11 +249,61 @@ Status Session::Plan() {
   const WinogradKernels* upwinograd =
       tuning.winograd_tile > 0 && tuning.winograd_upconv ? WinogradUpKernelsFor(isa_) : nullptr;
 
-  // 1. The steps, fusing upsample 2x (+ crop) + 3x3 stride-1 convolution where the ISA can.
+  // 1. The steps, fusing upsample 2x (+ crop) + 3x3 stride-1 convolution where the ISA can,
+  // and (int8) upsample 2x (+ crop) + any convolution on every ISA.
+  const IsaInt8Kernels* kernels8 = Int8KernelsFor(isa_);
+  auto next_conv = [&](int from) {
+    for (int k = from; k < n; ++k) {
+      if (layers[k].kind == LayerKind::kConv2D) return k;
+    }
+    return -1;
+  };
+  auto is_int8 = [&](int k) {
+    return k >= 0 && layers[k].kind == LayerKind::kConv2D &&
+           layers[k].conv.precision == Precision::kInt8;
+  };
+  // An int8 convolution writes uint8 for a following int8 convolution, float32 otherwise.
+  auto writes_u8 = [&](int conv) { return is_int8(next_conv(conv + 1)); };
+  bool cur_u8 = false;
+  auto int8_step = [&](int conv, bool upsampled, int crop) {
+    Step step;
+    step.kind = Step::Kind::kInt8Conv;
+    step.last_layer = conv;
+    step.crop_layer = crop;
+    step.upsampled = upsampled;
+    step.out_u8 = writes_u8(conv);
+    const ConvParams& p = layers[conv].conv;
+    const bool simd = kernels8 != nullptr && (upsampled ? p.kernel_h == 3 && p.kernel_w == 3 &&
+                                                              p.stride_h == 1 && p.stride_w == 1
+                                                        : p.kernel_h * p.kernel_w <= kMaxInt8Taps);
+    if (simd) {
+      step.fn8 = upsampled ? kernels8->upconv : kernels8->conv;
+      step.kernel = upsampled ? kernels8->upconv_name : kernels8->conv_name;
+    } else {
+      step.fn8 = ref::Conv2dInt8Rows;
+      step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";
+    }
+    return step;
+  };
   for (int i = 0; i < n; ++i) {
     const LayerDesc& layer = layers[i];
+    const int consumer = next_conv(i);
+    if (!cur_u8 && is_int8(consumer)) {
+      // The float32 tensor here is read by an int8 convolution: quantise it once, before any
+      // upsampling makes it larger.
+      Step q;
+      q.kind = Step::Kind::kQuantize;
+      q.first_layer = q.last_layer = i;
+      q.kernel = "ref::QuantizeU8";
+      q.out_u8 = true;
+      q.quant = layers[consumer].conv.input_quant;
+      q.precision = Precision::kInt8;
+      steps_.push_back(q);
+      cur_u8 = true;
+    }
     Step step;
     step.first_layer = step.last_layer = i;
+    step.out_u8 = cur_u8;
     if (layer.kind == LayerKind::kCrop) {
       step.kind = Step::Kind::kCrop;
       step.kernel = i + 1 == n ? "ref::Copy" : "view";
@@ -211,12 +311,20 @@ Status Session::Plan() {
       int conv = i + 1;
       int crop = -1;
       if (conv < n && layers[conv].kind == LayerKind::kCrop) crop = conv++;
-      const bool fusable = kernels != nullptr && layer.upsample.factor_h == 2 &&
-                           layer.upsample.factor_w == 2 && conv < n &&
-                           layers[conv].kind == LayerKind::kConv2D &&
+      const bool conv_next = conv < n && layers[conv].kind == LayerKind::kConv2D;
+      const bool factor2 = layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2;
+      const bool fusable = kernels != nullptr && factor2 && conv_next && !cur_u8 &&
                            layers[conv].conv.kernel_h == 3 && layers[conv].conv.kernel_w == 3 &&
                            layers[conv].conv.stride_h == 1 && layers[conv].conv.stride_w == 1;
-      if (fusable) {
+      if (cur_u8 && factor2 && conv_next) {
+        step = int8_step(conv, true, crop);
+        step.first_layer = i;
+        cur_u8 = step.out_u8;
+        i = conv;
+      } else if (cur_u8) {
+        step.kind = Step::Kind::kUpsampleU8;
+        step.kernel = "ref::UpsampleNearestU8";
+      } else if (fusable) {
         step.kind = Step::Kind::kUpConv;
         step.last_layer = conv;
         step.crop_layer = crop;
@@ -228,6 +336,10 @@ Status Session::Plan() {
         step.kind = Step::Kind::kUpsample;
         step.kernel = "ref::UpsampleNearest";
       }
+    } else if (layer.conv.precision == Precision::kInt8) {
+      step = int8_step(i, false, -1);
+      step.first_layer = i;
+      cur_u8 = step.out_u8;
     } else if (winograd != nullptr && WinogradApplies(layer.conv)) {
       step.kind = Step::Kind::kWinograd;
       step.winograd = winograd;
@@ -239,6 +351,7 @@ Status Session::Plan() {
       step.params = &layer.conv;
       step.kernel = "ref::Conv2d";
     }
+    if (step.kind == Step::Kind::kInt8Conv) step.precision = Precision::kInt8;
     steps_.push_back(step);
   }
 
@@ -311,24 +424,55 @@ Status Session::Plan() {
     step.fn = phases ? v.upconv : v.conv;
     step.kernel = phases ? v.upconv_name : v.conv_name;
   }
+  // Int8 packings (the per-channel arrays, and the SIMD layout when the ISA has int8 kernels).
+  auto nr8 = [&](const Step& step) { return step.fn8 == ref::Conv2dInt8Rows ? 0 : kernels8->nr; };
   for (const Step& step : steps_) {
-    step_info_.push_back({step.first_layer, step.last_layer, step.kernel});
+    if (step.kind == Step::Kind::kInt8Conv) {
+      packed8_bytes_ += PackedInt8Bytes(layers[step.last_layer].conv, nr8(step));
+    }
+  }
+  if (packed8_bytes_ > 0) {
+    packed8_ = std::aligned_alloc(kArenaAlignment, packed8_bytes_);
+    if (packed8_ == nullptr) {
+      return Status::Error("cannot allocate " + std::to_string(packed8_bytes_) +
+                           " bytes for the packed int8 weights");
+    }
+  }
+  uint8_t* cursor8 = static_cast<uint8_t*>(packed8_);
+  for (Step& step : steps_) {
+    if (step.kind != Step::Kind::kInt8Conv) continue;
+    const ConvParams& p = layers[step.last_layer].conv;
+    step.packed8 = PackInt8Conv(p, nr8(step), !step.out_u8, cursor8);
+    cursor8 += PackedInt8Bytes(p, nr8(step));
+  }
+  for (const Step& step : steps_) {
+    step_info_.push_back({step.first_layer, step.last_layer, step.kernel, step.precision,
+                          step.kind == Step::Kind::kQuantize});
   }
 
   // 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is
   // a view of its input. A tensor lives until the first step after it that is not a crop has
-  // read it (times are layer indices).
+  // read it (times are layer indices; a quantising step's tensor is born with the tensor it
+  // quantises). A uint8 tensor gets kInt8TensorSlack spare bytes that kernels may read.
   std::vector<BufferRequest> requests;
-  tensor_of_layer_.assign(layers.size(), -1);
+  std::vector<int> producers;
   const size_t m = steps_.size();
+  tensor_of_step_.assign(m, -1);
   for (size_t k = 0; k + 1 < m; ++k) {
     const Step& step = steps_[k];
     if (step.kind == Step::Kind::kCrop) continue;
     size_t reader = k + 1;
     while (reader + 1 < m && steps_[reader].kind == Step::Kind::kCrop) ++reader;
-    tensor_of_layer_[step.last_layer] = static_cast<int>(requests.size());
-    requests.push_back({geometry_[step.last_layer].output.elements() * sizeof(float),
-                        step.last_layer, steps_[reader].last_layer});
+    const bool quantize = step.kind == Step::Kind::kQuantize;
+    const int born = quantize ? step.first_layer - 1 : step.last_layer;
+    const TensorShape shape = !quantize              ? geometry_[step.last_layer].output
+                              : step.first_layer > 0 ? geometry_[step.first_layer - 1].output
+                                                     : geometry_[0].input;
+    const size_t bytes =
+        step.out_u8 ? shape.elements() + kInt8TensorSlack : shape.elements() * sizeof(float);
+    tensor_of_step_[k] = static_cast<int>(requests.size());
+    requests.push_back({bytes, born, steps_[reader].last_layer});
+    producers.push_back(born);
   }
   // Winograd scratch (v and m) lives during its own step only, so it reuses memory that the
   // tensors of other steps need; it is not a tensor (plan() lists tensors only).
@@ -358,7 +502,12 @@ Status Session::Plan() {
   }
   plan_.resize(tensors);
   for (size_t t = 0; t < tensors; ++t) {
-    plan_[t] = {requests[t].first_use, requests[t].last_use, plan.offsets[t], requests[t].bytes};
+    plan_[t] = {producers[t], requests[t].last_use, plan.offsets[t], requests[t].bytes};
+  }
+  for (size_t k = 0; k < m; ++k) {
+    if (tensor_of_step_[k] >= 0) {
+      plan_[static_cast<size_t>(tensor_of_step_[k])].is_u8 = steps_[k].out_u8;
+    }
   }
   arena_bytes_ = plan.total_bytes;
   if (plan.total_bytes > 0) {
@@ -417,7 +566,6 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
                          "the output needs " + std::to_string(out_shape.elements()));
   }
 
-  const int n = static_cast<int>(model_->layers().size());
   auto parallel_rows = [&](int rows, ThreadPool::Fn fn, void* ctx) {
     if (pool_ != nullptr) {
       pool_->ParallelFor(rows, fn, ctx);
@@ -427,12 +575,73 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
   };
   ConstTensorView cur{input.data(), in_shape.height, in_shape.width, in_shape.channels,
                       static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
+  // An int8 step's call, reading `in` (the low-resolution map when it fuses an upsampling).
+  auto int8_args = [&](const Step& step, const ConstByteView& in) {
+    Int8ConvArgs args;
+    args.conv = &step.packed8;
+    args.in = in;
+    args.pads = geometry_[step.last_layer].pads;
+    if (step.upsampled) {
+      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+      args.upsampled = true;
+      if (step.crop_layer >= 0) {
+        args.crop_top = c.crop.top;
+        args.crop_left = c.crop.left;
+      }
+      args.c_height = c.output.height;
+      args.c_width = c.output.width;
+    }
+    return args;
+  };
+  auto run_int8 = [&](const Step& step, const Int8ConvArgs& args, int rows) {
+    const int blocks = step.packed8.blocks;
+    if (pool_ == nullptr) {
+      step.fn8(args, 0, rows, 0, blocks);
+    } else {
+      Int8ConvJob job{step.fn8, &args, rows, ConvChunks(blocks, rows, threads_)};
+      pool_->ParallelFor(blocks * job.chunks, Int8ConvTrampoline, &job);
+    }
+  };
+  ConstByteView cur8;  // the current tensor when it is uint8 (cur8.data != null)
   if (timed) stamp(0);
   size_t step_index = 0;
   for (const Step& step : steps_) {
     ++step_index;
     const LayerGeometry& g = geometry_[step.last_layer];
-    const bool last = step.last_layer + 1 == n;
+    const bool last = step_index == steps_.size();
+    if (step.kind == Step::Kind::kCrop && cur8.data != nullptr) {
+      // A uint8 tensor is never the model's output: an int8 convolution whose output no int8
+      // convolution reads writes float32.
+      cur8.data = cur8.pixel(g.crop.top, g.crop.left);
+      cur8.height = g.output.height;
+      cur8.width = g.output.width;
+      if (timed) stamp(step_index);
+      continue;
+    }
+    if (step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kUpsampleU8 ||
+        (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
+      uint8_t* dst8 = reinterpret_cast<uint8_t*>(arena_) +
+                      plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset;
+      if (step.kind == Step::Kind::kQuantize) {
+        QuantizeJob job{cur, DenseByteView(dst8, cur.height, cur.width, cur.channels),
+                        1.0f / step.quant.scale, step.quant.zero_point};
+        parallel_rows(cur.height, QuantizeTrampoline, &job);
+        cur8 = job.out;
+      } else if (step.kind == Step::Kind::kUpsampleU8) {
+        const ByteView out8 =
+            DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
+        const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
+        ref::UpsampleNearestU8(cur8, u.factor_h, u.factor_w, out8);
+        cur8 = out8;
+      } else {
+        Int8ConvArgs args = int8_args(step, cur8);
+        args.out_u8 = DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
+        run_int8(step, args, g.output.height);
+        cur8 = args.out_u8;
+      }
+      if (timed) stamp(step_index);
+      continue;
+    }
     if (step.kind == Step::Kind::kCrop) {
       ConstTensorView view = cur;
       view.data = cur.pixel(g.crop.top, g.crop.left);
@@ -446,10 +655,10 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       if (timed) stamp(step_index);
       continue;
     }
-    float* dst =
-        last ? output.data()
-             : arena_ + plan_[static_cast<size_t>(tensor_of_layer_[step.last_layer])].offset /
-                            sizeof(float);
+    float* dst = last
+                     ? output.data()
+                     : arena_ + plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset /
+                                    sizeof(float);
     const TensorView out = DenseView(dst, g.output.height, g.output.width, g.output.channels);
     switch (step.kind) {
       case Step::Kind::kConv:
@@ -514,7 +723,16 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         ref::UpsampleNearest(cur, u.factor_h, u.factor_w, out);
         break;
       }
+      case Step::Kind::kInt8Conv: {  // float32 output
+        Int8ConvArgs args = int8_args(step, cur8);
+        args.out_f32 = out;
+        run_int8(step, args, out.height);
+        cur8 = {};
+        break;
+      }
       case Step::Kind::kCrop:
+      case Step::Kind::kQuantize:
+      case Step::Kind::kUpsampleU8:
         break;
     }
     cur = out;

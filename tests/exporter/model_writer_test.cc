@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
 
 #include "common/sceneednet_spec.h"
 #include "sfrt/crc32c.h"
@@ -146,7 +148,7 @@ TEST(ModelWriter, UnitsAndTrainingStateRoundTripFromSchema12) {
   auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
   ASSERT_TRUE(model.ok()) << model.message();
   const ModelMetadata& md = (*model)->metadata();
-  EXPECT_EQ(md.schema_minor, 2);
+  EXPECT_EQ(md.schema_minor, kSchemaVersionMinor);
   EXPECT_EQ(md.output.units, "metres");
   EXPECT_TRUE(md.output.units_declared);
   EXPECT_EQ(md.training, TrainingState::kTrained);
@@ -178,6 +180,187 @@ TEST(ModelWriter, OlderLayoutsCarryNeitherUnitsNorTrainingState) {
     EXPECT_FALSE(md.output.units_declared);
     EXPECT_EQ(md.training, TrainingState::kUnknown);
   }
+}
+
+// SceneEDNet w16 with conv0..conv2 int8 (seeded int8 weights, chained quantisation) and a
+// calibration record, as the quantiser would write it.
+ModelSpec Int8Spec() {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> byte(-127, 127);
+  std::uniform_real_distribution<float> scale(1e-3f, 1e-1f);
+  QuantParams in{0.75f, 0};
+  for (size_t i = 0; i < 3; ++i) {
+    auto& c = std::get<ConvSpec>(spec.layers[i]);
+    c.precision = Precision::kInt8;
+    c.weights_q.resize(c.weights_hwio.size());
+    for (int8_t& q : c.weights_q) q = static_cast<int8_t>(byte(rng));
+    c.weights_hwio.clear();
+    c.weight_scales.resize(static_cast<size_t>(c.out_channels));
+    for (float& s : c.weight_scales) s = scale(rng);
+    c.input_quant = in;
+    c.output_quant = {scale(rng), static_cast<int>(i) * 40 + 3};
+    in = c.output_quant;
+  }
+  CalibrationDesc cal;
+  cal.method = "percentile:99.99";
+  cal.data_sha256 = std::string(64, 'a');
+  cal.frames = 7;
+  cal.height = 96;
+  cal.width = 128;
+  cal.output_max_rel = 0.125f;
+  cal.output_rms_rel = 0.0175f;
+  cal.layers = {{"conv0", Precision::kInt8, 0.01f},
+                {"conv1", Precision::kInt8, 0.02f},
+                {"conv3", Precision::kFloat32, 0.015f}};
+  spec.calibration = cal;
+  return spec;
+}
+
+TEST(ModelWriter, Int8ConvolutionsRoundTripThroughTheLoaderByteForByte) {
+  const ModelSpec spec = Int8Spec();
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();  // checksums and alignment verified
+  const ModelMetadata& md = (*model)->metadata();
+  EXPECT_EQ(md.schema_minor, 3);
+  EXPECT_TRUE(md.has_int8);
+  EXPECT_EQ(md.weight_type, WeightType::kFloat32);
+  for (size_t i = 0; i < spec.layers.size(); ++i) {
+    const auto* c = std::get_if<ConvSpec>(&spec.layers[i]);
+    if (c == nullptr) continue;
+    const ConvParams& p = (*model)->layers()[i].conv;
+    ASSERT_EQ(p.precision, c->precision) << c->name;
+    ASSERT_EQ(std::memcmp(p.bias, c->bias.data(), c->bias.size() * sizeof(float)), 0);
+    if (c->precision == Precision::kFloat32) {
+      ASSERT_EQ(p.weights_q, nullptr);
+      ASSERT_EQ(std::memcmp(p.weights, c->weights_hwio.data(), c->weights_hwio.size() * 4), 0);
+      continue;
+    }
+    EXPECT_EQ(p.weights, nullptr);
+    ASSERT_EQ(std::memcmp(p.weights_q, c->weights_q.data(), c->weights_q.size()), 0) << c->name;
+    ASSERT_EQ(std::memcmp(p.weight_scales, c->weight_scales.data(),
+                          c->weight_scales.size() * sizeof(float)),
+              0);
+    EXPECT_EQ(p.input_quant, c->input_quant) << c->name;
+    EXPECT_EQ(p.output_quant, c->output_quant) << c->name;
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(p.weights_q) % 64, 0u) << c->name;
+  }
+  ASSERT_TRUE(md.calibration.has_value());
+  const CalibrationDesc& cal = *md.calibration;
+  EXPECT_EQ(cal.method, "percentile:99.99");
+  EXPECT_EQ(cal.data_sha256, std::string(64, 'a'));
+  EXPECT_EQ(cal.frames, 7);
+  EXPECT_EQ(cal.height, 96);
+  EXPECT_EQ(cal.width, 128);
+  EXPECT_EQ(cal.output_max_rel, 0.125f);
+  EXPECT_EQ(cal.output_rms_rel, 0.0175f);
+  ASSERT_EQ(cal.layers.size(), 3u);
+  EXPECT_EQ(cal.layers[2].layer, "conv3");
+  EXPECT_EQ(cal.layers[2].precision, Precision::kFloat32);
+  EXPECT_EQ(cal.layers[1].relative_rms, 0.02f);
+}
+
+TEST(ModelWriter, Int8WeightsAreCoveredByTheWeightsChecksum) {
+  auto bytes = SerializeModel(Int8Spec());
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  // Flip one int8 weight and fix the whole-file CRC: only the weights' CRC can catch it.
+  const size_t at =
+      static_cast<size_t>(reinterpret_cast<const uint8_t*>((*model)->layers()[1].conv.weights_q) -
+                          reinterpret_cast<const uint8_t*>((*model)->layers()[0].conv.weights_q));
+  auto first =
+      std::search(bytes->begin(), bytes->end(),
+                  reinterpret_cast<const uint8_t*>((*model)->layers()[0].conv.weights_q),
+                  reinterpret_cast<const uint8_t*>((*model)->layers()[0].conv.weights_q) + 64);
+  ASSERT_NE(first, bytes->end());
+  (*bytes)[static_cast<size_t>(first - bytes->begin()) + at + 5] ^= 0x10;
+  ASSERT_TRUE(UpdateFileChecksum(*bytes).ok());
+  auto damaged = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_FALSE(damaged.ok());
+  EXPECT_NE(damaged.message().find("weights checksum mismatch"), std::string::npos)
+      << damaged.message();
+}
+
+TEST(ModelWriter, AFloat32FileAt13DiffersFrom12OnlyInTheVersionAndFileChecksum) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16);
+  SerializeOptions v12;
+  v12.schema_minor = 2;
+  auto a = SerializeModel(spec, v12);
+  auto b = SerializeModel(spec);
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a->size(), b->size());
+  size_t differing = 0;
+  for (size_t i = 0; i < a->size(); ++i) differing += (*a)[i] != (*b)[i];
+  EXPECT_GE(differing, 1u);
+  EXPECT_LE(differing, 1u + 4u);  // the minor version's low byte, the file CRC-32C
+}
+
+TEST(ModelWriter, Int8LayersAndCalibrationNeedSchema13) {
+  ModelSpec spec = Int8Spec();
+  SerializeOptions v12;
+  v12.schema_minor = 2;
+  auto bytes = SerializeModel(spec, v12);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("layer 0 'conv0': precision int8 needs schema 1.3"),
+            std::string::npos)
+      << bytes.message();
+  spec = testing::SceneEdNetSpec(16);
+  spec.calibration = CalibrationDesc{};
+  bytes = SerializeModel(spec, v12);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("a calibration record needs schema 1.3"), std::string::npos)
+      << bytes.message();
+}
+
+TEST(ModelWriter, RejectsAnInt8LayerWithWrongCountsOrFloatWeights) {
+  ModelSpec spec = Int8Spec();
+  std::get<ConvSpec>(spec.layers[1]).weight_scales.pop_back();
+  auto bytes = SerializeModel(spec);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("layer 1 'conv1': holds 288 int8 weights, 7 weight scales"),
+            std::string::npos)
+      << bytes.message();
+  spec = Int8Spec();
+  std::get<ConvSpec>(spec.layers[2]).weights_hwio.assign(5, 1.0f);
+  bytes = SerializeModel(spec);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("layer 2 'conv2': precision is int8 but weights_hwio holds 5"),
+            std::string::npos)
+      << bytes.message();
+}
+
+TEST(ModelWriter, LoaderRefusesAnInt8PairWhoseQuantParamsDoNotChain) {
+  ModelSpec spec = Int8Spec();
+  std::get<ConvSpec>(spec.layers[1]).input_quant.zero_point += 1;
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_FALSE(model.ok());
+  EXPECT_NE(model.message().find("layer 1 'conv1': input_quant"), std::string::npos)
+      << model.message();
+}
+
+// An int8 file re-exported from itself (sfrt export m.sfrt -o n.sfrt) is the same file.
+TEST(SfrtImporter, ReexportOfAnInt8FileWithItsCalibrationIsByteIdentical) {
+  auto bytes = SerializeModel(Int8Spec());
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  const fs::path path = fs::temp_directory_path() / "sfrt_int8_reexport_test.sfrt";
+  {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes->data()),
+              static_cast<std::streamsize>(bytes->size()));
+  }
+  auto spec = ImportSfrt(path.string());
+  fs::remove(path);
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  ASSERT_TRUE(spec->calibration.has_value());
+  EXPECT_EQ(std::get<ConvSpec>(spec->layers[0]).precision, Precision::kInt8);
+  auto again = SerializeModel(*spec);
+  ASSERT_TRUE(again.ok()) << again.message();
+  EXPECT_EQ(*again, *bytes);
 }
 
 // The committed default model as it was before schema 1.2: re-exported from the .sfrt file, it

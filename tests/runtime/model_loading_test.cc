@@ -7,6 +7,7 @@
 #include <fstream>
 #include <random>
 
+#include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
 #include "sfrt/model.h"
@@ -163,6 +164,63 @@ TEST(ModelLoading, RejectsAWeightShapeThatDisagreesWithTheLayer) {
   MutableConv(bytes, 0)->mutable_weights()->mutable_shape()->Mutate(3, 7);
   ExpectRejected(LoadBytes(bytes),
                  "layer 0 'conv0': weights.shape is (3,3,12,7); expected (3,3,12,4)");
+}
+
+std::vector<uint8_t> Int8ModelBytes() {
+  return testing::SerializeOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16)));
+}
+
+TEST(ModelLoading, AcceptsAnInt8ModelAndReadsItsQuantisation) {
+  auto model = LoadBytes(Int8ModelBytes());
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_TRUE((*model)->metadata().has_int8);
+  EXPECT_EQ((*model)->metadata().schema_minor, 3);
+  const ConvParams& c = (*model)->layers()[1].conv;
+  EXPECT_EQ(c.precision, Precision::kInt8);
+  EXPECT_EQ(c.weights, nullptr);
+  ASSERT_NE(c.weights_q, nullptr);
+  ASSERT_NE(c.weight_scales, nullptr);
+  EXPECT_GT(c.weight_scales[0], 0.0f);
+  EXPECT_EQ(c.input_quant, (QuantParams{4.0f / 255.0f, 77}));
+  EXPECT_EQ((*model)->layers()[0].conv.input_quant, (QuantParams{1.0f, 0}));
+}
+
+TEST(ModelLoading, RejectsAPrecisionItDoesNotKnowNamingTheLayerAndValue) {
+  auto bytes = Int8ModelBytes();
+  MutableConv(bytes, 2)->mutate_precision(static_cast<fb::Precision>(9));
+  ExpectRejected(LoadBytes(bytes), "layer 2 'conv2': precision is value 9, which this runtime");
+}
+
+TEST(ModelLoading, RejectsInt8WeightsOnAFloat32Layer) {
+  auto bytes = Int8ModelBytes();
+  MutableConv(bytes, 2)->mutate_precision(fb::Precision::Float32);
+  ExpectRejected(LoadBytes(bytes), "layer 2 'conv2': weights.dtype is int8");
+}
+
+TEST(ModelLoading, RejectsAnInt8LayerReadingOtherQuantisationThanItsProducerWrites) {
+  auto bytes = Int8ModelBytes();
+  MutableConv(bytes, 3)->mutable_input_quant()->mutate_zero_point(3);
+  ExpectRejected(LoadBytes(bytes),
+                 "layer 3 'conv3': input_quant (scale 0.015686, zero_point 3) differs from the "
+                 "output_quant of layer 'conv2'");
+}
+
+TEST(ModelLoading, RejectsInt8ScalesThatAreNotPositiveOrFinite) {
+  {
+    auto bytes = Int8ModelBytes();
+    MutableConv(bytes, 4)->mutable_weight_scales()->Mutate(5, -1.0f);
+    ExpectRejected(LoadBytes(bytes), "layer 4 'conv4': weight_scales[5] is -1");
+  }
+  {
+    auto bytes = Int8ModelBytes();
+    MutableConv(bytes, 4)->mutable_output_quant()->mutate_scale(0.0f);
+    ExpectRejected(LoadBytes(bytes), "layer 4 'conv4': output_quant.scale is 0");
+  }
+  {
+    auto bytes = Int8ModelBytes();
+    MutableConv(bytes, 0)->mutable_input_quant()->mutate_zero_point(256);
+    ExpectRejected(LoadBytes(bytes), "layer 0 'conv0': input_quant.zero_point is 256");
+  }
 }
 
 TEST(ModelLoading, RejectsOutOfRangeParameters) {

@@ -9,6 +9,7 @@
 #include <new>
 #include <string>
 
+#include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
 #include "sfrt/isa.h"
@@ -75,29 +76,34 @@ TEST(ZeroAllocation, CountingHooksSeeAnAllocation) {
 
 // Every ISA this CPU runs (packed weights and the fused upsample-conv included), with one
 // thread and with a pool of two (which must not create threads or allocate per Run).
+// Both precisions: float32, and int8 (uint8 tensors, the input's quantisation, int8 kernels).
 TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
-  for (Isa isa : SupportedIsas()) {
-    for (int threads : {1, 2}) {
-      SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");
-      SessionOptions options;
-      options.max_height = 96;
-      options.max_width = 128;
-      options.isa = isa;
-      options.threads = threads;
-      auto session = Session::Create(model, options);
-      ASSERT_TRUE(session.ok()) << session.message();
-      std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
-      std::vector<int64_t> step_end_ns((*session)->steps().size() + 1);
-      for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
-        for (bool timed : {false, true}) {
-          const long before = g_allocations.load();
-          const Status s = timed ? (*session)->Run(input, h, w, output, step_end_ns)
-                                 : (*session)->Run(input, h, w, output);
-          const long allocated = g_allocations.load() - before;
-          ASSERT_TRUE(s.ok()) << s.message();
-          EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << (timed ? ", timed" : "")
-                                  << ") allocated " << allocated << " times";
+  for (bool int8 : {false, true}) {
+    SCOPED_TRACE(int8 ? "int8" : "fp32");
+    auto model = testing::LoadOrDie(int8 ? testing::Int8Spec(testing::SceneEdNetSpec(16))
+                                         : testing::SceneEdNetSpec(16));
+    for (Isa isa : SupportedIsas()) {
+      for (int threads : {1, 2}) {
+        SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");
+        SessionOptions options;
+        options.max_height = 96;
+        options.max_width = 128;
+        options.isa = isa;
+        options.threads = threads;
+        auto session = Session::Create(model, options);
+        ASSERT_TRUE(session.ok()) << session.message();
+        std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
+        std::vector<int64_t> step_end_ns((*session)->steps().size() + 1);
+        for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
+          for (bool timed : {false, true}) {
+            const long before = g_allocations.load();
+            const Status s = timed ? (*session)->Run(input, h, w, output, step_end_ns)
+                                   : (*session)->Run(input, h, w, output);
+            const long allocated = g_allocations.load() - before;
+            ASSERT_TRUE(s.ok()) << s.message();
+            EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << (timed ? ", timed" : "")
+                                    << ") allocated " << allocated << " times";
+          }
         }
       }
     }

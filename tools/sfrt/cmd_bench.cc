@@ -30,6 +30,7 @@
 #include "sfrt/config/limits.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/model_notes.h"
 #include "sfrt/pipeline/stats.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
@@ -230,6 +231,7 @@ Json StepsJson(const std::vector<prof::StepRow>& rows) {
                          {"last_layer", r.label.last_layer},
                          {"op", r.label.op},
                          {"kernel", r.label.kernel},
+                         {"precision", r.label.precision},
                          {"median_ms", r.ms.p50},
                          {"mean_ms", r.ms.mean},
                          {"p99_ms", r.ms.p99},
@@ -326,6 +328,9 @@ int RunBench(const BenchArgs& args) {
       c.isa = isa;
       c.threads = threads;
       c.session = std::move(session).value();
+      if (std::string notice = Int8FallbackNotice(*c.session); !notice.empty()) {
+        std::printf("%s\n", notice.c_str());
+      }
       for (const PlannedStep& step : c.session->steps()) {
         if (c.kernels.find(step.kernel) != std::string::npos) continue;
         if (!c.kernels.empty()) c.kernels += " ";

@@ -24,11 +24,14 @@
 #include <string_view>
 #include <vector>
 
+#include "sfrt/calibration_input.h"
 #include "sfrt/commands.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/exporter/keras_importer.h"
 #include "sfrt/exporter/model_spec.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
+#include "sfrt/exporter/quantize.h"
 #include "sfrt/exporter/sfrt_importer.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
@@ -70,6 +73,13 @@ struct ExportArgs {
   CLI::Option* tolerance_opt = nullptr;  // given on the command line: must be > 0
   std::string units;
   std::string training_state;
+  // Quantisation (schema 1.3).
+  std::string precision = "fp32";
+  std::string calibration;
+  double accuracy_budget = 0.02;
+  std::string calibration_size;
+  int calibration_frames = 64;
+  std::string calibration_method = "percentile:99.99";
   // The metadata flags given on the command line: a .sfrt source keeps its own value of the rest.
   std::vector<std::string> given;
 };
@@ -79,6 +89,9 @@ constexpr const char* kMetadataFlags[] = {
     "--name",  "--color-order", "--image-order", "--scale", "--mean",  "--std",
     "--focal", "--baseline",    "--cx",          "--cy",    "--units", "--training-state"};
 constexpr size_t kMaxUnitsLength = 64;
+// Flags that only apply with --calibration.
+constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibration-frames",
+                                             "--calibration-method"};
 
 bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
@@ -211,6 +224,10 @@ std::string SizeText(int height, int width) {
 // "float16, 1,234 bytes (float32: 2,468; saves 1,234)".
 std::string WeightsLine(const Model& model) {
   const uint64_t params = model.parameter_count();
+  if (std::string int8 = Int8LayersText(model); !int8.empty()) {
+    return int8 + ", " + GroupDigits(StoredParameterBytes(model)) + " bytes (float32 would need " +
+           GroupDigits(params * 4) + ")";
+  }
   if (model.metadata().weight_type == WeightType::kFloat16) {
     return "float16, " + GroupDigits(params * 2) + " bytes (float32 would need " +
            GroupDigits(params * 4) + "; saves " + GroupDigits(params * 2) +
@@ -456,6 +473,89 @@ std::string ProbeKerasImportInChild(const std::string& path,
          "Nothing was written";
 }
 
+// --precision int8|auto: reads the calibration frames, quantises `spec` (float32) and appends
+// the summary lines. Errors name the calibration file or directory.
+Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
+                                                   const exporter::ModelSpec& spec,
+                                                   const ModelMetadata& meta,
+                                                   std::vector<std::string>* lines) {
+  const std::string& path = args.calibration;
+  const std::string flag = "--calibration " + path;
+  std::error_code ec;
+  Result<exporter::CalibrationSet> data = Status::Error("unread");
+  std::string described;
+  if (std::filesystem::is_directory(path, ec)) {
+    int height = meta.input.traced_height;
+    int width = meta.input.traced_width;
+    if (!args.calibration_size.empty()) ParseSize(args.calibration_size, &height, &width);
+    if (height <= 0 || width <= 0) {
+      return Status::Error(flag +
+                           ": the model's traced size is unknown; give --calibration-size "
+                           "HxW to say what size to preprocess the frames at");
+    }
+    data = ReadCalibrationDirectory(path, meta.input, height, width, args.calibration_frames,
+                                    &described);
+    if (!data.ok()) return Status::Error("--calibration " + data.message());
+  } else {
+    if (std::string problem = CheckInputFile(path, "--calibration file"); !problem.empty()) {
+      return Status::Error(problem);
+    }
+    if (LowerExtension(path) != ".npy") {
+      return Status::Error(flag + ": neither a directory of stereo frames nor a .npy file");
+    }
+    data = ReadCalibrationNpy(path, meta.input.channels, args.calibration_frames);
+    if (!data.ok()) return Status::Error("--calibration " + data.message());
+    described = std::to_string(data->frames) + " frames of " + path;
+  }
+  exporter::QuantizeOptions options;
+  options.mode =
+      args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
+  options.accuracy_budget = args.accuracy_budget;
+  options.method = args.calibration_method;
+  options.progress = [](const char* pass, int frame, int frames) {
+    const int step = std::max(1, frames / 4);
+    if (frame % step == 0 || frame == frames) {
+      std::cout << "calibration: frame " << frame << "/" << frames << " (" << pass << ")"
+                << std::endl;
+    }
+  };
+  Result<exporter::QuantizeResult> result = exporter::Quantize(spec, *data, options);
+  if (!result.ok()) return Status::Error(flag + ": " + result.message());
+
+  const CalibrationDesc& cal = result->calibration;
+  size_t int8 = 0;
+  size_t name_width = 0;
+  for (const LayerErrorDesc& e : cal.layers) {
+    int8 += e.precision == Precision::kInt8;
+    name_width = std::max(name_width, e.layer.size());
+  }
+  const size_t convs = cal.layers.size();
+  std::string precision = int8 == convs
+                              ? "int8, all " + std::to_string(convs) + " convolutions"
+                              : std::to_string(int8) + " of " + std::to_string(convs) +
+                                    " convolutions int8, " + std::to_string(convs - int8) + " fp32";
+  if (args.precision == "auto") {
+    precision += " (--precision auto, accuracy budget " + ErrorText(args.accuracy_budget) +
+                 " on the output's rms error)";
+    if (int8 == 0) precision += "; no int8 convolution fits: the file is float32";
+  }
+  lines->push_back("  precision   " + precision);
+  lines->push_back("  calibration " + cal.method + ", " + std::to_string(cal.frames) +
+                   " frames of " + std::to_string(cal.height) + "x" + std::to_string(cal.width) +
+                   ", data sha256 " + cal.data_sha256);
+  lines->push_back("  frames      " + described);
+  lines->push_back("  error       output max " + ErrorText(cal.output_max_rel) + ", rms " +
+                   ErrorText(cal.output_rms_rel) +
+                   " relative to float32 over the calibration frames");
+  for (const LayerErrorDesc& e : cal.layers) {
+    lines->push_back("  layer       " + e.layer + std::string(name_width - e.layer.size(), ' ') +
+                     "  " + PrecisionName(e.precision) + "  relative rms " +
+                     ErrorText(e.relative_rms));
+  }
+  for (const std::string& step : result->auto_steps) lines->push_back("  auto        " + step);
+  return result;
+}
+
 int RunExport(const ExportArgs& args) {
   // Everything decidable from the command line alone is checked first (usage errors).
   exporter::ModelSpec defaults;
@@ -584,6 +684,69 @@ int RunExport(const ExportArgs& args) {
     return ReportError(kName, "--architecture applies to Keras .h5 input only", kExitUsage);
   }
   if (args.output.empty()) return ReportError(kName, "-o: output path is empty", kExitUsage);
+  const bool quantise = args.precision != "fp32";
+  if (args.precision != "fp32" && args.precision != "int8" && args.precision != "auto") {
+    return ReportError(kName,
+                       "--precision: expected fp32, int8 or auto, got '" + args.precision + "'",
+                       kExitUsage);
+  }
+  if (quantise && args.calibration.empty()) {
+    return ReportError(kName,
+                       "--precision " + args.precision +
+                           " needs --calibration PATH (a float32 .npy of network inputs, or a "
+                           "directory of stereo frames)",
+                       kExitUsage);
+  }
+  if (!quantise && !args.calibration.empty()) {
+    return ReportError(kName, "--calibration applies to --precision int8 or auto", kExitUsage);
+  }
+  for (const char* flag : kCalibrationFlags) {
+    if (Given(args, flag) && args.calibration.empty()) {
+      return ReportError(kName, std::string(flag) + " applies with --calibration", kExitUsage);
+    }
+  }
+  if (Given(args, "--accuracy-budget")) {
+    if (args.precision != "auto") {
+      return ReportError(kName, "--accuracy-budget applies to --precision auto", kExitUsage);
+    }
+    if (!(args.accuracy_budget >= 0) || !std::isfinite(args.accuracy_budget)) {
+      return ReportError(kName,
+                         "--accuracy-budget: must be a finite number >= 0, got " +
+                             FormatFloat(args.accuracy_budget),
+                         kExitUsage);
+    }
+  }
+  if (args.calibration_frames < 1) {
+    return ReportError(
+        kName,
+        "--calibration-frames: must be at least 1, got " + std::to_string(args.calibration_frames),
+        kExitUsage);
+  }
+  if (Result<exporter::CalibrationMethod> method =
+          exporter::ParseCalibrationMethod(args.calibration_method);
+      !method.ok()) {
+    return ReportError(kName, "--calibration-method: " + method.message(), kExitUsage);
+  }
+  if (!args.calibration_size.empty()) {
+    int h = 0;
+    int w = 0;
+    if (!ParseSize(args.calibration_size, &h, &w)) {
+      return ReportError(kName,
+                         "--calibration-size: expected HxW with positive integers, got '" +
+                             args.calibration_size + "'",
+                         kExitUsage);
+    }
+    if (std::string problem = config::CheckSize(config::kInputSide, "--calibration-size", h, w);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
+    }
+    if (LowerExtension(args.calibration) == ".npy") {
+      return ReportError(kName,
+                         "--calibration-size applies to a directory of frames; a .npy gives its "
+                         "own size",
+                         kExitUsage);
+    }
+  }
 
   // Import.
   if (std::string problem = CheckInputFile(args.input, "input file"); !problem.empty()) {
@@ -618,14 +781,28 @@ int RunExport(const ExportArgs& args) {
     Result<exporter::ModelSpec> imported = exporter::ImportSfrt(args.input);
     if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
     spec = std::move(imported).value();
-    notes.push_back("rewritten from a .sfrt file: weights and layers unchanged, metadata from " +
-                    args.input + " except the flags given");
+    notes.push_back(std::string(quantise ? "quantised from a .sfrt file: layers and float32 "
+                                           "weights from "
+                                         : "rewritten from a .sfrt file: weights and layers "
+                                           "unchanged, metadata from ") +
+                    args.input + (quantise ? ", its metadata" : "") + " except the flags given");
   } else {
     Result<exporter::ModelSpec> imported = exporter::ImportOnnx(args.input, import_options);
     if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
     spec = std::move(imported).value();
   }
   if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
+  if (quantise) {
+    for (const exporter::LayerSpec& layer : spec.layers) {
+      const auto* conv = std::get_if<exporter::ConvSpec>(&layer);
+      if (conv == nullptr || conv->precision == Precision::kFloat32) continue;
+      return ReportError(kName,
+                         args.input + ": layer '" + conv->name +
+                             "' is already int8; --precision quantises a float32 model (export "
+                             "from the float32 source, or drop --precision to rewrite metadata)",
+                         kExitFailure);
+    }
+  }
 
   // The image order must account for every input channel (3 per image).
   if (3 * static_cast<int>(image_order.size()) != spec.input.channels) {
@@ -661,6 +838,23 @@ int RunExport(const ExportArgs& args) {
     return ReportError(kName,
                        "the converted model does not verify, nothing written: " + loaded.message(),
                        kExitFailure);
+  }
+  // --precision int8|auto: quantise the verified float32 model, then verify what is written.
+  std::vector<std::string> quant_lines;
+  if (quantise) {
+    Result<exporter::QuantizeResult> quantised =
+        QuantizeForExport(args, spec, (*loaded)->metadata(), &quant_lines);
+    if (!quantised.ok()) return ReportError(kName, quantised.message(), kExitFailure);
+    spec = std::move(quantised->spec);
+    bytes = exporter::SerializeModel(spec);
+    if (!bytes.ok()) return ReportError(kName, args.input + ": " + bytes.message(), kExitFailure);
+    loaded =
+        Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy, {}, args.output);
+    if (!loaded.ok()) {
+      return ReportError(
+          kName, "the quantised model does not verify, nothing written: " + loaded.message(),
+          kExitFailure);
+    }
   }
   const std::shared_ptr<const Model> model_ptr = *loaded;
   const Model& model = *model_ptr;
@@ -747,6 +941,7 @@ int RunExport(const ExportArgs& args) {
             << "  file        " << GroupDigits(model.file_bytes())
             << " bytes, loads and verifies (CRC-32C ok)\n";
   for (const std::string& note : notes) std::cout << "  note        " << note << "\n";
+  for (const std::string& line : quant_lines) std::cout << line << "\n";
   for (const std::string& line : check_lines) std::cout << line << "\n";
   return kExitOk;
 }
@@ -827,6 +1022,31 @@ Command AddExportCommand(CLI::App& parent) {
   cmd->add_option("--check-output", args->check_output,
                   "Parity check reference: the source framework's output for --check-input, "
                   "float32 .npy (H,W,3) or (1,H,W,3)");
+  cmd->add_option("--precision", args->precision,
+                  "Arithmetic of the convolutions: fp32; int8 (every convolution: int8 weights "
+                  "per output channel, uint8 activations, quantised from --calibration); auto "
+                  "(int8 where the output's error stays within --accuracy-budget)")
+      ->check(CLI::IsMember({"fp32", "int8", "auto"}))
+      ->capture_default_str();
+  cmd->add_option("--calibration", args->calibration,
+                  "With --precision int8|auto: network inputs to choose the quantisation from: a "
+                  "float32 .npy (H,W,C) or (N,H,W,C) as infer --input-npy takes, or a directory "
+                  "of stereo frames as run --replay reads (consecutive pairs form (t, t+1) "
+                  "windows, preprocessed as the model's metadata says)");
+  cmd->add_option("--accuracy-budget", args->accuracy_budget,
+                  "--precision auto: largest output error accepted, RMS(int8 output - float32 "
+                  "output) / RMS(float32 output) over the calibration frames")
+      ->capture_default_str();
+  cmd->add_option("--calibration-size", args->calibration_size,
+                  "Directory calibration: the size HxW frames are resized to (default: the "
+                  "model's traced size); a .npy gives its own size");
+  cmd->add_option("--calibration-frames", args->calibration_frames,
+                  "Use at most the first N frames (windows) of --calibration")
+      ->capture_default_str();
+  cmd->add_option("--calibration-method", args->calibration_method,
+                  "How activation ranges are chosen: percentile:P (the central P percent of the "
+                  "values, 50 <= P <= 100) or minmax")
+      ->capture_default_str();
   args->tolerance_opt =
       cmd->add_option("--tolerance", args->tolerance,
                       "Parity tolerance: largest allowed |error| relative to the reference's "
@@ -842,6 +1062,14 @@ Command AddExportCommand(CLI::App& parent) {
       "A .sfrt source is rewritten at the current schema version with the same layers and\n"
       "weights: its metadata is kept except for the flags given (e.g. sfrt export m.sfrt\n"
       "-o m.sfrt --units metres --training-state trained).\n"
+      "Quantisation (--precision int8|auto): activation ranges are observed on the float32\n"
+      "model over the calibration frames (--calibration-method), weights are quantised per\n"
+      "output channel, then the int8 model is run against float32 on the same frames; the\n"
+      "method, a SHA-256 of the frames and the output and per-layer errors are stored in the\n"
+      "file (sfrt inspect shows them) and printed. auto starts from every convolution int8\n"
+      "and puts back to float32, one at a time, the layer whose error rose most over its\n"
+      "input's, until the output's rms error is within --accuracy-budget. A .sfrt source\n"
+      "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
       "Parity check: prints max abs error, max error relative to the reference's largest\n"
       "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
       "written (an existing file at -o is left unchanged) and the exit code is 1.\n"
@@ -852,6 +1080,12 @@ Command AddExportCommand(CLI::App& parent) {
                      if (cmd->count(flag) > 0) args->given.push_back(flag);
                    }
                    if (cmd->count("--weights") > 0) args->given.push_back("--weights");
+                   for (const char* flag : kCalibrationFlags) {
+                     if (cmd->count(flag) > 0) args->given.push_back(flag);
+                   }
+                   if (cmd->count("--accuracy-budget") > 0) {
+                     args->given.push_back("--accuracy-budget");
+                   }
                    return RunExport(*args);
                  }};
 }

@@ -279,6 +279,9 @@ int RunInfer(const InferArgs& args) {
         "cannot create a session for " + SizeString(height, width) + ": " + session.message(),
         kExitFailure);
   }
+  if (std::string notice = Int8FallbackNotice(**session); !notice.empty()) {
+    std::cout << notice << "\n";
+  }
   Result<TensorShape> out_shape = (*session)->OutputShape(height, width);
   if (!out_shape.ok()) return ReportError(kName, out_shape.message(), kExitFailure);
   if (out_ext == ".pfm" && out_shape->channels != 3 && out_shape->channels != 1) {

@@ -132,6 +132,11 @@ class Table {
 // to float32 once at load.
 std::string WeightStorageLine(const Model& model) {
   const uint64_t params = model.parameter_count();
+  if (std::string int8 = Int8LayersText(model); !int8.empty()) {
+    return int8 + ", " +
+           (model.metadata().weight_type == WeightType::kFloat16 ? "float16" : "float32") +
+           " elsewhere (" + GroupDigits(StoredParameterBytes(model)) + " bytes stored)";
+  }
   if (model.metadata().weight_type == WeightType::kFloat16) {
     return "float16 (IEEE half, " + GroupDigits(params * 2) +
            " bytes stored; widened to float32 at load)";
@@ -146,6 +151,13 @@ std::string Fp32ComparisonLine(const Model& model) {
   const uint64_t params = model.parameter_count();
   const uint64_t file = model.file_bytes();
   char ratio[32];
+  if (model.metadata().has_int8) {
+    const uint64_t stored = StoredParameterBytes(model);
+    const uint64_t as_fp32 = file - std::min(file, stored) + params * 4;
+    std::snprintf(ratio, sizeof(ratio), "%.3f", static_cast<double>(file) / as_fp32);
+    return "this file is " + std::string(ratio) + " of its float32 size (about " +
+           GroupDigits(as_fp32) + " bytes)";
+  }
   if (model.metadata().weight_type == WeightType::kFloat16) {
     const uint64_t as_fp32 = file + params * 2;
     std::snprintf(ratio, sizeof(ratio), "%.3f", static_cast<double>(file) / as_fp32);
@@ -156,6 +168,22 @@ std::string Fp32ComparisonLine(const Model& model) {
   std::snprintf(ratio, sizeof(ratio), "%.3f", static_cast<double>(as_fp16) / file);
   return "is float32; float16 storage (sfrt export --weights fp16) would save about " +
          GroupDigits(params * 2) + " bytes (" + ratio + " of this size)";
+}
+
+// How the quantisation was chosen and what it costs against float32 (schema 1.3).
+void PrintCalibration(std::ostream& out, const CalibrationDesc& cal) {
+  out << "calibration  (how the int8 quantisation was chosen; errors against float32)\n"
+      << "  method          " << cal.method << "\n"
+      << "  data sha256     " << cal.data_sha256 << "\n"
+      << "  frames          " << cal.frames << " at " << cal.height << "x" << cal.width << "\n"
+      << "  output error    max " << ErrorText(cal.output_max_rel) << ", rms "
+      << ErrorText(cal.output_rms_rel) << " (max |diff| / max |float32|, RMS diff / RMS float32)\n"
+      << "  layer errors    relative rms = RMS(output - float32 output) / RMS(float32 output)\n";
+  Table table({{"layer", false}, {"precision", false}, {"relative rms", true}});
+  for (const LayerErrorDesc& e : cal.layers) {
+    table.Add({e.layer, PrecisionName(e.precision), ErrorText(e.relative_rms)});
+  }
+  table.Print(out, "    ");
 }
 
 int RunInspect(const InspectArgs& args) {
@@ -224,6 +252,7 @@ int RunInspect(const InspectArgs& args) {
       << "  type            " << WeightStorageLine(*model) << "\n"
       << "  vs float32      " << Fp32ComparisonLine(*model) << "\n"
       << "  CRC-32C         " << crc << "\n";
+  if (meta.calibration) PrintCalibration(out, *meta.calibration);
 
   Result<std::vector<LayerGeometry>> geometry = InferGeometry(*model, height, width);
   if (!geometry.ok()) {
@@ -236,6 +265,7 @@ int RunInspect(const InspectArgs& args) {
   Table table({{"#", true},
                {"name", false},
                {"op", false},
+               {"precision", false},
                {"pads t,l,b,r", false},
                {"output HxWxC", true},
                {"MACs", true},
@@ -249,12 +279,12 @@ int RunInspect(const InspectArgs& args) {
     total_params += g.params;
     any_explicit |= layers[i].kind == LayerKind::kConv2D &&
                     layers[i].conv.padding_rule == PaddingRule::kExplicit;
-    table.Add({std::to_string(i), layers[i].name, OpString(layers[i]), PadsColumn(layers[i], g),
-               ShapeString(g.output),
+    table.Add({std::to_string(i), layers[i].name, OpString(layers[i]),
+               layers[i].kind == LayerKind::kConv2D ? PrecisionName(layers[i].conv.precision) : "-",
+               PadsColumn(layers[i], g), ShapeString(g.output),
                layers[i].kind == LayerKind::kConv2D ? GroupDigits(g.macs) : "-",
                g.params > 0 ? GroupDigits(g.params) : "-"});
   }
-  const int bytes_per_weight = meta.weight_type == WeightType::kFloat16 ? 2 : 4;
   char gmac[32];
   std::snprintf(gmac, sizeof(gmac), "%.2f", static_cast<double>(total_macs) / 1e9);
   out << "\nlayers at " << height << "x" << width << " (" << size_source << ")\n";
@@ -262,8 +292,11 @@ int RunInspect(const InspectArgs& args) {
   out << "totals\n"
       << "  compute         " << gmac << " GMAC (" << GroupDigits(total_macs) << " MACs)\n"
       << "  parameters      " << GroupDigits(total_params) << "\n"
-      << "  weight bytes    " << GroupDigits(total_params * bytes_per_weight) << " ("
-      << (meta.weight_type == WeightType::kFloat16 ? "float16" : "float32") << ")\n";
+      << "  weight bytes    " << GroupDigits(StoredParameterBytes(*model)) << " ("
+      << (meta.has_int8                              ? "int8 and float"
+          : meta.weight_type == WeightType::kFloat16 ? "float16"
+                                                     : "float32")
+      << ")\n";
   if (any_explicit && traced != std::to_string(height) + "x" + std::to_string(width)) {
     out << "  note            explicit pads apply unchanged at every size; if the source padded "
            "by a size-dependent rule (TF/Keras 'same') they are exact only at the traced size "
@@ -326,9 +359,11 @@ Command AddInspectCommand(CLI::App& parent) {
                 "Also list every planned arena tensor: producer, last consumer, offset, bytes");
   cmd->footer(
       "Prints the metadata (name, schema version, producer and source SHA-256, input\n"
-      "preprocessing, output channels and units, training camera, weight type, CRC-32C), then\n"
-      "every layer at one input size (op, pads in effect, output shape, MACs, parameters), the\n"
-      "totals, and the arena bytes a session planned for that size needs.\n"
+      "preprocessing, output channels and units, training camera, weight type, CRC-32C), for\n"
+      "an int8 file its calibration (method, data SHA-256, frames and size, output and\n"
+      "per-layer errors against float32), then every layer at one input size (op, precision\n"
+      "fp32 or int8, pads in effect, output shape, MACs, parameters), the totals, and the\n"
+      "arena bytes a session planned for that size needs.\n"
       "Exit codes: 0 success, 1 model fails to load or plan, 2 usage error.");
   return Command{cmd, [args] { return RunInspect(*args); }};
 }

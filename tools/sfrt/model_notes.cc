@@ -1,6 +1,7 @@
 #include "sfrt/model_notes.h"
 
 #include <cstdio>
+#include <string_view>
 
 namespace sfrt::tools {
 namespace {
@@ -48,6 +49,57 @@ std::string UntrainedNotice(const std::string& path, TrainingState state) {
   return "note: " + path +
          " is marked untrained (its weights were never trained): its output is "
          "not scene flow";
+}
+
+uint64_t StoredParameterBytes(const Model& model) {
+  const uint64_t wide = model.metadata().weight_type == WeightType::kFloat16 ? 2 : 4;
+  uint64_t bytes = 0;
+  for (const LayerDesc& layer : model.layers()) {
+    if (layer.kind != LayerKind::kConv2D) continue;
+    const ConvParams& c = layer.conv;
+    const uint64_t weights = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels *
+                             static_cast<uint64_t>(c.out_channels);
+    const uint64_t outs = static_cast<uint64_t>(c.out_channels);
+    bytes += c.precision == Precision::kInt8 ? weights + outs * 4 + outs * wide
+                                             : (weights + outs) * wide;
+  }
+  return bytes;
+}
+
+std::string Int8LayersText(const Model& model) {
+  int convs = 0;
+  int int8 = 0;
+  for (const LayerDesc& layer : model.layers()) {
+    if (layer.kind != LayerKind::kConv2D) continue;
+    ++convs;
+    int8 += layer.conv.precision == Precision::kInt8;
+  }
+  if (int8 == 0) return "";
+  return "int8 in " + std::to_string(int8) + " of " + std::to_string(convs) +
+         " convolutions (int8 weights with a scale per output channel, uint8 activations)";
+}
+
+std::string ErrorText(double value) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2e", value);
+  return buf;
+}
+
+std::string Int8FallbackNotice(const Session& session) {
+  if (session.isa() == Isa::kRef) return "";
+  int on_reference = 0;
+  for (const PlannedStep& step : session.steps()) {
+    if (step.precision == Precision::kInt8 && !step.quantize &&
+        std::string_view(step.kernel).starts_with("ref::")) {
+      ++on_reference;
+    }
+  }
+  if (on_reference == 0) return "";
+  return "note: " + std::to_string(on_reference) + " int8 convolution" +
+         (on_reference == 1 ? " runs" : "s run") +
+         " on the scalar reference kernel: " + IsaName(session.isa()) +
+         " has no int8 kernels on this CPU (they need AVX-512 VNNI); a float32 model is faster "
+         "here";
 }
 
 }  // namespace sfrt::tools

@@ -2,9 +2,11 @@
 // units (only what the file states) and its training state (a notice for untrained weights).
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "sfrt/model.h"
+#include "sfrt/session.h"
 
 namespace sfrt::tools {
 
@@ -22,5 +24,21 @@ std::string BaselineText(const ModelMetadata& meta);
 // One line for a model marked untrained, e.g. "note: tools/demo/x.sfrt is marked untrained
 // (seeded weights): its output is not scene flow"; empty for any other training state.
 std::string UntrainedNotice(const std::string& path, TrainingState state);
+
+// Bytes the file stores for the convolutions' parameters: weights (4, 2 or, int8, 1 byte each),
+// biases (4 or 2 bytes) and the int8 layers' weight scales (4 bytes each).
+uint64_t StoredParameterBytes(const Model& model);
+
+// "int8 in 11 of 11 convolutions (...)", or "" when every convolution is float32.
+std::string Int8LayersText(const Model& model);
+
+// One line when int8 convolutions of `session` run on the scalar reference kernel although an
+// optimised ISA was chosen (that ISA has no int8 kernels on this CPU: they need AVX-512 VNNI),
+// e.g. "note: 11 int8 convolutions run on the scalar reference kernel: avx2 has no int8
+// kernels on this CPU (they need AVX-512 VNNI); a float32 model is faster here"; else "".
+std::string Int8FallbackNotice(const Session& session);
+
+// Calibration errors as the commands print them: "1.23e-02".
+std::string ErrorText(double value);
 
 }  // namespace sfrt::tools

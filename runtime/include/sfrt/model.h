@@ -164,8 +164,8 @@ struct ModelMetadata {
   std::optional<uint32_t> file_crc32c;            // whole-file CRC-32C; absent in schema 1.0 files
   WeightType weight_type = WeightType::kFloat32;  // as stored in the file
   TrainingState training = TrainingState::kUnknown;  // schema 1.2; kUnknown before
-  bool has_int8 = false;  // some convolution is kInt8 (schema 1.3)
-  std::optional<CalibrationDesc> calibration;  // schema 1.3, reduced-precision files
+  bool has_int8 = false;                             // some convolution is kInt8 (schema 1.3)
+  std::optional<CalibrationDesc> calibration;        // schema 1.3, reduced-precision files
 };
 
 struct LoadOptions {

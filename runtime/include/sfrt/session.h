@@ -17,6 +17,11 @@
 // range) items, block-major, so the threads share a block's weights in cache and write disjoint
 // outputs; other steps by output rows.
 //
+// Precision: each convolution runs in the precision its model file gives it (sfrt/model.h,
+// Precision). Int8 convolutions run on the ISA's int8 kernels where it has them (AVX-512 VNNI),
+// otherwise on the scalar reference int8 kernel (steps() names it); both give the same bytes.
+// Tensors between two int8 convolutions stay uint8; a float32 tensor that an int8 convolution
+// reads is quantised once by a step of its own.
 // Thread-safety: a Session is not thread-safe (Run() writes its arena). Use one Session per
 // thread; Sessions created from the same Model share its weights.
 #pragma once
@@ -68,17 +73,24 @@ struct SessionOptions {
 
 // One entry of the flat list Run() walks.
 struct PlannedStep {
-  int first_layer = 0;  // the model layers this step computes, [first_layer, last_layer]
+  // The model layers this step computes, [first_layer, last_layer]. A step that quantises the
+  // float32 tensor an int8 convolution reads computes no layer: first_layer = last_layer = the
+  // layer it precedes, and kernel "ref::QuantizeU8".
+  int first_layer = 0;
   int last_layer = 0;
   const char* kernel = "";  // e.g. "conv2d_f32__avx512_8x32", "ref::Conv2d", "view"
+  Precision precision = Precision::kFloat32;  // the arithmetic of its convolution (if any)
+  bool quantize = false;                      // the quantising step described above
 };
 
 // Where each planned tensor lives in the arena (for `--print-plan` and tests).
 struct PlannedTensor {
-  int producer = -1;       // index of the layer that writes it
+  int producer = -1;       // index of the layer that writes it (quantised tensors: the layer
+                           // whose output they quantise; -1 for the model input)
   int last_consumer = -1;  // index of the last layer that reads it
   size_t offset = 0;       // bytes from the arena start
   size_t bytes = 0;        // at the maximum input size
+  bool is_u8 = false;      // uint8 (an int8 convolution's input), else float32
 };
 
 class Session {
@@ -114,8 +126,9 @@ class Session {
   Isa isa() const { return isa_; }
   int threads() const { return threads_; }
   std::span<const PlannedStep> steps() const { return step_info_; }
-  // Bytes of weights packed for the chosen kernels (0 on the reference path).
-  size_t packed_weight_bytes() const { return packed_bytes_; }
+  // Bytes of weights packed for the chosen kernels (0 on the reference path), int8 layers'
+  // included.
+  size_t packed_weight_bytes() const { return packed_bytes_ + packed8_bytes_; }
 
  private:
   struct Step;
@@ -126,7 +139,7 @@ class Session {
   SessionOptions options_;
   std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops
   std::vector<LayerGeometry> geometry_;  // scratch for Run(), sized at creation
-  std::vector<int> tensor_of_layer_;     // layer -> index into plan_ (-1: none)
+  std::vector<int> tensor_of_step_;      // step -> index into plan_ (-1: none)
   size_t arena_bytes_ = 0;
   float* arena_ = nullptr;  // 64-byte aligned, arena_bytes_ long
   Isa isa_ = Isa::kRef;
@@ -135,6 +148,8 @@ class Session {
   std::vector<PlannedStep> step_info_;
   size_t packed_bytes_ = 0;
   float* packed_ = nullptr;  // 64-byte aligned packed weights
+  size_t packed8_bytes_ = 0;
+  void* packed8_ = nullptr;  // 64-byte aligned int8 packings (int8_packing.h)
   std::unique_ptr<Pool> pool_;
 };
 

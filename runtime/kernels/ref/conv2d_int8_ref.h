@@ -17,8 +17,8 @@ void Conv2dInt8Rows(const Int8ConvArgs& args, int row_begin, int row_end, int bl
                     int blk_end);
 
 // out[y][x][c] = Int8Quantize(in[y][x][c], inv_scale, zero_point) for rows [row_begin, row_end).
-void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point,
-                  const ByteView& out, int row_begin, int row_end);
+void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
+                  int row_begin, int row_end);
 
 // out[y][x][c] = in[y / factor_h][x / factor_w][c] on uint8 tensors.
 void UpsampleNearestU8(const ConstByteView& in, int factor_h, int factor_w, const ByteView& out);

@@ -113,9 +113,9 @@ TEST(StepRecorder, TurnsTimestampsIntoDurationsAndGrows) {
 
 std::vector<StepLabel> ThreeLabels() {
   std::vector<StepLabel> labels(3);
-  labels[0] = {0, 0, "conv1", "conv", "k_a"};
-  labels[1] = {1, 1, "crop1", "crop", "view"};
-  labels[2] = {2, 3, "up+conv2", "conv", "k_b"};
+  labels[0] = {0, 0, "conv1", "conv", "k_a", "fp32"};
+  labels[1] = {1, 1, "crop1", "crop", "view", "fp32"};
+  labels[2] = {2, 3, "up+conv2", "conv", "k_b", "int8"};
   return labels;
 }
 

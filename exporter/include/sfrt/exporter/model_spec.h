@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -15,8 +16,11 @@ namespace sfrt::exporter {
 
 // The layer vocabulary is the runtime's own (sfrt/model.h): one definition of each rule.
 using sfrt::Activation;
+using sfrt::CalibrationDesc;
 using sfrt::CropRule;
 using sfrt::PaddingRule;
+using sfrt::Precision;
+using sfrt::QuantParams;
 using sfrt::TrainingState;
 using sfrt::WeightType;
 using Pads = sfrt::Padding;
@@ -36,8 +40,18 @@ struct ConvSpec {
   Pads pads;  // the amounts at the traced size; the rule when padding_rule == kExplicit
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
-  std::vector<float> weights_hwio;  // kernel_h * kernel_w * in_channels * out_channels
-  std::vector<float> bias;          // out_channels
+  // kFloat32: kernel_h * kernel_w * in_channels * out_channels; empty when kInt8.
+  std::vector<float> weights_hwio;
+  std::vector<float> bias;  // out_channels, every precision
+  // Schema 1.3. kInt8: weights_q replaces weights_hwio (same HWIO order, real weight =
+  // weight_scales[o] * q, q in -127..127); the input is read as uint8 with input_quant and,
+  // when the next convolution is kInt8 too, the output is written with output_quant (which must
+  // equal that convolution's input_quant). Both quant fields must be valid whenever kInt8.
+  Precision precision = Precision::kFloat32;
+  std::vector<int8_t> weights_q;
+  std::vector<float> weight_scales;  // out_channels
+  QuantParams input_quant;
+  QuantParams output_quant;
 };
 
 struct UpsampleSpec {
@@ -101,6 +115,8 @@ struct ModelSpec {
   std::vector<LayerSpec> layers;  // a chain: layer i consumes layer i-1's output
   WeightType weight_type = WeightType::kFloat32;
   TrainingState training = TrainingState::kUnknown;  // written from schema 1.2
+  // Schema 1.3: how the quantisation was chosen (sfrt export --calibration); written when set.
+  std::optional<CalibrationDesc> calibration;
 };
 
 }  // namespace sfrt::exporter

@@ -79,10 +79,11 @@ std::string PercentileLabel(double percent);
 struct StepLabel {
   int first_layer = 0;  // the model layers the step covers, [first_layer, last_layer]
   int last_layer = 0;
-  std::string name;    // layer names joined with '+': "conv3", "up_1+conv_up1" (fused)
-  std::string op;      // op type, for aggregation: "conv 3x3/s2", "upsample x2 + conv 3x3/s1
-                       // (fused)", "crop", "upsample x2"
-  std::string kernel;  // PlannedStep::kernel, e.g. "conv2d_f32__avx512_8x32"
+  std::string name;       // layer names joined with '+': "conv3", "up_1+conv_up1" (fused)
+  std::string op;         // op type, for aggregation: "conv 3x3/s2", "upsample x2 + conv 3x3/s1
+                          // (fused)", "crop", "upsample x2"
+  std::string kernel;     // PlannedStep::kernel, e.g. "conv2d_f32__avx512_8x32"
+  std::string precision;  // "fp32" or "int8" (PlannedStep::precision)
 };
 // One label per session.steps() entry, in run order.
 std::vector<StepLabel> LabelSteps(const Session& session);

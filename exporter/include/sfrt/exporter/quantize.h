@@ -1,0 +1,101 @@
+// Post-training quantisation of a float32 ModelSpec to int8 convolutions (schema 1.3), from a
+// calibration set, with the errors it causes measured against float32. Pure library: no I/O.
+//
+// Method "percentile:P" (docs/model-format.md, "Calibration"):
+// - Activations: every tensor an int8 convolution reads or writes (the model input, and each
+//   convolution's output) is observed on the float32 model over all calibration frames
+//   (RunReferenceForward). Pass 1 finds its [min, max]; pass 2 counts its values into 4096
+//   equal bins over [min, max]. hi = the upper edge of the bin holding the value of rank
+//   ceil(P/100 * count) from the bottom, lo = the lower edge of the bin holding the value of
+//   the same rank from the top (P = 100: min and max exactly). Then lo = min(lo, 0) and
+//   hi = max(hi, 0), so that real zero is exactly representable: scale = (hi - lo) / 255,
+//   zero_point = round(-lo / scale) clamped to 0..255; a tensor that is 0 everywhere gets
+//   scale 1, zero point 0. "minmax" is percentile:100.
+// - Weights: symmetric per output channel, scale = max |w| / 127 (1 for a channel of zeros),
+//   q = round-half-even(w / scale) clamped to -127..127. Biases stay float.
+// - A convolution's input_quant is the quantisation of the tensor it reads (the previous
+//   convolution's output, through any upsampling and crop, or the model input), its
+//   output_quant that of its own output: so an int8 convolution feeding an int8 convolution
+//   always hands over exactly the parameters the reader expects.
+// Errors (the quantised model on the reference kernels vs float32, over the calibration set,
+// sums over all frames): per convolution relative_rms = RMS(out - fp32 out) / RMS(fp32 out)
+// (0 when both are 0, infinity when only the reference is); the model output's
+// output_max_rel = max |diff| / max |fp32| and output_rms_rel likewise.
+// Everything is deterministic: the same spec, data and options give the same bytes.
+#pragma once
+
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sfrt/exporter/model_spec.h"
+#include "sfrt/status.h"
+
+namespace sfrt::exporter {
+
+// The network input for calibration, as Session::Run and `sfrt infer --input-npy` take it.
+struct CalibrationSet {
+  int frames = 0;
+  int height = 0;
+  int width = 0;
+  int channels = 0;
+  std::vector<float> values;  // frames x height x width x channels, frame after frame
+};
+
+enum class QuantizeMode {
+  kInt8,  // every convolution int8
+  // Start from every convolution int8; while output_rms_rel > accuracy_budget, put back to
+  // float32 the int8 convolution whose relative_rms rose most over that of the tensor it reads
+  // (the previous convolution's relative_rms; 0 for the model input), the earliest on a tie,
+  // and measure again. Ends with every convolution float32 at worst.
+  kAuto,
+};
+
+struct QuantizeOptions {
+  QuantizeMode mode = QuantizeMode::kInt8;
+  double accuracy_budget = 0.02;  // kAuto: the largest output_rms_rel accepted
+  std::string method = "percentile:99.99";
+  // Called after each frame of each pass: pass is "range", "histogram" or "measure".
+  std::function<void(const char* pass, int frame, int frames)> progress;
+};
+
+struct QuantizeResult {
+  // The model as quantised; spec.calibration is set when some convolution is int8.
+  ModelSpec spec;
+  CalibrationDesc calibration;  // the method, data and measured errors of `spec`, always
+  // kAuto: one line per convolution put back to float32, in order, with the errors that did it.
+  std::vector<std::string> auto_steps;
+};
+
+// Quantises `model` (every convolution float32) as `options` say. Errors name the frame, element
+// or layer at fault: an invalid calibration set (CheckCalibrationSet), a model that cannot run at
+// the frames' size, an unknown method.
+Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& data,
+                                const QuantizeOptions& options);
+
+// The building blocks, also for tests.
+
+// The set holds at least one frame of `channels` channels, values.size() matches, every value is
+// finite (an error names frame, [y, x, c] and the flat index), and not every frame is constant.
+Status CheckCalibrationSet(const CalibrationSet& data, int channels);
+
+struct CalibrationMethod {
+  double percentile = 100;
+  std::string text;  // as written into the file: "percentile:99.99" (P in %g form) or "minmax"
+};
+// "percentile:P" with 50 <= P <= 100, or "minmax" (P = 100). Errors name the text.
+Result<CalibrationMethod> ParseCalibrationMethod(const std::string& method);
+
+// The uint8 quantisation of a tensor with values in [lo, hi] (lo and hi first widened to include
+// 0), as defined above.
+QuantParams ActivationQuantParams(double lo, double hi);
+
+// Symmetric per-output-channel int8 weights of an HWIO tensor with `out_channels` outputs.
+void QuantizeWeights(std::span<const float> hwio, int out_channels, std::vector<int8_t>* q,
+                     std::vector<float>* scales);
+
+// The SHA-256 (lowercase hex) of the calibration values as little-endian float32, in order.
+std::string CalibrationDataSha256(const CalibrationSet& data);
+
+}  // namespace sfrt::exporter

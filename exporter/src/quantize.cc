@@ -1,0 +1,495 @@
+#include "sfrt/exporter/quantize.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <utility>
+
+#include "sfrt/exporter/model_writer.h"
+#include "sfrt/exporter/sha256.h"
+#include "sfrt/model.h"
+#include "sfrt/reference.h"
+#include "sfrt/shapes.h"
+
+namespace sfrt::exporter {
+namespace {
+
+constexpr int kBins = 4096;
+// Float32 layer outputs are kept between the measurements of kAuto up to this many bytes.
+constexpr size_t kMaxCachedBytes = size_t{256} << 20;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::string Sci(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2e", v);
+  return buf;
+}
+
+std::span<const float> FrameValues(const CalibrationSet& data, int frame) {
+  const size_t n = static_cast<size_t>(data.height) * static_cast<size_t>(data.width) *
+                   static_cast<size_t>(data.channels);
+  return {data.values.data() + static_cast<size_t>(frame) * n, n};
+}
+
+// RMS(diff) / RMS(reference) from the sums of squares: 0 when both are 0, infinity when only the
+// reference is.
+double Relative(double diff, double reference) {
+  if (reference > 0) return diff / reference;
+  return diff > 0 ? kInf : 0.0;
+}
+
+// The values one activation tensor takes over the calibration set: pass 1 its range, pass 2 a
+// histogram over that range.
+class TensorStats {
+ public:
+  void AddRange(std::span<const float> values) {
+    for (float v : values) {
+      min_ = std::min(min_, static_cast<double>(v));
+      max_ = std::max(max_, static_cast<double>(v));
+    }
+  }
+
+  void AddHistogram(std::span<const float> values) {
+    if (bins_.empty()) bins_.assign(kBins, 0);
+    count_ += values.size();
+    if (!(max_ > min_)) {
+      bins_[0] += values.size();
+      return;
+    }
+    const double per_unit = kBins / (max_ - min_);
+    for (float v : values) {
+      const double b = std::floor((static_cast<double>(v) - min_) * per_unit);
+      const int bin = b < 0 ? 0 : (b >= kBins ? kBins - 1 : static_cast<int>(b));
+      ++bins_[static_cast<size_t>(bin)];
+    }
+  }
+
+  // The bin edges around the central `percentile` percent of the values (quantize.h).
+  std::pair<double, double> Range(double percentile) const {
+    if (count_ == 0 || !(max_ > min_)) return {std::min(min_, 0.0), std::max(max_, 0.0)};
+    const auto rank = std::clamp<uint64_t>(
+        static_cast<uint64_t>(std::ceil(percentile / 100.0 * static_cast<double>(count_))), 1,
+        count_);
+    int top = kBins - 1;
+    uint64_t cum = 0;
+    for (int b = 0; b < kBins; ++b) {
+      cum += bins_[static_cast<size_t>(b)];
+      if (cum >= rank) {
+        top = b;
+        break;
+      }
+    }
+    int bottom = 0;
+    cum = 0;
+    for (int b = kBins - 1; b >= 0; --b) {
+      cum += bins_[static_cast<size_t>(b)];
+      if (cum >= rank) {
+        bottom = b;
+        break;
+      }
+    }
+    const double width = (max_ - min_) / kBins;
+    const double hi = top == kBins - 1 ? max_ : min_ + (top + 1) * width;
+    const double lo = bottom == 0 ? min_ : min_ + bottom * width;
+    return {lo, hi};
+  }
+
+ private:
+  double min_ = kInf;
+  double max_ = -kInf;
+  std::vector<uint64_t> bins_;
+  uint64_t count_ = 0;
+};
+
+struct QuantizedWeights {
+  std::vector<int8_t> q;
+  std::vector<float> scales;
+};
+
+Result<std::shared_ptr<const Model>> Load(const ModelSpec& spec, const std::string& label) {
+  Result<std::vector<uint8_t>> bytes = SerializeModel(spec);
+  if (!bytes.ok()) return Status::Error(label + ": " + bytes.message());
+  return Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy, {}, label);
+}
+
+// The errors of one quantised model against float32 over the calibration set.
+struct Errors {
+  std::vector<double> relative_rms;  // per convolution
+  double output_max_rel = 0;
+  double output_rms_rel = 0;
+};
+
+// Runs the float32 model over the calibration set: the activation statistics, and the reference
+// outputs the quantised models are measured against.
+class Calibrator {
+ public:
+  Calibrator(const CalibrationSet& data, const QuantizeOptions& options, const Model& fp32,
+             std::vector<int> conv_layers)
+      : data_(data), options_(options), fp32_(fp32), conv_layers_(std::move(conv_layers)) {
+    conv_of_layer_.assign(fp32_.layers().size(), -1);
+    for (size_t j = 0; j < conv_layers_.size(); ++j) {
+      conv_of_layer_[static_cast<size_t>(conv_layers_[j])] = static_cast<int>(j);
+    }
+    stats_.resize(conv_layers_.size() + 1);
+  }
+
+  Status Prepare() {
+    Result<std::vector<LayerGeometry>> geometry = InferGeometry(fp32_, data_.height, data_.width);
+    if (!geometry.ok()) {
+      return Status::Error("the model cannot run at the calibration frames' size " +
+                           std::to_string(data_.height) + "x" + std::to_string(data_.width) + ": " +
+                           geometry.message());
+    }
+    output_elements_ = geometry->back().output.elements();
+    size_t per_frame = output_elements_;
+    for (int layer : conv_layers_)
+      per_frame += (*geometry)[static_cast<size_t>(layer)].output.elements();
+    cache_ = per_frame * sizeof(float) * static_cast<size_t>(data_.frames) <= kMaxCachedBytes;
+    return Status::Ok();
+  }
+
+  // Passes 1 (range) and 2 (histogram) over the float32 model.
+  Status Observe() {
+    for (int pass = 0; pass < 2; ++pass) {
+      for (int f = 0; f < data_.frames; ++f) {
+        const std::span<const float> input = FrameValues(data_, f);
+        pass == 0 ? stats_[0].AddRange(input) : stats_[0].AddHistogram(input);
+        Status bad = Status::Ok();
+        const LayerObserver observer = [&](int layer, const TensorShape&,
+                                           std::span<const float> values) {
+          const int j = conv_of_layer_[static_cast<size_t>(layer)];
+          if (j < 0 || !bad.ok()) return;
+          if (pass == 0) {
+            for (float v : values) {
+              if (std::isfinite(v)) continue;
+              bad = Status::Error("layer " + std::to_string(layer) + " '" +
+                                  fp32_.layers()[static_cast<size_t>(layer)].name +
+                                  "' gives a non-finite value on calibration frame " +
+                                  std::to_string(f) + "; its range cannot be quantised");
+              return;
+            }
+            stats_[static_cast<size_t>(j) + 1].AddRange(values);
+          } else {
+            stats_[static_cast<size_t>(j) + 1].AddHistogram(values);
+          }
+        };
+        std::vector<float> output(output_elements_);
+        if (Status s =
+                RunReferenceForward(fp32_, input, data_.height, data_.width, output, observer);
+            !s.ok()) {
+          return s;
+        }
+        if (!bad.ok()) return bad;
+        Progress(pass == 0 ? "range" : "histogram", f);
+      }
+    }
+    return Status::Ok();
+  }
+
+  // The quantisation of activation tensor t: 0 the model input, j + 1 convolution j's output.
+  QuantParams TensorQuant(size_t t, double percentile) const {
+    const auto [lo, hi] = stats_[t].Range(percentile);
+    return ActivationQuantParams(lo, hi);
+  }
+
+  Result<Errors> Measure(const Model& quantised) {
+    const size_t convs = conv_layers_.size();
+    std::vector<double> diff2(convs, 0.0), ref2(convs, 0.0);
+    double out_diff2 = 0, out_ref2 = 0, out_max_diff = 0, out_max_ref = 0;
+    for (int f = 0; f < data_.frames; ++f) {
+      const std::span<const float> input = FrameValues(data_, f);
+      Reference computed;
+      if (references_.size() <= static_cast<size_t>(f)) {
+        Reference& r = computed;
+        r.convs.resize(convs);
+        r.output.resize(output_elements_);
+        const LayerObserver keep = [&](int layer, const TensorShape&,
+                                       std::span<const float> values) {
+          const int j = conv_of_layer_[static_cast<size_t>(layer)];
+          if (j >= 0) r.convs[static_cast<size_t>(j)].assign(values.begin(), values.end());
+        };
+        if (Status s = RunReferenceForward(fp32_, input, data_.height, data_.width, r.output, keep);
+            !s.ok()) {
+          return s;
+        }
+        if (cache_) references_.push_back(std::move(computed));
+      }
+      const Reference& ref = cache_ ? references_[static_cast<size_t>(f)] : computed;
+      std::vector<float> output(output_elements_);
+      const LayerObserver compare = [&](int layer, const TensorShape&,
+                                        std::span<const float> values) {
+        const int j = conv_of_layer_[static_cast<size_t>(layer)];
+        if (j < 0) return;
+        const std::vector<float>& r = ref.convs[static_cast<size_t>(j)];
+        double d2 = 0, r2 = 0;
+        for (size_t k = 0; k < values.size() && k < r.size(); ++k) {
+          const double d = static_cast<double>(values[k]) - r[k];
+          d2 += d * d;
+          r2 += static_cast<double>(r[k]) * r[k];
+        }
+        diff2[static_cast<size_t>(j)] += d2;
+        ref2[static_cast<size_t>(j)] += r2;
+      };
+      if (Status s =
+              RunReferenceForward(quantised, input, data_.height, data_.width, output, compare);
+          !s.ok()) {
+        return s;
+      }
+      for (size_t k = 0; k < output.size(); ++k) {
+        const double r = ref.output[k];
+        const double d = static_cast<double>(output[k]) - r;
+        out_diff2 += d * d;
+        out_ref2 += r * r;
+        out_max_diff = std::max(out_max_diff, std::fabs(d));
+        out_max_ref = std::max(out_max_ref, std::fabs(r));
+      }
+      Progress("measure", f);
+    }
+    Errors e;
+    for (size_t j = 0; j < convs; ++j) {
+      e.relative_rms.push_back(Relative(std::sqrt(diff2[j]), std::sqrt(ref2[j])));
+    }
+    e.output_max_rel = Relative(out_max_diff, out_max_ref);
+    e.output_rms_rel = Relative(std::sqrt(out_diff2), std::sqrt(out_ref2));
+    return e;
+  }
+
+ private:
+  struct Reference {
+    std::vector<std::vector<float>> convs;
+    std::vector<float> output;
+  };
+
+  void Progress(const char* pass, int frame) const {
+    if (options_.progress) options_.progress(pass, frame + 1, data_.frames);
+  }
+
+  const CalibrationSet& data_;
+  const QuantizeOptions& options_;
+  const Model& fp32_;
+  std::vector<int> conv_layers_;
+  std::vector<int> conv_of_layer_;
+  std::vector<TensorStats> stats_;
+  size_t output_elements_ = 0;
+  bool cache_ = false;
+  std::vector<Reference> references_;  // per frame, when cache_
+};
+
+// `fp32` with the convolutions flagged in `int8` quantised.
+ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<bool>& int8,
+                    const std::vector<QuantParams>& tensor_quant,
+                    const std::vector<QuantizedWeights>& weights) {
+  ModelSpec out = fp32;
+  size_t j = 0;
+  for (LayerSpec& layer : out.layers) {
+    auto* c = std::get_if<ConvSpec>(&layer);
+    if (c == nullptr) continue;
+    if (int8[j]) {
+      c->precision = Precision::kInt8;
+      c->weights_hwio.clear();
+      c->weights_hwio.shrink_to_fit();
+      c->weights_q = weights[j].q;
+      c->weight_scales = weights[j].scales;
+      c->input_quant = tensor_quant[j];
+      c->output_quant = tensor_quant[j + 1];
+    }
+    ++j;
+  }
+  return out;
+}
+
+}  // namespace
+
+Status CheckCalibrationSet(const CalibrationSet& data, int channels) {
+  if (data.frames <= 0) return Status::Error("the calibration set is empty (no frames)");
+  if (data.height <= 0 || data.width <= 0) {
+    return Status::Error("calibration frames are " + std::to_string(data.height) + "x" +
+                         std::to_string(data.width) + "; both sides must be positive");
+  }
+  if (data.channels != channels) {
+    return Status::Error("calibration frames have " + std::to_string(data.channels) +
+                         " channels but the model's input has " + std::to_string(channels));
+  }
+  const size_t per_frame = static_cast<size_t>(data.height) * static_cast<size_t>(data.width) *
+                           static_cast<size_t>(data.channels);
+  if (data.values.size() != per_frame * static_cast<size_t>(data.frames)) {
+    return Status::Error("the calibration set holds " + std::to_string(data.values.size()) +
+                         " values; " + std::to_string(data.frames) + " frames of " +
+                         std::to_string(data.height) + "x" + std::to_string(data.width) + "x" +
+                         std::to_string(data.channels) + " need " +
+                         std::to_string(per_frame * static_cast<size_t>(data.frames)));
+  }
+  for (size_t i = 0; i < data.values.size(); ++i) {
+    const float v = data.values[i];
+    if (std::isfinite(v)) continue;
+    const size_t c = i % static_cast<size_t>(data.channels);
+    const size_t pixel = i / static_cast<size_t>(data.channels);
+    const size_t x = pixel % static_cast<size_t>(data.width);
+    const size_t y = pixel / static_cast<size_t>(data.width) % static_cast<size_t>(data.height);
+    return Status::Error(
+        "calibration frame " + std::to_string(i / per_frame) + ", element [" + std::to_string(y) +
+        ", " + std::to_string(x) + ", " + std::to_string(c) + "] (flat index " + std::to_string(i) +
+        ") is " + (std::isnan(v) ? "NaN" : "infinite") + "; calibration values must be finite");
+  }
+  for (int f = 0; f < data.frames; ++f) {
+    const std::span<const float> v = FrameValues(data, f);
+    if (std::any_of(v.begin(), v.end(), [&](float x) { return x != v.front(); })) {
+      return Status::Ok();
+    }
+  }
+  return Status::Error("all " + std::to_string(data.frames) +
+                       " calibration frames are constant (one value throughout each); "
+                       "quantisation ranges need real inputs");
+}
+
+Result<CalibrationMethod> ParseCalibrationMethod(const std::string& method) {
+  if (method == "minmax") return CalibrationMethod{100.0, "minmax"};
+  const std::string prefix = "percentile:";
+  double p = 0;
+  bool ok = method.compare(0, prefix.size(), prefix) == 0 && method.size() > prefix.size();
+  if (ok) {
+    const char* begin = method.data() + prefix.size();
+    const char* end = method.data() + method.size();
+    const auto [ptr, ec] = std::from_chars(begin, end, p);
+    ok = ec == std::errc() && ptr == end && p >= 50.0 && p <= 100.0;
+  }
+  if (!ok) {
+    return Status::Error("calibration method '" + method +
+                         "': expected percentile:P with P in 50..100, or minmax");
+  }
+  char text[64];
+  std::snprintf(text, sizeof(text), "percentile:%g", p);
+  return CalibrationMethod{p, text};
+}
+
+QuantParams ActivationQuantParams(double lo, double hi) {
+  lo = std::min(lo, 0.0);
+  hi = std::max(hi, 0.0);
+  const auto scale = static_cast<float>((hi - lo) / 255.0);
+  if (!(scale >= std::numeric_limits<float>::min()) || !std::isfinite(scale)) return {1.0f, 0};
+  const double zero = std::nearbyint(-lo / static_cast<double>(scale));
+  return {scale, static_cast<int>(std::clamp(zero, 0.0, 255.0))};
+}
+
+void QuantizeWeights(std::span<const float> hwio, int out_channels, std::vector<int8_t>* q,
+                     std::vector<float>* scales) {
+  const auto outs = static_cast<size_t>(out_channels);
+  scales->assign(outs, 1.0f);
+  q->assign(hwio.size(), 0);
+  for (size_t o = 0; o < outs; ++o) {
+    float max_abs = 0;
+    for (size_t k = o; k < hwio.size(); k += outs) max_abs = std::max(max_abs, std::fabs(hwio[k]));
+    if (max_abs == 0) continue;  // scale 1, every q 0
+    const float scale = std::max(max_abs / 127.0f, std::numeric_limits<float>::min());
+    (*scales)[o] = scale;
+    for (size_t k = o; k < hwio.size(); k += outs) {
+      const double r = std::nearbyint(static_cast<double>(hwio[k]) / scale);
+      (*q)[k] = static_cast<int8_t>(std::clamp(r, -127.0, 127.0));
+    }
+  }
+}
+
+std::string CalibrationDataSha256(const CalibrationSet& data) {
+  Sha256 sha;
+  sha.Update(data.values.data(), data.values.size() * sizeof(float));
+  return sha.FinishHex();
+}
+
+Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& data,
+                                const QuantizeOptions& options) {
+  Result<CalibrationMethod> method = ParseCalibrationMethod(options.method);
+  if (!method.ok()) return method.status();
+  if (options.mode == QuantizeMode::kAuto &&
+      !(options.accuracy_budget >= 0 && std::isfinite(options.accuracy_budget))) {
+    return Status::Error("accuracy budget " + Sci(options.accuracy_budget) +
+                         ": must be a finite number >= 0");
+  }
+  std::vector<int> conv_layers;
+  std::vector<std::string> names;
+  for (size_t i = 0; i < model.layers.size(); ++i) {
+    const auto* c = std::get_if<ConvSpec>(&model.layers[i]);
+    if (c == nullptr) continue;
+    if (c->precision != Precision::kFloat32) {
+      return Status::Error("layer " + std::to_string(i) + " '" + c->name +
+                           "' is already int8; quantisation starts from a float32 model");
+    }
+    conv_layers.push_back(static_cast<int>(i));
+    names.push_back(c->name);
+  }
+  if (conv_layers.empty()) {
+    return Status::Error("model '" + model.name + "' has no convolution to quantise");
+  }
+  if (Status s = CheckCalibrationSet(data, model.input.channels); !s.ok()) return s;
+
+  ModelSpec fp32_spec = model;
+  fp32_spec.calibration.reset();
+  Result<std::shared_ptr<const Model>> fp32 = Load(fp32_spec, "the float32 model");
+  if (!fp32.ok()) return fp32.status();
+  Calibrator calibrator(data, options, **fp32, conv_layers);
+  if (Status s = calibrator.Prepare(); !s.ok()) return s;
+  if (Status s = calibrator.Observe(); !s.ok()) return s;
+
+  std::vector<QuantParams> tensor_quant;
+  for (size_t t = 0; t <= conv_layers.size(); ++t) {
+    tensor_quant.push_back(calibrator.TensorQuant(t, method->percentile));
+  }
+  std::vector<QuantizedWeights> weights(conv_layers.size());
+  for (size_t j = 0; j < conv_layers.size(); ++j) {
+    const auto& c = std::get<ConvSpec>(model.layers[static_cast<size_t>(conv_layers[j])]);
+    QuantizeWeights(c.weights_hwio, c.out_channels, &weights[j].q, &weights[j].scales);
+  }
+
+  QuantizeResult result;
+  std::vector<bool> int8(conv_layers.size(), true);
+  Errors errors;
+  while (true) {
+    result.spec = BuildSpec(fp32_spec, int8, tensor_quant, weights);
+    Result<std::shared_ptr<const Model>> quantised = Load(result.spec, "the quantised model");
+    if (!quantised.ok()) return quantised.status();
+    Result<Errors> measured = calibrator.Measure(**quantised);
+    if (!measured.ok()) return measured.status();
+    errors = std::move(measured).value();
+    if (options.mode == QuantizeMode::kInt8 || errors.output_rms_rel <= options.accuracy_budget ||
+        std::none_of(int8.begin(), int8.end(), [](bool b) { return b; })) {
+      break;
+    }
+    // The int8 convolution whose error rose most over its input's.
+    size_t worst = 0;
+    double worst_rise = -kInf;
+    for (size_t j = 0; j < int8.size(); ++j) {
+      if (!int8[j]) continue;
+      const double rise = errors.relative_rms[j] - (j == 0 ? 0.0 : errors.relative_rms[j - 1]);
+      if (rise > worst_rise) {
+        worst = j;
+        worst_rise = rise;
+      }
+    }
+    int8[worst] = false;
+    result.auto_steps.push_back(
+        names[worst] + " back to fp32: output rms " + Sci(errors.output_rms_rel) + " > budget " +
+        Sci(options.accuracy_budget) + "; its relative rms " + Sci(errors.relative_rms[worst]) +
+        " rose " + Sci(worst_rise) + " over its input's");
+  }
+
+  CalibrationDesc& cal = result.calibration;
+  cal.method = method->text;
+  cal.data_sha256 = CalibrationDataSha256(data);
+  cal.frames = data.frames;
+  cal.height = data.height;
+  cal.width = data.width;
+  cal.output_max_rel = static_cast<float>(errors.output_max_rel);
+  cal.output_rms_rel = static_cast<float>(errors.output_rms_rel);
+  for (size_t j = 0; j < conv_layers.size(); ++j) {
+    cal.layers.push_back({names[j], int8[j] ? Precision::kInt8 : Precision::kFloat32,
+                          static_cast<float>(errors.relative_rms[j])});
+  }
+  if (std::any_of(int8.begin(), int8.end(), [](bool b) { return b; })) {
+    result.spec.calibration = cal;
+  }
+  return result;
+}
+
+}  // namespace sfrt::exporter

@@ -1,0 +1,354 @@
+#include "sfrt/exporter/quantize.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/sceneednet_spec.h"
+#include "sfrt/exporter/model_writer.h"
+#include "sfrt/exporter/sha256.h"
+#include "sfrt/model.h"
+#include "sfrt/reference.h"
+#include "sfrt/shapes.h"
+
+namespace sfrt::exporter {
+namespace {
+
+constexpr int kHeight = 32;
+constexpr int kWidth = 48;
+
+// Frames of smooth random images (pixel values 0..255, like the raw input SceneEDNet takes).
+CalibrationSet RandomFrames(int frames, uint32_t seed, int channels = 12) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> phase(0.0f, 6.28f);
+  std::uniform_real_distribution<float> noise(-8.0f, 8.0f);
+  CalibrationSet set;
+  set.frames = frames;
+  set.height = kHeight;
+  set.width = kWidth;
+  set.channels = channels;
+  set.values.resize(static_cast<size_t>(frames) * kHeight * kWidth * channels);
+  size_t i = 0;
+  for (int f = 0; f < frames; ++f) {
+    std::vector<float> p(static_cast<size_t>(channels));
+    for (float& v : p) v = phase(rng);
+    for (int y = 0; y < kHeight; ++y) {
+      for (int x = 0; x < kWidth; ++x) {
+        for (int c = 0; c < channels; ++c) {
+          const float base = 128.0f + 100.0f * std::sin(0.2f * x + 0.15f * y + p[c]);
+          set.values[i++] = std::clamp(base + noise(rng), 0.0f, 255.0f);
+        }
+      }
+    }
+  }
+  return set;
+}
+
+std::vector<uint8_t> Bytes(const ModelSpec& spec) {
+  auto bytes = SerializeModel(spec);
+  EXPECT_TRUE(bytes.ok()) << bytes.message();
+  return bytes.ok() ? *bytes : std::vector<uint8_t>{};
+}
+
+std::shared_ptr<const Model> LoadSpec(const ModelSpec& spec) {
+  const std::vector<uint8_t> bytes = Bytes(spec);
+  auto model = Model::LoadBuffer(bytes.data(), bytes.size(), BufferOwnership::kCopy);
+  EXPECT_TRUE(model.ok()) << model.message();
+  return model.ok() ? *model : nullptr;
+}
+
+std::vector<const ConvSpec*> Convs(const ModelSpec& spec) {
+  std::vector<const ConvSpec*> convs;
+  for (const LayerSpec& l : spec.layers) {
+    if (const auto* c = std::get_if<ConvSpec>(&l)) convs.push_back(c);
+  }
+  return convs;
+}
+
+TEST(QuantizeWeights, EveryWeightRoundTripsWithinHalfAQuantumOfItsChannel) {
+  constexpr int kOut = 5;
+  std::mt19937 rng(3);
+  std::normal_distribution<float> dist(0.0f, 1.0f);
+  std::vector<float> w(3 * 3 * 7 * kOut);
+  const float magnitude[kOut] = {1.0f, 1e-3f, 40.0f, 0.0f, 0.25f};  // channel 3: all zeros
+  for (size_t k = 0; k < w.size(); ++k) w[k] = dist(rng) * magnitude[k % kOut];
+  std::vector<int8_t> q;
+  std::vector<float> scales;
+  QuantizeWeights(w, kOut, &q, &scales);
+  ASSERT_EQ(q.size(), w.size());
+  ASSERT_EQ(scales.size(), static_cast<size_t>(kOut));
+  EXPECT_EQ(scales[3], 1.0f);
+  for (int o = 0; o < kOut; ++o) {
+    float max_abs = 0;
+    int max_q = 0;
+    for (size_t k = static_cast<size_t>(o); k < w.size(); k += kOut) {
+      max_abs = std::max(max_abs, std::fabs(w[k]));
+      max_q = std::max(max_q, std::abs(static_cast<int>(q[k])));
+      const double back = static_cast<double>(scales[static_cast<size_t>(o)]) * q[k];
+      ASSERT_LE(std::fabs(back - w[k]), scales[static_cast<size_t>(o)] * 0.5 * (1 + 1e-6))
+          << "channel " << o << " index " << k;
+      ASSERT_LE(std::abs(static_cast<int>(q[k])), 127);
+    }
+    if (max_abs > 0) {
+      EXPECT_FLOAT_EQ(scales[static_cast<size_t>(o)], max_abs / 127.0f) << "channel " << o;
+      EXPECT_EQ(max_q, 127) << "channel " << o;
+    } else {
+      EXPECT_EQ(max_q, 0);
+    }
+  }
+}
+
+TEST(ActivationQuantParams, RealZeroIsExactlyRepresentableAndTheRangeIsCovered) {
+  struct Case {
+    double lo, hi;
+  };
+  for (const Case& c : {Case{-1.0, 3.0}, Case{2.0, 5.0}, Case{-5.0, -2.0}, Case{-0.3, 0.0},
+                        Case{0.0, 17.5}, Case{-1e-3, 250.0}}) {
+    const QuantParams q = ActivationQuantParams(c.lo, c.hi);
+    const double lo = std::min(c.lo, 0.0);
+    const double hi = std::max(c.hi, 0.0);
+    ASSERT_GT(q.scale, 0.0f);
+    ASSERT_GE(q.zero_point, 0);
+    ASSERT_LE(q.zero_point, 255);
+    // 0 quantises to the zero point exactly, and the zero point dequantises to 0.
+    EXPECT_EQ(std::nearbyint(0.0 / q.scale) + q.zero_point, q.zero_point);
+    // q = 0 and q = 255 reach the ends of the range, within one quantum.
+    EXPECT_NEAR(q.scale * (0 - q.zero_point), lo, q.scale) << c.lo << ".." << c.hi;
+    EXPECT_NEAR(q.scale * (255 - q.zero_point), hi, q.scale) << c.lo << ".." << c.hi;
+  }
+  EXPECT_EQ(ActivationQuantParams(2.0, 5.0).zero_point, 0);      // lo widened to 0
+  EXPECT_EQ(ActivationQuantParams(-5.0, -2.0).zero_point, 255);  // hi widened to 0
+  EXPECT_EQ(ActivationQuantParams(0.0, 0.0), (QuantParams{1.0f, 0}));
+}
+
+TEST(ParseCalibrationMethod, AcceptsPercentilesFrom50To100AndMinmax) {
+  auto p = ParseCalibrationMethod("percentile:99.99");
+  ASSERT_TRUE(p.ok()) << p.message();
+  EXPECT_EQ(p->percentile, 99.99);
+  EXPECT_EQ(p->text, "percentile:99.99");
+  auto m = ParseCalibrationMethod("minmax");
+  ASSERT_TRUE(m.ok());
+  EXPECT_EQ(m->percentile, 100.0);
+  for (const char* bad :
+       {"percentile:49", "percentile:101", "percentile:", "percentile:9x", "entropy", ""}) {
+    auto r = ParseCalibrationMethod(bad);
+    ASSERT_FALSE(r.ok()) << bad;
+    EXPECT_NE(r.message().find("'" + std::string(bad) + "'"), std::string::npos) << r.message();
+  }
+}
+
+TEST(Quantize, SameInputsGiveTheSameFileBytesTwice) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(3, 11);
+  QuantizeOptions options;
+  auto a = Quantize(spec, data, options);
+  auto b = Quantize(spec, data, options);
+  ASSERT_TRUE(a.ok()) << a.message();
+  ASSERT_TRUE(b.ok()) << b.message();
+  const std::vector<uint8_t> bytes_a = Bytes(a->spec);
+  EXPECT_FALSE(bytes_a.empty());
+  EXPECT_EQ(bytes_a, Bytes(b->spec));
+}
+
+TEST(Quantize, Int8ModelStaysCloseToFloat32OnASceneEdNetShapedModel) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(4, 21);
+  auto result = Quantize(spec, data, {});
+  ASSERT_TRUE(result.ok()) << result.message();
+  for (const ConvSpec* c : Convs(result->spec)) EXPECT_EQ(c->precision, Precision::kInt8);
+  EXPECT_GT(result->calibration.output_rms_rel, 0.0f);
+  EXPECT_LT(result->calibration.output_rms_rel, 0.05f);
+  EXPECT_LT(result->calibration.output_max_rel, 0.2f);
+
+  // A frame the calibration never saw.
+  const CalibrationSet held_out = RandomFrames(1, 99);
+  auto fp32 = LoadSpec(spec);
+  auto int8 = LoadSpec(result->spec);
+  ASSERT_TRUE(fp32 && int8);
+  EXPECT_TRUE(int8->metadata().has_int8);
+  std::vector<float> a(static_cast<size_t>(kHeight) * kWidth * 3);
+  std::vector<float> b(a.size());
+  ASSERT_TRUE(RunReferenceForward(*fp32, held_out.values, kHeight, kWidth, a).ok());
+  ASSERT_TRUE(RunReferenceForward(*int8, held_out.values, kHeight, kWidth, b).ok());
+  double diff2 = 0, ref2 = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    diff2 += (static_cast<double>(b[i]) - a[i]) * (static_cast<double>(b[i]) - a[i]);
+    ref2 += static_cast<double>(a[i]) * a[i];
+  }
+  EXPECT_LT(std::sqrt(diff2 / ref2), 0.05);
+}
+
+TEST(Quantize, AnInt8ConvolutionHandsTheNextItsOwnOutputQuantAndTheLoaderAgrees) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  auto result = Quantize(spec, RandomFrames(2, 31), {});
+  ASSERT_TRUE(result.ok()) << result.message();
+  const std::vector<const ConvSpec*> convs = Convs(result->spec);
+  for (size_t j = 0; j + 1 < convs.size(); ++j) {
+    EXPECT_EQ(convs[j]->output_quant, convs[j + 1]->input_quant) << convs[j]->name;
+  }
+  for (const ConvSpec* c : convs) {
+    EXPECT_TRUE(c->weights_hwio.empty());
+    EXPECT_EQ(c->weights_q.size(), 9u * c->in_channels * c->out_channels);
+    EXPECT_GT(c->output_quant.scale, 0.0f);
+    // Leaky ReLU outputs are mostly positive but reach below 0: the zero point sits low.
+    EXPECT_GE(c->input_quant.zero_point, 0);
+    EXPECT_LE(c->input_quant.zero_point, 255);
+  }
+  EXPECT_NE(LoadSpec(result->spec), nullptr);
+}
+
+TEST(Quantize, CalibrationRecordNamesMethodDataAndErrorsAndSurvivesTheFile) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(2, 41);
+  QuantizeOptions options;
+  options.method = "percentile:99.9";
+  auto result = Quantize(spec, data, options);
+  ASSERT_TRUE(result.ok()) << result.message();
+  ASSERT_TRUE(result->spec.calibration.has_value());
+  const CalibrationDesc& cal = result->calibration;
+  EXPECT_EQ(cal.method, "percentile:99.9");
+  Sha256 sha;
+  sha.Update(data.values.data(), data.values.size() * sizeof(float));
+  EXPECT_EQ(cal.data_sha256, sha.FinishHex());
+  EXPECT_EQ(cal.frames, 2);
+  EXPECT_EQ(cal.height, kHeight);
+  EXPECT_EQ(cal.width, kWidth);
+  ASSERT_EQ(cal.layers.size(), Convs(spec).size());
+  EXPECT_EQ(cal.layers.front().layer, "conv0");
+  EXPECT_EQ(cal.layers.back().layer, "output");
+  for (const LayerErrorDesc& e : cal.layers) {
+    EXPECT_EQ(e.precision, Precision::kInt8);
+    EXPECT_GT(e.relative_rms, 0.0f) << e.layer;
+  }
+
+  auto model = LoadSpec(result->spec);
+  ASSERT_NE(model, nullptr);
+  ASSERT_TRUE(model->metadata().calibration.has_value());
+  const CalibrationDesc& stored = *model->metadata().calibration;
+  EXPECT_EQ(stored.method, cal.method);
+  EXPECT_EQ(stored.data_sha256, cal.data_sha256);
+  EXPECT_EQ(stored.output_rms_rel, cal.output_rms_rel);
+  EXPECT_EQ(stored.output_max_rel, cal.output_max_rel);
+  ASSERT_EQ(stored.layers.size(), cal.layers.size());
+  for (size_t j = 0; j < cal.layers.size(); ++j) {
+    EXPECT_EQ(stored.layers[j].layer, cal.layers[j].layer);
+    EXPECT_EQ(stored.layers[j].relative_rms, cal.layers[j].relative_rms);
+  }
+}
+
+TEST(Quantize, ReportsProgressForEveryFrameOfEveryPass) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  QuantizeOptions options;
+  std::vector<std::string> calls;
+  options.progress = [&](const char* pass, int frame, int frames) {
+    calls.push_back(std::string(pass) + " " + std::to_string(frame) + "/" + std::to_string(frames));
+  };
+  ASSERT_TRUE(Quantize(spec, RandomFrames(2, 51), options).ok());
+  EXPECT_EQ(calls, (std::vector<std::string>{"range 1/2", "range 2/2", "histogram 1/2",
+                                             "histogram 2/2", "measure 1/2", "measure 2/2"}));
+}
+
+TEST(Quantize, AutoWithAHugeBudgetKeepsEveryConvolutionInt8) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  QuantizeOptions options;
+  options.mode = QuantizeMode::kAuto;
+  options.accuracy_budget = 1e9;
+  auto result = Quantize(spec, RandomFrames(2, 61), options);
+  ASSERT_TRUE(result.ok()) << result.message();
+  EXPECT_TRUE(result->auto_steps.empty());
+  for (const ConvSpec* c : Convs(result->spec)) EXPECT_EQ(c->precision, Precision::kInt8);
+}
+
+TEST(Quantize, AutoWithBudgetZeroPutsEveryConvolutionBackToFloat32) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  QuantizeOptions options;
+  options.mode = QuantizeMode::kAuto;
+  options.accuracy_budget = 0;
+  auto result = Quantize(spec, RandomFrames(2, 71), options);
+  ASSERT_TRUE(result.ok()) << result.message();
+  const size_t convs = Convs(spec).size();
+  EXPECT_EQ(result->auto_steps.size(), convs);
+  for (const ConvSpec* c : Convs(result->spec)) EXPECT_EQ(c->precision, Precision::kFloat32);
+  EXPECT_FALSE(result->spec.calibration.has_value());
+  EXPECT_EQ(result->calibration.output_rms_rel, 0.0f);
+  // Nothing left quantised: the file is the float32 model's.
+  EXPECT_EQ(Bytes(result->spec), Bytes(spec));
+}
+
+TEST(Quantize, AutoWithAMiddleBudgetMeetsItWithSomeConvolutionsInt8) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(2, 81);
+  auto all = Quantize(spec, data, {});
+  ASSERT_TRUE(all.ok()) << all.message();
+  QuantizeOptions options;
+  options.mode = QuantizeMode::kAuto;
+  options.accuracy_budget = all->calibration.output_rms_rel / 2;
+  auto result = Quantize(spec, data, options);
+  ASSERT_TRUE(result.ok()) << result.message();
+  EXPECT_LE(result->calibration.output_rms_rel, options.accuracy_budget);
+  EXPECT_FALSE(result->auto_steps.empty());
+  size_t int8 = 0;
+  for (const ConvSpec* c : Convs(result->spec)) int8 += c->precision == Precision::kInt8;
+  EXPECT_GT(int8, 0u);
+  EXPECT_LT(int8, Convs(spec).size());
+  ASSERT_TRUE(result->spec.calibration.has_value());
+  EXPECT_NE(LoadSpec(result->spec), nullptr);  // mixed precision: the quant params still chain
+}
+
+TEST(Quantize, RefusesAllConstantFrames) {
+  CalibrationSet data = RandomFrames(2, 1);
+  for (size_t i = 0; i < data.values.size(); ++i)
+    data.values[i] = i < data.values.size() / 2 ? 0 : 7;
+  auto r = Quantize(testing::SceneEdNetSpec(16, 5), data, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.message().find("all 2 calibration frames are constant"), std::string::npos)
+      << r.message();
+}
+
+TEST(Quantize, RefusesANonFiniteValueNamingFrameAndElement) {
+  CalibrationSet data = RandomFrames(2, 1);
+  const size_t frame = static_cast<size_t>(kHeight) * kWidth * 12;
+  data.values[frame + (3 * kWidth + 5) * 12 + 7] = std::numeric_limits<float>::quiet_NaN();
+  auto r = Quantize(testing::SceneEdNetSpec(16, 5), data, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.message().find("calibration frame 1, element [3, 5, 7] (flat index " +
+                             std::to_string(frame + (3 * kWidth + 5) * 12 + 7) + ") is NaN"),
+            std::string::npos)
+      << r.message();
+  data.values[frame + (3 * kWidth + 5) * 12 + 7] = 1.0f;
+  data.values[4] = -std::numeric_limits<float>::infinity();
+  r = Quantize(testing::SceneEdNetSpec(16, 5), data, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.message().find("frame 0, element [0, 0, 4] (flat index 4) is infinite"),
+            std::string::npos)
+      << r.message();
+}
+
+TEST(Quantize, RefusesFramesWithTheWrongChannelCountOrNoFrames) {
+  auto r = Quantize(testing::SceneEdNetSpec(16, 5), RandomFrames(1, 1, 3), {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.message().find("calibration frames have 3 channels but the model's input has 12"),
+            std::string::npos)
+      << r.message();
+  r = Quantize(testing::SceneEdNetSpec(16, 5), CalibrationSet{0, kHeight, kWidth, 12, {}}, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.message().find("the calibration set is empty"), std::string::npos) << r.message();
+}
+
+TEST(Quantize, RefusesAModelThatIsAlreadyInt8) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(1, 2);
+  auto once = Quantize(spec, data, {});
+  ASSERT_TRUE(once.ok()) << once.message();
+  auto twice = Quantize(once->spec, data, {});
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.message().find("layer 0 'conv0' is already int8"), std::string::npos)
+      << twice.message();
+}
+
+}  // namespace
+}  // namespace sfrt::exporter

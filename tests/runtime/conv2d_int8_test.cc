@@ -1,0 +1,562 @@
+// The int8 convolution kernels (kernels/int8_job.h). The reference (ref::Conv2dInt8Rows, the
+// oracle) against the real arithmetic it approximates, computed in double on the dequantised
+// values; then the AVX-512 VNNI kernels against the reference, byte for byte, on SceneEDNet's
+// layers (published widths at reduced spatial size, and the 1/16-width default model) and on
+// shapes chosen for the edges: input channels not a multiple of 4, output channels not a
+// multiple of the 64-channel block, odd sizes, strides, crops, every activation, zero points at
+// both ends, saturating output scales, float and uint8 outputs, and row and block sub-ranges
+// called separately as threads would.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "int8_packing.h"
+#include "kernels/int8_job.h"
+#include "kernels/ref/conv2d_int8_ref.h"
+#include "sfrt/isa.h"
+#include "sfrt/model.h"
+
+namespace sfrt {
+namespace {
+
+// One convolution: an h x w x cin input (for `up`, the low-resolution map, upsampled 2x and
+// cropped to C before a 3x3 stride-1 convolution), k x k kernel.
+struct Int8Shape {
+  int h, w, cin, cout, k, stride;
+  Padding pads;
+  bool up = false;
+  int crop_top = 0, crop_left = 0, crop_bottom = 0, crop_right = 0;
+  int extra_row_bytes = 0;  // the input is a view with rows this much further apart
+};
+
+// Quantisation and epilogue of one run.
+struct Int8Quant {
+  int in_zero_point = 128;
+  int out_zero_point = 128;
+  Activation act = Activation::kLeakyRelu;
+  bool out_float = false;
+  float out_scale = 1.0f / 32;  // 1 / 256 saturates (|y| > 2 passes the +-512 clamp)
+};
+
+std::string Describe(const Int8Shape& s) {
+  std::string d = std::to_string(s.h) + "x" + std::to_string(s.w) + "x" + std::to_string(s.cin) +
+                  "->" + std::to_string(s.cout) + " k" + std::to_string(s.k) + " s" +
+                  std::to_string(s.stride) + " pads " + std::to_string(s.pads.top) + "," +
+                  std::to_string(s.pads.left) + "," + std::to_string(s.pads.bottom) + "," +
+                  std::to_string(s.pads.right);
+  if (s.up) {
+    d += " up2x crop " + std::to_string(s.crop_top) + "," + std::to_string(s.crop_left) + "," +
+         std::to_string(s.crop_bottom) + "," + std::to_string(s.crop_right);
+  }
+  if (s.extra_row_bytes > 0) d += " rowpad " + std::to_string(s.extra_row_bytes);
+  return d;
+}
+
+std::string Describe(const Int8Quant& q) {
+  const char* act = q.act == Activation::kLeakyRelu ? "leaky"
+                    : q.act == Activation::kRelu    ? "relu"
+                                                    : "none";
+  return std::string("zp in ") + std::to_string(q.in_zero_point) + " out " +
+         std::to_string(q.out_zero_point) + " " + act + (q.out_float ? " float" : " u8") +
+         " out_scale " + std::to_string(q.out_scale);
+}
+
+// TF "same" padding with the odd pixel at the end (PaddingRule::kSameUpper).
+Padding SameUpper(int h, int w, int k, int s) {
+  auto axis = [&](int n, int* before, int* after) {
+    const int out = (n + s - 1) / s;
+    const int total = std::max((out - 1) * s + k - n, 0);
+    *before = total / 2;
+    *after = total - *before;
+  };
+  Padding p;
+  axis(h, &p.top, &p.bottom);
+  axis(w, &p.left, &p.right);
+  return p;
+}
+
+Int8Shape Conv(int h, int w, int cin, int cout, int stride) {
+  return {h, w, cin, cout, 3, stride, SameUpper(h, w, 3, stride)};
+}
+
+// Nearest-2x upsample of h x w, crop, 3x3 stride 1 with one pixel of padding.
+Int8Shape UpConv(int h, int w, int cin, int cout, int crop_top = 0, int crop_left = 0) {
+  Int8Shape s{h, w, cin, cout, 3, 1, {1, 1, 1, 1}};
+  s.up = true;
+  s.crop_top = crop_top;
+  s.crop_left = crop_left;
+  return s;
+}
+
+// 64-byte-aligned packed weights.
+struct AlignedBytes {
+  explicit AlignedBytes(size_t n) : data(std::aligned_alloc(64, (n + 63) / 64 * 64 + 64)) {}
+  ~AlignedBytes() { std::free(data); }
+  AlignedBytes(const AlignedBytes&) = delete;
+  AlignedBytes& operator=(const AlignedBytes&) = delete;
+  void* data;
+};
+
+struct Int8Problem {
+  Int8Shape shape;
+  Int8Quant quant;
+  std::vector<uint8_t> input;  // rows of w * cin + extra_row_bytes, then kInt8TensorSlack
+  std::vector<int8_t> weights_q;
+  std::vector<float> weight_scales, bias;
+  ConvParams params;
+  ConstByteView in;
+  int c_h = 0, c_w = 0;  // the map the convolution reads (C, or the input)
+  int out_h = 0, out_w = 0;
+};
+
+// Input bytes uniform in 0..255 from `seed` (the slack too: it must not matter), int8 weights
+// uniform in -127..127 with per-channel scales that keep outputs of order 1 (input scale 4/255:
+// real inputs within [-2, 2] about zero point 128), bias in [-0.5, 0.5).
+Int8Problem MakeProblem(const Int8Shape& s, const Int8Quant& q, uint32_t seed) {
+  Int8Problem pr;
+  pr.shape = s;
+  pr.quant = q;
+  std::mt19937 rng(seed);
+  const ptrdiff_t row = static_cast<ptrdiff_t>(s.w) * s.cin + s.extra_row_bytes;
+  pr.input.resize(static_cast<size_t>(s.h * row) + kInt8TensorSlack);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (uint8_t& v : pr.input) v = static_cast<uint8_t>(byte(rng));
+  const int taps = s.k * s.k;
+  pr.weights_q.resize(static_cast<size_t>(taps) * s.cin * s.cout);
+  std::uniform_int_distribution<int> weight(-127, 127);
+  for (int8_t& v : pr.weights_q) v = static_cast<int8_t>(weight(rng));
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const float fan_in = static_cast<float>(taps * s.cin);
+  pr.weight_scales.resize(s.cout);
+  for (float& v : pr.weight_scales) v = (0.5f + unit(rng)) * 2.25f / (127.0f * std::sqrt(fan_in));
+  pr.bias.resize(s.cout);
+  for (float& v : pr.bias) v = unit(rng) - 0.5f;
+
+  ConvParams& p = pr.params;
+  p.in_channels = s.cin;
+  p.out_channels = s.cout;
+  p.kernel_h = p.kernel_w = s.k;
+  p.stride_h = p.stride_w = s.stride;
+  p.pads = s.pads;
+  p.activation = q.act;
+  p.leaky_slope = 0.3f;
+  p.bias = pr.bias.data();
+  p.precision = Precision::kInt8;
+  p.weights_q = pr.weights_q.data();
+  p.weight_scales = pr.weight_scales.data();
+  p.input_quant = {4.0f / 255.0f, q.in_zero_point};
+  p.output_quant = {q.out_scale, q.out_zero_point};
+
+  pr.in = ConstByteView{pr.input.data(), s.h, s.w, s.cin, row};
+  pr.c_h = s.up ? 2 * s.h - s.crop_top - s.crop_bottom : s.h;
+  pr.c_w = s.up ? 2 * s.w - s.crop_left - s.crop_right : s.w;
+  pr.out_h = (pr.c_h + s.pads.top + s.pads.bottom - s.k) / s.stride + 1;
+  pr.out_w = (pr.c_w + s.pads.left + s.pads.right - s.k) / s.stride + 1;
+  return pr;
+}
+
+// An output tensor with kGuard spare elements after every row (which no kernel may write), all
+// filled with a sentinel.
+constexpr int kGuard = 5;
+struct Output {
+  Output(const Int8Problem& pr) : h(pr.out_h), w(pr.out_w), c(pr.shape.cout) {
+    if (pr.quant.out_float) {
+      f32.assign(static_cast<size_t>(h) * RowElements(), -12345.0f);
+    } else {
+      u8.assign(static_cast<size_t>(h) * RowElements(), 0xA5);
+    }
+  }
+  ptrdiff_t RowElements() const { return static_cast<ptrdiff_t>(w) * c + kGuard; }
+  void Bind(Int8ConvArgs* args) {
+    if (!f32.empty()) {
+      args->out_f32 = TensorView{f32.data(), h, w, c, RowElements()};
+    } else {
+      args->out_u8 = ByteView{u8.data(), h, w, c, RowElements()};
+    }
+  }
+  int h, w, c;
+  std::vector<uint8_t> u8;
+  std::vector<float> f32;
+};
+
+// Element e of an output, floats to the last bit.
+std::string Value(const Output& out, ptrdiff_t e) {
+  if (out.f32.empty()) return std::to_string(out.u8[e]);
+  char text[48];
+  std::snprintf(text, sizeof(text), "%.9g (%a)", out.f32[e], out.f32[e]);
+  return text;
+}
+
+Int8ConvArgs ArgsFor(const Int8Problem& pr, const PackedInt8Conv* conv, Output* out) {
+  Int8ConvArgs args;
+  args.conv = conv;
+  args.in = pr.in;
+  args.pads = pr.shape.pads;
+  args.upsampled = pr.shape.up;
+  args.crop_top = pr.shape.crop_top;
+  args.crop_left = pr.shape.crop_left;
+  args.c_height = pr.c_h;
+  args.c_width = pr.c_w;
+  out->Bind(&args);
+  return args;
+}
+
+// The reference's output, all rows at once.
+Output RunReference(const Int8Problem& pr) {
+  AlignedBytes packed(PackedInt8Bytes(pr.params, 0));
+  const PackedInt8Conv conv = PackInt8Conv(pr.params, 0, pr.quant.out_float, packed.data);
+  Output out(pr);
+  ref::Conv2dInt8Rows(ArgsFor(pr, &conv, &out), 0, pr.out_h, 0, 1);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The reference against the real arithmetic.
+
+// Dequantised input x = (q - z) * scale, upsampled and cropped for `up`, convolved with the
+// dequantised weights in double, plus bias, activation; quantised (rounded half to even) when
+// the output is uint8.
+struct RealOutput {
+  std::vector<double> y;      // before quantisation
+  std::vector<double> scale;  // sum of |terms| per value, to bound float rounding
+};
+RealOutput RealConvolution(const Int8Problem& pr) {
+  const Int8Shape& s = pr.shape;
+  const ConvParams& p = pr.params;
+  // The map the convolution reads, built explicitly.
+  std::vector<double> src(static_cast<size_t>(pr.c_h) * pr.c_w * s.cin);
+  for (int y = 0; y < pr.c_h; ++y) {
+    for (int x = 0; x < pr.c_w; ++x) {
+      const int sy = s.up ? (y + s.crop_top) / 2 : y;
+      const int sx = s.up ? (x + s.crop_left) / 2 : x;
+      for (int c = 0; c < s.cin; ++c) {
+        src[(static_cast<size_t>(y) * pr.c_w + x) * s.cin + c] =
+            (static_cast<double>(pr.in.pixel(sy, sx)[c]) - p.input_quant.zero_point) *
+            static_cast<double>(p.input_quant.scale);
+      }
+    }
+  }
+  RealOutput r;
+  r.y.assign(static_cast<size_t>(pr.out_h) * pr.out_w * s.cout, 0.0);
+  r.scale.assign(r.y.size(), 0.0);
+  for (int oy = 0; oy < pr.out_h; ++oy) {
+    for (int ox = 0; ox < pr.out_w; ++ox) {
+      double* y = &r.y[(static_cast<size_t>(oy) * pr.out_w + ox) * s.cout];
+      double* mag = &r.scale[(static_cast<size_t>(oy) * pr.out_w + ox) * s.cout];
+      for (int ky = 0; ky < s.k; ++ky) {
+        const int iy = oy * s.stride - s.pads.top + ky;
+        if (iy < 0 || iy >= pr.c_h) continue;
+        for (int kx = 0; kx < s.k; ++kx) {
+          const int ix = ox * s.stride - s.pads.left + kx;
+          if (ix < 0 || ix >= pr.c_w) continue;
+          const double* x = &src[(static_cast<size_t>(iy) * pr.c_w + ix) * s.cin];
+          for (int ci = 0; ci < s.cin; ++ci) {
+            const int8_t* w =
+                &pr.weights_q[((static_cast<size_t>(ky) * s.k + kx) * s.cin + ci) * s.cout];
+            for (int o = 0; o < s.cout; ++o) {
+              const double term = x[ci] * w[o] * static_cast<double>(pr.weight_scales[o]);
+              y[o] += term;
+              mag[o] += std::abs(term);
+            }
+          }
+        }
+      }
+      for (int o = 0; o < s.cout; ++o) {
+        y[o] += pr.bias[o];
+        mag[o] += std::abs(pr.bias[o]);
+        if (p.activation == Activation::kLeakyRelu && y[o] < 0) {
+          y[o] *= static_cast<double>(p.leaky_slope);
+        } else if (p.activation == Activation::kRelu && y[o] < 0) {
+          y[o] = 0;
+        }
+      }
+    }
+  }
+  return r;
+}
+
+TEST(Int8Reference, MatchesRealArithmeticWithinOneQuantum) {
+  const std::vector<Int8Shape> shapes = {
+      Conv(17, 23, 12, 4, 2),            // conv0 of the 1/16-width model, odd size
+      Conv(9, 12, 4, 8, 2),              // conv1
+      Conv(7, 9, 32, 64, 1),             // conv4
+      UpConv(4, 6, 64, 32),              // conv6: upsample -> conv
+      UpConv(5, 7, 8, 4, 4, 0),          // conv9 with the 540-row crop
+      UpConv(5, 7, 6, 5, 1, 3),          // odd crop
+      Conv(9, 13, 64, 3, 1),             // the output convolution (float out below)
+      Conv(5, 8, 256, 100, 2),           // wide, cout not a multiple of 64
+      {6, 7, 3, 9, 5, 1, {2, 2, 2, 2}},  // 5x5
+      {6, 7, 6, 9, 1, 1, {1, 0, 0, 1}},  // 1x1 with rows and columns of pure padding
+  };
+  const std::vector<Int8Quant> quants = {
+      {128, 128, Activation::kLeakyRelu, false, 1.0f / 32},
+      {0, 0, Activation::kRelu, false, 1.0f / 32},
+      {255, 255, Activation::kNone, false, 1.0f / 256},  // saturating both ways
+      {128, 0, Activation::kLeakyRelu, true, 1.0f},
+      {7, 0, Activation::kNone, true, 1.0f},
+  };
+  int checked = 0;
+  for (size_t i = 0; i < shapes.size(); ++i) {
+    for (size_t j = 0; j < quants.size(); ++j) {
+      const Int8Problem pr =
+          MakeProblem(shapes[i], quants[j], 7 + 11 * static_cast<uint32_t>(i * quants.size() + j));
+      SCOPED_TRACE(Describe(pr.shape) + " " + Describe(pr.quant));
+      ASSERT_GT(pr.out_h, 0);
+      ASSERT_GT(pr.out_w, 0);
+      const Output got = RunReference(pr);
+      const RealOutput want = RealConvolution(pr);
+      const int cout = pr.shape.cout;
+      int bad = 0, saturated = 0;
+      for (int oy = 0; oy < pr.out_h; ++oy) {
+        for (int ox = 0; ox < pr.out_w; ++ox) {
+          for (int o = 0; o < cout; ++o) {
+            const size_t wi = (static_cast<size_t>(oy) * pr.out_w + ox) * cout + o;
+            const size_t gi = static_cast<size_t>(oy) * (pr.out_w * cout + kGuard) + ox * cout + o;
+            const double y = want.y[wi];
+            if (pr.quant.out_float) {
+              // float(acc), the float multiplier and one multiply and add: a few ulps of the
+              // magnitudes summed.
+              const double tol = 1e-6 * want.scale[wi] + 1e-7;
+              if (std::abs(static_cast<double>(got.f32[gi]) - y) > tol && bad++ < 5) {
+                ADD_FAILURE() << "(" << oy << "," << ox << "," << o << "): " << got.f32[gi]
+                              << " vs real " << y;
+              }
+            } else {
+              const double t = std::clamp(y / pr.quant.out_scale, -512.0, 512.0);
+              const double q = std::clamp(std::nearbyint(t) + pr.quant.out_zero_point, 0.0, 255.0);
+              saturated += q == 0.0 || q == 255.0;
+              if (std::abs(got.u8[gi] - q) > 1.0 && bad++ < 5) {
+                ADD_FAILURE() << "(" << oy << "," << ox << "," << o << "): " << int(got.u8[gi])
+                              << " vs real " << q << " (" << t << " quanta)";
+              }
+            }
+            ++checked;
+          }
+        }
+      }
+      EXPECT_EQ(bad, 0);
+      if (pr.quant.out_scale < 1.0f / 128) {
+        EXPECT_GT(saturated, 0) << "a saturating case clamps";
+      }
+    }
+  }
+  EXPECT_GT(checked, 50000);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The VNNI kernels against the reference.
+
+class Int8Vnni : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    kernels_ = Int8KernelsFor(Isa::kAvx512);
+    if (kernels_ == nullptr) {
+      GTEST_SKIP() << "no AVX-512 VNNI int8 kernels on this CPU or in this build (supported ISAs: "
+                   << SupportedIsaList() << ")";
+    }
+  }
+
+  // Runs the kernel on `pr` as `splits` threads would (rows split in three; the last third's
+  // blocks split in two), and returns the number of output values compared, all of which must
+  // equal the reference's bytes.
+  size_t ExpectBitExact(const Int8Problem& pr) {
+    SCOPED_TRACE(Describe(pr.shape) + " " + Describe(pr.quant));
+    EXPECT_GT(pr.out_h, 0);
+    EXPECT_GT(pr.out_w, 0);
+    if (pr.out_h <= 0 || pr.out_w <= 0) return 0;
+    const Output want = RunReference(pr);
+
+    AlignedBytes packed(PackedInt8Bytes(pr.params, kernels_->nr));
+    const PackedInt8Conv conv =
+        PackInt8Conv(pr.params, kernels_->nr, pr.quant.out_float, packed.data);
+    Output got(pr);
+    const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
+    const Int8ConvRowsFn fn = pr.shape.up ? kernels_->upconv : kernels_->conv;
+    const int r1 = pr.out_h / 3, r2 = pr.out_h - pr.out_h / 3;
+    const int half = conv.blocks / 2;
+    fn(args, 0, r1, 0, conv.blocks);
+    fn(args, r1, r2, 0, conv.blocks);
+    fn(args, r2, pr.out_h, 0, half);
+    fn(args, r2, pr.out_h, half, conv.blocks);
+
+    // Byte for byte, the guards after every row included.
+    const size_t n = pr.quant.out_float ? got.f32.size() * sizeof(float) : got.u8.size();
+    const uint8_t* g =
+        pr.quant.out_float ? reinterpret_cast<const uint8_t*>(got.f32.data()) : got.u8.data();
+    const uint8_t* w =
+        pr.quant.out_float ? reinterpret_cast<const uint8_t*>(want.f32.data()) : want.u8.data();
+    if (std::memcmp(g, w, n) != 0) {
+      const size_t elem = pr.quant.out_float ? sizeof(float) : 1;
+      size_t i = 0;
+      while (std::memcmp(g + i, w + i, elem) == 0) i += elem;
+      const ptrdiff_t e = static_cast<ptrdiff_t>(i / elem), row = got.RowElements();
+      const int oy = static_cast<int>(e / row), ox = static_cast<int>(e % row) / pr.shape.cout;
+      const int o = static_cast<int>(e % row) % pr.shape.cout;
+      ADD_FAILURE() << "first difference at (" << oy << "," << ox << "," << o << ")"
+                    << (e % row >= static_cast<ptrdiff_t>(pr.out_w) * pr.shape.cout
+                            ? " (a row guard)"
+                            : "")
+                    << ": got " << Value(got, e) << ", reference " << Value(want, e);
+    }
+    return static_cast<size_t>(pr.out_h) * pr.out_w * pr.shape.cout;
+  }
+
+  const IsaInt8Kernels* kernels_ = nullptr;
+};
+
+// The epilogue variants a layer is checked with: zero points at 0, 128 and 255, every
+// activation, uint8 (normal and saturating scales) and float outputs.
+std::vector<Int8Quant> EveryQuant() {
+  return {
+      {128, 128, Activation::kLeakyRelu, false, 1.0f / 32},
+      {0, 0, Activation::kRelu, false, 1.0f / 32},
+      {255, 255, Activation::kNone, false, 1.0f / 256},
+      {128, 0, Activation::kLeakyRelu, false, 1.0f / 256},
+      {3, 128, Activation::kLeakyRelu, true, 1.0f},
+      {255, 0, Activation::kRelu, true, 1.0f},
+  };
+}
+
+TEST_F(Int8Vnni, KernelNamesCarryIsaAndTile) {
+  EXPECT_EQ(kernels_->nr, 64);
+  for (const std::string name : {kernels_->conv_name, kernels_->upconv_name}) {
+    EXPECT_NE(name.find("u8s8__avx512vnni_"), std::string::npos) << name;
+    EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;
+  }
+}
+
+// SceneEDNet's layers in order, at the published widths on small maps (conv0..conv3 at stride 2
+// from odd and even sizes, conv4/conv5 at 1024 channels, the four upsample -> conv layers, the
+// last with the 540-row crop of 4, the 64 -> 3 float output), and the 1/16-width default model.
+TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEveryModelLayer) {
+  struct Layer {
+    Int8Shape shape;
+    bool out_float;
+  };
+  const std::vector<Layer> published = {
+      {Conv(11, 19, 12, 64, 2), false},  {Conv(10, 13, 64, 128, 2), false},
+      {Conv(7, 11, 128, 256, 2), false}, {Conv(5, 10, 256, 512, 2), false},
+      {Conv(3, 9, 512, 1024, 1), false}, {Conv(3, 9, 1024, 1024, 1), false},
+      {UpConv(2, 5, 1024, 512), false},  {UpConv(3, 5, 512, 256), false},
+      {UpConv(4, 7, 256, 128), false},   {UpConv(5, 8, 128, 64, 4, 0), false},
+      {Conv(7, 13, 64, 3, 1), true},
+  };
+  const std::vector<Layer> default_model = {
+      {Conv(24, 32, 12, 4, 2), false},     {Conv(12, 16, 4, 8, 2), false},
+      {Conv(6, 8, 8, 16, 2), false},       {Conv(3, 4, 16, 32, 2), false},
+      {Conv(2, 2, 32, 64, 1), false},      {Conv(2, 2, 64, 64, 1), false},
+      {UpConv(2, 2, 64, 32), false},       {UpConv(4, 4, 32, 16), false},
+      {UpConv(8, 8, 16, 8), false},        {UpConv(16, 16, 8, 4, 4, 0), false},
+      {Conv(27, 32, 4, 3, 1), true},       {Conv(48, 64, 12, 4, 2), false},  // at 96x128
+      {UpConv(12, 17, 8, 4, 4, 0), false},
+  };
+  size_t values = 0;
+  int runs = 0;
+  uint32_t seed = 1000;
+  for (const std::vector<Layer>* table : {&published, &default_model}) {
+    for (const Layer& layer : *table) {
+      for (Int8Quant q : EveryQuant()) {
+        if (q.out_float != layer.out_float) continue;
+        values += ExpectBitExact(MakeProblem(layer.shape, q, seed++));
+        ++runs;
+      }
+    }
+  }
+  RecordProperty("values", std::to_string(values));
+  std::printf("[          ] %d runs, %zu output values bit for bit\n", runs, values);
+}
+
+// Shapes for the edges of the kernel, each with every epilogue variant.
+TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEdgeShapes) {
+  const std::vector<Int8Shape> shapes = {
+      {7, 31, 3, 100, 3, 1, {1, 1, 1, 1}},  // cin 3 (reads past each pixel), cout 100
+      {8, 17, 6, 70, 3, 2, {0, 0, 1, 1}},   // cin 6, stride 2, odd width
+      {9, 8, 12, 65, 3, 2, {1, 1, 1, 1}},   // one channel past a block
+      {5, 40, 16, 48, 3, 1, {1, 1, 1, 1}},  // three vectors: the 8x3 tile
+      {6, 19, 5, 33, 3, 1, {1, 1, 1, 1}},   // 8x3 with a partial vector
+      {6, 23, 9, 20, 3, 1, {1, 1, 1, 1}},   // 8x2
+      {5, 21, 7, 1, 3, 1, {1, 1, 1, 1}},    // one output channel
+      {1, 1, 12, 20, 3, 1, {1, 1, 1, 1}},   // one pixel: every tap but the centre is padding
+      {1, 37, 6, 9, 3, 1, {1, 1, 1, 1}},    // one row
+      {23, 1, 6, 9, 3, 1, {1, 1, 1, 1}},    // one column
+      {6, 7, 10, 12, 1, 1, {0, 0, 0, 0}},   // 1x1
+      {6, 7, 10, 12, 1, 1, {1, 2, 1, 0}},   // 1x1 with rows and columns of pure padding
+      {9, 14, 3, 21, 5, 1, {2, 2, 2, 2}},   // 5x5
+      {12, 12, 4, 6, 3, 3, {1, 1, 1, 1}},   // stride 3
+      {10, 26, 9, 40, 3, 1, {2, 0, 0, 2}},  // asymmetric, large pads
+      {11, 19, 8, 8, 7, 2, {3, 3, 3, 3}},   // 7x7 (49 taps), stride 2
+      {9, 18, 12, 32, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 60},  // input view, row stride
+      {9, 18, 13, 130, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 3},  // cin 13, 3 blocks
+      {3, 60, 64, 192, 3, 1, {1, 1, 1, 1}},                        // long rows of full 6x64 tiles
+      UpConv(5, 8, 12, 35, 1, 1),                                  // odd crop: phases swap
+      UpConv(5, 8, 6, 70, 3, 5),
+      UpConv(6, 9, 7, 17),
+      UpConv(1, 1, 5, 6),     // 2x2 upsampled: no interior pixel
+      UpConv(1, 9, 3, 6, 1),  // a single upsampled row after the crop
+      UpConv(3, 23, 37, 100, 4, 1),
+      UpConv(4, 30, 24, 64, 0, 3),
+  };
+  std::vector<Int8Shape> more = shapes;
+  // Crops on every side, explicit asymmetric pads.
+  Int8Shape s = UpConv(6, 9, 7, 17, 2, 1);
+  s.crop_bottom = s.crop_right = 1;
+  more.push_back(s);
+  s = UpConv(4, 7, 9, 20, 0, 1);
+  s.pads = {0, 0, 2, 2};
+  more.push_back(s);
+  s = UpConv(4, 7, 9, 20, 1, 0);
+  s.pads = {2, 2, 0, 0};
+  s.extra_row_bytes = 5;
+  more.push_back(s);
+
+  size_t values = 0;
+  int runs = 0;
+  uint32_t seed = 5000;
+  for (const Int8Shape& shape : more) {
+    for (const Int8Quant& q : EveryQuant()) {
+      values += ExpectBitExact(MakeProblem(shape, q, seed++));
+      ++runs;
+    }
+  }
+  std::printf("[          ] %d runs, %zu output values bit for bit\n", runs, values);
+}
+
+// Every row and every block called on its own (the finest split a pool makes), in reverse
+// order, on a layer with three blocks.
+TEST_F(Int8Vnni, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
+  for (const Int8Shape& shape : {Conv(9, 14, 20, 150, 1), UpConv(4, 7, 20, 150, 1, 1)}) {
+    const Int8Problem pr = MakeProblem(shape, Int8Quant{}, 77);
+    SCOPED_TRACE(Describe(pr.shape));
+    const Output want = RunReference(pr);
+    AlignedBytes packed(PackedInt8Bytes(pr.params, kernels_->nr));
+    const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels_->nr, false, packed.data);
+    ASSERT_EQ(conv.blocks, 3);
+    Output got(pr);
+    const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
+    const Int8ConvRowsFn fn = shape.up ? kernels_->upconv : kernels_->conv;
+    for (int row = pr.out_h - 1; row >= 0; --row) {
+      for (int blk = conv.blocks - 1; blk >= 0; --blk) fn(args, row, row + 1, blk, blk + 1);
+    }
+    EXPECT_EQ(got.u8, want.u8);
+  }
+}
+
+TEST(Int8Dispatch, OnlyAvx512WithVnniHasInt8Kernels) {
+  EXPECT_EQ(Int8KernelsFor(Isa::kRef), nullptr);
+  EXPECT_EQ(Int8KernelsFor(Isa::kAvx2), nullptr);
+  EXPECT_EQ(Int8KernelsFor(Isa::kNeon), nullptr);
+  if (!IsaSupported(Isa::kAvx512)) {
+    EXPECT_EQ(Int8KernelsFor(Isa::kAvx512), nullptr);
+  }
+}
+
+}  // namespace
+}  // namespace sfrt
