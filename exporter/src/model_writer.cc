@@ -210,6 +210,22 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
                : w.AddTensor(c->weights_hwio,
                              {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels});
       const auto bias = w.AddTensor(c->bias, {c->out_channels});
+      // After the bias, as the loader checksums them.
+      const bool phases = !c->phase_weights_q.empty() || !c->phase_scales.empty();
+      if (phases) {
+        const size_t want_phases = 16 * static_cast<size_t>(c->in_channels) * c->out_channels;
+        if (!int8 || c->phase_weights_q.size() != want_phases ||
+            c->phase_scales.size() != 4 * static_cast<size_t>(c->out_channels)) {
+          return Status::Error(where + ": phase kernels need precision int8, " +
+                               std::to_string(want_phases) + " phase weights and " +
+                               std::to_string(4 * c->out_channels) + " phase scales; has " +
+                               std::to_string(c->phase_weights_q.size()) + " and " +
+                               std::to_string(c->phase_scales.size()));
+        }
+      }
+      const auto phase_weights =
+          phases ? w.AddInt8Tensor(c->phase_weights_q, {4, 2, 2, c->in_channels, c->out_channels})
+                 : 0;
       const fb::Padding pads(c->pads.top, c->pads.left, c->pads.bottom, c->pads.right);
       // Float32 layers leave the 1.3 fields out: their tables are as before 1.3.
       const fb::QuantParams input_quant(c->input_quant.scale, c->input_quant.zero_point);
@@ -220,7 +236,8 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
                                                      : fb::PaddingRule::Explicit,
           &pads, ToSchema(c->activation), c->leaky_slope, weights, bias, ToSchema(c->precision),
           int8 ? b.CreateVector(c->weight_scales) : 0, int8 ? &input_quant : nullptr,
-          int8 ? &output_quant : nullptr);
+          int8 ? &output_quant : nullptr, phase_weights,
+          phases ? b.CreateVector(c->phase_scales) : 0);
       layers.push_back(
           fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union()));
       channels = c->out_channels;

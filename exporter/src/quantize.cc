@@ -107,7 +107,25 @@ class TensorStats {
 struct QuantizedWeights {
   std::vector<int8_t> q;
   std::vector<float> scales;
+  // A 3x3 stride-1 convolution that reads a nearest-2x upsampling: its phase kernels.
+  std::vector<int8_t> phase_q;
+  std::vector<float> phase_scales;
 };
+
+// Whether layer `index` is a 3x3 stride-1 convolution that reads a nearest-2x upsampling
+// (with or without a crop between): the layers whose int8 form carries phase kernels.
+bool ReadsUpsampling(const ModelSpec& spec, size_t index) {
+  const auto* c = std::get_if<ConvSpec>(&spec.layers[index]);
+  if (c == nullptr || c->kernel_h != 3 || c->kernel_w != 3 || c->stride_h != 1 ||
+      c->stride_w != 1) {
+    return false;
+  }
+  size_t k = index;
+  if (k > 0 && std::holds_alternative<CropSpec>(spec.layers[k - 1])) --k;
+  if (k == 0) return false;
+  const auto* u = std::get_if<UpsampleSpec>(&spec.layers[k - 1]);
+  return u != nullptr && u->factor_h == 2 && u->factor_w == 2;
+}
 
 Result<std::shared_ptr<const Model>> Load(const ModelSpec& spec, const std::string& label) {
   Result<std::vector<uint8_t>> bytes = SerializeModel(spec);
@@ -295,6 +313,8 @@ ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<bool>& int8,
       c->weight_scales = weights[j].scales;
       c->input_quant = tensor_quant[j];
       c->output_quant = tensor_quant[j + 1];
+      c->phase_weights_q = weights[j].phase_q;
+      c->phase_scales = weights[j].phase_scales;
     }
     ++j;
   }
@@ -392,6 +412,38 @@ void QuantizeWeights(std::span<const float> hwio, int out_channels, std::vector<
   }
 }
 
+void QuantizePhaseWeights(std::span<const float> hwio3x3, int in_channels, int out_channels,
+                          std::vector<int8_t>* q, std::vector<float>* scales) {
+  const size_t per_tap = static_cast<size_t>(in_channels) * static_cast<size_t>(out_channels);
+  // The 3x3 taps (along one axis) that phase `ph`'s tap `t` sums.
+  auto first = [](int ph, int t) { return ph == 0 ? (t == 0 ? 0 : 2) : (t == 0 ? 0 : 1); };
+  auto last = [](int ph, int t) { return ph == 0 ? (t == 0 ? 1 : 2) : (t == 0 ? 0 : 2); };
+  q->clear();
+  scales->clear();
+  std::vector<float> phase(4 * per_tap);
+  for (int py = 0; py < 2; ++py) {
+    for (int px = 0; px < 2; ++px) {
+      std::fill(phase.begin(), phase.end(), 0.0f);
+      for (int ty = 0; ty < 2; ++ty) {
+        for (int tx = 0; tx < 2; ++tx) {
+          float* dst = phase.data() + static_cast<size_t>(ty * 2 + tx) * per_tap;
+          for (int ky = first(py, ty); ky <= last(py, ty); ++ky) {
+            for (int kx = first(px, tx); kx <= last(px, tx); ++kx) {
+              const float* src = hwio3x3.data() + static_cast<size_t>(ky * 3 + kx) * per_tap;
+              for (size_t k = 0; k < per_tap; ++k) dst[k] += src[k];
+            }
+          }
+        }
+      }
+      std::vector<int8_t> pq;
+      std::vector<float> ps;
+      QuantizeWeights(phase, out_channels, &pq, &ps);
+      q->insert(q->end(), pq.begin(), pq.end());
+      scales->insert(scales->end(), ps.begin(), ps.end());
+    }
+  }
+}
+
 std::string CalibrationDataSha256(const CalibrationSet& data) {
   Sha256 sha;
   sha.Update(data.values.data(), data.values.size() * sizeof(float));
@@ -440,6 +492,10 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   for (size_t j = 0; j < conv_layers.size(); ++j) {
     const auto& c = std::get<ConvSpec>(model.layers[static_cast<size_t>(conv_layers[j])]);
     QuantizeWeights(c.weights_hwio, c.out_channels, &weights[j].q, &weights[j].scales);
+    if (ReadsUpsampling(model, static_cast<size_t>(conv_layers[j]))) {
+      QuantizePhaseWeights(c.weights_hwio, c.in_channels, c.out_channels, &weights[j].phase_q,
+                           &weights[j].phase_scales);
+    }
   }
 
   QuantizeResult result;

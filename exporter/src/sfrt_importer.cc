@@ -40,6 +40,10 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
         c.weight_scales.assign(p.weight_scales, p.weight_scales + p.out_channels);
         c.input_quant = p.input_quant;
         c.output_quant = p.output_quant;
+        if (p.phase_weights_q != nullptr) {
+          c.phase_weights_q.assign(p.phase_weights_q, p.phase_weights_q + 16 * count / 9);
+          c.phase_scales.assign(p.phase_scales, p.phase_scales + 4 * p.out_channels);
+        }
       } else {
         c.weights_hwio.assign(p.weights, p.weights + count);
       }

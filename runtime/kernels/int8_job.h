@@ -20,7 +20,17 @@
 // The fused nearest-2x upsample (+ crop) -> convolution reads C, the upsampled map with crop_top
 // rows and crop_left columns removed (c_height x c_width): C(cy, cx) is
 // in((cy + crop_top) / 2, (cx + crop_left) / 2). It is the same integer sum as upsampling the
-// bytes first, so its results are those of the unfused reference, bit for bit.
+// bytes first, so its results are those of the unfused reference, bit for bit, unless the
+// convolution has phase weights (ConvParams::phase_weights_q): then every output pixel whose
+// 3x3 window lies inside C (cy0 = oy - pads.top >= 0, cy0 + 3 <= c_height, likewise for x)
+// is computed from the 2x2 kernel of its phase over the low-resolution map instead:
+//   a = cy0 + crop_top, b = cx0 + crop_left, phase p = (a & 1) * 2 + (b & 1),
+//   acc = sum over (ty, tx, ci) of (in(a / 2 + ty, b / 2 + tx)[ci] - in_zero_point)
+//                                  * phase_w[p][ty][tx][ci][o]
+// with phase_multiplier[p][o] in the epilogue (4/9 of the multiply-accumulates); the other
+// pixels use the 3x3 weights as above. The phase kernels are the 3x3 taps that read the same
+// low-resolution pixel summed in float, then quantised (the exporter does it), so this is the
+// same function as the 3x3 form up to quantisation.
 #pragma once
 
 #include <cmath>
@@ -83,8 +93,10 @@ inline float Int8Dequantize(int32_t acc, float multiplier, float bias, Activatio
 
 inline uint8_t Int8Quantize(float y, float inv_scale, int zero_point) {
   float t = y * inv_scale;
-  t = t < -512.0f ? -512.0f : t;
-  t = t > 512.0f ? 512.0f : t;
+  // Written as x86's maxps/minps behave (the second operand when unordered), so a NaN input
+  // quantises to 0 on every tier, and nothing converts NaN to int.
+  t = t > -512.0f ? t : -512.0f;
+  t = t < 512.0f ? t : 512.0f;
   const int q = static_cast<int>(std::nearbyint(t)) + zero_point;
   return static_cast<uint8_t>(q < 0 ? 0 : (q > 255 ? 255 : q));
 }
@@ -121,7 +133,24 @@ struct PackedInt8Conv {
   int cin4 = 0;
   const int8_t* weights = nullptr;
   const int32_t* tap_sums = nullptr;
+  // Phase kernels (see above), or all null: the file's [4][2][2][in][out] (the reference);
+  // phase_multiplier[p * lanes + o] with lanes = blocks * nr (out_channels when nr == 0); for
+  // nr > 0 the SIMD layout, phase p's part starting at p * blocks * 4 * cin4 * nr bytes and
+  // p * blocks * 4 * nr sums: [block][tap][ci / 4][nr][ci % 4] and [block][tap][nr], 4 taps
+  // (ty * 2 + tx).
+  const int8_t* phase_weights_hwio = nullptr;
+  const float* phase_multiplier = nullptr;
+  const int8_t* phase_weights = nullptr;
+  const int32_t* phase_tap_sums = nullptr;
+  // Convolutions with few outputs (at most kInt8FewOutChannels, at least kInt8FewOutMinInputs
+  // inputs, nr > 0), for kernels vectorised over input channels: few_weights[tap][o][ci], each
+  // (tap, o) row few_ci_stride bytes (in_channels rounded up to 64, zero-filled); null
+  // otherwise. tap_sums are there as well.
+  const int8_t* few_weights = nullptr;
+  int few_ci_stride = 0;
 };
+inline constexpr int kInt8FewOutChannels = 4;
+inline constexpr int kInt8FewOutMinInputs = 16;
 
 // One kernel call; see the fused upsample above for the `upsampled` fields.
 struct Int8ConvArgs {
@@ -159,6 +188,18 @@ const IsaInt8Kernels* Int8KernelsFor(Isa isa);
 namespace avx512 {
 // Null when the CPU lacks AVX-512 VNNI.
 const IsaInt8Kernels* Int8Kernels();
+}  // namespace avx512
+
+// Rows [row_begin, row_end) of a float32 tensor to uint8, Int8Quantize per value (the step
+// before an int8 convolution that reads a float32 tensor). Safe on disjoint row ranges.
+using QuantizeRowsFn = void (*)(const ConstTensorView& in, float inv_scale, int zero_point,
+                                const ByteView& out, int row_begin, int row_end);
+// The ISA's vectorised quantisation where the CPU runs the ISA's int8 kernels (the same bytes
+// as Int8Quantize), else ref::QuantizeRows.
+QuantizeRowsFn QuantizeRowsFor(Isa isa);
+namespace avx512 {
+void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
+                  int row_begin, int row_end);
 }  // namespace avx512
 
 }  // namespace sfrt

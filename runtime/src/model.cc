@@ -147,6 +147,52 @@ Status TakeInt8Params(const Checker& check, const std::string& where, const fb::
   return CheckQuant(check, where, "output_quant", c.output_quant(), &p.output_quant);
 }
 
+// The phase kernels of an int8 convolution that reads a nearest-2x upsampling (schema 1.3).
+// `earlier`: the layers before it; take_tensor checks and CRCs a tensor as for the weights.
+template <typename TakeTensor>
+Status TakePhaseWeights(const Checker& check, const std::string& where, const fb::Conv2D& c,
+                        const std::vector<LayerDesc>& earlier, ConvParams& p,
+                        TakeTensor& take_tensor) {
+  if (p.precision != Precision::kInt8) {
+    return check.Fail(where + ": phase_weights are given but the layer's precision is not int8");
+  }
+  size_t k = earlier.size();
+  if (k > 0 && earlier[k - 1].kind == LayerKind::kCrop) --k;
+  const bool after_upsample = k > 0 && earlier[k - 1].kind == LayerKind::kUpsample &&
+                              earlier[k - 1].upsample.factor_h == 2 &&
+                              earlier[k - 1].upsample.factor_w == 2;
+  if (!after_upsample || p.kernel_h != 3 || p.kernel_w != 3 || p.stride_h != 1 || p.stride_w != 1) {
+    return check.Fail(where +
+                      ": phase_weights are given, but only a 3x3 stride-1 convolution that reads "
+                      "a nearest-2x upsampling (with or without a crop between) has phases");
+  }
+  const float* unused = nullptr;
+  if (Status s = take_tensor(c.phase_weights(), "phase_weights",
+                             {4, 2, 2, p.in_channels, p.out_channels}, &unused, &p.phase_weights_q);
+      !s.ok()) {
+    return s;
+  }
+  if (p.phase_weights_q == nullptr) {
+    return check.Fail(where + ": phase_weights.dtype is not int8");
+  }
+  const auto* scales = c.phase_scales();
+  const unsigned want = 4u * static_cast<unsigned>(p.out_channels);
+  if (scales == nullptr || scales->size() != want) {
+    return check.Fail(where + ": phase_scales holds " +
+                      std::to_string(scales == nullptr ? 0 : scales->size()) + " values; " +
+                      std::to_string(want) + " (4 phases x output channels) are needed");
+  }
+  for (unsigned i = 0; i < want; ++i) {
+    const float v = scales->Get(i);
+    if (!(v > 0.0f) || !std::isfinite(v)) {
+      return check.Fail(where + ": phase_scales[" + std::to_string(i) + "] is " +
+                        std::to_string(v) + "; must be positive and finite");
+    }
+  }
+  p.phase_scales = scales->data();
+  return Status::Ok();
+}
+
 }  // namespace
 
 const char* PrecisionName(Precision precision) {
@@ -600,6 +646,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           return check.Fail(where + ": precision is int8 but weights.dtype is not int8");
         }
         if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
+        if (c->phase_weights() != nullptr || c->phase_scales() != nullptr) {
+          if (Status s = TakePhaseWeights(check, where, *c, layers_, p, take_tensor); !s.ok()) {
+            return s;
+          }
+        }
         channels = p.out_channels;
         break;
       }

@@ -77,6 +77,11 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
   }
   Tensor cur;
   cur.shape = g.front().input;
+  // The uint8 map before the last nearest-2x upsampling, and what a crop after it removed: an
+  // int8 convolution with phase weights reads it (int8_job.h); any other layer forgets it.
+  Tensor low;
+  bool have_low = false;
+  int low_crop_top = 0, low_crop_left = 0;
   cur.f.assign(input.begin(), input.begin() + static_cast<ptrdiff_t>(cur.shape.elements()));
   for (size_t i = 0; i < layers.size(); ++i) {
     const LayerDesc& layer = layers[i];
@@ -97,6 +102,14 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       args.conv = &packed;
       args.in = cur.qview();
       args.pads = g[i].pads;
+      if (p.phase_weights_q != nullptr && have_low) {
+        args.in = low.qview();
+        args.upsampled = true;
+        args.crop_top = low_crop_top;
+        args.crop_left = low_crop_left;
+        args.c_height = cur.shape.height;
+        args.c_width = cur.shape.width;
+      }
       if (out_float) {
         next.f.resize(s.elements());
         args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
@@ -112,6 +125,11 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       ref::Conv2d(cur.fview(), layer.conv, g[i].pads,
                   {next.f.data(), s.height, s.width, s.channels, row});
     } else if (layer.kind == LayerKind::kUpsample) {
+      if (cur.is_u8 && layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2) {
+        low = cur;
+        have_low = true;
+        low_crop_top = low_crop_left = 0;
+      }
       next.is_u8 = cur.is_u8;
       next.quant = cur.quant;
       if (cur.is_u8) {
@@ -127,6 +145,8 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       next.is_u8 = cur.is_u8;
       next.quant = cur.quant;
       const Padding& c = g[i].crop;
+      low_crop_top += c.top;
+      low_crop_left += c.left;
       if (cur.is_u8) {
         next.q.resize(s.elements());
         ConstByteView v = cur.qview();
@@ -143,6 +163,7 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
         ref::Copy(v, {next.f.data(), s.height, s.width, s.channels, row});
       }
     }
+    if (layer.kind == LayerKind::kConv2D) have_low = false;
     cur = std::move(next);
     if (observer) {
       const std::vector<float> real = cur.Real();

@@ -57,6 +57,7 @@ struct Session::Step {
   bool upsampled = false;  // reads the nearest-2x upsampling of its input (first_layer)
   // kQuantize:
   QuantParams quant;
+  QuantizeRowsFn quantize = nullptr;
 };
 
 class Session::Pool : public ThreadPool {
@@ -151,6 +152,7 @@ void Int8ConvTrampoline(void* ctx, int begin, int end) {
 }
 
 struct QuantizeJob {
+  QuantizeRowsFn fn;
   ConstTensorView in;
   ByteView out;
   float inv_scale;
@@ -159,7 +161,7 @@ struct QuantizeJob {
 
 void QuantizeTrampoline(void* ctx, int begin, int end) {
   const QuantizeJob* job = static_cast<const QuantizeJob*>(ctx);
-  ref::QuantizeRows(job->in, job->inv_scale, job->zero_point, job->out, begin, end);
+  job->fn(job->in, job->inv_scale, job->zero_point, job->out, begin, end);
 }
 
 struct RefConvJob {
@@ -294,7 +296,8 @@ Status Session::Plan() {
       Step q;
       q.kind = Step::Kind::kQuantize;
       q.first_layer = q.last_layer = i;
-      q.kernel = "ref::QuantizeU8";
+      q.quantize = QuantizeRowsFor(isa_);
+      q.kernel = q.quantize == ref::QuantizeRows ? "ref::QuantizeU8" : "quantize_u8__avx512";
       q.out_u8 = true;
       q.quant = layers[consumer].conv.input_quant;
       q.precision = Precision::kInt8;
@@ -623,7 +626,8 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       uint8_t* dst8 = reinterpret_cast<uint8_t*>(arena_) +
                       plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset;
       if (step.kind == Step::Kind::kQuantize) {
-        QuantizeJob job{cur, DenseByteView(dst8, cur.height, cur.width, cur.channels),
+        QuantizeJob job{step.quantize, cur,
+                        DenseByteView(dst8, cur.height, cur.width, cur.channels),
                         1.0f / step.quant.scale, step.quant.zero_point};
         parallel_rows(cur.height, QuantizeTrampoline, &job);
         cur8 = job.out;

@@ -1,11 +1,11 @@
 // The int8 convolution kernels (kernels/int8_job.h). The reference (ref::Conv2dInt8Rows, the
 // oracle) against the real arithmetic it approximates, computed in double on the dequantised
-// values; then the AVX-512 VNNI kernels against the reference, byte for byte, on SceneEDNet's
-// layers (published widths at reduced spatial size, and the 1/16-width default model) and on
-// shapes chosen for the edges: input channels not a multiple of 4, output channels not a
-// multiple of the 64-channel block, odd sizes, strides, crops, every activation, zero points at
-// both ends, saturating output scales, float and uint8 outputs, and row and block sub-ranges
-// called separately as threads would.
+// values; then the SIMD kernels (AVX-512 VNNI; NEON sdot and usdot on aarch64) against the
+// reference, byte for byte, on SceneEDNet's layers (published widths at reduced spatial size, and
+// the 1/16-width default model) and on shapes chosen for the edges: input channels not a multiple
+// of 4 (or of 16, what one NEON load serves), output channels not a multiple of the block, odd
+// sizes, strides, crops, every activation, zero points at both ends, saturating output scales,
+// float and uint8 outputs, and row and block sub-ranges called separately as threads would.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -23,6 +23,9 @@
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#if SFRT_TEST_NEON_DOT
+#include "kernels/neon/int8_neon.h"
+#endif
 
 namespace sfrt {
 namespace {
@@ -35,6 +38,7 @@ struct Int8Shape {
   bool up = false;
   int crop_top = 0, crop_left = 0, crop_bottom = 0, crop_right = 0;
   int extra_row_bytes = 0;  // the input is a view with rows this much further apart
+  bool phases = false;      // `up` with the four phases' 2x2 kernels (ConvParams::phase_weights_q)
 };
 
 // Quantisation and epilogue of one run.
@@ -57,6 +61,7 @@ std::string Describe(const Int8Shape& s) {
          std::to_string(s.crop_bottom) + "," + std::to_string(s.crop_right);
   }
   if (s.extra_row_bytes > 0) d += " rowpad " + std::to_string(s.extra_row_bytes);
+  if (s.phases) d += " phases";
   return d;
 }
 
@@ -111,6 +116,8 @@ struct Int8Problem {
   std::vector<uint8_t> input;  // rows of w * cin + extra_row_bytes, then kInt8TensorSlack
   std::vector<int8_t> weights_q;
   std::vector<float> weight_scales, bias;
+  std::vector<int8_t> phase_weights_q;  // [4][2][2][cin][cout] when shape.phases
+  std::vector<float> phase_scales;      // [4][cout]
   ConvParams params;
   ConstByteView in;
   int c_h = 0, c_w = 0;  // the map the convolution reads (C, or the input)
@@ -154,6 +161,18 @@ Int8Problem MakeProblem(const Int8Shape& s, const Int8Quant& q, uint32_t seed) {
   p.weight_scales = pr.weight_scales.data();
   p.input_quant = {4.0f / 255.0f, q.in_zero_point};
   p.output_quant = {q.out_scale, q.out_zero_point};
+  if (s.phases) {
+    // Independent of the 3x3 weights: a pixel computed from the wrong form differs.
+    pr.phase_weights_q.resize(static_cast<size_t>(16) * s.cin * s.cout);
+    for (int8_t& v : pr.phase_weights_q) v = static_cast<int8_t>(weight(rng));
+    pr.phase_scales.resize(static_cast<size_t>(4) * s.cout);
+    const float phase_fan_in = static_cast<float>(4 * s.cin);
+    for (float& v : pr.phase_scales) {
+      v = (0.5f + unit(rng)) * 2.25f / (127.0f * std::sqrt(phase_fan_in));
+    }
+    p.phase_weights_q = pr.phase_weights_q.data();
+    p.phase_scales = pr.phase_scales.data();
+  }
 
   pr.in = ConstByteView{pr.input.data(), s.h, s.w, s.cin, row};
   pr.c_h = s.up ? 2 * s.h - s.crop_top - s.crop_bottom : s.h;
@@ -352,42 +371,41 @@ TEST(Int8Reference, MatchesRealArithmeticWithinOneQuantum) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The VNNI kernels against the reference.
+// The SIMD kernels against the reference: the checks every ISA's kernel tables share, run by
+// the fixture of each ISA (Int8Vnni, Int8NeonDot) on the tables that this CPU runs.
 
-class Int8Vnni : public ::testing::Test {
+class Int8Kernels : public ::testing::Test {
  protected:
-  void SetUp() override {
-    kernels_ = Int8KernelsFor(Isa::kAvx512);
-    if (kernels_ == nullptr) {
-      GTEST_SKIP() << "no AVX-512 VNNI int8 kernels on this CPU or in this build (supported ISAs: "
-                   << SupportedIsaList() << ")";
-    }
-  }
-
-  // Runs the kernel on `pr` as `splits` threads would (rows split in three; the last third's
-  // blocks split in two), and returns the number of output values compared, all of which must
-  // equal the reference's bytes.
+  // Runs every table's kernel on `pr` as threads would (rows split in three; the last third's
+  // blocks split in two), and returns the number of output values compared per table, all of
+  // which must equal the reference's bytes.
   size_t ExpectBitExact(const Int8Problem& pr) {
     SCOPED_TRACE(Describe(pr.shape) + " " + Describe(pr.quant));
     EXPECT_GT(pr.out_h, 0);
     EXPECT_GT(pr.out_w, 0);
     if (pr.out_h <= 0 || pr.out_w <= 0) return 0;
     const Output want = RunReference(pr);
+    for (const IsaInt8Kernels* kernels : tables_) {
+      SCOPED_TRACE(pr.shape.up ? kernels->upconv_name : kernels->conv_name);
+      AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
+      const PackedInt8Conv conv =
+          PackInt8Conv(pr.params, kernels->nr, pr.quant.out_float, packed.data);
+      Output got(pr);
+      const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
+      const Int8ConvRowsFn fn = pr.shape.up ? kernels->upconv : kernels->conv;
+      const int r1 = pr.out_h / 3, r2 = pr.out_h - pr.out_h / 3;
+      const int half = conv.blocks / 2;
+      fn(args, 0, r1, 0, conv.blocks);
+      fn(args, r1, r2, 0, conv.blocks);
+      fn(args, r2, pr.out_h, 0, half);
+      fn(args, r2, pr.out_h, half, conv.blocks);
+      ExpectSameBytes(pr, got, want);
+    }
+    return static_cast<size_t>(pr.out_h) * pr.out_w * pr.shape.cout;
+  }
 
-    AlignedBytes packed(PackedInt8Bytes(pr.params, kernels_->nr));
-    const PackedInt8Conv conv =
-        PackInt8Conv(pr.params, kernels_->nr, pr.quant.out_float, packed.data);
-    Output got(pr);
-    const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
-    const Int8ConvRowsFn fn = pr.shape.up ? kernels_->upconv : kernels_->conv;
-    const int r1 = pr.out_h / 3, r2 = pr.out_h - pr.out_h / 3;
-    const int half = conv.blocks / 2;
-    fn(args, 0, r1, 0, conv.blocks);
-    fn(args, r1, r2, 0, conv.blocks);
-    fn(args, r2, pr.out_h, 0, half);
-    fn(args, r2, pr.out_h, half, conv.blocks);
-
-    // Byte for byte, the guards after every row included.
+  // Byte for byte, the guards after every row included.
+  static void ExpectSameBytes(const Int8Problem& pr, const Output& got, const Output& want) {
     const size_t n = pr.quant.out_float ? got.f32.size() * sizeof(float) : got.u8.size();
     const uint8_t* g =
         pr.quant.out_float ? reinterpret_cast<const uint8_t*>(got.f32.data()) : got.u8.data();
@@ -406,10 +424,56 @@ class Int8Vnni : public ::testing::Test {
                             : "")
                     << ": got " << Value(got, e) << ", reference " << Value(want, e);
     }
-    return static_cast<size_t>(pr.out_h) * pr.out_w * pr.shape.cout;
+  }
+
+  void CheckEveryModelLayer();
+  void CheckEdgeShapes();
+  void CheckPhaseKernels();
+  void CheckRowAndBlockRanges();
+
+  // The tables under test (set by the ISA's fixture; the reference runs once for all of them).
+  std::vector<const IsaInt8Kernels*> tables_;
+};
+
+class Int8Vnni : public Int8Kernels {
+ protected:
+  void SetUp() override {
+    kernels_ = Int8KernelsFor(Isa::kAvx512);
+    if (kernels_ == nullptr) {
+      GTEST_SKIP() << "no AVX-512 VNNI int8 kernels on this CPU or in this build (supported ISAs: "
+                   << SupportedIsaList() << ")";
+    }
+    tables_ = {kernels_};
   }
 
   const IsaInt8Kernels* kernels_ = nullptr;
+};
+
+// The NEON dot-product kernels: usdot (i8mm) and sdot (dotprod), each where the CPU has it (both
+// under qemu-aarch64 -cpu max).
+class Int8NeonDot : public Int8Kernels {
+ protected:
+  void SetUp() override {
+#if SFRT_TEST_NEON_DOT
+    usdot_ = neon::Int8KernelsUsdot();
+    sdot_ = neon::Int8KernelsSdot();
+    if (sdot_ == nullptr && usdot_ == nullptr) {
+      GTEST_SKIP() << "this CPU lacks the dot-product extension (HWCAP_ASIMDDP): the NEON int8 "
+                      "kernels are off";
+    }
+    for (const IsaInt8Kernels* k : {usdot_, sdot_}) {
+      if (k != nullptr) tables_.push_back(k);
+    }
+    if (usdot_ == nullptr) std::printf("[          ] no i8mm (HWCAP2_I8MM): sdot only\n");
+#else
+    GTEST_SKIP() << "no NEON dot-product int8 kernels in this build (aarch64 only; supported "
+                    "ISAs: "
+                 << SupportedIsaList() << ")";
+#endif
+  }
+
+  const IsaInt8Kernels* sdot_ = nullptr;
+  const IsaInt8Kernels* usdot_ = nullptr;
 };
 
 // The epilogue variants a layer is checked with: zero points at 0, 128 and 255, every
@@ -433,10 +497,22 @@ TEST_F(Int8Vnni, KernelNamesCarryIsaAndTile) {
   }
 }
 
+TEST_F(Int8NeonDot, KernelNamesCarryIsaAndTileAndTheSessionGetsTheBest) {
+  for (const IsaInt8Kernels* k : tables_) {
+    EXPECT_EQ(k->nr, 16);
+    const std::string isa = k == usdot_ ? "u8s8__neon_usdot_" : "u8s8__neon_sdot_";
+    for (const std::string name : {k->conv_name, k->upconv_name}) {
+      EXPECT_NE(name.find(isa), std::string::npos) << name;
+      EXPECT_TRUE(name.ends_with("x" + std::to_string(k->nr))) << name;
+    }
+  }
+  EXPECT_EQ(Int8KernelsFor(Isa::kNeon), tables_.front()) << "usdot where i8mm exists, else sdot";
+}
+
 // SceneEDNet's layers in order, at the published widths on small maps (conv0..conv3 at stride 2
 // from odd and even sizes, conv4/conv5 at 1024 channels, the four upsample -> conv layers, the
 // last with the 540-row crop of 4, the 64 -> 3 float output), and the 1/16-width default model.
-TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEveryModelLayer) {
+void Int8Kernels::CheckEveryModelLayer() {
   struct Layer {
     Int8Shape shape;
     bool out_float;
@@ -471,11 +547,15 @@ TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEveryModelLayer) {
     }
   }
   RecordProperty("values", std::to_string(values));
-  std::printf("[          ] %d runs, %zu output values bit for bit\n", runs, values);
+  std::printf("[          ] %d runs, %zu output values bit for bit, %zu kernel table(s)\n", runs,
+              values, tables_.size());
 }
 
-// Shapes for the edges of the kernel, each with every epilogue variant.
-TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEdgeShapes) {
+TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEveryModelLayer) { CheckEveryModelLayer(); }
+TEST_F(Int8NeonDot, MatchesReferenceBitForBitOnEveryModelLayer) { CheckEveryModelLayer(); }
+
+// Shapes for the edges of the kernels, each with every epilogue variant.
+void Int8Kernels::CheckEdgeShapes() {
   const std::vector<Int8Shape> shapes = {
       {7, 31, 3, 100, 3, 1, {1, 1, 1, 1}},  // cin 3 (reads past each pixel), cout 100
       {8, 17, 6, 70, 3, 2, {0, 0, 1, 1}},   // cin 6, stride 2, odd width
@@ -496,7 +576,11 @@ TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEdgeShapes) {
       {9, 18, 12, 32, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 60},  // input view, row stride
       {9, 18, 13, 130, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 3},  // cin 13, 3 blocks
       {3, 60, 64, 192, 3, 1, {1, 1, 1, 1}},                        // long rows of full 6x64 tiles
-      UpConv(5, 8, 12, 35, 1, 1),                                  // odd crop: phases swap
+      {7, 13, 20, 19, 3, 1, {1, 1, 1, 1}},  // cin 20: one 16-channel load and one group
+      {6, 11, 28, 44, 3, 2, {1, 1, 1, 1}},  // cin 28: one 16-channel load and three groups
+      {5, 12, 42, 13, 3, 1, {1, 1, 1, 1}},  // cin 42: two 16-channel loads, 3 groups, 2 junk
+      {4, 23, 16, 12, 3, 1, {1, 1, 1, 1}},  // NEON 8x3 on long rows
+      UpConv(5, 8, 12, 35, 1, 1),           // odd crop: phases swap
       UpConv(5, 8, 6, 70, 3, 5),
       UpConv(6, 9, 7, 17),
       UpConv(1, 1, 5, 6),     // 2x2 upsampled: no interior pixel
@@ -526,33 +610,91 @@ TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEdgeShapes) {
       ++runs;
     }
   }
-  std::printf("[          ] %d runs, %zu output values bit for bit\n", runs, values);
+  std::printf("[          ] %d runs, %zu output values bit for bit, %zu kernel table(s)\n", runs,
+              values, tables_.size());
 }
 
-// Every row and every block called on its own (the finest split a pool makes), in reverse
-// order, on a layer with three blocks.
-TEST_F(Int8Vnni, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
-  for (const Int8Shape& shape : {Conv(9, 14, 20, 150, 1), UpConv(4, 7, 20, 150, 1, 1)}) {
-    const Int8Problem pr = MakeProblem(shape, Int8Quant{}, 77);
-    SCOPED_TRACE(Describe(pr.shape));
-    const Output want = RunReference(pr);
-    AlignedBytes packed(PackedInt8Bytes(pr.params, kernels_->nr));
-    const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels_->nr, false, packed.data);
-    ASSERT_EQ(conv.blocks, 3);
-    Output got(pr);
-    const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
-    const Int8ConvRowsFn fn = shape.up ? kernels_->upconv : kernels_->conv;
-    for (int row = pr.out_h - 1; row >= 0; --row) {
-      for (int blk = conv.blocks - 1; blk >= 0; --blk) fn(args, row, row + 1, blk, blk + 1);
+TEST_F(Int8Vnni, MatchesReferenceBitForBitOnEdgeShapes) { CheckEdgeShapes(); }
+TEST_F(Int8NeonDot, MatchesReferenceBitForBitOnEdgeShapes) { CheckEdgeShapes(); }
+
+// The fused upsample with phase kernels (the interior from the 2x2 kernel of each pixel's
+// phase, the border from the 3x3 weights): crops of both parities, rows long enough for full
+// tiles of every second pixel, partial vectors and blocks, each with every epilogue variant.
+void Int8Kernels::CheckPhaseKernels() {
+  std::vector<Int8Shape> shapes = {
+      UpConv(5, 8, 12, 35, 1, 1),  UpConv(5, 8, 6, 70, 3, 5),    UpConv(6, 9, 7, 17),
+      UpConv(1, 1, 5, 6),          UpConv(1, 9, 3, 6, 1),        UpConv(3, 23, 37, 100, 4, 1),
+      UpConv(4, 30, 24, 64, 0, 3), UpConv(4, 13, 20, 16, 0, 0),  UpConv(3, 17, 64, 12, 1, 0),
+      UpConv(5, 21, 16, 4, 4, 0),  UpConv(2, 40, 32, 130, 0, 1),
+  };
+  Int8Shape s = UpConv(6, 9, 7, 17, 2, 1);
+  s.crop_bottom = s.crop_right = 1;
+  shapes.push_back(s);
+  s = UpConv(4, 7, 9, 20, 0, 1);
+  s.pads = {0, 0, 2, 2};
+  shapes.push_back(s);
+  s = UpConv(4, 7, 9, 20, 1, 0);
+  s.pads = {2, 2, 0, 0};
+  s.extra_row_bytes = 5;
+  shapes.push_back(s);
+  size_t values = 0;
+  int runs = 0;
+  uint32_t seed = 9000;
+  for (Int8Shape shape : shapes) {
+    shape.phases = true;
+    for (const Int8Quant& q : EveryQuant()) {
+      values += ExpectBitExact(MakeProblem(shape, q, seed++));
+      ++runs;
     }
-    EXPECT_EQ(got.u8, want.u8);
+  }
+  std::printf("[          ] %d runs, %zu output values bit for bit, %zu kernel table(s)\n", runs,
+              values, tables_.size());
+}
+
+TEST_F(Int8Vnni, MatchesReferenceBitForBitWithPhaseKernels) { CheckPhaseKernels(); }
+TEST_F(Int8NeonDot, MatchesReferenceBitForBitWithPhaseKernels) { CheckPhaseKernels(); }
+
+// Every row and every block called on its own (the finest split a pool makes), in reverse
+// order, on a layer with three blocks, the last partial (150 channels for blocks of 64, 37 for
+// blocks of 16).
+void Int8Kernels::CheckRowAndBlockRanges() {
+  for (const IsaInt8Kernels* kernels : tables_) {
+    SCOPED_TRACE(kernels->conv_name);
+    const int cout = 2 * kernels->nr + kernels->nr * 11 / 32;
+    for (const Int8Shape& shape : {Conv(9, 14, 20, cout, 1), UpConv(4, 7, 20, cout, 1, 1)}) {
+      const Int8Problem pr = MakeProblem(shape, Int8Quant{}, 77);
+      SCOPED_TRACE(Describe(pr.shape));
+      const Output want = RunReference(pr);
+      AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
+      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, false, packed.data);
+      ASSERT_EQ(conv.blocks, 3);
+      Output got(pr);
+      const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
+      const Int8ConvRowsFn fn = shape.up ? kernels->upconv : kernels->conv;
+      for (int row = pr.out_h - 1; row >= 0; --row) {
+        for (int blk = conv.blocks - 1; blk >= 0; --blk) fn(args, row, row + 1, blk, blk + 1);
+      }
+      EXPECT_EQ(got.u8, want.u8);
+    }
   }
 }
 
-TEST(Int8Dispatch, OnlyAvx512WithVnniHasInt8Kernels) {
+TEST_F(Int8Vnni, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
+  CheckRowAndBlockRanges();
+}
+TEST_F(Int8NeonDot, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
+  CheckRowAndBlockRanges();
+}
+
+TEST(Int8Dispatch, OnlyAvx512WithVnniAndNeonWithDotProductHaveInt8Kernels) {
   EXPECT_EQ(Int8KernelsFor(Isa::kRef), nullptr);
   EXPECT_EQ(Int8KernelsFor(Isa::kAvx2), nullptr);
-  EXPECT_EQ(Int8KernelsFor(Isa::kNeon), nullptr);
+  if (!IsaSupported(Isa::kNeon)) {
+    EXPECT_EQ(Int8KernelsFor(Isa::kNeon), nullptr);
+  }
+#if SFRT_TEST_NEON_DOT
+  EXPECT_EQ(Int8KernelsFor(Isa::kNeon), neon::Int8Kernels());
+#endif
   if (!IsaSupported(Isa::kAvx512)) {
     EXPECT_EQ(Int8KernelsFor(Isa::kAvx512), nullptr);
   }

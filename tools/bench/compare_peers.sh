@@ -1,15 +1,30 @@
 #!/usr/bin/env bash
-# sfrt against its peers on one ONNX model, in the same run: ONNX Runtime (onnxruntime-node,
-# tools/bench/ort_bench.mjs) and OpenCV DNN (sfrt_opencv_dnn_bench, cv::dnn::readNetFromONNX).
-# Exports MODEL.onnx to .sfrt, then for each thread count alternates `sfrt bench` and each peer
-# (one configuration per process, so peak resident memory is one session's), round after round,
-# and prints every median (over all rounds' runs), the ratios sfrt / peer, effective GFLOP/s
-# and peak resident memories. The peers read the same seeded input (ort_bench.mjs's LCG);
+# sfrt against its peers on one ONNX model, in the same run: ONNX Runtime float32 and int8
+# (onnxruntime-node, tools/bench/ort_bench.mjs), OpenCV DNN (sfrt_opencv_dnn_bench) and PyTorch
+# bf16/float32 (tools/bench/torch_bench.py). Exports MODEL.onnx to .sfrt (once per
+# --sfrt-precision), then for each thread count alternates `sfrt bench` of each precision and
+# each peer (one configuration per process, so peak resident memory is one session's), round
+# after round, and prints per thread count every median (over all rounds' runs), effective
+# GFLOP/s and peak resident memory, and the ratio sfrt / peer for each sfrt precision and peer
+# with its per-round spread. The peers read the same seeded input (ort_bench.mjs's LCG);
 # `sfrt bench` its own seeded input (no kernel's time depends on the values).
 #
-# Usage: bash tools/bench/compare_peers.sh [--peers ort,opencv] [--opencv-model FILE.onnx]
-#                                          MODEL.onnx HxW [THREADS=1,2] [ROUNDS=3] [RUNS=2]
-# --peers: any of ort, opencv (default both; OpenCV DNN takes ~3 s a run at full width 540x960).
+# Usage: bash tools/bench/compare_peers.sh [--peers LIST] [--sfrt-precision fp32,int8]
+#          [--calibration CAL.npy] [--opencv-model FILE.onnx] MODEL.onnx HxW [THREADS=1,2]
+#          [ROUNDS=3] [RUNS=2]
+# --peers: any of ort, ort-int8, opencv, torch-bf16, torch-fp32 (default ort,opencv). The
+#   strongest on x86: --peers ort,ort-int8,torch-bf16. At full width 540x960, 2 threads, one
+#   run takes about 2 s (ort), 1 s (ort-int8, torch-bf16), 3 s (opencv).
+#   ort-int8: MODEL turned into a QDQ int8 ONNX by make_qdq_onnx.py (int8 weights per channel,
+#   uint8 activations, ranges from the calibration frames); before the rounds one profiled run
+#   (ORT's profiler) must show QLinearConv and no float Conv, and prints its error against ort.
+#   torch-bf16: the network in PyTorch eager bfloat16, channels_last; before the rounds one run
+#   with oneDNN verbose must show every convolution in bf16 (e.g. brgconv:avx512_core_bf16).
+#   torch-fp32: the same in float32.
+# --sfrt-precision: fp32, int8 or both (default fp32), one row each; int8 is exported with
+#   `sfrt export MODEL.onnx --precision int8 --calibration CAL.npy` (its error is printed).
+# --calibration: float32 .npy (N,H,W,12) network inputs for sfrt int8 and ort-int8 alike
+#   (default: 2 seeded frames of integers 0..255 at 96x128; percentile:99.99 for both).
 # --opencv-model: the ONNX file OpenCV DNN runs instead of MODEL. OpenCV DNN 4.6 cannot parse
 #   the tf-padding exports (their Pad amounts come from a Clip with min/max inputs); give it the
 #   torch-padding export of the same network (gen_sceneednet.py --padding torch: same shapes
@@ -18,6 +33,7 @@
 # SFRT_OPENCV_DNN_BENCH (default: sfrt_opencv_dnn_bench next to $SFRT).
 # If tools/bench/node_modules lacks onnxruntime-node, this script installs it with npm
 # (ONNXRUNTIME_NODE_INSTALL=skip: the CPU library ships in the package) and says so.
+# The ort-int8 and torch peers need Debian's /usr/bin/python3 with python3-torch and python3-onnx.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(cd "${here}/../.." && pwd)"
@@ -25,14 +41,23 @@ me="$(basename "$0" .sh)"
 
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "${here}/compare_peers.sh"; }
 peers="ort,opencv"
+precisions="fp32"
+calibration=""
 opencv_model=""
 while [[ $# -gt 0 ]]; do
   case "$1" in
-    --peers | --opencv-model)
+    --peers | --sfrt-precision | --calibration | --opencv-model)
       [[ $# -ge 2 ]] || { echo "${me}: $1 needs a value" >&2; exit 2; }
-      [[ "$1" == "--peers" ]] && peers="$2" || opencv_model="$2"
+      case "$1" in
+        --peers) peers="$2" ;;
+        --sfrt-precision) precisions="$2" ;;
+        --calibration) calibration="$2" ;;
+        --opencv-model) opencv_model="$2" ;;
+      esac
       shift 2 ;;
     --peers=*) peers="${1#--peers=}"; shift ;;
+    --sfrt-precision=*) precisions="${1#--sfrt-precision=}"; shift ;;
+    --calibration=*) calibration="${1#--calibration=}"; shift ;;
     --opencv-model=*) opencv_model="${1#--opencv-model=}"; shift ;;
     *) break ;;
   esac
@@ -41,17 +66,26 @@ if [[ $# -lt 2 || "$1" == "-h" || "$1" == "--help" ]]; then
   usage
   [[ $# -ge 2 ]] && exit 0 || exit 2
 fi
-use_ort=0
-use_opencv=0
+known_peers="ort ort-int8 opencv torch-bf16 torch-fp32"
 IFS=',' read -r -a peer_list <<<"${peers}"
+[[ ${#peer_list[@]} -gt 0 ]] || { echo "${me}: --peers is empty" >&2; exit 2; }
+declare -A use=()
 for p in "${peer_list[@]}"; do
-  case "${p}" in
-    ort) use_ort=1 ;;
-    opencv) use_opencv=1 ;;
-    *) echo "${me}: --peers: unknown peer '${p}' (known: ort, opencv)" >&2; exit 2 ;;
-  esac
+  [[ " ${known_peers} " == *" ${p} "* ]] ||
+    { echo "${me}: --peers: unknown peer '${p}' (known: ${known_peers// /, })" >&2; exit 2; }
+  [[ -z "${use[${p}]:-}" ]] || { echo "${me}: --peers: '${p}' given twice" >&2; exit 2; }
+  use[${p}]=1
 done
-[[ ${use_ort} == 1 || ${use_opencv} == 1 ]] || { echo "${me}: --peers is empty" >&2; exit 2; }
+IFS=',' read -r -a precision_list <<<"${precisions}"
+[[ ${#precision_list[@]} -gt 0 ]] || { echo "${me}: --sfrt-precision is empty" >&2; exit 2; }
+declare -A seen_precision=()
+for q in "${precision_list[@]}"; do
+  [[ "${q}" == fp32 || "${q}" == int8 ]] ||
+    { echo "${me}: --sfrt-precision: unknown precision '${q}' (known: fp32, int8)" >&2; exit 2; }
+  [[ -z "${seen_precision[${q}]:-}" ]] ||
+    { echo "${me}: --sfrt-precision: '${q}' given twice" >&2; exit 2; }
+  seen_precision[${q}]=1
+done
 model="$1"
 size="$2"
 threads_list="${3:-1,2}"
@@ -66,21 +100,30 @@ if [[ ! "${size}" =~ ^([0-9]+)x([0-9]+)$ ]]; then
 fi
 height="${BASH_REMATCH[1]}"
 width="${BASH_REMATCH[2]}"
+[[ "${threads_list}" =~ ^[1-9][0-9]*(,[1-9][0-9]*)*$ ]] ||
+  { echo "${me}: THREADS must be a list like 1,2, got '${threads_list}'" >&2; exit 2; }
+[[ "${rounds}" =~ ^[1-9][0-9]*$ && "${runs}" =~ ^[1-9][0-9]*$ ]] ||
+  { echo "${me}: ROUNDS and RUNS must be >= 1, got '${rounds}' '${runs}'" >&2; exit 2; }
 [[ -f "${model}" ]] || { echo "${me}: no model file '${model}'" >&2; exit 1; }
 opencv_model="${opencv_model:-${model}}"
-if [[ ${use_opencv} == 1 && ! -f "${opencv_model}" ]]; then
+if [[ -n "${use[opencv]:-}" && ! -f "${opencv_model}" ]]; then
   echo "${me}: no model file '${opencv_model}' (--opencv-model)" >&2
   exit 1
 fi
+if [[ -n "${calibration}" && ! -f "${calibration}" ]]; then
+  echo "${me}: no calibration file '${calibration}' (--calibration)" >&2
+  exit 1
+fi
 [[ -x "${sfrt}" ]] || { echo "${me}: no sfrt binary at ${sfrt} (build it or set SFRT=)" >&2; exit 1; }
-if [[ ${use_opencv} == 1 && ! -x "${opencv_bench}" ]]; then
+if [[ -n "${use[opencv]:-}" && ! -x "${opencv_bench}" ]]; then
   echo "${me}: no sfrt_opencv_dnn_bench at ${opencv_bench} (build target sfrt_opencv_dnn_bench," \
        "needs libopencv-dnn-dev; or set SFRT_OPENCV_DNN_BENCH=, or --peers ort)" >&2
   exit 1
 fi
 python=/usr/bin/python3
+[[ -x "${python}" ]] || { echo "${me}: ${python} not found (Debian python3)" >&2; exit 1; }
 
-if [[ ${use_ort} == 1 ]]; then
+if [[ -n "${use[ort]:-}${use[ort-int8]:-}" ]]; then
   command -v node >/dev/null || { echo "${me}: node not found (apt-get install nodejs npm)" >&2; exit 1; }
   if [[ ! -d "${here}/node_modules/onnxruntime-node" ]]; then
     echo "${me}: onnxruntime-node is missing; installing it now:" \
@@ -88,72 +131,163 @@ if [[ ${use_ort} == 1 ]]; then
     (cd "${here}" && ONNXRUNTIME_NODE_INSTALL=skip npm install --no-audit --no-fund)
   fi
 fi
+if [[ -n "${use[ort-int8]:-}${use[torch-bf16]:-}${use[torch-fp32]:-}" ]]; then
+  "${python}" -c 'import torch, onnx, numpy' 2>/dev/null ||
+    { echo "${me}: ort-int8 and torch-* need ${python} with torch, onnx and numpy" \
+           "(apt-get install python3-torch python3-onnx python3-numpy)" >&2; exit 1; }
+fi
 
 work="$(mktemp -d)"
 trap 'rm -rf "${work}"' EXIT
-sfrt_model="${work}/model.sfrt"
-"${sfrt}" export "${model}" -o "${sfrt_model}" >/dev/null
-echo "model ${model} at ${height}x${width}; sfrt isa ${isa}; peers ${peers}; ${rounds} rounds x" \
-     "${runs} runs, alternating (load now: $(cut -d' ' -f1-3 /proc/loadavg))"
-if [[ ${use_opencv} == 1 && "${opencv_model}" != "${model}" ]]; then
+IFS=',' read -r -a thread_counts <<<"${threads_list}"
+echo "model ${model} at ${height}x${width}; sfrt isa ${isa}, precision ${precisions};" \
+     "peers ${peers}; ${rounds} rounds x ${runs} runs, alternating (load now:" \
+     "$(cut -d' ' -f1-3 /proc/loadavg))"
+
+# Calibration frames, shared by sfrt int8 and ort-int8.
+if [[ -z "${calibration}" && ( -n "${seen_precision[int8]:-}" || -n "${use[ort-int8]:-}" ) ]]; then
+  calibration="${work}/calibration.npy"
+  "${python}" -c '
+import sys, numpy as np
+rng = np.random.default_rng(20240601)
+np.save(sys.argv[1], rng.integers(0, 256, size=(2, 96, 128, 12)).astype(np.float32))
+' "${calibration}"
+  echo "calibration: 2 seeded frames of integers 0..255 at 96x128"
+elif [[ -n "${calibration}" ]]; then
+  echo "calibration: ${calibration}"
+fi
+
+for q in "${precision_list[@]}"; do
+  if [[ "${q}" == fp32 ]]; then
+    "${sfrt}" export "${model}" -o "${work}/model-fp32.sfrt" >/dev/null
+  else
+    if ! "${sfrt}" export "${model}" -o "${work}/model-int8.sfrt" --precision int8 \
+        --calibration "${calibration}" >"${work}/export-int8.txt" 2>&1; then
+      tail -n 5 "${work}/export-int8.txt" >&2
+      echo "${me}: sfrt export --precision int8 failed" >&2
+      exit 1
+    fi
+    echo "sfrt-int8: $(grep -m1 -E '^ +error ' "${work}/export-int8.txt" |
+      sed -E 's/^ +//; s/ +/ /g')"
+  fi
+done
+
+# One untimed check run per peer that must prove what it ran (first thread count).
+t0="${thread_counts[0]}"
+if [[ -n "${use[ort-int8]:-}" ]]; then
+  qdq="${work}/model-qdq.onnx"
+  "${python}" "${here}/make_qdq_onnx.py" "${model}" -o "${qdq}" --calibration "${calibration}" \
+    >"${work}/qdq.txt" || { echo "${me}: make_qdq_onnx.py failed" >&2; exit 1; }
+  node "${here}/ort_bench.mjs" --profile="${work}/ort-int8-profile" --reference="${model}" \
+    "${qdq}" "${height}" "${width}" "${t0}" 1 0 >"${work}/ort-int8-check.json" \
+    || { echo "${me}: ort_bench.mjs failed on the QDQ model" >&2; exit 1; }
+  "${python}" - "${work}/ort-int8-check.json" <<'PY' ||
+import json, sys
+j = json.loads(open(sys.argv[1]).read().strip().splitlines()[-1])
+ops = j["ops"]
+print("ort-int8: ORT profile, node types run (nodes, kernel ms): " + ", ".join(
+    f"{k} {v['nodes']} ({v['ms']:.1f})"
+    for k, v in sorted(ops.items(), key=lambda kv: -kv[1]["ms"])))
+r = j["vs_reference"]
+print(f"ort-int8: error against ort (float32) on the bench input: output max {r['max_rel']:.2e},"
+      f" rms {r['rms_rel']:.2e} relative")
+float_convs = sorted(k for k in ops if k in ("Conv", "FusedConv", "NhwcFusedConv"))
+if float_convs or "QLinearConv" not in ops:
+    sys.exit(f"ort-int8: ONNX Runtime ran {', '.join(float_convs) or 'no QLinearConv'}: the QDQ"
+             f" model did not run int8 convolutions")
+PY
+    { echo "${me}: ort-int8 check failed" >&2; exit 1; }
+fi
+for dtype in bf16 fp32; do
+  [[ -n "${use[torch-${dtype}]:-}" ]] || continue
+  "${python}" "${here}/torch_bench.py" --dtype "${dtype}" --verbose-kernels "${model}" \
+    "${height}" "${width}" "${t0}" 1 0 >"${work}/torch-${dtype}-check.json" 2>"${work}/torch.err" ||
+    { tail -n 5 "${work}/torch.err" >&2; echo "${me}: torch_bench.py failed" >&2; exit 1; }
+  "${python}" - "${work}/torch-${dtype}-check.json" "${dtype}" <<'PY' ||
+import json, sys
+j = json.loads(open(sys.argv[1]).read().strip().splitlines()[-1])
+impls, dtype = j.get("conv_impls", {}), sys.argv[2]
+print(f"torch-{dtype}: oneDNN convolutions per run: "
+      + ", ".join(f"{k} x{n}" for k, n in impls.items()))
+if dtype == "bf16" and (sum(impls.values()) != 11 or any("src_bf16" not in k for k in impls)):
+    sys.exit("torch-bf16: not every one of the 11 convolutions ran in bf16 through oneDNN")
+PY
+    { echo "${me}: torch-${dtype} check failed" >&2; exit 1; }
+done
+if [[ -n "${use[opencv]:-}" && "${opencv_model}" != "${model}" ]]; then
   echo "OpenCV DNN runs ${opencv_model}"
 fi
 
-IFS=',' read -r -a thread_counts <<<"${threads_list}"
 for round in $(seq 1 "${rounds}"); do
   for t in "${thread_counts[@]}"; do
-    "${sfrt}" bench --model "${sfrt_model}" --size "${height}x${width}" --isa "${isa}" \
-      --threads "${t}" --warmup 1 --runs "${runs}" --json "${work}/sfrt_t${t}_r${round}.json" \
-      >/dev/null
-    if [[ ${use_ort} == 1 ]]; then
-      node "${here}/ort_bench.mjs" "${model}" "${height}" "${width}" "${t}" "${runs}" 1 \
-        >"${work}/ort_t${t}_r${round}.json"
-    fi
-    if [[ ${use_opencv} == 1 ]]; then
-      if ! "${opencv_bench}" "${opencv_model}" "${height}" "${width}" "${t}" "${runs}" 1 \
-        >"${work}/opencv_t${t}_r${round}.json" 2>"${work}/opencv.err"; then
-        tail -n 5 "${work}/opencv.err" >&2
-        echo "${me}: OpenCV DNN failed on ${opencv_model} (tf-padding files need" \
-             "--opencv-model with the torch-padding export; or --peers ort)" >&2
-        exit 1
-      fi
-    fi
+    for q in "${precision_list[@]}"; do
+      "${sfrt}" bench --model "${work}/model-${q}.sfrt" --size "${height}x${width}" --isa "${isa}" \
+        --threads "${t}" --warmup 1 --runs "${runs}" \
+        --json "${work}/sfrt-${q}_t${t}_r${round}.json" >/dev/null
+    done
+    for p in "${peer_list[@]}"; do
+      out="${work}/${p}_t${t}_r${round}.json"
+      case "${p}" in
+        ort | ort-int8)
+          [[ "${p}" == ort ]] && onnx="${model}" || onnx="${qdq}"
+          node "${here}/ort_bench.mjs" "${onnx}" "${height}" "${width}" "${t}" "${runs}" 1 >"${out}" ;;
+        torch-*)
+          "${python}" "${here}/torch_bench.py" --dtype "${p#torch-}" "${model}" "${height}" "${width}" \
+            "${t}" "${runs}" 1 >"${out}" ;;
+        opencv)
+          if ! "${opencv_bench}" "${opencv_model}" "${height}" "${width}" "${t}" "${runs}" 1 \
+            >"${out}" 2>"${work}/opencv.err"; then
+            tail -n 5 "${work}/opencv.err" >&2
+            echo "${me}: OpenCV DNN failed on ${opencv_model} (tf-padding files need" \
+                 "--opencv-model with the torch-padding export; or --peers ort)" >&2
+            exit 1
+          fi ;;
+      esac
+    done
   done
 done
 
-"${python}" - "${work}" "${threads_list}" "${peers}" <<'PY'
+"${python}" - "${work}" "${threads_list}" "${precisions}" "${peers}" <<'PY'
 import glob, json, statistics, sys
 work, threads = sys.argv[1], [int(t) for t in sys.argv[2].split(',')]
-names = {"ort": "ORT", "opencv": "OpenCV"}
-peers = [p for p in ("ort", "opencv") if p in sys.argv[3].split(',')]
+sfrts = ["sfrt-" + q for q in sys.argv[3].split(',')]
+peers = sys.argv[4].split(',')
 
 def last_json(path):
     return json.loads(open(path).read().strip().splitlines()[-1])
 
-head = f"{'threads':>7} {'sfrt ms':>9}"
-for p in peers:
-    n = names[p]
-    head += f" {n + ' ms':>10} {'sfrt/' + n:>11} {'spread':>11}"
-head += f" {'sfrt GF/s':>9}" + "".join(f" {names[p] + ' GF/s':>11}" for p in peers)
-head += f" {'sfrt MiB':>8}" + "".join(f" {names[p] + ' MiB':>10}" for p in peers)
-print(head)
+def files(config, t):
+    return sorted(glob.glob(f"{work}/{config}_t{t}_r*.json"),
+                  key=lambda f: int(f.rsplit("_r", 1)[1].split(".")[0]))
+
+w = max(len(c) for c in sfrts + peers) + 2
 for t in threads:
-    s = [json.load(open(f)) for f in sorted(glob.glob(f"{work}/sfrt_t{t}_r*.json"))]
-    macs = s[0]["macs"]
-    sm = statistics.median([r["median_ms"] for j in s for r in j["results"]])
-    line = f"{t:>7} {sm:>9.1f}"
-    gf = f" {2 * macs / sm / 1e6:>9.1f}"
-    mib = f" {max(j['peak_rss_mib'] for j in s):>8.1f}"
+    macs = json.load(open(files(sfrts[0], t)[0]))["macs"]
+    median, per_round, mib = {}, {}, {}
+    for c in sfrts:
+        s = [json.load(open(f)) for f in files(c, t)]
+        median[c] = statistics.median([r["median_ms"] for j in s for r in j["results"]])
+        per_round[c] = [j["results"][0]["median_ms"] for j in s]
+        mib[c] = max(j["peak_rss_mib"] for j in s)
     for p in peers:
-        o = [last_json(f) for f in sorted(glob.glob(f"{work}/{p}_t{t}_r*.json"))]
-        om = statistics.median([j["median_ms"] for j in o])
-        # Per-round ratios show how noisy the machine was.
-        ratios = [a["results"][0]["median_ms"] / b["median_ms"] for a, b in zip(s, o)]
-        line += f" {om:>10.1f} {sm / om:>11.3f} {min(ratios):>5.3f}-{max(ratios):.3f}"
-        gf += f" {2 * macs / om / 1e6:>11.1f}"
-        mib += f" {max(j['peak_rss_mib'] for j in o):>10.1f}"
-    print(line + gf + mib)
-print("sfrt/peer: ratio of medians over all rounds; spread: lowest-highest per-round ratio;"
-      " GF/s: effective GFLOP/s (2 x the model's MACs / median); MiB: peak resident memory of"
-      " one process (one session).")
+        o = [last_json(f) for f in files(p, t)]
+        median[p] = statistics.median([j["median_ms"] for j in o])
+        per_round[p] = [j["median_ms"] for j in o]
+        mib[p] = max(j["peak_rss_mib"] for j in o)
+    print(f"threads {t}")
+    print(f"  {'':<{w}} {'median ms':>10} {'GF/s':>8} {'peak MiB':>9}")
+    for c in sfrts + peers:
+        print(f"  {c:<{w}} {median[c]:>10.1f} {2 * macs / median[c] / 1e6:>8.1f} {mib[c]:>9.1f}")
+    print((f"  {'sfrt/peer':<{w}}" + "".join(f" {p:<21}" for p in peers)).rstrip())
+    for c in sfrts:
+        cells = ""
+        for p in peers:
+            # Per-round ratios show how noisy the machine was.
+            ratios = [a / b for a, b in zip(per_round[c], per_round[p])]
+            cell = f"{median[c] / median[p]:.3f} ({min(ratios):.3f}-{max(ratios):.3f})"
+            cells += f" {cell:<21}"
+        print(f"  {c:<{w}}{cells}".rstrip())
+print("median ms: median over all rounds' runs; GF/s: effective GFLOP/s (2 x the model's MACs /"
+      " median, whatever the arithmetic); peak MiB: peak resident memory of one process (one"
+      " session); sfrt/peer: ratio of medians (per-round lowest-highest).")
 PY

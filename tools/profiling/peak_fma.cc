@@ -58,24 +58,16 @@ double TimeThreads(const internal::PeakKernel& kernel, int threads, int64_t iter
 
 }  // namespace
 
-Result<PeakFma> MeasurePeakFma(Isa isa, int threads, double seconds) {
-  if (isa == Isa::kAuto) isa = BestIsa();
-  if (threads < 1) {
-    return Status::Error("peak FMA: threads must be >= 1, got " + std::to_string(threads));
-  }
-  const internal::PeakKernel* kernel = KernelFor(isa);
-  if (kernel == nullptr || !IsaSupported(isa)) {
-    return Status::Error(
-        std::string("peak FMA: ISA '") + IsaName(isa) +
-        "' is not available in this build on this CPU (available: " + SupportedIsaList() + ")");
-  }
+namespace internal {
+
+double MeasureGopsPerSecond(const PeakKernel& kernel, int threads, double seconds) {
   std::atomic<float> sink{0};
   // Calibrate on one thread: grow the iteration count until a run takes >= 2 ms.
   int64_t iterations = 256;
   double t = 0;
   for (;;) {
     const auto start = Clock::now();
-    sink.store(kernel->run(iterations), std::memory_order_relaxed);
+    sink.store(kernel.run(iterations), std::memory_order_relaxed);
     t = std::chrono::duration<double>(Clock::now() - start).count();
     if (t >= 2e-3 || iterations >= (int64_t{1} << 40)) break;
     iterations *= 4;
@@ -88,16 +80,32 @@ Result<PeakFma> MeasurePeakFma(Isa isa, int threads, double seconds) {
       1, static_cast<int64_t>(static_cast<double>(iterations) * per_window / std::max(t, 1e-9)));
   double best = 0;
   for (int window = 0; window < kWindows; ++window) {
-    const double elapsed = TimeThreads(*kernel, threads, iterations, &sink);
+    const double elapsed = TimeThreads(kernel, threads, iterations, &sink);
     if (elapsed > 0) {
       best = std::max(best, static_cast<double>(threads) * static_cast<double>(iterations) *
-                                static_cast<double>(kernel->flops_per_iteration) / elapsed / 1e9);
+                                static_cast<double>(kernel.ops_per_iteration) / elapsed / 1e9);
     }
+  }
+  return best;
+}
+
+}  // namespace internal
+
+Result<PeakFma> MeasurePeakFma(Isa isa, int threads, double seconds) {
+  if (isa == Isa::kAuto) isa = BestIsa();
+  if (threads < 1) {
+    return Status::Error("peak FMA: threads must be >= 1, got " + std::to_string(threads));
+  }
+  const internal::PeakKernel* kernel = KernelFor(isa);
+  if (kernel == nullptr || !IsaSupported(isa)) {
+    return Status::Error(
+        std::string("peak FMA: ISA '") + IsaName(isa) +
+        "' is not available in this build on this CPU (available: " + SupportedIsaList() + ")");
   }
   PeakFma result;
   result.isa = isa;
   result.threads = threads;
-  result.gflops = best;
+  result.gflops = internal::MeasureGopsPerSecond(*kernel, threads, seconds);
   result.kernel = kernel->description;
   return result;
 }

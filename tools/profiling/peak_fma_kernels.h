@@ -1,5 +1,6 @@
-// The per-ISA loops behind MeasurePeakFma (peak_fma.cc). Each file is compiled with its ISA's
-// flags (tools/profiling/CMakeLists.txt); calling one the CPU cannot run is undefined.
+// The per-ISA loops behind MeasurePeakFma (peak_fma.cc) and MeasurePeakDot (peak_dot.cc). Each
+// file is compiled with its ISA's flags (tools/profiling/CMakeLists.txt); calling one the CPU
+// cannot run is undefined.
 #pragma once
 
 #include <cstdint>
@@ -8,7 +9,9 @@ namespace sfrt::profiling::internal {
 
 struct PeakKernel {
   const char* description;
-  int64_t flops_per_iteration;  // 2 x chains x lanes
+  // 2 x the multiply-accumulates of one round (chains x lanes, or chains x MACs per instruction
+  // for the dot-product loops): flops, or integer ops for int8.
+  int64_t ops_per_iteration;
   // Runs `iterations` rounds of every chain; returns a value depending on all of them.
   float (*run)(int64_t iterations);
 };
@@ -18,5 +21,11 @@ const PeakKernel* PeakKernelRef();
 const PeakKernel* PeakKernelAvx2();
 const PeakKernel* PeakKernelAvx512();
 const PeakKernel* PeakKernelNeon();
+const PeakKernel* PeakKernelAvx512Vnni();  // int8: vpdpbusd
+const PeakKernel* PeakKernelAvx512Bf16();  // bf16: vdpbf16ps
+
+// G ops/s of `kernel` on `threads` threads (>= 1): a calibration, then the fastest of 20 windows
+// over about `seconds` in all (each at least 1 ms).
+double MeasureGopsPerSecond(const PeakKernel& kernel, int threads, double seconds);
 
 }  // namespace sfrt::profiling::internal

@@ -6,8 +6,9 @@
 // peak FMA throughput, the time of each planned step (run order, top N, by op type), and per
 // run the page faults, context switches and CPU migrations that explain spikes; with
 // --budget-ms, whether a percentile meets a latency budget (exit 3 when it does not).
-// `sfrt bench --peak` runs only the peak-FMA microbenchmark. Statistics and counters live in
-// tools/profiling/.
+// `sfrt bench --peak` runs only the peak microbenchmarks: fp32 FMA per ISA, int8 (AVX-512 VNNI)
+// and bf16 (AVX512_BF16) dot products, and reports whether AMX could run. Statistics and counters
+// live in tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <charconv>
@@ -24,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "profiling/peak_dot.h"
 #include "profiling/peak_fma.h"
 #include "profiling/system_info.h"
 #include "sfrt/commands.h"
@@ -181,7 +183,58 @@ bool WriteJson(const std::string& path, const Json& json) {
   return static_cast<bool>(out);
 }
 
-// `sfrt bench --peak`: the microbenchmark alone.
+// `sfrt bench --peak`, int8 and bf16: a table per type whose loop this CPU runs, else the reason,
+// once per thread count (whatever --isa); then whether AMX could run. Adds the rows and reasons
+// to `json`; false after printing the error of a failed measurement.
+bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Json* json) {
+  Json unavailable = Json::object();
+  for (prof::DotType type : {prof::DotType::kInt8, prof::DotType::kBf16}) {
+    const bool int8 = type == prof::DotType::kInt8;
+    const char* name = prof::DotTypeName(type);
+    const char* unit = int8 ? "GOP/s" : "GFLOP/s";
+    const std::string key = std::string("peak_") + name;
+    (*json)[key] = Json::array();
+    if (std::string why = prof::PeakDotUnavailable(type); !why.empty()) {
+      std::printf("\npeak %s dot-product throughput: not available (%s)\n", name, why.c_str());
+      unavailable[name] = why;
+      continue;
+    }
+    std::printf(
+        "\npeak %s dot-product throughput: %s counts 2 %s per multiply-accumulate; "
+        "fastest of 20 windows over about %.2f s each\n",
+        name, unit, int8 ? "integer ops" : "flops", args.peak_seconds);
+    std::printf("%-7s %7s %10s %10s %11s  %s\n", "type", "threads", unit, "GMAC/s", "per thread",
+                "loop");
+    for (int threads : thread_counts) {
+      Result<prof::PeakDot> peak = prof::MeasurePeakDot(type, threads, args.peak_seconds);
+      if (!peak.ok()) {
+        ReportError(kName, peak.message(), kExitFailure);
+        return false;
+      }
+      std::printf("%-7s %7d %10s %10s %11s  %s\n", name, threads, Fixed(peak->gops, 1).c_str(),
+                  Fixed(peak->gmacs, 1).c_str(), Fixed(peak->gops / threads, 1).c_str(),
+                  peak->kernel.c_str());
+      const std::string ops = int8 ? "gops" : "gflops";
+      (*json)[key].push_back(Json{{"threads", threads},
+                                  {ops, peak->gops},
+                                  {"gmacs", peak->gmacs},
+                                  {ops + "_per_thread", peak->gops / threads},
+                                  {"kernel", peak->kernel}});
+    }
+  }
+  if (std::string why = prof::AmxUnavailable(); !why.empty()) {
+    std::printf("\namx: not available (%s)\n", why.c_str());
+    unavailable["amx"] = why;
+  } else {
+    std::printf(
+        "\namx: available (AMX-TILE, AMX-INT8, AMX-BF16, XTILEDATA granted); no peak loop "
+        "yet\n");
+  }
+  (*json)["peak_unavailable"] = unavailable;
+  return true;
+}
+
+// `sfrt bench --peak`: the microbenchmarks alone.
 int RunPeak(const BenchArgs& args, const std::vector<Isa>& isas,
             const std::vector<int>& thread_counts) {
   PrintBuildAndCpu();
@@ -202,8 +255,11 @@ int RunPeak(const BenchArgs& args, const std::vector<Isa>& isas,
                              {"kernel", peak->kernel}});
     }
   }
+  Json json{{"peak", results}};
+  if (!RunPeakDot(args, thread_counts, &json)) return kExitFailure;
   if (!args.json.empty()) {
-    Json json{{"peak", results}, {"build", BuildJson()}, {"cpu", CpuJson()}};
+    json["build"] = BuildJson();
+    json["cpu"] = CpuJson();
     if (!WriteJson(args.json, json)) {
       return ReportError(kName, "cannot write --json " + args.json, kExitFailure);
     }
@@ -254,14 +310,14 @@ int RunBench(const BenchArgs& args) {
   if (args.peak) {
     if (!args.model.empty() || args.budget_given) {
       return ReportError(kName,
-                         "--peak runs only the FMA microbenchmark; it takes no --model or "
+                         "--peak runs only the peak microbenchmarks; it takes no --model or "
                          "--budget-ms (a model run measures the peak by itself)",
                          kExitUsage);
     }
     return RunPeak(args, isas, thread_counts);
   }
   if (args.model.empty()) {
-    return ReportError(kName, "--model is required (or --peak for the FMA microbenchmark)",
+    return ReportError(kName, "--model is required (or --peak for the peak microbenchmarks)",
                        kExitUsage);
   }
   int height = 0, width = 0;
@@ -643,9 +699,10 @@ Command AddBenchCommand(CLI::App& parent) {
                   "Percentile checked against --budget-ms: p50, p90, p99 (default), p99.9, max, or "
                   "a number in (0, 100]");
   cmd->add_flag("--peak", args->peak,
-                "Run only the peak fp32 FMA microbenchmark for --isa and --threads");
+                "Run only the peak microbenchmarks: fp32 FMA for --isa and --threads, int8 and "
+                "bf16 dot products for --threads");
   cmd->add_option("--peak-seconds", args->peak_seconds,
-                  "Time per peak-FMA measurement (default 0.2; 0 skips it in a model run)");
+                  "Time per peak measurement (default 0.2; 0 skips the FMA peak in a model run)");
   cmd->add_option("--json", args->json,
                   "Also write the results as JSON (per configuration median_ms, p90_ms, p99_ms, "
                   "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, steps, "
@@ -668,8 +725,15 @@ Command AddBenchCommand(CLI::App& parent) {
       "version and git describe (at configure time), CPU model (/proc/cpuinfo).\n"
       "Peak resident memory (also peak_rss_mib in the JSON) is the whole process's: with one\n"
       "configuration (one --isa, one --threads) it is one session's, as a deployment has it.\n"
-      "--peak: only the FMA microbenchmark (independent accumulator chains in vector registers)\n"
-      "for each --isa and --threads, no model.\n"
+      "--peak: only the microbenchmarks (independent accumulator chains in vector registers), no\n"
+      "model: the fp32 FMA peak for each --isa and --threads (GFLOP/s, 2 flops per lane and FMA);\n"
+      "then, for each --threads whatever --isa, the int8 peak (vpdpbusd on zmm, AVX-512 VNNI:\n"
+      "GOP/s at 2 integer ops per u8 x s8 multiply-accumulate, and GMAC/s) and the bf16 peak\n"
+      "(vdpbf16ps on zmm, AVX512_BF16: GFLOP/s at 2 flops per bf16 multiply-accumulate, and\n"
+      "GMAC/s), each only where CPUID and XCR0 say the CPU and OS run it, else 'not available\n"
+      "(<why>)'; and 'amx: not available (<the check that failed>)' (AMX is detected only: CPUID,\n"
+      "XCR0, tile palette, arch_prctl permission; no AMX loop yet). --json gets peak, peak_int8,\n"
+      "peak_bf16 and peak_unavailable (the reasons).\n"
       "Exit codes: 0 success (and every budget met), 1 model fails to load, plan or run, 2 usage\n"
       "error, 3 --budget-ms missed: some configuration's --budget-percentile exceeds the budget\n"
       "(each miss is printed as 'budget MISSED: <isa> x<threads> threads <percentile> ...').");

@@ -62,6 +62,10 @@ uint64_t StoredParameterBytes(const Model& model) {
     const uint64_t outs = static_cast<uint64_t>(c.out_channels);
     bytes += c.precision == Precision::kInt8 ? weights + outs * 4 + outs * wide
                                              : (weights + outs) * wide;
+    // The phase kernels of an int8 convolution after an upsampling: 4 x 2x2 taps, 4 scales.
+    if (c.phase_weights_q != nullptr) {
+      bytes += 16 * static_cast<uint64_t>(c.in_channels) * outs + 4 * outs * 4;
+    }
   }
   return bytes;
 }

@@ -26,7 +26,7 @@ std::string BaselineText(const ModelMetadata& meta);
 std::string UntrainedNotice(const std::string& path, TrainingState state);
 
 // Bytes the file stores for the convolutions' parameters: weights (4, 2 or, int8, 1 byte each),
-// biases (4 or 2 bytes) and the int8 layers' weight scales (4 bytes each).
+// biases (4 or 2 bytes), the int8 layers' weight scales (4 bytes each) and phase kernels.
 uint64_t StoredParameterBytes(const Model& model);
 
 // "int8 in 11 of 11 convolutions (...)", or "" when every convolution is float32.

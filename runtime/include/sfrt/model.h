@@ -81,6 +81,12 @@ struct ConvParams {
   const float* weight_scales = nullptr;  // [out_channels]
   QuantParams input_quant;
   QuantParams output_quant;
+  // kInt8 convolutions (3x3, stride 1) that read a nearest-2x upsampling, optional: the four
+  // output phases' 2x2 kernels over the low-resolution map, [4][2][2][in][out] int8 (phase
+  // py * 2 + px, taps ty, tx), real weight = phase_scales[p * out_channels + o] * q. Pixels
+  // whose 3x3 window lies inside the upsampled (and cropped) map use them (kernels/int8_job.h).
+  const int8_t* phase_weights_q = nullptr;
+  const float* phase_scales = nullptr;  // [4 * out_channels]
 };
 
 struct UpsampleParams {  // nearest neighbour

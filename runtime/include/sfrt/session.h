@@ -75,7 +75,7 @@ struct SessionOptions {
 struct PlannedStep {
   // The model layers this step computes, [first_layer, last_layer]. A step that quantises the
   // float32 tensor an int8 convolution reads computes no layer: first_layer = last_layer = the
-  // layer it precedes, and kernel "ref::QuantizeU8".
+  // layer it precedes, and `quantize` is set.
   int first_layer = 0;
   int last_layer = 0;
   const char* kernel = "";  // e.g. "conv2d_f32__avx512_8x32", "ref::Conv2d", "view"

@@ -169,6 +169,7 @@ struct Job {
   ptrdiff_t out_pixel = 0;  // bytes between output pixels
   int x_lo = 0, x_hi = 0;   // output columns whose window lies inside the map
   int zero_point = 0;
+  bool phases = false;  // the fused upsample's interior from the phase kernels
 
   const uint8_t* Source(int y, int x) const {
     if (!up) return a->in.pixel(y, x);
@@ -194,6 +195,47 @@ inline void ZeroPointInit(const int32_t* const* sums, int n, int zero_point, __m
   const __m512i nz = _mm512_set1_epi32(-zero_point);
 #pragma GCC unroll 4
   for (int v = 0; v < NV; ++v) init[v] = _mm512_mullo_epi32(s[v], nz);
+}
+
+// The interior pixels of output row oy (whose 3x3 window lies inside C, first tap on C row
+// iy0) from the 2x2 kernels of their phases over the low-resolution map (int8_job.h): per
+// column phase, every second output pixel, reading consecutive low-resolution pixels.
+template <int MR, int NV>
+void PhaseRow(const Job& j, int blk, const Epilogue& e3x3, int oy, int iy0) {
+  const PackedInt8Conv& p = *j.a->conv;
+  const int ay = iy0 + j.a->crop_top;
+  const int by = ay >> 1;
+  const ptrdiff_t phase_bytes = static_cast<ptrdiff_t>(p.blocks) * 4 * j.tap_bytes;
+  const ptrdiff_t phase_sums = static_cast<ptrdiff_t>(p.blocks) * 4 * kNr;
+  const uint8_t* xs[4 * MR];
+  const int8_t* ws[4];
+  const int32_t* ss[4];
+  __m512i init[NV];
+  for (int px = 0; px < 2; ++px) {
+    // First interior column of this phase: (ox - pl + crop_left) & 1 == px.
+    int ox = j.x_lo + ((j.x_lo - j.pl + j.a->crop_left + px) & 1);
+    if (ox >= j.x_hi) continue;
+    const int phase = (ay & 1) * 2 + px;
+    const int8_t* pw = p.phase_weights + phase * phase_bytes + blk * 4 * j.tap_bytes;
+    const int32_t* ps = p.phase_tap_sums + phase * phase_sums + blk * 4 * kNr;
+    for (int t = 0; t < 4; ++t) {
+      ws[t] = pw + t * j.tap_bytes;
+      ss[t] = ps + t * kNr;
+    }
+    ZeroPointInit<NV>(ss, 4, j.zero_point, init);
+    Epilogue e = e3x3;
+    e.multiplier = p.phase_multiplier + phase * p.blocks * kNr + blk * kNr;
+    // Pixels ox, ox + 2, ... (r of them) read low-resolution columns bx, bx + 1, ...
+    auto tiles = [&](int r) {
+      const int bx = (ox - j.pl + j.a->crop_left) >> 1;
+      for (int t = 0; t < 4; ++t) {
+        for (int m = 0; m < r; ++m) xs[t * r + m] = j.a->in.pixel(by + t / 2, bx + m + t % 2);
+      }
+      TileUpTo<MR, NV>(r, xs, ws, 4, j.groups, init, e, j.Out(oy, ox, blk), 2 * j.out_pixel);
+    };
+    for (; ox + 2 * (MR - 1) < j.x_hi; ox += 2 * MR) tiles(MR);
+    if (ox < j.x_hi) tiles((j.x_hi - ox + 1) / 2);
+  }
 }
 
 // Output rows [row_begin, row_end) of block `blk` with the MR x NV tile.
@@ -254,7 +296,9 @@ void BlockRows(const Job& j, int blk, int row_begin, int row_end) {
     };
 
     for (int ox = 0; ox < j.x_lo; ++ox) single(ox);
-    if (j.x_lo < j.x_hi) {
+    if (j.x_lo < j.x_hi && j.phases && iy0 >= 0 && iy0 + 3 <= j.src_h) {
+      PhaseRow<MR, NV>(j, blk, e, oy, iy0);
+    } else if (j.x_lo < j.x_hi) {
       int n = 0;
       for (int ky = ky_lo; ky < ky_hi; ++ky) {
         for (int kx = 0; kx < j.kw; ++kx) {
@@ -272,8 +316,66 @@ void BlockRows(const Job& j, int blk, int row_begin, int row_end) {
   }
 }
 
+// A convolution with few outputs (p.few_weights; the 64->3 output layer): vectorised over input
+// channels instead, 64 per vpdpbusd, one accumulator per output channel, reduced to an exact
+// int32 sum per pixel; the scalar epilogue (the same Int8Dequantize / Int8Quantize).
+void FewOutRows(const Int8ConvArgs& a, int row_begin, int row_end) {
+  const PackedInt8Conv& p = *a.conv;
+  const int cin = p.in_channels, cout = p.out_channels;
+  const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
+  const int in_h = a.in.height, in_w = a.in.width;
+  const ptrdiff_t row_bytes = static_cast<ptrdiff_t>(cout) * p.few_ci_stride;
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    const int iy0 = oy * p.stride_h - a.pads.top;
+    for (int ox = 0; ox < out_w; ++ox) {
+      const int ix0 = ox * p.stride_w - a.pads.left;
+      __m512i acc[kInt8FewOutChannels];
+      int32_t zsum[kInt8FewOutChannels] = {};
+      for (int o = 0; o < cout; ++o) acc[o] = _mm512_setzero_si512();
+      for (int ky = 0; ky < p.kernel_h; ++ky) {
+        const int iy = iy0 + ky;
+        if (iy < 0 || iy >= in_h) continue;
+        for (int kx = 0; kx < p.kernel_w; ++kx) {
+          const int ix = ix0 + kx;
+          if (ix < 0 || ix >= in_w) continue;
+          const int t = ky * p.kernel_w + kx;
+          const uint8_t* x = a.in.pixel(iy, ix);
+          const int8_t* w = p.few_weights + t * row_bytes;
+          for (int c = 0; c < cin; c += 64) {
+            const int left = cin - c;
+            const __mmask64 m = left >= 64 ? ~__mmask64{0} : (__mmask64{1} << left) - 1;
+            const __m512i xv = _mm512_maskz_loadu_epi8(m, x + c);
+            for (int o = 0; o < cout; ++o) {
+              acc[o] =
+                  _mm512_dpbusd_epi32(acc[o], xv, _mm512_loadu_si512(w + o * p.few_ci_stride + c));
+            }
+          }
+          for (int o = 0; o < cout; ++o) zsum[o] += p.tap_sums[t * p.nr + o];
+        }
+      }
+      for (int o = 0; o < cout; ++o) {
+        alignas(64) int32_t lanes[kLanes];
+        _mm512_store_si512(lanes, acc[o]);
+        int32_t sum = -p.in_zero_point * zsum[o];
+        for (int l = 0; l < kLanes; ++l) sum += lanes[l];
+        const float y =
+            Int8Dequantize(sum, p.multiplier[o], p.bias[o], p.activation, p.leaky_slope);
+        if (p.out_float) {
+          a.out_f32.pixel(oy, ox)[o] = y;
+        } else {
+          a.out_u8.pixel(oy, ox)[o] = Int8Quantize(y, p.out_inv_scale, p.out_zero_point);
+        }
+      }
+    }
+  }
+}
+
 void Rows(const Int8ConvArgs& a, bool up, int row_begin, int row_end, int blk_begin, int blk_end) {
   const PackedInt8Conv& p = *a.conv;
+  if (!up && p.few_weights != nullptr) {
+    if (blk_begin == 0 && blk_end > 0) FewOutRows(a, row_begin, row_end);
+    return;
+  }
   Job j;
   j.a = &a;
   j.up = up;
@@ -294,6 +396,7 @@ void Rows(const Int8ConvArgs& a, bool up, int row_begin, int row_end, int blk_be
   j.x_lo = MinOf(j.out_w, (j.pl + j.sw - 1) / j.sw);
   j.x_hi = MaxOf(j.x_lo, MinOf(j.out_w, FloorDiv(j.src_w - j.kw + j.pl, j.sw) + 1));
   j.zero_point = p.in_zero_point;
+  j.phases = up && p.phase_weights != nullptr;
 
   for (int blk = blk_begin; blk < blk_end; ++blk) {
     const int valid = MinOf(kNr, p.out_channels - blk * kNr);

@@ -5,6 +5,24 @@
 
 namespace sfrt::ref {
 
+namespace {
+
+// The epilogue of output channels [c0, c0 + cn) of pixel (oy, ox).
+void Finish(const PackedInt8Conv& p, const int32_t* acc, const float* multiplier,
+            const Int8ConvArgs& a, int oy, int ox, int c0, int cn) {
+  for (int co = 0; co < cn; ++co) {
+    const int o = c0 + co;
+    const float y = Int8Dequantize(acc[co], multiplier[o], p.bias[o], p.activation, p.leaky_slope);
+    if (p.out_float) {
+      a.out_f32.pixel(oy, ox)[o] = y;
+    } else {
+      a.out_u8.pixel(oy, ox)[o] = Int8Quantize(y, p.out_inv_scale, p.out_zero_point);
+    }
+  }
+}
+
+}  // namespace
+
 void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk_begin*/,
                     int /*blk_end*/) {
   const PackedInt8Conv& p = *a.conv;
@@ -20,6 +38,8 @@ void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk
     return a.in.pixel((y + a.crop_top) / 2, (x + a.crop_left) / 2);
   };
   const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
+  const bool phases = a.upsampled && p.phase_weights_hwio != nullptr;
+  const size_t phase_hwio = static_cast<size_t>(4) * cin * cout;
   constexpr int kChunk = 256;  // output channels summed at once (the sums live on the stack)
   int32_t acc[kChunk];
   for (int oy = row_begin; oy < row_end; ++oy) {
@@ -27,6 +47,27 @@ void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk
       for (int c0 = 0; c0 < cout; c0 += kChunk) {
         const int cn = cout - c0 < kChunk ? cout - c0 : kChunk;
         for (int co = 0; co < cn; ++co) acc[co] = 0;
+        const int cy0 = oy - a.pads.top, cx0 = ox - a.pads.left;
+        const bool inside = cy0 >= 0 && cy0 + 3 <= src_h && cx0 >= 0 && cx0 + 3 <= src_w;
+        if (phases && inside) {
+          // The 2x2 kernel of this pixel's phase over the low-resolution map.
+          const int ay = cy0 + a.crop_top, ax = cx0 + a.crop_left;
+          const int phase = (ay & 1) * 2 + (ax & 1);
+          const int8_t* pw = p.phase_weights_hwio + phase * phase_hwio;
+          for (int t = 0; t < 4; ++t) {
+            const uint8_t* x = a.in.pixel(ay / 2 + t / 2, ax / 2 + t % 2);
+            const int8_t* w = pw + static_cast<ptrdiff_t>(t) * cin * cout + c0;
+            for (int ci = 0; ci < cin; ++ci) {
+              const int32_t xv = static_cast<int32_t>(x[ci]) - zp;
+              const int8_t* w_row = w + static_cast<ptrdiff_t>(ci) * cout;
+              for (int co = 0; co < cn; ++co) acc[co] += xv * static_cast<int32_t>(w_row[co]);
+            }
+          }
+          const float* multiplier =
+              p.phase_multiplier + phase * (p.nr > 0 ? p.blocks * p.nr : cout);
+          Finish(p, acc, multiplier, a, oy, ox, c0, cn);
+          continue;
+        }
         for (int ky = 0; ky < p.kernel_h; ++ky) {
           const int iy = oy * p.stride_h - a.pads.top + ky;
           if (iy < 0 || iy >= src_h) continue;  // padding is real zero: adds nothing
@@ -43,16 +84,7 @@ void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk
             }
           }
         }
-        for (int co = 0; co < cn; ++co) {
-          const int o = c0 + co;
-          const float y =
-              Int8Dequantize(acc[co], p.multiplier[o], p.bias[o], p.activation, p.leaky_slope);
-          if (p.out_float) {
-            a.out_f32.pixel(oy, ox)[o] = y;
-          } else {
-            a.out_u8.pixel(oy, ox)[o] = Int8Quantize(y, p.out_inv_scale, p.out_zero_point);
-          }
-        }
+        Finish(p, acc, p.multiplier, a, oy, ox, c0, cn);
       }
     }
   }

@@ -52,6 +52,11 @@ struct ConvSpec {
   std::vector<float> weight_scales;  // out_channels
   QuantParams input_quant;
   QuantParams output_quant;
+  // kInt8, 3x3 stride 1, reading a nearest-2x upsampling: optional phase kernels (sfrt/model.h,
+  // ConvParams::phase_weights_q): 4 * 2 * 2 * in_channels * out_channels int8 values and
+  // 4 * out_channels scales; both empty otherwise.
+  std::vector<int8_t> phase_weights_q;
+  std::vector<float> phase_scales;
 };
 
 struct UpsampleSpec {

@@ -95,6 +95,14 @@ QuantParams ActivationQuantParams(double lo, double hi);
 void QuantizeWeights(std::span<const float> hwio, int out_channels, std::vector<int8_t>* q,
                      std::vector<float>* scales);
 
+// The phase kernels of a 3x3 convolution that reads a nearest-2x upsampling (sfrt/model.h,
+// ConvParams::phase_weights_q): for phase (py, px) and tap (ty, tx), the float sum of the 3x3
+// taps that read the same low-resolution pixel (along an axis, phase 0: tap 0 = w0 + w1,
+// tap 1 = w2; phase 1: tap 0 = w0, tap 1 = w1 + w2), each phase then quantised like
+// QuantizeWeights. q: [4][2][2][in][out]; scales: [4][out].
+void QuantizePhaseWeights(std::span<const float> hwio3x3, int in_channels, int out_channels,
+                          std::vector<int8_t>* q, std::vector<float>* scales);
+
 // The SHA-256 (lowercase hex) of the calibration values as little-endian float32, in order.
 std::string CalibrationDataSha256(const CalibrationSet& data);
 

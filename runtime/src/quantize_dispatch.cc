@@ -1,0 +1,14 @@
+#include "kernels/int8_job.h"
+#include "kernels/ref/conv2d_int8_ref.h"
+
+namespace sfrt {
+
+QuantizeRowsFn QuantizeRowsFor(Isa isa) {
+#if SFRT_HAVE_AVX512_VNNI
+  if (isa == Isa::kAvx512 && avx512::Int8Kernels() != nullptr) return avx512::QuantizeRows;
+#endif
+  (void)isa;
+  return ref::QuantizeRows;
+}
+
+}  // namespace sfrt
