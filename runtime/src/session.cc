@@ -96,18 +96,23 @@ Result<Isa> ResolveIsa(Isa requested) {
   return requested;
 }
 
-// A SIMD convolution split into work items: output-channel block major, then `chunks` row
-// ranges, so threads taking consecutive items share one block's weights in cache while they
-// write disjoint rows, and a layer with many blocks hands each thread whole blocks.
-struct ConvJob {
-  ConvRowsFn fn;
-  const ConvArgs* args;
+// A SIMD convolution (float32: ConvRowsFn/ConvArgs; int8: Int8ConvRowsFn/Int8ConvArgs) split
+// into work items: output-channel block major, then `chunks` row ranges, so threads taking
+// consecutive items share one block's weights in cache while they write disjoint rows, and a
+// layer with many blocks hands each thread whole blocks.
+template <typename Fn, typename Args>
+struct BlockedConvJob {
+  Fn fn;
+  const Args* args;
   int rows;
   int chunks;
 };
+using ConvJob = BlockedConvJob<ConvRowsFn, ConvArgs>;
+using Int8ConvJob = BlockedConvJob<Int8ConvRowsFn, Int8ConvArgs>;
 
-void ConvTrampoline(void* ctx, int begin, int end) {
-  const ConvJob* job = static_cast<const ConvJob*>(ctx);
+template <typename Job>
+void BlockedConvTrampoline(void* ctx, int begin, int end) {
+  const Job* job = static_cast<const Job*>(ctx);
   for (int item = begin; item < end;) {
     const int blk = item / job->chunks;
     const int chunk = item % job->chunks;
@@ -127,28 +132,6 @@ int ConvChunks(int blocks, int rows, int threads) {
   int chunks = (want + blocks - 1) / blocks;
   if (chunks > rows) chunks = rows;
   return chunks < 1 ? 1 : chunks;
-}
-
-// An int8 convolution split like ConvJob.
-struct Int8ConvJob {
-  Int8ConvRowsFn fn;
-  const Int8ConvArgs* args;
-  int rows;
-  int chunks;
-};
-
-void Int8ConvTrampoline(void* ctx, int begin, int end) {
-  const Int8ConvJob* job = static_cast<const Int8ConvJob*>(ctx);
-  for (int item = begin; item < end;) {
-    const int blk = item / job->chunks;
-    const int chunk = item % job->chunks;
-    const int last_chunk =
-        end - blk * job->chunks < job->chunks ? end - blk * job->chunks : job->chunks;
-    const int r0 = static_cast<int>(static_cast<long long>(job->rows) * chunk / job->chunks);
-    const int r1 = static_cast<int>(static_cast<long long>(job->rows) * last_chunk / job->chunks);
-    job->fn(*job->args, r0, r1, blk, blk + 1);
-    item = blk * job->chunks + last_chunk;
-  }
 }
 
 struct QuantizeJob {
@@ -602,7 +585,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       step.fn8(args, 0, rows, 0, blocks);
     } else {
       Int8ConvJob job{step.fn8, &args, rows, ConvChunks(blocks, rows, threads_)};
-      pool_->ParallelFor(blocks * job.chunks, Int8ConvTrampoline, &job);
+      pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Int8ConvJob>, &job);
     }
   };
   ConstByteView cur8;  // the current tensor when it is uint8 (cur8.data != null)
@@ -692,7 +675,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         } else {
           ConvJob job{step.fn, &args, out.height,
                       ConvChunks(step.packed.blocks, out.height, threads_)};
-          pool_->ParallelFor(step.packed.blocks * job.chunks, ConvTrampoline, &job);
+          pool_->ParallelFor(step.packed.blocks * job.chunks, BlockedConvTrampoline<ConvJob>, &job);
         }
         break;
       }

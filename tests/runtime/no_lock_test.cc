@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
 #include "sfrt/isa.h"
@@ -93,8 +94,10 @@ Counts Since(const Counts& before) {
 class NoLock : public ::testing::Test {
  protected:
   // Runs `runs` frames at 96x128 after `warm_up` frames; returns what was called meanwhile.
-  Counts CountDuringRuns(const SessionOptions& options, int warm_up, int runs) {
-    auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  // int8: the model in int8 (uint8 tensors, the quantising step, the int8 kernels).
+  Counts CountDuringRuns(const SessionOptions& options, int warm_up, int runs, bool int8 = false) {
+    auto model = testing::LoadOrDie(int8 ? testing::Int8Spec(testing::SceneEdNetSpec(16))
+                                         : testing::SceneEdNetSpec(16));
     auto session = Session::Create(model, options);
     EXPECT_TRUE(session.ok()) << session.message();
     if (!session.ok()) return {};
@@ -139,19 +142,21 @@ TEST_F(NoLock, CountingHooksSeeAMutexAndAFutex) {
 
 TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
   for (Isa isa : SupportedIsas()) {
-    SCOPED_TRACE(IsaName(isa));
-    SessionOptions options;
-    options.max_height = 96;
-    options.max_width = 128;
-    options.isa = isa;
-    options.threads = 2;
-    options.spin_us = -1;  // never sleep: the steady state of a busy pipeline, made certain
-    // 100 runs on the SIMD paths; the scalar reference is ~50x slower, so fewer there.
-    const Counts c = CountDuringRuns(options, 5, isa == Isa::kRef ? 10 : 100);
-    EXPECT_EQ(c.mutex_locks, 0);
-    EXPECT_EQ(c.cond_waits, 0);
-    EXPECT_EQ(c.futex_calls, 0);
-    EXPECT_EQ(c.syscalls, 0);
+    for (bool int8 : {false, true}) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + (int8 ? " int8" : " fp32"));
+      SessionOptions options;
+      options.max_height = 96;
+      options.max_width = 128;
+      options.isa = isa;
+      options.threads = 2;
+      options.spin_us = -1;  // never sleep: the steady state of a busy pipeline, made certain
+      // 100 runs on the SIMD paths; the scalar reference is ~50x slower, so fewer there.
+      const Counts c = CountDuringRuns(options, 5, isa == Isa::kRef ? 10 : 100, int8);
+      EXPECT_EQ(c.mutex_locks, 0);
+      EXPECT_EQ(c.cond_waits, 0);
+      EXPECT_EQ(c.futex_calls, 0);
+      EXPECT_EQ(c.syscalls, 0);
+    }
   }
 }
 

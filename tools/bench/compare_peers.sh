@@ -14,13 +14,15 @@
 #          [ROUNDS=3] [RUNS=2]
 # --peers: any of ort, ort-int8, opencv, torch-bf16, torch-fp32 (default ort,opencv). The
 #   strongest on x86: --peers ort,ort-int8,torch-bf16. At full width 540x960, 2 threads, one
-#   run takes about 2 s (ort), 1 s (ort-int8, torch-bf16), 3 s (opencv).
+#   run takes seconds: about 2 s (ort), 1-2 s (ort-int8, torch-bf16), 3 s (opencv).
 #   ort-int8: MODEL turned into a QDQ int8 ONNX by make_qdq_onnx.py (int8 weights per channel,
 #   uint8 activations, ranges from the calibration frames); before the rounds one profiled run
 #   (ORT's profiler) must show QLinearConv and no float Conv, and prints its error against ort.
 #   torch-bf16: the network in PyTorch eager bfloat16, channels_last; before the rounds one run
 #   with oneDNN verbose must show every convolution in bf16 (e.g. brgconv:avx512_core_bf16).
-#   torch-fp32: the same in float32.
+#   torch-fp32: the same in float32. The torch peers run with OMP_WAIT_POLICY=PASSIVE unless it
+#   is set: on a shared 2-core machine spinning OpenMP threads made 2-thread runs up to 20x
+#   slower (270x480, 1/8 width) and far more variable.
 # --sfrt-precision: fp32, int8 or both (default fp32), one row each; int8 is exported with
 #   `sfrt export MODEL.onnx --precision int8 --calibration CAL.npy` (its error is printed).
 # --calibration: float32 .npy (N,H,W,12) network inputs for sfrt int8 and ort-int8 alike
@@ -137,6 +139,7 @@ if [[ -n "${use[ort-int8]:-}${use[torch-bf16]:-}${use[torch-fp32]:-}" ]]; then
            "(apt-get install python3-torch python3-onnx python3-numpy)" >&2; exit 1; }
 fi
 
+torch_omp="${OMP_WAIT_POLICY:-PASSIVE}"  # PyTorch's OpenMP threads only (--help)
 work="$(mktemp -d)"
 trap 'rm -rf "${work}"' EXIT
 IFS=',' read -r -a thread_counts <<<"${threads_list}"
@@ -200,8 +203,9 @@ PY
 fi
 for dtype in bf16 fp32; do
   [[ -n "${use[torch-${dtype}]:-}" ]] || continue
-  "${python}" "${here}/torch_bench.py" --dtype "${dtype}" --verbose-kernels "${model}" \
-    "${height}" "${width}" "${t0}" 1 0 >"${work}/torch-${dtype}-check.json" 2>"${work}/torch.err" ||
+  OMP_WAIT_POLICY="${torch_omp}" "${python}" "${here}/torch_bench.py" --dtype "${dtype}" \
+    --verbose-kernels "${model}" "${height}" "${width}" "${t0}" 1 0 \
+    >"${work}/torch-${dtype}-check.json" 2>"${work}/torch.err" ||
     { tail -n 5 "${work}/torch.err" >&2; echo "${me}: torch_bench.py failed" >&2; exit 1; }
   "${python}" - "${work}/torch-${dtype}-check.json" "${dtype}" <<'PY' ||
 import json, sys
@@ -232,8 +236,8 @@ for round in $(seq 1 "${rounds}"); do
           [[ "${p}" == ort ]] && onnx="${model}" || onnx="${qdq}"
           node "${here}/ort_bench.mjs" "${onnx}" "${height}" "${width}" "${t}" "${runs}" 1 >"${out}" ;;
         torch-*)
-          "${python}" "${here}/torch_bench.py" --dtype "${p#torch-}" "${model}" "${height}" "${width}" \
-            "${t}" "${runs}" 1 >"${out}" ;;
+          OMP_WAIT_POLICY="${torch_omp}" "${python}" "${here}/torch_bench.py" --dtype "${p#torch-}" \
+            "${model}" "${height}" "${width}" "${t}" "${runs}" 1 >"${out}" ;;
         opencv)
           if ! "${opencv_bench}" "${opencv_model}" "${height}" "${width}" "${t}" "${runs}" 1 \
             >"${out}" 2>"${work}/opencv.err"; then
