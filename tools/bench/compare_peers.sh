@@ -64,9 +64,13 @@ while [[ $# -gt 0 ]]; do
     *) break ;;
   esac
 done
-if [[ $# -lt 2 || "$1" == "-h" || "$1" == "--help" ]]; then
+if [[ $# -ge 1 && ( "$1" == "-h" || "$1" == "--help" ) ]]; then
   usage
-  [[ $# -ge 2 ]] && exit 0 || exit 2
+  exit 0
+fi
+if [[ $# -lt 2 ]]; then
+  usage >&2
+  exit 2
 fi
 known_peers="ort ort-int8 opencv torch-bf16 torch-fp32"
 IFS=',' read -r -a peer_list <<<"${peers}"
