@@ -6,6 +6,10 @@
 
 namespace sfrt {
 
+bool Int8KernelsAvailable(Isa isa) {
+  return Int8KernelsFor(isa == Isa::kAuto ? BestIsa() : isa) != nullptr;
+}
+
 // The int8 kernels exist for AVX-512 VNNI and for NEON with the dot-product extensions (sdot,
 // or sudot with i8mm); every other ISA uses the reference.
 const IsaInt8Kernels* Int8KernelsFor(Isa isa) {

@@ -399,6 +399,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
       !notice.empty()) {
     std::cout << notice << "\n";
   }
+  if (std::string notice = Int8FallbackNotice(**loaded, options.isa); !notice.empty()) {
+    std::cout << notice << "\n";
+  }
   pipeline::PipelineResult result =
       RunConfiguredPipeline(rc, *loaded, source.get(), options, again);
   if (!result.started) {  // nothing ran: no statistics to show

@@ -89,21 +89,18 @@ std::string ErrorText(double value) {
   return buf;
 }
 
-std::string Int8FallbackNotice(const Session& session) {
-  if (session.isa() == Isa::kRef) return "";
-  int on_reference = 0;
-  for (const PlannedStep& step : session.steps()) {
-    if (step.precision == Precision::kInt8 && !step.quantize &&
-        std::string_view(step.kernel).starts_with("ref::")) {
-      ++on_reference;
-    }
+std::string Int8FallbackNotice(const Model& model, Isa isa) {
+  if (isa == Isa::kAuto) isa = BestIsa();
+  if (isa == Isa::kRef || Int8KernelsAvailable(isa)) return "";
+  int int8 = 0;
+  for (const LayerDesc& layer : model.layers()) {
+    int8 += layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kInt8;
   }
-  if (on_reference == 0) return "";
-  return "note: " + std::to_string(on_reference) + " int8 convolution" +
-         (on_reference == 1 ? " runs" : "s run") +
-         " on the scalar reference kernel: " + IsaName(session.isa()) +
-         " has no int8 kernels on this CPU (they need AVX-512 VNNI); a float32 model is faster "
-         "here";
+  if (int8 == 0) return "";
+  return "note: " + std::to_string(int8) + " int8 convolution" + (int8 == 1 ? " runs" : "s run") +
+         " on the scalar reference kernel: " + IsaName(isa) +
+         " has no int8 kernels on this CPU (avx512 needs AVX-512 VNNI, neon the dot-product "
+         "extension); a float32 model is faster here";
 }
 
 }  // namespace sfrt::tools

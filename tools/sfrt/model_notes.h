@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <string>
 
+#include "sfrt/isa.h"
 #include "sfrt/model.h"
-#include "sfrt/session.h"
 
 namespace sfrt::tools {
 
@@ -32,11 +32,12 @@ uint64_t StoredParameterBytes(const Model& model);
 // "int8 in 11 of 11 convolutions (...)", or "" when every convolution is float32.
 std::string Int8LayersText(const Model& model);
 
-// One line when int8 convolutions of `session` run on the scalar reference kernel although an
-// optimised ISA was chosen (that ISA has no int8 kernels on this CPU: they need AVX-512 VNNI),
-// e.g. "note: 11 int8 convolutions run on the scalar reference kernel: avx2 has no int8
-// kernels on this CPU (they need AVX-512 VNNI); a float32 model is faster here"; else "".
-std::string Int8FallbackNotice(const Session& session);
+// One line when the int8 convolutions of `model` will run on the scalar reference kernel in a
+// session on `isa` (kAuto: the best), an optimised ISA without int8 kernels on this CPU
+// (Int8KernelsAvailable), e.g. "note: 11 int8 convolutions run on the scalar reference kernel:
+// avx2 has no int8 kernels on this CPU (avx512 needs AVX-512 VNNI, neon the dot-product
+// extension); a float32 model is faster here"; else "".
+std::string Int8FallbackNotice(const Model& model, Isa isa);
 
 // Calibration errors as the commands print them: "1.23e-02".
 std::string ErrorText(double value);

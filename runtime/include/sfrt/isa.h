@@ -33,4 +33,9 @@ Isa BestIsa();
 // "ref, avx2, avx512": the supported ISAs as text, for messages.
 std::string SupportedIsaList();
 
+// True when a session on `isa` (kAuto: BestIsa()) runs int8 convolutions on SIMD int8 kernels:
+// avx512 on a CPU with AVX-512 VNNI, neon on a CPU with the dot-product extension. Otherwise
+// (and on kRef) its int8 layers run on the scalar reference kernel: the same results, slower.
+bool Int8KernelsAvailable(Isa isa);
+
 }  // namespace sfrt
