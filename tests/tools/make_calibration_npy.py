@@ -38,6 +38,7 @@ def main():
     np.save(os.path.join(out, "rank2.npy"), frames(1, 48, 64, 1, 7)[0, :, :, 0])
     np.save(os.path.join(out, "constant.npy"), np.full((2, 48, 64, 12), 0.5, np.float32))
     np.save(os.path.join(out, "empty.npy"), np.zeros((0, 48, 64, 12), np.float32))
+    np.save(os.path.join(out, "tiny.npy"), frames(1, 3, 5, 12, 8))
     return 0
 
 

@@ -42,7 +42,7 @@ Result<exporter::CalibrationSet> ReadCalibrationNpy(const std::string& path, int
     }
   }
   if (std::string problem =
-          config::CheckSize(config::kInputSide, path + ": shape " + array->ShapeString() + ":",
+          config::CheckSize(config::kInputSide, path + ": shape " + array->ShapeString(),
                             shape[first], shape[first + 1]);
       !problem.empty()) {
     return Status::Error(problem);
