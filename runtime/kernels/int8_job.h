@@ -194,12 +194,16 @@ const IsaInt8Kernels* Int8Kernels();
 // before an int8 convolution that reads a float32 tensor). Safe on disjoint row ranges.
 using QuantizeRowsFn = void (*)(const ConstTensorView& in, float inv_scale, int zero_point,
                                 const ByteView& out, int row_begin, int row_end);
-// The ISA's vectorised quantisation where the CPU runs the ISA's int8 kernels (the same bytes
-// as Int8Quantize), else ref::QuantizeRows.
+// The ISA's vectorised quantisation (the same bytes as Int8Quantize): avx512 where the CPU runs
+// its int8 kernels (VNNI), neon always; else ref::QuantizeRows.
 QuantizeRowsFn QuantizeRowsFor(Isa isa);
 namespace avx512 {
 void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
                   int row_begin, int row_end);
-}  // namespace avx512
+}
+namespace neon {
+void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
+                  int row_begin, int row_end);
+}  // namespace neon
 
 }  // namespace sfrt

@@ -7,6 +7,9 @@ QuantizeRowsFn QuantizeRowsFor(Isa isa) {
 #if SFRT_HAVE_AVX512_VNNI
   if (isa == Isa::kAvx512 && avx512::Int8Kernels() != nullptr) return avx512::QuantizeRows;
 #endif
+#if SFRT_HAVE_NEON
+  if (isa == Isa::kNeon) return neon::QuantizeRows;
+#endif
   (void)isa;
   return ref::QuantizeRows;
 }

@@ -1,5 +1,6 @@
 #include "sfrt/reference.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>

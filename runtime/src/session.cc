@@ -280,7 +280,9 @@ Status Session::Plan() {
       q.kind = Step::Kind::kQuantize;
       q.first_layer = q.last_layer = i;
       q.quantize = QuantizeRowsFor(isa_);
-      q.kernel = q.quantize == ref::QuantizeRows ? "ref::QuantizeU8" : "quantize_u8__avx512";
+      q.kernel = q.quantize == ref::QuantizeRows ? "ref::QuantizeU8"
+                 : isa_ == Isa::kNeon            ? "quantize_u8__neon"
+                                                 : "quantize_u8__avx512";
       q.out_u8 = true;
       q.quant = layers[consumer].conv.input_quant;
       q.precision = Precision::kInt8;
