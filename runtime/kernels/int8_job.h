@@ -195,8 +195,12 @@ const IsaInt8Kernels* Int8Kernels();
 using QuantizeRowsFn = void (*)(const ConstTensorView& in, float inv_scale, int zero_point,
                                 const ByteView& out, int row_begin, int row_end);
 // The ISA's vectorised quantisation (the same bytes as Int8Quantize): avx512 where the CPU runs
-// its int8 kernels (VNNI), neon always; else ref::QuantizeRows.
-QuantizeRowsFn QuantizeRowsFor(Isa isa);
+// its int8 kernels (VNNI), neon always; else ref::QuantizeRows. `name` is what steps() shows.
+struct QuantizeKernel {
+  QuantizeRowsFn fn = nullptr;
+  const char* name = "";
+};
+QuantizeKernel QuantizeKernelFor(Isa isa);
 namespace avx512 {
 void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
                   int row_begin, int row_end);

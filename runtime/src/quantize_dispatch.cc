@@ -3,15 +3,17 @@
 
 namespace sfrt {
 
-QuantizeRowsFn QuantizeRowsFor(Isa isa) {
+QuantizeKernel QuantizeKernelFor(Isa isa) {
 #if SFRT_HAVE_AVX512_VNNI
-  if (isa == Isa::kAvx512 && avx512::Int8Kernels() != nullptr) return avx512::QuantizeRows;
+  if (isa == Isa::kAvx512 && avx512::Int8Kernels() != nullptr) {
+    return {avx512::QuantizeRows, "quantize_u8__avx512"};
+  }
 #endif
 #if SFRT_HAVE_NEON
-  if (isa == Isa::kNeon) return neon::QuantizeRows;
+  if (isa == Isa::kNeon) return {neon::QuantizeRows, "quantize_u8__neon"};
 #endif
   (void)isa;
-  return ref::QuantizeRows;
+  return {ref::QuantizeRows, "ref::QuantizeU8"};
 }
 
 }  // namespace sfrt

@@ -279,10 +279,9 @@ Status Session::Plan() {
       Step q;
       q.kind = Step::Kind::kQuantize;
       q.first_layer = q.last_layer = i;
-      q.quantize = QuantizeRowsFor(isa_);
-      q.kernel = q.quantize == ref::QuantizeRows ? "ref::QuantizeU8"
-                 : isa_ == Isa::kNeon            ? "quantize_u8__neon"
-                                                 : "quantize_u8__avx512";
+      const QuantizeKernel quantize = QuantizeKernelFor(isa_);
+      q.quantize = quantize.fn;
+      q.kernel = quantize.name;
       q.out_u8 = true;
       q.quant = layers[consumer].conv.input_quant;
       q.precision = Precision::kInt8;
