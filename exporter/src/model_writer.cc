@@ -108,7 +108,15 @@ std::string LayerLabel(size_t i, const std::string& name) {
 }
 
 fb::Precision ToSchema(Precision p) {
-  return p == Precision::kInt8 ? fb::Precision::Int8 : fb::Precision::Float32;
+  switch (p) {
+    case Precision::kInt8:
+      return fb::Precision::Int8;
+    case Precision::kBFloat16:
+      return fb::Precision::BFloat16;
+    case Precision::kFloat32:
+      break;
+  }
+  return fb::Precision::Float32;
 }
 
 // The counts an int8 convolution's fields must have; empty when they do.
@@ -192,6 +200,10 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       const bool int8 = c->precision == Precision::kInt8;
       if (int8 && options.schema_minor < 3) {
         return Status::Error(where + ": precision int8 needs schema 1.3; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      if (c->precision == Precision::kBFloat16 && options.schema_minor < 4) {
+        return Status::Error(where + ": precision bf16 needs schema 1.4; writing 1." +
                              std::to_string(options.schema_minor));
       }
       if (int8) {

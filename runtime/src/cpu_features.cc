@@ -45,6 +45,11 @@ CpuFeatures Detect() {
   f.avx2_fma = avx2 && fma && ymm_state;
   f.avx512 = f.avx2_fma && avx512f && avx512dq && avx512bw && avx512vl && zmm_state;
   f.avx512_vnni = f.avx512 && avx512vnni;
+  unsigned max_sub = 0;
+  if (__get_cpuid_count(7, 0, &max_sub, &ebx, &ecx, &edx) && max_sub >= 1 &&
+      __get_cpuid_count(7, 1, &eax, &ebx, &ecx, &edx)) {
+    f.avx512_bf16 = f.avx512 && ((eax >> 5) & 1);
+  }
 #elif defined(__aarch64__)
   f.neon = (getauxval(AT_HWCAP) & HWCAP_ASIMD) != 0;
 #endif

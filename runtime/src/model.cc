@@ -201,6 +201,8 @@ const char* PrecisionName(Precision precision) {
       return "fp32";
     case Precision::kInt8:
       return "int8";
+    case Precision::kBFloat16:
+      return "bf16";
   }
   return "?";
 }
@@ -626,11 +628,16 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           case fb::Precision::Int8:
             p.precision = Precision::kInt8;
             break;
+          case fb::Precision::BFloat16:
+            p.precision = Precision::kBFloat16;
+            metadata_.has_bf16 = true;
+            break;
           default:
             return check.Fail(
                 where + ": precision is value " + std::to_string(static_cast<int>(c->precision())) +
                 ", which this runtime (schema " + std::to_string(kSchemaVersionMajor) + "." +
-                std::to_string(kSchemaVersionMinor) + ") does not know; it runs fp32 and int8");
+                std::to_string(kSchemaVersionMinor) +
+                ") does not know; it runs fp32, int8 and bf16");
         }
         if (p.precision == Precision::kInt8) {
           if (Status s = TakeInt8Params(check, where, *c, p); !s.ok()) return s;
@@ -644,6 +651,13 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         if (p.precision == Precision::kInt8 && p.weights_q == nullptr) {
           return check.Fail(where + ": precision is int8 but weights.dtype is not int8");
+        }
+        if (p.precision != Precision::kInt8 &&
+            (c->weight_scales() != nullptr || c->input_quant() != nullptr ||
+             c->output_quant() != nullptr)) {
+          return check.Fail(where +
+                            ": quantisation fields are given but the layer's precision is " +
+                            PrecisionName(p.precision) + ", not int8");
         }
         if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
         if (c->phase_weights() != nullptr || c->phase_scales() != nullptr) {
@@ -734,10 +748,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     c.output_rms_rel = cal->output_rms_rel();
     if (cal->layers() != nullptr) {
       for (const fb::LayerError* e : *cal->layers()) {
-        c.layers.push_back(
-            {Str(e->layer()),
-             e->precision() == fb::Precision::Int8 ? Precision::kInt8 : Precision::kFloat32,
-             e->relative_rms()});
+        c.layers.push_back({Str(e->layer()),
+                            e->precision() == fb::Precision::Int8       ? Precision::kInt8
+                            : e->precision() == fb::Precision::BFloat16 ? Precision::kBFloat16
+                                                                        : Precision::kFloat32,
+                            e->relative_rms()});
       }
     }
     metadata_.calibration = std::move(c);

@@ -5,8 +5,11 @@
 #include <string>
 #include <vector>
 
+#include "bf16_packing.h"
 #include "int8_packing.h"
+#include "kernels/bf16_job.h"
 #include "kernels/int8_job.h"
+#include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/resample_ref.h"
@@ -14,21 +17,26 @@
 namespace sfrt {
 namespace {
 
-// The index of the next convolution after layer i, or -1.
-int NextConv(std::span<const LayerDesc> layers, size_t i) {
-  for (size_t k = i + 1; k < layers.size(); ++k) {
+// The index of the first convolution at or after layer i, or -1.
+int ConvFrom(std::span<const LayerDesc> layers, size_t i) {
+  for (size_t k = i; k < layers.size(); ++k) {
     if (layers[k].kind == LayerKind::kConv2D) return static_cast<int>(k);
   }
   return -1;
 }
 
-// A tensor in one of the two element types.
+// The index of the next convolution after layer i, or -1.
+int NextConv(std::span<const LayerDesc> layers, size_t i) { return ConvFrom(layers, i + 1); }
+
+// A tensor in one of the three element types.
 struct Tensor {
   TensorShape shape;
   bool is_u8 = false;
+  bool is_bf16 = false;
   QuantParams quant;  // when is_u8
   std::vector<float> f;
   std::vector<uint8_t> q;
+  std::vector<uint16_t> h;  // when is_bf16
 
   ConstTensorView fview() const {
     return {f.data(), shape.height, shape.width, shape.channels,
@@ -38,7 +46,16 @@ struct Tensor {
     return {q.data(), shape.height, shape.width, shape.channels,
             static_cast<ptrdiff_t>(shape.width) * shape.channels};
   }
+  ConstBf16View hview() const {
+    return {h.data(), shape.height, shape.width, shape.channels,
+            static_cast<ptrdiff_t>(shape.width) * shape.channels};
+  }
   std::vector<float> Real() const {
+    if (is_bf16) {
+      std::vector<float> r(h.size());
+      for (size_t k = 0; k < h.size(); ++k) r[k] = Bf16ToFloat(h[k]);
+      return r;
+    }
     if (!is_u8) return f;
     std::vector<float> r(q.size());
     for (size_t k = 0; k < q.size(); ++k) {
@@ -58,6 +75,23 @@ Tensor Quantized(const Tensor& t, const QuantParams& quant) {
                     DenseByteView(out.q.data(), t.shape.height, t.shape.width, t.shape.channels), 0,
                     t.shape.height);
   return out;
+}
+
+Tensor ToBf16(const Tensor& t) {
+  Tensor out;
+  out.shape = t.shape;
+  out.is_bf16 = true;
+  out.h.resize(t.shape.elements());
+  ref::ToBf16Rows(t.fview(),
+                  DenseBf16View(out.h.data(), t.shape.height, t.shape.width, t.shape.channels), 0,
+                  t.shape.height);
+  return out;
+}
+
+// 64-byte-aligned scratch of `bytes` bytes inside `storage`.
+void* AlignedScratch(std::vector<uint8_t>& storage, size_t bytes) {
+  storage.resize(bytes + 64);
+  return storage.data() + (64 - reinterpret_cast<uintptr_t>(storage.data()) % 64) % 64;
 }
 
 }  // namespace
@@ -86,24 +120,64 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
   cur.f.assign(input.begin(), input.begin() + static_cast<ptrdiff_t>(cur.shape.elements()));
   for (size_t i = 0; i < layers.size(); ++i) {
     const LayerDesc& layer = layers[i];
+    // A float32 tensor that an int8 or bf16 convolution reads is converted where the session
+    // converts it: before the upsamplings and crops between them.
+    const int reader = ConvFrom(layers, i);
+    if (!cur.is_u8 && !cur.is_bf16 && reader >= 0) {
+      const ConvParams& c = layers[static_cast<size_t>(reader)].conv;
+      if (c.precision == Precision::kInt8) cur = Quantized(cur, c.input_quant);
+      if (c.precision == Precision::kBFloat16) cur = ToBf16(cur);
+    }
     Tensor next;
     next.shape = g[i].output;
     const TensorShape& s = next.shape;
     const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
-    if (layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kInt8) {
+    if (layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kBFloat16) {
       const ConvParams& p = layer.conv;
-      if (!cur.is_u8) cur = Quantized(cur, p.input_quant);
+      const int consumer = NextConv(layers, i);
+      const bool out_float = consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision !=
+                                                 Precision::kBFloat16;
+      // The session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it and
+      // computes its interior from the phase kernels: so does the reference.
+      const bool phases = have_low && low.is_bf16 && p.kernel_h == 3 && p.kernel_w == 3 &&
+                          p.stride_h == 1 && p.stride_w == 1;
+      std::vector<uint8_t> packing;
+      const PackedBf16Conv packed = PackBf16Conv(
+          p, 0, phases, out_float, AlignedScratch(packing, PackedBf16Bytes(p, 0, phases)));
+      Bf16ConvArgs args;
+      args.conv = &packed;
+      args.in = cur.hview();
+      args.pads = g[i].pads;
+      if (phases) {
+        args.in = low.hview();
+        args.upsampled = true;
+        args.crop_top = low_crop_top;
+        args.crop_left = low_crop_left;
+        args.c_height = cur.shape.height;
+        args.c_width = cur.shape.width;
+      }
+      if (out_float) {
+        next.f.resize(s.elements());
+        args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
+      } else {
+        next.is_bf16 = true;
+        next.h.resize(s.elements());
+        args.out_bf16 = {next.h.data(), s.height, s.width, s.channels, row};
+      }
+      ref::Conv2dBf16Rows(args, 0, s.height, 0, 1);
+    } else if (layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kInt8) {
+      const ConvParams& p = layer.conv;
       const int consumer = NextConv(layers, i);
       const bool out_float =
           consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kInt8;
-      std::vector<uint8_t> packing(PackedInt8Bytes(p, 0) + 64);
-      void* aligned = packing.data() + (64 - reinterpret_cast<uintptr_t>(packing.data()) % 64) % 64;
-      const PackedInt8Conv packed = PackInt8Conv(p, 0, out_float, aligned);
+      std::vector<uint8_t> packing;
+      const PackedInt8Conv packed =
+          PackInt8Conv(p, 0, out_float, AlignedScratch(packing, PackedInt8Bytes(p, 0)));
       Int8ConvArgs args;
       args.conv = &packed;
       args.in = cur.qview();
       args.pads = g[i].pads;
-      if (p.phase_weights_q != nullptr && have_low) {
+      if (p.phase_weights_q != nullptr && have_low && low.is_u8) {
         args.in = low.qview();
         args.upsampled = true;
         args.crop_top = low_crop_top;
@@ -126,14 +200,20 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       ref::Conv2d(cur.fview(), layer.conv, g[i].pads,
                   {next.f.data(), s.height, s.width, s.channels, row});
     } else if (layer.kind == LayerKind::kUpsample) {
-      if (cur.is_u8 && layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2) {
+      if ((cur.is_u8 || cur.is_bf16) && layer.upsample.factor_h == 2 &&
+          layer.upsample.factor_w == 2) {
         low = cur;
         have_low = true;
         low_crop_top = low_crop_left = 0;
       }
       next.is_u8 = cur.is_u8;
+      next.is_bf16 = cur.is_bf16;
       next.quant = cur.quant;
-      if (cur.is_u8) {
+      if (cur.is_bf16) {
+        next.h.resize(s.elements());
+        ref::UpsampleNearestBf16(cur.hview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                                 {next.h.data(), s.height, s.width, s.channels, row});
+      } else if (cur.is_u8) {
         next.q.resize(s.elements());
         ref::UpsampleNearestU8(cur.qview(), layer.upsample.factor_h, layer.upsample.factor_w,
                                {next.q.data(), s.height, s.width, s.channels, row});
@@ -144,11 +224,18 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       }
     } else {  // crop
       next.is_u8 = cur.is_u8;
+      next.is_bf16 = cur.is_bf16;
       next.quant = cur.quant;
       const Padding& c = g[i].crop;
       low_crop_top += c.top;
       low_crop_left += c.left;
-      if (cur.is_u8) {
+      if (cur.is_bf16) {
+        next.h.resize(s.elements());
+        for (int y = 0; y < s.height; ++y) {
+          const uint16_t* src = cur.hview().pixel(y + c.top, c.left);
+          std::copy(src, src + row, next.h.begin() + y * row);
+        }
+      } else if (cur.is_u8) {
         next.q.resize(s.elements());
         ConstByteView v = cur.qview();
         v.data = v.pixel(c.top, c.left);

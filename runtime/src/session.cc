@@ -6,10 +6,13 @@
 #include <string>
 #include <thread>
 
+#include "bf16_packing.h"
 #include "conv_packing.h"
 #include "int8_packing.h"
+#include "kernels/bf16_job.h"
 #include "kernels/conv_job.h"
 #include "kernels/int8_job.h"
+#include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/resample_ref.h"
@@ -24,16 +27,20 @@ namespace sfrt {
 // One entry of the flat list Run() walks.
 struct Session::Step {
   enum class Kind {
-    kConv,        // SIMD convolution (packed weights)
-    kUpConv,      // SIMD fused upsample 2x (+ crop) + 3x3 convolution
-    kRefConv,     // ref::Conv2d
-    kUpsample,    // ref::UpsampleNearest
-    kCrop,        // a view of the previous tensor (a copy only when it is the model's output)
-    kWinograd,    // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
-    kQuantize,    // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
-    kInt8Conv,    // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
-                  // or first_layer says so (kernels/int8_job.h)
-    kUpsampleU8,  // ref::UpsampleNearestU8 (an upsampling no int8 convolution fuses)
+    kConv,          // SIMD convolution (packed weights)
+    kUpConv,        // SIMD fused upsample 2x (+ crop) + 3x3 convolution
+    kRefConv,       // ref::Conv2d
+    kUpsample,      // ref::UpsampleNearest
+    kCrop,          // a view of the previous tensor (a copy only when it is the model's output)
+    kWinograd,      // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
+    kQuantize,      // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
+    kInt8Conv,      // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
+                    // or first_layer says so (kernels/int8_job.h)
+    kUpsampleU8,    // ref::UpsampleNearestU8 (an upsampling no int8 convolution fuses)
+    kToBf16,        // the float32 tensor a bf16 convolution reads, to bf16 (ref::ToBf16Rows)
+    kBf16Conv,      // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
+                    // (kernels/bf16_job.h)
+    kUpsampleBf16,  // ref::UpsampleNearestBf16 (an upsampling no bf16 convolution fuses)
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -48,13 +55,17 @@ struct Session::Step {
   size_t scratch_offset = 0;  // kWinograd: bytes from the arena start of its v and m buffers
   // kUpConv on the Winograd phase path (interior pixels; the direct kernel does the border):
   const WinogradKernels* upwinograd = nullptr;
-  int band_rows = 0;    // tile rows per pass, so that v and m stay small (planned at Create)
-  bool out_u8 = false;  // the step writes uint8 (else float32)
+  int band_rows = 0;      // tile rows per pass, so that v and m stay small (planned at Create)
+  bool out_u8 = false;    // the step writes uint8
+  bool out_bf16 = false;  // the step writes bf16 (float32 when neither)
   Precision precision = Precision::kFloat32;
   // kInt8Conv:
   Int8ConvRowsFn fn8 = nullptr;
   PackedInt8Conv packed8;
   bool upsampled = false;  // reads the nearest-2x upsampling of its input (first_layer)
+  // kBf16Conv:
+  Bf16ConvRowsFn fn16 = nullptr;
+  PackedBf16Conv packed16;
   // kQuantize:
   QuantParams quant;
   QuantizeRowsFn quantize = nullptr;
@@ -109,6 +120,7 @@ struct BlockedConvJob {
 };
 using ConvJob = BlockedConvJob<ConvRowsFn, ConvArgs>;
 using Int8ConvJob = BlockedConvJob<Int8ConvRowsFn, Int8ConvArgs>;
+using Bf16ConvJob = BlockedConvJob<Bf16ConvRowsFn, Bf16ConvArgs>;
 
 template <typename Job>
 void BlockedConvTrampoline(void* ctx, int begin, int end) {
@@ -145,6 +157,16 @@ struct QuantizeJob {
 void QuantizeTrampoline(void* ctx, int begin, int end) {
   const QuantizeJob* job = static_cast<const QuantizeJob*>(ctx);
   job->fn(job->in, job->inv_scale, job->zero_point, job->out, begin, end);
+}
+
+struct ToBf16Job {
+  ConstTensorView in;
+  Bf16View out;
+};
+
+void ToBf16Trampoline(void* ctx, int begin, int end) {
+  const ToBf16Job* job = static_cast<const ToBf16Job*>(ctx);
+  ref::ToBf16Rows(job->in, job->out, begin, end);
 }
 
 struct RefConvJob {
@@ -235,62 +257,88 @@ Status Session::Plan() {
       tuning.winograd_tile > 0 && tuning.winograd_upconv ? WinogradUpKernelsFor(isa_) : nullptr;
 
   // 1. The steps, fusing upsample 2x (+ crop) + 3x3 stride-1 convolution where the ISA can,
-  // and (int8) upsample 2x (+ crop) + any convolution on every ISA.
+  // and (int8, bf16) upsample 2x (+ crop) + any convolution on every ISA.
   const IsaInt8Kernels* kernels8 = Int8KernelsFor(isa_);
+  const IsaBf16Kernels* kernels16 = Bf16KernelsFor(isa_);
   auto next_conv = [&](int from) {
     for (int k = from; k < n; ++k) {
       if (layers[k].kind == LayerKind::kConv2D) return k;
     }
     return -1;
   };
-  auto is_int8 = [&](int k) {
-    return k >= 0 && layers[k].kind == LayerKind::kConv2D &&
-           layers[k].conv.precision == Precision::kInt8;
+  auto precision_of = [&](int k) {
+    return k >= 0 && layers[k].kind == LayerKind::kConv2D ? layers[k].conv.precision
+                                                          : Precision::kFloat32;
   };
-  // An int8 convolution writes uint8 for a following int8 convolution, float32 otherwise.
-  auto writes_u8 = [&](int conv) { return is_int8(next_conv(conv + 1)); };
-  bool cur_u8 = false;
-  auto int8_step = [&](int conv, bool upsampled, int crop) {
+  // What the current tensor holds: float32, uint8 (kInt8) or bf16 (kBFloat16). An int8 or bf16
+  // convolution writes its own type for a following convolution of the same precision, float32
+  // otherwise.
+  Precision cur = Precision::kFloat32;
+  auto set_out = [&](Step& step, Precision element) {
+    step.out_u8 = element == Precision::kInt8;
+    step.out_bf16 = element == Precision::kBFloat16;
+  };
+  auto simd_fits = [](const ConvParams& p, bool upsampled, int max_taps) {
+    return upsampled ? p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1
+                     : p.kernel_h * p.kernel_w <= max_taps;
+  };
+  // The int8 or bf16 convolution `conv`, reading the upsampling before it when `upsampled`.
+  auto reduced_step = [&](int conv, bool upsampled, int crop) {
     Step step;
-    step.kind = Step::Kind::kInt8Conv;
+    const ConvParams& p = layers[conv].conv;
     step.last_layer = conv;
     step.crop_layer = crop;
     step.upsampled = upsampled;
-    step.out_u8 = writes_u8(conv);
-    const ConvParams& p = layers[conv].conv;
-    const bool simd = kernels8 != nullptr && (upsampled ? p.kernel_h == 3 && p.kernel_w == 3 &&
-                                                              p.stride_h == 1 && p.stride_w == 1
-                                                        : p.kernel_h * p.kernel_w <= kMaxInt8Taps);
-    if (simd) {
-      step.fn8 = upsampled ? kernels8->upconv : kernels8->conv;
-      step.kernel = upsampled ? kernels8->upconv_name : kernels8->conv_name;
+    step.precision = p.precision;
+    const Precision consumer = precision_of(next_conv(conv + 1));
+    set_out(step, consumer == p.precision ? p.precision : Precision::kFloat32);
+    if (p.precision == Precision::kInt8) {
+      step.kind = Step::Kind::kInt8Conv;
+      if (kernels8 != nullptr && simd_fits(p, upsampled, kMaxInt8Taps)) {
+        step.fn8 = upsampled ? kernels8->upconv : kernels8->conv;
+        step.kernel = upsampled ? kernels8->upconv_name : kernels8->conv_name;
+      } else {
+        step.fn8 = ref::Conv2dInt8Rows;
+        step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";
+      }
     } else {
-      step.fn8 = ref::Conv2dInt8Rows;
-      step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";
+      step.kind = Step::Kind::kBf16Conv;
+      if (kernels16 != nullptr && simd_fits(p, upsampled, kMaxBf16Taps)) {
+        step.fn16 = upsampled ? kernels16->upconv : kernels16->conv;
+        step.kernel = upsampled ? kernels16->upconv_name : kernels16->conv_name;
+      } else {
+        step.fn16 = ref::Conv2dBf16Rows;
+        step.kernel = upsampled ? "ref::UpConv2dBf16" : "ref::Conv2dBf16";
+      }
     }
     return step;
   };
   for (int i = 0; i < n; ++i) {
     const LayerDesc& layer = layers[i];
     const int consumer = next_conv(i);
-    if (!cur_u8 && is_int8(consumer)) {
-      // The float32 tensor here is read by an int8 convolution: quantise it once, before any
-      // upsampling makes it larger.
+    if (cur == Precision::kFloat32 && precision_of(consumer) != Precision::kFloat32) {
+      // The float32 tensor here is read by an int8 or bf16 convolution: convert it once, before
+      // any upsampling makes it larger.
       Step q;
-      q.kind = Step::Kind::kQuantize;
       q.first_layer = q.last_layer = i;
-      const QuantizeKernel quantize = QuantizeKernelFor(isa_);
-      q.quantize = quantize.fn;
-      q.kernel = quantize.name;
-      q.out_u8 = true;
-      q.quant = layers[consumer].conv.input_quant;
-      q.precision = Precision::kInt8;
+      q.precision = precision_of(consumer);
+      set_out(q, q.precision);
+      if (q.precision == Precision::kInt8) {
+        q.kind = Step::Kind::kQuantize;
+        const QuantizeKernel quantize = QuantizeKernelFor(isa_);
+        q.quantize = quantize.fn;
+        q.kernel = quantize.name;
+        q.quant = layers[consumer].conv.input_quant;
+      } else {
+        q.kind = Step::Kind::kToBf16;
+        q.kernel = "ref::ToBf16";
+      }
       steps_.push_back(q);
-      cur_u8 = true;
+      cur = q.precision;
     }
     Step step;
     step.first_layer = step.last_layer = i;
-    step.out_u8 = cur_u8;
+    set_out(step, cur);
     if (layer.kind == LayerKind::kCrop) {
       step.kind = Step::Kind::kCrop;
       step.kernel = i + 1 == n ? "ref::Copy" : "view";
@@ -300,17 +348,21 @@ Status Session::Plan() {
       if (conv < n && layers[conv].kind == LayerKind::kCrop) crop = conv++;
       const bool conv_next = conv < n && layers[conv].kind == LayerKind::kConv2D;
       const bool factor2 = layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2;
-      const bool fusable = kernels != nullptr && factor2 && conv_next && !cur_u8 &&
-                           layers[conv].conv.kernel_h == 3 && layers[conv].conv.kernel_w == 3 &&
-                           layers[conv].conv.stride_h == 1 && layers[conv].conv.stride_w == 1;
-      if (cur_u8 && factor2 && conv_next) {
-        step = int8_step(conv, true, crop);
+      const bool fusable = kernels != nullptr && factor2 && conv_next &&
+                           cur == Precision::kFloat32 && simd_fits(layers[conv].conv, true, 0);
+      if (cur != Precision::kFloat32 && factor2 && conv_next) {
+        step = reduced_step(conv, true, crop);
         step.first_layer = i;
-        cur_u8 = step.out_u8;
+        cur = step.out_u8     ? Precision::kInt8
+              : step.out_bf16 ? Precision::kBFloat16
+                              : Precision::kFloat32;
         i = conv;
-      } else if (cur_u8) {
+      } else if (cur == Precision::kInt8) {
         step.kind = Step::Kind::kUpsampleU8;
         step.kernel = "ref::UpsampleNearestU8";
+      } else if (cur == Precision::kBFloat16) {
+        step.kind = Step::Kind::kUpsampleBf16;
+        step.kernel = "ref::UpsampleNearestBf16";
       } else if (fusable) {
         step.kind = Step::Kind::kUpConv;
         step.last_layer = conv;
@@ -323,10 +375,12 @@ Status Session::Plan() {
         step.kind = Step::Kind::kUpsample;
         step.kernel = "ref::UpsampleNearest";
       }
-    } else if (layer.conv.precision == Precision::kInt8) {
-      step = int8_step(i, false, -1);
+    } else if (layer.conv.precision != Precision::kFloat32) {
+      step = reduced_step(i, false, -1);
       step.first_layer = i;
-      cur_u8 = step.out_u8;
+      cur = step.out_u8     ? Precision::kInt8
+            : step.out_bf16 ? Precision::kBFloat16
+                            : Precision::kFloat32;
     } else if (winograd != nullptr && WinogradApplies(layer.conv)) {
       step.kind = Step::Kind::kWinograd;
       step.winograd = winograd;
@@ -338,7 +392,6 @@ Status Session::Plan() {
       step.params = &layer.conv;
       step.kernel = "ref::Conv2d";
     }
-    if (step.kind == Step::Kind::kInt8Conv) step.precision = Precision::kInt8;
     steps_.push_back(step);
   }
 
@@ -411,30 +464,43 @@ Status Session::Plan() {
     step.fn = phases ? v.upconv : v.conv;
     step.kernel = phases ? v.upconv_name : v.conv_name;
   }
-  // Int8 packings (the per-channel arrays, and the SIMD layout when the ISA has int8 kernels).
+  // Int8 and bf16 packings (the reference layout, and the SIMD one when the step has SIMD
+  // kernels). A bf16 convolution that reads an upsampling 2x with a 3x3 stride-1 kernel gets
+  // its phase kernels.
   auto nr8 = [&](const Step& step) { return step.fn8 == ref::Conv2dInt8Rows ? 0 : kernels8->nr; };
-  for (const Step& step : steps_) {
-    if (step.kind == Step::Kind::kInt8Conv) {
-      packed8_bytes_ += PackedInt8Bytes(layers[step.last_layer].conv, nr8(step));
-    }
-  }
+  auto nr16 = [&](const Step& step) {
+    return step.fn16 == ref::Conv2dBf16Rows ? 0 : kernels16->nr;
+  };
+  auto phases16 = [&](const Step& step) {
+    return step.upsampled && simd_fits(layers[step.last_layer].conv, true, 0);
+  };
+  auto reduced_bytes = [&](const Step& step) -> size_t {
+    const ConvParams& p = layers[step.last_layer].conv;
+    if (step.kind == Step::Kind::kInt8Conv) return PackedInt8Bytes(p, nr8(step));
+    if (step.kind == Step::Kind::kBf16Conv) return PackedBf16Bytes(p, nr16(step), phases16(step));
+    return 0;
+  };
+  for (const Step& step : steps_) packed8_bytes_ += reduced_bytes(step);
   if (packed8_bytes_ > 0) {
     packed8_ = std::aligned_alloc(kArenaAlignment, packed8_bytes_);
     if (packed8_ == nullptr) {
       return Status::Error("cannot allocate " + std::to_string(packed8_bytes_) +
-                           " bytes for the packed int8 weights");
+                           " bytes for the packed int8 and bf16 weights");
     }
   }
   uint8_t* cursor8 = static_cast<uint8_t*>(packed8_);
   for (Step& step : steps_) {
-    if (step.kind != Step::Kind::kInt8Conv) continue;
     const ConvParams& p = layers[step.last_layer].conv;
-    step.packed8 = PackInt8Conv(p, nr8(step), !step.out_u8, cursor8);
-    cursor8 += PackedInt8Bytes(p, nr8(step));
+    if (step.kind == Step::Kind::kInt8Conv) {
+      step.packed8 = PackInt8Conv(p, nr8(step), !step.out_u8, cursor8);
+    } else if (step.kind == Step::Kind::kBf16Conv) {
+      step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
+    }
+    cursor8 += reduced_bytes(step);
   }
   for (const Step& step : steps_) {
     step_info_.push_back({step.first_layer, step.last_layer, step.kernel, step.precision,
-                          step.kind == Step::Kind::kQuantize});
+                          step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16});
   }
 
   // 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is
@@ -450,13 +516,14 @@ Status Session::Plan() {
     if (step.kind == Step::Kind::kCrop) continue;
     size_t reader = k + 1;
     while (reader + 1 < m && steps_[reader].kind == Step::Kind::kCrop) ++reader;
-    const bool quantize = step.kind == Step::Kind::kQuantize;
+    const bool quantize = step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
     const int born = quantize ? step.first_layer - 1 : step.last_layer;
     const TensorShape shape = !quantize              ? geometry_[step.last_layer].output
                               : step.first_layer > 0 ? geometry_[step.first_layer - 1].output
                                                      : geometry_[0].input;
-    const size_t bytes =
-        step.out_u8 ? shape.elements() + kInt8TensorSlack : shape.elements() * sizeof(float);
+    const size_t bytes = step.out_u8     ? shape.elements() + kInt8TensorSlack
+                         : step.out_bf16 ? shape.elements() * sizeof(uint16_t) + kBf16TensorSlack
+                                         : shape.elements() * sizeof(float);
     tensor_of_step_[k] = static_cast<int>(requests.size());
     requests.push_back({bytes, born, steps_[reader].last_layer});
     producers.push_back(born);
@@ -494,6 +561,7 @@ Status Session::Plan() {
   for (size_t k = 0; k < m; ++k) {
     if (tensor_of_step_[k] >= 0) {
       plan_[static_cast<size_t>(tensor_of_step_[k])].is_u8 = steps_[k].out_u8;
+      plan_[static_cast<size_t>(tensor_of_step_[k])].is_bf16 = steps_[k].out_bf16;
     }
   }
   arena_bytes_ = plan.total_bytes;
@@ -589,7 +657,35 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Int8ConvJob>, &job);
     }
   };
-  ConstByteView cur8;  // the current tensor when it is uint8 (cur8.data != null)
+  // A bf16 step's call, as int8_args.
+  auto bf16_args = [&](const Step& step, const ConstBf16View& in) {
+    Bf16ConvArgs args;
+    args.conv = &step.packed16;
+    args.in = in;
+    args.pads = geometry_[step.last_layer].pads;
+    if (step.upsampled) {
+      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+      args.upsampled = true;
+      if (step.crop_layer >= 0) {
+        args.crop_top = c.crop.top;
+        args.crop_left = c.crop.left;
+      }
+      args.c_height = c.output.height;
+      args.c_width = c.output.width;
+    }
+    return args;
+  };
+  auto run_bf16 = [&](const Step& step, const Bf16ConvArgs& args, int rows) {
+    const int blocks = step.packed16.blocks;
+    if (pool_ == nullptr) {
+      step.fn16(args, 0, rows, 0, blocks);
+    } else {
+      Bf16ConvJob job{step.fn16, &args, rows, ConvChunks(blocks, rows, threads_)};
+      pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Bf16ConvJob>, &job);
+    }
+  };
+  ConstByteView cur8;   // the current tensor when it is uint8 (cur8.data != null)
+  ConstBf16View cur16;  // the current tensor when it is bf16 (cur16.data != null)
   if (timed) stamp(0);
   size_t step_index = 0;
   for (const Step& step : steps_) {
@@ -602,6 +698,40 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       cur8.data = cur8.pixel(g.crop.top, g.crop.left);
       cur8.height = g.output.height;
       cur8.width = g.output.width;
+      if (timed) stamp(step_index);
+      continue;
+    }
+    if (step.kind == Step::Kind::kCrop && cur16.data != nullptr) {
+      cur16.data = cur16.pixel(g.crop.top, g.crop.left);
+      cur16.height = g.output.height;
+      cur16.width = g.output.width;
+      if (timed) stamp(step_index);
+      continue;
+    }
+    if (step.kind == Step::Kind::kToBf16 || step.kind == Step::Kind::kUpsampleBf16 ||
+        (step.kind == Step::Kind::kBf16Conv && step.out_bf16)) {
+      uint16_t* dst16 = reinterpret_cast<uint16_t*>(
+          reinterpret_cast<uint8_t*>(arena_) +
+          plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset);
+      if (step.kind == Step::Kind::kToBf16) {
+        ToBf16Job job{cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
+        parallel_rows(cur.height, ToBf16Trampoline, &job);
+        cur16 = job.out;
+      } else if (step.kind == Step::Kind::kUpsampleBf16) {
+        const Bf16View out16 =
+            DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
+        const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
+        ref::UpsampleNearestBf16(cur16, u.factor_h, u.factor_w, out16);
+        cur16 = out16;
+      } else {
+        Bf16ConvArgs args = bf16_args(step, cur16);
+        args.out_bf16 = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
+        run_bf16(step, args, g.output.height);
+        cur16 = args.out_bf16;
+      }
+      // The slack a kernel may read past the tensor: finite (bf16_job.h).
+      std::memset(dst16 + static_cast<size_t>(cur16.height) * cur16.width * cur16.channels, 0,
+                  kBf16TensorSlack);
       if (timed) stamp(step_index);
       continue;
     }
@@ -718,9 +848,18 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         cur8 = {};
         break;
       }
+      case Step::Kind::kBf16Conv: {  // float32 output
+        Bf16ConvArgs args = bf16_args(step, cur16);
+        args.out_f32 = out;
+        run_bf16(step, args, out.height);
+        cur16 = {};
+        break;
+      }
       case Step::Kind::kCrop:
       case Step::Kind::kQuantize:
       case Step::Kind::kUpsampleU8:
+      case Step::Kind::kToBf16:
+      case Step::Kind::kUpsampleBf16:
         break;
     }
     cur = out;

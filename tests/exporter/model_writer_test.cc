@@ -224,7 +224,7 @@ TEST(ModelWriter, Int8ConvolutionsRoundTripThroughTheLoaderByteForByte) {
   auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
   ASSERT_TRUE(model.ok()) << model.message();  // checksums and alignment verified
   const ModelMetadata& md = (*model)->metadata();
-  EXPECT_EQ(md.schema_minor, 3);
+  EXPECT_EQ(md.schema_minor, kSchemaVersionMinor);
   EXPECT_TRUE(md.has_int8);
   EXPECT_EQ(md.weight_type, WeightType::kFloat32);
   for (size_t i = 0; i < spec.layers.size(); ++i) {
@@ -296,6 +296,24 @@ TEST(ModelWriter, AFloat32FileAt13DiffersFrom12OnlyInTheVersionAndFileChecksum) 
   for (size_t i = 0; i < a->size(); ++i) differing += (*a)[i] != (*b)[i];
   EXPECT_GE(differing, 1u);
   EXPECT_LE(differing, 1u + 4u);  // the minor version's low byte, the file CRC-32C
+}
+
+TEST(ModelWriter, Bf16LayersNeedSchema14) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  std::get<exporter::ConvSpec>(spec.layers[0]).precision = Precision::kBFloat16;
+  SerializeOptions v13;
+  v13.schema_minor = 3;
+  auto bytes = SerializeModel(spec, v13);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("layer 0 'conv0': precision bf16 needs schema 1.4"),
+            std::string::npos)
+      << bytes.message();
+  bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_EQ((*model)->layers()[0].conv.precision, Precision::kBFloat16);
+  EXPECT_TRUE((*model)->metadata().has_bf16);
 }
 
 TEST(ModelWriter, Int8LayersAndCalibrationNeedSchema13) {

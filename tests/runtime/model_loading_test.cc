@@ -7,6 +7,7 @@
 #include <fstream>
 #include <random>
 
+#include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
@@ -174,7 +175,7 @@ TEST(ModelLoading, AcceptsAnInt8ModelAndReadsItsQuantisation) {
   auto model = LoadBytes(Int8ModelBytes());
   ASSERT_TRUE(model.ok()) << model.message();
   EXPECT_TRUE((*model)->metadata().has_int8);
-  EXPECT_EQ((*model)->metadata().schema_minor, 3);
+  EXPECT_EQ((*model)->metadata().schema_minor, kSchemaVersionMinor);
   const ConvParams& c = (*model)->layers()[1].conv;
   EXPECT_EQ(c.precision, Precision::kInt8);
   EXPECT_EQ(c.weights, nullptr);
@@ -189,6 +190,26 @@ TEST(ModelLoading, RejectsAPrecisionItDoesNotKnowNamingTheLayerAndValue) {
   auto bytes = Int8ModelBytes();
   MutableConv(bytes, 2)->mutate_precision(static_cast<fb::Precision>(9));
   ExpectRejected(LoadBytes(bytes), "layer 2 'conv2': precision is value 9, which this runtime");
+}
+
+TEST(ModelLoading, AcceptsABf16ModelWithItsFloat32Weights) {
+  auto model = LoadBytes(testing::SerializeOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(16))));
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_TRUE((*model)->metadata().has_bf16);
+  EXPECT_FALSE((*model)->metadata().has_int8);
+  EXPECT_EQ((*model)->metadata().schema_minor, kSchemaVersionMinor);
+  const ConvParams& c = (*model)->layers()[1].conv;
+  EXPECT_EQ(c.precision, Precision::kBFloat16);
+  EXPECT_NE(c.weights, nullptr) << "the float32 weights, rounded by the session";
+  EXPECT_EQ(c.weights_q, nullptr);
+  EXPECT_STREQ(PrecisionName(c.precision), "bf16");
+}
+
+TEST(ModelLoading, RejectsInt8WeightsOnABf16Layer) {
+  // A bf16 layer rounds float weights: int8 ones (with their scales) are refused.
+  auto bytes = Int8ModelBytes();
+  MutableConv(bytes, 2)->mutate_precision(fb::Precision::BFloat16);
+  ExpectRejected(LoadBytes(bytes), "layer 2 'conv2': weights.dtype is int8");
 }
 
 TEST(ModelLoading, RejectsInt8WeightsOnAFloat32Layer) {

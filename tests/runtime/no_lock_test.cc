@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
@@ -94,10 +95,14 @@ Counts Since(const Counts& before) {
 class NoLock : public ::testing::Test {
  protected:
   // Runs `runs` frames at 96x128 after `warm_up` frames; returns what was called meanwhile.
-  // int8: the model in int8 (uint8 tensors, the quantising step, the int8 kernels).
-  Counts CountDuringRuns(const SessionOptions& options, int warm_up, int runs, bool int8 = false) {
-    auto model = testing::LoadOrDie(int8 ? testing::Int8Spec(testing::SceneEdNetSpec(16))
-                                         : testing::SceneEdNetSpec(16));
+  // precision: the model in it (int8: uint8 tensors, the quantising step, the int8 kernels;
+  // bf16: bf16 tensors, the converting step, the bf16 kernels).
+  Counts CountDuringRuns(const SessionOptions& options, int warm_up, int runs,
+                         Precision precision = Precision::kFloat32) {
+    auto model = testing::LoadOrDie(
+        precision == Precision::kInt8       ? testing::Int8Spec(testing::SceneEdNetSpec(16))
+        : precision == Precision::kBFloat16 ? testing::Bf16Spec(testing::SceneEdNetSpec(16))
+                                            : testing::SceneEdNetSpec(16));
     auto session = Session::Create(model, options);
     EXPECT_TRUE(session.ok()) << session.message();
     if (!session.ok()) return {};
@@ -142,8 +147,8 @@ TEST_F(NoLock, CountingHooksSeeAMutexAndAFutex) {
 
 TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
   for (Isa isa : SupportedIsas()) {
-    for (bool int8 : {false, true}) {
-      SCOPED_TRACE(std::string(IsaName(isa)) + (int8 ? " int8" : " fp32"));
+    for (Precision precision : {Precision::kFloat32, Precision::kInt8, Precision::kBFloat16}) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + " " + PrecisionName(precision));
       SessionOptions options;
       options.max_height = 96;
       options.max_width = 128;
@@ -151,7 +156,10 @@ TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
       options.threads = 2;
       options.spin_us = -1;  // never sleep: the steady state of a busy pipeline, made certain
       // 100 runs on the SIMD paths; the scalar reference is ~50x slower, so fewer there.
-      const Counts c = CountDuringRuns(options, 5, isa == Isa::kRef ? 10 : 100, int8);
+      // The bf16 reference kernel sums in double: slower still, so fewer runs where it runs.
+      const bool slow =
+          isa == Isa::kRef || (precision == Precision::kBFloat16 && !Bf16KernelsAvailable(isa));
+      const Counts c = CountDuringRuns(options, 5, slow ? 10 : 100, precision);
       EXPECT_EQ(c.mutex_locks, 0);
       EXPECT_EQ(c.cond_waits, 0);
       EXPECT_EQ(c.futex_calls, 0);

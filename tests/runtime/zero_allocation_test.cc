@@ -9,6 +9,7 @@
 #include <new>
 #include <string>
 
+#include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
@@ -76,12 +77,15 @@ TEST(ZeroAllocation, CountingHooksSeeAnAllocation) {
 
 // Every ISA this CPU runs (packed weights and the fused upsample-conv included), with one
 // thread and with a pool of two (which must not create threads or allocate per Run).
-// Both precisions: float32, and int8 (uint8 tensors, the input's quantisation, int8 kernels).
+// Every precision: float32; int8 (uint8 tensors, the input's quantisation, int8 kernels); bf16
+// (bf16 tensors, the input's conversion, bf16 kernels).
 TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
-  for (bool int8 : {false, true}) {
-    SCOPED_TRACE(int8 ? "int8" : "fp32");
-    auto model = testing::LoadOrDie(int8 ? testing::Int8Spec(testing::SceneEdNetSpec(16))
-                                         : testing::SceneEdNetSpec(16));
+  for (Precision precision : {Precision::kFloat32, Precision::kInt8, Precision::kBFloat16}) {
+    SCOPED_TRACE(PrecisionName(precision));
+    auto model = testing::LoadOrDie(
+        precision == Precision::kInt8       ? testing::Int8Spec(testing::SceneEdNetSpec(16))
+        : precision == Precision::kBFloat16 ? testing::Bf16Spec(testing::SceneEdNetSpec(16))
+                                            : testing::SceneEdNetSpec(16));
     for (Isa isa : SupportedIsas()) {
       for (int threads : {1, 2}) {
         SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");

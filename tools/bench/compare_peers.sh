@@ -9,7 +9,7 @@
 # with its per-round spread. The peers read the same seeded input (ort_bench.mjs's LCG);
 # `sfrt bench` its own seeded input (no kernel's time depends on the values).
 #
-# Usage: bash tools/bench/compare_peers.sh [--peers LIST] [--sfrt-precision fp32,int8]
+# Usage: bash tools/bench/compare_peers.sh [--peers LIST] [--sfrt-precision fp32,bf16,int8]
 #          [--calibration CAL.npy] [--opencv-model FILE.onnx] MODEL.onnx HxW [THREADS=1,2]
 #          [ROUNDS=3] [RUNS=2]
 # --peers: any of ort, ort-int8, opencv, torch-bf16, torch-fp32 (default ort,opencv). The
@@ -23,8 +23,9 @@
 #   torch-fp32: the same in float32. The torch peers run with OMP_WAIT_POLICY=PASSIVE unless it
 #   is set: on a shared 2-core machine spinning OpenMP threads made 2-thread runs up to 20x
 #   slower (270x480, 1/8 width) and far more variable.
-# --sfrt-precision: fp32, int8 or both (default fp32), one row each; int8 is exported with
-#   `sfrt export MODEL.onnx --precision int8 --calibration CAL.npy` (its error is printed).
+# --sfrt-precision: any of fp32, bf16, int8 (default fp32), one row each; bf16 is exported with
+#   `sfrt export MODEL.onnx --precision bf16`, int8 with `sfrt export MODEL.onnx --precision int8
+#   --calibration CAL.npy` (its error is printed).
 # --calibration: float32 .npy (N,H,W,12) network inputs for sfrt int8 and ort-int8 alike
 #   (default: 2 seeded frames of integers 0..255 at 96x128; percentile:99.99 for both).
 # --opencv-model: the ONNX file OpenCV DNN runs instead of MODEL. OpenCV DNN 4.6 cannot parse
@@ -86,8 +87,9 @@ IFS=',' read -r -a precision_list <<<"${precisions}"
 [[ ${#precision_list[@]} -gt 0 ]] || { echo "${me}: --sfrt-precision is empty" >&2; exit 2; }
 declare -A seen_precision=()
 for q in "${precision_list[@]}"; do
-  [[ "${q}" == fp32 || "${q}" == int8 ]] ||
-    { echo "${me}: --sfrt-precision: unknown precision '${q}' (known: fp32, int8)" >&2; exit 2; }
+  [[ "${q}" == fp32 || "${q}" == bf16 || "${q}" == int8 ]] ||
+    { echo "${me}: --sfrt-precision: unknown precision '${q}' (known: fp32, bf16, int8)" >&2
+      exit 2; }
   [[ -z "${seen_precision[${q}]:-}" ]] ||
     { echo "${me}: --sfrt-precision: '${q}' given twice" >&2; exit 2; }
   seen_precision[${q}]=1
@@ -167,6 +169,8 @@ fi
 for q in "${precision_list[@]}"; do
   if [[ "${q}" == fp32 ]]; then
     "${sfrt}" export "${model}" -o "${work}/model-fp32.sfrt" >/dev/null
+  elif [[ "${q}" == bf16 ]]; then
+    "${sfrt}" export "${model}" -o "${work}/model-bf16.sfrt" --precision bf16 >/dev/null
   else
     if ! "${sfrt}" export "${model}" -o "${work}/model-int8.sfrt" --precision int8 \
         --calibration "${calibration}" >"${work}/export-int8.txt" 2>&1; then

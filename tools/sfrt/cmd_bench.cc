@@ -384,7 +384,7 @@ int RunBench(const BenchArgs& args) {
       c.isa = isa;
       c.threads = threads;
       c.session = std::move(session).value();
-      if (std::string notice = Int8FallbackNotice(**model, isa); !notice.empty()) {
+      if (std::string notice = PrecisionFallbackNotice(**model, isa); !notice.empty()) {
         std::printf("%s\n", notice.c_str());
       }
       for (const PlannedStep& step : c.session->steps()) {

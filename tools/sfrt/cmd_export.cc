@@ -684,11 +684,14 @@ int RunExport(const ExportArgs& args) {
     return ReportError(kName, "--architecture applies to Keras .h5 input only", kExitUsage);
   }
   if (args.output.empty()) return ReportError(kName, "-o: output path is empty", kExitUsage);
-  const bool quantise = args.precision != "fp32";
-  if (args.precision != "fp32" && args.precision != "int8" && args.precision != "auto") {
-    return ReportError(kName,
-                       "--precision: expected fp32, int8 or auto, got '" + args.precision + "'",
-                       kExitUsage);
+  // int8 and auto quantise from calibration frames; bf16 only marks the layers (the runtime
+  // rounds the float32 weights to bf16 at load).
+  const bool quantise = args.precision == "int8" || args.precision == "auto";
+  const bool bf16 = args.precision == "bf16";
+  if (args.precision != "fp32" && args.precision != "bf16" && !quantise) {
+    return ReportError(
+        kName, "--precision: expected fp32, bf16, int8 or auto, got '" + args.precision + "'",
+        kExitUsage);
   }
   if (quantise && args.calibration.empty()) {
     return ReportError(kName,
@@ -698,7 +701,10 @@ int RunExport(const ExportArgs& args) {
                        kExitUsage);
   }
   if (!quantise && !args.calibration.empty()) {
-    return ReportError(kName, "--calibration applies to --precision int8 or auto", kExitUsage);
+    return ReportError(kName,
+                       "--calibration applies to --precision int8 or auto (bf16 needs no "
+                       "calibration: it rounds weights and activations, it chooses no ranges)",
+                       kExitUsage);
   }
   for (const char* flag : kCalibrationFlags) {
     if (Given(args, flag) && args.calibration.empty()) {
@@ -792,16 +798,30 @@ int RunExport(const ExportArgs& args) {
     spec = std::move(imported).value();
   }
   if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
-  if (quantise) {
+  std::string bf16_line;
+  if (quantise || bf16) {
     for (const exporter::LayerSpec& layer : spec.layers) {
       const auto* conv = std::get_if<exporter::ConvSpec>(&layer);
       if (conv == nullptr || conv->precision == Precision::kFloat32) continue;
       return ReportError(kName,
-                         args.input + ": layer '" + conv->name +
-                             "' is already int8; --precision quantises a float32 model (export "
-                             "from the float32 source, or drop --precision to rewrite metadata)",
+                         args.input + ": layer '" + conv->name + "' is already " +
+                             PrecisionName(conv->precision) +
+                             "; --precision converts a float32 model (export from the float32 "
+                             "source, or drop --precision to rewrite metadata)",
                          kExitFailure);
     }
+  }
+  if (bf16) {
+    int convs = 0;
+    for (exporter::LayerSpec& layer : spec.layers) {
+      auto* conv = std::get_if<exporter::ConvSpec>(&layer);
+      if (conv == nullptr) continue;
+      conv->precision = Precision::kBFloat16;
+      ++convs;
+    }
+    bf16_line = "  precision   bf16, all " + std::to_string(convs) +
+                " convolutions (weights stored as --weights says, rounded to bf16 when a "
+                "session loads them; activations bf16 between them)";
   }
 
   // The image order must account for every input channel (3 per image).
@@ -841,6 +861,7 @@ int RunExport(const ExportArgs& args) {
   }
   // --precision int8|auto: quantise the verified float32 model, then verify what is written.
   std::vector<std::string> quant_lines;
+  if (!bf16_line.empty()) quant_lines.push_back(bf16_line);
   if (quantise) {
     Result<exporter::QuantizeResult> quantised =
         QuantizeForExport(args, spec, (*loaded)->metadata(), &quant_lines);
@@ -1023,10 +1044,12 @@ Command AddExportCommand(CLI::App& parent) {
                   "Parity check reference: the source framework's output for --check-input, "
                   "float32 .npy (H,W,3) or (1,H,W,3)");
   cmd->add_option("--precision", args->precision,
-                  "Arithmetic of the convolutions: fp32; int8 (every convolution: int8 weights "
-                  "per output channel, uint8 activations, quantised from --calibration); auto "
-                  "(int8 where the output's error stays within --accuracy-budget)")
-      ->check(CLI::IsMember({"fp32", "int8", "auto"}))
+                  "Arithmetic of the convolutions: fp32; bf16 (every convolution: bf16 weights "
+                  "and activations, float32 sums; no calibration); int8 (every convolution: "
+                  "int8 weights per output channel, uint8 activations, quantised from "
+                  "--calibration); auto (int8 where the output's error stays within "
+                  "--accuracy-budget)")
+      ->check(CLI::IsMember({"fp32", "bf16", "int8", "auto"}))
       ->capture_default_str();
   cmd->add_option("--calibration", args->calibration,
                   "With --precision int8|auto: network inputs to choose the quantisation from: a "
@@ -1070,6 +1093,9 @@ Command AddExportCommand(CLI::App& parent) {
       "and puts back to float32, one at a time, the layer whose error rose most over its\n"
       "input's, until the output's rms error is within --accuracy-budget. A .sfrt source\n"
       "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
+      "bf16 (--precision bf16) marks every convolution bf16: a session rounds the weights\n"
+      "to bf16 at load and keeps bf16 activations between the layers; measure its accuracy\n"
+      "with sfrt eval.\n"
       "Parity check: prints max abs error, max error relative to the reference's largest\n"
       "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
       "written (an existing file at -o is left unchanged) and the exit code is 1.\n"

@@ -279,7 +279,7 @@ int RunInfer(const InferArgs& args) {
         "cannot create a session for " + SizeString(height, width) + ": " + session.message(),
         kExitFailure);
   }
-  if (std::string notice = Int8FallbackNotice(*model, (*session)->isa()); !notice.empty()) {
+  if (std::string notice = PrecisionFallbackNotice(*model, (*session)->isa()); !notice.empty()) {
     std::cout << notice << "\n";
   }
   Result<TensorShape> out_shape = (*session)->OutputShape(height, width);

@@ -399,7 +399,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
       !notice.empty()) {
     std::cout << notice << "\n";
   }
-  if (std::string notice = Int8FallbackNotice(**loaded, options.isa); !notice.empty()) {
+  if (std::string notice = PrecisionFallbackNotice(**loaded, options.isa); !notice.empty()) {
     std::cout << notice << "\n";
   }
   pipeline::PipelineResult result =

@@ -89,18 +89,30 @@ std::string ErrorText(double value) {
   return buf;
 }
 
-std::string Int8FallbackNotice(const Model& model, Isa isa) {
+std::string PrecisionFallbackNotice(const Model& model, Isa isa) {
   if (isa == Isa::kAuto) isa = BestIsa();
-  if (isa == Isa::kRef || Int8KernelsAvailable(isa)) return "";
-  int int8 = 0;
+  if (isa == Isa::kRef) return "";
+  int int8 = 0, bf16 = 0;
   for (const LayerDesc& layer : model.layers()) {
-    int8 += layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kInt8;
+    if (layer.kind != LayerKind::kConv2D) continue;
+    int8 += layer.conv.precision == Precision::kInt8;
+    bf16 += layer.conv.precision == Precision::kBFloat16;
   }
-  if (int8 == 0) return "";
-  return "note: " + std::to_string(int8) + " int8 convolution" + (int8 == 1 ? " runs" : "s run") +
-         " on the scalar reference kernel: " + IsaName(isa) +
-         " has no int8 kernels on this CPU (avx512 needs AVX-512 VNNI, neon the dot-product "
-         "extension); a float32 model is faster here";
+  auto line = [&](int n, const char* precision, const char* needs) {
+    return "note: " + std::to_string(n) + " " + precision + " convolution" +
+           (n == 1 ? " runs" : "s run") + " on the scalar reference kernel: " + IsaName(isa) +
+           " has no " + precision + " kernels on this CPU (" + needs +
+           "); a float32 model is faster here";
+  };
+  std::string notice;
+  if (int8 > 0 && !Int8KernelsAvailable(isa)) {
+    notice = line(int8, "int8", "avx512 needs AVX-512 VNNI, neon the dot-product extension");
+  }
+  if (bf16 > 0 && !Bf16KernelsAvailable(isa)) {
+    if (!notice.empty()) notice += "\n";
+    notice += line(bf16, "bf16", "avx512 needs AVX512_BF16, neon the BF16 extension");
+  }
+  return notice;
 }
 
 }  // namespace sfrt::tools

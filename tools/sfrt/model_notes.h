@@ -32,12 +32,12 @@ uint64_t StoredParameterBytes(const Model& model);
 // "int8 in 11 of 11 convolutions (...)", or "" when every convolution is float32.
 std::string Int8LayersText(const Model& model);
 
-// One line when the int8 convolutions of `model` will run on the scalar reference kernel in a
-// session on `isa` (kAuto: the best), an optimised ISA without int8 kernels on this CPU
-// (Int8KernelsAvailable), e.g. "note: 11 int8 convolutions run on the scalar reference kernel:
-// avx2 has no int8 kernels on this CPU (avx512 needs AVX-512 VNNI, neon the dot-product
-// extension); a float32 model is faster here"; else "".
-std::string Int8FallbackNotice(const Model& model, Isa isa);
+// One line per reduced precision whose convolutions in `model` will run on the scalar reference
+// kernel in a session on `isa` (kAuto: the best), an optimised ISA without that precision's
+// kernels on this CPU (Int8KernelsAvailable, Bf16KernelsAvailable), e.g. "note: 11 int8
+// convolutions run on the scalar reference kernel: avx2 has no int8 kernels on this CPU (avx512
+// needs AVX-512 VNNI, neon the dot-product extension); a float32 model is faster here"; else "".
+std::string PrecisionFallbackNotice(const Model& model, Isa isa);
 
 // Calibration errors as the commands print them: "1.23e-02".
 std::string ErrorText(double value);

@@ -38,4 +38,10 @@ std::string SupportedIsaList();
 // (and on kRef) its int8 layers run on the scalar reference kernel: the same results, slower.
 bool Int8KernelsAvailable(Isa isa);
 
+// True when a session on `isa` (kAuto: BestIsa()) runs bf16 convolutions on SIMD bf16 kernels:
+// avx512 on a CPU with AVX512_BF16, neon on a CPU with the BF16 extension (Armv8.6 bfdot).
+// Otherwise its bf16 layers run on the scalar reference kernel: results within float32 rounding
+// of the sums, much slower.
+bool Bf16KernelsAvailable(Isa isa);
+
 }  // namespace sfrt

@@ -29,7 +29,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 3;
+inline constexpr int kSchemaVersionMinor = 4;
 
 enum class LayerKind { kConv2D, kUpsample, kCrop };
 enum class Activation { kNone, kRelu, kLeakyRelu };
@@ -38,8 +38,8 @@ enum class CropRule { kExplicit, kToInputSize };
 enum class WeightType { kFloat32, kFloat16 };
 // The arithmetic a convolution runs in (schema 1.3; every layer of an older file is kFloat32).
 // kInt8: see ConvParams and docs/model-format.md, "Int8 arithmetic".
-enum class Precision { kFloat32, kInt8 };
-// "fp32", "int8".
+enum class Precision { kFloat32, kInt8, kBFloat16 };
+// "fp32", "int8", "bf16".
 const char* PrecisionName(Precision precision);
 // Affine quantisation of an activation tensor: real = scale * (q - zero_point), q in 0..255.
 struct QuantParams {
@@ -69,7 +69,8 @@ struct ConvParams {
   Padding pads;  // the rule when kExplicit; as stored (the traced size's amounts) otherwise
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
-  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]. Null when precision is kInt8.
+  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]. Null when precision is kInt8. For
+  // kBFloat16 the float32 weights, which a session rounds to bf16 (kernels/bf16_job.h).
   const float* weights = nullptr;
   const float* bias = nullptr;  // [out_channels], every precision
   Precision precision = Precision::kFloat32;
@@ -171,6 +172,7 @@ struct ModelMetadata {
   WeightType weight_type = WeightType::kFloat32;  // as stored in the file
   TrainingState training = TrainingState::kUnknown;  // schema 1.2; kUnknown before
   bool has_int8 = false;                             // some convolution is kInt8 (schema 1.3)
+  bool has_bf16 = false;                             // some convolution is kBFloat16 (1.4)
   std::optional<CalibrationDesc> calibration;        // schema 1.3, reduced-precision files
 };
 

@@ -12,15 +12,20 @@
 
 namespace sfrt {
 
-// Called after each layer with its output as real numbers: float32 values, or a uint8 tensor's
-// values dequantised (scale * (q - zero_point)). `values` is valid during the call only.
+// Called after each layer with its output as real numbers: float32 values, a uint8 tensor's
+// values dequantised (scale * (q - zero_point)), or a bf16 tensor's values. `values` is valid
+// during the call only.
 using LayerObserver =
     std::function<void(int layer, const TensorShape& shape, std::span<const float> values)>;
 
 // Runs `model` on `input` (height x width x input channels, NHWC float32) and writes the last
 // layer's output (float32) to `output`. Each layer computes in its own precision: an int8
 // convolution reads uint8 (the float32 input or a float32 layer's output quantised with its
-// input_quant) and writes uint8 for a following int8 convolution, float32 otherwise.
+// input_quant) and writes uint8 for a following int8 convolution, float32 otherwise; a bf16
+// convolution likewise reads and writes bf16 (kernels/bf16_job.h), and a nearest-2x upsampling
+// (+ crop) before a 3x3 stride-1 bf16 convolution goes through its phase kernels as in a Session.
+// A float32 tensor is converted where a Session converts it: before the upsamplings and crops
+// that lead to the convolution reading it.
 Status RunReferenceForward(const Model& model, std::span<const float> input, int height, int width,
                            std::span<float> output, const LayerObserver& observer = {});
 

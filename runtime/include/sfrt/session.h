@@ -18,10 +18,12 @@
 // outputs; other steps by output rows.
 //
 // Precision: each convolution runs in the precision its model file gives it (sfrt/model.h,
-// Precision). Int8 convolutions run on the ISA's int8 kernels where it has them (AVX-512 VNNI),
-// otherwise on the scalar reference int8 kernel (steps() names it); both give the same bytes.
-// Tensors between two int8 convolutions stay uint8; a float32 tensor that an int8 convolution
-// reads is quantised once by a step of its own.
+// Precision). Int8 convolutions run on the ISA's int8 kernels where it has them (AVX-512 VNNI,
+// NEON dot products), otherwise on the scalar reference int8 kernel (steps() names it); both give
+// the same bytes. Bf16 convolutions run on the ISA's bf16 kernels where it has them (AVX512_BF16,
+// NEON BF16), otherwise on the scalar reference bf16 kernel. Tensors between two convolutions of
+// the same reduced precision stay uint8 or bf16; a float32 tensor that an int8 or bf16
+// convolution reads is converted once by a step of its own.
 // Thread-safety: a Session is not thread-safe (Run() writes its arena). Use one Session per
 // thread; Sessions created from the same Model share its weights.
 #pragma once
@@ -73,14 +75,15 @@ struct SessionOptions {
 
 // One entry of the flat list Run() walks.
 struct PlannedStep {
-  // The model layers this step computes, [first_layer, last_layer]. A step that quantises the
-  // float32 tensor an int8 convolution reads computes no layer: first_layer = last_layer = the
-  // layer it precedes, and `quantize` is set.
+  // The model layers this step computes, [first_layer, last_layer]. A step that converts the
+  // float32 tensor an int8 or bf16 convolution reads (quantises it to uint8, or rounds it to
+  // bf16) computes no layer: first_layer = last_layer = the layer it precedes, `quantize` is set
+  // and `precision` is the one it converts to.
   int first_layer = 0;
   int last_layer = 0;
   const char* kernel = "";  // e.g. "conv2d_f32__avx512_8x32", "ref::Conv2d", "view"
   Precision precision = Precision::kFloat32;  // the arithmetic of its convolution (if any)
-  bool quantize = false;                      // the quantising step described above
+  bool quantize = false;                      // the converting step described above
 };
 
 // Where each planned tensor lives in the arena (for `--print-plan` and tests).
@@ -90,7 +93,8 @@ struct PlannedTensor {
   int last_consumer = -1;  // index of the last layer that reads it
   size_t offset = 0;       // bytes from the arena start
   size_t bytes = 0;        // at the maximum input size
-  bool is_u8 = false;      // uint8 (an int8 convolution's input), else float32
+  bool is_u8 = false;      // uint8 (an int8 convolution's input)
+  bool is_bf16 = false;    // bf16 (a bf16 convolution's input); float32 when neither
 };
 
 class Session {
@@ -149,7 +153,7 @@ class Session {
   size_t packed_bytes_ = 0;
   float* packed_ = nullptr;  // 64-byte aligned packed weights
   size_t packed8_bytes_ = 0;
-  void* packed8_ = nullptr;  // 64-byte aligned int8 packings (int8_packing.h)
+  void* packed8_ = nullptr;  // 64-byte aligned int8 and bf16 packings (int8_, bf16_packing.h)
   std::unique_ptr<Pool> pool_;
 };
 

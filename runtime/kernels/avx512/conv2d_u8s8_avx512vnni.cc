@@ -1,7 +1,7 @@
 // AVX-512 VNNI int8 convolution kernels (compiled with -mavx512f -mavx512bw -mavx512vl -mavx512dq
 // -mavx512vnni -ffp-contract=off only in this translation unit; runtime/CMakeLists.txt), bit for
 // bit equal to ref::Conv2dInt8Rows: the arithmetic is kernels/int8_job.h's. The loops are
-// kernels/simd/int8_driver_inl.h's; this file has the vocabulary V, the tiles and the few-output
+// kernels/simd/dot_driver_inl.h's; this file has the vocabulary V, the tiles and the few-output
 // kernel.
 //
 // Blocks of 64 output channels (PackInt8Conv with nr 64). Register tiles: MR output pixels x NV
@@ -16,7 +16,7 @@
 #include <cstring>
 
 #include "kernels/int8_job.h"
-#include "kernels/simd/int8_driver_inl.h"
+#include "kernels/simd/dot_driver_inl.h"
 #include "src/cpu_features.h"
 
 namespace sfrt::avx512 {
@@ -39,8 +39,9 @@ inline __m512 Min(__m512 a, __m512 b) { return _mm512_maskz_min_ps(kAll, a, b); 
 inline __m512i Max(__m512i a, __m512i b) { return _mm512_maskz_max_epi32(kAll, a, b); }
 inline __m512i Min(__m512i a, __m512i b) { return _mm512_maskz_min_epi32(kAll, a, b); }
 
-// The int8 vocabulary of kernels/simd/int8_driver_inl.h.
+// The int8 vocabulary of kernels/simd/dot_driver_inl.h.
 struct V {
+  using Conv = PackedInt8Conv;
   using Acc = __m512i;
   static constexpr int kLanes = 16;
   static constexpr int kNr = 64;  // output channels per block
@@ -50,7 +51,7 @@ struct V {
   static Acc MulScalar(Acc a, int32_t c) { return _mm512_mullo_epi32(a, _mm512_set1_epi32(c)); }
   static int32_t ZeroPointCoefficient(int zero_point) { return -zero_point; }
 
-  // The sums of MR pixels x NV vectors (int8_driver_inl.h). Its own function: inlined into the
+  // The sums of MR pixels x NV vectors (dot_driver_inl.h). Its own function: inlined into the
   // epilogue's, GCC 12 spills and copies the accumulators inside the loop.
   template <int MR, int NV>
   [[gnu::noinline]] static void Accumulate(const uint8_t* const* xs, const int8_t* const* ws,
@@ -89,7 +90,7 @@ struct V {
   // Lane-wise Int8Dequantize / Int8Quantize of one pixel's NV vectors into `out` (the pixel's
   // first channel of the block: float or uint8).
   template <int NV>
-  static void Finish(const Acc* acc, const simd::Int8Epilogue& e, void* out) {
+  static void Finish(const Acc* acc, const simd::DotEpilogue& e, void* out) {
     const __m512 zero = _mm512_setzero_ps();
 #pragma GCC unroll 4
     for (int v = 0; v < NV; ++v) {
@@ -181,13 +182,13 @@ void ConvRows(const Int8ConvArgs& a, int row_begin, int row_end, int blk_begin, 
     if (blk_begin == 0 && blk_end > 0) FewOutRows(a, row_begin, row_end);
     return;
   }
-  simd::Int8ConvRows<V, 8, 8, 8, 6>(a, row_begin, row_end, blk_begin, blk_end);
+  simd::DotConvRows<V, 8, 8, 8, 6>(a, row_begin, row_end, blk_begin, blk_end);
 }
 
 }  // namespace
 
 const IsaInt8Kernels* Int8Kernels() {
-  static constexpr IsaInt8Kernels kKernels = {V::kNr, ConvRows, simd::Int8UpConvRows<V, 8, 8, 8, 6>,
+  static constexpr IsaInt8Kernels kKernels = {V::kNr, ConvRows, simd::DotUpConvRows<V, 8, 8, 8, 6>,
                                               "conv2d_u8s8__avx512vnni_6x64",
                                               "upconv2d_u8s8__avx512vnni_6x64"};
   const CpuFeatures& f = HostCpuFeatures();

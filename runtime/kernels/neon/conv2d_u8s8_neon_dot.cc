@@ -1,7 +1,7 @@
 // NEON int8 convolution kernels with sdot (Armv8.2 dotprod; compiled with
 // -march=armv8.2-a+dotprod -ffp-contract=off only in this translation unit;
 // runtime/CMakeLists.txt), bit for bit equal to ref::Conv2dInt8Rows. The loops are
-// kernels/simd/int8_driver_inl.h's, the vocabulary conv2d_u8s8_neon_dot_inl.h's.
+// kernels/simd/dot_driver_inl.h's, the vocabulary conv2d_u8s8_neon_dot_inl.h's.
 //
 // sdot multiplies signed by signed bytes, and activations are uint8: the input goes in as
 // x - 128 (its top bit flipped, as int8), and the zero point's correction absorbs the shift:
@@ -17,7 +17,7 @@
 #include "kernels/int8_job.h"
 #include "kernels/neon/conv2d_u8s8_neon_dot_inl.h"
 #include "kernels/neon/int8_neon.h"
-#include "kernels/simd/int8_driver_inl.h"
+#include "kernels/simd/dot_driver_inl.h"
 
 #ifndef HWCAP_ASIMDDP
 #define HWCAP_ASIMDDP (1 << 20)
@@ -43,7 +43,7 @@ using V = NeonDotInt8<Sdot>;
 const IsaInt8Kernels* Int8KernelsSdot() {
   // The tiles' pixels for 1, 2, 3 and 4 valid vectors: 8x1, 8x2, 6x3, 5x4.
   static constexpr IsaInt8Kernels kKernels = {
-      V::kNr, simd::Int8ConvRows<V, 8, 8, 6, 5>, simd::Int8UpConvRows<V, 8, 8, 6, 5>,
+      V::kNr, simd::DotConvRows<V, 8, 8, 6, 5>, simd::DotUpConvRows<V, 8, 8, 6, 5>,
       "conv2d_u8s8__neon_sdot_5x16", "upconv2d_u8s8__neon_sdot_5x16"};
   return (getauxval(AT_HWCAP) & HWCAP_ASIMDDP) != 0 ? &kKernels : nullptr;
 }

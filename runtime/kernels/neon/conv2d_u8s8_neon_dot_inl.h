@@ -1,4 +1,4 @@
-// The NEON int8 vocabulary (kernels/simd/int8_driver_inl.h) for the dot products by element,
+// The NEON int8 vocabulary (kernels/simd/dot_driver_inl.h) for the dot products by element,
 // written once over a dot-product `D` that each of conv2d_u8s8_neon_dot.cc (sdot, Armv8.2
 // dotprod) and conv2d_u8s8_neon_usdot.cc (sudot, Armv8.6 i8mm) defines in its own anonymous
 // namespace and compiles with its own -march: NeonDotInt8<D> and the driver's instantiations on
@@ -26,12 +26,13 @@
 #include <cstring>
 
 #include "kernels/int8_job.h"
-#include "kernels/simd/int8_driver_inl.h"
+#include "kernels/simd/dot_driver_inl.h"
 
 namespace sfrt::neon {
 
 template <typename D>
 struct NeonDotInt8 {
+  using Conv = PackedInt8Conv;
   using Acc = int32x4_t;
   static constexpr int kLanes = 4;
   static constexpr int kNr = 16;  // output channels per block
@@ -75,7 +76,7 @@ struct NeonDotInt8 {
     }
   }
 
-  // The sums of MR pixels x NV vectors (int8_driver_inl.h). Its own function, as the AVX-512
+  // The sums of MR pixels x NV vectors (dot_driver_inl.h). Its own function, as the AVX-512
   // VNNI kernel's, so the accumulators stay in registers.
   template <int MR, int NV>
   [[gnu::noinline]] static void Accumulate(const uint8_t* const* xs, const int8_t* const* ws,
@@ -119,7 +120,7 @@ struct NeonDotInt8 {
   // Lane-wise Int8Dequantize / Int8Quantize of one pixel's NV vectors into `out` (the pixel's
   // first channel of the block: float or uint8). Separate multiplies and adds, never fused.
   template <int NV>
-  static void Finish(const int32x4_t* acc, const simd::Int8Epilogue& e, void* out) {
+  static void Finish(const int32x4_t* acc, const simd::DotEpilogue& e, void* out) {
     const float32x4_t zero = vdupq_n_f32(0.0f);
     float32x4_t y[NV];
 #pragma GCC unroll 4

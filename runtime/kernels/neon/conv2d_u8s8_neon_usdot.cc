@@ -1,7 +1,7 @@
 // NEON int8 convolution kernels with the i8mm mixed-sign dot product (Armv8.6 FEAT_I8MM;
 // compiled with -march=armv8.2-a+dotprod+i8mm -ffp-contract=off only in this translation unit;
 // runtime/CMakeLists.txt; run only where HWCAP2_I8MM says so), bit for bit equal to
-// ref::Conv2dInt8Rows. The loops are kernels/simd/int8_driver_inl.h's, the vocabulary
+// ref::Conv2dInt8Rows. The loops are kernels/simd/dot_driver_inl.h's, the vocabulary
 // conv2d_u8s8_neon_dot_inl.h's.
 //
 // sudot by element multiplies the signed weights by 4 unsigned input bytes of one lane, so the
@@ -15,7 +15,7 @@
 #include "kernels/int8_job.h"
 #include "kernels/neon/conv2d_u8s8_neon_dot_inl.h"
 #include "kernels/neon/int8_neon.h"
-#include "kernels/simd/int8_driver_inl.h"
+#include "kernels/simd/dot_driver_inl.h"
 
 #ifndef HWCAP_ASIMDDP
 #define HWCAP_ASIMDDP (1 << 20)
@@ -44,7 +44,7 @@ using V = NeonDotInt8<Usdot>;
 const IsaInt8Kernels* Int8KernelsUsdot() {
   // The tiles' pixels for 1, 2, 3 and 4 valid vectors: 8x1, 8x2, 6x3, 5x4.
   static constexpr IsaInt8Kernels kKernels = {
-      V::kNr, simd::Int8ConvRows<V, 8, 8, 6, 5>, simd::Int8UpConvRows<V, 8, 8, 6, 5>,
+      V::kNr, simd::DotConvRows<V, 8, 8, 6, 5>, simd::DotUpConvRows<V, 8, 8, 6, 5>,
       "conv2d_u8s8__neon_usdot_5x16", "upconv2d_u8s8__neon_usdot_5x16"};
   const bool dot = (getauxval(AT_HWCAP) & HWCAP_ASIMDDP) != 0;
   const bool i8mm = (getauxval(AT_HWCAP2) & HWCAP2_I8MM) != 0;

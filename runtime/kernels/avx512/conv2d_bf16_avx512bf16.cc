@@ -1,0 +1,115 @@
+// AVX512_BF16 convolution kernels (compiled with -mavx512f -mavx512bw -mavx512vl -mavx512dq
+// -mavx512bf16 only in this translation unit; runtime/CMakeLists.txt): the arithmetic is
+// kernels/bf16_job.h's, the loops kernels/simd/dot_driver_inl.h's; this file has the vocabulary.
+//
+// Blocks of 64 output channels (PackBf16Conv with nr 64). Register tiles: MR output pixels x NV
+// vectors of 16 float32 channels: 6x4 (24 accumulators, 4 weight vectors, one broadcast), 8x3,
+// 8x2 and 8x1. Per tap and pair of input channels, each pixel's pair is broadcast and vdpbf16ps
+// adds both products to every lane (the products are exact; the instruction flushes denormal
+// inputs and results to zero, well inside the tolerance bf16 has anyway).
+#include <immintrin.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+
+#include "kernels/bf16_job.h"
+#include "kernels/simd/dot_driver_inl.h"
+#include "src/cpu_features.h"
+
+namespace sfrt::avx512 {
+namespace {
+
+// Two bf16 input channels of one pixel in every 32-bit lane.
+inline __m512bh BroadcastPair(const uint16_t* p) {
+  int32_t v;
+  std::memcpy(&v, p, sizeof(v));
+  return reinterpret_cast<__m512bh>(_mm512_set1_epi32(v));
+}
+
+constexpr __mmask16 kAll = 0xFFFF;
+
+// The bf16 vocabulary of kernels/simd/dot_driver_inl.h.
+struct V {
+  using Conv = PackedBf16Conv;
+  using Acc = __m512;
+  static constexpr int kLanes = 16;
+  static constexpr int kNr = 64;  // output channels per block
+  static Acc Zero() { return _mm512_setzero_ps(); }
+
+  // The sums of MR pixels x NV vectors (dot_driver_inl.h), in a function of its own so that the
+  // accumulators stay in registers (as the VNNI kernel's).
+  template <int MR, int NV>
+  [[gnu::noinline]] static void Accumulate(const uint16_t* const* xs, const uint16_t* const* ws,
+                                           int taps, int groups, const Acc* init, Acc* sums) {
+    Acc acc[MR][NV];
+#pragma GCC unroll 16
+    for (int m = 0; m < MR; ++m) {
+#pragma GCC unroll 4
+      for (int v = 0; v < NV; ++v) acc[m][v] = init[v];
+    }
+    for (int t = 0; t < taps; ++t) {
+      const uint16_t* x[MR];
+#pragma GCC unroll 16
+      for (int m = 0; m < MR; ++m) x[m] = xs[t * MR + m];
+      const uint16_t* w = ws[t];
+      for (int g = 0; g < groups; ++g) {
+        __m512bh wv[NV];
+#pragma GCC unroll 4
+        for (int v = 0; v < NV; ++v) {
+          wv[v] = reinterpret_cast<__m512bh>(_mm512_loadu_si512(w + v * 2 * kLanes));
+        }
+        w += 2 * kNr;
+#pragma GCC unroll 16
+        for (int m = 0; m < MR; ++m) {
+          const __m512bh b = BroadcastPair(x[m] + 2 * g);
+#pragma GCC unroll 4
+          for (int v = 0; v < NV; ++v) acc[m][v] = _mm512_dpbf16_ps(acc[m][v], b, wv[v]);
+        }
+      }
+    }
+#pragma GCC unroll 16
+    for (int m = 0; m < MR; ++m) {
+#pragma GCC unroll 4
+      for (int v = 0; v < NV; ++v) sums[m * NV + v] = acc[m][v];
+    }
+  }
+
+  // Bias, activation and (bf16 output) the rounding to nearest even of one pixel's NV vectors
+  // into `out` (the pixel's first channel of the block: float or bf16).
+  template <int NV>
+  static void Finish(const Acc* acc, const simd::DotEpilogue& e, void* out) {
+    const __m512 zero = _mm512_setzero_ps();
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) {
+      const int left = e.valid - v * kLanes;
+      const __mmask16 mask = left >= kLanes ? kAll : static_cast<__mmask16>((1u << left) - 1u);
+      __m512 y = _mm512_add_ps(acc[v], _mm512_loadu_ps(e.bias + v * kLanes));
+      if (e.act == Activation::kLeakyRelu) {
+        const __mmask16 negative = _mm512_cmp_ps_mask(y, zero, _CMP_LT_OQ);
+        y = _mm512_mask_mul_ps(y, negative, y, _mm512_set1_ps(e.slope));
+      } else if (e.act == Activation::kRelu) {
+        const __mmask16 positive = _mm512_cmp_ps_mask(y, zero, _CMP_GT_OQ);
+        y = _mm512_maskz_mov_ps(positive, y);
+      }
+      if (e.out_float) {
+        _mm512_mask_storeu_ps(static_cast<float*>(out) + v * kLanes, mask, y);
+      } else {
+        const __m256i h = reinterpret_cast<__m256i>(_mm512_cvtneps_pbh(y));
+        _mm256_mask_storeu_epi16(static_cast<uint16_t*>(out) + v * kLanes, mask, h);
+      }
+    }
+  }
+};
+
+}  // namespace
+
+const IsaBf16Kernels* Bf16Kernels() {
+  static constexpr IsaBf16Kernels kKernels = {
+      V::kNr, simd::DotConvRows<V, 8, 8, 8, 6>, simd::DotUpConvRows<V, 8, 8, 8, 6>,
+      "conv2d_bf16__avx512bf16_6x64", "upconv2d_bf16__avx512bf16_6x64"};
+  const CpuFeatures& f = HostCpuFeatures();
+  return f.avx512 && f.avx512_bf16 ? &kKernels : nullptr;
+}
+
+}  // namespace sfrt::avx512

@@ -1,0 +1,23 @@
+#include "cpu_features.h"
+#include "kernels/bf16_job.h"
+
+namespace sfrt {
+
+bool Bf16KernelsAvailable(Isa isa) {
+  return Bf16KernelsFor(isa == Isa::kAuto ? BestIsa() : isa) != nullptr;
+}
+
+// The bf16 kernels exist for AVX512_BF16 and for NEON with the BF16 extension (bfdot); every
+// other ISA uses the reference.
+const IsaBf16Kernels* Bf16KernelsFor(Isa isa) {
+#if SFRT_HAVE_AVX512_BF16
+  if (isa == Isa::kAvx512) return avx512::Bf16Kernels();
+#endif
+#if SFRT_HAVE_NEON_BF16
+  if (isa == Isa::kNeon && HostCpuFeatures().neon) return neon::Bf16Kernels();
+#endif
+  (void)isa;
+  return nullptr;
+}
+
+}  // namespace sfrt
