@@ -296,8 +296,8 @@ class Calibrator {
   std::vector<Reference> references_;  // per frame, when cache_
 };
 
-// `fp32` with the convolutions flagged in `int8` quantised.
-ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<bool>& int8,
+// `fp32` with each convolution in its precision: int8 quantised, bf16 marked.
+ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<Precision>& precision,
                     const std::vector<QuantParams>& tensor_quant,
                     const std::vector<QuantizedWeights>& weights) {
   ModelSpec out = fp32;
@@ -305,7 +305,8 @@ ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<bool>& int8,
   for (LayerSpec& layer : out.layers) {
     auto* c = std::get_if<ConvSpec>(&layer);
     if (c == nullptr) continue;
-    if (int8[j]) {
+    if (precision[j] == Precision::kBFloat16) c->precision = Precision::kBFloat16;
+    if (precision[j] == Precision::kInt8) {
       c->precision = Precision::kInt8;
       c->weights_hwio.clear();
       c->weights_hwio.shrink_to_fit();
@@ -465,8 +466,9 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     const auto* c = std::get_if<ConvSpec>(&model.layers[i]);
     if (c == nullptr) continue;
     if (c->precision != Precision::kFloat32) {
-      return Status::Error("layer " + std::to_string(i) + " '" + c->name +
-                           "' is already int8; quantisation starts from a float32 model");
+      return Status::Error("layer " + std::to_string(i) + " '" + c->name + "' is already " +
+                           PrecisionName(c->precision) +
+                           "; quantisation starts from a float32 model");
     }
     conv_layers.push_back(static_cast<int>(i));
     names.push_back(c->name);
@@ -499,35 +501,39 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   }
 
   QuantizeResult result;
-  std::vector<bool> int8(conv_layers.size(), true);
+  std::vector<Precision> precision(conv_layers.size(), Precision::kInt8);
+  auto reduced = [](Precision p) { return p != Precision::kFloat32; };
   Errors errors;
   while (true) {
-    result.spec = BuildSpec(fp32_spec, int8, tensor_quant, weights);
+    result.spec = BuildSpec(fp32_spec, precision, tensor_quant, weights);
     Result<std::shared_ptr<const Model>> quantised = Load(result.spec, "the quantised model");
     if (!quantised.ok()) return quantised.status();
     Result<Errors> measured = calibrator.Measure(**quantised);
     if (!measured.ok()) return measured.status();
     errors = std::move(measured).value();
     if (options.mode == QuantizeMode::kInt8 || errors.output_rms_rel <= options.accuracy_budget ||
-        std::none_of(int8.begin(), int8.end(), [](bool b) { return b; })) {
+        std::none_of(precision.begin(), precision.end(), reduced)) {
       break;
     }
-    // The int8 convolution whose error rose most over its input's.
+    // The int8 or bf16 convolution whose error rose most over its input's.
     size_t worst = 0;
     double worst_rise = -kInf;
-    for (size_t j = 0; j < int8.size(); ++j) {
-      if (!int8[j]) continue;
+    for (size_t j = 0; j < precision.size(); ++j) {
+      if (!reduced(precision[j])) continue;
       const double rise = errors.relative_rms[j] - (j == 0 ? 0.0 : errors.relative_rms[j - 1]);
       if (rise > worst_rise) {
         worst = j;
         worst_rise = rise;
       }
     }
-    int8[worst] = false;
-    result.auto_steps.push_back(
-        names[worst] + " back to fp32: output rms " + Sci(errors.output_rms_rel) + " > budget " +
-        Sci(options.accuracy_budget) + "; its relative rms " + Sci(errors.relative_rms[worst]) +
-        " rose " + Sci(worst_rise) + " over its input's");
+    // int8 -> bf16 where the ladder has it, then -> fp32.
+    const bool to_bf16 = precision[worst] == Precision::kInt8 && options.auto_bf16;
+    precision[worst] = to_bf16 ? Precision::kBFloat16 : Precision::kFloat32;
+    result.auto_steps.push_back(names[worst] + (to_bf16 ? " to bf16" : " back to fp32") +
+                                ": output rms " + Sci(errors.output_rms_rel) + " > budget " +
+                                Sci(options.accuracy_budget) + "; its relative rms " +
+                                Sci(errors.relative_rms[worst]) + " rose " + Sci(worst_rise) +
+                                " over its input's");
   }
 
   CalibrationDesc& cal = result.calibration;
@@ -539,12 +545,9 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   cal.output_max_rel = static_cast<float>(errors.output_max_rel);
   cal.output_rms_rel = static_cast<float>(errors.output_rms_rel);
   for (size_t j = 0; j < conv_layers.size(); ++j) {
-    cal.layers.push_back({names[j], int8[j] ? Precision::kInt8 : Precision::kFloat32,
-                          static_cast<float>(errors.relative_rms[j])});
+    cal.layers.push_back({names[j], precision[j], static_cast<float>(errors.relative_rms[j])});
   }
-  if (std::any_of(int8.begin(), int8.end(), [](bool b) { return b; })) {
-    result.spec.calibration = cal;
-  }
+  if (std::any_of(precision.begin(), precision.end(), reduced)) result.spec.calibration = cal;
   return result;
 }
 

@@ -141,13 +141,27 @@ inline constexpr int kMaxBf16Taps = 64;
 // reference, ref::Conv2dBf16Rows).
 const IsaBf16Kernels* Bf16KernelsFor(Isa isa);
 
+// Rows [row_begin, row_end) of a float32 tensor to bf16, FloatToBf16 per value (the step before
+// a bf16 convolution that reads a float32 tensor). Safe on disjoint row ranges.
+using ToBf16RowsFn = void (*)(const ConstTensorView& in, const Bf16View& out, int row_begin,
+                              int row_end);
+// The ISA's vectorised conversion (the same bits as FloatToBf16) where it has bf16 kernels, else
+// ref::ToBf16Rows. `name` is what steps() shows.
+struct ToBf16Kernel {
+  ToBf16RowsFn fn = nullptr;
+  const char* name = "";
+};
+ToBf16Kernel ToBf16KernelFor(Isa isa);
+
 namespace avx512 {
 // Null when the CPU lacks AVX512_BF16.
 const IsaBf16Kernels* Bf16Kernels();
+void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end);
 }  // namespace avx512
 namespace neon {
 // Null when the CPU lacks the BF16 extension (Armv8.6 bfdot).
 const IsaBf16Kernels* Bf16Kernels();
+void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end);
 }  // namespace neon
 
 }  // namespace sfrt

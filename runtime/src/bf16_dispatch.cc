@@ -1,5 +1,6 @@
 #include "cpu_features.h"
 #include "kernels/bf16_job.h"
+#include "kernels/ref/conv2d_bf16_ref.h"
 
 namespace sfrt {
 
@@ -18,6 +19,18 @@ const IsaBf16Kernels* Bf16KernelsFor(Isa isa) {
 #endif
   (void)isa;
   return nullptr;
+}
+
+ToBf16Kernel ToBf16KernelFor(Isa isa) {
+  if (Bf16KernelsFor(isa) != nullptr) {
+#if SFRT_HAVE_AVX512_BF16
+    if (isa == Isa::kAvx512) return {avx512::ToBf16Rows, "to_bf16__avx512"};
+#endif
+#if SFRT_HAVE_NEON_BF16
+    if (isa == Isa::kNeon) return {neon::ToBf16Rows, "to_bf16__neon"};
+#endif
+  }
+  return {ref::ToBf16Rows, "ref::ToBf16"};
 }
 
 }  // namespace sfrt

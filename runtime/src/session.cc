@@ -37,7 +37,7 @@ struct Session::Step {
     kInt8Conv,      // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
                     // or first_layer says so (kernels/int8_job.h)
     kUpsampleU8,    // ref::UpsampleNearestU8 (an upsampling no int8 convolution fuses)
-    kToBf16,        // the float32 tensor a bf16 convolution reads, to bf16 (ref::ToBf16Rows)
+    kToBf16,        // the float32 tensor a bf16 convolution reads, to bf16 (ToBf16KernelFor)
     kBf16Conv,      // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
                     // (kernels/bf16_job.h)
     kUpsampleBf16,  // ref::UpsampleNearestBf16 (an upsampling no bf16 convolution fuses)
@@ -69,6 +69,8 @@ struct Session::Step {
   // kQuantize:
   QuantParams quant;
   QuantizeRowsFn quantize = nullptr;
+  // kToBf16:
+  ToBf16RowsFn to_bf16 = nullptr;
 };
 
 class Session::Pool : public ThreadPool {
@@ -160,13 +162,14 @@ void QuantizeTrampoline(void* ctx, int begin, int end) {
 }
 
 struct ToBf16Job {
+  ToBf16RowsFn fn;
   ConstTensorView in;
   Bf16View out;
 };
 
 void ToBf16Trampoline(void* ctx, int begin, int end) {
   const ToBf16Job* job = static_cast<const ToBf16Job*>(ctx);
-  ref::ToBf16Rows(job->in, job->out, begin, end);
+  job->fn(job->in, job->out, begin, end);
 }
 
 struct RefConvJob {
@@ -331,7 +334,9 @@ Status Session::Plan() {
         q.quant = layers[consumer].conv.input_quant;
       } else {
         q.kind = Step::Kind::kToBf16;
-        q.kernel = "ref::ToBf16";
+        const ToBf16Kernel to_bf16 = ToBf16KernelFor(isa_);
+        q.to_bf16 = to_bf16.fn;
+        q.kernel = to_bf16.name;
       }
       steps_.push_back(q);
       cur = q.precision;
@@ -714,7 +719,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
           reinterpret_cast<uint8_t*>(arena_) +
           plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset);
       if (step.kind == Step::Kind::kToBf16) {
-        ToBf16Job job{cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
+        ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
         parallel_rows(cur.height, ToBf16Trampoline, &job);
         cur16 = job.out;
       } else if (step.kind == Step::Kind::kUpsampleBf16) {

@@ -265,27 +265,59 @@ TEST(Quantize, AutoWithAHugeBudgetKeepsEveryConvolutionInt8) {
 
 TEST(Quantize, AutoWithBudgetZeroPutsEveryConvolutionBackToFloat32) {
   const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
-  QuantizeOptions options;
-  options.mode = QuantizeMode::kAuto;
-  options.accuracy_budget = 0;
-  auto result = Quantize(spec, RandomFrames(2, 71), options);
-  ASSERT_TRUE(result.ok()) << result.message();
   const size_t convs = Convs(spec).size();
-  EXPECT_EQ(result->auto_steps.size(), convs);
-  for (const ConvSpec* c : Convs(result->spec)) EXPECT_EQ(c->precision, Precision::kFloat32);
-  EXPECT_FALSE(result->spec.calibration.has_value());
-  EXPECT_EQ(result->calibration.output_rms_rel, 0.0f);
-  // Nothing left quantised: the file is the float32 model's.
-  EXPECT_EQ(Bytes(result->spec), Bytes(spec));
+  // With the bf16 step (the default) each layer goes int8 -> bf16 -> fp32: two steps each.
+  for (bool auto_bf16 : {true, false}) {
+    SCOPED_TRACE(auto_bf16 ? "int8 -> bf16 -> fp32" : "int8 -> fp32");
+    QuantizeOptions options;
+    options.mode = QuantizeMode::kAuto;
+    options.accuracy_budget = 0;
+    options.auto_bf16 = auto_bf16;
+    auto result = Quantize(spec, RandomFrames(2, 71), options);
+    ASSERT_TRUE(result.ok()) << result.message();
+    EXPECT_EQ(result->auto_steps.size(), auto_bf16 ? 2 * convs : convs);
+    for (const ConvSpec* c : Convs(result->spec)) EXPECT_EQ(c->precision, Precision::kFloat32);
+    EXPECT_FALSE(result->spec.calibration.has_value());
+    EXPECT_EQ(result->calibration.output_rms_rel, 0.0f);
+    // Nothing left quantised: the file is the float32 model's.
+    EXPECT_EQ(Bytes(result->spec), Bytes(spec));
+  }
 }
 
-TEST(Quantize, AutoWithAMiddleBudgetMeetsItWithSomeConvolutionsInt8) {
+TEST(Quantize, AutoTriesBf16BeforeFloat32AndRecordsIt) {
   const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(2, 81);
   auto all = Quantize(spec, data, {});
   ASSERT_TRUE(all.ok()) << all.message();
   QuantizeOptions options;
   options.mode = QuantizeMode::kAuto;
+  options.accuracy_budget = all->calibration.output_rms_rel / 2;
+  auto result = Quantize(spec, data, options);
+  ASSERT_TRUE(result.ok()) << result.message();
+  EXPECT_LE(result->calibration.output_rms_rel, options.accuracy_budget);
+  ASSERT_FALSE(result->auto_steps.empty());
+  EXPECT_NE(result->auto_steps.front().find(" to bf16: "), std::string::npos)
+      << result->auto_steps.front();
+  size_t bf16 = 0;
+  for (const ConvSpec* c : Convs(result->spec)) bf16 += c->precision == Precision::kBFloat16;
+  size_t recorded = 0;
+  for (const LayerErrorDesc& e : result->calibration.layers) {
+    recorded += e.precision == Precision::kBFloat16;
+  }
+  EXPECT_EQ(recorded, bf16) << "the calibration record names each layer's precision";
+  auto model = LoadSpec(result->spec);
+  ASSERT_NE(model, nullptr);  // int8, bf16 and fp32 side by side load
+  EXPECT_EQ(model->metadata().has_bf16, bf16 > 0);
+}
+
+TEST(Quantize, AutoWithoutBf16AndAMiddleBudgetMeetsItWithSomeConvolutionsInt8) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(2, 81);
+  auto all = Quantize(spec, data, {});
+  ASSERT_TRUE(all.ok()) << all.message();
+  QuantizeOptions options;
+  options.mode = QuantizeMode::kAuto;
+  options.auto_bf16 = false;
   options.accuracy_budget = all->calibration.output_rms_rel / 2;
   auto result = Quantize(spec, data, options);
   ASSERT_TRUE(result.ok()) << result.message();

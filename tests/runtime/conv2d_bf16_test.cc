@@ -477,6 +477,53 @@ TEST_F(Bf16Neon, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
   CheckRowAndBlockRanges();
 }
 
+// The conversion step: every ISA's ToBf16 gives FloatToBf16's bits, on rows of every length
+// modulo the vector (and a view whose rows are further apart), for values at the rounding
+// boundaries, denormals, infinities and NaNs.
+TEST(Bf16Conversion, EveryIsaGivesTheBitsOfFloatToBf16) {
+  std::mt19937 rng(9);
+  std::uniform_int_distribution<uint32_t> any_bits;
+  std::vector<float> specials = {0.0f,
+                                 -0.0f,
+                                 1.0f,
+                                 INFINITY,
+                                 -INFINITY,
+                                 std::nanf(""),
+                                 std::bit_cast<float>(0x7f800001u),
+                                 std::bit_cast<float>(0x00000001u),
+                                 std::bit_cast<float>(0x3f808000u),
+                                 std::bit_cast<float>(0x3f818000u),
+                                 std::bit_cast<float>(0x7f7fffffu),
+                                 3.0e38f};
+  for (Isa isa : SupportedIsas()) {
+    const ToBf16Kernel kernel = ToBf16KernelFor(isa);
+    SCOPED_TRACE(std::string(IsaName(isa)) + " " + kernel.name);
+    if (Bf16KernelsAvailable(isa)) {
+      EXPECT_NE(std::string(kernel.name).find(IsaName(isa)), std::string::npos);
+    }
+    for (int width : {1, 5, 7, 16, 17, 33}) {
+      const int h = 3, c = 3, stride = width * c + 5;
+      std::vector<float> in(static_cast<size_t>(h) * stride);
+      for (size_t k = 0; k < in.size(); ++k) {
+        in[k] = k < specials.size() ? specials[k] : std::bit_cast<float>(any_bits(rng));
+      }
+      std::vector<uint16_t> got(static_cast<size_t>(h) * width * c + 8, 0xabcd);
+      kernel.fn({in.data(), h, width, c, stride}, DenseBf16View(got.data(), h, width, c), 0, h);
+      for (int y = 0; y < h; ++y) {
+        for (int k = 0; k < width * c; ++k) {
+          const float v = in[static_cast<size_t>(y) * stride + k];
+          ASSERT_EQ(got[static_cast<size_t>(y) * width * c + k], FloatToBf16(v))
+              << "row " << y << " value " << k << " bits 0x" << std::hex
+              << std::bit_cast<uint32_t>(v);
+        }
+      }
+      for (size_t k = static_cast<size_t>(h) * width * c; k < got.size(); ++k) {
+        ASSERT_EQ(got[k], 0xabcd) << "wrote past the tensor";
+      }
+    }
+  }
+}
+
 TEST(Bf16Dispatch, OnlyAvx512WithBf16AndNeonWithBf16HaveBf16Kernels) {
   EXPECT_EQ(Bf16KernelsFor(Isa::kRef), nullptr);
   EXPECT_EQ(Bf16KernelsFor(Isa::kAvx2), nullptr);

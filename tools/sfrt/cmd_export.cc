@@ -77,6 +77,7 @@ struct ExportArgs {
   std::string precision = "fp32";
   std::string calibration;
   double accuracy_budget = 0.02;
+  bool no_auto_bf16 = false;
   std::string calibration_size;
   int calibration_frames = 64;
   std::string calibration_method = "percentile:99.99";
@@ -511,6 +512,7 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
   options.mode =
       args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
   options.accuracy_budget = args.accuracy_budget;
+  options.auto_bf16 = !args.no_auto_bf16;
   options.method = args.calibration_method;
   options.progress = [](const char* pass, int frame, int frames) {
     const int step = std::max(1, frames / 4);
@@ -523,21 +525,23 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
   if (!result.ok()) return Status::Error(flag + ": " + result.message());
 
   const CalibrationDesc& cal = result->calibration;
-  size_t int8 = 0;
+  size_t int8 = 0, bf16 = 0;
   size_t name_width = 0;
   for (const LayerErrorDesc& e : cal.layers) {
     int8 += e.precision == Precision::kInt8;
+    bf16 += e.precision == Precision::kBFloat16;
     name_width = std::max(name_width, e.layer.size());
   }
   const size_t convs = cal.layers.size();
   std::string precision = int8 == convs
                               ? "int8, all " + std::to_string(convs) + " convolutions"
                               : std::to_string(int8) + " of " + std::to_string(convs) +
-                                    " convolutions int8, " + std::to_string(convs - int8) + " fp32";
+                                    " convolutions int8, " + std::to_string(bf16) + " bf16, " +
+                                    std::to_string(convs - int8 - bf16) + " fp32";
   if (args.precision == "auto") {
     precision += " (--precision auto, accuracy budget " + ErrorText(args.accuracy_budget) +
                  " on the output's rms error)";
-    if (int8 == 0) precision += "; no int8 convolution fits: the file is float32";
+    if (int8 + bf16 == 0) precision += "; no int8 or bf16 convolution fits: the file is float32";
   }
   lines->push_back("  precision   " + precision);
   lines->push_back("  calibration " + cal.method + ", " + std::to_string(cal.frames) +
@@ -710,6 +714,9 @@ int RunExport(const ExportArgs& args) {
     if (Given(args, flag) && args.calibration.empty()) {
       return ReportError(kName, std::string(flag) + " applies with --calibration", kExitUsage);
     }
+  }
+  if (args.no_auto_bf16 && args.precision != "auto") {
+    return ReportError(kName, "--no-auto-bf16 applies to --precision auto", kExitUsage);
   }
   if (Given(args, "--accuracy-budget")) {
     if (args.precision != "auto") {
@@ -1047,8 +1054,8 @@ Command AddExportCommand(CLI::App& parent) {
                   "Arithmetic of the convolutions: fp32; bf16 (every convolution: bf16 weights "
                   "and activations, float32 sums; no calibration); int8 (every convolution: "
                   "int8 weights per output channel, uint8 activations, quantised from "
-                  "--calibration); auto (int8 where the output's error stays within "
-                  "--accuracy-budget)")
+                  "--calibration); auto (per layer int8, else bf16, else fp32, so that the "
+                  "output's error stays within --accuracy-budget)")
       ->check(CLI::IsMember({"fp32", "bf16", "int8", "auto"}))
       ->capture_default_str();
   cmd->add_option("--calibration", args->calibration,
@@ -1056,6 +1063,10 @@ Command AddExportCommand(CLI::App& parent) {
                   "float32 .npy (H,W,C) or (N,H,W,C) as infer --input-npy takes, or a directory "
                   "of stereo frames as run --replay reads (consecutive pairs form (t, t+1) "
                   "windows, preprocessed as the model's metadata says)");
+  cmd->add_flag("--no-auto-bf16", args->no_auto_bf16,
+                "--precision auto: put a layer over the budget straight back to fp32 instead of "
+                "trying bf16 first (for CPUs without bf16 kernels, where bf16 runs on the "
+                "reference kernel)");
   cmd->add_option("--accuracy-budget", args->accuracy_budget,
                   "--precision auto: largest output error accepted, RMS(int8 output - float32 "
                   "output) / RMS(float32 output) over the calibration frames")
@@ -1090,8 +1101,9 @@ Command AddExportCommand(CLI::App& parent) {
       "output channel, then the int8 model is run against float32 on the same frames; the\n"
       "method, a SHA-256 of the frames and the output and per-layer errors are stored in the\n"
       "file (sfrt inspect shows them) and printed. auto starts from every convolution int8\n"
-      "and puts back to float32, one at a time, the layer whose error rose most over its\n"
-      "input's, until the output's rms error is within --accuracy-budget. A .sfrt source\n"
+      "and moves up, one step at a time, the layer whose error rose most over its input's\n"
+      "(int8 to bf16, bf16 to float32; int8 straight to float32 with --no-auto-bf16), until\n"
+      "the output's rms error is within --accuracy-budget. A .sfrt source\n"
       "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
       "bf16 (--precision bf16) marks every convolution bf16: a session rounds the weights\n"
       "to bf16 at load and keeps bf16 activations between the layers; measure its accuracy\n"

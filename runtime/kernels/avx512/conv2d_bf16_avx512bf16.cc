@@ -102,7 +102,37 @@ struct V {
   }
 };
 
+// FloatToBf16 of 16 values in integer arithmetic (the same bits: vcvtneps2bf16 would flush
+// denormals to zero): bits + 0x7fff + bit 16, upper half; a NaN keeps its upper half, quieted.
+inline __m256i ToBf16x16(__m512 v) {
+  const __m512i bits = _mm512_castps_si512(v);
+  // The zero-masked forms with every lane set: the unmasked ones start from _mm512_undefined_*,
+  // which GCC 12 reports as -Wmaybe-uninitialized once inlined.
+  const __m512i lsb =
+      _mm512_and_si512(_mm512_maskz_srli_epi32(kAll, bits, 16), _mm512_set1_epi32(1));
+  __m512i rounded = _mm512_add_epi32(bits, _mm512_add_epi32(lsb, _mm512_set1_epi32(0x7fff)));
+  const __mmask16 nan = _mm512_cmp_ps_mask(v, v, _CMP_UNORD_Q);
+  rounded = _mm512_mask_or_epi32(rounded, nan, bits, _mm512_set1_epi32(0x400000));
+  return _mm512_maskz_cvtepi32_epi16(kAll, _mm512_maskz_srli_epi32(kAll, rounded, 16));
+}
+
 }  // namespace
+
+void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end) {
+  const ptrdiff_t n = static_cast<ptrdiff_t>(in.width) * in.channels;  // a row is dense
+  for (int y = row_begin; y < row_end; ++y) {
+    const float* src = in.pixel(y, 0);
+    uint16_t* dst = out.pixel(y, 0);
+    ptrdiff_t i = 0;
+    for (; i + 16 <= n; i += 16) {
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(dst + i), ToBf16x16(_mm512_loadu_ps(src + i)));
+    }
+    if (i < n) {
+      const __mmask16 m = static_cast<__mmask16>((1u << (n - i)) - 1u);
+      _mm256_mask_storeu_epi16(dst + i, m, ToBf16x16(_mm512_maskz_loadu_ps(m, src + i)));
+    }
+  }
+}
 
 const IsaBf16Kernels* Bf16Kernels() {
   static constexpr IsaBf16Kernels kKernels = {

@@ -166,7 +166,32 @@ struct V {
   }
 };
 
+// FloatToBf16 of 4 values in integer arithmetic (the same bits whatever FPCR says): bits +
+// 0x7fff + bit 16, upper half; a NaN keeps its upper half, quieted.
+inline uint16x4_t ToBf16x4(float32x4_t v) {
+  const uint32x4_t bits = vreinterpretq_u32_f32(v);
+  const uint32x4_t lsb = vandq_u32(vshrq_n_u32(bits, 16), vdupq_n_u32(1));
+  const uint32x4_t rounded = vaddq_u32(bits, vaddq_u32(lsb, vdupq_n_u32(0x7fff)));
+  const uint32x4_t quiet_nan = vorrq_u32(bits, vdupq_n_u32(0x400000));
+  const uint32x4_t ordered = vceqq_f32(v, v);  // false for NaN
+  return vshrn_n_u32(vbslq_u32(ordered, rounded, quiet_nan), 16);
+}
+
 }  // namespace
+
+void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end) {
+  const ptrdiff_t n = static_cast<ptrdiff_t>(in.width) * in.channels;  // a row is dense
+  for (int y = row_begin; y < row_end; ++y) {
+    const float* src = in.pixel(y, 0);
+    uint16_t* dst = out.pixel(y, 0);
+    ptrdiff_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+      vst1_u16(dst + i, ToBf16x4(vld1q_f32(src + i)));
+      vst1_u16(dst + i + 4, ToBf16x4(vld1q_f32(src + i + 4)));
+    }
+    for (; i < n; ++i) dst[i] = FloatToBf16(src[i]);
+  }
+}
 
 const IsaBf16Kernels* Bf16Kernels() {
   // The tiles' pixels for 1, 2, 3 and 4 valid vectors: 8x1, 8x2, 6x3, 5x4.

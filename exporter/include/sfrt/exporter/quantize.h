@@ -45,16 +45,20 @@ struct CalibrationSet {
 
 enum class QuantizeMode {
   kInt8,  // every convolution int8
-  // Start from every convolution int8; while output_rms_rel > accuracy_budget, put back to
-  // float32 the int8 convolution whose relative_rms rose most over that of the tensor it reads
-  // (the previous convolution's relative_rms; 0 for the model input), the earliest on a tie,
-  // and measure again. Ends with every convolution float32 at worst.
+  // Start from every convolution int8; while output_rms_rel > accuracy_budget, move one step up
+  // (int8 -> bf16 with QuantizeOptions::auto_bf16, else int8 -> float32; bf16 -> float32) the
+  // convolution whose relative_rms rose most over that of the tensor it reads (the previous
+  // convolution's relative_rms; 0 for the model input), the earliest on a tie, and measure
+  // again. Ends with every convolution float32 at worst.
   kAuto,
 };
 
 struct QuantizeOptions {
   QuantizeMode mode = QuantizeMode::kInt8;
   double accuracy_budget = 0.02;  // kAuto: the largest output_rms_rel accepted
+  // kAuto: an int8 layer over the budget tries bf16 before float32 (bf16 is faster than float32
+  // where the CPU has bf16 kernels, and slower where it has not).
+  bool auto_bf16 = true;
   std::string method = "percentile:99.99";
   // Called after each frame of each pass: pass is "range", "histogram" or "measure".
   std::function<void(const char* pass, int frame, int frames)> progress;
