@@ -272,6 +272,11 @@ int RunInfer(const InferArgs& args) {
   if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
     return ReportError(kName, env.message(), kExitUsage);
   }
+  if (std::string problem = ForcedIsaPrecisionProblem(*model, options.isa); !problem.empty()) {
+    return ReportError(
+        kName, args.model + ": " + problem + " (ISA " + IsaName(options.isa) + " from SFRT_ISA)",
+        kExitFailure);
+  }
   Result<std::unique_ptr<Session>> session = Session::Create(model, options);
   if (!session.ok()) {
     return ReportError(

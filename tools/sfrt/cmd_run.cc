@@ -391,6 +391,12 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
                            SupportedIsaList(),
                        kExitUsage);
   }
+  if (std::string problem = ForcedIsaPrecisionProblem(**loaded, options.isa); !problem.empty()) {
+    return ReportError(kName,
+                       args.model + ": " + problem + " (ISA " + IsaName(options.isa) +
+                           " from --isa, the profile or SFRT_ISA)",
+                       kExitFailure);
+  }
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };

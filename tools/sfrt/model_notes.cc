@@ -115,4 +115,28 @@ std::string PrecisionFallbackNotice(const Model& model, Isa isa) {
   return notice;
 }
 
+std::string ForcedIsaPrecisionProblem(const Model& model, Isa forced) {
+  if (forced == Isa::kAuto || forced == Isa::kRef) return "";
+  int int8 = 0, bf16 = 0;
+  for (const LayerDesc& layer : model.layers()) {
+    if (layer.kind != LayerKind::kConv2D) continue;
+    int8 += layer.conv.precision == Precision::kInt8;
+    bf16 += layer.conv.precision == Precision::kBFloat16;
+  }
+  auto problem = [&](int n, const char* precision, const char* needs) {
+    return "the model's " + std::to_string(n) + " " + precision + " convolution" +
+           (n == 1 ? " has" : "s have") + " no " + IsaName(forced) + " kernels on this CPU (" +
+           needs +
+           "): drop --isa (and SFRT_ISA) to let sfrt choose, or force ref to run them on "
+           "the reference kernel";
+  };
+  if (int8 > 0 && !Int8KernelsAvailable(forced)) {
+    return problem(int8, "int8", "avx512 needs AVX-512 VNNI, neon the dot-product extension");
+  }
+  if (bf16 > 0 && !Bf16KernelsAvailable(forced)) {
+    return problem(bf16, "bf16", "avx512 needs AVX512_BF16, neon the BF16 extension");
+  }
+  return "";
+}
+
 }  // namespace sfrt::tools

@@ -39,6 +39,14 @@ std::string Int8LayersText(const Model& model);
 // needs AVX-512 VNNI, neon the dot-product extension); a float32 model is faster here"; else "".
 std::string PrecisionFallbackNotice(const Model& model, Isa isa);
 
+// For an ISA the user forced (--isa, a profile or SFRT_ISA; not kAuto): "" when it runs every
+// precision of `model` on its own kernels (or is kRef, the reference by request), else the
+// reason it does not, e.g. "the model's 11 bf16 convolutions have no avx2 kernels on this CPU
+// (avx512 needs AVX512_BF16, neon the BF16 extension): drop --isa to let sfrt choose, or force
+// ref to run them on the reference kernel". `sfrt run` and `infer` refuse such a run; `bench`,
+// a measuring tool, prints PrecisionFallbackNotice and measures the fallback.
+std::string ForcedIsaPrecisionProblem(const Model& model, Isa forced);
+
 // Calibration errors as the commands print them: "1.23e-02".
 std::string ErrorText(double value);
 
