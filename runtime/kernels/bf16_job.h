@@ -121,6 +121,11 @@ struct Bf16ConvArgs {
   int crop_left = 0;
   int c_height = 0;
   int c_width = 0;
+  // Output columns [col_begin, col_end) of each row (clamped to the output's width): the plain
+  // convolution's kernels compute only those (a caller splitting rows by columns, as the AMX
+  // kernel hands its border columns to the VNNI one); calls with `upsampled` compute every column.
+  int col_begin = 0;
+  int col_end = 1 << 30;
 };
 
 // Computes output rows [row_begin, row_end), output-channel blocks [blk_begin, blk_end) (the
@@ -158,6 +163,17 @@ namespace avx512 {
 const IsaBf16Kernels* Bf16Kernels();
 void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end);
 }  // namespace avx512
+namespace avx512 {
+// The AMX bf16 kernels (tdpbf16ps; kernels/simd/amx_driver_inl.h), with the AVX512_BF16 kernels
+// for what the tiles leave: null unless the CPU has AVX512_BF16, AMX-TILE and AMX-BF16 and the OS
+// and Linux let sfrt use the tiles (src/cpu_features.h, amx_bf16); null in builds without them.
+const IsaBf16Kernels* Bf16KernelsAmx();
+}  // namespace avx512
+namespace amx {
+// The AMX bf16 kernels' blocking over the scalar emulation of the tiles (int8_job.h's
+// Int8KernelsEmulated, for bf16; its violations counter counts these too).
+const IsaBf16Kernels* Bf16KernelsEmulated();
+}  // namespace amx
 namespace neon {
 // Null when the CPU lacks the BF16 extension (Armv8.6 bfdot).
 const IsaBf16Kernels* Bf16Kernels();

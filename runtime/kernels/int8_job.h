@@ -164,6 +164,12 @@ struct Int8ConvArgs {
   int crop_left = 0;
   int c_height = 0;
   int c_width = 0;
+  // Output columns [col_begin, col_end) of each row (clamped to the output's width): the plain
+  // convolution's kernels compute only those (a caller splitting rows by columns, as the AMX
+  // kernel hands its border columns to the VNNI one); calls with `upsampled`, and convolutions
+  // with few_weights, compute every column.
+  int col_begin = 0;
+  int col_end = 1 << 30;
 };
 
 // Computes output rows [row_begin, row_end), output-channel blocks [blk_begin, blk_end) (the
@@ -188,7 +194,22 @@ const IsaInt8Kernels* Int8KernelsFor(Isa isa);
 namespace avx512 {
 // Null when the CPU lacks AVX-512 VNNI.
 const IsaInt8Kernels* Int8Kernels();
+// The AMX kernels (tdpbusd on 16x64-byte tiles; kernels/simd/amx_driver_inl.h). Their
+// border columns and the layers they leave (the fused upsample's, the few-output ones) run on the
+// VNNI kernels. Null unless the CPU has AVX-512 VNNI, AMX-TILE and AMX-INT8, the OS enables the
+// tile state, CPUID leaf 0x1D lists palette 1 with 8 tiles of 16 rows x 64 bytes, and Linux
+// grants the tile data permission (arch_prctl ARCH_REQ_XCOMP_PERM); null in builds without them.
+const IsaInt8Kernels* Int8KernelsAmx();
 }  // namespace avx512
+namespace amx {
+// The AMX kernels' blocking and packing over a scalar emulation of the tile registers and of
+// tdpbusd (every CPU; tests): the same bytes as the reference. Their border columns and the
+// layers the AMX kernels leave run on the reference. `violations` counts the tile operations
+// that broke the rules AMX enforces (tile shapes beyond palette 1, a tdpbusd whose operand
+// shapes disagree): a test expects none.
+const IsaInt8Kernels* Int8KernelsEmulated();
+long EmulatedTileViolations();
+}  // namespace amx
 
 // Rows [row_begin, row_end) of a float32 tensor to uint8, Int8Quantize per value (the step
 // before an int8 convolution that reads a float32 tensor). Safe on disjoint row ranges.

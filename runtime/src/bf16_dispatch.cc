@@ -4,13 +4,21 @@
 
 namespace sfrt {
 
+#if !SFRT_HAVE_AVX512_AMX
+// A build without the AMX kernels: there are none.
+const IsaBf16Kernels* avx512::Bf16KernelsAmx() { return nullptr; }
+#endif
+
 bool Bf16KernelsAvailable(Isa isa) {
   return Bf16KernelsFor(isa == Isa::kAuto ? BestIsa() : isa) != nullptr;
 }
 
-// The bf16 kernels exist for AVX512_BF16 and for NEON with the BF16 extension (bfdot); every
-// other ISA uses the reference.
+// The bf16 kernels exist for AMX (with AVX512_BF16 for what the tiles leave), AVX512_BF16 and
+// NEON with the BF16 extension (bfdot); every other ISA uses the reference.
 const IsaBf16Kernels* Bf16KernelsFor(Isa isa) {
+#if SFRT_HAVE_AVX512_AMX
+  if (isa == Isa::kAvx512 && HostCpuFeatures().amx_bf16) return avx512::Bf16KernelsAmx();
+#endif
 #if SFRT_HAVE_AVX512_BF16
   if (isa == Isa::kAvx512) return avx512::Bf16Kernels();
 #endif

@@ -6,6 +6,8 @@
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <cpuid.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 #define SFRT_X86 1
 #elif defined(__aarch64__)
 #include <asm/hwcap.h>
@@ -20,6 +22,27 @@ uint64_t ReadXcr0() {
   uint32_t eax = 0, edx = 0;
   __asm__ volatile("xgetbv" : "=a"(eax), "=d"(edx) : "c"(0));
   return (static_cast<uint64_t>(edx) << 32) | eax;
+}
+#endif
+
+#if defined(SFRT_X86)
+// AMX-TILE, the OS's tile state, palette 1 as the kernels use it, and Linux's
+// permission to use the tile data (granted once per process; a denial leaves AMX off).
+bool AmxUsable() {
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (!__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx)) return false;
+  if (((edx >> 24) & 1) == 0) return false;                     // AMX-TILE
+  constexpr uint64_t kTileState = (1ull << 17) | (1ull << 18);  // XTILECFG, XTILEDATA
+  if ((ReadXcr0() & kTileState) != kTileState) return false;
+  if (__get_cpuid_max(0, nullptr) < 0x1d) return false;
+  __cpuid_count(0x1d, 0, eax, ebx, ecx, edx);
+  if (eax < 1) return false;  // the highest palette: none
+  __cpuid_count(0x1d, 1, eax, ebx, ecx, edx);
+  const unsigned max_names = ebx >> 16, bytes_per_row = ebx & 0xffff, max_rows = ecx & 0xffff;
+  if (max_names < 8 || bytes_per_row < 64 || max_rows < 16) return false;
+  constexpr long kArchReqXcompPerm = 0x1023;
+  constexpr long kXfeatureXtiledata = 18;
+  return syscall(SYS_arch_prctl, kArchReqXcompPerm, kXfeatureXtiledata) == 0;
 }
 #endif
 
@@ -42,6 +65,7 @@ CpuFeatures Detect() {
   const bool avx512bw = (ebx >> 30) & 1;
   const bool avx512vl = (ebx >> 31) & 1;
   const bool avx512vnni = (ecx >> 11) & 1;
+  const unsigned edx7 = edx;  // AMX-BF16 (bit 22), AMX-TILE (24), AMX-INT8 (25)
   f.avx2_fma = avx2 && fma && ymm_state;
   f.avx512 = f.avx2_fma && avx512f && avx512dq && avx512bw && avx512vl && zmm_state;
   f.avx512_vnni = f.avx512 && avx512vnni;
@@ -50,6 +74,10 @@ CpuFeatures Detect() {
       __get_cpuid_count(7, 1, &eax, &ebx, &ecx, &edx)) {
     f.avx512_bf16 = f.avx512 && ((eax >> 5) & 1);
   }
+  // AmxUsable asks Linux for the tile permission: once, whichever precision needs it.
+  const bool amx = f.avx512 && AmxUsable();
+  f.amx_int8 = amx && f.avx512_vnni && ((edx7 >> 25) & 1);
+  f.amx_bf16 = amx && f.avx512_bf16 && ((edx7 >> 22) & 1);
 #elif defined(__aarch64__)
   f.neon = (getauxval(AT_HWCAP) & HWCAP_ASIMD) != 0;
 #endif

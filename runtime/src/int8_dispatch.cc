@@ -6,13 +6,22 @@
 
 namespace sfrt {
 
+#if !SFRT_HAVE_AVX512_AMX
+// A build without the AMX kernels (not x86-64, or a compiler without AMX): there are none.
+const IsaInt8Kernels* avx512::Int8KernelsAmx() { return nullptr; }
+#endif
+
 bool Int8KernelsAvailable(Isa isa) {
   return Int8KernelsFor(isa == Isa::kAuto ? BestIsa() : isa) != nullptr;
 }
 
-// The int8 kernels exist for AVX-512 VNNI and for NEON with the dot-product extensions (sdot,
-// or sudot with i8mm); every other ISA uses the reference.
+// The int8 kernels exist for AMX (with AVX-512 VNNI for what the tiles leave), AVX-512 VNNI and
+// NEON with the dot-product extensions (sdot, or sudot with i8mm); every other ISA uses the
+// reference.
 const IsaInt8Kernels* Int8KernelsFor(Isa isa) {
+#if SFRT_HAVE_AVX512_AMX
+  if (isa == Isa::kAvx512 && HostCpuFeatures().amx_int8) return avx512::Int8KernelsAmx();
+#endif
 #if SFRT_HAVE_AVX512_VNNI
   if (isa == Isa::kAvx512 && HostCpuFeatures().avx512_vnni) return avx512::Int8Kernels();
 #endif

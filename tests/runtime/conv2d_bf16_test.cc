@@ -25,6 +25,7 @@
 
 #include "bf16_packing.h"
 #include "kernels/bf16_job.h"
+#include "kernels/int8_job.h"  // amx::EmulatedTileViolations
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_ref.h"
 #include "sfrt/isa.h"
@@ -310,6 +311,8 @@ class Bf16Kernels : public ::testing::Test {
   void CheckEveryModelLayer();
   void CheckEdgeShapes();
   void CheckRowAndBlockRanges();
+  void CheckAmxBlocking();
+  void CheckColumnRanges();
 
   const IsaBf16Kernels* kernels_ = nullptr;
 };
@@ -333,6 +336,32 @@ class Bf16Neon : public Bf16Kernels {
       GTEST_SKIP() << "no NEON bf16 kernels here (aarch64 with the BF16 extension only; "
                       "supported ISAs: "
                    << SupportedIsaList() << ")";
+    }
+  }
+};
+
+// The AMX bf16 kernels' blocking over the scalar emulation of the tiles (every CPU), and the
+// hardware's kernels where the CPU and the OS let sfrt use AMX.
+class Bf16AmxEmulated : public Bf16Kernels {
+ protected:
+  void SetUp() override {
+    kernels_ = amx::Bf16KernelsEmulated();
+    violations_before_ = amx::EmulatedTileViolations();
+  }
+  void TearDown() override {
+    EXPECT_EQ(amx::EmulatedTileViolations(), violations_before_)
+        << "a tile operation broke AMX's rules";
+  }
+  long violations_before_ = 0;
+};
+
+class Bf16Amx : public Bf16Kernels {
+ protected:
+  void SetUp() override {
+    kernels_ = avx512::Bf16KernelsAmx();
+    if (kernels_ == nullptr) {
+      GTEST_SKIP() << "no AMX-BF16 here (the emulated tiles, Bf16AmxEmulated, test the same "
+                      "blocking)";
     }
   }
 };
@@ -522,6 +551,71 @@ TEST(Bf16Conversion, EveryIsaGivesTheBitsOfFloatToBf16) {
       }
     }
   }
+}
+
+// Shapes where the AMX tiles do the work: rows with groups of 16 interior pixels, input pairs
+// under one chunk of 16, exactly one, a chunk and a tail, several; output blocks of 64, partial
+// and several; 1x1, 3x3 and 5x5; strides 1 and 2; every activation and both outputs.
+void Bf16Kernels::CheckAmxBlocking() {
+  const std::vector<Bf16Shape> shapes = {
+      Conv(5, 40, 3, 64, 1),    Conv(4, 41, 12, 100, 1),  Conv(5, 75, 36, 64, 2),
+      Conv(3, 38, 32, 64, 1),   Conv(4, 50, 50, 130, 1),  Conv(3, 35, 100, 64, 1),
+      Conv(3, 34, 256, 128, 1), Conv(3, 34, 1024, 64, 1), Conv(4, 40, 20, 70, 1, 1),
+      Conv(6, 44, 9, 33, 2, 5), Conv(5, 12, 64, 64, 1),
+  };
+  size_t values = 0;
+  uint32_t seed = 800;
+  for (Bf16Shape shape : shapes) {
+    for (Activation act : {Activation::kLeakyRelu, Activation::kRelu, Activation::kNone}) {
+      for (bool out_float : {false, true}) {
+        shape.act = act;
+        shape.out_float = out_float;
+        values += ExpectMatchesReference(MakeProblem(shape, seed++));
+      }
+    }
+  }
+  std::printf("[          ] %zu output values\n", values);
+}
+
+// Each row as three column ranges (Bf16ConvArgs::col_begin/col_end) gives what one call gives.
+void Bf16Kernels::CheckColumnRanges() {
+  for (const Bf16Shape& shape : {Conv(5, 37, 20, 70, 1), Conv(6, 41, 9, 33, 2)}) {
+    const Problem pr = MakeProblem(shape, 93);
+    SCOPED_TRACE(Describe(pr.shape));
+    Aligned packed(PackedBf16Bytes(pr.params, kernels_->nr, false));
+    const PackedBf16Conv conv = PackBf16Conv(pr.params, kernels_->nr, false, false, packed.data);
+    const Output whole = RunConv(pr, conv, kernels_->conv, conv.blocks);
+    static thread_local Bf16ConvRowsFn fn;
+    fn = kernels_->conv;
+    const Output pieces = RunConv(
+        pr, conv,
+        [](const Bf16ConvArgs& a, int r0, int r1, int b0, int b1) {
+          Bf16ConvArgs part = a;
+          const int w = a.out_bf16.width;
+          for (auto [b, e] : {std::pair{0, 1}, {1, 9}, {9, w}}) {
+            part.col_begin = b;
+            part.col_end = e;
+            fn(part, r0, r1, b0, b1);
+          }
+        },
+        conv.blocks);
+    EXPECT_EQ(pieces.h, whole.h);
+  }
+}
+
+TEST_F(Bf16Avx512, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+TEST_F(Bf16Neon, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+TEST_F(Bf16AmxEmulated, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+TEST_F(Bf16AmxEmulated, MatchesTheReferenceOnEdgeShapes) { CheckEdgeShapes(); }
+TEST_F(Bf16AmxEmulated, MatchesTheReferenceWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Bf16AmxEmulated, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
+  CheckRowAndBlockRanges();
+}
+TEST_F(Bf16Amx, MatchesTheReferenceOnEveryModelLayer) { CheckEveryModelLayer(); }
+TEST_F(Bf16Amx, MatchesTheReferenceWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Bf16Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
+  EXPECT_EQ(std::string(kernels_->conv_name), "conv2d_bf16__avx512amx_16x64");
+  EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512), kernels_);
 }
 
 TEST(Bf16Dispatch, OnlyAvx512WithBf16AndNeonWithBf16HaveBf16Kernels) {

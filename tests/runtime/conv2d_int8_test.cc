@@ -21,6 +21,7 @@
 #include "int8_packing.h"
 #include "kernels/int8_job.h"
 #include "kernels/ref/conv2d_int8_ref.h"
+#include "kernels/simd/amx_driver_inl.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #if SFRT_TEST_NEON_DOT
@@ -430,6 +431,8 @@ class Int8Kernels : public ::testing::Test {
   void CheckEdgeShapes();
   void CheckPhaseKernels();
   void CheckRowAndBlockRanges();
+  void CheckAmxBlocking();
+  void CheckColumnRanges();
 
   // The tables under test (set by the ISA's fixture; the reference runs once for all of them).
   std::vector<const IsaInt8Kernels*> tables_;
@@ -447,6 +450,35 @@ class Int8Vnni : public Int8Kernels {
   }
 
   const IsaInt8Kernels* kernels_ = nullptr;
+};
+
+// The AMX kernels' blocking and packing over the scalar emulation of the tiles (every CPU), and
+// the hardware's kernels where the CPU and the OS let sfrt use AMX.
+class Int8AmxEmulated : public Int8Kernels {
+ protected:
+  void SetUp() override {
+    tables_ = {amx::Int8KernelsEmulated()};
+    violations_before_ = amx::EmulatedTileViolations();
+  }
+  void TearDown() override {
+    EXPECT_EQ(amx::EmulatedTileViolations(), violations_before_)
+        << "a tile operation broke AMX's rules (shapes beyond palette 1, or a tdpbusd whose "
+           "operands disagree)";
+  }
+  long violations_before_ = 0;
+};
+
+class Int8Amx : public Int8Kernels {
+ protected:
+  void SetUp() override {
+    const IsaInt8Kernels* amx = avx512::Int8KernelsAmx();
+    if (amx == nullptr) {
+      GTEST_SKIP() << "no AMX here (it needs AMX-TILE and AMX-INT8, the OS's tile state, palette "
+                      "1 in CPUID leaf 0x1D and Linux's tile permission): the emulated tiles "
+                      "(Int8AmxEmulated) test the same blocking";
+    }
+    tables_ = {amx};
+  }
 };
 
 // The NEON dot-product kernels: usdot (i8mm) and sdot (dotprod), each where the CPU has it (both
@@ -684,6 +716,102 @@ TEST_F(Int8Vnni, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
 }
 TEST_F(Int8NeonDot, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
   CheckRowAndBlockRanges();
+}
+
+// Shapes where the tiles do the work (the model table's maps are mostly narrower than a tile, so
+// with the emulation they would test the fallback, slowly): rows with groups of 16 interior
+// pixels (stride 1 and 2)
+// and leftovers, input channels of one group (3: read past the pixel), under one chunk of 16
+// groups (12, 36), exactly one (64), a chunk and a tail (100, 200), several (256, 1024); one,
+// partial and several output blocks of 64; 1x1, 3x3 and 5x5; a float output; rows too short for
+// a tile; the few-output layer (left to the fallback).
+void Int8Kernels::CheckAmxBlocking() {
+  std::vector<Int8Shape> shapes = {
+      Conv(5, 40, 3, 64, 1),
+      Conv(4, 41, 12, 100, 1),
+      Conv(5, 75, 36, 64, 2),
+      Conv(3, 38, 64, 64, 1),
+      Conv(4, 50, 100, 130, 1),
+      Conv(3, 35, 200, 64, 1),
+      Conv(3, 34, 256, 128, 1),
+      Conv(3, 34, 1024, 64, 1),
+      {4, 40, 20, 70, 1, 1, SameUpper(4, 40, 1, 1)},
+      {6, 44, 9, 33, 5, 2, SameUpper(6, 44, 5, 2)},
+      Conv(5, 12, 64, 64, 1),
+      Conv(5, 40, 64, 3, 1),
+  };
+  Int8Shape padded = Conv(6, 37, 40, 64, 1);
+  padded.pads = {0, 2, 2, 0};
+  shapes.push_back(padded);
+  Int8Shape view = Conv(5, 36, 24, 64, 1);
+  view.extra_row_bytes = 7;
+  shapes.push_back(view);
+  size_t values = 0;
+  uint32_t seed = 7000;
+  for (const Int8Shape& shape : shapes) {
+    for (const Int8Quant& q : EveryQuant()) {
+      if (shape.cout == 3 && !q.out_float) continue;
+      values += ExpectBitExact(MakeProblem(shape, q, seed++));
+    }
+  }
+  std::printf("[          ] %zu output values bit for bit\n", values);
+}
+
+// Each row computed as three column ranges (Int8ConvArgs::col_begin/col_end, as the AMX kernel
+// hands its borders over), splits inside the border and inside the interior, gives the whole
+// row's bytes.
+void Int8Kernels::CheckColumnRanges() {
+  for (const IsaInt8Kernels* kernels : tables_) {
+    SCOPED_TRACE(kernels->conv_name);
+    for (const Int8Shape& shape : {Conv(5, 37, 20, 70, 1), Conv(6, 41, 9, 33, 2)}) {
+      const Int8Problem pr = MakeProblem(shape, Int8Quant{}, 91);
+      SCOPED_TRACE(Describe(pr.shape));
+      const Output want = RunReference(pr);
+      AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
+      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, false, packed.data);
+      Output got(pr);
+      Int8ConvArgs args = ArgsFor(pr, &conv, &got);
+      for (auto [b, e] : {std::pair{0, 1}, {1, 9}, {9, pr.out_w}}) {
+        args.col_begin = b;
+        args.col_end = e;
+        kernels->conv(args, 0, pr.out_h, 0, conv.blocks);
+      }
+      ExpectSameBytes(pr, got, want);
+    }
+  }
+}
+
+TEST_F(Int8Vnni, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+TEST_F(Int8NeonDot, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+TEST_F(Int8AmxEmulated, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+
+TEST(AmxTiles, ConfigurationFitsPalette1ForEveryChannelCount) {
+  for (int groups = 1; groups <= 256; ++groups) {
+    const simd::AmxTileConfig c = simd::AmxConfigFor(groups);
+    EXPECT_EQ(c.palette, 1);
+    for (int t = 0; t < 8; ++t) {
+      EXPECT_LE(c.rows[t], 16) << groups;
+      EXPECT_LE(c.colsb[t], 64) << groups;
+    }
+    // A's bytes per row are 4x B's rows (tdpbusd's K), for the full chunks and for the tail.
+    EXPECT_EQ(c.colsb[4], 4 * c.rows[5]) << groups;
+    EXPECT_EQ(c.colsb[6], 4 * c.rows[7]) << groups;
+    const int full = c.rows[5], tail = c.rows[7];
+    EXPECT_EQ(groups / full * full + tail, groups) << "every group in one chunk";
+    EXPECT_EQ(tail == 0, groups <= 16 || groups % 16 == 0) << groups;
+  }
+}
+
+TEST_F(Int8AmxEmulated, MatchesReferenceBitForBitOnEdgeShapes) { CheckEdgeShapes(); }
+TEST_F(Int8AmxEmulated, MatchesReferenceBitForBitWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Int8AmxEmulated, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
+  CheckRowAndBlockRanges();
+}
+TEST_F(Int8Amx, MatchesReferenceBitForBitOnEveryModelLayer) { CheckEveryModelLayer(); }
+TEST_F(Int8Amx, MatchesReferenceBitForBitWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Int8Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
+  EXPECT_EQ(std::string(tables_.front()->conv_name), "conv2d_u8s8__avx512amx_16x64");
+  EXPECT_EQ(Int8KernelsFor(Isa::kAvx512), tables_.front());
 }
 
 TEST(Int8Dispatch, OnlyAvx512WithVnniAndNeonWithDotProductHaveInt8Kernels) {

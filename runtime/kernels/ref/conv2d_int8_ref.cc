@@ -1,5 +1,6 @@
 #include "kernels/ref/conv2d_int8_ref.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cstring>
 
@@ -38,12 +39,15 @@ void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk
     return a.in.pixel((y + a.crop_top) / 2, (x + a.crop_left) / 2);
   };
   const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
+  // The columns this call computes (Args::col_begin/col_end; every column when upsampled).
+  const int x_begin = a.upsampled ? 0 : std::max(0, a.col_begin);
+  const int x_end = a.upsampled ? out_w : std::min(out_w, a.col_end);
   const bool phases = a.upsampled && p.phase_weights_hwio != nullptr;
   const size_t phase_hwio = static_cast<size_t>(4) * cin * cout;
   constexpr int kChunk = 256;  // output channels summed at once (the sums live on the stack)
   int32_t acc[kChunk];
   for (int oy = row_begin; oy < row_end; ++oy) {
-    for (int ox = 0; ox < out_w; ++ox) {
+    for (int ox = x_begin; ox < x_end; ++ox) {
       for (int c0 = 0; c0 < cout; c0 += kChunk) {
         const int cn = cout - c0 < kChunk ? cout - c0 : kChunk;
         for (int co = 0; co < cn; ++co) acc[co] = 0;

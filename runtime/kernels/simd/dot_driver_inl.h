@@ -127,6 +127,7 @@ struct DotJob {
   ptrdiff_t tap_elems = 0;  // packed weights of one tap of one block
   ptrdiff_t out_pixel = 0;  // bytes between output pixels
   int x_lo = 0, x_hi = 0;   // output columns whose window lies inside the map
+  int cb = 0, ce = 0;       // the columns this call computes (Args::col_begin, col_end)
   int32_t coefficient = 0;  // int8: V::ZeroPointCoefficient(in_zero_point)
   bool phases = false;      // the fused upsample's interior from the phase kernels
 
@@ -290,10 +291,11 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
       DotTileUpTo<V, MR, NV>(r, xs, ws, t, j.groups, init, e, j.Out(oy, ox, blk), j.out_pixel);
     };
 
-    for (int ox = 0; ox < j.x_lo; ++ox) single(ox);
+    for (int ox = j.cb; ox < MinOf(j.x_lo, j.ce); ++ox) single(ox);
+    const int t_lo = MaxOf(j.x_lo, j.cb), t_hi = MinOf(j.x_hi, j.ce);
     if (j.x_lo < j.x_hi && j.phases && iy0 >= 0 && iy0 + 3 <= j.src_h) {
       DotPhaseRow<V, MR, NV>(j, blk, e, oy, iy0);
-    } else if (j.x_lo < j.x_hi) {
+    } else if (t_lo < t_hi) {
       int n = 0;
       for (int ky = ky_lo; ky < ky_hi; ++ky) {
         for (int kx = 0; kx < j.kw; ++kx) {
@@ -303,11 +305,11 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
         }
       }
       DotInit<V, NV>(ss, n, j.coefficient, init);
-      int ox = j.x_lo;
-      for (; ox + MR <= j.x_hi; ox += MR) tiles(ox, MR);
-      if (ox < j.x_hi) tiles(ox, j.x_hi - ox);
+      int ox = t_lo;
+      for (; ox + MR <= t_hi; ox += MR) tiles(ox, MR);
+      if (ox < t_hi) tiles(ox, t_hi - ox);
     }
-    for (int ox = j.x_hi; ox < j.out_w; ++ox) single(ox);
+    for (int ox = MaxOf(j.x_hi, j.cb); ox < j.ce; ++ox) single(ox);
   }
 }
 
@@ -351,6 +353,9 @@ void DotRows(const typename DotTraits<typename V::Conv>::Args& a, bool up, int r
   const ColumnRange inside = InsideColumns(j.out_w, j.src_w, j.kw, j.sw, j.pl);
   j.x_lo = inside.lo;
   j.x_hi = inside.hi;
+  // A column range applies to the plain convolution; the fused upsample computes whole rows.
+  j.cb = up ? 0 : MaxOf(0, a.col_begin);
+  j.ce = up ? j.out_w : MinOf(j.out_w, a.col_end);
   if constexpr (T::kQuantized) j.coefficient = V::ZeroPointCoefficient(p.in_zero_point);
   j.phases = up && p.phase_weights != nullptr;
 

@@ -1,0 +1,121 @@
+// AMX convolution kernels, int8 (tdpbusd) and bf16 (tdpbf16ps), compiled with -mamx-tile
+// -mamx-int8 -mamx-bf16 and the AVX-512 flags only in this translation unit
+// (runtime/CMakeLists.txt): kernels/simd/amx_driver_inl.h over the hardware's tile instructions.
+// The int8 kernels are bit for bit equal to ref::Conv2dInt8Rows. The border columns, the fused
+// upsample's convolutions and the few-output ones run on the AVX-512 VNNI (int8) and AVX512_BF16
+// (bf16) kernels, which every AMX CPU has. Chosen only where HostCpuFeatures().amx_int8 /
+// amx_bf16 (src/cpu_features.cc: CPUID, XCR0, the palette of CPUID leaf 0x1D and Linux's tile
+// data permission).
+#include <immintrin.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "kernels/bf16_job.h"
+#include "kernels/int8_job.h"
+#include "kernels/simd/amx_driver_inl.h"
+#include "src/cpu_features.h"
+
+namespace sfrt::avx512 {
+namespace {
+
+// GCC's tile intrinsics are macros that paste the tile number into the instruction's text, so
+// the number must be a literal: each template below names its tiles one by one.
+#define SFRT_TILE_CASE(n, stmt) \
+  if constexpr (T == n) {       \
+    stmt;                       \
+  }
+struct HardwareTiles {
+  static void Configure(const simd::AmxTileConfig& c) { _tile_loadconfig(&c); }
+  static void Release() { _tile_release(); }
+  template <int T>
+  static void Load(const void* base, ptrdiff_t stride) {
+    static_assert(T >= 0 && T < 8, "palette 1 has tiles 0-7");
+    SFRT_TILE_CASE(0, _tile_loadd(0, base, stride))
+    SFRT_TILE_CASE(1, _tile_loadd(1, base, stride))
+    SFRT_TILE_CASE(2, _tile_loadd(2, base, stride))
+    SFRT_TILE_CASE(3, _tile_loadd(3, base, stride))
+    SFRT_TILE_CASE(4, _tile_loadd(4, base, stride))
+    SFRT_TILE_CASE(5, _tile_loadd(5, base, stride))
+    SFRT_TILE_CASE(6, _tile_loadd(6, base, stride))
+    SFRT_TILE_CASE(7, _tile_loadd(7, base, stride))
+  }
+  template <int T>
+  static void Store(void* base, ptrdiff_t stride) {
+    static_assert(T >= 0 && T < 4, "the kernels store the C tiles 0-3");
+    SFRT_TILE_CASE(0, _tile_stored(0, base, stride))
+    SFRT_TILE_CASE(1, _tile_stored(1, base, stride))
+    SFRT_TILE_CASE(2, _tile_stored(2, base, stride))
+    SFRT_TILE_CASE(3, _tile_stored(3, base, stride))
+  }
+  template <int C, int A, int B>
+  static void DpBusd() {
+    static_assert(C >= 0 && C < 4 && ((A == 4 && B == 5) || (A == 6 && B == 7)),
+                  "C tiles 0-3 with A/B 4/5 or 6/7");
+    constexpr int T = C * 2 + (A == 6 ? 1 : 0);
+    SFRT_TILE_CASE(0, _tile_dpbusd(0, 4, 5))
+    SFRT_TILE_CASE(1, _tile_dpbusd(0, 6, 7))
+    SFRT_TILE_CASE(2, _tile_dpbusd(1, 4, 5))
+    SFRT_TILE_CASE(3, _tile_dpbusd(1, 6, 7))
+    SFRT_TILE_CASE(4, _tile_dpbusd(2, 4, 5))
+    SFRT_TILE_CASE(5, _tile_dpbusd(2, 6, 7))
+    SFRT_TILE_CASE(6, _tile_dpbusd(3, 4, 5))
+    SFRT_TILE_CASE(7, _tile_dpbusd(3, 6, 7))
+  }
+  template <int C, int A, int B>
+  static void DpBf16ps() {
+    static_assert(C >= 0 && C < 4 && ((A == 4 && B == 5) || (A == 6 && B == 7)),
+                  "C tiles 0-3 with A/B 4/5 or 6/7");
+    constexpr int T = C * 2 + (A == 6 ? 1 : 0);
+    SFRT_TILE_CASE(0, _tile_dpbf16ps(0, 4, 5))
+    SFRT_TILE_CASE(1, _tile_dpbf16ps(0, 6, 7))
+    SFRT_TILE_CASE(2, _tile_dpbf16ps(1, 4, 5))
+    SFRT_TILE_CASE(3, _tile_dpbf16ps(1, 6, 7))
+    SFRT_TILE_CASE(4, _tile_dpbf16ps(2, 4, 5))
+    SFRT_TILE_CASE(5, _tile_dpbf16ps(2, 6, 7))
+    SFRT_TILE_CASE(6, _tile_dpbf16ps(3, 4, 5))
+    SFRT_TILE_CASE(7, _tile_dpbf16ps(3, 6, 7))
+  }
+};
+#undef SFRT_TILE_CASE
+
+Int8ConvRowsFn g_vnni_conv = nullptr;
+Bf16ConvRowsFn g_bf16_conv = nullptr;
+
+void ConvRows(const Int8ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
+  simd::AmxConvRows<HardwareTiles, PackedInt8Conv>(a, row_begin, row_end, blk_begin, blk_end,
+                                                   g_vnni_conv);
+}
+
+void Bf16ConvRows(const Bf16ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
+  simd::AmxConvRows<HardwareTiles, PackedBf16Conv>(a, row_begin, row_end, blk_begin, blk_end,
+                                                   g_bf16_conv);
+}
+
+}  // namespace
+
+const IsaInt8Kernels* Int8KernelsAmx() {
+  static const IsaInt8Kernels* kernels = []() -> const IsaInt8Kernels* {
+    const IsaInt8Kernels* vnni = Int8Kernels();
+    if (vnni == nullptr || vnni->nr != 64 || !HostCpuFeatures().amx_int8) return nullptr;
+    g_vnni_conv = vnni->conv;
+    static const IsaInt8Kernels table = {64, ConvRows, vnni->upconv, "conv2d_u8s8__avx512amx_16x64",
+                                         vnni->upconv_name};
+    return &table;
+  }();
+  return kernels;
+}
+
+const IsaBf16Kernels* Bf16KernelsAmx() {
+  static const IsaBf16Kernels* kernels = []() -> const IsaBf16Kernels* {
+    const IsaBf16Kernels* avx = Bf16Kernels();
+    if (avx == nullptr || avx->nr != 64 || !HostCpuFeatures().amx_bf16) return nullptr;
+    g_bf16_conv = avx->conv;
+    static const IsaBf16Kernels table = {64, Bf16ConvRows, avx->upconv,
+                                         "conv2d_bf16__avx512amx_16x64", avx->upconv_name};
+    return &table;
+  }();
+  return kernels;
+}
+
+}  // namespace sfrt::avx512
