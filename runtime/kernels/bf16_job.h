@@ -45,35 +45,6 @@ inline float Bf16ToFloat(uint16_t h) {
   return f;
 }
 
-struct ConstBf16View {
-  const uint16_t* data = nullptr;
-  int height = 0;
-  int width = 0;
-  int channels = 0;
-  ptrdiff_t row_stride = 0;  // in elements
-
-  const uint16_t* pixel(int y, int x) const {
-    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
-  }
-};
-
-struct Bf16View {
-  uint16_t* data = nullptr;
-  int height = 0;
-  int width = 0;
-  int channels = 0;
-  ptrdiff_t row_stride = 0;  // in elements
-
-  uint16_t* pixel(int y, int x) const {
-    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
-  }
-  operator ConstBf16View() const { return {data, height, width, channels, row_stride}; }
-};
-
-inline Bf16View DenseBf16View(uint16_t* data, int height, int width, int channels) {
-  return {data, height, width, channels, static_cast<ptrdiff_t>(width) * channels};
-}
-
 // Bytes a kernel may read past the last pixel of a bf16 tensor: the SIMD kernels read input
 // channels in pairs (a 32-bit group), so with an odd channel count they read one value past each
 // pixel (the next pixel's first channel, or past the tensor's end) and multiply it by a zero

@@ -43,35 +43,6 @@
 
 namespace sfrt {
 
-struct ConstByteView {
-  const uint8_t* data = nullptr;
-  int height = 0;
-  int width = 0;
-  int channels = 0;
-  ptrdiff_t row_stride = 0;  // in bytes
-
-  const uint8_t* pixel(int y, int x) const {
-    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
-  }
-};
-
-struct ByteView {
-  uint8_t* data = nullptr;
-  int height = 0;
-  int width = 0;
-  int channels = 0;
-  ptrdiff_t row_stride = 0;  // in bytes
-
-  uint8_t* pixel(int y, int x) const {
-    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
-  }
-  operator ConstByteView() const { return {data, height, width, channels, row_stride}; }
-};
-
-inline ByteView DenseByteView(uint8_t* data, int height, int width, int channels) {
-  return {data, height, width, channels, static_cast<ptrdiff_t>(width) * channels};
-}
-
 // Bytes a kernel may read past the last pixel of a uint8 tensor: the SIMD kernels read input
 // channels four at a time, so a tensor whose channel count is not a multiple of 4 is read up to
 // 3 bytes beyond its end (multiplied by zero weights). The session's arena leaves this much

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 namespace sfrt {
 
@@ -34,6 +35,52 @@ struct TensorView {
 
 inline TensorView DenseView(float* data, int height, int width, int channels) {
   return {data, height, width, channels, static_cast<ptrdiff_t>(width) * channels};
+}
+
+// The same for the reduced-precision tensors: uint8 (int8 convolutions) and bf16 bits (bf16
+// convolutions). row_stride is in elements.
+template <typename T>
+struct ConstPlaneView {
+  const T* data = nullptr;
+  int height = 0;
+  int width = 0;
+  int channels = 0;
+  ptrdiff_t row_stride = 0;
+
+  const T* pixel(int y, int x) const {
+    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
+  }
+};
+
+template <typename T>
+struct PlaneView {
+  T* data = nullptr;
+  int height = 0;
+  int width = 0;
+  int channels = 0;
+  ptrdiff_t row_stride = 0;
+
+  T* pixel(int y, int x) const {
+    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
+  }
+  operator ConstPlaneView<T>() const { return {data, height, width, channels, row_stride}; }
+};
+
+template <typename T>
+PlaneView<T> DensePlaneView(T* data, int height, int width, int channels) {
+  return {data, height, width, channels, static_cast<ptrdiff_t>(width) * channels};
+}
+
+using ConstByteView = ConstPlaneView<uint8_t>;
+using ByteView = PlaneView<uint8_t>;
+using ConstBf16View = ConstPlaneView<uint16_t>;
+using Bf16View = PlaneView<uint16_t>;
+
+inline ByteView DenseByteView(uint8_t* data, int height, int width, int channels) {
+  return DensePlaneView(data, height, width, channels);
+}
+inline Bf16View DenseBf16View(uint16_t* data, int height, int width, int channels) {
+  return DensePlaneView(data, height, width, channels);
 }
 
 }  // namespace sfrt

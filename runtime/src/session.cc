@@ -121,8 +121,6 @@ struct BlockedConvJob {
   int chunks;
 };
 using ConvJob = BlockedConvJob<ConvRowsFn, ConvArgs>;
-using Int8ConvJob = BlockedConvJob<Int8ConvRowsFn, Int8ConvArgs>;
-using Bf16ConvJob = BlockedConvJob<Bf16ConvRowsFn, Bf16ConvArgs>;
 
 template <typename Job>
 void BlockedConvTrampoline(void* ctx, int begin, int end) {
@@ -635,58 +633,43 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
   };
   ConstTensorView cur{input.data(), in_shape.height, in_shape.width, in_shape.channels,
                       static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
-  // An int8 step's call, reading `in` (the low-resolution map when it fuses an upsampling).
+  // An int8 or bf16 step's call (Args: Int8ConvArgs or Bf16ConvArgs with conv and in set): the
+  // pads, and the upsampling it fuses (then `in` is the low-resolution map).
+  auto reduced_args = [&]<typename Args>(const Step& step, Args args) {
+    args.pads = geometry_[step.last_layer].pads;
+    if (step.upsampled) {
+      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+      args.upsampled = true;
+      if (step.crop_layer >= 0) {
+        args.crop_top = c.crop.top;
+        args.crop_left = c.crop.left;
+      }
+      args.c_height = c.output.height;
+      args.c_width = c.output.width;
+    }
+    return args;
+  };
   auto int8_args = [&](const Step& step, const ConstByteView& in) {
     Int8ConvArgs args;
     args.conv = &step.packed8;
     args.in = in;
-    args.pads = geometry_[step.last_layer].pads;
-    if (step.upsampled) {
-      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
-      args.upsampled = true;
-      if (step.crop_layer >= 0) {
-        args.crop_top = c.crop.top;
-        args.crop_left = c.crop.left;
-      }
-      args.c_height = c.output.height;
-      args.c_width = c.output.width;
-    }
-    return args;
+    return reduced_args(step, args);
   };
-  auto run_int8 = [&](const Step& step, const Int8ConvArgs& args, int rows) {
-    const int blocks = step.packed8.blocks;
-    if (pool_ == nullptr) {
-      step.fn8(args, 0, rows, 0, blocks);
-    } else {
-      Int8ConvJob job{step.fn8, &args, rows, ConvChunks(blocks, rows, threads_)};
-      pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Int8ConvJob>, &job);
-    }
-  };
-  // A bf16 step's call, as int8_args.
   auto bf16_args = [&](const Step& step, const ConstBf16View& in) {
     Bf16ConvArgs args;
     args.conv = &step.packed16;
     args.in = in;
-    args.pads = geometry_[step.last_layer].pads;
-    if (step.upsampled) {
-      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
-      args.upsampled = true;
-      if (step.crop_layer >= 0) {
-        args.crop_top = c.crop.top;
-        args.crop_left = c.crop.left;
-      }
-      args.c_height = c.output.height;
-      args.c_width = c.output.width;
-    }
-    return args;
+    return reduced_args(step, args);
   };
-  auto run_bf16 = [&](const Step& step, const Bf16ConvArgs& args, int rows) {
-    const int blocks = step.packed16.blocks;
+  // Runs `fn` over `rows` output rows and every block, split over the pool as BlockedConvJob says.
+  auto run_blocked = [&]<typename Fn, typename Args>(Fn fn, const Args& args, int rows) {
+    const int blocks = args.conv->blocks;
     if (pool_ == nullptr) {
-      step.fn16(args, 0, rows, 0, blocks);
+      fn(args, 0, rows, 0, blocks);
     } else {
-      Bf16ConvJob job{step.fn16, &args, rows, ConvChunks(blocks, rows, threads_)};
-      pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Bf16ConvJob>, &job);
+      using Job = BlockedConvJob<Fn, Args>;
+      Job job{fn, &args, rows, ConvChunks(blocks, rows, threads_)};
+      pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Job>, &job);
     }
   };
   ConstByteView cur8;   // the current tensor when it is uint8 (cur8.data != null)
@@ -731,7 +714,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       } else {
         Bf16ConvArgs args = bf16_args(step, cur16);
         args.out_bf16 = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
-        run_bf16(step, args, g.output.height);
+        run_blocked(step.fn16, args, g.output.height);
         cur16 = args.out_bf16;
       }
       // The slack a kernel may read past the tensor: finite (bf16_job.h).
@@ -759,7 +742,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       } else {
         Int8ConvArgs args = int8_args(step, cur8);
         args.out_u8 = DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
-        run_int8(step, args, g.output.height);
+        run_blocked(step.fn8, args, g.output.height);
         cur8 = args.out_u8;
       }
       if (timed) stamp(step_index);
@@ -849,14 +832,14 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kInt8Conv: {  // float32 output
         Int8ConvArgs args = int8_args(step, cur8);
         args.out_f32 = out;
-        run_int8(step, args, out.height);
+        run_blocked(step.fn8, args, out.height);
         cur8 = {};
         break;
       }
       case Step::Kind::kBf16Conv: {  // float32 output
         Bf16ConvArgs args = bf16_args(step, cur16);
         args.out_f32 = out;
-        run_bf16(step, args, out.height);
+        run_blocked(step.fn16, args, out.height);
         cur16 = {};
         break;
       }

@@ -555,7 +555,7 @@ TEST(Bf16Conversion, EveryIsaGivesTheBitsOfFloatToBf16) {
 
 // Shapes where the AMX tiles do the work: rows with groups of 16 interior pixels, input pairs
 // under one chunk of 16, exactly one, a chunk and a tail, several; output blocks of 64, partial
-// and several; 1x1, 3x3 and 5x5; strides 1 and 2; every activation and both outputs.
+// and several; 1x1, 3x3 and 5x5; strides 1 and 2; both outputs.
 void Bf16Kernels::CheckAmxBlocking() {
   const std::vector<Bf16Shape> shapes = {
       Conv(5, 40, 3, 64, 1),    Conv(4, 41, 12, 100, 1),  Conv(5, 75, 36, 64, 2),
@@ -563,15 +563,15 @@ void Bf16Kernels::CheckAmxBlocking() {
       Conv(3, 34, 256, 128, 1), Conv(3, 34, 1024, 64, 1), Conv(4, 40, 20, 70, 1, 1),
       Conv(6, 44, 9, 33, 2, 5), Conv(5, 12, 64, 64, 1),
   };
+  // Two epilogues each (the epilogue is the scalar one whatever the shape; EdgeShapes has all).
   size_t values = 0;
   uint32_t seed = 800;
   for (Bf16Shape shape : shapes) {
-    for (Activation act : {Activation::kLeakyRelu, Activation::kRelu, Activation::kNone}) {
-      for (bool out_float : {false, true}) {
-        shape.act = act;
-        shape.out_float = out_float;
-        values += ExpectMatchesReference(MakeProblem(shape, seed++));
-      }
+    for (auto [act, out_float] :
+         {std::pair{Activation::kLeakyRelu, false}, std::pair{Activation::kRelu, true}}) {
+      shape.act = act;
+      shape.out_float = out_float;
+      values += ExpectMatchesReference(MakeProblem(shape, seed++));
     }
   }
   std::printf("[          ] %zu output values\n", values);

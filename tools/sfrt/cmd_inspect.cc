@@ -328,7 +328,8 @@ int RunInspect(const InspectArgs& args) {
                       {"producer", false},
                       {"last consumer", false},
                       {"offset", true},
-                      {"bytes", true}});
+                      {"bytes", true},
+                      {"type", false}});
     auto layer_label = [&](int index) -> std::string {
       if (index < 0 || static_cast<size_t>(index) >= layers.size()) return std::to_string(index);
       return std::to_string(index) + " " + layers[static_cast<size_t>(index)].name;
@@ -336,7 +337,10 @@ int RunInspect(const InspectArgs& args) {
     for (size_t t = 0; t < plan.size(); ++t) {
       plan_table.Add({std::to_string(t), layer_label(plan[t].producer),
                       layer_label(plan[t].last_consumer), GroupDigits(plan[t].offset),
-                      GroupDigits(plan[t].bytes)});
+                      GroupDigits(plan[t].bytes),
+                      plan[t].is_u8     ? "uint8"
+                      : plan[t].is_bf16 ? "bf16"
+                                        : "fp32"});
     }
     out << "\narena plan at " << height << "x" << width << " (" << plan.size() << " tensors, "
         << GroupDigits(arena) << " bytes)\n";
@@ -356,7 +360,8 @@ Command AddInspectCommand(CLI::App& parent) {
                   "Input size HxW for the layer table and arena (default: the size the model was "
                   "traced at, else 540x960)");
   cmd->add_flag("--print-plan", args->print_plan,
-                "Also list every planned arena tensor: producer, last consumer, offset, bytes");
+                "Also list every planned arena tensor: producer, last consumer, offset, bytes, "
+                "element type");
   cmd->footer(
       "Prints the metadata (name, schema version, producer and source SHA-256, input\n"
       "preprocessing, output channels and units, training camera, weight type, CRC-32C), for\n"
