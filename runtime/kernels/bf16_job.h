@@ -45,6 +45,18 @@ inline float Bf16ToFloat(uint16_t h) {
   return f;
 }
 
+// The per-channel epilogue of the bf16 arithmetic above (bias, then activation, in float32),
+// written once for the scalar tiers (the reference, the AMX tiles' epilogue).
+inline float Bf16Epilogue(float acc, float bias, Activation act, float slope) {
+  float y = acc + bias;
+  if (act == Activation::kLeakyRelu) {
+    y = y < 0.0f ? y * slope : y;
+  } else if (act == Activation::kRelu) {
+    y = y > 0.0f ? y : 0.0f;
+  }
+  return y;
+}
+
 // Bytes a kernel may read past the last pixel of a bf16 tensor: the SIMD kernels read input
 // channels in pairs (a 32-bit group), so with an odd channel count they read one value past each
 // pixel (the next pixel's first channel, or past the tensor's end) and multiply it by a zero

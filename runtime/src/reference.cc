@@ -211,12 +211,12 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       next.quant = cur.quant;
       if (cur.is_bf16) {
         next.h.resize(s.elements());
-        ref::UpsampleNearestBf16(cur.hview(), layer.upsample.factor_h, layer.upsample.factor_w,
-                                 {next.h.data(), s.height, s.width, s.channels, row});
+        ref::UpsampleNearestPlane(cur.hview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                                  Bf16View{next.h.data(), s.height, s.width, s.channels, row});
       } else if (cur.is_u8) {
         next.q.resize(s.elements());
-        ref::UpsampleNearestU8(cur.qview(), layer.upsample.factor_h, layer.upsample.factor_w,
-                               {next.q.data(), s.height, s.width, s.channels, row});
+        ref::UpsampleNearestPlane(cur.qview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                                  ByteView{next.q.data(), s.height, s.width, s.channels, row});
       } else {
         next.f.resize(s.elements());
         ref::UpsampleNearest(cur.fview(), layer.upsample.factor_h, layer.upsample.factor_w,
@@ -231,17 +231,18 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       low_crop_left += c.left;
       if (cur.is_bf16) {
         next.h.resize(s.elements());
-        for (int y = 0; y < s.height; ++y) {
-          const uint16_t* src = cur.hview().pixel(y + c.top, c.left);
-          std::copy(src, src + row, next.h.begin() + y * row);
-        }
+        ConstBf16View v = cur.hview();
+        v.data = v.pixel(c.top, c.left);
+        v.height = s.height;
+        v.width = s.width;
+        ref::CopyPlane(v, Bf16View{next.h.data(), s.height, s.width, s.channels, row});
       } else if (cur.is_u8) {
         next.q.resize(s.elements());
         ConstByteView v = cur.qview();
         v.data = v.pixel(c.top, c.left);
         v.height = s.height;
         v.width = s.width;
-        ref::CopyU8(v, {next.q.data(), s.height, s.width, s.channels, row});
+        ref::CopyPlane(v, ByteView{next.q.data(), s.height, s.width, s.channels, row});
       } else {
         next.f.resize(s.elements());
         ConstTensorView v = cur.fview();

@@ -36,11 +36,11 @@ struct Session::Step {
     kQuantize,      // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
     kInt8Conv,      // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
                     // or first_layer says so (kernels/int8_job.h)
-    kUpsampleU8,    // ref::UpsampleNearestU8 (an upsampling no int8 convolution fuses)
+    kUpsampleU8,    // ref::UpsampleNearestPlane (an upsampling no int8 convolution fuses)
     kToBf16,        // the float32 tensor a bf16 convolution reads, to bf16 (ToBf16KernelFor)
     kBf16Conv,      // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
                     // (kernels/bf16_job.h)
-    kUpsampleBf16,  // ref::UpsampleNearestBf16 (an upsampling no bf16 convolution fuses)
+    kUpsampleBf16,  // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -362,10 +362,10 @@ Status Session::Plan() {
         i = conv;
       } else if (cur == Precision::kInt8) {
         step.kind = Step::Kind::kUpsampleU8;
-        step.kernel = "ref::UpsampleNearestU8";
+        step.kernel = "ref::UpsampleNearestPlane";
       } else if (cur == Precision::kBFloat16) {
         step.kind = Step::Kind::kUpsampleBf16;
-        step.kernel = "ref::UpsampleNearestBf16";
+        step.kernel = "ref::UpsampleNearestPlane";
       } else if (fusable) {
         step.kind = Step::Kind::kUpConv;
         step.last_layer = conv;
@@ -709,7 +709,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         const Bf16View out16 =
             DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
         const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
-        ref::UpsampleNearestBf16(cur16, u.factor_h, u.factor_w, out16);
+        ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, out16);
         cur16 = out16;
       } else {
         Bf16ConvArgs args = bf16_args(step, cur16);
@@ -737,7 +737,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         const ByteView out8 =
             DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
         const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
-        ref::UpsampleNearestU8(cur8, u.factor_h, u.factor_w, out8);
+        ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
         cur8 = out8;
       } else {
         Int8ConvArgs args = int8_args(step, cur8);

@@ -2,19 +2,8 @@
 
 #include <algorithm>
 #include <cassert>
-#include <cstring>
 
 namespace sfrt::ref {
-
-namespace {
-
-float Activate(float y, Activation act, float slope) {
-  if (act == Activation::kLeakyRelu) return y < 0.0f ? y * slope : y;
-  if (act == Activation::kRelu) return y > 0.0f ? y : 0.0f;
-  return y;
-}
-
-}  // namespace
 
 void Conv2dBf16Rows(const Bf16ConvArgs& a, int row_begin, int row_end, int /*blk_begin*/,
                     int /*blk_end*/) {
@@ -75,7 +64,7 @@ void Conv2dBf16Rows(const Bf16ConvArgs& a, int row_begin, int row_end, int /*blk
         for (int co = 0; co < cn; ++co) {
           const int o = c0 + co;
           const float y =
-              Activate(static_cast<float>(acc[co]) + p.bias[o], p.activation, p.leaky_slope);
+              Bf16Epilogue(static_cast<float>(acc[co]), p.bias[o], p.activation, p.leaky_slope);
           if (p.out_float) {
             a.out_f32.pixel(oy, ox)[o] = y;
           } else {
@@ -93,15 +82,6 @@ void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, i
       const float* s = in.pixel(y, x);
       uint16_t* d = out.pixel(y, x);
       for (int c = 0; c < in.channels; ++c) d[c] = FloatToBf16(s[c]);
-    }
-  }
-}
-
-void UpsampleNearestBf16(const ConstBf16View& in, int factor_h, int factor_w, const Bf16View& out) {
-  for (int y = 0; y < out.height; ++y) {
-    for (int x = 0; x < out.width; ++x) {
-      std::memcpy(out.pixel(y, x), in.pixel(y / factor_h, x / factor_w),
-                  static_cast<size_t>(in.channels) * sizeof(uint16_t));
     }
   }
 }

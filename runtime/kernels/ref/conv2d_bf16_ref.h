@@ -19,7 +19,4 @@ void Conv2dBf16Rows(const Bf16ConvArgs& args, int row_begin, int row_end, int bl
 // out[y][x][c] = FloatToBf16(in[y][x][c]) for rows [row_begin, row_end).
 void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end);
 
-// out[y][x][c] = in[y / factor_h][x / factor_w][c] on bf16 tensors.
-void UpsampleNearestBf16(const ConstBf16View& in, int factor_h, int factor_w, const Bf16View& out);
-
 }  // namespace sfrt::ref

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cassert>
-#include <cstring>
 
 namespace sfrt::ref {
 
@@ -102,21 +101,6 @@ void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, co
       uint8_t* d = out.pixel(y, x);
       for (int c = 0; c < in.channels; ++c) d[c] = Int8Quantize(s[c], inv_scale, zero_point);
     }
-  }
-}
-
-void UpsampleNearestU8(const ConstByteView& in, int factor_h, int factor_w, const ByteView& out) {
-  for (int y = 0; y < out.height; ++y) {
-    for (int x = 0; x < out.width; ++x) {
-      std::memcpy(out.pixel(y, x), in.pixel(y / factor_h, x / factor_w),
-                  static_cast<size_t>(in.channels));
-    }
-  }
-}
-
-void CopyU8(const ConstByteView& in, const ByteView& out) {
-  for (int y = 0; y < out.height; ++y) {
-    std::memcpy(out.pixel(y, 0), in.pixel(y, 0), static_cast<size_t>(in.width) * in.channels);
   }
 }
 

@@ -20,10 +20,4 @@ void Conv2dInt8Rows(const Int8ConvArgs& args, int row_begin, int row_end, int bl
 void QuantizeRows(const ConstTensorView& in, float inv_scale, int zero_point, const ByteView& out,
                   int row_begin, int row_end);
 
-// out[y][x][c] = in[y / factor_h][x / factor_w][c] on uint8 tensors.
-void UpsampleNearestU8(const ConstByteView& in, int factor_h, int factor_w, const ByteView& out);
-
-// out = in, byte by byte; both views have the same shape.
-void CopyU8(const ConstByteView& in, const ByteView& out);
-
 }  // namespace sfrt::ref

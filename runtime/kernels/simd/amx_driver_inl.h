@@ -204,12 +204,7 @@ void AmxConvRows(const typename DotTraits<Conv>::Args& a, int row_begin, int row
             } else {
               float acc;
               std::memcpy(&acc, &sum, sizeof(acc));
-              y = acc + p.bias[c];
-              if (p.activation == Activation::kLeakyRelu) {
-                y = y < 0.0f ? y * p.leaky_slope : y;
-              } else if (p.activation == Activation::kRelu) {
-                y = y > 0.0f ? y : 0.0f;
-              }
+              y = Bf16Epilogue(acc, p.bias[c], p.activation, p.leaky_slope);
             }
             if (p.out_float) {
               a.out_f32.pixel(oy, ox0 + m)[c] = y;
