@@ -7,7 +7,7 @@
 #   target_link_libraries(robot PRIVATE sfrt::pipeline)         # cameras -> flow, sinks
 # sfrt::runtime needs the C++ standard library and threads only (FlatBuffers is compiled in).
 # With SFRT_BUILD_PIPELINE (the default) the package also has sfrt::camera (and its parts
-# sfrt::camera_common, _v4l2, _sources), sfrt::config (deployment profiles), sfrt::pipeline_io
+# sfrt::camera_common, _yuv, _v4l2, _sources), sfrt::config (deployment profiles), sfrt::pipeline_io
 # and sfrt::pipeline; those find OpenCV, yaml-cpp, nlohmann-json and libturbojpeg on the
 # consumer's machine (sfrt_HAS_PIPELINE says so in sfrtConfig.cmake).
 # tests/install/ builds such programs against a fresh install in the test suite.
@@ -21,7 +21,7 @@ set(SFRT_INSTALLED_HEADER_DIRS ${PROJECT_SOURCE_DIR}/runtime/include/sfrt)
 set(SFRT_PACKAGE_HAS_PIPELINE OFF)
 if(TARGET sfrt_pipeline)
   set(SFRT_PACKAGE_HAS_PIPELINE ON)
-  list(APPEND SFRT_INSTALLED_TARGETS sfrt_camera sfrt_camera_common sfrt_camera_v4l2
+  list(APPEND SFRT_INSTALLED_TARGETS sfrt_camera sfrt_camera_common sfrt_camera_yuv sfrt_camera_v4l2
        sfrt_camera_sources sfrt_config_vocabulary sfrt_config sfrt_pipeline_io sfrt_pipeline)
   list(APPEND SFRT_INSTALLED_HEADER_DIRS ${PROJECT_SOURCE_DIR}/camera/common/include/sfrt
        ${PROJECT_SOURCE_DIR}/camera/v4l2/include/sfrt

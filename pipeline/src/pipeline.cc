@@ -12,17 +12,14 @@
 #include <filesystem>
 #include <mutex>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 #include <span>
 #include <thread>
 #include <utility>
 
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/atomic_write.h"
-#include "sfrt/pipeline/io/npy.h"
-#include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/profiler.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
@@ -42,19 +39,6 @@ int64_t NowNs() {
 }
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
-
-// Whether the AVI at `path` holds `frames` frames, by its index (nothing is decoded).
-Status CheckVideoComplete(const std::string& path, int64_t frames) {
-  cv::VideoCapture cap(path, cv::CAP_OPENCV_MJPEG);
-  const double indexed = cap.isOpened() ? cap.get(cv::CAP_PROP_FRAME_COUNT) : -1;
-  if (indexed == static_cast<double>(frames)) return Status::Ok();
-  const std::string found =
-      indexed < 0 ? "cannot be read back"
-                  : "holds " + std::to_string(static_cast<int64_t>(indexed)) + " frames";
-  return Status::Error("'" + path + "' " + found + " though " + std::to_string(frames) +
-                       " were written (a failed write, such as a full disk; OpenCV's "
-                       "VideoWriter does not report those)");
-}
 
 std::string Fixed(double v, int digits) {
   char buf[64];
@@ -97,6 +81,21 @@ json PercentilesJson(const profiling::Summary& p) {
   return json{{"p50", p.p50}, {"p90", p.p90}, {"p99", p.p99}, {"max", p.max}, {"count", p.count}};
 }
 
+// --profile: each written window's stage and step times into the profiler's ring.
+class ProfilerSink final : public FlowSink {
+ public:
+  explicit ProfilerSink(FrameProfiler* profiler) : profiler_(profiler) {}
+  std::string name() const override { return "profiler"; }
+  Status Write(const FlowFrame&) override { return Status::Ok(); }
+  Status Completed(const WindowRecord& record) override {
+    profiler_->Record(*record.meta, record.step_ns, record.miss);
+    return Status::Ok();
+  }
+
+ private:
+  FrameProfiler* profiler_;
+};
+
 class Runner {
  public:
   Runner(std::shared_ptr<const Model> model, FrameSource* source, const PipelineOptions& options)
@@ -111,8 +110,10 @@ class Runner {
   void InferStage();
   void OutputStage();
   void Fail(const Status& status, bool discard);
+  Status StartSinks();
   Status DeliverToSinks(const FlowItem& f, std::span<const float> flow);
-  void StopSinks();
+  bool CompleteSinks(const WindowRecord& record, const std::string& stem);
+  Status StopSinks();
   Status SetupFallback();
   void UpdateFallback(const FrameMeta& m, bool miss);
   void Progress(bool final);
@@ -146,8 +147,15 @@ class Runner {
   std::unique_ptr<LatestQueue<InputItem>> q2_;
   std::unique_ptr<LatestQueue<FlowItem>> q3_;
 
-  size_t sinks_started_ = 0;       // options_.sinks whose Start() succeeded
-  std::atomic<bool> halt_{false};  // the source stops reading
+  // The pipeline's own outputs (output_sinks.h) made from the options, then the profiler's and
+  // options_.sinks: sinks_ in the order they are called; the first own_sinks_.size() are ours.
+  std::optional<FlowRenderer> renderer_;
+  std::vector<std::unique_ptr<FlowSink>> own_sinks_;
+  VideoSink* video_sink_ = nullptr;
+  std::vector<FlowSink*> sinks_;
+  std::vector<bool> completed_off_;  // kSkip: a sink whose Completed() failed gets no more calls
+  size_t sinks_started_ = 0;         // sinks_ whose Start() succeeded
+  std::atomic<bool> halt_{false};    // the source stops reading
   std::atomic<bool> max_reached_{false};
   std::mutex mu_;  // guards error_ and the counters the main thread reads while running
   Status error_ = Status::Ok();
@@ -171,13 +179,7 @@ class Runner {
   LatencyWindow stage_ms_[4];
   LatencyWindow e2e_ms_;
   LatencyWindow part_ms_[kLatencyParts];
-  io::StreamedFile latency_log_;  // --latency-log
-  std::string latency_log_lost_;  // under kSkip: why the log stopped (a warning at the end)
   std::string last_stem_;
-  std::string video_final_;  // --video after following symbolic links: renamed onto at the end
-  std::string video_tmp_;
-  bool video_written_ = false;
-  int64_t video_frames_ = 0;  // frames handed to the VideoWriter
   int64_t start_ns_ = 0;
   int64_t end_ns_ = 0;
   int64_t last_progress_ns_ = 0;
@@ -318,12 +320,7 @@ Status Runner::Setup() {
     if (Status s = session_->Run(zeros, height_, width_, flow); !s.ok()) return s;
   }
   if (options_.profiler) options_.profiler->Prepare(*session_, height_, width_);
-  for (FlowSink* sink : options_.sinks) {
-    if (sink == nullptr) return Status::Error("PipelineOptions::sinks holds a null sink");
-    Status started = sink->Start();
-    if (!started.ok()) return Status::Error("sink '" + sink->name() + "': " + started.message());
-    ++sinks_started_;
-  }
+  if (Status s = StartSinks(); !s.ok()) return s;
 
   policy_ =
       options_.policy.value_or(source_->live() ? QueuePolicy::kNewestWins : QueuePolicy::kBlock);
@@ -331,22 +328,6 @@ Status Runner::Setup() {
   q1_ = std::make_unique<LatestQueue<WindowItem>>(cap, policy_, [this] { return MakeWindow(); });
   q2_ = std::make_unique<LatestQueue<InputItem>>(cap, policy_, [this] { return MakeInput(); });
   q3_ = std::make_unique<LatestQueue<FlowItem>>(cap, policy_, [this] { return MakeFlow(); });
-  if (!options_.video_path.empty()) {
-    // The AVI writer seeks back to finish the file, so only a regular file (or a new path) will
-    // do; a symbolic link is followed and the file it names is replaced (atomic_write.h).
-    Result<std::string> video = ResolveVideoPath(options_.video_path);
-    if (!video.ok()) return video.status();
-    video_final_ = std::move(video).value();
-  }
-  if (!options_.latency_log.empty()) {
-    Result<io::StreamedFile> log = io::StreamedFile::Open(options_.latency_log);
-    if (!log.ok()) return Status::Error("the latency log: " + log.message());
-    latency_log_ = std::move(log).value();
-    Status header = latency_log_.Write(
-        "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
-        "input_width,done_monotonic_ms\n");
-    if (!header.ok()) return Status::Error("the latency log: " + header.message());
-  }
 
   switch (options_.progress) {
     case ProgressMode::kAuto:
@@ -556,8 +537,46 @@ void Runner::InferStage() {
   q3_->Close();
 }
 
-// Hands the window to each of options_.sinks in order (sink.h); when one fails, the ones before it
-// retract it, and the error names the sink.
+// The pipeline's own outputs from the options, in the order they are written, then the
+// profiler's sink and the caller's; each started in turn. An error names the caller's sink (ours
+// name their file).
+Status Runner::StartSinks() {
+  const std::string& dir = options_.out_dir;
+  if (options_.write_flow) {
+    own_sinks_.push_back(std::make_unique<FlowFileSink>(dir, options_.flow_format));
+  }
+  if (options_.write_png || !options_.video_path.empty()) {
+    renderer_.emplace(VisualizerOptions{options_.vis_scale, model_->metadata().output.units});
+  }
+  if (options_.write_png) own_sinks_.push_back(std::make_unique<PngSink>(dir, &*renderer_));
+  if (!options_.video_path.empty()) {
+    auto video = std::make_unique<VideoSink>(options_.video_path, options_.video_fps, &*renderer_);
+    video_sink_ = video.get();
+    own_sinks_.push_back(std::move(video));
+  }
+  if (!options_.latency_log.empty()) {
+    own_sinks_.push_back(std::make_unique<LatencyLogSink>(options_.latency_log));
+  }
+  if (options_.profiler) own_sinks_.push_back(std::make_unique<ProfilerSink>(options_.profiler));
+  for (const std::unique_ptr<FlowSink>& sink : own_sinks_) sinks_.push_back(sink.get());
+  for (FlowSink* sink : options_.sinks) {
+    if (sink == nullptr) return Status::Error("PipelineOptions::sinks holds a null sink");
+    sinks_.push_back(sink);
+  }
+  completed_off_.assign(sinks_.size(), false);
+  for (FlowSink* sink : sinks_) {
+    Status started = sink->Start();
+    if (!started.ok()) {
+      if (sinks_started_ < own_sinks_.size()) return started;
+      return Status::Error("sink '" + sink->name() + "': " + started.message());
+    }
+    ++sinks_started_;
+  }
+  return Status::Ok();
+}
+
+// Hands the window to each sink in order (sink.h); when one fails, the ones before it retract
+// it, and the error names the caller's sink (ours name their file).
 Status Runner::DeliverToSinks(const FlowItem& f, std::span<const float> flow) {
   FlowFrame frame;
   frame.meta = &f.meta;
@@ -566,41 +585,58 @@ Status Runner::DeliverToSinks(const FlowItem& f, std::span<const float> flow) {
   frame.width = f.meta.input_width;
   frame.channels = out_channels_;
   frame.left_image = &f.left_vis;
-  for (size_t i = 0; i < options_.sinks.size(); ++i) {
+  for (size_t i = 0; i < sinks_.size(); ++i) {
     frame.latency_ms = Ms(NowNs() - f.meta.capture_ns[1]);
     frame.over_budget = options_.budget_ms > 0 && frame.latency_ms > options_.budget_ms;
-    Status s = options_.sinks[i]->Write(frame);
+    Status s = sinks_[i]->Write(frame);
     if (!s.ok()) {
-      for (size_t j = 0; j < i; ++j) options_.sinks[j]->Retract();
-      return Status::Error("sink '" + options_.sinks[i]->name() + "': " + s.message());
+      for (size_t j = 0; j < i; ++j) sinks_[j]->Retract();
+      if (i < own_sinks_.size()) return s;
+      return Status::Error("sink '" + sinks_[i]->name() + "': " + s.message());
     }
   }
   return Status::Ok();
 }
 
-void Runner::StopSinks() {
-  for (size_t i = 0; i < sinks_started_; ++i) options_.sinks[i]->Stop();
+// Every sink's Completed() for a written window. False: a failure under kStop ended the run.
+bool Runner::CompleteSinks(const WindowRecord& record, const std::string& stem) {
+  for (size_t i = 0; i < sinks_.size(); ++i) {
+    if (completed_off_[i]) continue;
+    Status s = sinks_[i]->Completed(record);
+    if (s.ok()) continue;
+    if (i >= own_sinks_.size())
+      s = Status::Error("sink '" + sinks_[i]->name() + "': " + s.message());
+    if (options_.on_output_error == OutputErrorPolicy::kStop) {
+      Fail(s, true);
+      return false;
+    }
+    // kSkip: the window's outputs are written; this sink stops here (a CSV log would be
+    // unreadable with a line missing), and the run says so now and in the summary.
+    completed_off_[i] = true;
+    std::fprintf(stderr, "sfrt run: warning: %s; it gets no more windows\n", s.message().c_str());
+    std::lock_guard<std::mutex> lock(mu_);
+    warnings_.push_back(s.message() + " (from window " + stem + " on)");
+  }
+  return true;
+}
+
+// Stops the sinks that started, in order; the first error is returned (each is stopped anyway).
+Status Runner::StopSinks() {
+  Status first = Status::Ok();
+  for (size_t i = 0; i < sinks_started_; ++i) {
+    Status s = sinks_[i]->Stop();
+    if (!s.ok() && i >= own_sinks_.size()) {
+      s = Status::Error("sink '" + sinks_[i]->name() + "': " + s.message());
+    }
+    if (!s.ok() && first.ok()) first = s;
+  }
   sinks_started_ = 0;
+  return first;
 }
 
 void Runner::OutputStage() {
   if (options_.on_stage_start) options_.on_stage_start(3);
   FlowItem f = MakeFlow();
-  Visualizer vis({options_.vis_scale, model_->metadata().output.units});
-  cv::Mat canvas;
-  std::vector<uint8_t> png;
-  // zlib level 1: several times faster than OpenCV's default for a slightly larger file.
-  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
-  cv::VideoWriter video;
-  const std::filesystem::path dir(options_.out_dir);
-  // smaller-input: the flow of a fallback window upscaled to the model input size for the
-  // visualisation, so the PNG and the video keep one size.
-  std::vector<float> vis_flow;
-  cv::Mat vis_flow_mat;
-  if (fallback_) {
-    vis_flow.resize(static_cast<size_t>(height_) * width_ * out_channels_);
-    vis_flow_mat = cv::Mat(height_, width_, CV_32FC(out_channels_), vis_flow.data());
-  }
   while (q3_->Pop(&f)) {
     if (max_reached_.load()) {
       ++discarded_after_max_;
@@ -611,58 +647,7 @@ void Runner::OutputStage() {
     const std::string stem = OutputStem(m);
     const int h = m.input_height, w = m.input_width;  // the size the window ran at
     const std::span<const float> flow(f.flow.data(), static_cast<size_t>(h) * w * out_channels_);
-    Status s = Status::Ok();
-    std::vector<std::string> written;  // this window's files so far, removed if a later one fails
-    if (options_.write_flow) {
-      if (options_.flow_format == FlowFormat::kPfm) {
-        written.push_back((dir / (stem + ".pfm")).string());
-        s = io::WritePfm(written.back(), flow, h, w, out_channels_);
-      } else {
-        const int64_t shape[3] = {h, w, out_channels_};
-        written.push_back((dir / (stem + ".npy")).string());
-        s = io::WriteNpy(written.back(), shape, flow);
-      }
-      if (!s.ok()) written.pop_back();
-    }
-    if (s.ok() && (options_.write_png || !options_.video_path.empty())) {
-      std::string label = stem;
-      const float* vis_data = f.flow.data();
-      if (h != height_ || w != width_) {
-        const cv::Mat small(h, w, CV_32FC(out_channels_), f.flow.data());
-        cv::resize(small, vis_flow_mat, vis_flow_mat.size(), 0, 0, cv::INTER_LINEAR);
-        vis_data = vis_flow.data();
-        label += " (" + std::to_string(h) + "x" + std::to_string(w) + ")";
-      }
-      vis.Render(f.left_vis, vis_data, out_channels_, label, &canvas);
-      if (options_.write_png) {
-        if (!cv::imencode(".png", canvas, png, png_params)) {
-          s = Status::Error("cannot encode the visualisation of " + stem + " as PNG");
-        } else {
-          const std::string png_path = (dir / (stem + ".png")).string();
-          s = io::WriteFileAtomically(png_path, png);
-          if (s.ok()) written.push_back(png_path);
-        }
-      }
-      if (s.ok() && !options_.video_path.empty()) {
-        if (!video.isOpened()) {
-          video_tmp_ = video_final_ + ".tmp.avi";
-          video.open(video_tmp_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), options_.video_fps,
-                     canvas.size());
-          if (!video.isOpened()) {
-            s = Status::Error("cannot open '" + video_tmp_ +
-                              "' for writing with OpenCV VideoWriter (MJPG/AVI)");
-          }
-        }
-        if (s.ok()) {
-          video.write(canvas);
-          video_written_ = true;
-          ++video_frames_;
-        }
-      }
-    }
-    if (s.ok() && !options_.sinks.empty()) s = DeliverToSinks(f, flow);
-    if (!s.ok()) {
-      for (const std::string& path : written) ::unlink(path.c_str());
+    if (Status s = DeliverToSinks(f, flow); !s.ok()) {
       ++output_errors_;
       if (options_.on_output_error == OutputErrorPolicy::kStop) {
         Fail(s, true);
@@ -682,39 +667,14 @@ void Runner::OutputStage() {
     double parts[kLatencyParts];
     SplitLatency(m, parts);
     for (int p = 0; p < kLatencyParts; ++p) part_ms_[p].Add(parts[p]);
-    if (latency_log_.is_open()) {
-      // done_monotonic_ms is on CLOCK_MONOTONIC, shared by every process on the machine, so
-      // logs of runs side by side line up (tools/soak.sh compares with a concurrent twin).
-      char line[256];
-      const int n = std::snprintf(
-          line, sizeof(line), "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
-          static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
-          Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
-          Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), e2e, h, w, Ms(m.stage_ns[3][1]));
-      Status logged = latency_log_.Write(
-          std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))));
-      if (!logged.ok()) {
-        logged = Status::Error("the latency log: " + logged.message());
-        if (options_.on_output_error == OutputErrorPolicy::kStop) {
-          Fail(logged, true);
-          break;
-        }
-        // kSkip: the window's files are written; the log stops here, as a partial CSV line
-        // would make the rest unreadable, and the run says so at the end.
-        std::fprintf(stderr, "sfrt run: warning: %s; no more latency lines are written\n",
-                     logged.message().c_str());
-        latency_log_lost_ = logged.message() + " (from window " + stem + " on)";
-        (void)latency_log_.Close();
-      }
-    }
     const bool over_budget = options_.budget_ms > 0 && e2e > options_.budget_ms;
     const bool miss = options_.miss_verdict ? options_.miss_verdict(m, over_budget) : over_budget;
+    if (!CompleteSinks(WindowRecord{&m, e2e, miss, f.step_ns}, stem)) break;
     if (miss) {
       ++misses_;
       if (options_.drop_next_on_miss) skip_next_ = true;
     }
     if (fallback_) UpdateFallback(m, miss);
-    if (options_.profiler) options_.profiler->Record(m, f.step_ns, miss);
     last_stem_ = stem;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -726,26 +686,6 @@ void Runner::OutputStage() {
       halt_ = true;
     }
     if (options_.after_window) options_.after_window(m);
-  }
-  if (video.isOpened()) video.release();
-  if (video_written_) {
-    // VideoWriter reports no failed write (a full disk truncates the file silently): read the
-    // finished file's index back before it replaces anything.
-    if (Status complete = CheckVideoComplete(video_tmp_, video_frames_); !complete.ok()) {
-      ::unlink(video_tmp_.c_str());
-      video_written_ = false;
-      Fail(Status::Error("the video '" + options_.video_path +
-                         "' was not written (nothing replaced it): " + complete.message()),
-           false);
-      return;
-    }
-    std::error_code ec;
-    std::filesystem::rename(video_tmp_, video_final_, ec);
-    if (ec) {
-      Fail(Status::Error("cannot rename '" + video_tmp_ + "' to '" + video_final_ +
-                         "': " + ec.message()),
-           false);
-    }
   }
 }
 
@@ -851,13 +791,15 @@ Status Runner::WriteSummary(PipelineResult* result) {
   j["wall_s"] = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   j["fps"] = result->fps;
   j["clock"] = "CLOCK_MONOTONIC";
-  j["outputs"] = {{"dir", options_.out_dir},
-                  {"flow_format", !options_.write_flow                       ? "none"
-                                  : options_.flow_format == FlowFormat::kPfm ? "pfm"
-                                                                             : "npy"},
-                  {"png", options_.write_png},
-                  {"video", video_written_ ? json(options_.video_path) : json(nullptr)},
-                  {"last", last_stem_}};
+  j["outputs"] = {
+      {"dir", options_.out_dir},
+      {"flow_format", !options_.write_flow                       ? "none"
+                      : options_.flow_format == FlowFormat::kPfm ? "pfm"
+                                                                 : "npy"},
+      {"png", options_.write_png},
+      {"video", video_sink_ != nullptr && video_sink_->written() ? json(options_.video_path)
+                                                                 : json(nullptr)},
+      {"last", last_stem_}};
   j["warnings"] = warnings_;
   const std::string path = (std::filesystem::path(options_.out_dir) / "summary.json").string();
   const std::string text = j.dump(2) + "\n";
@@ -873,7 +815,7 @@ PipelineResult Runner::Run() {
   Status setup = Setup();
   for (const std::string& w : warnings_) std::fprintf(stderr, "sfrt run: warning: %s\n", w.c_str());
   if (!setup.ok()) {
-    StopSinks();
+    (void)StopSinks();  // the setup's error is the one to report
     result.status = setup;
     result.stopped_by = "error";
     error_ = setup;
@@ -900,7 +842,10 @@ PipelineResult Runner::Run() {
   for (std::thread& t : threads) t.join();
   done = true;
   watcher.join();
-  StopSinks();
+  if (Status stopped = StopSinks(); !stopped.ok()) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (error_.ok()) error_ = stopped;
+  }
   end_ns_ = NowNs();
   Progress(true);
 
@@ -927,19 +872,6 @@ PipelineResult Runner::Run() {
   result.misses = misses_;
   result.frames_at_fallback_size = frames_at_fallback_;
   result.fallback_entries = fallback_entries_;
-  if (Status closed = latency_log_.Close(); !closed.ok()) {
-    closed = Status::Error("the latency log: " + closed.message());
-    if (options_.on_output_error == OutputErrorPolicy::kStop) {
-      if (result.status.ok()) {
-        result.status = closed;
-        result.stopped_by = "error";
-        error_ = closed;
-      }
-    } else {
-      latency_log_lost_ = closed.message();
-    }
-  }
-  if (!latency_log_lost_.empty()) warnings_.push_back(latency_log_lost_);
   result.warnings = warnings_;
   if (!options_.write_summary) return result;
   Status s = WriteSummary(&result);

@@ -298,10 +298,13 @@ class CameraSource : public FrameSource {
       const cv::Mat lm(l.height, l.width, CV_8UC3, const_cast<uint8_t*>(l.bgr.data()));
       const cv::Mat rm(r.height, r.width, CV_8UC3, const_cast<uint8_t*>(r.bgr.data()));
       const int64_t ts = std::max(l.timestamp_ns, r.timestamp_ns);
-      const bool emit = have_prev_;
+      // A pair t of another size (a device reopened with a new format) starts a new window.
+      const bool emit = have_prev_ && prev_size_[0] == lm.size() && prev_size_[1] == rm.size();
       if (emit) {
-        prev_left_.copyTo(item->left0);
-        prev_right_.copyTo(item->right0);
+        const cv::Mat pl(prev_size_[0], CV_8UC3, prev_bgr_[0].data());
+        const cv::Mat pr(prev_size_[1], CV_8UC3, prev_bgr_[1].data());
+        pl.copyTo(item->left0);
+        pr.copyTo(item->right0);
         lm.copyTo(item->left1);
         rm.copyTo(item->right1);
         FrameMeta& m = item->meta;
@@ -316,8 +319,12 @@ class CameraSource : public FrameSource {
         m.paired_ns = pair_.paired_ns;
         m.converted_ns = pair_.converted_ns;
       }
-      lm.copyTo(prev_left_);
-      rm.copyTo(prev_right_);
+      // Pair t+1 becomes the next window's pair t by swapping buffers, not copying; the next
+      // conversion writes into the old pair t's (same size: no allocation).
+      std::swap(prev_bgr_[0], pair_.left.bgr);
+      std::swap(prev_bgr_[1], pair_.right.bgr);
+      prev_size_[0] = lm.size();
+      prev_size_[1] = rm.size();
       prev_seq_ = l.sequence;
       prev_ts_ = ts;
       have_prev_ = true;
@@ -416,7 +423,8 @@ class CameraSource : public FrameSource {
   camera::BadFramePolicy policy_;
   v4l2::StereoCapture cap_;
   v4l2::StereoPair pair_;
-  cv::Mat prev_left_, prev_right_;
+  std::vector<uint8_t> prev_bgr_[2];  // BGR of the previous pair (left, right)
+  cv::Size prev_size_[2];
   bool have_prev_ = false;
   int64_t prev_seq_ = 0;
   int64_t prev_ts_ = 0;

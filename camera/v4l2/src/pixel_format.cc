@@ -13,8 +13,6 @@ using camera::Status;
 
 namespace {
 
-uint8_t Clamp8(int v) { return static_cast<uint8_t>(std::clamp(v, 0, 255)); }
-
 bool IsJpeg(uint32_t fourcc) { return fourcc == V4L2_PIX_FMT_MJPEG || fourcc == V4L2_PIX_FMT_JPEG; }
 
 }  // namespace
@@ -69,91 +67,6 @@ size_t RequiredBytes(uint32_t fourcc, int width, int height, int bytesperline) {
     return stride * static_cast<size_t>(height) + stride * (uv_rows - 1) + 2 * ((width + 1) / 2);
   }
   return stride * static_cast<size_t>(height - 1) + row;
-}
-
-// BT.601 limited range, 8-bit fixed point. The chroma terms of a pixel (with the rounding
-// constant) are computed once per chroma sample and shared by the pixels that use it.
-struct Chroma {
-  int b, g, r;
-};
-
-inline Chroma ChromaTerms(int cb, int cr) {
-  const int d = cb - 128;
-  const int e = cr - 128;
-  return {516 * d + 128, -100 * d - 208 * e + 128, 409 * e + 128};
-}
-
-inline void ChromaToBgrPixel(int y, const Chroma& k, uint8_t* bgr) {
-  const int c = 298 * (y - 16);
-  bgr[0] = Clamp8((c + k.b) >> 8);
-  bgr[1] = Clamp8((c + k.g) >> 8);
-  bgr[2] = Clamp8((c + k.r) >> 8);
-}
-
-void YuvToBgrPixel(int y, int cb, int cr, uint8_t* bgr) {
-  ChromaToBgrPixel(y, ChromaTerms(cb, cr), bgr);
-}
-
-void YuyvToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-               int dst_stride) {
-  for (int row = 0; row < height; ++row) {
-    const uint8_t* s = src + static_cast<size_t>(row) * src_stride;
-    uint8_t* d = dst + static_cast<size_t>(row) * dst_stride;
-    // Each 4-byte group Y0 Cb Y1 Cr holds two pixels sharing one chroma sample.
-    int x = 0;
-    for (; x + 1 < width; x += 2, s += 4, d += 6) {
-      const Chroma k = ChromaTerms(s[1], s[3]);
-      ChromaToBgrPixel(s[0], k, d);
-      ChromaToBgrPixel(s[2], k, d + 3);
-    }
-    if (x < width) ChromaToBgrPixel(s[0], ChromaTerms(s[1], s[3]), d);  // odd width: last pixel
-  }
-}
-
-void Nv12ToBgr(const uint8_t* y_plane, int y_stride, const uint8_t* uv_plane, int uv_stride,
-               int width, int height, uint8_t* dst, int dst_stride) {
-  for (int row = 0; row < height; ++row) {
-    const uint8_t* ys = y_plane + static_cast<size_t>(row) * y_stride;
-    // One Cb Cr pair covers a 2x2 block of luma samples.
-    const uint8_t* uvs = uv_plane + static_cast<size_t>(row / 2) * uv_stride;
-    uint8_t* d = dst + static_cast<size_t>(row) * dst_stride;
-    for (int x = 0; x < width; x += 2) {
-      const uint8_t* uv = uvs + x;
-      const Chroma k = ChromaTerms(uv[0], uv[1]);
-      ChromaToBgrPixel(ys[x], k, d + 3 * x);
-      if (x + 1 < width) ChromaToBgrPixel(ys[x + 1], k, d + 3 * x + 3);
-    }
-  }
-}
-
-void GreyToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-               int dst_stride) {
-  for (int row = 0; row < height; ++row) {
-    const uint8_t* s = src + static_cast<size_t>(row) * src_stride;
-    uint8_t* d = dst + static_cast<size_t>(row) * dst_stride;
-    for (int x = 0; x < width; ++x) d[3 * x] = d[3 * x + 1] = d[3 * x + 2] = s[x];
-  }
-}
-
-void Bgr24ToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-                int dst_stride) {
-  for (int row = 0; row < height; ++row) {
-    std::memcpy(dst + static_cast<size_t>(row) * dst_stride,
-                src + static_cast<size_t>(row) * src_stride, static_cast<size_t>(width) * 3);
-  }
-}
-
-void Rgb24ToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-                int dst_stride) {
-  for (int row = 0; row < height; ++row) {
-    const uint8_t* s = src + static_cast<size_t>(row) * src_stride;
-    uint8_t* d = dst + static_cast<size_t>(row) * dst_stride;
-    for (int x = 0; x < width; ++x) {
-      d[3 * x] = s[3 * x + 2];
-      d[3 * x + 1] = s[3 * x + 1];
-      d[3 * x + 2] = s[3 * x];
-    }
-  }
 }
 
 PixelConverter::PixelConverter() = default;

@@ -15,6 +15,7 @@
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
@@ -501,7 +502,10 @@ TEST_F(PipelineTest, CallbackSinkReceivesEveryFlowFrameInOrderMatchingDirectInfe
                         f.left_image->rows == kH && f.left_image->cols == kW});
       return Status::Ok();
     }
-    void Stop() override { *stopped_ = true; }
+    Status Stop() override {
+      *stopped_ = true;
+      return Status::Ok();
+    }
 
    private:
     std::vector<Seen>* seen_;
@@ -529,6 +533,71 @@ TEST_F(PipelineTest, CallbackSinkReceivesEveryFlowFrameInOrderMatchingDirectInfe
     const std::vector<float> flow = DirectFlow(model, k);
     EXPECT_EQ(seen[k].flow, flow);
   }
+}
+
+// A program composes the pipeline's own outputs itself: two flow formats in two directories,
+// PNGs and a latency log, with no output from the options. Each window's files hold the flow a
+// direct Session gives; every sink's Completed() sees the window after the last Write() with its
+// final end to end, and the log has one line per window.
+TEST_F(PipelineTest, OutputSinksComposedByTheCallerWriteEveryWindowAndLogItsFinalTimes) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  options_.write_flow = false;
+  options_.write_png = false;
+  fs::create_directories(dir_ / "npy");
+  fs::create_directories(dir_ / "pfm");
+  FlowFileSink npy((dir_ / "npy").string(), config::FlowFormat::kNpy);
+  FlowFileSink pfm((dir_ / "pfm").string(), config::FlowFormat::kPfm);
+  FlowRenderer renderer(VisualizerOptions{});
+  PngSink png(dir_.string(), &renderer);
+  LatencyLogSink log((dir_ / "latency.csv").string());
+  class TimingSink : public FlowSink {
+   public:
+    std::string name() const override { return "timing"; }
+    Status Write(const FlowFrame& f) override {
+      write_ns = f.meta->stage_ns[3][1];  // not yet set while the sinks write
+      return Status::Ok();
+    }
+    Status Completed(const WindowRecord& r) override {
+      const FrameMeta& m = *r.meta;
+      EXPECT_EQ(write_ns, 0);
+      EXPECT_GT(m.stage_ns[3][1], 0);
+      EXPECT_DOUBLE_EQ(r.end_to_end_ms,
+                       static_cast<double>(m.stage_ns[3][1] - m.capture_ns[1]) / 1e6);
+      EXPECT_TRUE(r.step_ns.empty());  // no profiler
+      ++completed;
+      return Status::Ok();
+    }
+    int64_t write_ns = -1;
+    int completed = 0;
+  } timing;
+  options_.sinks = {&npy, &pfm, &png, &log, &timing};
+  FakeSource source(3);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.frames, 3);
+  EXPECT_EQ(timing.completed, 3);
+  EXPECT_TRUE(Files(".pfm").empty());  // nothing from the options
+  ASSERT_EQ(Files(".png").size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    SCOPED_TRACE(k);
+    const std::string stem = "seq_00000" + std::to_string(k);
+    const std::vector<float> want = DirectFlow(model, k);
+    Result<io::NpyArray> a = io::ReadNpy((dir_ / "npy" / (stem + ".npy")).string());
+    ASSERT_TRUE(a.ok()) << a.message();
+    EXPECT_EQ(a->shape, (std::vector<int64_t>{kH, kW, 3}));
+    EXPECT_EQ(a->data, want);
+    Result<io::PfmImage> b = io::ReadPfm((dir_ / "pfm" / (stem + ".pfm")).string());
+    ASSERT_TRUE(b.ok()) << b.message();
+    EXPECT_EQ(b->data, want);
+    const cv::Mat picture = cv::imread((dir_ / (stem + ".png")).string());
+    EXPECT_FALSE(picture.empty());
+  }
+  std::ifstream in(dir_ / "latency.csv");
+  std::string line;
+  int lines = 0;
+  while (std::getline(in, line)) ++lines;
+  EXPECT_EQ(lines, 1 + 3);
 }
 
 // A sink that fails: under kSkip the window is dropped everywhere (its flow file is removed and

@@ -212,9 +212,9 @@ struct PipelineOptions {
   std::function<void(const FrameMeta& meta)> after_window;
   // `--profile` (profiler.h): per-frame stage and step timestamps into this preallocated ring.
   FrameProfiler* profiler = nullptr;
-  // Called for every window after the files above are written, in this order (sink.h: the
-  // callback sink hands a robot program each flow frame in-process). Not owned; each must outlive
-  // RunPipeline().
+  // Called for every window after the outputs above (made as the sinks of output_sinks.h), in
+  // this order (sink.h: the callback sink hands a robot program each flow frame in-process). Not
+  // owned; each must outlive RunPipeline().
   std::vector<FlowSink*> sinks;
 };
 

@@ -10,22 +10,26 @@
 //   options.sinks.push_back(&sink);
 //   sfrt::pipeline::RunPipeline(model, source.get(), options);
 //
-// Order: per window the output stage first writes the files the options ask for (flow, PNG,
-// video), then calls each sink of PipelineOptions::sinks in order, then records the window's
-// latency (end to end = the end of the last sink - the capture of pair t+1). Sink time is output
-// stage time, so a sink that needs longer than a frame period should hand the flow to its own
-// thread (copying it) and return.
+// Order: per window the output stage calls Write() of the pipeline's own outputs (the flow
+// files, PNG and video that PipelineOptions asks for, output_sinks.h), then of each sink of
+// PipelineOptions::sinks in order; then it records the window's latency (end to end = the end of
+// the last Write() - the capture of pair t+1) and calls every sink's Completed() with the final
+// times (the latency log writes its line there). Sink time is output stage time, so a sink that
+// needs longer than a frame period should hand the flow to its own thread (copying it) and return.
 //
-// Threads: Write() and Retract() come from the output stage's thread, one call at a time, so a
-// sink needs no lock for its own state. Start() is called on RunPipeline()'s thread before the
-// stages start (an error there ends the run before the first frame), Stop() on that thread after
-// they have been joined (after the end of the source, a stop request or an error alike).
+// Threads: Write(), Retract() and Completed() come from the output stage's thread, one call at a
+// time, so a sink needs no lock for its own state. Start() is called on RunPipeline()'s thread
+// before the stages start (an error there ends the run before the first frame), Stop() on that
+// thread after they have been joined (after the end of the source, a stop request or an error
+// alike); an error from Stop() (a video that could not be finished) fails the run.
 //
 // Errors: a Write() that fails is a failed output of that window, handled as a failed file write
 // (PipelineOptions::on_output_error: kStop ends the run with the message, kSkip drops the window
-// and goes on). The window's files already written are removed and the sinks before it are told
-// through Retract(), so a window is delivered everywhere or nowhere (except a frame already added
-// to the --video AVI, which cannot be taken out).
+// and goes on). The sinks before it are told through Retract() (the file sinks remove the
+// window's files), so a window is delivered everywhere or nowhere (except a frame already added
+// to the video, which cannot be taken out). A Completed() that fails ends the run under kStop;
+// under kSkip the run warns and that sink gets no more Completed() calls (a CSV log would be
+// unreadable with a line missing).
 #pragma once
 
 #include <cstdint>
@@ -60,6 +64,16 @@ struct FlowFrame {
   bool over_budget = false;
 };
 
+// A window every sink has written, with its final times, for sinks that log timing.
+struct WindowRecord {
+  const FrameMeta* meta = nullptr;  // every stage's start and end set
+  double end_to_end_ms = 0;         // end of the output stage - capture of pair t+1
+  bool miss = false;                // over PipelineOptions::budget_ms (or the test's verdict)
+  // Session::Run's step end times (steps + 1, CLOCK_MONOTONIC ns) when PipelineOptions::profiler
+  // is set; empty otherwise.
+  std::span<const int64_t> step_ns;
+};
+
 class FlowSink {
  public:
   virtual ~FlowSink() = default;
@@ -71,9 +85,11 @@ class FlowSink {
   virtual Status Write(const FlowFrame& frame) = 0;
   // A sink after this one failed on the window this sink last wrote: undo it if it can.
   virtual void Retract() {}
+  // After every sink has written the window (the window's record is valid until it returns).
+  virtual Status Completed(const WindowRecord& /*record*/) { return Status::Ok(); }
   // After the last window (end of source, max frames, stop request or error), if Start()
-  // succeeded.
-  virtual void Stop() {}
+  // succeeded: finish and flush. An error fails the run.
+  virtual Status Stop() { return Status::Ok(); }
 };
 
 // Hands each window to a function. The function runs on the output stage's thread; what it

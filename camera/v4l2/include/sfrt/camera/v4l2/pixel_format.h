@@ -5,11 +5,8 @@
 // (Y plane then interleaved CbCr at half resolution), BGR24 and RGB24. Every raw converter
 // honours the source row stride (V4L2 bytesperline), which drivers often pad.
 //
-// YUV is BT.601 limited range ("studio swing", Y 16..235, Cb/Cr 16..240), what UVC cameras send:
-//   R = 1.164 (Y-16) + 1.596 (Cr-128)
-//   G = 1.164 (Y-16) - 0.392 (Cb-128) - 0.813 (Cr-128)
-//   B = 1.164 (Y-16) + 2.017 (Cb-128)
-// computed in 8-bit fixed point (coefficients x256), within 1 of the real-valued formula.
+// The raw formats are converted by yuv_to_bgr.h (BT.601 limited range for YUV, SIMD where the
+// CPU has it).
 //
 // Thread-safety: the free functions are pure. A PixelConverter holds a libjpeg-turbo handle and
 // must be used by one thread at a time.
@@ -21,6 +18,7 @@
 #include <vector>
 
 #include "sfrt/camera/status.h"
+#include "sfrt/camera/v4l2/yuv_to_bgr.h"  // the raw converters ToBgr uses
 
 namespace sfrt::v4l2 {
 
@@ -55,21 +53,6 @@ bool IsSupportedFourcc(uint32_t fourcc);
 int MinBytesPerLine(uint32_t fourcc, int width);
 // Bytes a complete raw frame needs with this stride (0 for compressed formats).
 size_t RequiredBytes(uint32_t fourcc, int width, int height, int bytesperline);
-
-// One pixel of BT.601 limited-range YCbCr to B, G, R.
-void YuvToBgrPixel(int y, int cb, int cr, uint8_t* bgr);
-
-// Raw converters. `dst` receives width*height*3 bytes with row stride dst_stride.
-void YuyvToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-               int dst_stride);
-void Nv12ToBgr(const uint8_t* y_plane, int y_stride, const uint8_t* uv_plane, int uv_stride,
-               int width, int height, uint8_t* dst, int dst_stride);
-void GreyToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-               int dst_stride);
-void Bgr24ToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-                int dst_stride);
-void Rgb24ToBgr(const uint8_t* src, int src_stride, int width, int height, uint8_t* dst,
-                int dst_stride);
 
 // Converts any supported RawFrame to a Frame, reusing out->bgr's storage (no allocation once it
 // has reached the frame size). A truncated raw buffer or an undecodable JPEG gives a kFrameError

@@ -1,0 +1,188 @@
+#include "sfrt/pipeline/output_sinks.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sfrt/pipeline/io/npy.h"
+#include "sfrt/pipeline/io/pfm.h"
+
+namespace sfrt::pipeline {
+namespace {
+
+std::string PathIn(const std::string& dir, const FrameMeta& meta, const char* extension) {
+  return (std::filesystem::path(dir) / (OutputStem(meta) + extension)).string();
+}
+
+double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
+// Whether the AVI at `path` holds `frames` frames, by its index (nothing is decoded).
+Status CheckVideoComplete(const std::string& path, int64_t frames) {
+  cv::VideoCapture cap(path, cv::CAP_OPENCV_MJPEG);
+  const double indexed = cap.isOpened() ? cap.get(cv::CAP_PROP_FRAME_COUNT) : -1;
+  if (indexed == static_cast<double>(frames)) return Status::Ok();
+  const std::string found =
+      indexed < 0 ? "cannot be read back"
+                  : "holds " + std::to_string(static_cast<int64_t>(indexed)) + " frames";
+  return Status::Error("'" + path + "' " + found + " though " + std::to_string(frames) +
+                       " were written (a failed write, such as a full disk; OpenCV's "
+                       "VideoWriter does not report those)");
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------- flow files
+
+FlowFileSink::FlowFileSink(std::string dir, config::FlowFormat format)
+    : dir_(std::move(dir)), format_(format) {}
+
+Status FlowFileSink::Write(const FlowFrame& frame) {
+  last_path_.clear();
+  std::string path;
+  Status s = Status::Ok();
+  if (format_ == config::FlowFormat::kPfm) {
+    path = PathIn(dir_, *frame.meta, ".pfm");
+    s = io::WritePfm(path, frame.flow, frame.height, frame.width, frame.channels);
+  } else {
+    path = PathIn(dir_, *frame.meta, ".npy");
+    const int64_t shape[3] = {frame.height, frame.width, frame.channels};
+    s = io::WriteNpy(path, shape, frame.flow);
+  }
+  if (s.ok()) last_path_ = std::move(path);
+  return s;
+}
+
+void FlowFileSink::Retract() {
+  if (!last_path_.empty()) ::unlink(last_path_.c_str());
+  last_path_.clear();
+}
+
+// ------------------------------------------------------------------------------------ renderer
+
+const cv::Mat& FlowRenderer::Render(const FlowFrame& frame) {
+  const FrameMeta& m = *frame.meta;
+  if (m.window == window_ && m.capture_ns[1] == capture_ns_ && !canvas_.empty()) return canvas_;
+  const cv::Mat& left = *frame.left_image;
+  std::string label = OutputStem(m);
+  const float* flow = frame.flow.data();
+  if (frame.height != left.rows || frame.width != left.cols) {
+    upscaled_.resize(left.total() * static_cast<size_t>(frame.channels));
+    const cv::Mat small(frame.height, frame.width, CV_32FC(frame.channels),
+                        const_cast<float*>(frame.flow.data()));
+    cv::Mat big(left.rows, left.cols, CV_32FC(frame.channels), upscaled_.data());
+    cv::resize(small, big, big.size(), 0, 0, cv::INTER_LINEAR);
+    flow = upscaled_.data();
+    label += " (" + std::to_string(frame.height) + "x" + std::to_string(frame.width) + ")";
+  }
+  vis_.Render(left, flow, frame.channels, label, &canvas_);
+  window_ = m.window;
+  capture_ns_ = m.capture_ns[1];
+  return canvas_;
+}
+
+// ----------------------------------------------------------------------------------------- PNG
+
+Status PngSink::Write(const FlowFrame& frame) {
+  last_path_.clear();
+  const cv::Mat& canvas = renderer_->Render(frame);
+  static const std::vector<int> kParams = {cv::IMWRITE_PNG_COMPRESSION, 1};
+  if (!cv::imencode(".png", canvas, png_, kParams)) {
+    return Status::Error("cannot encode the visualisation of " + OutputStem(*frame.meta) +
+                         " as PNG");
+  }
+  std::string path = PathIn(dir_, *frame.meta, ".png");
+  if (Status s = io::WriteFileAtomically(path, png_); !s.ok()) return s;
+  last_path_ = std::move(path);
+  return Status::Ok();
+}
+
+void PngSink::Retract() {
+  if (!last_path_.empty()) ::unlink(last_path_.c_str());
+  last_path_.clear();
+}
+
+// --------------------------------------------------------------------------------------- video
+
+Status VideoSink::Start() {
+  // The AVI writer seeks back to finish the file, so only a regular file (or a new path) will
+  // do; a symbolic link is followed and the file it names is replaced (atomic_write.h).
+  Result<std::string> resolved = ResolveVideoPath(path_);
+  if (!resolved.ok()) return resolved.status();
+  final_ = std::move(resolved).value();
+  tmp_ = final_ + ".tmp.avi";
+  return Status::Ok();
+}
+
+Status VideoSink::Write(const FlowFrame& frame) {
+  const cv::Mat& canvas = renderer_->Render(frame);
+  if (!writer_.isOpened()) {
+    writer_.open(tmp_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps_, canvas.size());
+    if (!writer_.isOpened()) {
+      return Status::Error("cannot open '" + tmp_ +
+                           "' for writing with OpenCV VideoWriter (MJPG/AVI)");
+    }
+  }
+  writer_.write(canvas);
+  ++frames_;
+  return Status::Ok();
+}
+
+Status VideoSink::Stop() {
+  if (!writer_.isOpened()) return Status::Ok();  // no frame: nothing is replaced
+  writer_.release();
+  // VideoWriter reports no failed write (a full disk truncates the file silently): read the
+  // finished file's index back before it replaces anything.
+  if (Status complete = CheckVideoComplete(tmp_, frames_); !complete.ok()) {
+    ::unlink(tmp_.c_str());
+    return Status::Error("the video '" + path_ +
+                         "' was not written (nothing replaced it): " + complete.message());
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp_, final_, ec);
+  if (ec) return Status::Error("cannot rename '" + tmp_ + "' to '" + final_ + "': " + ec.message());
+  written_ = true;
+  return Status::Ok();
+}
+
+// --------------------------------------------------------------------------------- latency log
+
+Status LatencyLogSink::Start() {
+  Result<io::StreamedFile> log = io::StreamedFile::Open(path_);
+  if (!log.ok()) return Status::Error("the latency log: " + log.message());
+  file_ = std::move(log).value();
+  Status header = file_.Write(
+      "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
+      "input_width,done_monotonic_ms\n");
+  if (!header.ok()) return Status::Error("the latency log: " + header.message());
+  return Status::Ok();
+}
+
+Status LatencyLogSink::Completed(const WindowRecord& record) {
+  const FrameMeta& m = *record.meta;
+  char line[256];
+  const int n = std::snprintf(
+      line, sizeof(line), "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
+      static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
+      Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
+      Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), record.end_to_end_ms, m.input_height, m.input_width,
+      Ms(m.stage_ns[3][1]));
+  Status s = file_.Write(
+      std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))));
+  if (!s.ok()) {
+    (void)file_.Close();  // a partial line would make the rest unreadable: no more lines
+    return Status::Error("the latency log: " + s.message());
+  }
+  return Status::Ok();
+}
+
+Status LatencyLogSink::Stop() {
+  if (!file_.is_open()) return Status::Ok();
+  if (Status s = file_.Close(); !s.ok()) return Status::Error("the latency log: " + s.message());
+  return Status::Ok();
+}
+
+}  // namespace sfrt::pipeline
