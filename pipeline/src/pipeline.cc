@@ -21,6 +21,7 @@
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/profiler.h"
+#include "sfrt/pipeline/queued_sink.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
@@ -46,23 +47,9 @@ std::string Fixed(double v, int digits) {
   return buf;
 }
 
-// The latest kLatencyWindow latencies of one kind, in memory allocated and touched once (before
-// the stages start), so a run of any length keeps a constant resident size. Percentiles in the
-// summary describe these latest windows (all of them in runs up to kLatencyWindow windows).
-constexpr size_t kLatencyWindow = size_t{1} << 16;
-class LatencyWindow {
- public:
-  LatencyWindow() : values_(kLatencyWindow, -1.0) {}
-  void Add(double ms) { values_[added_++ % values_.size()] = ms; }
-  std::vector<double> Values() const {
-    return {values_.begin(),
-            values_.begin() + static_cast<ptrdiff_t>(std::min(added_, values_.size()))};
-  }
-
- private:
-  std::vector<double> values_;
-  size_t added_ = 0;
-};
+// The latest 65,536 latencies of one kind (stats.h): percentiles in the summary describe these
+// latest windows, in a constant resident size.
+using LatencyWindow = profiling::LatestValues;
 
 struct InputItem {
   FrameMeta meta;
@@ -152,6 +139,8 @@ class Runner {
   std::optional<FlowRenderer> renderer_;
   std::vector<std::unique_ptr<FlowSink>> own_sinks_;
   VideoSink* video_sink_ = nullptr;
+  std::vector<std::unique_ptr<FlowSink>> picture_sinks_;  // PNG, video behind queued_pictures_
+  QueuedSink* queued_pictures_ = nullptr;
   std::vector<FlowSink*> sinks_;
   std::vector<bool> completed_off_;  // kSkip: a sink whose Completed() failed gets no more calls
   size_t sinks_started_ = 0;         // sinks_ whose Start() succeeded
@@ -320,10 +309,10 @@ Status Runner::Setup() {
     if (Status s = session_->Run(zeros, height_, width_, flow); !s.ok()) return s;
   }
   if (options_.profiler) options_.profiler->Prepare(*session_, height_, width_);
-  if (Status s = StartSinks(); !s.ok()) return s;
-
   policy_ =
       options_.policy.value_or(source_->live() ? QueuePolicy::kNewestWins : QueuePolicy::kBlock);
+  if (Status s = StartSinks(); !s.ok()) return s;
+
   const size_t cap = std::max<size_t>(1, options_.queue_capacity);
   q1_ = std::make_unique<LatestQueue<WindowItem>>(cap, policy_, [this] { return MakeWindow(); });
   q2_ = std::make_unique<LatestQueue<InputItem>>(cap, policy_, [this] { return MakeInput(); });
@@ -548,11 +537,26 @@ Status Runner::StartSinks() {
   if (options_.write_png || !options_.video_path.empty()) {
     renderer_.emplace(VisualizerOptions{options_.vis_scale, model_->metadata().output.units});
   }
-  if (options_.write_png) own_sinks_.push_back(std::make_unique<PngSink>(dir, &*renderer_));
+  // The pictures: on the output stage, or behind a queue on a thread of their own.
+  std::vector<std::unique_ptr<FlowSink>> pictures;
+  if (options_.write_png) pictures.push_back(std::make_unique<PngSink>(dir, &*renderer_));
   if (!options_.video_path.empty()) {
     auto video = std::make_unique<VideoSink>(options_.video_path, options_.video_fps, &*renderer_);
     video_sink_ = video.get();
-    own_sinks_.push_back(std::move(video));
+    pictures.push_back(std::move(video));
+  }
+  const size_t depth = options_.picture_queue.value_or(source_->live() ? 2 : 0);
+  if (depth > 0 && !pictures.empty()) {
+    std::vector<FlowSink*> inner;
+    for (std::unique_ptr<FlowSink>& p : pictures) {
+      inner.push_back(p.get());
+      picture_sinks_.push_back(std::move(p));
+    }
+    auto queued = std::make_unique<QueuedSink>("pictures", std::move(inner), depth, policy_);
+    queued_pictures_ = queued.get();
+    own_sinks_.push_back(std::move(queued));
+  } else {
+    for (std::unique_ptr<FlowSink>& p : pictures) own_sinks_.push_back(std::move(p));
   }
   if (!options_.latency_log.empty()) {
     own_sinks_.push_back(std::make_unique<LatencyLogSink>(options_.latency_log));
@@ -800,6 +804,13 @@ Status Runner::WriteSummary(PipelineResult* result) {
       {"video", video_sink_ != nullptr && video_sink_->written() ? json(options_.video_path)
                                                                  : json(nullptr)},
       {"last", last_stem_}};
+  json sinks = json::array();
+  for (const FlowSink* sink : sinks_) {
+    json entry = {{"name", sink->name()}};
+    sink->ToJson(&entry);
+    sinks.push_back(entry);
+  }
+  j["sinks"] = sinks;
   j["warnings"] = warnings_;
   const std::string path = (std::filesystem::path(options_.out_dir) / "summary.json").string();
   const std::string text = j.dump(2) + "\n";
@@ -870,6 +881,11 @@ PipelineResult Runner::Run() {
   }
   result.end_to_end = profiling::Summarize(e2e_ms_.Values());
   result.misses = misses_;
+  if (queued_pictures_ != nullptr) {
+    result.pictures_queued = true;
+    result.pictures_ms = queued_pictures_->write_ms();
+    result.pictures_dropped = queued_pictures_->dropped();
+  }
   result.frames_at_fallback_size = frames_at_fallback_;
   result.fallback_entries = fallback_entries_;
   result.warnings = warnings_;

@@ -600,6 +600,30 @@ TEST_F(PipelineTest, OutputSinksComposedByTheCallerWriteEveryWindowAndLogItsFina
   EXPECT_EQ(lines, 1 + 3);
 }
 
+// picture_queue: the PNGs are encoded on a thread of their own; every window still gets its
+// picture (block policy for files) by the time RunPipeline returns, and the summary lists the
+// queued sink with its encoder times.
+TEST_F(PipelineTest, QueuedPicturesAreAllWrittenAndMeasuredApart) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  options_.picture_queue = 2;
+  FakeSource source(5);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.frames, 5);
+  EXPECT_EQ(Files(".png").size(), 5u);
+  EXPECT_EQ(Files(".pfm").size(), 5u);
+  EXPECT_TRUE(r.pictures_queued);
+  EXPECT_EQ(r.pictures_ms.count, 5u);
+  EXPECT_EQ(r.pictures_dropped, 0u);
+  const nlohmann::json sinks = Summary()["sinks"];
+  ASSERT_EQ(sinks.size(), 2u);
+  EXPECT_EQ(sinks[0]["name"], "flow files");
+  EXPECT_EQ(sinks[1]["name"], "pictures");
+  EXPECT_EQ(sinks[1]["inner"], nlohmann::json::array({"png"}));
+  EXPECT_EQ(sinks[1]["windows"], 5);
+}
+
 // A sink that fails: under kSkip the window is dropped everywhere (its flow file is removed and
 // the sinks before it retract it) and the run goes on; under kStop the run ends naming the sink.
 TEST_F(PipelineTest, FailingSinkDropsTheWindowEverywhereOrStopsTheRunNamingTheSink) {

@@ -204,6 +204,11 @@ struct PipelineOptions {
   Size2 smaller_input_on_miss;
   int recover_after = 30;     // >= 1
   bool write_summary = true;  // false: no summary.json (outputs.summary: false)
+  // The visualisation encoders (PNG, video) on a thread of their own behind a queue of this many
+  // windows (queued_sink.h: the end to end ends before them; their time is measured apart, and
+  // under kNewestWins a picture that cannot keep up is dropped and counted), or 0: on the output
+  // stage, all or nothing with the window's flow file. Default: 2 for live sources, 0 for replays.
+  std::optional<size_t> picture_queue;
   // Test seams (null in the product). `miss_verdict` decides whether a written window counts as
   // a deadline miss, given the budget's verdict (end to end > budget_ms), so a test need not
   // depend on wall-clock speed. `after_window` is called by the output stage once it is done
@@ -230,6 +235,9 @@ struct PipelineResult {
   profiling::Summary stage[4];              // source, preprocess, infer, output
   profiling::Summary parts[kLatencyParts];  // the end to end split (LatencyPart order)
   int64_t misses = 0;                       // windows over the budget (or miss_verdict)
+  bool pictures_queued = false;             // PipelineOptions::picture_queue > 0 and pictures
+  profiling::Summary pictures_ms;           // then: the encoders' time per window
+  uint64_t pictures_dropped = 0;            // and the pictures dropped to keep up
   int64_t frames_at_fallback_size = 0;      // written windows that ran at smaller_input_on_miss
   int64_t fallback_entries = 0;             // switches from the model input size to the fallback
   std::vector<std::string> warnings;

@@ -90,6 +90,9 @@ class FlowSink {
   // After the last window (end of source, max frames, stop request or error), if Start()
   // succeeded: finish and flush. An error fails the run.
   virtual Status Stop() { return Status::Ok(); }
+  // Facts for summary.json's "sinks" entry of this sink (after Stop()), e.g. queued_sink.h's
+  // encoder times; nothing by default.
+  virtual void ToJson(nlohmann::json* /*out*/) const {}
 };
 
 // Hands each window to a function. The function runs on the output stage's thread; what it

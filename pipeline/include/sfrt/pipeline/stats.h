@@ -11,6 +11,7 @@
 // build tables allocate; RunningStats and StepRecorder::Add (within its capacity) do not.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -30,6 +31,24 @@ namespace sfrt::profiling {
 double PercentileOfSorted(std::span<const double> sorted, double q);
 // The same for values in any order (sorts a copy).
 double Percentile(std::vector<double> values, double q);
+
+// The latest `capacity` values of one series, in memory allocated and touched once (at
+// construction), so a run of any length keeps a constant resident size; Add() never allocates.
+// Percentiles of a long run describe its latest values (all of them up to `capacity`).
+class LatestValues {
+ public:
+  static constexpr size_t kDefaultCapacity = size_t{1} << 16;
+  explicit LatestValues(size_t capacity = kDefaultCapacity) : values_(capacity, -1.0) {}
+  void Add(double v) { values_[added_++ % values_.size()] = v; }
+  std::vector<double> Values() const {
+    return {values_.begin(),
+            values_.begin() + static_cast<std::ptrdiff_t>(std::min(added_, values_.size()))};
+  }
+
+ private:
+  std::vector<double> values_;
+  size_t added_ = 0;
+};
 
 // Summary of one series (milliseconds, by convention). All zero when count == 0.
 struct Summary {
