@@ -78,20 +78,6 @@ const char* MissActionName(MissAction a) {
   return "?";
 }
 
-const char* LogLevelName(LogLevel l) {
-  switch (l) {
-    case LogLevel::kError:
-      return "error";
-    case LogLevel::kWarn:
-      return "warn";
-    case LogLevel::kInfo:
-      return "info";
-    case LogLevel::kDebug:
-      return "debug";
-  }
-  return "?";
-}
-
 std::string Diagnostic::ToString() const {
   std::string out = file;
   if (line > 0) out += ":" + std::to_string(line) + ":" + std::to_string(column);

@@ -19,6 +19,7 @@
 
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/profiler.h"
 #include "sfrt/pipeline/queued_sink.h"
@@ -86,7 +87,10 @@ class ProfilerSink final : public FlowSink {
 class Runner {
  public:
   Runner(std::shared_ptr<const Model> model, FrameSource* source, const PipelineOptions& options)
-      : model_(std::move(model)), source_(source), options_(options) {}
+      : model_(std::move(model)),
+        source_(source),
+        options_(options),
+        log_(options.log != nullptr ? *options.log : DefaultLog()) {}
 
   PipelineResult Run();
 
@@ -112,6 +116,7 @@ class Runner {
   std::shared_ptr<const Model> model_;
   FrameSource* source_;
   PipelineOptions options_;
+  LogSink& log_;
 
   cv::Size source_size_;
   int height_ = 0;
@@ -213,6 +218,7 @@ void Runner::Fail(const Status& status, bool discard) {
 }
 
 Status Runner::Setup() {
+  source_->set_log(&log_);
   Result<cv::Size> size = source_->Open();
   if (!size.ok()) return size.status();
   source_size_ = *size;
@@ -320,10 +326,10 @@ Status Runner::Setup() {
 
   switch (options_.progress) {
     case ProgressMode::kAuto:
-      tty_progress_ = ::isatty(STDERR_FILENO) == 1;
+      tty_progress_ = log_.interactive();
       line_progress_ = !tty_progress_;
       break;
-    case ProgressMode::kTty:
+    case ProgressMode::kTty:  // at most 4 lines a second; the log decides how it shows them
       tty_progress_ = true;
       break;
     case ProgressMode::kLines:
@@ -617,7 +623,7 @@ bool Runner::CompleteSinks(const WindowRecord& record, const std::string& stem) 
     // kSkip: the window's outputs are written; this sink stops here (a CSV log would be
     // unreadable with a line missing), and the run says so now and in the summary.
     completed_off_[i] = true;
-    std::fprintf(stderr, "sfrt run: warning: %s; it gets no more windows\n", s.message().c_str());
+    log_.Write(LogLevel::kWarn, "warning", s.message() + "; it gets no more windows");
     std::lock_guard<std::mutex> lock(mu_);
     warnings_.push_back(s.message() + " (from window " + stem + " on)");
   }
@@ -657,8 +663,7 @@ void Runner::OutputStage() {
         Fail(s, true);
         break;
       }
-      std::fprintf(stderr, "sfrt run: warning: window %s skipped: %s\n", stem.c_str(),
-                   s.message().c_str());
+      log_.Write(LogLevel::kWarn, "warning", "window " + stem + " skipped: " + s.message());
       if (skipped_outputs_.size() < kMaxListedSkips) {
         skipped_outputs_.push_back({stem, s.message()});
       }
@@ -708,18 +713,13 @@ void Runner::Progress(bool final) {
   last_progress_ns_ = now;
   const double wall = static_cast<double>(now - start_ns_) / 1e9;
   const std::optional<int64_t> total = source_->total_windows();
-  std::string line = "sfrt run: " + std::to_string(frames_);
+  std::string line = std::to_string(frames_);
   if (total)
     line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
                                                          : *total);
   line += " frames, " + Fixed(wall > 0 ? frames_ / wall : 0.0, 1) + " fps, p50 " +
           Fixed(profiling::Summarize(e2e_ms_.Values()).p50, 1) + " ms end to end";
-  if (tty_progress_) {
-    std::fprintf(stderr, "\r%s\x1b[K%s", line.c_str(), final ? "\n" : "");
-  } else {
-    std::fprintf(stderr, "%s\n", line.c_str());
-  }
-  std::fflush(stderr);
+  log_.Progress(line, final);
 }
 
 Status Runner::WriteSummary(PipelineResult* result) {
@@ -824,7 +824,7 @@ PipelineResult Runner::Run() {
   PipelineResult result;
   start_ns_ = NowNs();
   Status setup = Setup();
-  for (const std::string& w : warnings_) std::fprintf(stderr, "sfrt run: warning: %s\n", w.c_str());
+  for (const std::string& w : warnings_) log_.Write(LogLevel::kWarn, "warning", w);
   if (!setup.ok()) {
     (void)StopSinks();  // the setup's error is the one to report
     result.status = setup;
@@ -895,7 +895,7 @@ PipelineResult Runner::Run() {
     if (result.status.ok()) {
       result.status = s;
     } else {
-      std::fprintf(stderr, "sfrt run: warning: no summary: %s\n", s.message().c_str());
+      log_.Write(LogLevel::kWarn, "warning", "no summary: " + s.message());
     }
   }
   return result;
@@ -975,6 +975,8 @@ void SplitLatency(const FrameMeta& m, double out_ms[kLatencyParts]) {
   }
   for (int p = 0; p < kLatencyParts; ++p) out_ms[p] = Ms(b[p + 1] - b[p]);
 }
+
+LogSink& FrameSource::log() const { return log_ != nullptr ? *log_ : DefaultLog(); }
 
 std::string OutputStem(const FrameMeta& meta) {
   char num[32];

@@ -1,13 +1,13 @@
 #include "sfrt/pipeline/sources.h"
 
 #include <chrono>
-#include <iostream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <utility>
 
 #include "sfrt/camera/image_file.h"
 #include "sfrt/camera/v4l2/pixel_format.h"
+#include "sfrt/pipeline/log.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -108,16 +108,16 @@ class ReplaySource : public FrameSource {
  private:
   // A note, once per run, when the first frame is not 8-bit colour: grayscale is used as BGR with
   // three equal channels, 16-bit is scaled to 8 bits (cv::IMREAD_COLOR).
-  static void NoteImageFormat(const std::string& path) {
+  void NoteImageFormat(const std::string& path) const {
     if (path.empty()) return;
     // From the header: the first frame is not decoded a second time.
     camera::Result<camera::ImageHeader> header = camera::ReadImageHeader(path);
     const std::string what = header.ok() ? camera::NotEightBitColour(*header) : "";
     if (what.empty()) return;
-    std::cerr << "sfrt run: note: '" << path << "' is " << what
-              << "; frames are read as 8-bit BGR (grey copied to three channels, 16-bit "
-                 "scaled to 8 bits)"
-              << std::endl;
+    log().Write(LogLevel::kInfo, "note",
+                "'" + path + "' is " + what +
+                    "; frames are read as 8-bit BGR (grey copied to three channels, 16-bit "
+                    "scaled to 8 bits)");
   }
 
   // Opens the files for one pass and reads the first pair of the first window.
@@ -181,8 +181,8 @@ class ReplaySource : public FrameSource {
     if (!next.ok()) return Status::Error(next.message());
     if (spec_.on_bad_frame == camera::BadFramePolicy::kSkip && !quiet_) {
       for (size_t i = bad_before; i < bad_.size(); ++i) {
-        std::cerr << "sfrt run: warning: bad frame skipped: '" << bad_[i].path
-                  << "': " << bad_[i].reason << std::endl;
+        log().Write(LogLevel::kWarn, "warning",
+                    "bad frame skipped: '" + bad_[i].path + "': " + bad_[i].reason);
       }
     }
     if (spec_.on_bad_frame == camera::BadFramePolicy::kStop && bad_.size() > bad_before) {
@@ -249,8 +249,9 @@ class CameraSource : public FrameSource {
       camera::Status s = cap_.Next(&pair_);
       for (int i = 0; i < devices(); ++i) {
         if (was_lost[i] && !device(i).disconnected()) {
-          Log(device(i).config().device + ": reconnected at reopen attempt " +
-              std::to_string(device(i).stats().reopen_attempts));
+          log().Write(LogLevel::kInfo, "camera",
+                      device(i).config().device + ": reconnected at reopen attempt " +
+                          std::to_string(device(i).stats().reopen_attempts));
         }
       }
       if (s.kind() == camera::ErrorKind::kCancelled) break;  // stop requested
@@ -415,9 +416,7 @@ class CameraSource : public FrameSource {
     for (int i = 0; i < devices(); ++i) n += device(i).stats().disconnects;
     return n;
   }
-  static void Log(const std::string& message) {
-    std::cerr << "sfrt run: camera: " << message << std::endl;
-  }
+  void Log(const std::string& message) const { log().Write(LogLevel::kWarn, "camera", message); }
 
   v4l2::StereoConfig config_;
   camera::BadFramePolicy policy_;

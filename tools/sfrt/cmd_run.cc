@@ -22,6 +22,7 @@
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
 #include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/sources.h"
 #include "sfrt/run_config.h"
@@ -378,6 +379,8 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.model_path = args.model;
   options.latency_log = args.latency_log;
   options.stop = &g_stop;
+  pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
+  options.log = &log;
   options.stop_signal = &g_signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
   // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.

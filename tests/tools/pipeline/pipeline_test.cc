@@ -6,6 +6,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
@@ -15,6 +16,7 @@
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
+#include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
@@ -666,6 +668,49 @@ TEST_F(PipelineTest, FailingSinkDropsTheWindowEverywhereOrStopsTheRunNamingTheSi
   EXPECT_FALSE(r.status.ok());
   EXPECT_EQ(r.status.message(), "sink 'planner': planner queue full");
   EXPECT_EQ(r.frames, 1);
+}
+
+// The library's messages go to PipelineOptions::log, not to stderr: a skipped window's warning
+// and the progress lines reach the program's own log.
+TEST_F(PipelineTest, WarningsAndProgressGoToTheProgramsLogNotToStderr) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  class RecordingLog : public LogSink {
+   public:
+    void Write(LogLevel level, std::string_view tag, std::string_view text) override {
+      std::lock_guard<std::mutex> lock(mu);
+      lines.push_back(std::string(LogLevelName(level)) + " " + std::string(tag) + ": " +
+                      std::string(text));
+    }
+    void Progress(std::string_view, bool) override {
+      std::lock_guard<std::mutex> lock(mu);
+      ++progress;
+    }
+    std::mutex mu;
+    std::vector<std::string> lines;
+    int progress = 0;
+  } log;
+  CallbackSink failing(
+      [](const FlowFrame& f) {
+        return f.meta->frame0 == 1 ? Status::Error("planner queue full") : Status::Ok();
+      },
+      "planner");
+  options_.write_png = false;
+  options_.sinks = {&failing};
+  options_.on_output_error = OutputErrorPolicy::kSkip;
+  options_.progress = ProgressMode::kLines;
+  options_.progress_every = 1;
+  options_.log = &log;
+  FakeSource source(3);
+  testing::internal::CaptureStderr();
+  PipelineResult r = RunPipeline(model, &source, options_);
+  const std::string err = testing::internal::GetCapturedStderr();
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(err, "");
+  EXPECT_EQ(log.lines, (std::vector<std::string>{
+                           "warn warning: window seq_000001 skipped: sink 'planner': planner "
+                           "queue full"}));
+  EXPECT_EQ(log.progress, 2);  // one per written window (the final line is not repeated)
 }
 
 // A sink whose Start() fails ends the run before any stage starts, naming the sink.

@@ -5,6 +5,8 @@
 //               stage reads the camera or the files; profiles written before it was so named
 //               may still say "capture" (accepted with a warning).
 //   FlowFormat  the flow files the pipeline writes: "pfm", "npy".
+//   LogLevel    how severe a message is, as profiles spell it (logging.level): "error", "warn",
+//               "info", "debug"; the pipeline's LogSink (pipeline/log.h) gets it with each message.
 #pragma once
 
 #include <string_view>
@@ -24,5 +26,20 @@ constexpr const char* StageName(Stage s) {
 
 enum class FlowFormat { kPfm, kNpy };
 constexpr const char* FlowFormatName(FlowFormat f) { return f == FlowFormat::kPfm ? "pfm" : "npy"; }
+
+enum class LogLevel { kError, kWarn, kInfo, kDebug };
+constexpr const char* LogLevelName(LogLevel l) {
+  switch (l) {
+    case LogLevel::kError:
+      return "error";
+    case LogLevel::kWarn:
+      return "warn";
+    case LogLevel::kInfo:
+      return "info";
+    case LogLevel::kDebug:
+      return "debug";
+  }
+  return "?";
+}
 
 }  // namespace sfrt::config

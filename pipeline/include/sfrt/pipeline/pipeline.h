@@ -55,6 +55,7 @@ namespace sfrt::pipeline {
 
 class FrameProfiler;  // profiler.h
 class FlowSink;       // sink.h
+class LogSink;        // log.h
 
 // The model's input metadata as camera/ preprocessing parameters (image order, colour order,
 // scale, mean, std). Errors name the metadata field and value.
@@ -142,6 +143,16 @@ class FrameSource {
     std::string reason;
   };
   virtual std::vector<BadFrame> bad_frames() const { return {}; }
+
+  // Where the source's warnings and events go (log.h); RunPipeline sets its own log before
+  // Open(). Null: DefaultLog().
+  void set_log(LogSink* log) { log_ = log; }
+
+ protected:
+  LogSink& log() const;
+
+ private:
+  LogSink* log_ = nullptr;
 };
 
 using config::FlowFormat;  // sfrt/config/vocabulary.h: "pfm", "npy"
@@ -221,6 +232,9 @@ struct PipelineOptions {
   // this order (sink.h: the callback sink hands a robot program each flow frame in-process). Not
   // owned; each must outlive RunPipeline().
   std::vector<FlowSink*> sinks;
+  // Where the library's warnings, notes and progress lines go (log.h), also the source's; not
+  // owned. Null: DefaultLog() (stderr, prefix "sfrt pipeline").
+  LogSink* log = nullptr;
 };
 
 struct PipelineResult {
