@@ -16,8 +16,9 @@ include(CMakePackageConfigHelpers)
 
 set(SFRT_CMAKE_INSTALL_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/sfrt)
 
-set(SFRT_INSTALLED_TARGETS sfrt_runtime sfrt_runtime_shared)
-set(SFRT_INSTALLED_HEADER_DIRS ${PROJECT_SOURCE_DIR}/runtime/include/sfrt)
+set(SFRT_INSTALLED_TARGETS sfrt_vocabulary sfrt_runtime sfrt_runtime_shared)
+set(SFRT_INSTALLED_HEADER_DIRS ${PROJECT_SOURCE_DIR}/vocabulary/include/sfrt
+  ${PROJECT_SOURCE_DIR}/runtime/include/sfrt)
 set(SFRT_PACKAGE_HAS_PIPELINE OFF)
 if(TARGET sfrt_pipeline)
   set(SFRT_PACKAGE_HAS_PIPELINE ON)

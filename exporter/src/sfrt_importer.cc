@@ -8,11 +8,9 @@
 namespace sfrt::exporter {
 namespace {
 
+// The loader has checked the names, so an unknown one cannot reach here.
 ImageSlot SlotFromName(const std::string& name) {
-  if (name == "right0") return ImageSlot::kRight0;
-  if (name == "left1") return ImageSlot::kLeft1;
-  if (name == "right1") return ImageSlot::kRight1;
-  return ImageSlot::kLeft0;
+  return vocabulary::ImageSlotFromName(name).value_or(ImageSlot::kLeft0);
 }
 
 LayerSpec LayerFromDesc(const LayerDesc& layer) {
@@ -82,7 +80,8 @@ Result<ModelSpec> ImportSfrt(const std::string& path) {
   for (const std::string& slot : meta.input.image_order) {
     spec.input.image_order.push_back(SlotFromName(slot));
   }
-  spec.input.color_order = meta.input.color_order == "RGB" ? ColorOrder::kRGB : ColorOrder::kBGR;
+  spec.input.color_order =
+      vocabulary::ColorOrderFromName(meta.input.color_order).value_or(ColorOrder::kBGR);
   spec.input.scale = meta.input.scale;
   for (int c = 0; c < 3; ++c) {
     spec.input.mean[static_cast<size_t>(c)] = meta.input.mean[c];

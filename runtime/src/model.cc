@@ -14,6 +14,7 @@
 
 #include "sfrt/crc32c.h"
 #include "sfrt/model_limits.h"
+#include "sfrt/vocabulary/stereo_input.h"
 #include "sfrt_model_generated.h"
 
 namespace sfrt {
@@ -82,16 +83,18 @@ float HalfToFloat(uint16_t h) {
   return std::bit_cast<float>(bits);
 }
 
+// The file's image slot as the vocabulary spells it (its names are string literals, so data()
+// ends in a NUL); null for a value the schema does not know.
 const char* ImageSlotName(fb::ImageSlot s) {
   switch (s) {
     case fb::ImageSlot::Left0:
-      return "left0";
+      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kLeft0).data();
     case fb::ImageSlot::Right0:
-      return "right0";
+      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kRight0).data();
     case fb::ImageSlot::Left1:
-      return "left1";
+      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kLeft1).data();
     case fb::ImageSlot::Right1:
-      return "right1";
+      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kRight1).data();
   }
   return nullptr;
 }
@@ -395,10 +398,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   }
   switch (in->color_order()) {
     case fb::ColorOrder::BGR:
-      input.color_order = "BGR";
+      input.color_order = vocabulary::ColorOrderName(vocabulary::ColorOrder::kBGR);
       break;
     case fb::ColorOrder::RGB:
-      input.color_order = "RGB";
+      input.color_order = vocabulary::ColorOrderName(vocabulary::ColorOrder::kRGB);
       break;
     default:
       return check.Fail("input.color_order is unknown value " +

@@ -12,13 +12,15 @@ import sys
 
 # module folder -> (its include folders, the modules it may use)
 MODULES = {
-    "runtime": (["runtime/include", "runtime/src", "runtime"], set()),
-    "exporter": (["exporter/include", "exporter/src"], {"runtime"}),
-    "camera": (["camera/common/include", "camera/v4l2/include", "camera/sources/include"], set()),
-    "firmware-cfg": (["firmware-cfg/include"], {"runtime", "camera"}),
-    "pipeline": (["pipeline/include"], {"runtime", "camera", "firmware-cfg"}),
-    "tools": (["tools"], {"runtime", "exporter", "camera", "firmware-cfg", "pipeline"}),
-    "examples": ([], {"runtime", "camera", "firmware-cfg", "pipeline"}),
+    "vocabulary": (["vocabulary/include"], set()),
+    "runtime": (["runtime/include", "runtime/src", "runtime"], {"vocabulary"}),
+    "exporter": (["exporter/include", "exporter/src"], {"vocabulary", "runtime"}),
+    "camera": (["camera/common/include", "camera/v4l2/include", "camera/sources/include"],
+               {"vocabulary"}),
+    "firmware-cfg": (["firmware-cfg/include"], {"vocabulary", "runtime", "camera"}),
+    "pipeline": (["pipeline/include"], {"vocabulary", "runtime", "camera", "firmware-cfg"}),
+    "tools": (["tools"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg", "pipeline"}),
+    "examples": ([], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
 }
 # Top-level folders that are not modules of the library.
 NOT_MODULES = {"tests", "docs", "cmake", "models", "build", "out", "data", ".ci", ".git"}

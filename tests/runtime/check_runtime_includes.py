@@ -1,5 +1,6 @@
 """The runtime's one-way door (docs/architecture.md): every #include under runtime/ is the C++
-standard library, a POSIX/Linux/compiler header from the allowed list, FlatBuffers (through the
+standard library, a POSIX/Linux/compiler header from the allowed list, the shared vocabulary
+(sfrt/vocabulary/, header-only), FlatBuffers (through the
 generated schema header), or a file of runtime/ itself. Fails naming each file:line that reaches
 elsewhere (OpenCV, YAML, ONNX, another module of ours...).
 
@@ -15,6 +16,8 @@ SYSTEM = {"immintrin.h", "arm_neon.h", "cpuid.h", "unistd.h", "pthread.h", "sche
           "sys/syscall.h", "sys/stat.h", "sys/mman.h", "sys/auxv.h", "linux/futex.h",
           "asm/hwcap.h", "stdlib.h", "stdint.h", "string.h"}
 GENERATED = {"sfrt_model_generated.h"}  # flatc's output for runtime/schema/sfrt_model.fbs
+# The shared words (vocabulary/, header-only, standard C++ only): the one module the runtime uses.
+VOCABULARY = re.compile(r"sfrt/vocabulary/[a-z_]+\.h")
 INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]')
 
 
@@ -37,7 +40,7 @@ def main():
                     if kind == "<":
                         ok = re.fullmatch(r"[a-z_]+", header) is not None or header in SYSTEM
                     else:
-                        ok = header in GENERATED or any(
+                        ok = header in GENERATED or VOCABULARY.fullmatch(header) or any(
                             os.path.isfile(os.path.join(d, header))
                             for d in [dirpath] + search)
                     if not ok:

@@ -12,14 +12,10 @@ std::string FloatText(float v) {
   return buf;
 }
 
-constexpr const char* kSlotNames[4] = {"left0", "right0", "left1", "right1"};
-
 }  // namespace
 
 Result<ImageSlot> ParseImageSlot(const std::string& name) {
-  for (int i = 0; i < 4; ++i) {
-    if (name == kSlotNames[i]) return static_cast<ImageSlot>(i);
-  }
+  if (std::optional<ImageSlot> slot = vocabulary::ImageSlotFromName(name)) return *slot;
   return Status::Error("image order entry '" + name +
                        "' is not one of left0, right0, left1, right1");
 }
@@ -43,8 +39,7 @@ Result<std::array<ImageSlot, 4>> ParseImageOrder(const std::vector<std::string>&
 }
 
 Result<ColorOrder> ParseColorOrder(const std::string& name) {
-  if (name == "BGR") return ColorOrder::kBGR;
-  if (name == "RGB") return ColorOrder::kRGB;
+  if (std::optional<ColorOrder> order = vocabulary::ColorOrderFromName(name)) return *order;
   return Status::Error("color order '" + name + "' is neither BGR nor RGB");
 }
 
@@ -61,7 +56,8 @@ Result<Preprocessor> Preprocessor::Create(const PreprocessParams& params, int he
                            std::to_string(s) + ", not a slot");
     }
     if (seen[s]) {
-      return Status::Error(std::string("preprocessing: image_order names ") + kSlotNames[s] +
+      return Status::Error("preprocessing: image_order names " +
+                           std::string(vocabulary::ImageSlotName(static_cast<ImageSlot>(s))) +
                            " twice");
     }
     seen[s] = true;
@@ -100,11 +96,12 @@ Status Preprocessor::Run(const cv::Mat& left0, const cv::Mat& right0, const cv::
   for (int i = 0; i < 4; ++i) {
     const cv::Mat& m = *images[i];
     if (m.type() != CV_8UC3 || m.rows != height_ || m.cols != width_) {
-      return Status::Error(std::string("preprocessing: ") + kSlotNames[i] + " image is " +
-                           std::to_string(m.rows) + "x" + std::to_string(m.cols) + " with " +
-                           std::to_string(m.channels()) + " channels of depth " +
-                           std::to_string(m.depth()) + "; expected 8-bit BGR " +
-                           std::to_string(height_) + "x" + std::to_string(width_) + " (HxW)");
+      return Status::Error(
+          "preprocessing: " + std::string(vocabulary::ImageSlotName(static_cast<ImageSlot>(i))) +
+          " image is " + std::to_string(m.rows) + "x" + std::to_string(m.cols) + " with " +
+          std::to_string(m.channels()) + " channels of depth " + std::to_string(m.depth()) +
+          "; expected 8-bit BGR " + std::to_string(height_) + "x" + std::to_string(width_) +
+          " (HxW)");
     }
   }
   if (dst == nullptr || dst_floats != output_floats()) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "sfrt/model.h"
+#include "sfrt/vocabulary/stereo_input.h"
 
 namespace sfrt::exporter {
 
@@ -25,8 +26,8 @@ using sfrt::TrainingState;
 using sfrt::WeightType;
 using Pads = sfrt::Padding;
 
-enum class ImageSlot { kLeft0, kRight0, kLeft1, kRight1 };
-enum class ColorOrder { kBGR, kRGB };
+using vocabulary::ColorOrder;  // the shared words (sfrt/vocabulary/stereo_input.h)
+using vocabulary::ImageSlot;
 
 struct ConvSpec {
   std::string name;
@@ -78,8 +79,8 @@ using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec>;
 struct InputSpec {
   std::string name = "stereo_pairs";
   int channels = 12;
-  std::vector<ImageSlot> image_order = {ImageSlot::kLeft0, ImageSlot::kRight0, ImageSlot::kLeft1,
-                                        ImageSlot::kRight1};
+  std::vector<ImageSlot> image_order = {vocabulary::kDefaultImageOrder.begin(),
+                                        vocabulary::kDefaultImageOrder.end()};
   ColorOrder color_order = ColorOrder::kBGR;
   float scale = 1.0f;
   std::array<float, 3> mean = {0.0f, 0.0f, 0.0f};

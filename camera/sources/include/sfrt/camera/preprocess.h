@@ -19,23 +19,23 @@
 #include <vector>
 
 #include "sfrt/camera/status.h"
+#include "sfrt/vocabulary/stereo_input.h"
 
 namespace sfrt::camera {
 
-enum class ImageSlot { kLeft0 = 0, kRight0 = 1, kLeft1 = 2, kRight1 = 3 };
-enum class ColorOrder { kBGR, kRGB };
+using vocabulary::ColorOrder;  // the shared words (sfrt/vocabulary/stereo_input.h)
+using vocabulary::ImageSlot;
 
 struct PreprocessParams {
   // image_order[g] is the image written to channels 3g..3g+2.
-  std::array<ImageSlot, 4> image_order = {ImageSlot::kLeft0, ImageSlot::kRight0, ImageSlot::kLeft1,
-                                          ImageSlot::kRight1};
+  std::array<ImageSlot, 4> image_order = vocabulary::kDefaultImageOrder;
   ColorOrder color_order = ColorOrder::kBGR;
   float scale = 1.0f;
   float mean[3] = {0, 0, 0};
   float std[3] = {1, 1, 1};
 };
 
-// "left0" "right0" "left1" "right1" (the model file's spelling).
+// "left0" "right0" "left1" "right1" (the model file's spelling); the errors say what was given.
 Result<ImageSlot> ParseImageSlot(const std::string& name);
 // Exactly four names forming a permutation of the four slots.
 Result<std::array<ImageSlot, 4>> ParseImageOrder(const std::vector<std::string>& names);

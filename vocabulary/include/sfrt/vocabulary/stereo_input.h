@@ -1,0 +1,47 @@
+// The words for a scene-flow model's stereo input, declared once for every module: the runtime
+// (model metadata), the exporter (model specs), camera/ (preprocessing) and the tools. Header-only,
+// standard C++ only, so a module that may use nothing else of ours may still use it.
+//   ImageSlot   which image of the window (t, t+1) a group of three input channels holds, as the
+//               model file spells it: "left0", "right0", "left1", "right1".
+//   ColorOrder  the channel order within each image: "BGR" (OpenCV's) or "RGB".
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string_view>
+
+namespace sfrt::vocabulary {
+
+enum class ImageSlot { kLeft0 = 0, kRight0 = 1, kLeft1 = 2, kRight1 = 3 };
+inline constexpr int kImageSlots = 4;
+inline constexpr std::array<std::string_view, kImageSlots> kImageSlotNames = {"left0", "right0",
+                                                                              "left1", "right1"};
+// The order the slots are written in when a model says nothing else (the paper's).
+inline constexpr std::array<ImageSlot, kImageSlots> kDefaultImageOrder = {
+    ImageSlot::kLeft0, ImageSlot::kRight0, ImageSlot::kLeft1, ImageSlot::kRight1};
+
+constexpr std::string_view ImageSlotName(ImageSlot s) {
+  const int i = static_cast<int>(s);
+  return i >= 0 && i < kImageSlots ? kImageSlotNames[static_cast<size_t>(i)] : "?";
+}
+// The slot a name spells (exactly, lower case), or nothing.
+constexpr std::optional<ImageSlot> ImageSlotFromName(std::string_view name) {
+  for (int i = 0; i < kImageSlots; ++i) {
+    if (name == kImageSlotNames[static_cast<size_t>(i)]) return static_cast<ImageSlot>(i);
+  }
+  return std::nullopt;
+}
+
+enum class ColorOrder { kBGR, kRGB };
+
+constexpr std::string_view ColorOrderName(ColorOrder c) {
+  return c == ColorOrder::kBGR ? "BGR" : "RGB";
+}
+// "BGR" or "RGB" (exactly, upper case), or nothing.
+constexpr std::optional<ColorOrder> ColorOrderFromName(std::string_view name) {
+  if (name == "BGR") return ColorOrder::kBGR;
+  if (name == "RGB") return ColorOrder::kRGB;
+  return std::nullopt;
+}
+
+}  // namespace sfrt::vocabulary
