@@ -162,6 +162,8 @@ class Runner {
   int64_t discarded_after_max_ = 0;
   std::atomic<bool> skip_next_{false};  // drop_next_on_miss: set by output, taken by source
   int64_t skipped_after_miss_ = 0;      // written by the source stage
+  int64_t pairs_rectified_ = 0;         // written by the preprocess stage (at the model size)
+  int64_t pairs_reused_ = 0;            // pairs t taken from the window before
   // smaller-input, written by the output stage:
   int64_t fallback_streak_ = 0;     // consecutive in-budget windows at the fallback size
   int64_t frames_at_fallback_ = 0;  // written windows that ran at the fallback size
@@ -440,6 +442,9 @@ void Runner::PreprocessStage() {
   InputItem in = MakeInput();
   cv::Mat l0, r0, l1, r1;  // rectified, model size
   for (cv::Mat* m : {&l0, &r0, &l1, &r1}) m->create(height_, width_, CV_8UC3);
+  // The window whose pair t+1 is in l1/r1 (-1: none): a window that continues it (FrameMeta::
+  // continues) takes that pair as its pair t and rectifies only its own pair t+1.
+  int64_t rectified_window = -1;
   cv::Mat fl0, fr0, fl1, fr1;  // rectified, fallback size (smaller-input)
   if (fallback_) {
     for (cv::Mat* m : {&fl0, &fr0, &fl1, &fr1}) m->create(fb_height_, fb_width_, CV_8UC3);
@@ -469,6 +474,7 @@ void Runner::PreprocessStage() {
         break;
       }
       rectifier_.emplace(std::move(rect).value());
+      rectified_window = -1;
       if (fallback_) {
         auto fb = camera::StereoRectifier::CreateResizeOnly(size, cv::Size(fb_width_, fb_height_));
         if (!fb.ok()) {
@@ -488,10 +494,21 @@ void Runner::PreprocessStage() {
                                   fb_preprocessor_->output_floats());
       }
     } else {
-      s = rectifier_->Apply(w.left0, w.right0, &l0, &r0);
+      const bool reuse =
+          w.meta.continues && rectified_window >= 0 && w.meta.window == rectified_window + 1;
+      if (reuse) {  // the last window's pair t+1 is this one's pair t
+        std::swap(l0, l1);
+        std::swap(r0, r1);
+        ++pairs_reused_;
+      } else {
+        s = rectifier_->Apply(w.left0, w.right0, &l0, &r0);
+        ++pairs_rectified_;
+      }
       if (s.ok()) s = rectifier_->Apply(w.left1, w.right1, &l1, &r1);
+      ++pairs_rectified_;
       if (s.ok()) s = preprocessor_->Run(l0, r0, l1, r1, in.input.data(), in.input.size());
     }
+    rectified_window = s.ok() && !small ? w.meta.window : -1;
     if (!s.ok()) {
       Fail(Status::Error(s.message()), true);
       break;
@@ -782,6 +799,9 @@ Status Runner::WriteSummary(PipelineResult* result) {
   for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
   lat["end_to_end"] = PercentilesJson(result->end_to_end);
   j["latency_ms"] = lat;
+  // Each pair is rectified once: pair t of a window that continues the one before is its pair
+  // t+1, already rectified (fallback-size windows are not counted).
+  j["preprocess"] = {{"pairs_rectified", pairs_rectified_}, {"pairs_reused", pairs_reused_}};
   // The end to end split into consecutive parts (LatencyPart); the per-window parts add up to
   // the window's end to end, their p50s need not add up to its p50.
   json parts = json::object();

@@ -59,6 +59,14 @@ class ReplaySource : public FrameSource {
     m.frame0 = prev.frame_number;
     m.frame1 = cur.frame_number;
     m.left0_path = prev.left_path;
+    // Pair t is the last window's pair t+1 when the window moved on by one pair in this pass.
+    m.continues = emitted_ > 0 && pass_ == last_pass_ && cur.sequence == last_sequence_ &&
+                  prev.frame_number == last_frame1_ && prev.left_path == last_left1_path_;
+    ++emitted_;
+    last_pass_ = pass_;
+    last_sequence_ = cur.sequence;
+    last_frame1_ = cur.frame_number;
+    last_left1_path_ = cur.left_path;
     const int64_t now = NowNs();
     m.capture_ns[0] = m.capture_ns[1] = now;
     m.stage_ns[0][0] = start;
@@ -202,6 +210,12 @@ class ReplaySource : public FrameSource {
   std::optional<int64_t> total_;
   int64_t pass_ = 0;
   bool primed_ = false;
+  // The last window delivered: its pass and pair t+1 (for FrameMeta::continues).
+  int64_t emitted_ = 0;
+  int64_t last_pass_ = -1;
+  std::string last_sequence_;
+  int64_t last_frame1_ = -1;
+  std::string last_left1_path_;
 
  public:
   bool quiet_ = false;  // ProbeReplay: no console lines
@@ -319,7 +333,9 @@ class CameraSource : public FrameSource {
         m.dequeue_ns = l.timestamp_ns >= r.timestamp_ns ? l.dequeue_ns : r.dequeue_ns;
         m.paired_ns = pair_.paired_ns;
         m.converted_ns = pair_.converted_ns;
+        m.continues = prev_was_emitted_;  // pair t was the last window's pair t+1
       }
+      prev_was_emitted_ = emit;
       // Pair t+1 becomes the next window's pair t by swapping buffers, not copying; the next
       // conversion writes into the old pair t's (same size: no allocation).
       std::swap(prev_bgr_[0], pair_.left.bgr);
@@ -424,6 +440,7 @@ class CameraSource : public FrameSource {
   v4l2::StereoPair pair_;
   std::vector<uint8_t> prev_bgr_[2];  // BGR of the previous pair (left, right)
   cv::Size prev_size_[2];
+  bool prev_was_emitted_ = false;  // the previous pair was pair t+1 of the last window
   bool have_prev_ = false;
   int64_t prev_seq_ = 0;
   int64_t prev_ts_ = 0;

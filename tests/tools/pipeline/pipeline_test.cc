@@ -96,6 +96,7 @@ class FakeSource : public FrameSource {
     item->meta.sequence = "seq";
     item->meta.frame0 = next_;
     item->meta.frame1 = next_ + 1;
+    item->meta.continues = continues_ && next_ > 0;
     const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
                             std::chrono::steady_clock::now().time_since_epoch())
                             .count();
@@ -113,6 +114,7 @@ class FakeSource : public FrameSource {
   int windows_;
   int next_ = 0;
   bool live_ = false;
+  bool continues_ = false;  // say that window k's pair t is window k-1's pair t+1 (it is)
   int fail_at_ = -1;
   int stop_at_ = -1;
   std::atomic<bool>* stop_ = nullptr;
@@ -624,6 +626,30 @@ TEST_F(PipelineTest, QueuedPicturesAreAllWrittenAndMeasuredApart) {
   EXPECT_EQ(sinks[1]["name"], "pictures");
   EXPECT_EQ(sinks[1]["inner"], nlohmann::json::array({"png"}));
   EXPECT_EQ(sinks[1]["windows"], 5);
+}
+
+// A source that says its windows continue one another: each pair is rectified once (pair t of
+// window k is window k-1's rectified pair t+1), and every window's flow is still the one a
+// direct Session gives on its own four images.
+TEST_F(PipelineTest, ContinuingWindowsRectifyEachPairOnceAndKeepTheirFlow) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  FakeSource source(4);
+  source.continues_ = true;
+  options_.write_png = false;
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.frames, 4);
+  const nlohmann::json pre = Summary()["preprocess"];
+  EXPECT_EQ(pre["pairs_rectified"], 5);  // 4 windows, 5 pairs
+  EXPECT_EQ(pre["pairs_reused"], 3);
+  for (int k = 0; k < 4; ++k) {
+    SCOPED_TRACE(k);
+    Result<io::PfmImage> got =
+        io::ReadPfm((dir_ / ("seq_00000" + std::to_string(k) + ".pfm")).string());
+    ASSERT_TRUE(got.ok()) << got.message();
+    EXPECT_EQ(got->data, DirectFlow(model, k));
+  }
 }
 
 // A sink that fails: under kSkip the window is dropped everywhere (its flow file is removed and

@@ -63,10 +63,14 @@ Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input);
 
 // What is known about a window before preprocessing.
 struct FrameMeta {
-  int64_t window = -1;             // number of the window in source order (0, 1, ...)
-  std::string sequence;            // "" for single-sequence sources
-  int64_t frame0 = -1;             // frame number of pair t (file number, or the camera's sequence)
-  int64_t frame1 = -1;             // frame number of pair t+1
+  int64_t window = -1;   // number of the window in source order (0, 1, ...)
+  std::string sequence;  // "" for single-sequence sources
+  int64_t frame0 = -1;   // frame number of pair t (file number, or the camera's sequence)
+  int64_t frame1 = -1;   // frame number of pair t+1
+  // Set by the source when pair t holds the same images as pair t+1 of the window it delivered
+  // just before (window - 1): the preprocess stage then rectifies only pair t+1 and reuses the
+  // previous window's (each pair rectified once), when it saw that window.
+  bool continues = false;
   std::string left0_path;          // where the left image at t came from ("" for cameras)
   int64_t capture_ns[2] = {0, 0};  // capture time of pair t and t+1 (CLOCK_MONOTONIC)
   // [stage][0 start, 1 end], CLOCK_MONOTONIC ns; stages: source, preprocess, infer, output.
