@@ -19,7 +19,9 @@ MODULES = {
                {"vocabulary"}),
     "firmware-cfg": (["firmware-cfg/include"], {"vocabulary", "runtime", "camera"}),
     "pipeline": (["pipeline/include"], {"vocabulary", "runtime", "camera", "firmware-cfg"}),
-    "tools": (["tools"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg", "pipeline"}),
+    "ros": (["ros/include"], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
+    "tools": (["tools"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg", "pipeline",
+                          "ros"}),
     "examples": ([], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
 }
 # Top-level folders that are not modules of the library.

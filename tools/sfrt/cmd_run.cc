@@ -25,6 +25,10 @@
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/sources.h"
+#if SFRT_HAVE_ROS
+#include "sfrt/ros/bag_sink.h"
+#include "sfrt/ros/bag_source.h"
+#endif
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
@@ -52,6 +56,12 @@ struct RunArgs {
   std::string replay_left;
   std::string replay_right;
   std::string replay_video;
+  std::string replay_bag;
+  std::string left_topic = "left/image_rect";
+  std::string right_topic = "right/image_rect";
+  std::string record_bag;
+  bool record_bag_vis = false;
+  std::string record_bag_frame_id = "left_camera";
   std::string pass = "clean";
   bool right_first = false;
   std::string format = "auto";
@@ -117,13 +127,18 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
   const bool plain = !args.replay_left.empty() || !args.replay_right.empty();
   const int sources = !args.camera.empty() + !args.sbs_camera.empty() + !args.replay.empty() +
-                      plain + !args.replay_video.empty();
+                      plain + !args.replay_video.empty() + !args.replay_bag.empty();
   if (sources != 1) {
     return ReportError(kName,
                        sources == 0 ? "no source: give one of --camera, --sbs-camera, --replay, "
-                                      "--replay-left/--replay-right, --replay-video"
+                                      "--replay-left/--replay-right, --replay-video, --replay-bag"
                                     : "give exactly one source (--camera, --sbs-camera, "
-                                      "--replay, --replay-left/--replay-right, --replay-video)",
+                                      "--replay, --replay-left/--replay-right, --replay-video, "
+                                      "--replay-bag)",
+                       kExitUsage);
+  }
+  if (!args.replay_bag.empty() && args.loop != 1) {
+    return ReportError(kName, "--loop: passes over a bag are not supported; give --loop 1",
                        kExitUsage);
   }
   if (plain && (args.replay_left.empty() || args.replay_right.empty())) {
@@ -297,6 +312,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   std::error_code ec;
   std::unique_ptr<pipeline::FrameSource> source;
   std::optional<pipeline::ReplaySpec> replay_spec;  // --profile-overhead replays it again
+#if SFRT_HAVE_ROS
+  std::optional<ros::BagReplaySpec> bag_spec;  // the same for a bag
+#endif
   if (live) {
     v4l2::StereoConfig config;
     config.mode = args.camera.empty() ? v4l2::StereoConfig::Mode::kSideBySide
@@ -322,6 +340,28 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     config.sbs_left_first = !args.right_first;
     config.timeout_ms = args.camera_timeout_ms;
     source = pipeline::MakeCameraSource(config, on_bad);
+  } else if (!args.replay_bag.empty()) {
+#if SFRT_HAVE_ROS
+    ros::BagReplaySpec spec;
+    spec.path = args.replay_bag;
+    spec.left_topic = args.left_topic;
+    spec.right_topic = args.right_topic;
+    spec.pair_tolerance_ms = args.pair_tolerance_ms > 0 ? args.pair_tolerance_ms : 8.0;
+    spec.on_bad_frame = on_bad;
+    if (std::string problem = CheckInputFile(spec.path, "--replay-bag file"); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+    if (Result<ros::BagProbe> probe = ros::ProbeBag(spec); !probe.ok()) {
+      return ReportError(kName, "--replay-bag: " + probe.message(), kExitUsage);
+    }
+    bag_spec = spec;
+    source = ros::MakeBagSource(spec);
+#else
+    return ReportError(kName,
+                       "--replay-bag: this sfrt was built without ROS bag support (install "
+                       "librosbag-dev and libsensor-msgs-dev, then configure again)",
+                       kExitUsage);
+#endif
   } else {
     pipeline::ReplaySpec spec;
     if (!args.replay.empty()) {
@@ -381,6 +421,25 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.stop = &g_stop;
   pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
   options.log = &log;
+#if SFRT_HAVE_ROS
+  std::optional<ros::FlowBagSink> bag_sink;
+  if (!args.record_bag.empty()) {
+    ros::BagSinkOptions bo;
+    bo.path = args.record_bag;
+    bo.frame_id = args.record_bag_frame_id;
+    bo.vis = args.record_bag_vis;
+    bo.vis_options = {options.vis_scale, (*loaded)->metadata().output.units};
+    bag_sink.emplace(bo);
+    options.sinks.push_back(&*bag_sink);
+  }
+#else
+  if (!args.record_bag.empty()) {
+    return ReportError(kName,
+                       "--record-bag: this sfrt was built without ROS bag support (install "
+                       "librosbag-dev and libsensor-msgs-dev, then configure again)",
+                       kExitUsage);
+  }
+#endif
   options.stop_signal = &g_signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
   // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
@@ -405,6 +464,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };
+#if SFRT_HAVE_ROS
+  if (bag_spec) again = [&bag_spec] { return ros::MakeBagSource(*bag_spec); };
+#endif
   // Every check has passed: the note belongs to a run that starts.
   if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
       !notice.empty()) {
@@ -473,6 +535,26 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--replay-right", args->replay_right, "Right frames: a directory or a glob");
   cmd->add_option("--replay-video", args->replay_video,
                   "Side-by-side stereo video file (OpenCV VideoCapture)");
+  cmd->add_option(
+      "--replay-bag", args->replay_bag,
+      "ROS 1 bag: sensor_msgs/Image (bgr8, rgb8, bgra8, rgba8, mono8) or "
+      "CompressedImage (JPEG, PNG) on --left-topic and --right-topic, paired by header "
+      "stamp within --pair-tolerance-ms (default 8); unpaired frames are counted in the "
+      "summary. Needs a build with librosbag");
+  cmd->add_option("--left-topic", args->left_topic, "--replay-bag: the left image topic")
+      ->capture_default_str();
+  cmd->add_option("--record-bag", args->record_bag,
+                  "Also write the flow as a ROS 1 bag: /flow (sensor_msgs/Image 32FC3, dX dY dZ "
+                  "per pixel of the left image at t, stamped with pair t), /flow_t1 "
+                  "(std_msgs/Header stamped with pair t+1), /flow_vis with --record-bag-vis; "
+                  "written to a temporary file and renamed when complete (docs/ros.md)");
+  cmd->add_flag("--record-bag-vis", args->record_bag_vis,
+                "--record-bag: also the visualisation as /flow_vis (bgr8)");
+  cmd->add_option("--record-bag-frame-id", args->record_bag_frame_id,
+                  "--record-bag: header.frame_id of the messages (the left camera's frame)")
+      ->capture_default_str();
+  cmd->add_option("--right-topic", args->right_topic, "--replay-bag: the right image topic")
+      ->capture_default_str();
   cmd->add_option("--pass", args->pass,
                   "Scene Flow datasets: rendering pass to read, clean or final")
       ->capture_default_str();

@@ -73,6 +73,9 @@ struct FrameMeta {
   bool continues = false;
   std::string left0_path;          // where the left image at t came from ("" for cameras)
   int64_t capture_ns[2] = {0, 0};  // capture time of pair t and t+1 (CLOCK_MONOTONIC)
+  // The sensor's own stamps of pair t and t+1 where the source has them (a bag's header stamps
+  // of the left images, ns since the epoch); 0 otherwise.
+  int64_t stamp_ns[2] = {0, 0};
   // [stage][0 start, 1 end], CLOCK_MONOTONIC ns; stages: source, preprocess, infer, output.
   int64_t stage_ns[4][2] = {};
   // Live sources, for pair t+1 (0 for files): when the frame with the later capture time was

@@ -1,0 +1,100 @@
+#include "sfrt/ros/bag_sink.h"
+
+#include <unistd.h>
+
+#include <ctime>
+#include <filesystem>
+
+#include "bag_reader.h"
+#include "sfrt/pipeline/io/atomic_write.h"
+
+namespace sfrt::ros {
+namespace {
+
+int64_t ClockNs(clockid_t clock) {
+  timespec ts{};
+  ::clock_gettime(clock, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+}  // namespace
+
+FlowBagSink::FlowBagSink(BagSinkOptions options) : options_(std::move(options)) {}
+FlowBagSink::~FlowBagSink() {
+  if (writer_) {
+    (void)writer_->Close();
+    ::unlink(tmp_.c_str());  // never finished by Stop(): nothing is replaced
+  }
+}
+
+Status FlowBagSink::Start() {
+  Result<io::OutputTarget> target = io::ResolveOutputTarget(options_.path);
+  if (!target.ok()) return Status::Error("--record-bag: " + target.message());
+  if (target->kind != io::OutputTarget::Kind::kReplace) {
+    return Status::Error("--record-bag '" + options_.path + "' is " + target->what +
+                         ": a bag is finished by seeking back to its header, so it is written "
+                         "only as a regular file; give a file path");
+  }
+  final_ = target->path;
+  tmp_ = final_ + ".tmp.bag";
+  writer_ = std::make_unique<detail::BagWriter>();
+  if (std::string e = writer_->Open(tmp_); !e.empty()) {
+    writer_.reset();
+    ::unlink(tmp_.c_str());
+    return Status::Error(e);
+  }
+  realtime_minus_monotonic_ns_ = ClockNs(CLOCK_REALTIME) - ClockNs(CLOCK_MONOTONIC);
+  if (options_.vis) renderer_.emplace(options_.vis_options);
+  return Status::Ok();
+}
+
+int64_t FlowBagSink::WallStamp(const pipeline::FrameMeta& m, int pair) const {
+  if (m.stamp_ns[pair] != 0) return m.stamp_ns[pair];
+  return m.capture_ns[pair] + realtime_minus_monotonic_ns_;
+}
+
+Status FlowBagSink::Write(const pipeline::FlowFrame& frame) {
+  if (failed_) return Status::Error("the bag '" + options_.path + "' failed earlier");
+  const pipeline::FrameMeta& m = *frame.meta;
+  const auto seq = static_cast<uint32_t>(m.window);
+  const int64_t t0 = WallStamp(m, 0), t1 = WallStamp(m, 1);
+  const auto row = static_cast<uint32_t>(frame.width * frame.channels * sizeof(float));
+  const std::string encoding = "32FC" + std::to_string(frame.channels);
+  std::string e =
+      writer_->WriteImage(options_.flow_topic, t0, seq, options_.frame_id, encoding,
+                          static_cast<uint32_t>(frame.height), static_cast<uint32_t>(frame.width),
+                          row, reinterpret_cast<const uint8_t*>(frame.flow.data()));
+  if (e.empty()) e = writer_->WriteHeader(options_.t1_topic, t1, seq, options_.frame_id);
+  if (e.empty() && renderer_) {
+    const cv::Mat& canvas = renderer_->Render(frame);
+    e = writer_->WriteImage(options_.vis_topic, t0, seq, options_.frame_id, "bgr8",
+                            static_cast<uint32_t>(canvas.rows), static_cast<uint32_t>(canvas.cols),
+                            static_cast<uint32_t>(canvas.step[0]), canvas.data);
+  }
+  if (!e.empty()) {
+    failed_ = true;
+    return Status::Error(e);
+  }
+  ++windows_;
+  return Status::Ok();
+}
+
+Status FlowBagSink::Stop() {
+  if (!writer_) return Status::Ok();
+  std::string e = writer_->Close();
+  writer_.reset();
+  if (failed_ || !e.empty()) {
+    ::unlink(tmp_.c_str());
+    return Status::Error("the bag '" + options_.path + "' was not written (nothing replaced it)" +
+                         (e.empty() ? std::string() : ": " + e));
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp_, final_, ec);
+  if (ec) {
+    ::unlink(tmp_.c_str());
+    return Status::Error("cannot rename '" + tmp_ + "' to '" + final_ + "': " + ec.message());
+  }
+  return Status::Ok();
+}
+
+}  // namespace sfrt::ros
