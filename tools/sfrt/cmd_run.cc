@@ -543,6 +543,8 @@ Command AddRunCommand(CLI::App& parent) {
       "summary. Needs a build with librosbag");
   cmd->add_option("--left-topic", args->left_topic, "--replay-bag: the left image topic")
       ->capture_default_str();
+  cmd->add_option("--right-topic", args->right_topic, "--replay-bag: the right image topic")
+      ->capture_default_str();
   cmd->add_option("--record-bag", args->record_bag,
                   "Also write the flow as a ROS 1 bag: /flow (sensor_msgs/Image 32FC3, dX dY dZ "
                   "per pixel of the left image at t, stamped with pair t), /flow_t1 "
@@ -552,8 +554,6 @@ Command AddRunCommand(CLI::App& parent) {
                 "--record-bag: also the visualisation as /flow_vis (bgr8)");
   cmd->add_option("--record-bag-frame-id", args->record_bag_frame_id,
                   "--record-bag: header.frame_id of the messages (the left camera's frame)")
-      ->capture_default_str();
-  cmd->add_option("--right-topic", args->right_topic, "--replay-bag: the right image topic")
       ->capture_default_str();
   cmd->add_option("--pass", args->pass,
                   "Scene Flow datasets: rendering pass to read, clean or final")
