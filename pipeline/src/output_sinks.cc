@@ -20,6 +20,12 @@ std::string PathIn(const std::string& dir, const FrameMeta& meta, const char* ex
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
+// Retract() of a file sink: removes the file it wrote last, if any.
+void RemoveLastFile(std::string* path) {
+  if (!path->empty()) ::unlink(path->c_str());
+  path->clear();
+}
+
 // Whether the AVI at `path` holds `frames` frames, by its index (nothing is decoded).
 Status CheckVideoComplete(const std::string& path, int64_t frames) {
   cv::VideoCapture cap(path, cv::CAP_OPENCV_MJPEG);
@@ -56,10 +62,7 @@ Status FlowFileSink::Write(const FlowFrame& frame) {
   return s;
 }
 
-void FlowFileSink::Retract() {
-  if (!last_path_.empty()) ::unlink(last_path_.c_str());
-  last_path_.clear();
-}
+void FlowFileSink::Retract() { RemoveLastFile(&last_path_); }
 
 // ------------------------------------------------------------------------------------ renderer
 
@@ -100,10 +103,7 @@ Status PngSink::Write(const FlowFrame& frame) {
   return Status::Ok();
 }
 
-void PngSink::Retract() {
-  if (!last_path_.empty()) ::unlink(last_path_.c_str());
-  last_path_.clear();
-}
+void PngSink::Retract() { RemoveLastFile(&last_path_); }
 
 // --------------------------------------------------------------------------------------- video
 

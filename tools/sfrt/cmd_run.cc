@@ -37,6 +37,12 @@ namespace sfrt::tools {
 namespace {
 
 constexpr char kName[] = "run";
+#if !SFRT_HAVE_ROS
+// --replay-bag and --record-bag in a build without ros/.
+constexpr char kNoRosBagSupport[] =
+    "this sfrt was built without ROS bag support (install librosbag-dev and libsensor-msgs-dev, "
+    "then configure again)";
+#endif
 
 // Set by the SIGINT/SIGTERM handler; read by the pipeline's watcher thread.
 std::atomic<bool> g_stop{false};
@@ -357,10 +363,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     bag_spec = spec;
     source = ros::MakeBagSource(spec);
 #else
-    return ReportError(kName,
-                       "--replay-bag: this sfrt was built without ROS bag support (install "
-                       "librosbag-dev and libsensor-msgs-dev, then configure again)",
-                       kExitUsage);
+    return ReportError(kName, std::string("--replay-bag: ") + kNoRosBagSupport, kExitUsage);
 #endif
   } else {
     pipeline::ReplaySpec spec;
@@ -434,10 +437,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
 #else
   if (!args.record_bag.empty()) {
-    return ReportError(kName,
-                       "--record-bag: this sfrt was built without ROS bag support (install "
-                       "librosbag-dev and libsensor-msgs-dev, then configure again)",
-                       kExitUsage);
+    return ReportError(kName, std::string("--record-bag: ") + kNoRosBagSupport, kExitUsage);
   }
 #endif
   options.stop_signal = &g_signal;

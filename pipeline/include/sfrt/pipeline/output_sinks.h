@@ -7,7 +7,8 @@
 // Every file is written to a temporary name and renamed (io/atomic_write.h), so a reader never
 // sees half a file. Errors name the file and the system's reason.
 //
-// Threads: like every sink, used by the output stage's thread only.
+// Threads: like every sink, used by one thread at a time: the output stage's, or the queue's
+// thread when they run behind a QueuedSink (queued_sink.h).
 #pragma once
 
 #include <cstdint>
