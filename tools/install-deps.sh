@@ -18,8 +18,11 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev clang-14 libclang-rt-14-dev valgrind
   # reference models for tests (PyTorch builds SceneEDNet and exports ONNX)
   python3 python3-numpy python3-torch python3-onnx python3-h5py python3-pil
-  # ROS 1 as Debian packages it: bag replay (ros/) and the bags its tests make
+  # ROS 1 as Debian packages it: bag replay (ros/), the sfrt_ros node, and the master, rosbag
+  # play and Python clients its tests use
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs
+  libroscpp-dev libimage-transport-dev libmessage-filters-dev libcv-bridge-dev
+  libdiagnostic-msgs-dev ros-core python3-rospy python3-diagnostic-msgs
 )
 
 missing=()

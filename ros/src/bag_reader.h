@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "message_io.h"
+
 namespace sfrt::ros::detail {
 
 // One image message as stored: raw pixels (sensor_msgs/Image) or an encoded file
@@ -22,6 +24,10 @@ struct BagImage {
   uint32_t width = 0;
   uint32_t step = 0;
   std::vector<uint8_t> data;
+
+  ImageView view() const {
+    return {stamp_ns, compressed, encoding, height, width, step, data.data(), data.size()};
+  }
 };
 
 struct BagTopics {
@@ -46,19 +52,17 @@ class BagReader {
   std::unique_ptr<Impl> impl_;
 };
 
-// Writes flow (32FC3) and pictures (bgr8) as sensor_msgs/Image, with a std_msgs/Header per flow
-// message carrying the stamp of pair t+1. Errors are returned as strings ("" = done).
-class BagWriter {
+// Writes the flow's messages into a bag; each message's record time is its header stamp.
+class BagWriter final : public MessageWriter {
  public:
   BagWriter();
-  ~BagWriter();  // closes the bag if Close() was not called (errors are lost)
+  ~BagWriter() override;  // closes the bag if Close() was not called (errors are lost)
   std::string Open(const std::string& path);
-  // An image of `height` rows of `step` bytes: "32FC3" (3 floats a pixel) or "bgr8".
   std::string WriteImage(const std::string& topic, int64_t stamp_ns, uint32_t seq,
                          const std::string& frame_id, const std::string& encoding, uint32_t height,
-                         uint32_t width, uint32_t step, const uint8_t* data);
+                         uint32_t width, uint32_t step, const uint8_t* data) override;
   std::string WriteHeader(const std::string& topic, int64_t stamp_ns, uint32_t seq,
-                          const std::string& frame_id);
+                          const std::string& frame_id) override;
   std::string Close();
 
  private:

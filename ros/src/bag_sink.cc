@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "bag_reader.h"
+#include "flow_messages.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 
 namespace sfrt::ros {
@@ -56,21 +57,10 @@ int64_t FlowBagSink::WallStamp(const pipeline::FrameMeta& m, int pair) const {
 Status FlowBagSink::Write(const pipeline::FlowFrame& frame) {
   if (failed_) return Status::Error("the bag '" + options_.path + "' failed earlier");
   const pipeline::FrameMeta& m = *frame.meta;
-  const auto seq = static_cast<uint32_t>(m.window);
-  const int64_t t0 = WallStamp(m, 0), t1 = WallStamp(m, 1);
-  const auto row = static_cast<uint32_t>(frame.width * frame.channels * sizeof(float));
-  const std::string encoding = "32FC" + std::to_string(frame.channels);
-  std::string e =
-      writer_->WriteImage(options_.flow_topic, t0, seq, options_.frame_id, encoding,
-                          static_cast<uint32_t>(frame.height), static_cast<uint32_t>(frame.width),
-                          row, reinterpret_cast<const uint8_t*>(frame.flow.data()));
-  if (e.empty()) e = writer_->WriteHeader(options_.t1_topic, t1, seq, options_.frame_id);
-  if (e.empty() && renderer_) {
-    const cv::Mat& canvas = renderer_->Render(frame);
-    e = writer_->WriteImage(options_.vis_topic, t0, seq, options_.frame_id, "bgr8",
-                            static_cast<uint32_t>(canvas.rows), static_cast<uint32_t>(canvas.cols),
-                            static_cast<uint32_t>(canvas.step[0]), canvas.data);
-  }
+  const detail::FlowTopics topics{options_.flow_topic, options_.t1_topic, options_.vis_topic};
+  const std::string e =
+      detail::WriteFlowMessages(frame, WallStamp(m, 0), WallStamp(m, 1), options_.frame_id, topics,
+                                renderer_ ? &*renderer_ : nullptr, writer_.get());
   if (!e.empty()) {
     failed_ = true;
     return Status::Error(e);

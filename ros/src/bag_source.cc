@@ -3,12 +3,11 @@
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <vector>
 
 #include "bag_reader.h"
+#include "image_convert.h"
 #include "sfrt/pipeline/log.h"
 
 namespace sfrt::ros {
@@ -23,54 +22,6 @@ int64_t NowNs() {
 // Bags store topics with their leading slash; "left/image_rect" means "/left/image_rect".
 std::string Absolute(const std::string& topic) {
   return !topic.empty() && topic.front() != '/' ? "/" + topic : topic;
-}
-
-// A raw image's pixels as BGR8 into *out (its memory reused when the size matches). Empty string:
-// done; else why not.
-std::string RawToBgr(const detail::BagImage& im, cv::Mat* out) {
-  struct Kind {
-    const char* encoding;
-    int type;
-    int code;  // cv::cvtColor code, or -1 for a copy
-  };
-  static const Kind kKinds[] = {{"bgr8", CV_8UC3, -1},
-                                {"rgb8", CV_8UC3, cv::COLOR_RGB2BGR},
-                                {"bgra8", CV_8UC4, cv::COLOR_BGRA2BGR},
-                                {"rgba8", CV_8UC4, cv::COLOR_RGBA2BGR},
-                                {"mono8", CV_8UC1, cv::COLOR_GRAY2BGR}};
-  const Kind* kind = nullptr;
-  for (const Kind& k : kKinds) {
-    if (im.encoding == k.encoding) kind = &k;
-  }
-  if (kind == nullptr) {
-    return "encoding '" + im.encoding +
-           "' is not one this reader converts (bgr8, rgb8, bgra8, rgba8, mono8)";
-  }
-  const size_t row = static_cast<size_t>(im.width) * CV_ELEM_SIZE(kind->type);
-  if (im.width == 0 || im.height == 0 || im.step < row ||
-      im.data.size() < static_cast<size_t>(im.step) * im.height) {
-    return "a " + im.encoding + " image of " + std::to_string(im.height) + "x" +
-           std::to_string(im.width) + " (HxW) with step " + std::to_string(im.step) + " holds " +
-           std::to_string(im.data.size()) + " bytes, too few";
-  }
-  const cv::Mat src(static_cast<int>(im.height), static_cast<int>(im.width), kind->type,
-                    const_cast<uint8_t*>(im.data.data()), im.step);
-  if (kind->code < 0) {
-    src.copyTo(*out);
-  } else {
-    cv::cvtColor(src, *out, kind->code);
-  }
-  return "";
-}
-
-std::string CompressedToBgr(const detail::BagImage& im, cv::Mat* out) {
-  if (im.data.empty()) return "an empty " + im.encoding + " image";
-  const cv::Mat bytes(1, static_cast<int>(im.data.size()), CV_8UC1,
-                      const_cast<uint8_t*>(im.data.data()));
-  cv::Mat decoded = cv::imdecode(bytes, cv::IMREAD_COLOR);
-  if (decoded.empty()) return "a '" + im.encoding + "' image that could not be decoded";
-  decoded.copyTo(*out);
-  return "";
 }
 
 Result<BagProbe> OpenReader(const BagReplaySpec& spec, detail::BagReader* reader) {
@@ -193,9 +144,7 @@ class BagSource final : public pipeline::FrameSource {
       const int64_t index = message_.index;
       read_[side] = index + 1;
       const int64_t stamp = message_.stamp_ns;
-      const std::string why = message_.compressed ? CompressedToBgr(message_, &pending_[side])
-                                                  : RawToBgr(message_, &pending_[side]);
-      std::string bad = why;
+      std::string bad = detail::ImageToBgr(message_.view(), &pending_[side]);
       if (bad.empty() && size_.area() > 0 && pending_[side].size() != size_) {
         bad = "its size " + std::to_string(pending_[side].rows) + "x" +
               std::to_string(pending_[side].cols) + " (HxW) differs from the first image's " +

@@ -1,0 +1,24 @@
+#include "flow_messages.h"
+
+namespace sfrt::ros::detail {
+
+std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
+                              const std::string& frame_id, const FlowTopics& topics,
+                              pipeline::FlowRenderer* renderer, MessageWriter* writer) {
+  const auto seq = static_cast<uint32_t>(frame.meta->window);
+  const auto row = static_cast<uint32_t>(frame.width * frame.channels * sizeof(float));
+  const std::string encoding = "32FC" + std::to_string(frame.channels);
+  std::string e = writer->WriteImage(
+      topics.flow, stamp_t0, seq, frame_id, encoding, static_cast<uint32_t>(frame.height),
+      static_cast<uint32_t>(frame.width), row, reinterpret_cast<const uint8_t*>(frame.flow.data()));
+  if (e.empty()) e = writer->WriteHeader(topics.t1, stamp_t1, seq, frame_id);
+  if (e.empty() && renderer != nullptr) {
+    const cv::Mat& canvas = renderer->Render(frame);
+    e = writer->WriteImage(topics.vis, stamp_t0, seq, frame_id, "bgr8",
+                           static_cast<uint32_t>(canvas.rows), static_cast<uint32_t>(canvas.cols),
+                           static_cast<uint32_t>(canvas.step[0]), canvas.data);
+  }
+  return e;
+}
+
+}  // namespace sfrt::ros::detail

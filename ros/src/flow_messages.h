@@ -1,0 +1,29 @@
+// One window's flow as the ROS messages a bag (bag_sink.h) and the node (sfrt_ros) both write,
+// so the two agree on topics, encodings, stamps and units. Not installed.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "message_io.h"
+#include "sfrt/pipeline/output_sinks.h"
+#include "sfrt/pipeline/sink.h"
+
+namespace sfrt::ros::detail {
+
+struct FlowTopics {
+  std::string flow = "/flow";     // sensor_msgs/Image, 32FC3
+  std::string t1 = "/flow_t1";    // std_msgs/Header, the stamp of pair t+1
+  std::string vis = "/flow_vis";  // sensor_msgs/Image, bgr8 (when a renderer is given)
+};
+
+// Writes `frame` as: `flow` (encoding "32FC<channels>": dX, dY, dZ per pixel of the left image at
+// t, little-endian floats, row-major; header.stamp = stamp_t0, the stamp of pair t;
+// header.seq = the window number), `t1` (the same seq and frame_id, stamped stamp_t1) and, when
+// `renderer` is not null, `vis` (its canvas, bgr8, stamped stamp_t0). Returns "" or the first
+// error; the messages before it stay written.
+std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
+                              const std::string& frame_id, const FlowTopics& topics,
+                              pipeline::FlowRenderer* renderer, MessageWriter* writer);
+
+}  // namespace sfrt::ros::detail

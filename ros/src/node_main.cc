@@ -1,0 +1,447 @@
+// sfrt_ros: the scene-flow node (issue #14; docs/ros.md). It subscribes to a stereo pair's
+// rectified image topics, runs each (t, t+1) window through the pipeline library (deadline
+// policy, newest-wins queues) and publishes the flow, a picture of it and /diagnostics.
+//
+// The node is the pipeline library plus three adapters: TopicSource (a FrameSource fed by
+// message_filters' pairs), FlowTopicSink (a FlowSink publishing messages) and NodeIo, the one
+// C++17 file that sees roscpp.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "node_io.h"
+#include "sfrt/config/capabilities.h"
+#include "sfrt/config/process_settings.h"
+#include "sfrt/config/profile.h"
+#include "sfrt/isa.h"
+#include "sfrt/model.h"
+#include "sfrt/pipeline/log.h"
+#include "sfrt/pipeline/pipeline.h"
+#include "topic_sink.h"
+#include "topic_source.h"
+
+namespace sfrt::ros {
+namespace {
+
+using detail::NodeIo;
+using detail::NodeLogLevel;
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;
+constexpr int kExitUsage = 2;
+
+constexpr const char* kHelp = R"(sfrt_ros: scene flow from a stereo camera's ROS topics (ROS 1 node)
+
+usage: sfrt_ros [__name:=NAME] [__ns:=NS] [TOPIC:=REMAPPED ...] [_param:=value ...]
+
+Subscribes (relative to the node's namespace; remap as usual):
+  left/image_rect, right/image_rect      sensor_msgs/Image (bgr8, rgb8, bgra8, rgba8, mono8), or
+                                         with ~transport compressed, sensor_msgs/CompressedImage
+                                         (JPEG, PNG) on left/image_rect/compressed, ...
+  left/camera_info, right/camera_info    optional: checked once against the model's camera
+Publishes:
+  flow        sensor_msgs/Image 32FC3: dX, dY, dZ per pixel of the left image at t, in the
+              model's units (metres for the default model); header.stamp = pair t's left stamp,
+              header.seq = the window number, frame_id = the left image's (or ~frame_id)
+  flow_t1     std_msgs/Header: the same seq, stamped with pair t+1 (the other end of the motion)
+  flow_vis    sensor_msgs/Image bgr8 (with ~publish_vis): the picture `sfrt run` writes
+  /diagnostics  diagnostic_msgs/DiagnosticArray: latency p50/p99 per stage, stamp to publish,
+              drops, deadline misses, ISA and precision, every ~diagnostics_period s
+Parameters (private, e.g. _model:=m.sfrt):
+  ~model        the .sfrt model file (required unless ~config names one)
+  ~config       a deployment profile (firmware-cfg/), checked as `sfrt config check` checks it;
+                its model, input size, threads, stage CPUs and priorities, memory settings,
+                latency budget and on_miss apply unless a parameter above sets them
+  ~threads      inference threads (default 1)            ~isa      auto|ref|avx2|avx512|neon
+  ~budget_ms    end-to-end deadline, ms (default: none)
+  ~on_miss      count-only|drop-next|smaller-input (default count-only)
+  ~fallback_size  HxW, with smaller-input                ~recover_after  windows (default 30)
+  ~size         model input size HxW (default: the images' size)
+  ~transport    raw|compressed (default raw)
+  ~slop_ms      most a pair's stamps may differ (default 8)
+  ~queue_size   subscriber and ApproximateTime queue (default 5)
+  ~frame_interval_ms  the least time between two frames of one camera (default 16, cameras
+                up to 60 fps): a pair goes out as soon as no later frame could pair better;
+                0 = unknown, each pair waits for the next frames (a frame period more latency)
+  ~input_queue  pairs waiting for the pipeline (default 1: the newest wins)
+  ~queue_policy newest-wins|block: the pipeline's queues (default newest-wins)
+  ~publish_vis  publish flow_vis (default false)        ~frame_id  override the flow's frame_id
+  ~camera_info  check camera_info against the model (default true)
+  ~diagnostics_period  seconds (default 1)
+  ~out          a directory for summary.json when the node stops (default: none)
+Exit: 0 after SIGINT or a shutdown request, 1 on a failure (a bad model, a failed stage),
+2 on a bad parameter or profile.
+)";
+
+class RosLog final : public pipeline::LogSink {
+ public:
+  void Write(pipeline::LogLevel level, std::string_view tag, std::string_view text) override {
+    NodeLogLevel l = NodeLogLevel::kInfo;
+    if (level == pipeline::LogLevel::kError) l = NodeLogLevel::kError;
+    if (level == pipeline::LogLevel::kWarn) l = NodeLogLevel::kWarn;
+    if (level == pipeline::LogLevel::kDebug) l = NodeLogLevel::kDebug;
+    NodeIo::Log(l, std::string(tag) + ": " + std::string(text));
+  }
+  void Progress(std::string_view line, bool /*final*/) override {
+    NodeIo::Log(NodeLogLevel::kDebug, std::string(line));
+  }
+};
+
+struct NodeSettings {
+  std::string model;
+  std::string config;
+  int threads = 1;
+  std::string isa = "auto";
+  double budget_ms = 0;
+  std::string on_miss = "count-only";
+  std::string fallback_size;
+  int recover_after = 30;
+  std::string size;
+  std::string transport = "raw";
+  double slop_ms = 8;
+  int queue_size = 5;
+  double frame_interval_ms = 16;
+  int input_queue = 1;
+  std::string queue_policy = "newest-wins";
+  bool publish_vis = false;
+  std::string frame_id;
+  bool camera_info = true;
+  double diagnostics_period = 1;
+  std::string out;
+};
+
+int Fail(int code, const std::string& message) {
+  NodeIo::Log(NodeLogLevel::kFatal, message);
+  return code;
+}
+
+// Reads every parameter; "" or the first error.
+std::string ReadParams(const NodeIo& io, NodeSettings* s) {
+  std::string e;
+  auto get = [&](const char* name, auto* value) {
+    if (e.empty()) e = io.GetParam(name, value);
+  };
+  get("model", &s->model);
+  get("config", &s->config);
+  get("threads", &s->threads);
+  get("isa", &s->isa);
+  get("budget_ms", &s->budget_ms);
+  get("on_miss", &s->on_miss);
+  get("fallback_size", &s->fallback_size);
+  get("recover_after", &s->recover_after);
+  get("size", &s->size);
+  get("transport", &s->transport);
+  get("slop_ms", &s->slop_ms);
+  get("queue_size", &s->queue_size);
+  get("frame_interval_ms", &s->frame_interval_ms);
+  get("input_queue", &s->input_queue);
+  get("queue_policy", &s->queue_policy);
+  get("publish_vis", &s->publish_vis);
+  get("frame_id", &s->frame_id);
+  get("camera_info", &s->camera_info);
+  get("diagnostics_period", &s->diagnostics_period);
+  get("out", &s->out);
+  return e;
+}
+
+bool ParseHxW(const std::string& text, int* h, int* w) {
+  char x = 0;
+  char rest = 0;
+  return std::sscanf(text.c_str(), "%d%c%d%c", h, &x, w, &rest) == 3 && (x == 'x' || x == 'X') &&
+         *h > 0 && *w > 0;
+}
+
+std::string Fixed(double v, int digits) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+// Checks camera_info against the model's training camera once both sides have arrived: the left
+// focal length scaled to the model's input width, and the baseline from the right projection
+// (Tx = -fx' * B). Warns once, naming both values; spinner thread only.
+class CameraInfoCheck {
+ public:
+  CameraInfoCheck(CameraDesc trained, int input_width, std::string left_topic)
+      : trained_(trained), input_width_(input_width), left_topic_(std::move(left_topic)) {}
+  void OnInfo(int side, const detail::CameraInfoView& info) {
+    if (done_) return;
+    info_[side] = info;
+    seen_[side] = true;
+    if (!seen_[0] || !seen_[1]) return;
+    done_ = true;
+    const detail::CameraInfoView& l = info_[0];
+    const detail::CameraInfoView& r = info_[1];
+    if (l.width == 0 || l.p[0] <= 0) {
+      NodeIo::Log(NodeLogLevel::kWarn,
+                  "camera_info: the left projection matrix is empty; the "
+                  "camera is not checked against the model's");
+      return;
+    }
+    const double width = input_width_ > 0 ? input_width_ : l.width;
+    const double scale = width / l.width;
+    const double fx = l.p[0] * scale;
+    const double baseline = r.p[0] > 0 ? -r.p[3] / r.p[0] : 0;
+    auto differs = [](double a, double b) {
+      return std::fabs(a - b) > 0.01 * std::max(std::fabs(a), std::fabs(b));
+    };
+    bool agree = true;
+    if (trained_.focal_px > 0 && differs(fx, trained_.focal_px)) {
+      agree = false;
+      NodeIo::Log(NodeLogLevel::kWarn,
+                  "camera_info: focal length " + Fixed(fx, 2) + " px (P[0] " + Fixed(l.p[0], 2) +
+                      " at " + std::to_string(l.width) + " px wide, scaled to the model's " +
+                      Fixed(width, 0) + " px input) differs from the model's training camera (" +
+                      Fixed(trained_.focal_px, 2) + " px); the flow's scale may be off");
+    }
+    if (trained_.baseline > 0 && baseline > 0 && differs(baseline, trained_.baseline)) {
+      agree = false;
+      NodeIo::Log(NodeLogLevel::kWarn,
+                  "camera_info: baseline " + Fixed(baseline, 4) +
+                      " (from the right projection matrix) differs from the model's training "
+                      "camera (" +
+                      Fixed(trained_.baseline, 4) + "); the flow's scale may be off");
+    }
+    if (agree) {
+      NodeIo::Log(NodeLogLevel::kInfo, "camera_info: focal length " + Fixed(fx, 2) +
+                                           " px and baseline " + Fixed(baseline, 4) +
+                                           " match the model's training camera");
+    }
+  }
+
+ private:
+  CameraDesc trained_;
+  int input_width_;
+  std::string left_topic_;
+  detail::CameraInfoView info_[2];
+  bool seen_[2] = {false, false};
+  bool done_ = false;
+};
+
+std::atomic<bool> g_sigterm{false};
+extern "C" void OnSigterm(int) { g_sigterm = true; }
+
+std::string PrecisionText(const ModelMetadata& md) {
+  if (md.has_int8 && md.has_bf16) return "int8+bf16+fp32";
+  if (md.has_int8) return "int8 (some layers fp32)";
+  if (md.has_bf16) return "bf16 (some layers fp32)";
+  return "fp32";
+}
+
+int Run(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
+      std::cout << kHelp;
+      return kExitOk;
+    }
+  }
+  NodeIo::Init(&argc, argv, "sfrt_ros");
+  NodeIo io;
+  NodeSettings s;
+  if (std::string e = ReadParams(io, &s); !e.empty()) return Fail(kExitUsage, e);
+
+  pipeline::PipelineOptions opts;
+  std::vector<std::string> notes;
+  std::unique_ptr<config::ProcessSettings> process;
+  if (!s.config.empty()) {
+    config::ValidationReport report;
+    Result<config::DeploymentProfile> profile = config::LoadProfile(s.config, &report);
+    if (!profile.ok()) {
+      config::PrintErrors(report.errors, std::cerr);
+      return Fail(kExitUsage, "~config '" + s.config +
+                                  "' is not a valid deployment profile: " + profile.message());
+    }
+    const config::DeploymentProfile& p = *profile;
+    if (!io.HasParam("model")) s.model = p.model_file;
+    if (!io.HasParam("size") && p.input_height > 0) {
+      s.size = std::to_string(p.input_height) + "x" + std::to_string(p.input_width);
+    }
+    if (!io.HasParam("threads")) s.threads = p.stage(config::Stage::kInfer).threads;
+    if (!io.HasParam("budget_ms")) s.budget_ms = p.budget_ms;
+    if (!io.HasParam("on_miss")) {
+      s.on_miss = config::MissActionName(p.on_miss);
+      if (p.on_miss == config::MissAction::kSmallerInput) {
+        s.fallback_size =
+            std::to_string(p.fallback_height) + "x" + std::to_string(p.fallback_width);
+        s.recover_after = p.recover_after_frames;
+      }
+    }
+    opts.prefault = p.prefault_arena;
+    process = std::make_unique<config::ProcessSettings>(p, config::QueryProcessCapabilities());
+    process->ApplyProcessWide();
+    if (process->has_thread_settings()) {
+      config::ProcessSettings* ps = process.get();
+      opts.on_stage_start = [ps](int stage) { ps->ApplyToCurrentThread(stage); };
+    }
+    for (const std::string& w : process->Warnings()) notes.push_back(w);
+    notes.push_back("profile '" + s.config +
+                    "': its source, calibration (the topics are rectified) and outputs are not "
+                    "used by the node");
+  }
+  if (s.model.empty())
+    return Fail(kExitUsage, "set ~model (" + io.ResolvePrivate("model") + ") or ~config");
+
+  Result<std::shared_ptr<const Model>> model = Model::LoadFile(s.model);
+  if (!model.ok()) return Fail(kExitFailure, model.message());
+  const ModelMetadata& md = (*model)->metadata();
+
+  if (s.isa != "auto" && (!ParseIsa(s.isa, &opts.isa) || opts.isa == Isa::kAuto)) {
+    return Fail(kExitUsage, "~isa '" + s.isa + "' is not one of auto, ref, avx2, avx512, neon");
+  }
+  if (s.threads < 1)
+    return Fail(kExitUsage, "~threads must be >= 1, got " + std::to_string(s.threads));
+  opts.threads = s.threads;
+  if (!s.size.empty() && !ParseHxW(s.size, &opts.height, &opts.width)) {
+    return Fail(kExitUsage, "~size '" + s.size + "' is not HxW (e.g. 270x480)");
+  }
+  if (s.budget_ms < 0)
+    return Fail(kExitUsage, "~budget_ms must be >= 0, got " + Fixed(s.budget_ms, 3));
+  opts.budget_ms = s.budget_ms;
+  if (s.on_miss == "drop-next") {
+    opts.drop_next_on_miss = true;
+  } else if (s.on_miss == "smaller-input") {
+    int h = 0, w = 0;
+    if (!ParseHxW(s.fallback_size, &h, &w)) {
+      return Fail(kExitUsage,
+                  "~on_miss smaller-input needs ~fallback_size HxW, got '" + s.fallback_size + "'");
+    }
+    opts.smaller_input_on_miss = {h, w};
+    opts.recover_after = std::max(1, s.recover_after);
+  } else if (s.on_miss != "count-only") {
+    return Fail(kExitUsage,
+                "~on_miss '" + s.on_miss + "' is not count-only, drop-next or smaller-input");
+  }
+  if (s.queue_policy == "block") {
+    opts.policy = pipeline::QueuePolicy::kBlock;
+  } else if (s.queue_policy != "newest-wins") {
+    return Fail(kExitUsage, "~queue_policy '" + s.queue_policy + "' is not newest-wins or block");
+  }
+  if (s.slop_ms <= 0) return Fail(kExitUsage, "~slop_ms must be > 0, got " + Fixed(s.slop_ms, 3));
+  if (s.frame_interval_ms < 0) {
+    return Fail(kExitUsage,
+                "~frame_interval_ms must be >= 0, got " + Fixed(s.frame_interval_ms, 3));
+  }
+  if (s.input_queue < 1 || s.queue_size < 1) {
+    return Fail(kExitUsage, "~input_queue and ~queue_size must be >= 1");
+  }
+  if (s.diagnostics_period <= 0) return Fail(kExitUsage, "~diagnostics_period must be > 0");
+
+  RosLog log;
+  for (const std::string& n : notes) log.Write(pipeline::LogLevel::kInfo, "note", n);
+  std::atomic<bool> stop{false};
+  std::atomic<int> stop_signal{0};
+
+  detail::SubscribeOptions sub;
+  sub.transport = s.transport;
+  sub.camera_info = s.camera_info;
+  sub.slop_s = s.slop_ms / 1e3;
+  sub.queue_size = s.queue_size;
+  sub.frame_interval_s = s.frame_interval_ms / 1e3;
+  TopicSourceOptions src_opts;
+  src_opts.left_topic = io.Resolve(sub.left_topic);
+  src_opts.right_topic = io.Resolve(sub.right_topic);
+  src_opts.input_queue = static_cast<size_t>(s.input_queue);
+  src_opts.stop = &stop;
+  src_opts.log = &log;
+  TopicSource source(src_opts);
+  CameraInfoCheck info_check(md.camera, opts.width, src_opts.left_topic);
+
+  TopicSinkOptions sink_opts;
+  sink_opts.topics = {io.Resolve("flow"), io.Resolve("flow_t1"), io.Resolve("flow_vis")};
+  sink_opts.vis = s.publish_vis;
+  sink_opts.vis_options = pipeline::VisualizerOptions{{}, md.output.units};
+  sink_opts.frame_id = s.frame_id;
+  sink_opts.diagnostics_period_s = s.diagnostics_period;
+  sink_opts.hardware_id = md.name;
+  const Isa isa = opts.isa == Isa::kAuto ? BestIsa() : opts.isa;
+  sink_opts.facts = {{"isa", IsaName(isa)},
+                     {"precision", PrecisionText(md)},
+                     {"threads", std::to_string(opts.threads)},
+                     {"model", s.model},
+                     {"input size", s.size.empty() ? "the images' size" : s.size},
+                     {"on_miss", s.on_miss}};
+  sink_opts.budget_ms = s.budget_ms;
+  sink_opts.received = [&io](int side) { return io.received(side); };
+  FlowTopicSink sink(
+      sink_opts, &io, &source, &NodeIo::NowNs,
+      [&io](const std::vector<detail::DiagnosticReport>& r) { io.PublishDiagnostics(r); });
+
+  io.Advertise(sink_opts.topics.flow, sink_opts.topics.t1, sink_opts.topics.vis, s.publish_vis);
+  if (std::string e = io.Subscribe(
+          sub,
+          [&source](const detail::ImageView& l, const detail::ImageView& r,
+                    const std::string& frame_id) { source.OnPair(l, r, frame_id); },
+          [&info_check](int side, const detail::CameraInfoView& info) {
+            info_check.OnInfo(side, info);
+          });
+      !e.empty()) {
+    return Fail(kExitUsage, e);
+  }
+
+  opts.out_dir = s.out;
+  opts.write_flow = false;
+  opts.write_png = false;
+  opts.write_summary = !s.out.empty();
+  opts.progress = pipeline::ProgressMode::kOff;
+  opts.model_path = s.model;
+  opts.stop = &stop;
+  opts.stop_signal = &stop_signal;
+  opts.sinks = {&sink};
+  opts.log = &log;
+
+  std::signal(SIGTERM, OnSigterm);
+  io.StartSpinner();
+  NodeIo::Log(NodeLogLevel::kInfo,
+              "sfrt_ros: model " + s.model + " (" + PrecisionText(md) + "), isa " + IsaName(isa) +
+                  ", " + std::to_string(opts.threads) + " thread(s), budget " +
+                  (s.budget_ms > 0 ? Fixed(s.budget_ms, 1) + " ms" : std::string("none")) +
+                  ", publishing " + sink_opts.topics.flow);
+
+  pipeline::PipelineResult result;
+  std::atomic<bool> done{false};
+  std::thread runner([&] {
+    result = pipeline::RunPipeline(*model, &source, opts);
+    done = true;
+  });
+  while (!done.load()) {
+    if (!stop.load() && (!NodeIo::Ok() || g_sigterm.load())) {
+      stop_signal = g_sigterm.load() ? SIGTERM : SIGINT;
+      stop = true;
+    }
+    sink.PublishIfIdle(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::steady_clock::now().time_since_epoch())
+                           .count());
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  runner.join();
+  for (const std::string& w : result.warnings) log.Write(pipeline::LogLevel::kWarn, "warning", w);
+  int code = kExitOk;
+  if (!result.started && stop_signal.load() != 0) {
+    NodeIo::Log(NodeLogLevel::kInfo, "sfrt_ros: stopped before the first stereo pair arrived");
+  } else if (!result.status.ok()) {
+    code = Fail(kExitFailure, result.status.message());
+  } else {
+    NodeIo::Log(
+        NodeLogLevel::kInfo,
+        "sfrt_ros: " + std::to_string(result.frames) + " windows published, stopped by " +
+            result.stopped_by + ", end to end p50 " + Fixed(result.end_to_end.p50, 2) +
+            " ms, p99 " + Fixed(result.end_to_end.p99, 2) + " ms" +
+            (result.summary_path.empty() ? std::string() : ", summary " + result.summary_path));
+  }
+  io.Shutdown();
+  return code;
+}
+
+}  // namespace
+}  // namespace sfrt::ros
+
+int main(int argc, char** argv) { return sfrt::ros::Run(argc, argv); }

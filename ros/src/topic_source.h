@@ -1,0 +1,105 @@
+// The sfrt_ros node's source: stereo pairs from ROS topics (paired by NodeIo with message_filters'
+// ApproximateTime) as a pipeline::FrameSource. Plain C++20: the pairs arrive as ImageViews, so
+// a ROS 2 node feeds the same class. Not installed.
+//
+// Handoff: OnPair() (the spinner's thread) converts both images to BGR8 into buffers of its own
+// and swaps them into a ring of `input_queue` pairs; the source stage takes the oldest. When the
+// ring is full the oldest waiting pair is dropped and counted (drops()): with the default of one
+// slot the source stage always gets the newest pair. After the first pairs every buffer has the
+// frame size and circulates by swapping: no allocation per pair.
+//
+// Windows: pair k and pair k+1 as delivered form a window, so each pair is rectified once
+// (FrameMeta::continues after the first window).
+//
+// Times: FrameMeta::stamp_ns are the left images' header stamps. capture_ns is the image's
+// header stamp moved to CLOCK_MONOTONIC when the stamp is a plausible capture time (at most
+// 2 s before its arrival and not after it, on the wall clock), so the end to end starts at the
+// camera and the transport shows as capture_to_dequeue; otherwise (a bag played with its old
+// stamps, or a clock off) the arrival of the pair.
+//
+// Bad pairs (an encoding it cannot convert, a corrupt JPEG, left and right or a later pair of
+// another size) are skipped and counted; one warning naming the reason per `warn_period_s`, with
+// the count skipped since the last one.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "message_io.h"
+#include "sfrt/pipeline/log.h"
+#include "sfrt/pipeline/pipeline.h"
+
+namespace sfrt::ros {
+
+struct TopicSourceOptions {
+  std::string left_topic = "/left/image_rect";  // for messages and the summary
+  std::string right_topic = "/right/image_rect";
+  size_t input_queue = 1;    // pairs waiting for the source stage (>= 1)
+  double warn_period_s = 5;  // the bad-pair warning at most this often
+  // Open() waits for the first pair until this is set (null: until the first pair).
+  const std::atomic<bool>* stop = nullptr;
+  // Where OnPair()'s warnings go (it runs before RunPipeline() sets the source's log, so it has
+  // its own); must take calls from any thread. Null: pipeline::DefaultLog().
+  pipeline::LogSink* log = nullptr;
+};
+
+class TopicSource final : public pipeline::FrameSource {
+ public:
+  explicit TopicSource(TopicSourceOptions options);
+
+  // One ApproximateTime pair; called on the spinner's thread.
+  void OnPair(const detail::ImageView& left, const detail::ImageView& right,
+              const std::string& left_frame_id);
+
+  // Waits for the first pair (logging that it waits) and returns its size.
+  Result<cv::Size> Open() override;
+  Result<pipeline::Fetch> Next(pipeline::WindowItem* item, const std::atomic<bool>& stop) override;
+  std::string Describe() const override;
+  std::string kind() const override { return "ros-topics"; }
+  bool live() const override { return true; }
+  void ToJson(nlohmann::json* out) const override;
+  uint64_t drops() const override { return dropped_.load(); }
+
+  // The left images' frame_id, known once Open() has returned.
+  const std::string& frame_id() const { return frame_id_; }
+  uint64_t pairs() const { return pairs_.load(); }
+  uint64_t bad_pairs() const { return bad_.load(); }
+
+ private:
+  struct Pair {
+    cv::Mat image[2];
+    int64_t number = 0;
+    int64_t stamp_ns = 0;    // the left header stamp
+    int64_t capture_ns = 0;  // CLOCK_MONOTONIC (see above)
+    int64_t arrival_ns = 0;  // OnPair() entered
+    int64_t converted_ns = 0;
+  };
+  void Skip(const std::string& reason);
+
+  TopicSourceOptions options_;
+  // The spinner's thread only.
+  Pair scratch_;
+  int64_t last_warn_ns_ = 0;
+  uint64_t skipped_since_warn_ = 0;
+  // Shared, under mu_.
+  mutable std::mutex mu_;
+  std::condition_variable ready_;
+  std::vector<Pair> ring_;
+  size_t head_ = 0;  // the oldest waiting pair
+  size_t count_ = 0;
+  cv::Size size_;  // the first pair's; later pairs must match
+  std::string frame_id_;
+  std::string last_bad_;  // the last reason a pair was skipped
+  // The source stage's thread only.
+  Pair prev_, cur_;
+  bool have_prev_ = false;
+  int64_t windows_ = 0;
+  // Counters, read from any thread.
+  std::atomic<uint64_t> pairs_{0}, dropped_{0}, bad_{0};
+};
+
+}  // namespace sfrt::ros
