@@ -7,7 +7,8 @@ usage: node_check.py SCENARIO --node BIN --sfrt BIN --model M.sfrt --work DIR
 
 Scenarios (each one ctest test named after the behaviour it checks):
   node_publishes_each_windows_flow_equal_to_sfrt_infer
-      rosbag play of a 6-frame bag: one `flow` per window (5), each equal bit for bit to
+      rosbag play of a 6-frame bag, raw bgr8 Images and (with ~transport compressed) PNG
+      CompressedImages on the .../compressed topics: one `flow` per window (5), each equal bit for bit to
       `sfrt infer` on the window's four images; stamps (flow: pair t's left stamp, flow_t1: pair
       t+1's), seq (the window number) and frame_id (the left images') as docs/ros.md says;
       flow_vis published; /diagnostics published with per-stage latency, ISA and counters;
@@ -179,111 +180,128 @@ def diag_values(status):
 
 
 def scenario_flow(a):
+    import rospy
+
+    lefts, rights, left_dir, right_dir = synth(a)
+    master = Master(a.work)
+    try:
+        rospy.init_node("sfrt_node_check", disable_signals=True)
+        want = []
+        for k in range(len(lefts) - 1):
+            path = os.path.join(a.work, "infer_%d.npy" % k)
+            p = run([a.sfrt, "infer", "--model", a.model, "--left0", lefts[k], "--right0",
+                     rights[k], "--left1", lefts[k + 1], "--right1", rights[k + 1], "-o", path])
+            check(p.returncode == 0, "sfrt infer %d: %s" % (k, p.stderr))
+            want.append(path)
+        # Raw bgr8 through image_transport, and lossless PNG CompressedImages on the
+        # .../compressed topics.
+        for transport, extra in (("raw", []), ("compressed", [
+                "--encoding", "png", "--left-topic", "/left/image_rect/compressed",
+                "--right-topic", "/right/image_rect/compressed"])):
+            flow_through_the_node(a, master, transport, extra, left_dir, right_dir, want)
+    finally:
+        master.close()
+
+
+def flow_through_the_node(a, master, transport, bag_args, left_dir, right_dir, want):
+    import json
     import numpy as np
     import rosbag
-    import rospy
     from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import Image
     from std_msgs.msg import Header
 
-    lefts, rights, left_dir, right_dir = synth(a)
-    bag = os.path.join(a.work, "frames.bag")
+    bag = os.path.join(a.work, "frames_%s.bag" % transport)
     p = run(["/usr/bin/python3", a.make_bag, "--left", left_dir, "--right", right_dir,
-             "--out", bag])
+             "--out", bag] + bag_args)
     if not check(p.returncode == 0, "make_bag.py exit %d: %s" % (p.returncode, p.stderr)):
         return
+    left_topic = "/left/image_rect" + ("/compressed" if transport == "compressed" else "")
     left_stamps = [m.header.stamp.to_nsec() for _, m, _ in
-                   rosbag.Bag(bag).read_messages(topics=["/left/image_rect"])]
-    master = Master(a.work)
-    try:
-        rospy.init_node("sfrt_node_check", disable_signals=True)
-        col = Collector([("/flow", Image), ("/flow_t1", Header), ("/flow_vis", Image),
-                         ("/diagnostics", DiagnosticArray)])
-        out = fresh(os.path.join(a.work, "node_out"))
-        node = Node(a, a.work, "sfrt_ros", {
-            "model": a.model, "out": out, "queue_policy": "block", "input_queue": 16,
-            "publish_vis": "true", "diagnostics_period": 0.2})
-        ready = wait_for(lambda: node.proc.poll() is None and col.connected()
-                         and len(master.subscribers("/left/image_rect")) > 0
-                         and len(master.subscribers("/right/image_rect")) > 0, 60)
-        if not check(ready, "the node did not subscribe and advertise within 60 s: %s"
-                     % node.stderr()):
-            node.interrupt()
-            return
-        # Half speed: the header stamps keep their 30 fps spacing.
-        p = run(["rosbag", "play", "-q", "-r", "0.5", bag])
-        check(p.returncode == 0, "rosbag play exit %d: %s" % (p.returncode, p.stderr))
-        wait_for(lambda: len(col.get("/flow")) >= 5 and len(col.get("/flow_vis")) >= 5, 120)
-        time.sleep(0.5)  # nothing more should come
-        code = node.interrupt()
-        check(code == 0, "SIGINT: exit %s, stderr %r" % (code, node.stderr()))
-        check("5 windows published, stopped by SIGINT" in node.stdout(),
-              "the node's last line: %r" % node.stdout()[-400:])
-        flows, t1s, vis = col.get("/flow"), col.get("/flow_t1"), col.get("/flow_vis")
-        check(len(flows) == 5, "%d flow messages, expected 5 (one per window)" % len(flows))
-        check(len(t1s) == len(flows) and len(vis) == len(flows),
-              "%d flow_t1 and %d flow_vis messages for %d flows" % (len(t1s), len(vis),
-                                                                   len(flows)))
-        for k, m in enumerate(flows):
-            if not check(m.header.seq == k, "flow %d: seq %d" % (k, m.header.seq)):
-                continue
-            check(m.encoding == "32FC3" and m.height == 64 and m.width == 96
-                  and m.step == 96 * 12 and m.is_bigendian == 0,
-                  "flow %d: %s %dx%d step %d" % (k, m.encoding, m.height, m.width, m.step))
-            check(m.header.frame_id == "left_camera", "flow %d: frame_id %r" % (k,
-                                                                                m.header.frame_id))
-            check(m.header.stamp.to_nsec() == left_stamps[k],
-                  "flow %d: stamp %d, expected pair t's left stamp %d"
-                  % (k, m.header.stamp.to_nsec(), left_stamps[k]))
-            if k < len(t1s):
-                check(t1s[k].seq == k and t1s[k].stamp.to_nsec() == left_stamps[k + 1]
-                      and t1s[k].frame_id == "left_camera",
-                      "flow_t1 %d: seq %d stamp %d, expected pair t+1's %d"
-                      % (k, t1s[k].seq, t1s[k].stamp.to_nsec(), left_stamps[k + 1]))
-            if k < len(vis):
-                check(vis[k].encoding == "bgr8" and vis[k].header.seq == k,
-                      "flow_vis %d: %s seq %d" % (k, vis[k].encoding, vis[k].header.seq))
-            want_path = os.path.join(a.work, "infer_%d.npy" % k)
-            p = run([a.sfrt, "infer", "--model", a.model, "--left0", lefts[k], "--right0",
-                     rights[k], "--left1", lefts[k + 1], "--right1", rights[k + 1], "-o",
-                     want_path])
-            if not check(p.returncode == 0, "sfrt infer %d: %s" % (k, p.stderr)):
-                continue
-            want = np.load(want_path).astype("<f4")
+                   rosbag.Bag(bag).read_messages(topics=[left_topic])]
+    col = Collector([("/flow", Image), ("/flow_t1", Header), ("/flow_vis", Image),
+                     ("/diagnostics", DiagnosticArray)])
+    out = fresh(os.path.join(a.work, "node_out_" + transport))
+    node = Node(a, a.work, "sfrt_ros", {
+        "model": a.model, "out": out, "queue_policy": "block", "input_queue": 16,
+        "publish_vis": "true", "diagnostics_period": 0.2, "transport": transport})
+    suffix = "/compressed" if transport == "compressed" else ""
+    ready = wait_for(lambda: node.proc.poll() is None and col.connected()
+                     and len(master.subscribers("/left/image_rect" + suffix)) > 0
+                     and len(master.subscribers("/right/image_rect" + suffix)) > 0, 60)
+    what = transport + ": "
+    if not check(ready, what + "the node did not subscribe and advertise within 60 s: %s"
+                 % node.stderr()):
+        node.interrupt()
+        return
+    # Half speed: the header stamps keep their 30 fps spacing.
+    p = run(["rosbag", "play", "-q", "-r", "0.5", bag])
+    check(p.returncode == 0, what + "rosbag play exit %d: %s" % (p.returncode, p.stderr))
+    wait_for(lambda: len(col.get("/flow")) >= 5 and len(col.get("/flow_vis")) >= 5, 120)
+    time.sleep(0.5)  # nothing more should come
+    code = node.interrupt()
+    check(code == 0, what + "SIGINT: exit %s, stderr %r" % (code, node.stderr()))
+    check("5 windows published, stopped by SIGINT" in node.stdout(),
+          what + "the node's last line: %r" % node.stdout()[-400:])
+    flows, t1s, vis = col.get("/flow"), col.get("/flow_t1"), col.get("/flow_vis")
+    for sub in col.subs:
+        sub.unregister()
+    check(len(flows) == 5, what + "%d flow messages, expected 5 (one per window)" % len(flows))
+    check(len(t1s) == len(flows) and len(vis) == len(flows),
+          what + "%d flow_t1 and %d flow_vis messages for %d flows" % (len(t1s), len(vis),
+                                                                      len(flows)))
+    for k, m in enumerate(flows):
+        if not check(m.header.seq == k, what + "flow %d: seq %d" % (k, m.header.seq)):
+            continue
+        check(m.encoding == "32FC3" and m.height == 64 and m.width == 96
+              and m.step == 96 * 12 and m.is_bigendian == 0,
+              what + "flow %d: %s %dx%d step %d" % (k, m.encoding, m.height, m.width, m.step))
+        check(m.header.frame_id == "left_camera",
+              what + "flow %d: frame_id %r" % (k, m.header.frame_id))
+        check(m.header.stamp.to_nsec() == left_stamps[k],
+              what + "flow %d: stamp %d, expected pair t's left stamp %d"
+              % (k, m.header.stamp.to_nsec(), left_stamps[k]))
+        if k < len(t1s):
+            check(t1s[k].seq == k and t1s[k].stamp.to_nsec() == left_stamps[k + 1]
+                  and t1s[k].frame_id == "left_camera",
+                  what + "flow_t1 %d: seq %d stamp %d, expected pair t+1's %d"
+                  % (k, t1s[k].seq, t1s[k].stamp.to_nsec(), left_stamps[k + 1]))
+        if k < len(vis):
+            check(vis[k].encoding == "bgr8" and vis[k].header.seq == k,
+                  what + "flow_vis %d: %s seq %d" % (k, vis[k].encoding, vis[k].header.seq))
+        if k < len(want) and os.path.exists(want[k]):
+            ref = np.load(want[k]).astype("<f4")
             got = np.frombuffer(m.data, dtype="<f4").reshape(m.height, m.width, 3)
-            check(want.shape == got.shape and want.tobytes() == got.tobytes(),
-                  "flow %d differs from sfrt infer on its four images (max |diff| %s)"
-                  % (k, np.abs(want - got).max() if want.shape == got.shape else "shape"))
-        statuses = [s for arr in col.get("/diagnostics") for s in arr.status
-                    if s.name == "sfrt_ros: scene flow"]
-        check(len(statuses) > 0, "no /diagnostics status named 'sfrt_ros: scene flow'")
-        check(any(diag_values(s).get("windows published") == "5" for s in statuses),
-              "no /diagnostics status counts the 5 windows: %s"
-              % [diag_values(s).get("windows published") for s in statuses])
-        # The statuses the output stage publishes while windows complete carry the latencies;
-        # the ones after the bag ended say that no window came (WARN) and carry the counters.
-        full = [s for s in statuses if "infer p50 ms" in diag_values(s)]
-        if check(len(full) > 0, "no /diagnostics status with latencies"):
-            v = diag_values(full[-1])
-            for key in ("source p50 ms", "preprocess p99 ms", "infer p50 ms", "infer p99 ms",
-                        "output p99 ms", "end_to_end p50 ms", "end_to_end p99 ms", "fps", "isa",
-                        "precision", "deadline misses", "pairs dropped at the source (newest wins)",
-                        "windows dropped in the pipeline (newest wins)", "windows published"):
-                check(key in v, "/diagnostics has no %r (it has %s)" % (key, sorted(v)))
-            check(v.get("deadline misses") == "0" and v.get("precision") == "fp32"
-                  and full[-1].level == 0 and float(v.get("infer p50 ms", "0")) > 0,
-                  "/diagnostics values %s, level %d" % (v, full[-1].level))
-        summary_path = os.path.join(out, "summary.json")
-        if check(os.path.exists(summary_path), "no summary.json in ~out"):
-            import json
-            with open(summary_path) as f:
-                s = json.load(f)
-            check(s["frames"]["written"] == 5 and s["source"]["kind"] == "ros-topics"
-                  and s["source"]["pairs"] == 6 and s["stopped_by"] == "SIGINT",
-                  "summary frames %s source %s stopped_by %s"
-                  % (s["frames"], s["source"], s.get("stopped_by")))
-    finally:
-        master.close()
+            check(ref.shape == got.shape and ref.tobytes() == got.tobytes(),
+                  what + "flow %d differs from sfrt infer on its four images (max |diff| %s)"
+                  % (k, np.abs(ref - got).max() if ref.shape == got.shape else "shape"))
+    statuses = [s for arr in col.get("/diagnostics") for s in arr.status
+                if s.name == "sfrt_ros: scene flow"]
+    check(len(statuses) > 0, what + "no /diagnostics status named 'sfrt_ros: scene flow'")
+    check(any(diag_values(s).get("windows published") == "5" for s in statuses),
+          what + "no /diagnostics status counts the 5 windows: %s"
+          % [diag_values(s).get("windows published") for s in statuses])
+    # The statuses the output stage publishes while windows complete carry the latencies; the
+    # ones after the bag ended say that no window came (WARN) and carry the counters.
+    full = [s for s in statuses if "infer p50 ms" in diag_values(s)]
+    if check(len(full) > 0, what + "no /diagnostics status with latencies"):
+        v = diag_values(full[-1])
+        for key in ("source p50 ms", "preprocess p99 ms", "infer p50 ms", "infer p99 ms",
+                    "output p99 ms", "end_to_end p50 ms", "end_to_end p99 ms", "fps", "isa",
+                    "precision", "deadline misses", "pairs dropped at the source (newest wins)",
+                    "windows dropped in the pipeline (newest wins)", "windows published"):
+            check(key in v, what + "/diagnostics has no %r (it has %s)" % (key, sorted(v)))
+        check(v.get("deadline misses") == "0" and v.get("precision") == "fp32"
+              and full[-1].level == 0 and float(v.get("infer p50 ms", "0")) > 0,
+              what + "/diagnostics values %s, level %d" % (v, full[-1].level))
+    summary_path = os.path.join(out, "summary.json")
+    if check(os.path.exists(summary_path), what + "no summary.json in ~out"):
+        with open(summary_path) as f:
+            s = json.load(f)
+        check(s["frames"]["written"] == 5 and s["source"]["kind"] == "ros-topics"
+              and s["source"]["pairs"] == 6 and s["stopped_by"] == "SIGINT",
+              what + "summary frames %s source %s stopped_by %s"
+              % (s["frames"], s["source"], s.get("stopped_by")))
 
 
 def scenario_errors(a):
