@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
 
@@ -183,6 +185,17 @@ Status LatencyLogSink::Stop() {
   if (!file_.is_open()) return Status::Ok();
   if (Status s = file_.Close(); !s.ok()) return Status::Error("the latency log: " + s.message());
   return Status::Ok();
+}
+
+SummaryFileSink::SummaryFileSink(std::string dir)
+    : path_((std::filesystem::path(dir) / "summary.json").string()) {}
+
+Status SummaryFileSink::Finished(const nlohmann::json& summary) {
+  const std::string text = summary.dump(2) + "\n";
+  Status s = io::WriteFileAtomically(
+      path_, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+  written_ = s.ok();
+  return s;
 }
 
 }  // namespace sfrt::pipeline

@@ -108,7 +108,8 @@ class Runner {
   Status SetupFallback();
   void UpdateFallback(const FrameMeta& m, bool miss);
   void Progress(bool final);
-  Status WriteSummary(PipelineResult* result);
+  // Builds the summary and hands it to every sink's Finished() (the caller's, then the file's).
+  Status FinishSinks(PipelineResult* result);
   WindowItem MakeWindow() const;
   InputItem MakeInput() const;
   FlowItem MakeFlow() const;
@@ -143,6 +144,7 @@ class Runner {
   // options_.sinks: sinks_ in the order they are called; the first own_sinks_.size() are ours.
   std::optional<FlowRenderer> renderer_;
   std::vector<std::unique_ptr<FlowSink>> own_sinks_;
+  std::unique_ptr<SummaryFileSink> summary_sink_;  // PipelineOptions::write_summary
   VideoSink* video_sink_ = nullptr;
   std::vector<std::unique_ptr<FlowSink>> picture_sinks_;  // PNG, video behind queued_pictures_
   QueuedSink* queued_pictures_ = nullptr;
@@ -739,7 +741,7 @@ void Runner::Progress(bool final) {
   log_.Progress(line, final);
 }
 
-Status Runner::WriteSummary(PipelineResult* result) {
+Status Runner::FinishSinks(PipelineResult* result) {
   json j;
   const ModelMetadata& meta = model_->metadata();
   j["model"] = {{"path", options_.model_path},
@@ -832,16 +834,23 @@ Status Runner::WriteSummary(PipelineResult* result) {
   }
   j["sinks"] = sinks;
   j["warnings"] = warnings_;
-  const std::string path = (std::filesystem::path(options_.out_dir) / "summary.json").string();
-  const std::string text = j.dump(2) + "\n";
-  Status s = io::WriteFileAtomically(
-      path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
-  if (s.ok()) result->summary_path = path;
-  return s;
+  Status first = Status::Ok();
+  for (FlowSink* sink : options_.sinks) {
+    if (Status s = sink->Finished(j); !s.ok() && first.ok()) {
+      first = Status::Error("sink '" + sink->name() + "': " + s.message());
+    }
+  }
+  if (summary_sink_) {
+    Status s = summary_sink_->Finished(j);
+    if (s.ok()) result->summary_path = summary_sink_->path();
+    if (!s.ok() && first.ok()) first = s;
+  }
+  return first;
 }
 
 PipelineResult Runner::Run() {
   PipelineResult result;
+  if (options_.write_summary) summary_sink_ = std::make_unique<SummaryFileSink>(options_.out_dir);
   start_ns_ = NowNs();
   Status setup = Setup();
   for (const std::string& w : warnings_) log_.Write(LogLevel::kWarn, "warning", w);
@@ -852,9 +861,8 @@ PipelineResult Runner::Run() {
     error_ = setup;
     end_ns_ = NowNs();
     std::error_code ec;
-    if (options_.write_summary && std::filesystem::is_directory(options_.out_dir, ec)) {
-      (void)WriteSummary(&result);
-    }
+    if (!std::filesystem::is_directory(options_.out_dir, ec)) summary_sink_.reset();
+    (void)FinishSinks(&result);
     return result;
   }
   result.started = true;
@@ -909,8 +917,7 @@ PipelineResult Runner::Run() {
   result.frames_at_fallback_size = frames_at_fallback_;
   result.fallback_entries = fallback_entries_;
   result.warnings = warnings_;
-  if (!options_.write_summary) return result;
-  Status s = WriteSummary(&result);
+  Status s = FinishSinks(&result);
   if (!s.ok()) {
     if (result.status.ok()) {
       result.status = s;

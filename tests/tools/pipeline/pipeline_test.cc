@@ -473,6 +473,70 @@ TEST_F(PipelineTest, SummaryOffWritesNoSummaryJsonButEveryFrame) {
   EXPECT_EQ(Files(".pfm").size(), 3u);
 }
 
+// The summary is a sink's business like every output: each sink's Finished() receives the
+// document summary.json holds (with write_summary off too), after its Stop(); a setup that fails
+// still reports why; a Finished() that fails fails the run, naming the sink.
+TEST_F(PipelineTest, EverySinkReceivesTheRunsSummaryEvenWhenTheRunNeverStarted) {
+  auto model = DemoModel();
+  ASSERT_TRUE(model);
+  class Report : public FlowSink {
+   public:
+    std::string name() const override { return "report"; }
+    Status Start() override { return fail_start ? Status::Error("no link") : Status::Ok(); }
+    Status Write(const FlowFrame&) override { return Status::Ok(); }
+    Status Stop() override {
+      stopped = true;
+      return Status::Ok();
+    }
+    Status Finished(const nlohmann::json& summary) override {
+      finished_after_stop = stopped;
+      got = summary;
+      return fail ? Status::Error("link down") : Status::Ok();
+    }
+    bool stopped = false;
+    bool finished_after_stop = false;
+    bool fail = false;
+    bool fail_start = false;
+    nlohmann::json got;
+  } sink;
+  options_.sinks.push_back(&sink);
+  options_.write_summary = false;
+  FakeSource source(3);
+  PipelineResult r = RunPipeline(model, &source, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_TRUE(sink.finished_after_stop);
+  EXPECT_EQ(sink.got["frames"]["written"], 3);
+  EXPECT_EQ(sink.got["stopped_by"], "end of source");
+  EXPECT_EQ(sink.got["sinks"].back()["name"], "report");
+  EXPECT_FALSE(fs::exists(dir_ / "summary.json"));
+
+  // With the file as well: the same document, byte for byte what the sink saw.
+  options_.write_summary = true;
+  FakeSource again(3);
+  sink = Report();
+  r = RunPipeline(model, &again, options_);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.summary_path, (dir_ / "summary.json").string());
+  EXPECT_EQ(Summary(), sink.got);
+
+  // A run whose setup fails (here the sink's own Start()) still reports why.
+  FakeSource third(3);
+  sink = Report();
+  sink.fail_start = true;
+  r = RunPipeline(model, &third, options_);
+  EXPECT_FALSE(r.started);
+  EXPECT_FALSE(sink.got.is_null());
+  EXPECT_EQ(sink.got["stopped_by"], "error");
+  EXPECT_EQ(sink.got["error"], r.status.message());
+
+  // A failing Finished() fails a run that had no error, naming the sink.
+  FakeSource fourth(3);
+  sink = Report();
+  sink.fail = true;
+  r = RunPipeline(model, &fourth, options_);
+  EXPECT_EQ(r.status.message(), "sink 'report': link down");
+}
+
 // A robot program's view: with no file outputs, a callback sink receives every window in order,
 // without a copy (the views point into the pipeline's buffers), with the flow a direct Session
 // gives, the sequence numbers and capture times, and nothing lands in the output directory but

@@ -1,6 +1,7 @@
 // The pipeline's own outputs as sinks (sink.h): the flow files, the visualisation PNGs, the
-// visualisation video and the latency log. RunPipeline makes them from PipelineOptions
-// (write_flow, write_png, video_path, latency_log) and runs them before PipelineOptions::sinks;
+// visualisation video, the latency log and the summary. RunPipeline makes them from
+// PipelineOptions (write_flow, write_png, video_path, latency_log, write_summary) and runs them
+// before PipelineOptions::sinks (the summary file after them);
 // a program may also make them itself and put them in PipelineOptions::sinks, in any order and
 // any number (two flow formats, two directories).
 //
@@ -119,6 +120,22 @@ class LatencyLogSink final : public FlowSink {
  private:
   std::string path_;
   io::StreamedFile file_;
+};
+
+// <dir>/summary.json: the run's summary (FlowSink::Finished), written atomically (a temporary name
+// renamed), pretty-printed. PipelineOptions::write_summary makes one.
+class SummaryFileSink final : public FlowSink {
+ public:
+  explicit SummaryFileSink(std::string dir);
+  std::string name() const override { return "summary"; }
+  Status Write(const FlowFrame&) override { return Status::Ok(); }
+  Status Finished(const nlohmann::json& summary) override;
+  const std::string& path() const { return path_; }
+  bool written() const { return written_; }
+
+ private:
+  std::string path_;
+  bool written_ = false;
 };
 
 }  // namespace sfrt::pipeline

@@ -25,9 +25,9 @@
 // Stopping: `stop` (set from a signal handler by the caller) makes the source stop reading;
 // windows already read are finished and written (at most one per queue slot and stage), so
 // every output file is complete (all are written to a temporary name and renamed). A fatal error
-// in a stage stops the source and discards the queued windows. The summary (summary.json in the
-// output directory) is written in every case (unless write_summary is false) and says how far
-// the run got and why it stopped.
+// in a stage stops the source and discards the queued windows. The summary says how far the run
+// got and why it stopped; it goes to every sink's Finished() in every case (sink.h), and to
+// summary.json in the output directory through a SummaryFileSink unless write_summary is false.
 #pragma once
 
 #include <atomic>
@@ -220,8 +220,10 @@ struct PipelineOptions {
     int width = 0;
   };
   Size2 smaller_input_on_miss;
-  int recover_after = 30;     // >= 1
-  bool write_summary = true;  // false: no summary.json (outputs.summary: false)
+  int recover_after = 30;  // >= 1
+  // A SummaryFileSink (output_sinks.h) after the caller's sinks; false: no summary.json
+  // (outputs.summary: false), the caller's sinks still get the summary.
+  bool write_summary = true;
   // The visualisation encoders (PNG, video) on a thread of their own behind a queue of this many
   // windows (queued_sink.h: the end to end ends before them; their time is measured apart, and
   // under kNewestWins a picture that cannot keep up is dropped and counted), or 0: on the output
@@ -265,8 +267,8 @@ struct PipelineResult {
 };
 
 // Runs the pipeline until the source ends, max_frames are written, *stop is set or a stage
-// fails. Writes summary.json in every case (unless the output directory is unusable or
-// write_summary is false).
+// fails. Hands the summary to the sinks' Finished() in every case, and writes summary.json
+// (unless the output directory is unusable or write_summary is false).
 PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* source,
                            const PipelineOptions& options);
 

@@ -93,6 +93,12 @@ class FlowSink {
   // Facts for summary.json's "sinks" entry of this sink (after Stop()), e.g. queued_sink.h's
   // encoder times; nothing by default.
   virtual void ToJson(nlohmann::json* /*out*/) const {}
+  // The run's summary, the document summary.json holds (every sink's ToJson() in it), once at the
+  // very end of every RunPipeline(), on its thread: after Stop(), or after a setup that failed
+  // (then Start() may not have run; the summary says why the run never started). E.g. the
+  // summary file (output_sinks.h: SummaryFileSink) or a robot program's own report. An error
+  // fails a run that had none (otherwise it is a warning).
+  virtual Status Finished(const nlohmann::json& /*summary*/) { return Status::Ok(); }
 };
 
 // Hands each window to a function. The function runs on the output stage's thread; what it
