@@ -6,10 +6,11 @@
 //     a constant (initialiser, Constant node, or the result of evaluating a supported op whose
 //     inputs are all constants; Shape/Size of any tensor with a static shape is a constant) or a
 //     runtime tensor with a static NCHW shape. Runtime tensors may only flow through Conv, Pad,
-//     LeakyRelu, Relu, Resize, Upsample, Slice and Identity.
+//     BatchNormalization (inference), LeakyRelu, Relu, Resize, Upsample, Slice and Identity.
 //  4. Walk back from the graph output to the graph input: that path is the chain. Pads fold into
-//     the next Conv, activations fuse into the previous Conv, consecutive Slices merge into one
-//     crop. Padding and crop rules are decided from the amounts at the traced size.
+//     the next Conv, a BatchNormalization folds into the Conv before it (its weights and bias
+//     scaled per output channel), activations fuse into the previous Conv, consecutive Slices
+//     merge into one crop. Padding and crop rules are decided from the amounts at the traced size.
 #include "sfrt/exporter/onnx_importer.h"
 
 #include "message_text.h"
@@ -80,8 +81,9 @@ constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
 constexpr size_t kMaxListedNodes = 20;
 
 // Ops that may carry the network input (the chain).
-constexpr std::string_view kRuntimeOps[] = {"Conv",   "Pad",      "LeakyRelu", "Relu",
-                                            "Resize", "Upsample", "Slice",     "Identity"};
+constexpr std::string_view kRuntimeOps[] = {"Conv",      "Pad",   "BatchNormalization",
+                                            "LeakyRelu", "Relu",  "Resize",
+                                            "Upsample",  "Slice", "Identity"};
 // Ops evaluated at import when all their inputs are constants.
 // clang-format off
 constexpr std::string_view kFoldableOps[] = {
@@ -883,7 +885,7 @@ Pads SameUpperPads(int64_t in_h, int64_t in_w, int kh, int kw, int sh, int sw) {
 
 // A node whose data input is a runtime tensor.
 struct ChainOp {
-  enum class Kind { kConv, kPad, kActivation, kUpsample, kSlice, kIdentity };
+  enum class Kind { kConv, kPad, kBatchNorm, kActivation, kUpsample, kSlice, kIdentity };
   Kind kind = Kind::kIdentity;
   int node_index = 0;
   std::string input;
@@ -896,6 +898,10 @@ struct ChainOp {
   float slope = 0.0f;
   int factor_h = 1;
   int factor_w = 1;
+  // kBatchNorm, per channel: y = x * bn_scale + bn_shift (scale / sqrt(var + epsilon), and
+  // B - mean * that).
+  std::vector<float> bn_scale;
+  std::vector<float> bn_shift;
 };
 
 class Importer {
@@ -932,8 +938,7 @@ class Importer {
   std::vector<bool> LiveNodes() const;
   // Live nodes whose op type (or domain) the importer does not know at all.
   std::vector<int> UnknownOpNodes(const std::vector<bool>& live) const;
-  // One message listing `nodes` (at most kMaxListedNodes, then a count), with a note for
-  // BatchNormalization, which an eval-mode export folds into the preceding Conv.
+  // One message listing `nodes` (at most kMaxListedNodes, then a count).
   Status UnsupportedNodesError(const std::vector<int>& nodes) const;
   Status ProcessNode(int idx);
   Status ProcessConstant(int idx);
@@ -941,6 +946,7 @@ class Importer {
   Status ProcessRuntimeNode(int idx, const Shape4& in_shape);
   Status ProcessConv(int idx, ChainOp& op);
   Status ProcessPad(int idx, ChainOp& op);
+  Status ProcessBatchNorm(int idx, ChainOp& op);
   Status ProcessResize(int idx, ChainOp& op);
   Status ProcessSlice(int idx, ChainOp& op);
   Result<ModelSpec> Assemble();
@@ -1225,39 +1231,19 @@ std::vector<int> Importer::UnknownOpNodes(const std::vector<bool>& live) const {
 }
 
 Status Importer::UnsupportedNodesError(const std::vector<int>& nodes) const {
-  // A training-mode BatchNormalization: training_mode = 1 (opset 14+), or the running mean and
-  // variance outputs that a training-mode export adds (opset < 14).
-  int batch_norm = -1;
-  bool training_mode = false;
-  for (int idx : nodes) {
-    const onnx::NodeProto& n = graph().node(idx);
-    if (n.op_type() != "BatchNormalization") continue;
-    const auto* mode = FindAttr(idx, "training_mode");
-    const bool training = (mode != nullptr && mode->i() != 0) || n.output_size() > 1;
-    if (batch_norm < 0 || (training && !training_mode)) batch_norm = idx;
-    training_mode = training_mode || training;
-  }
-  std::string note;
-  if (batch_norm >= 0) {
-    note = "; " + NodeLabel(batch_norm) +
-           (training_mode ? " is a training-mode BatchNormalization (training_mode = 1)" : "") +
-           ": an eval-mode export (model.eval() before torch.onnx.export) folds "
-           "BatchNormalization into the preceding Conv";
-  }
   const onnx::NodeProto& first = graph().node(nodes[0]);
   if (nodes.size() == 1) {
     const bool default_domain = first.domain().empty() || first.domain() == "ai.onnx";
-    return Unsupported(nodes[0], (default_domain ? std::string()
-                                                 : "; domain " + Quote(first.domain()) +
-                                                       " is not the default ONNX domain") +
-                                     note);
+    return Unsupported(nodes[0], default_domain ? std::string()
+                                                : "; domain " + Quote(first.domain()) +
+                                                      " is not the default ONNX domain");
   }
   std::string list;
   const size_t listed = std::min(nodes.size(), kMaxListedNodes);
   for (size_t k = 0; k < listed; ++k) list += (k > 0 ? ", " : "") + NodeLabel(nodes[k]);
   if (nodes.size() > listed) list += " and " + std::to_string(nodes.size() - listed) + " more";
   return FileError(std::to_string(nodes.size()) + " nodes are unsupported: " + list +
-                   "; supported ops (default ONNX domain): " + SupportedOpsText() + note);
+                   "; supported ops (default ONNX domain): " + SupportedOpsText());
 }
 
 Status Importer::ProcessConstant(int idx) {
@@ -1925,6 +1911,52 @@ Status Importer::ProcessSlice(int idx, ChainOp& op) {
   return Status::Ok();
 }
 
+Status Importer::ProcessBatchNorm(int idx, ChainOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  // Training mode normalises by the batch's own statistics: nothing to fold.
+  const auto* mode = FindAttr(idx, "training_mode");
+  if ((mode != nullptr && mode->i() != 0) || n.output_size() > 1) {
+    return NodeError(idx, std::string("is a training-mode BatchNormalization") +
+                              (mode != nullptr && mode->i() != 0 ? " (training_mode = 1)"
+                                                                 : " (it outputs the running "
+                                                                   "mean and variance)") +
+                              ", which normalises by each batch's statistics; an eval-mode "
+                              "export (model.eval() before torch.onnx.export) uses the running "
+                              "statistics, which sfrt folds into the preceding Conv");
+  }
+  if (n.input_size() != 5) {
+    return NodeError(
+        idx, "expected 5 inputs (X, scale, B, mean, var), found " + std::to_string(n.input_size()));
+  }
+  float epsilon = 1e-5f;
+  SFRT_ONNX_ASSIGN_OR_RETURN(epsilon, FloatAttr(idx, "epsilon", 1e-5f));
+  const int64_t channels = op.in_shape[1];
+  std::vector<float> v[4];  // scale, B, mean, var
+  static const char* const kNames[4] = {"scale", "B", "mean", "var"};
+  for (int k = 0; k < 4; ++k) {
+    Dims dims;
+    SFRT_ONNX_ASSIGN_OR_RETURN(v[k], GetFloats(idx, k + 1, &dims));
+    if (static_cast<int64_t>(v[k].size()) != channels) {
+      return NodeError(idx, std::string("input '") + kNames[k] + "' has " +
+                                std::to_string(v[k].size()) + " values for " +
+                                std::to_string(channels) + " channels");
+    }
+  }
+  op.bn_scale.resize(static_cast<size_t>(channels));
+  op.bn_shift.resize(static_cast<size_t>(channels));
+  for (size_t c = 0; c < op.bn_scale.size(); ++c) {
+    const double var = static_cast<double>(v[3][c]) + epsilon;
+    if (!(var > 0) || !std::isfinite(var)) {
+      return NodeError(idx, "channel " + std::to_string(c) + ": var + epsilon = " +
+                                std::to_string(var) + " is not a positive number");
+    }
+    const double scale = v[0][c] / std::sqrt(var);
+    op.bn_scale[c] = static_cast<float>(scale);
+    op.bn_shift[c] = static_cast<float>(v[1][c] - v[2][c] * scale);
+  }
+  return Status::Ok();
+}
+
 Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
   const onnx::NodeProto& n = graph().node(idx);
   const std::string& type = n.op_type();
@@ -1948,6 +1980,9 @@ Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
   } else if (type == "Pad") {
     op.kind = ChainOp::Kind::kPad;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessPad(idx, op));
+  } else if (type == "BatchNormalization") {
+    op.kind = ChainOp::Kind::kBatchNorm;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessBatchNorm(idx, op));
   } else if (type == "LeakyRelu") {
     op.kind = ChainOp::Kind::kActivation;
     op.activation = Activation::kLeakyRelu;
@@ -2160,6 +2195,24 @@ Result<ModelSpec> Importer::Assemble() {
         conv_can_fuse = true;
         last_was_slice = false;
         break;
+      }
+      case ChainOp::Kind::kBatchNorm: {
+        if (!conv_can_fuse) {
+          return FileError(NodeLabel(op.node_index) +
+                           ": a BatchNormalization must directly follow a Conv (it is folded "
+                           "into the Conv's weights and bias), but it follows " +
+                           (prev_node < 0 ? std::string("the graph input") : NodeLabel(prev_node)));
+        }
+        auto& conv = std::get<ConvSpec>(spec.layers.back());
+        const size_t oc = static_cast<size_t>(conv.out_channels);
+        if (conv.bias.empty()) conv.bias.assign(oc, 0.0f);
+        for (size_t w = 0; w < conv.weights_hwio.size(); ++w) {
+          conv.weights_hwio[w] *= op.bn_scale[w % oc];  // HWIO: the output channel is innermost
+        }
+        for (size_t o = 0; o < oc; ++o) {
+          conv.bias[o] = conv.bias[o] * op.bn_scale[o] + op.bn_shift[o];
+        }
+        break;  // an activation may still follow and fuse
       }
       case ChainOp::Kind::kActivation: {
         if (!conv_can_fuse) {

@@ -969,24 +969,86 @@ TEST_F(OnnxImporter, TrainingModeBatchNormSaysEvalModeExportFoldsIt) {
     SetInt(AddBatchNorm(m, "t", {"y"}), "training_mode", 1);
     m.Output("y");
     ExpectImportError(m.Save("bn_training.onnx"),
-                      {"node 'bn' (op BatchNormalization): unsupported",
-                       "is a training-mode BatchNormalization (training_mode = 1)",
-                       "an eval-mode export (model.eval() before torch.onnx.export) folds "
-                       "BatchNormalization into the preceding Conv"});
+                      {"node 'bn' (op BatchNormalization): is a training-mode "
+                       "BatchNormalization (training_mode = 1)",
+                       "an eval-mode export (model.eval() before torch.onnx.export) uses the "
+                       "running statistics, which sfrt folds into the preceding Conv"});
   }
   {  // opset < 14: a training-mode export adds the running mean and variance outputs
     OnnxModel m(12);
     m.Input("x", {1, 2, 5, 5});
     m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
     AddBatchNorm(m, "t", {"y", "running_mean", "running_var"});
-    m.Node("Sigmoid", {"y"}, {"z"}, "squash");
-    m.Output("z");
+    m.Output("y");
     ExpectImportError(m.Save("bn_training_outputs.onnx"),
-                      {"2 nodes are unsupported",
-                       "node 'bn' (op BatchNormalization) is a "
-                       "training-mode BatchNormalization",
+                      {"node 'bn' (op BatchNormalization): is a training-mode "
+                       "BatchNormalization (it outputs the running mean and variance)",
                        "model.eval() before torch.onnx.export"});
   }
+}
+
+// An inference BatchNormalization after a Conv (what a PyTorch export keeps with
+// training=TrainingMode.PRESERVE, or another exporter writes) is folded into the Conv: weights
+// scaled per output channel by scale / sqrt(var + epsilon), the bias shifted; the activation
+// after it still fuses. One layer, no normalisation left.
+TEST_F(OnnxImporter, FoldsInferenceBatchNormIntoThePrecedingConv) {
+  auto build = [](bool with_bn) {
+    OnnxModel m(15);
+    m.Input("x", {1, 2, 5, 5});
+    m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+    std::string act_in = "t";
+    if (with_bn) {
+      m.Floats("bn.scale", {2}, {2.0f, 0.5f});
+      m.Floats("bn.b", {2}, {0.1f, -0.2f});
+      m.Floats("bn.mean", {2}, {0.3f, -0.4f});
+      m.Floats("bn.var", {2}, {4.0f, 0.25f});
+      auto& bn =
+          m.Node("BatchNormalization", {"t", "bn.scale", "bn.b", "bn.mean", "bn.var"}, {"n"}, "bn");
+      auto* eps = bn.add_attribute();
+      eps->set_name("epsilon");
+      eps->set_type(onnx::AttributeProto::FLOAT);
+      eps->set_f(1e-3f);
+      act_in = "n";
+    }
+    auto& act = m.Node("LeakyRelu", {act_in}, {"y"}, "act");
+    auto* alpha = act.add_attribute();
+    alpha->set_name("alpha");
+    alpha->set_type(onnx::AttributeProto::FLOAT);
+    alpha->set_f(0.2f);
+    m.Output("y");
+    return m.Save(with_bn ? "conv_bn.onnx" : "conv.onnx");
+  };
+  const Result<ModelSpec> plain = ImportOk(build(false));
+  const Result<ModelSpec> folded = ImportOk(build(true));
+  ASSERT_TRUE(plain.ok() && folded.ok());
+  ASSERT_EQ(folded->layers.size(), 1u);
+  const auto& a = std::get<ConvSpec>(plain->layers[0]);
+  const auto& b = std::get<ConvSpec>(folded->layers[0]);
+  EXPECT_EQ(b.activation, Activation::kLeakyRelu);
+  EXPECT_FLOAT_EQ(b.leaky_slope, 0.2f);
+  const double scale[2] = {2.0 / std::sqrt(4.0 + 1e-3), 0.5 / std::sqrt(0.25 + 1e-3)};
+  const double shift[2] = {0.1 - 0.3 * scale[0], -0.2 + 0.4 * scale[1]};
+  ASSERT_EQ(a.weights_hwio.size(), b.weights_hwio.size());
+  for (size_t i = 0; i < a.weights_hwio.size(); ++i) {
+    EXPECT_NEAR(b.weights_hwio[i], a.weights_hwio[i] * scale[i % 2], 1e-6) << "weight " << i;
+  }
+  ASSERT_EQ(b.bias.size(), 2u);
+  for (size_t o = 0; o < 2; ++o) {
+    EXPECT_NEAR(b.bias[o], a.bias[o] * scale[o] + shift[o], 1e-6) << "bias " << o;
+  }
+}
+
+TEST_F(OnnxImporter, BatchNormNotDirectlyAfterAConvIsRefusedNamingBoth) {
+  OnnxModel m(15);
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Relu", {"t"}, {"r"}, "relu");
+  AddBatchNorm(m, "r", {"y"});
+  m.Output("y");
+  ExpectImportError(m.Save("relu_bn.onnx"),
+                    {"node 'bn' (op BatchNormalization): a BatchNormalization must directly "
+                     "follow a Conv",
+                     "but it follows node 'relu' (op Relu)"});
 }
 
 TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
