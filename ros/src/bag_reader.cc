@@ -11,6 +11,8 @@
 #include <cstring>
 #include <optional>
 
+#include "ros_messages.h"
+
 namespace sfrt::ros::detail {
 namespace {
 
@@ -121,16 +123,6 @@ struct BagWriter::Impl {
 BagWriter::BagWriter() : impl_(std::make_unique<Impl>()) {}
 BagWriter::~BagWriter() { (void)Close(); }
 
-namespace {
-
-::ros::Time Stamp(int64_t ns) {
-  ::ros::Time t;
-  t.fromNSec(static_cast<uint64_t>(ns < 0 ? 0 : ns));
-  return t;
-}
-
-}  // namespace
-
 std::string BagWriter::Open(const std::string& path) {
   impl_->path = path;
   try {
@@ -147,15 +139,7 @@ std::string BagWriter::WriteImage(const std::string& topic, int64_t stamp_ns, ui
                                   uint32_t height, uint32_t width, uint32_t step,
                                   const uint8_t* data) {
   sensor_msgs::Image im;
-  im.header.stamp = Stamp(stamp_ns);
-  im.header.seq = seq;
-  im.header.frame_id = frame_id;
-  im.height = height;
-  im.width = width;
-  im.encoding = encoding;
-  im.is_bigendian = 0;  // as written by a little-endian machine (x86-64, aarch64)
-  im.step = step;
-  im.data.assign(data, data + static_cast<size_t>(step) * height);
+  FillImage(&im, stamp_ns, seq, frame_id, encoding, height, width, step, data);
   try {
     impl_->bag.write(topic, im.header.stamp, im);
   } catch (const rosbag::BagException& e) {
@@ -167,9 +151,7 @@ std::string BagWriter::WriteImage(const std::string& topic, int64_t stamp_ns, ui
 std::string BagWriter::WriteHeader(const std::string& topic, int64_t stamp_ns, uint32_t seq,
                                    const std::string& frame_id) {
   std_msgs::Header h;
-  h.stamp = Stamp(stamp_ns);
-  h.seq = seq;
-  h.frame_id = frame_id;
+  FillHeader(&h, stamp_ns, seq, frame_id);
   try {
     impl_->bag.write(topic, h.stamp, h);
   } catch (const rosbag::BagException& e) {

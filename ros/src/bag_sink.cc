@@ -6,20 +6,11 @@
 #include <filesystem>
 
 #include "bag_reader.h"
+#include "clock.h"
 #include "flow_messages.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 
 namespace sfrt::ros {
-namespace {
-
-int64_t ClockNs(clockid_t clock) {
-  timespec ts{};
-  ::clock_gettime(clock, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
-}  // namespace
-
 FlowBagSink::FlowBagSink(BagSinkOptions options) : options_(std::move(options)) {}
 FlowBagSink::~FlowBagSink() {
   if (writer_) {
@@ -44,7 +35,7 @@ Status FlowBagSink::Start() {
     ::unlink(tmp_.c_str());
     return Status::Error(e);
   }
-  realtime_minus_monotonic_ns_ = ClockNs(CLOCK_REALTIME) - ClockNs(CLOCK_MONOTONIC);
+  realtime_minus_monotonic_ns_ = detail::ClockNs(CLOCK_REALTIME) - detail::ClockNs(CLOCK_MONOTONIC);
   if (options_.vis) renderer_.emplace(options_.vis_options);
   return Status::Ok();
 }

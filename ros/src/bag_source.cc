@@ -1,23 +1,17 @@
 #include "sfrt/ros/bag_source.h"
 
-#include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <vector>
 
 #include "bag_reader.h"
+#include "clock.h"
 #include "image_convert.h"
 #include "sfrt/pipeline/log.h"
 
 namespace sfrt::ros {
 namespace {
-
-int64_t NowNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 // Bags store topics with their leading slash; "left/image_rect" means "/left/image_rect".
 std::string Absolute(const std::string& topic) {
@@ -65,7 +59,7 @@ class BagSource final : public pipeline::FrameSource {
 
   Result<pipeline::Fetch> Next(pipeline::WindowItem* item,
                                const std::atomic<bool>& /*stop*/) override {
-    const int64_t start = NowNs();
+    const int64_t start = detail::MonotonicNs();
     while (true) {
       Result<bool> pair = NextPair();
       if (!pair.ok()) return pair.status();
@@ -84,7 +78,7 @@ class BagSource final : public pipeline::FrameSource {
       m.frame1 = pairs_ - 1;
       m.left0_path = spec_.path + ":" + topics_[0] + ":" + std::to_string(prev_index_);
       m.continues = continues_;
-      m.capture_ns[0] = m.capture_ns[1] = NowNs();
+      m.capture_ns[0] = m.capture_ns[1] = detail::MonotonicNs();
       m.stamp_ns[0] = prev_stamp_;
       m.stamp_ns[1] = pair_stamp_;
       m.stage_ns[0][0] = start;

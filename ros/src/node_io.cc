@@ -18,14 +18,10 @@
 #include <optional>
 #include <type_traits>
 
+#include "ros_messages.h"
+
 namespace sfrt::ros::detail {
 namespace {
-
-::ros::Time Stamp(int64_t ns) {
-  ::ros::Time t;
-  t.fromNSec(static_cast<uint64_t>(ns < 0 ? 0 : ns));
-  return t;
-}
 
 ImageView View(const sensor_msgs::Image& m) {
   ImageView v;
@@ -224,17 +220,8 @@ std::string NodeIo::WriteImage(const std::string& topic, int64_t stamp_ns, uint3
   ::ros::Publisher* pub = topic == s.flow_name ? &s.flow : topic == s.vis_name ? &s.vis : nullptr;
   if (pub == nullptr || !*pub) return "topic '" + topic + "' is not advertised";
   if (pub->getNumSubscribers() == 0) return "";  // nobody listens: skip the copy
-  sensor_msgs::Image& im = s.image;
-  im.header.stamp = Stamp(stamp_ns);
-  im.header.seq = seq;
-  im.header.frame_id = frame_id;
-  im.height = height;
-  im.width = width;
-  im.encoding = encoding;
-  im.is_bigendian = 0;  // as written by a little-endian machine (x86-64, aarch64)
-  im.step = step;
-  im.data.assign(data, data + static_cast<size_t>(step) * height);
-  pub->publish(im);
+  FillImage(&s.image, stamp_ns, seq, frame_id, encoding, height, width, step, data);
+  pub->publish(s.image);
   return "";
 }
 
@@ -243,9 +230,7 @@ std::string NodeIo::WriteHeader(const std::string& topic, int64_t stamp_ns, uint
   Impl& s = *impl_;
   if (topic != s.t1_name || !s.t1) return "topic '" + topic + "' is not advertised";
   std_msgs::Header h;
-  h.stamp = Stamp(stamp_ns);
-  h.seq = seq;
-  h.frame_id = frame_id;
+  FillHeader(&h, stamp_ns, seq, frame_id);
   s.t1.publish(h);
   return "";
 }

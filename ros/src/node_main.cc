@@ -18,8 +18,10 @@
 #include <thread>
 #include <vector>
 
+#include "clock.h"
 #include "node_io.h"
 #include "sfrt/config/capabilities.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/config/process_settings.h"
 #include "sfrt/config/profile.h"
 #include "sfrt/isa.h"
@@ -61,7 +63,7 @@ Parameters (private, e.g. _model:=m.sfrt):
   ~config       a deployment profile (firmware-cfg/), checked as `sfrt config check` checks it;
                 its model, input size, threads, stage CPUs and priorities, memory settings,
                 latency budget and on_miss apply unless a parameter above sets them
-  ~threads      inference threads (default 1)            ~isa      auto|ref|avx2|avx512|neon
+  ~threads      inference threads, 0..256 (default 1; 0: one per CPU)            ~isa      auto|ref|avx2|avx512|neon
   ~budget_ms    end-to-end deadline, ms (default: none)
   ~on_miss      count-only|drop-next|smaller-input (default count-only)
   ~fallback_size  HxW, with smaller-input                ~recover_after  windows (default 30)
@@ -171,8 +173,8 @@ std::string Fixed(double v, int digits) {
 // (Tx = -fx' * B). Warns once, naming both values; spinner thread only.
 class CameraInfoCheck {
  public:
-  CameraInfoCheck(CameraDesc trained, int input_width, std::string left_topic)
-      : trained_(trained), input_width_(input_width), left_topic_(std::move(left_topic)) {}
+  CameraInfoCheck(CameraDesc trained, int input_width)
+      : trained_(trained), input_width_(input_width) {}
   void OnInfo(int side, const detail::CameraInfoView& info) {
     if (done_) return;
     info_[side] = info;
@@ -221,7 +223,6 @@ class CameraInfoCheck {
  private:
   CameraDesc trained_;
   int input_width_;
-  std::string left_topic_;
   detail::CameraInfoView info_[2];
   bool seen_[2] = {false, false};
   bool done_ = false;
@@ -287,8 +288,9 @@ int Run(int argc, char** argv) {
                     "': its source, calibration (the topics are rectified) and outputs are not "
                     "used by the node");
   }
-  if (s.model.empty())
+  if (s.model.empty()) {
     return Fail(kExitUsage, "set ~model (" + io.ResolvePrivate("model") + ") or ~config");
+  }
 
   Result<std::shared_ptr<const Model>> model = Model::LoadFile(s.model);
   if (!model.ok()) return Fail(kExitFailure, model.message());
@@ -297,14 +299,22 @@ int Run(int argc, char** argv) {
   if (s.isa != "auto" && (!ParseIsa(s.isa, &opts.isa) || opts.isa == Isa::kAuto)) {
     return Fail(kExitUsage, "~isa '" + s.isa + "' is not one of auto, ref, avx2, avx512, neon");
   }
-  if (s.threads < 1)
-    return Fail(kExitUsage, "~threads must be >= 1, got " + std::to_string(s.threads));
-  opts.threads = s.threads;
-  if (!s.size.empty() && !ParseHxW(s.size, &opts.height, &opts.width)) {
-    return Fail(kExitUsage, "~size '" + s.size + "' is not HxW (e.g. 270x480)");
+  if (std::string e = config::CheckRange(config::kThreads, "~threads", s.threads); !e.empty()) {
+    return Fail(kExitUsage, e);
   }
-  if (s.budget_ms < 0)
+  opts.threads = config::ResolveThreads(s.threads);
+  if (!s.size.empty()) {
+    if (!ParseHxW(s.size, &opts.height, &opts.width)) {
+      return Fail(kExitUsage, "~size '" + s.size + "' is not HxW (e.g. 270x480)");
+    }
+    if (std::string e = config::CheckSize(config::kInputSide, "~size", opts.height, opts.width);
+        !e.empty()) {
+      return Fail(kExitUsage, e);
+    }
+  }
+  if (s.budget_ms < 0) {
     return Fail(kExitUsage, "~budget_ms must be >= 0, got " + Fixed(s.budget_ms, 3));
+  }
   opts.budget_ms = s.budget_ms;
   if (s.on_miss == "drop-next") {
     opts.drop_next_on_miss = true;
@@ -353,7 +363,7 @@ int Run(int argc, char** argv) {
   src_opts.stop = &stop;
   src_opts.log = &log;
   TopicSource source(src_opts);
-  CameraInfoCheck info_check(md.camera, opts.width, src_opts.left_topic);
+  CameraInfoCheck info_check(md.camera, opts.width);
 
   TopicSinkOptions sink_opts;
   sink_opts.topics = {io.Resolve("flow"), io.Resolve("flow_t1"), io.Resolve("flow_vis")};
@@ -417,9 +427,7 @@ int Run(int argc, char** argv) {
       stop_signal = g_sigterm.load() ? SIGTERM : SIGINT;
       stop = true;
     }
-    sink.PublishIfIdle(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::steady_clock::now().time_since_epoch())
-                           .count());
+    sink.PublishIfIdle(detail::MonotonicNs());
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   runner.join();

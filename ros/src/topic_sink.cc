@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <span>
 
+#include "clock.h"
 #include "topic_source.h"
 
 namespace sfrt::ros {
@@ -15,12 +16,6 @@ constexpr const char* kSeriesNames[] = {"source", "preprocess", "infer",
                                         "output", "end_to_end", "stamp_to_publish"};
 constexpr int kEndToEnd = 4;
 constexpr int kStampToPublish = 5;
-
-int64_t MonotonicNs() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string Ms(double v) {
   char buf[32];
@@ -42,7 +37,7 @@ Status FlowTopicSink::Start() {
   if (options_.vis) renderer_.emplace(options_.vis_options);
   recent_.assign(kSeries, profiling::LatestValues(options_.window_values));
   all_.assign(kSeries, profiling::LatestValues());
-  last_publish_ns_ = MonotonicNs();
+  last_publish_ns_ = detail::MonotonicNs();
   return Status::Ok();
 }
 
@@ -77,7 +72,7 @@ Status FlowTopicSink::Completed(const pipeline::WindowRecord& record) {
   last_window_ = m.window;
   if (record.miss) ++misses_;
   ++windows_;
-  const int64_t now = MonotonicNs();
+  const int64_t now = detail::MonotonicNs();
   last_done_ns_ = now;
   if (static_cast<double>(now - last_publish_ns_) >= options_.diagnostics_period_s * 1e9) {
     PublishDiagnostics(now);
@@ -86,7 +81,7 @@ Status FlowTopicSink::Completed(const pipeline::WindowRecord& record) {
 }
 
 Status FlowTopicSink::Stop() {
-  if (windows_.load() > windows_at_publish_) PublishDiagnostics(MonotonicNs());
+  if (windows_.load() > windows_at_publish_) PublishDiagnostics(detail::MonotonicNs());
   return Status::Ok();
 }
 

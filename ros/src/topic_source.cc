@@ -5,17 +5,12 @@
 #include <nlohmann/json.hpp>
 #include <utility>
 
+#include "clock.h"
 #include "image_convert.h"
 #include "sfrt/pipeline/log.h"
 
 namespace sfrt::ros {
 namespace {
-
-int64_t ClockNs(clockid_t clock) {
-  timespec ts{};
-  ::clock_gettime(clock, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string SizeText(const cv::Size& s) {
   return std::to_string(s.height) + "x" + std::to_string(s.width) + " (HxW)";
@@ -35,7 +30,7 @@ void TopicSource::Skip(const std::string& reason) {
     std::lock_guard<std::mutex> lock(mu_);
     last_bad_ = reason;
   }
-  const int64_t now = ClockNs(CLOCK_MONOTONIC);
+  const int64_t now = detail::MonotonicNs();
   const auto period = static_cast<int64_t>(options_.warn_period_s * 1e9);
   if (last_warn_ns_ != 0 && now - last_warn_ns_ < period) return;
   pipeline::LogSink& sink = options_.log != nullptr ? *options_.log : pipeline::DefaultLog();
@@ -51,8 +46,8 @@ void TopicSource::Skip(const std::string& reason) {
 void TopicSource::OnPair(const detail::ImageView& left, const detail::ImageView& right,
                          const std::string& left_frame_id) {
   Pair& p = scratch_;
-  p.arrival_ns = ClockNs(CLOCK_MONOTONIC);
-  const int64_t wall = ClockNs(CLOCK_REALTIME);
+  p.arrival_ns = detail::MonotonicNs();
+  const int64_t wall = detail::ClockNs(CLOCK_REALTIME);
   const detail::ImageView* views[2] = {&left, &right};
   const std::string* topics[2] = {&options_.left_topic, &options_.right_topic};
   for (int side = 0; side < 2; ++side) {
@@ -66,7 +61,7 @@ void TopicSource::OnPair(const detail::ImageView& left, const detail::ImageView&
          SizeText(p.image[1].size()));
     return;
   }
-  p.converted_ns = ClockNs(CLOCK_MONOTONIC);
+  p.converted_ns = detail::MonotonicNs();
   p.stamp_ns = left.stamp_ns;
   // The stamp as a capture time when it is one: not after the arrival, at most 2 s before it.
   const int64_t age = wall - left.stamp_ns;
@@ -128,7 +123,7 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
       head_ = (head_ + 1) % ring_.size();
       --count_;
     }
-    const int64_t taken = ClockNs(CLOCK_MONOTONIC);
+    const int64_t taken = detail::MonotonicNs();
     if (!have_prev_) {
       std::swap(prev_, cur_);
       have_prev_ = true;
