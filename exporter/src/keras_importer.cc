@@ -53,7 +53,8 @@ namespace {
 using nlohmann::json;
 
 constexpr char kSupportedLayers[] =
-    "InputLayer, Conv2D, LeakyReLU, Activation, UpSampling2D, Cropping2D, ZeroPadding2D (and a "
+    "InputLayer, Conv2D, BatchNormalization (folded into the Conv2D before it), LeakyReLU, "
+    "Activation, UpSampling2D, Cropping2D, ZeroPadding2D (and a "
     "multi_gpu_model wrapper: InputLayer/Lambda/Concatenate around one nested Model)";
 // Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
 constexpr uint64_t kMaxTensorElements = uint64_t{1} << 30;
@@ -1032,6 +1033,68 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       fusable = conv.activation == Activation::kNone;
       spec->layers.emplace_back(std::move(conv));
       ++convs;
+    } else if (l.cls == "BatchNormalization") {
+      // Inference normalisation with the moving statistics, folded into the Conv2D before it:
+      // weights * gamma / sqrt(var + epsilon) per output channel, bias shifted.
+      if (!fusable) {
+        return LayerFail(l,
+                         "must directly follow a Conv2D with activation 'linear' (it is folded "
+                         "into the convolution's weights and bias)");
+      }
+      const json* axis = Find(cfg, "axis");
+      const json* axis_value =
+          axis != nullptr && axis->is_array() && axis->size() == 1 ? &(*axis)[0] : axis;
+      if (axis_value != nullptr &&
+          !(axis_value->is_number_integer() &&
+            (axis_value->get<int64_t>() == -1 || axis_value->get<int64_t>() == 3))) {
+        return LayerFail(
+            l, "axis " + JsonText(*axis) + " is not supported (only the channels axis, -1 or 3)");
+      }
+      auto flag = [&](const char* key) {
+        const json* v = Find(cfg, key);
+        return v == nullptr || !v->is_boolean() || v->get<bool>();
+      };
+      const bool scale = flag("scale"), center = flag("center");
+      const json* eps = Find(cfg, "epsilon");
+      const double epsilon = eps != nullptr && eps->is_number() ? eps->get<double>() : 1e-3;
+      if (!(epsilon >= 0) || !std::isfinite(epsilon)) {
+        return LayerFail(l, "epsilon " + JsonText(*eps) + " is not a finite number >= 0");
+      }
+      const size_t count = (scale ? 1 : 0) + (center ? 1 : 0) + 2;
+      Result<std::vector<std::string>> paths = WeightPaths(l, count);
+      if (!paths.ok()) return paths.status();
+      std::vector<float> values[4];  // gamma, beta, moving_mean, moving_variance
+      static const char* const kNames[4] = {"gamma", "beta", "moving_mean", "moving_variance"};
+      size_t next = 0;
+      for (int k = 0; k < 4; ++k) {
+        if ((k == 0 && !scale) || (k == 1 && !center)) {
+          values[k].assign(static_cast<size_t>(c), k == 0 ? 1.0f : 0.0f);
+          continue;
+        }
+        auto v =
+            ReadDataset(l, (*paths)[next++], {static_cast<uint64_t>(c)},
+                        std::string("(") + kNames[k] + ", " + std::to_string(c) + " channels)");
+        if (!v.ok()) return v.status();
+        values[k] = std::move(v).value();
+      }
+      auto& conv = std::get<ConvSpec>(spec->layers.back());
+      const auto oc = static_cast<size_t>(conv.out_channels);
+      std::vector<float> mul(oc), add(oc);
+      for (size_t o = 0; o < oc; ++o) {
+        const double var = static_cast<double>(values[3][o]) + epsilon;
+        if (!(var > 0)) {
+          return LayerFail(l, "channel " + std::to_string(o) + ": moving_variance + epsilon = " +
+                                  std::to_string(var) + " is not positive");
+        }
+        const double m = values[0][o] / std::sqrt(var);
+        mul[o] = static_cast<float>(m);
+        add[o] = static_cast<float>(values[1][o] - values[2][o] * m);
+      }
+      for (size_t i = 0; i < conv.weights_hwio.size(); ++i) {
+        conv.weights_hwio[i] *= mul[i % oc];  // HWIO: the output channel is innermost
+      }
+      for (size_t o = 0; o < oc; ++o) conv.bias[o] = conv.bias[o] * mul[o] + add[o];
+      // `fusable` stays: an activation may follow and fuse.
     } else if (l.cls == "LeakyReLU") {
       const json* alpha = Find(cfg, "alpha");
       if (alpha == nullptr) {

@@ -113,10 +113,20 @@ TEST(KerasImport, FixtureSuiteIsPresent) {
 TEST(KerasImport, EveryFixtureModelMatchesPyTorch) {
   for (const char* name :
        {"keras_w16_67x121", "keras_w16_540x960", "keras_w1_35x61", "keras_multigpu_w16_67x121",
-        "keras_seq_67x121", "keras_anysize_w16_67x121"}) {
+        "keras_seq_67x121", "keras_anysize_w16_67x121", "keras_bn_w16_67x121"}) {
     SCOPED_TRACE(name);
     EXPECT_LE(ErrorAgainstPyTorch(name, name), kRelativeTolerance);
   }
+}
+
+// A BatchNormalization after a Conv2D with activation 'linear' is folded into it: the same 11
+// convolutions as without it, and (above) PyTorch's output with the normalisation as a layer.
+TEST(KerasImport, BatchNormalizationAfterAConvIsFoldedIntoIt) {
+  auto with = ImportKerasH5(Fixture("keras_bn_w16_67x121.h5"));
+  auto without = ImportKerasH5(Fixture("keras_w16_67x121.h5"));
+  ASSERT_TRUE(with.ok()) << with.message();
+  ASSERT_TRUE(without.ok()) << without.message();
+  EXPECT_EQ(LayerNames(with->spec), LayerNames(without->spec));
 }
 
 TEST(KerasImport, WeightsOnlyFileWithArchitectureJsonMatchesPyTorch) {
@@ -266,8 +276,9 @@ TEST(KerasImport, MalformedFilesFailWithOneLineNamingTheLayerOrDataset) {
         "8, 16)"}},
       {"bad_alpha_missing.h5", {"layer 'leaky_re_lu_3' (LeakyReLU)", "no 'alpha'"}},
       {"bad_unknown_layer.h5",
-       {"layer 'batch_normalization_1' (BatchNormalization)", "not supported",
-        "InputLayer, Conv2D, LeakyReLU, Activation, UpSampling2D, Cropping2D, ZeroPadding2D"}},
+       {"layer 'dense_1' (Dense)", "not supported",
+        "InputLayer, Conv2D, BatchNormalization (folded into the Conv2D before it), LeakyReLU, "
+        "Activation, UpSampling2D, Cropping2D, ZeroPadding2D"}},
       {"bad_truncated.h5", {"truncated", "stored_eof"}},
       {"bad_dilation.h5", {"layer 'conv4' (Conv2D)", "dilation_rate [2,2]"}},
       {"bad_channels_first.h5", {"layer 'up_sampling2d_2' (UpSampling2D)", "channels_first"}},
