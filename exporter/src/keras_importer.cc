@@ -32,6 +32,7 @@
 #include <utility>
 #include <vector>
 
+#include "batch_norm_fold.h"
 #include "hdf5_header_guard.h"
 #include "hdf5_vlen_guard.h"
 #include "message_text.h"
@@ -1077,23 +1078,17 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
         if (!v.ok()) return v.status();
         values[k] = std::move(v).value();
       }
-      auto& conv = std::get<ConvSpec>(spec->layers.back());
-      const auto oc = static_cast<size_t>(conv.out_channels);
-      std::vector<float> mul(oc), add(oc);
-      for (size_t o = 0; o < oc; ++o) {
-        const double var = static_cast<double>(values[3][o]) + epsilon;
-        if (!(var > 0)) {
-          return LayerFail(l, "channel " + std::to_string(o) + ": moving_variance + epsilon = " +
-                                  std::to_string(var) + " is not positive");
-        }
-        const double m = values[0][o] / std::sqrt(var);
-        mul[o] = static_cast<float>(m);
-        add[o] = static_cast<float>(values[1][o] - values[2][o] * m);
+      ChannelAffine affine;
+      const long bad =
+          BatchNormAffine(values[0], values[1], values[2], values[3], epsilon, &affine);
+      if (bad >= 0) {
+        return LayerFail(
+            l,
+            "channel " + std::to_string(bad) + ": moving_variance + epsilon = " +
+                std::to_string(static_cast<double>(values[3][static_cast<size_t>(bad)]) + epsilon) +
+                " is not positive");
       }
-      for (size_t i = 0; i < conv.weights_hwio.size(); ++i) {
-        conv.weights_hwio[i] *= mul[i % oc];  // HWIO: the output channel is innermost
-      }
-      for (size_t o = 0; o < oc; ++o) conv.bias[o] = conv.bias[o] * mul[o] + add[o];
+      FoldIntoConv(affine, &std::get<ConvSpec>(spec->layers.back()));
       // `fusable` stays: an activation may follow and fuse.
     } else if (l.cls == "LeakyReLU") {
       const json* alpha = Find(cfg, "alpha");

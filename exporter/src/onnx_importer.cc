@@ -13,6 +13,7 @@
 //     merge into one crop. Padding and crop rules are decided from the amounts at the traced size.
 #include "sfrt/exporter/onnx_importer.h"
 
+#include "batch_norm_fold.h"
 #include "message_text.h"
 
 // onnx_pb.h defines ONNX_API and then includes onnx-ml.pb.h (ONNX_ML=1); including
@@ -898,10 +899,7 @@ struct ChainOp {
   float slope = 0.0f;
   int factor_h = 1;
   int factor_w = 1;
-  // kBatchNorm, per channel: y = x * bn_scale + bn_shift (scale / sqrt(var + epsilon), and
-  // B - mean * that).
-  std::vector<float> bn_scale;
-  std::vector<float> bn_shift;
+  ChannelAffine batch_norm;  // kBatchNorm (batch_norm_fold.h)
 };
 
 class Importer {
@@ -1942,17 +1940,12 @@ Status Importer::ProcessBatchNorm(int idx, ChainOp& op) {
                                 std::to_string(channels) + " channels");
     }
   }
-  op.bn_scale.resize(static_cast<size_t>(channels));
-  op.bn_shift.resize(static_cast<size_t>(channels));
-  for (size_t c = 0; c < op.bn_scale.size(); ++c) {
-    const double var = static_cast<double>(v[3][c]) + epsilon;
-    if (!(var > 0) || !std::isfinite(var)) {
-      return NodeError(idx, "channel " + std::to_string(c) + ": var + epsilon = " +
-                                std::to_string(var) + " is not a positive number");
-    }
-    const double scale = v[0][c] / std::sqrt(var);
-    op.bn_scale[c] = static_cast<float>(scale);
-    op.bn_shift[c] = static_cast<float>(v[1][c] - v[2][c] * scale);
+  const long bad = BatchNormAffine(v[0], v[1], v[2], v[3], epsilon, &op.batch_norm);
+  if (bad >= 0) {
+    return NodeError(
+        idx, "channel " + std::to_string(bad) + ": var + epsilon = " +
+                 std::to_string(static_cast<double>(v[3][static_cast<size_t>(bad)]) + epsilon) +
+                 " is not a positive number");
   }
   return Status::Ok();
 }
@@ -2203,15 +2196,7 @@ Result<ModelSpec> Importer::Assemble() {
                            "into the Conv's weights and bias), but it follows " +
                            (prev_node < 0 ? std::string("the graph input") : NodeLabel(prev_node)));
         }
-        auto& conv = std::get<ConvSpec>(spec.layers.back());
-        const size_t oc = static_cast<size_t>(conv.out_channels);
-        if (conv.bias.empty()) conv.bias.assign(oc, 0.0f);
-        for (size_t w = 0; w < conv.weights_hwio.size(); ++w) {
-          conv.weights_hwio[w] *= op.bn_scale[w % oc];  // HWIO: the output channel is innermost
-        }
-        for (size_t o = 0; o < oc; ++o) {
-          conv.bias[o] = conv.bias[o] * op.bn_scale[o] + op.bn_shift[o];
-        }
+        FoldIntoConv(op.batch_norm, &std::get<ConvSpec>(spec.layers.back()));
         break;  // an activation may still follow and fuse
       }
       case ChainOp::Kind::kActivation: {
