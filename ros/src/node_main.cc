@@ -63,7 +63,8 @@ Parameters (private, e.g. _model:=m.sfrt):
   ~config       a deployment profile (firmware-cfg/), checked as `sfrt config check` checks it;
                 its model, input size, threads, stage CPUs and priorities, memory settings,
                 latency budget and on_miss apply unless a parameter above sets them
-  ~threads      inference threads, 0..256 (default 1; 0: one per CPU)            ~isa      auto|ref|avx2|avx512|neon
+  ~threads      inference threads, 0..256 (default 1; 0: one per CPU)
+  ~isa          auto|ref|avx2|avx512|avx512amx|neon (default auto: the best this CPU runs)
   ~budget_ms    end-to-end deadline, ms (default: none)
   ~on_miss      count-only|drop-next|smaller-input (default count-only)
   ~fallback_size  HxW, with smaller-input                ~recover_after  windows (default 30)
@@ -297,7 +298,8 @@ int Run(int argc, char** argv) {
   const ModelMetadata& md = (*model)->metadata();
 
   if (s.isa != "auto" && (!ParseIsa(s.isa, &opts.isa) || opts.isa == Isa::kAuto)) {
-    return Fail(kExitUsage, "~isa '" + s.isa + "' is not one of auto, ref, avx2, avx512, neon");
+    return Fail(kExitUsage,
+                "~isa '" + s.isa + "' is not one of auto, ref, avx2, avx512, avx512amx, neon");
   }
   if (std::string e = config::CheckRange(config::kThreads, "~threads", s.threads); !e.empty()) {
     return Fail(kExitUsage, e);

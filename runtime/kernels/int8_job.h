@@ -135,10 +135,9 @@ struct Int8ConvArgs {
   int crop_left = 0;
   int c_height = 0;
   int c_width = 0;
-  // Output columns [col_begin, col_end) of each row (clamped to the output's width): the plain
-  // convolution's kernels compute only those (a caller splitting rows by columns, as the AMX
-  // kernel hands its border columns to the VNNI one); calls with `upsampled`, and convolutions
-  // with few_weights, compute every column.
+  // Output columns [col_begin, col_end) of each row (clamped to the output's width): the kernels
+  // compute only those (a caller splitting rows by columns, as the AMX kernels hand their border
+  // columns to the VNNI ones), with or without `upsampled`.
   int col_begin = 0;
   int col_end = 1 << 30;
 };

@@ -51,6 +51,13 @@ struct EmulatedTiles {
   }
   static void Release() { S().configured = false; }
 
+  // TILEZERO.
+  template <int T>
+  static void Zero() {
+    State& s = S();
+    if (!s.configured || s.rows[T] == 0) Violation();
+    std::memset(s.data[T], 0, sizeof(s.data[T]));
+  }
   template <int T>
   static void Load(const void* base, ptrdiff_t stride) {
     State& s = S();
@@ -124,6 +131,11 @@ struct EmulatedTiles {
       }
     }
   }
+  template <bool kQuantized>
+  static void Finish(const int32_t* sums, const int32_t* init, const simd::DotEpilogue& e,
+                     void* out, ptrdiff_t out_step) {
+    simd::AmxFinishScalar<kQuantized>(sums, init, e, out, out_step);
+  }
 };
 
 void EmulatedConvRows(const Int8ConvArgs& a, int row_begin, int row_end, int blk_begin,
@@ -141,17 +153,18 @@ void EmulatedBf16ConvRows(const Bf16ConvArgs& a, int row_begin, int row_end, int
 }  // namespace
 
 const IsaInt8Kernels* Int8KernelsEmulated() {
-  // nr 64: the VNNI packing, which the AMX kernels read. The fused upsample: the reference.
-  static constexpr IsaInt8Kernels kKernels = {64, EmulatedConvRows, ref::Conv2dInt8Rows,
+  // nr 64: the VNNI packing, which the AMX kernels read; what the tiles leave: the reference.
+  // One function serves both entries: Int8ConvArgs::upsampled tells them apart.
+  static constexpr IsaInt8Kernels kKernels = {64, EmulatedConvRows, EmulatedConvRows,
                                               "conv2d_u8s8__amx_emulated_16x64",
-                                              "ref::UpConv2dInt8"};
+                                              "upconv2d_u8s8__amx_emulated_16x64"};
   return &kKernels;
 }
 
 const IsaBf16Kernels* Bf16KernelsEmulated() {
-  static constexpr IsaBf16Kernels kKernels = {64, EmulatedBf16ConvRows, ref::Conv2dBf16Rows,
+  static constexpr IsaBf16Kernels kKernels = {64, EmulatedBf16ConvRows, EmulatedBf16ConvRows,
                                               "conv2d_bf16__amx_emulated_16x64",
-                                              "ref::UpConv2dBf16"};
+                                              "upconv2d_bf16__amx_emulated_16x64"};
   return &kKernels;
 }
 

@@ -95,6 +95,8 @@ bool Compiled(Isa isa) {
       return SFRT_HAVE_AVX512 != 0;
     case Isa::kNeon:
       return SFRT_HAVE_NEON != 0;
+    case Isa::kAvx512Amx:
+      return SFRT_HAVE_AVX512 != 0 && SFRT_HAVE_AVX512_AMX != 0;
     case Isa::kAuto:
       return false;
   }
@@ -120,12 +122,15 @@ const char* IsaName(Isa isa) {
       return "avx512";
     case Isa::kNeon:
       return "neon";
+    case Isa::kAvx512Amx:
+      return "avx512amx";
   }
   return "?";
 }
 
 bool ParseIsa(std::string_view name, Isa* isa) {
-  for (Isa candidate : {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon}) {
+  for (Isa candidate :
+       {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon, Isa::kAvx512Amx}) {
     if (name == IsaName(candidate)) {
       *isa = candidate;
       return true;
@@ -146,6 +151,8 @@ bool IsaSupported(Isa isa) {
       return f.avx512;
     case Isa::kNeon:
       return f.neon;
+    case Isa::kAvx512Amx:
+      return f.avx512 && (f.amx_int8 || f.amx_bf16);
     case Isa::kAuto:
       return false;
   }
@@ -154,7 +161,7 @@ bool IsaSupported(Isa isa) {
 
 std::vector<Isa> SupportedIsas() {
   std::vector<Isa> out;
-  for (Isa isa : {Isa::kRef, Isa::kNeon, Isa::kAvx2, Isa::kAvx512}) {
+  for (Isa isa : {Isa::kRef, Isa::kNeon, Isa::kAvx2, Isa::kAvx512, Isa::kAvx512Amx}) {
     if (IsaSupported(isa)) out.push_back(isa);
   }
   return out;

@@ -6,6 +6,8 @@
 //   aarch64: getauxval(AT_HWCAP) & HWCAP_ASIMD.
 #pragma once
 
+#include "sfrt/isa.h"
+
 namespace sfrt {
 
 struct CpuFeatures {
@@ -23,5 +25,9 @@ struct CpuFeatures {
 };
 
 const CpuFeatures& HostCpuFeatures();
+
+// The ISA whose float32 (and conversion) kernels a session on `isa` uses: kAvx512 for
+// kAvx512Amx (AMX adds int8 and bf16 convolutions only), `isa` itself otherwise.
+inline Isa VectorIsa(Isa isa) { return isa == Isa::kAvx512Amx ? Isa::kAvx512 : isa; }
 
 }  // namespace sfrt

@@ -1,3 +1,4 @@
+#include "cpu_features.h"
 #include "kernels/int8_job.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 
@@ -5,7 +6,7 @@ namespace sfrt {
 
 QuantizeKernel QuantizeKernelFor(Isa isa) {
 #if SFRT_HAVE_AVX512_VNNI
-  if (isa == Isa::kAvx512 && avx512::Int8Kernels() != nullptr) {
+  if (VectorIsa(isa) == Isa::kAvx512 && avx512::Int8Kernels() != nullptr) {
     return {avx512::QuantizeRows, "quantize_u8__avx512"};
   }
 #endif

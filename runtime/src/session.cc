@@ -8,6 +8,7 @@
 
 #include "bf16_packing.h"
 #include "conv_packing.h"
+#include "cpu_features.h"
 #include "int8_packing.h"
 #include "kernels/bf16_job.h"
 #include "kernels/conv_job.h"
@@ -79,7 +80,7 @@ class Session::Pool : public ThreadPool {
 };
 
 const IsaConvKernels* ConvKernelsFor(Isa isa) {
-  switch (isa) {
+  switch (VectorIsa(isa)) {
 #if SFRT_HAVE_AVX2
     case Isa::kAvx2:
       return &avx2::ConvKernels();

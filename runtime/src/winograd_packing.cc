@@ -2,6 +2,8 @@
 
 #include <cassert>
 
+#include "cpu_features.h"
+
 namespace sfrt {
 namespace {
 
@@ -167,7 +169,7 @@ PackedWinograd PackWinograd(const ConvParams& p, int m, int nr, float* dst) {
 namespace sfrt {
 
 const WinogradKernels* WinogradUpKernelsFor(Isa isa) {
-  switch (isa) {
+  switch (VectorIsa(isa)) {
 #if SFRT_HAVE_AVX2
     case Isa::kAvx2:
       return &avx2::WinogradUpKernels();
@@ -186,7 +188,7 @@ const WinogradKernels* WinogradUpKernelsFor(Isa isa) {
 }
 
 const WinogradKernels* WinogradKernelsFor(Isa isa, int m) {
-  switch (isa) {
+  switch (VectorIsa(isa)) {
 #if SFRT_HAVE_AVX2
     case Isa::kAvx2:
       return m == 4 ? &avx2::WinogradF4Kernels() : &avx2::WinogradF2Kernels();

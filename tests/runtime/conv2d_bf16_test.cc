@@ -528,7 +528,9 @@ TEST(Bf16Conversion, EveryIsaGivesTheBitsOfFloatToBf16) {
     const ToBf16Kernel kernel = ToBf16KernelFor(isa);
     SCOPED_TRACE(std::string(IsaName(isa)) + " " + kernel.name);
     if (Bf16KernelsAvailable(isa)) {
-      EXPECT_NE(std::string(kernel.name).find(IsaName(isa)), std::string::npos);
+      // avx512amx converts with avx512's kernel.
+      const std::string vector_isa = isa == Isa::kAvx512Amx ? "avx512" : IsaName(isa);
+      EXPECT_NE(std::string(kernel.name).find(vector_isa), std::string::npos);
     }
     for (int width : {1, 5, 7, 16, 17, 33}) {
       const int h = 3, c = 3, stride = width * c + 5;
@@ -555,14 +557,22 @@ TEST(Bf16Conversion, EveryIsaGivesTheBitsOfFloatToBf16) {
 
 // Shapes where the AMX tiles do the work: rows with groups of 16 interior pixels, input pairs
 // under one chunk of 16, exactly one, a chunk and a tail, several; output blocks of 64, partial
-// and several; 1x1, 3x3 and 5x5; strides 1 and 2; both outputs.
+// and several, few outputs (one C tile); 1x1, 3x3 and 5x5; strides 1 and 2; both outputs. The
+// fused upsample with phase kernels: both crop parities, a chunk and a tail, partial blocks, few
+// outputs, rows whose last tile overlaps the one before.
 void Bf16Kernels::CheckAmxBlocking() {
-  const std::vector<Bf16Shape> shapes = {
+  std::vector<Bf16Shape> shapes = {
       Conv(5, 40, 3, 64, 1),    Conv(4, 41, 12, 100, 1),  Conv(5, 75, 36, 64, 2),
       Conv(3, 38, 32, 64, 1),   Conv(4, 50, 50, 130, 1),  Conv(3, 35, 100, 64, 1),
       Conv(3, 34, 256, 128, 1), Conv(3, 34, 1024, 64, 1), Conv(4, 40, 20, 70, 1, 1),
-      Conv(6, 44, 9, 33, 2, 5), Conv(5, 12, 64, 64, 1),
+      Conv(6, 44, 9, 33, 2, 5), Conv(5, 12, 64, 64, 1),   Conv(4, 40, 64, 3, 1),
   };
+  for (Bf16Shape up :
+       {UpConv(4, 20, 32, 64), UpConv(3, 24, 32, 130, 1, 1), UpConv(3, 19, 50, 64, 0, 1),
+        UpConv(4, 37, 64, 3, 4, 0), UpConv(2, 17, 32, 64, 1, 0)}) {
+    up.phases = true;
+    shapes.push_back(up);
+  }
   // Two epilogues each (the epilogue is the scalar one whatever the shape; EdgeShapes has all).
   size_t values = 0;
   uint32_t seed = 800;
@@ -615,7 +625,10 @@ TEST_F(Bf16Amx, MatchesTheReferenceOnEveryModelLayer) { CheckEveryModelLayer(); 
 TEST_F(Bf16Amx, MatchesTheReferenceWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
 TEST_F(Bf16Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
   EXPECT_EQ(std::string(kernels_->conv_name), "conv2d_bf16__avx512amx_16x64");
-  EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512), kernels_);
+  EXPECT_EQ(std::string(kernels_->upconv_name), "upconv2d_bf16__avx512amx_16x64");
+  EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512Amx), kernels_);
+  // avx512 keeps the AVX512_BF16 kernels, so that the two can be compared on one CPU.
+  EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512), avx512::Bf16Kernels());
 }
 
 TEST(Bf16Dispatch, OnlyAvx512WithBf16AndNeonWithBf16HaveBf16Kernels) {
@@ -626,6 +639,7 @@ TEST(Bf16Dispatch, OnlyAvx512WithBf16AndNeonWithBf16HaveBf16Kernels) {
   }
   if (!IsaSupported(Isa::kAvx512)) {
     EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512), nullptr);
+    EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512Amx), nullptr);
   }
   EXPECT_EQ(Bf16KernelsAvailable(Isa::kRef), false);
 }

@@ -684,6 +684,8 @@ void Int8Kernels::CheckPhaseKernels() {
 }
 
 TEST_F(Int8Vnni, MatchesReferenceBitForBitWithPhaseKernels) { CheckPhaseKernels(); }
+TEST_F(Int8AmxEmulated, MatchesReferenceBitForBitWithPhaseKernels) { CheckPhaseKernels(); }
+TEST_F(Int8Amx, MatchesReferenceBitForBitWithPhaseKernels) { CheckPhaseKernels(); }
 TEST_F(Int8NeonDot, MatchesReferenceBitForBitWithPhaseKernels) { CheckPhaseKernels(); }
 
 // Every row and every block called on its own (the finest split a pool makes), in reverse
@@ -724,7 +726,9 @@ TEST_F(Int8NeonDot, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
 // and leftovers, input channels of one group (3: read past the pixel), under one chunk of 16
 // groups (12, 36), exactly one (64), a chunk and a tail (100, 200), several (256, 1024); one,
 // partial and several output blocks of 64; 1x1, 3x3 and 5x5; a float output; rows too short for
-// a tile; the few-output layer (left to the fallback).
+// a tile; the few-output layer (one C tile). The fused upsample with phase kernels, where the
+// tiles take each column phase's interior pixels: both crop parities, a chunk and a tail,
+// partial blocks, few outputs, rows whose last tile overlaps the one before, asymmetric pads.
 void Int8Kernels::CheckAmxBlocking() {
   std::vector<Int8Shape> shapes = {
       Conv(5, 40, 3, 64, 1),
@@ -746,6 +750,17 @@ void Int8Kernels::CheckAmxBlocking() {
   Int8Shape view = Conv(5, 36, 24, 64, 1);
   view.extra_row_bytes = 7;
   shapes.push_back(view);
+  for (Int8Shape up :
+       {UpConv(4, 20, 64, 64), UpConv(3, 24, 64, 130, 1, 1), UpConv(3, 19, 100, 64, 0, 1),
+        UpConv(4, 37, 128, 3, 4, 0), UpConv(2, 17, 64, 64, 1, 0)}) {
+    up.phases = true;
+    shapes.push_back(up);
+  }
+  Int8Shape up_pads = UpConv(3, 21, 64, 70, 1, 0);
+  up_pads.phases = true;
+  up_pads.pads = {0, 2, 2, 0};
+  up_pads.extra_row_bytes = 5;
+  shapes.push_back(up_pads);
   size_t values = 0;
   uint32_t seed = 7000;
   for (const Int8Shape& shape : shapes) {
@@ -757,26 +772,59 @@ void Int8Kernels::CheckAmxBlocking() {
   std::printf("[          ] %zu output values bit for bit\n", values);
 }
 
-// Each row computed as three column ranges (Int8ConvArgs::col_begin/col_end, as the AMX kernel
-// hands its borders over), splits inside the border and inside the interior, gives the whole
-// row's bytes.
+// Each row computed as three column ranges (Int8ConvArgs::col_begin/col_end, as the AMX kernels
+// hand their borders over), splits inside the border and inside the interior, gives the whole
+// row's bytes, for the plain convolution, the fused upsample and the few-output layer (float
+// output, as the model's); and a call for columns [9, 12) alone writes nothing outside them.
 void Int8Kernels::CheckColumnRanges() {
   for (const IsaInt8Kernels* kernels : tables_) {
     SCOPED_TRACE(kernels->conv_name);
-    for (const Int8Shape& shape : {Conv(5, 37, 20, 70, 1), Conv(6, 41, 9, 33, 2)}) {
-      const Int8Problem pr = MakeProblem(shape, Int8Quant{}, 91);
+    Int8Shape up = UpConv(4, 19, 20, 70, 1, 1);  // the fused upsample, phase kernels
+    up.phases = true;
+    for (const Int8Shape& shape :
+         {Conv(5, 37, 20, 70, 1), Conv(6, 41, 9, 33, 2), up, Conv(4, 37, 64, 3, 1)}) {
+      Int8Quant quant;
+      quant.out_float = shape.cout == 3;
+      const Int8Problem pr = MakeProblem(shape, quant, 91);
       SCOPED_TRACE(Describe(pr.shape));
       const Output want = RunReference(pr);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, false, packed.data);
+      const PackedInt8Conv conv =
+          PackInt8Conv(pr.params, kernels->nr, pr.quant.out_float, packed.data);
+      const Int8ConvRowsFn fn = shape.up ? kernels->upconv : kernels->conv;
       Output got(pr);
       Int8ConvArgs args = ArgsFor(pr, &conv, &got);
       for (auto [b, e] : {std::pair{0, 1}, {1, 9}, {9, pr.out_w}}) {
         args.col_begin = b;
         args.col_end = e;
-        kernels->conv(args, 0, pr.out_h, 0, conv.blocks);
+        fn(args, 0, pr.out_h, 0, conv.blocks);
       }
       ExpectSameBytes(pr, got, want);
+
+      Output part(pr);
+      const Output untouched(pr);
+      args = ArgsFor(pr, &conv, &part);
+      args.col_begin = 9;
+      args.col_end = 12;
+      fn(args, 0, pr.out_h, 0, conv.blocks);
+      const size_t pixel_bytes = static_cast<size_t>(pr.shape.cout) *
+                                 (pr.quant.out_float ? sizeof(float) : sizeof(uint8_t));
+      for (int y = 0; y < pr.out_h; ++y) {
+        for (int x = 0; x < pr.out_w; ++x) {
+          const size_t at = (static_cast<size_t>(y) * part.RowElements() +
+                             static_cast<size_t>(x) * pr.shape.cout) *
+                            (pr.quant.out_float ? sizeof(float) : sizeof(uint8_t));
+          const auto* p = pr.quant.out_float
+                              ? reinterpret_cast<const uint8_t*>(part.f32.data()) + at
+                              : part.u8.data() + at;
+          const auto* u = pr.quant.out_float
+                              ? reinterpret_cast<const uint8_t*>(untouched.f32.data()) + at
+                              : untouched.u8.data() + at;
+          const bool inside = x >= 9 && x < 12;
+          EXPECT_EQ(std::memcmp(p, u, pixel_bytes) != 0, inside)
+              << "pixel (" << y << "," << x << ") " << (inside ? "not written" : "written");
+        }
+      }
     }
   }
 }
@@ -811,7 +859,12 @@ TEST_F(Int8Amx, MatchesReferenceBitForBitOnEveryModelLayer) { CheckEveryModelLay
 TEST_F(Int8Amx, MatchesReferenceBitForBitWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
 TEST_F(Int8Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
   EXPECT_EQ(std::string(tables_.front()->conv_name), "conv2d_u8s8__avx512amx_16x64");
-  EXPECT_EQ(Int8KernelsFor(Isa::kAvx512), tables_.front());
+  EXPECT_EQ(std::string(tables_.front()->upconv_name), "upconv2d_u8s8__avx512amx_16x64");
+  EXPECT_TRUE(IsaSupported(Isa::kAvx512Amx));
+  EXPECT_EQ(BestIsa(), Isa::kAvx512Amx);
+  EXPECT_EQ(Int8KernelsFor(Isa::kAvx512Amx), tables_.front());
+  // avx512 keeps the VNNI kernels, so that the two can be compared on one CPU.
+  EXPECT_EQ(Int8KernelsFor(Isa::kAvx512), avx512::Int8Kernels());
 }
 
 TEST(Int8Dispatch, OnlyAvx512WithVnniAndNeonWithDotProductHaveInt8Kernels) {
@@ -825,6 +878,7 @@ TEST(Int8Dispatch, OnlyAvx512WithVnniAndNeonWithDotProductHaveInt8Kernels) {
 #endif
   if (!IsaSupported(Isa::kAvx512)) {
     EXPECT_EQ(Int8KernelsFor(Isa::kAvx512), nullptr);
+    EXPECT_EQ(Int8KernelsFor(Isa::kAvx512Amx), nullptr);
   }
 }
 

@@ -62,9 +62,11 @@ TEST_P(SessionIsa, FusesEveryUpsampleIntoTheConvolutionThatReadsIt) {
   auto session = Session::Create(model, options);
   ASSERT_TRUE(session.ok()) << session.message();
   int fused = 0, ref_kernels = 0;
+  // avx512amx's float32 kernels are avx512's.
+  const std::string isa = GetParam() == Isa::kAvx512Amx ? "avx512" : IsaName(GetParam());
   for (const PlannedStep& step : (*session)->steps()) {
     const std::string kernel = step.kernel;
-    EXPECT_NE(kernel.find(IsaName(GetParam())), std::string::npos) << kernel;
+    EXPECT_NE(kernel.find(isa), std::string::npos) << kernel;
     if (kernel.rfind("upconv2x_conv3x3_f32__", 0) == 0) ++fused;
     if (kernel.rfind("ref::", 0) == 0) ++ref_kernels;
   }
@@ -78,7 +80,7 @@ TEST_P(SessionIsa, FusesEveryUpsampleIntoTheConvolutionThatReadsIt) {
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryIsa, SessionIsa,
-                         ::testing::Values(Isa::kAvx2, Isa::kAvx512, Isa::kNeon),
+                         ::testing::Values(Isa::kAvx2, Isa::kAvx512, Isa::kNeon, Isa::kAvx512Amx),
                          [](const ::testing::TestParamInfo<Isa>& param) {
                            return std::string(IsaName(param.param));
                          });
@@ -108,7 +110,7 @@ TEST(SessionIsaSelection, RefIsAlwaysSupportedAndListedFirst) {
 }
 
 TEST(SessionIsaSelection, ParsesEveryNameAndRejectsOthers) {
-  for (Isa isa : {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon}) {
+  for (Isa isa : {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon, Isa::kAvx512Amx}) {
     Isa parsed = Isa::kRef;
     EXPECT_TRUE(ParseIsa(IsaName(isa), &parsed)) << IsaName(isa);
     EXPECT_EQ(parsed, isa);
@@ -120,7 +122,7 @@ TEST(SessionIsaSelection, ParsesEveryNameAndRejectsOthers) {
 
 TEST(SessionIsaSelection, AnUnsupportedRequestFailsNamingTheIsaAndWhatIsSupported) {
   Isa missing = Isa::kAuto;
-  for (Isa isa : {Isa::kNeon, Isa::kAvx512, Isa::kAvx2}) {
+  for (Isa isa : {Isa::kNeon, Isa::kAvx512Amx, Isa::kAvx512, Isa::kAvx2}) {
     if (!IsaSupported(isa)) missing = isa;
   }
   if (missing == Isa::kAuto) GTEST_SKIP() << "this CPU runs every ISA this runtime knows";

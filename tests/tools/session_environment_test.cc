@@ -55,7 +55,7 @@ TEST(SessionEnvironment, AnUnknownValueIsAnErrorNamingTheVariableAndTheAcceptedV
     const char* name;
     const char* value;
     const char* accepted;
-  } cases[] = {{"SFRT_ISA", "mmx", "auto, ref, avx2, avx512, neon"},
+  } cases[] = {{"SFRT_ISA", "mmx", "auto, ref, avx2, avx512, avx512amx, neon"},
                {"SFRT_WINOGRAD", "f3", "off, f2, f4"},
                {"SFRT_WINOGRAD_UPCONV", "no", "off, on"},
                {"SFRT_FEWOUT", "0", "off, on"}};

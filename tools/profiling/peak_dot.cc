@@ -21,6 +21,18 @@ const internal::PeakKernel* KernelFor(DotType type) {
 #else
       return nullptr;
 #endif
+    case DotType::kAmxInt8:
+#if SFRT_PEAK_AMX
+      return internal::PeakKernelAmxInt8();
+#else
+      return nullptr;
+#endif
+    case DotType::kAmxBf16:
+#if SFRT_PEAK_AMX
+      return internal::PeakKernelAmxBf16();
+#else
+      return nullptr;
+#endif
   }
   return nullptr;
 }
@@ -33,17 +45,34 @@ const char* DotTypeName(DotType type) {
       return "int8";
     case DotType::kBf16:
       return "bf16";
+    case DotType::kAmxInt8:
+      return "amx_int8";
+    case DotType::kAmxBf16:
+      return "amx_bf16";
   }
   return "?";
 }
 
+bool DotTypeIsInt8(DotType type) { return type == DotType::kInt8 || type == DotType::kAmxInt8; }
+
 std::string PeakDotUnavailable(DotType type) {
-  const bool int8 = type == DotType::kInt8;
+  const char* loop = type == DotType::kInt8   ? "AVX-512 VNNI"
+                     : type == DotType::kBf16 ? "AVX512_BF16"
+                                              : "AMX";
   if (KernelFor(type) == nullptr) {
-    return std::string("this build has no ") + (int8 ? "AVX-512 VNNI" : "AVX512_BF16") +
-           " loop (x86-64 with AVX-512 kernels only)";
+    return std::string("this build has no ") + loop +
+           " loop (x86-64 with AVX-512 kernels only, and a compiler that knows it)";
   }
-  return int8 ? internal::Avx512VnniMissing() : internal::Avx512Bf16Missing();
+  switch (type) {
+    case DotType::kInt8:
+      return internal::Avx512VnniMissing();
+    case DotType::kBf16:
+      return internal::Avx512Bf16Missing();
+    case DotType::kAmxInt8:
+    case DotType::kAmxBf16:
+      return internal::AmxMissing();
+  }
+  return "unknown type";
 }
 
 Result<PeakDot> MeasurePeakDot(DotType type, int threads, double seconds) {

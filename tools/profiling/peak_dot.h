@@ -4,9 +4,11 @@
 // - int8: vpdpbusd on zmm (AVX-512 VNNI), 64 u8 x s8 multiply-accumulates per instruction into
 //   int32 lanes, as the runtime's int8 convolutions use it;
 // - bf16: vdpbf16ps on zmm (AVX512_BF16), 32 bf16 multiply-accumulates per instruction into
-//   fp32 lanes.
+//   fp32 lanes;
+// - amx_int8 / amx_bf16: tdpbusd / tdpbf16ps on 6 C tiles (16384 / 8192 multiply-accumulates per
+//   instruction), as the runtime's avx512amx kernels use them.
 // Rates count 2 ops per multiply-accumulate (GOP/s for int8, GFLOP/s for bf16), as GFLOP/s does
-// for the fp32 FMA. AMX is detected only (no tile loop yet).
+// for the fp32 FMA.
 #pragma once
 
 #include <string>
@@ -15,9 +17,9 @@
 
 namespace sfrt::profiling {
 
-enum class DotType { kInt8, kBf16 };
+enum class DotType { kInt8, kBf16, kAmxInt8, kAmxBf16 };
 
-// "int8", "bf16".
+// "int8", "bf16", "amx_int8", "amx_bf16".
 const char* DotTypeName(DotType type);
 
 struct PeakDot {
@@ -35,6 +37,9 @@ std::string PeakDotUnavailable(DotType type);
 // Measures for about `seconds` (at least 20 ms) after a short calibration. Fails, with
 // PeakDotUnavailable's reason, when this build or CPU cannot run the loop, or when threads < 1.
 Result<PeakDot> MeasurePeakDot(DotType type, int threads, double seconds);
+
+// True for kInt8 and kAmxInt8 (integer ops), false for the bf16 types (flops).
+bool DotTypeIsInt8(DotType type);
 
 // "" when AMX could run in this process (AMX-TILE, AMX-INT8, AMX-BF16, the OS's tile state, a
 // tile palette, and Linux's permission for XTILEDATA, which this asks for), else the check that

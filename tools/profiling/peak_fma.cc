@@ -14,7 +14,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 const internal::PeakKernel* KernelFor(Isa isa) {
-  switch (isa) {
+  // avx512amx's float32 kernels are avx512's.
+  switch (isa == Isa::kAvx512Amx ? Isa::kAvx512 : isa) {
     case Isa::kRef:
       return internal::PeakKernelRef();
 #if SFRT_PEAK_AVX2

@@ -105,6 +105,7 @@ const BuildInfo& GetBuildInfo() {
 std::string IsaFlags(const std::string& isa_name) {
   if (isa_name == "avx2") return SFRT_BUILD_FLAGS_AVX2;
   if (isa_name == "avx512") return SFRT_BUILD_FLAGS_AVX512;
+  if (isa_name == "avx512amx") return SFRT_BUILD_FLAGS_AVX512AMX;
   if (isa_name == "neon") return SFRT_BUILD_FLAGS_NEON;
   return "";
 }

@@ -51,8 +51,9 @@ struct BuildInfo {
   std::string system;        // CMAKE_SYSTEM_PROCESSOR, "x86_64"
 };
 const BuildInfo& GetBuildInfo();
-// The extra compiler flags the runtime's kernels for `isa_name` ("avx2", "avx512", "neon") were
-// built with; "" for "ref" (the build's own flags) or an ISA not in this build.
+// The extra compiler flags the runtime's kernels for `isa_name` ("avx2", "avx512", "avx512amx":
+// its AMX kernels, the rest being avx512's, "neon") were built with; "" for "ref" (the build's own
+// flags) or an ISA not in this build.
 std::string IsaFlags(const std::string& isa_name);
 
 // The CPU's model name from /proc/cpuinfo ("model name" on x86, else "Hardware"/"CPU part"

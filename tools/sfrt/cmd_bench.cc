@@ -6,9 +6,9 @@
 // peak FMA throughput, the time of each planned step (run order, top N, by op type), and per
 // run the page faults, context switches and CPU migrations that explain spikes; with
 // --budget-ms, whether a percentile meets a latency budget (exit 3 when it does not).
-// `sfrt bench --peak` runs only the peak microbenchmarks: fp32 FMA per ISA, int8 (AVX-512 VNNI)
-// and bf16 (AVX512_BF16) dot products, and reports whether AMX could run. Statistics and counters
-// live in tools/profiling/.
+// `sfrt bench --peak` runs only the peak microbenchmarks: fp32 FMA per ISA, int8 (AVX-512 VNNI,
+// AMX) and bf16 (AVX512_BF16, AMX) dot products, and reports whether AMX could run. Statistics and
+// counters live in tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <charconv>
@@ -130,7 +130,7 @@ std::string ParseLists(const BenchArgs& args, std::vector<Isa>* isas,
     }
     Isa isa = Isa::kRef;
     if (!ParseIsa(name, &isa) || isa == Isa::kAuto) {
-      return "--isa: '" + name + "' is not one of ref, avx2, avx512, neon, best, all";
+      return "--isa: '" + name + "' is not one of ref, avx2, avx512, avx512amx, neon, best, all";
     }
     isas->push_back(isa);
   }
@@ -188,8 +188,9 @@ bool WriteJson(const std::string& path, const Json& json) {
 // to `json`; false after printing the error of a failed measurement.
 bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Json* json) {
   Json unavailable = Json::object();
-  for (prof::DotType type : {prof::DotType::kInt8, prof::DotType::kBf16}) {
-    const bool int8 = type == prof::DotType::kInt8;
+  for (prof::DotType type : {prof::DotType::kInt8, prof::DotType::kBf16, prof::DotType::kAmxInt8,
+                             prof::DotType::kAmxBf16}) {
+    const bool int8 = prof::DotTypeIsInt8(type);
     const char* name = prof::DotTypeName(type);
     const char* unit = int8 ? "GOP/s" : "GFLOP/s";
     const std::string key = std::string("peak_") + name;
@@ -226,9 +227,7 @@ bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Js
     std::printf("\namx: not available (%s)\n", why.c_str());
     unavailable["amx"] = why;
   } else {
-    std::printf(
-        "\namx: available (AMX-TILE, AMX-INT8, AMX-BF16, XTILEDATA granted); no peak loop "
-        "yet\n");
+    std::printf("\namx: available (AMX-TILE, AMX-INT8, AMX-BF16, XTILEDATA granted)\n");
   }
   (*json)["peak_unavailable"] = unavailable;
   return true;
@@ -683,8 +682,9 @@ Command AddBenchCommand(CLI::App& parent) {
   cmd->add_option("--size", args->size,
                   "Input size HxW (default: the size the model was traced at, as sfrt inspect "
                   "uses, else 540x960)");
-  cmd->add_option("--isa", args->isas,
-                  "Comma-separated ISAs to time: ref, avx2, avx512, neon, best (default), all");
+  cmd->add_option(
+      "--isa", args->isas,
+      "Comma-separated ISAs to time: ref, avx2, avx512, avx512amx, neon, best (default), all");
   cmd->add_option("--threads", args->threads,
                   "Comma-separated thread counts, each 0..256 (0: one per CPU; default 1)");
   cmd->add_option("--warmup", args->warmup, "Untimed runs per configuration first (default 1)");
@@ -730,10 +730,11 @@ Command AddBenchCommand(CLI::App& parent) {
       "then, for each --threads whatever --isa, the int8 peak (vpdpbusd on zmm, AVX-512 VNNI:\n"
       "GOP/s at 2 integer ops per u8 x s8 multiply-accumulate, and GMAC/s) and the bf16 peak\n"
       "(vdpbf16ps on zmm, AVX512_BF16: GFLOP/s at 2 flops per bf16 multiply-accumulate, and\n"
-      "GMAC/s), each only where CPUID and XCR0 say the CPU and OS run it, else 'not available\n"
-      "(<why>)'; and 'amx: not available (<the check that failed>)' (AMX is detected only: CPUID,\n"
-      "XCR0, tile palette, arch_prctl permission; no AMX loop yet). --json gets peak, peak_int8,\n"
-      "peak_bf16 and peak_unavailable (the reasons).\n"
+      "GMAC/s), and the AMX peaks amx_int8 (tdpbusd) and amx_bf16 (tdpbf16ps) on 6 C tiles, each\n"
+      "only where CPUID and XCR0 (and, for AMX, the tile palette and Linux's arch_prctl\n"
+      "permission) say the CPU and OS run it, else 'not available (<why>)'; and 'amx: available'\n"
+      "or 'amx: not available (<the check that failed>)'. --json gets peak, peak_int8, peak_bf16,\n"
+      "peak_amx_int8, peak_amx_bf16 and peak_unavailable (the reasons).\n"
       "Exit codes: 0 success (and every budget met), 1 model fails to load, plan or run, 2 usage\n"
       "error, 3 --budget-ms missed: some configuration's --budget-percentile exceeds the budget\n"
       "(each miss is printed as 'budget MISSED: <isa> x<threads> threads <percentile> ...').");

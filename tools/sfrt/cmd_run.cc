@@ -205,7 +205,8 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
   if (args.isa != "auto" && (!ParseIsa(args.isa, &options.isa) || options.isa == Isa::kAuto)) {
     return ReportError(
-        kName, "--isa: '" + args.isa + "' is not one of auto, ref, avx2, avx512, neon", kExitUsage);
+        kName, "--isa: '" + args.isa + "' is not one of auto, ref, avx2, avx512, avx512amx, neon",
+        kExitUsage);
   }
   if (options.isa != Isa::kAuto && !IsaSupported(options.isa)) {
     return ReportError(kName,
@@ -635,8 +636,9 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--size", args->size,
                   "Model input size HxW (frames are rectified/resized to it; default: the "
                   "source's frame size)");
-  cmd->add_option("--isa", args->isa,
-                  "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, neon")
+  cmd->add_option(
+         "--isa", args->isa,
+         "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, avx512amx, neon")
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Threads for inference, 0..256 (0: one per CPU)")
       ->capture_default_str();

@@ -37,7 +37,7 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
   if (const char* value = Variable("SFRT_ISA"); value != nullptr && isa == Isa::kAuto) {
     Isa parsed = Isa::kAuto;
     if (!ParseIsa(value, &parsed)) {
-      return Invalid("SFRT_ISA", value, "auto, ref, avx2, avx512, neon");
+      return Invalid("SFRT_ISA", value, "auto, ref, avx2, avx512, avx512amx, neon");
     }
     isa = parsed;
   }

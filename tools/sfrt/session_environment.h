@@ -1,6 +1,6 @@
 // The runtime's developer switches as environment variables, for A/B runs and scripts:
-//   SFRT_ISA=auto|ref|avx2|avx512|neon   SessionOptions::isa (only while it is still kAuto)
-//   SFRT_WINOGRAD=off|f2|f4              KernelTuning::winograd_tile (0, 2, 4)
+//   SFRT_ISA=auto|ref|avx2|avx512|avx512amx|neon   SessionOptions::isa (only while it is still
+//   kAuto) SFRT_WINOGRAD=off|f2|f4              KernelTuning::winograd_tile (0, 2, 4)
 //   SFRT_WINOGRAD_UPCONV=off|on          KernelTuning::winograd_upconv
 //   SFRT_FEWOUT=off|on                   KernelTuning::few_out
 // The runtime library reads no environment (libraries take options); the `sfrt` tool and the

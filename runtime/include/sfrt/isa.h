@@ -18,9 +18,13 @@ enum class Isa {
   kAvx2,    // x86-64 AVX2 + FMA
   kAvx512,  // x86-64 AVX-512 F/BW/VL/DQ (with the OS saving ZMM state)
   kNeon,    // aarch64 Advanced SIMD
+  // x86-64 AVX-512 with AMX tiles (AMX-TILE with AMX-INT8 or AMX-BF16, the OS's tile state, tile
+  // palette 1, Linux's tile-data permission): kAvx512's kernels, and int8 / bf16 convolutions on
+  // the tiles (tdpbusd / tdpbf16ps) where the CPU has them.
+  kAvx512Amx,
 };
 
-// "auto", "ref", "avx2", "avx512", "neon".
+// "auto", "ref", "avx2", "avx512", "neon", "avx512amx".
 const char* IsaName(Isa isa);
 // Parses the names above (lower case); false for anything else.
 bool ParseIsa(std::string_view name, Isa* isa);
@@ -34,12 +38,14 @@ Isa BestIsa();
 std::string SupportedIsaList();
 
 // True when a session on `isa` (kAuto: BestIsa()) runs int8 convolutions on SIMD int8 kernels:
-// avx512 on a CPU with AVX-512 VNNI, neon on a CPU with the dot-product extension. Otherwise
-// (and on kRef) its int8 layers run on the scalar reference kernel: the same results, slower.
+// avx512 on a CPU with AVX-512 VNNI, avx512amx, neon on a CPU with the dot-product extension.
+// Otherwise (and on kRef) its int8 layers run on the scalar reference kernel: the same results,
+// slower.
 bool Int8KernelsAvailable(Isa isa);
 
 // True when a session on `isa` (kAuto: BestIsa()) runs bf16 convolutions on SIMD bf16 kernels:
-// avx512 on a CPU with AVX512_BF16, neon on a CPU with the BF16 extension (Armv8.6 bfdot).
+// avx512 on a CPU with AVX512_BF16, avx512amx, neon on a CPU with the BF16 extension (Armv8.6
+// bfdot).
 // Otherwise its bf16 layers run on the scalar reference kernel: results within float32 rounding
 // of the sums, much slower.
 bool Bf16KernelsAvailable(Isa isa);

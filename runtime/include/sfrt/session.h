@@ -59,7 +59,7 @@ struct SessionOptions {
   int max_height = 540;
   int max_width = 960;
   // kAuto: BestIsa(). Asking for an ISA this CPU cannot run fails Create(). (The `sfrt` tool
-  // maps SFRT_ISA=ref|avx2|avx512|neon onto this field.)
+  // maps SFRT_ISA=ref|avx2|avx512|avx512amx|neon onto this field.)
   Isa isa = Isa::kAuto;
   int threads = 1;           // threads Run() uses, the caller's included; 0: one per CPU
   bool pin_threads = false;  // bind thread i to the i-th CPU this process may use

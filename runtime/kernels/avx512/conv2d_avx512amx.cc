@@ -1,9 +1,10 @@
 // AMX convolution kernels, int8 (tdpbusd) and bf16 (tdpbf16ps), compiled with -mamx-tile
 // -mamx-int8 -mamx-bf16 and the AVX-512 flags only in this translation unit
 // (runtime/CMakeLists.txt): kernels/simd/amx_driver_inl.h over the hardware's tile instructions.
-// The int8 kernels are bit for bit equal to ref::Conv2dInt8Rows. The border columns, the fused
-// upsample's convolutions and the few-output ones run on the AVX-512 VNNI (int8) and AVX512_BF16
-// (bf16) kernels, which every AMX CPU has. Chosen only where HostCpuFeatures().amx_int8 /
+// The int8 kernels are bit for bit equal to ref::Conv2dInt8Rows. What the tiles leave (border
+// columns, few input channels, the few-output convolution) runs on the AVX-512 VNNI (int8) and
+// AVX512_BF16 (bf16) kernels, which every AMX CPU has; the epilogues are theirs
+// (kernels/avx512/dot_epilogue_avx512_inl.h). Chosen only where HostCpuFeatures().amx_int8 /
 // amx_bf16 (src/cpu_features.cc: CPUID, XCR0, the palette of CPUID leaf 0x1D and Linux's tile
 // data permission).
 #include <immintrin.h>
@@ -11,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "kernels/avx512/dot_epilogue_avx512_inl.h"
 #include "kernels/bf16_job.h"
 #include "kernels/int8_job.h"
 #include "kernels/simd/amx_driver_inl.h"
@@ -28,6 +30,14 @@ namespace {
 struct HardwareTiles {
   static void Configure(const simd::AmxTileConfig& c) { _tile_loadconfig(&c); }
   static void Release() { _tile_release(); }
+  template <int T>
+  static void Zero() {
+    static_assert(T >= 0 && T < 4, "the kernels zero the C tiles 0-3");
+    SFRT_TILE_CASE(0, _tile_zero(0))
+    SFRT_TILE_CASE(1, _tile_zero(1))
+    SFRT_TILE_CASE(2, _tile_zero(2))
+    SFRT_TILE_CASE(3, _tile_zero(3))
+  }
   template <int T>
   static void Load(const void* base, ptrdiff_t stride) {
     static_assert(T >= 0 && T < 8, "palette 1 has tiles 0-7");
@@ -76,20 +86,64 @@ struct HardwareTiles {
     SFRT_TILE_CASE(6, _tile_dpbf16ps(3, 4, 5))
     SFRT_TILE_CASE(7, _tile_dpbf16ps(3, 6, 7))
   }
+  // The epilogue of one stored tile (int8: plus init, the zero-point correction), pixel by pixel
+  // on the VNNI and AVX512_BF16 kernels' code, over the vectors that hold valid channels.
+  template <bool kQuantized>
+  static void Finish(const int32_t* sums, const int32_t* init, const simd::DotEpilogue& e,
+                     void* out, ptrdiff_t out_step) {
+    switch ((e.valid + 15) / 16) {
+      case 1:
+        return FinishVectors<kQuantized, 1>(sums, init, e, out, out_step);
+      case 2:
+        return FinishVectors<kQuantized, 2>(sums, init, e, out, out_step);
+      case 3:
+        return FinishVectors<kQuantized, 3>(sums, init, e, out, out_step);
+      default:
+        return FinishVectors<kQuantized, 4>(sums, init, e, out, out_step);
+    }
+  }
+  template <bool kQuantized, int NV>
+  static void FinishVectors(const int32_t* sums, const int32_t* init, const simd::DotEpilogue& e,
+                            void* out, ptrdiff_t out_step) {
+    constexpr int kTile = simd::kAmxPixels * 16;  // 32-bit values per C tile
+    for (int m = 0; m < simd::kAmxPixels; ++m) {
+      void* pixel = static_cast<char*>(out) + m * out_step;
+      const int32_t* row = sums + m * 16;
+      if constexpr (kQuantized) {
+        __m512i acc[NV];
+#pragma GCC unroll 4
+        for (int v = 0; v < NV; ++v) {
+          acc[v] = _mm512_add_epi32(_mm512_load_si512(row + v * kTile),
+                                    _mm512_load_si512(init + v * 16));
+        }
+        FinishU8s8<NV>(acc, e, pixel);
+      } else {
+        __m512 acc[NV];
+#pragma GCC unroll 4
+        for (int v = 0; v < NV; ++v) {
+          acc[v] = _mm512_load_ps(reinterpret_cast<const float*>(row + v * kTile));
+        }
+        FinishBf16<NV>(acc, e, pixel);
+      }
+    }
+  }
 };
 #undef SFRT_TILE_CASE
 
+// What the tiles leave goes to the AVX-512 VNNI / AVX512_BF16 kernels of the same kind.
 Int8ConvRowsFn g_vnni_conv = nullptr;
+Int8ConvRowsFn g_vnni_upconv = nullptr;
 Bf16ConvRowsFn g_bf16_conv = nullptr;
+Bf16ConvRowsFn g_bf16_upconv = nullptr;
 
 void ConvRows(const Int8ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
   simd::AmxConvRows<HardwareTiles, PackedInt8Conv>(a, row_begin, row_end, blk_begin, blk_end,
-                                                   g_vnni_conv);
+                                                   a.upsampled ? g_vnni_upconv : g_vnni_conv);
 }
 
 void Bf16ConvRows(const Bf16ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
   simd::AmxConvRows<HardwareTiles, PackedBf16Conv>(a, row_begin, row_end, blk_begin, blk_end,
-                                                   g_bf16_conv);
+                                                   a.upsampled ? g_bf16_upconv : g_bf16_conv);
 }
 
 }  // namespace
@@ -99,8 +153,9 @@ const IsaInt8Kernels* Int8KernelsAmx() {
     const IsaInt8Kernels* vnni = Int8Kernels();
     if (vnni == nullptr || vnni->nr != 64 || !HostCpuFeatures().amx_int8) return nullptr;
     g_vnni_conv = vnni->conv;
-    static const IsaInt8Kernels table = {64, ConvRows, vnni->upconv, "conv2d_u8s8__avx512amx_16x64",
-                                         vnni->upconv_name};
+    g_vnni_upconv = vnni->upconv;
+    static const IsaInt8Kernels table = {64, ConvRows, ConvRows, "conv2d_u8s8__avx512amx_16x64",
+                                         "upconv2d_u8s8__avx512amx_16x64"};
     return &table;
   }();
   return kernels;
@@ -111,8 +166,10 @@ const IsaBf16Kernels* Bf16KernelsAmx() {
     const IsaBf16Kernels* avx = Bf16Kernels();
     if (avx == nullptr || avx->nr != 64 || !HostCpuFeatures().amx_bf16) return nullptr;
     g_bf16_conv = avx->conv;
-    static const IsaBf16Kernels table = {64, Bf16ConvRows, avx->upconv,
-                                         "conv2d_bf16__avx512amx_16x64", avx->upconv_name};
+    g_bf16_upconv = avx->upconv;
+    static const IsaBf16Kernels table = {64, Bf16ConvRows, Bf16ConvRows,
+                                         "conv2d_bf16__avx512amx_16x64",
+                                         "upconv2d_bf16__avx512amx_16x64"};
     return &table;
   }();
   return kernels;

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "kernels/avx512/dot_epilogue_avx512_inl.h"
 #include "kernels/bf16_job.h"
 #include "kernels/simd/dot_driver_inl.h"
 #include "src/cpu_features.h"
@@ -26,8 +27,6 @@ inline __m512bh BroadcastPair(const uint16_t* p) {
   std::memcpy(&v, p, sizeof(v));
   return reinterpret_cast<__m512bh>(_mm512_set1_epi32(v));
 }
-
-constexpr __mmask16 kAll = 0xFFFF;
 
 // The bf16 vocabulary of kernels/simd/dot_driver_inl.h.
 struct V {
@@ -79,26 +78,7 @@ struct V {
   // into `out` (the pixel's first channel of the block: float or bf16).
   template <int NV>
   static void Finish(const Acc* acc, const simd::DotEpilogue& e, void* out) {
-    const __m512 zero = _mm512_setzero_ps();
-#pragma GCC unroll 4
-    for (int v = 0; v < NV; ++v) {
-      const int left = e.valid - v * kLanes;
-      const __mmask16 mask = left >= kLanes ? kAll : static_cast<__mmask16>((1u << left) - 1u);
-      __m512 y = _mm512_add_ps(acc[v], _mm512_loadu_ps(e.bias + v * kLanes));
-      if (e.act == Activation::kLeakyRelu) {
-        const __mmask16 negative = _mm512_cmp_ps_mask(y, zero, _CMP_LT_OQ);
-        y = _mm512_mask_mul_ps(y, negative, y, _mm512_set1_ps(e.slope));
-      } else if (e.act == Activation::kRelu) {
-        const __mmask16 positive = _mm512_cmp_ps_mask(y, zero, _CMP_GT_OQ);
-        y = _mm512_maskz_mov_ps(positive, y);
-      }
-      if (e.out_float) {
-        _mm512_mask_storeu_ps(static_cast<float*>(out) + v * kLanes, mask, y);
-      } else {
-        const __m256i h = reinterpret_cast<__m256i>(_mm512_cvtneps_pbh(y));
-        _mm256_mask_storeu_epi16(static_cast<uint16_t*>(out) + v * kLanes, mask, h);
-      }
-    }
+    FinishBf16<NV>(acc, e, out);
   }
 };
 

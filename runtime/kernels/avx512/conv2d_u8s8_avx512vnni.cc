@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "kernels/avx512/dot_epilogue_avx512_inl.h"
 #include "kernels/int8_job.h"
 #include "kernels/simd/dot_driver_inl.h"
 #include "src/cpu_features.h"
@@ -28,16 +29,6 @@ inline __m512i Broadcast4(const uint8_t* p) {
   std::memcpy(&v, p, sizeof(v));
   return _mm512_set1_epi32(v);
 }
-
-// The unmasked forms of these intrinsics start from _mm512_undefined_*, which GCC 12 reports
-// as -Wmaybe-uninitialized once inlined: the zero-masked forms with every lane set instead.
-constexpr __mmask16 kAll = 0xFFFF;
-inline __m512 ToFloat(__m512i v) { return _mm512_maskz_cvtepi32_ps(kAll, v); }
-inline __m512i ToIntNearest(__m512 v) { return _mm512_maskz_cvtps_epi32(kAll, v); }
-inline __m512 Max(__m512 a, __m512 b) { return _mm512_maskz_max_ps(kAll, a, b); }
-inline __m512 Min(__m512 a, __m512 b) { return _mm512_maskz_min_ps(kAll, a, b); }
-inline __m512i Max(__m512i a, __m512i b) { return _mm512_maskz_max_epi32(kAll, a, b); }
-inline __m512i Min(__m512i a, __m512i b) { return _mm512_maskz_min_epi32(kAll, a, b); }
 
 // The int8 vocabulary of kernels/simd/dot_driver_inl.h.
 struct V {
@@ -91,49 +82,24 @@ struct V {
   // first channel of the block: float or uint8).
   template <int NV>
   static void Finish(const Acc* acc, const simd::DotEpilogue& e, void* out) {
-    const __m512 zero = _mm512_setzero_ps();
-#pragma GCC unroll 4
-    for (int v = 0; v < NV; ++v) {
-      const int left = e.valid - v * kLanes;
-      const __mmask16 mask = left >= kLanes ? kAll : static_cast<__mmask16>((1u << left) - 1u);
-      __m512 y = ToFloat(acc[v]);
-      y = _mm512_mul_ps(y, _mm512_loadu_ps(e.multiplier + v * kLanes));
-      y = _mm512_add_ps(y, _mm512_loadu_ps(e.bias + v * kLanes));
-      if (e.act == Activation::kLeakyRelu) {
-        const __mmask16 negative = _mm512_cmp_ps_mask(y, zero, _CMP_LT_OQ);
-        y = _mm512_mask_mul_ps(y, negative, y, _mm512_set1_ps(e.slope));
-      } else if (e.act == Activation::kRelu) {
-        const __mmask16 positive = _mm512_cmp_ps_mask(y, zero, _CMP_GT_OQ);
-        y = _mm512_maskz_mov_ps(positive, y);
-      }
-      if (e.out_float) {
-        _mm512_mask_storeu_ps(static_cast<float*>(out) + v * kLanes, mask, y);
-      } else {
-        __m512 t = _mm512_mul_ps(y, _mm512_set1_ps(e.inv_scale));
-        t = Max(t, _mm512_set1_ps(-512.0f));
-        t = Min(t, _mm512_set1_ps(512.0f));
-        __m512i q = ToIntNearest(t);  // cvtps2dq: to nearest even under the default MXCSR
-        q = _mm512_add_epi32(q, _mm512_set1_epi32(e.zero_point));
-        q = Max(q, _mm512_setzero_si512());
-        q = Min(q, _mm512_set1_epi32(255));
-        _mm512_mask_cvtepi32_storeu_epi8(static_cast<uint8_t*>(out) + v * kLanes, mask, q);
-      }
-    }
+    FinishU8s8<NV>(acc, e, out);
   }
 };
 
 // A convolution with few outputs (p.few_weights; the 64->3 output layer): vectorised over input
 // channels instead, 64 per vpdpbusd, one accumulator per output channel, reduced to an exact
-// int32 sum per pixel; the scalar epilogue (the same Int8Dequantize / Int8Quantize).
+// int32 sum per pixel; the scalar epilogue (the same Int8Dequantize / Int8Quantize). Columns
+// [col_begin, col_end) of each row.
 void FewOutRows(const Int8ConvArgs& a, int row_begin, int row_end) {
   const PackedInt8Conv& p = *a.conv;
   const int cin = p.in_channels, cout = p.out_channels;
   const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
+  const int x_begin = simd::MaxOf(0, a.col_begin), x_end = simd::MinOf(out_w, a.col_end);
   const int in_h = a.in.height, in_w = a.in.width;
   const ptrdiff_t row_bytes = static_cast<ptrdiff_t>(cout) * p.few_ci_stride;
   for (int oy = row_begin; oy < row_end; ++oy) {
     const int iy0 = oy * p.stride_h - a.pads.top;
-    for (int ox = 0; ox < out_w; ++ox) {
+    for (int ox = x_begin; ox < x_end; ++ox) {
       const int ix0 = ox * p.stride_w - a.pads.left;
       __m512i acc[kInt8FewOutChannels];
       int32_t zsum[kInt8FewOutChannels] = {};

@@ -38,9 +38,9 @@ void Conv2dInt8Rows(const Int8ConvArgs& a, int row_begin, int row_end, int /*blk
     return a.in.pixel((y + a.crop_top) / 2, (x + a.crop_left) / 2);
   };
   const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
-  // The columns this call computes (Args::col_begin/col_end; every column when upsampled).
-  const int x_begin = a.upsampled ? 0 : std::max(0, a.col_begin);
-  const int x_end = a.upsampled ? out_w : std::min(out_w, a.col_end);
+  // The columns this call computes (Args::col_begin/col_end).
+  const int x_begin = std::max(0, a.col_begin);
+  const int x_end = std::min(out_w, a.col_end);
   const bool phases = a.upsampled && p.phase_weights_hwio != nullptr;
   const size_t phase_hwio = static_cast<size_t>(4) * cin * cout;
   constexpr int kChunk = 256;  // output channels summed at once (the sums live on the stack)

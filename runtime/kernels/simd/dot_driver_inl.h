@@ -183,11 +183,12 @@ inline const int32_t* TapSums(const typename V::Conv& p, bool phase_sums, int ph
   }
 }
 
-// The interior pixels of output row oy (whose 3x3 window lies inside C, first tap on C row
-// iy0) from the 2x2 kernels of their phases over the low-resolution map: per column phase,
+// The interior pixels [lo, hi) of output row oy (whose 3x3 window lies inside C, first tap on C
+// row iy0) from the 2x2 kernels of their phases over the low-resolution map: per column phase,
 // every second output pixel, reading consecutive low-resolution pixels.
 template <typename V, int MR, int NV>
-void DotPhaseRow(const DotJob<V>& j, int blk, const DotEpilogue& e3x3, int oy, int iy0) {
+void DotPhaseRow(const DotJob<V>& j, int blk, const DotEpilogue& e3x3, int oy, int iy0, int lo,
+                 int hi) {
   const typename V::Conv& p = *j.a->conv;
   const int ay = iy0 + j.a->crop_top;
   const int by = ay >> 1;
@@ -198,8 +199,8 @@ void DotPhaseRow(const DotJob<V>& j, int blk, const DotEpilogue& e3x3, int oy, i
   typename V::Acc init[NV];
   for (int px = 0; px < 2; ++px) {
     // First interior column of this phase: (ox - pl + crop_left) & 1 == px.
-    int ox = j.x_lo + ((j.x_lo - j.pl + j.a->crop_left + px) & 1);
-    if (ox >= j.x_hi) continue;
+    int ox = lo + ((lo - j.pl + j.a->crop_left + px) & 1);
+    if (ox >= hi) continue;
     const int phase = (ay & 1) * 2 + px;
     const WeightOf<V>* pw = p.phase_weights + phase * phase_elems + blk * 4 * j.tap_elems;
     for (int t = 0; t < 4; ++t) {
@@ -219,8 +220,8 @@ void DotPhaseRow(const DotJob<V>& j, int blk, const DotEpilogue& e3x3, int oy, i
       }
       DotTileUpTo<V, MR, NV>(r, xs, ws, 4, j.groups, init, e, j.Out(oy, ox, blk), 2 * j.out_pixel);
     };
-    for (; ox + 2 * (MR - 1) < j.x_hi; ox += 2 * MR) tiles(MR);
-    if (ox < j.x_hi) tiles((j.x_hi - ox + 1) / 2);
+    for (; ox + 2 * (MR - 1) < hi; ox += 2 * MR) tiles(MR);
+    if (ox < hi) tiles((hi - ox + 1) / 2);
   }
 }
 
@@ -293,8 +294,8 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
 
     for (int ox = j.cb; ox < MinOf(j.x_lo, j.ce); ++ox) single(ox);
     const int t_lo = MaxOf(j.x_lo, j.cb), t_hi = MinOf(j.x_hi, j.ce);
-    if (j.x_lo < j.x_hi && j.phases && iy0 >= 0 && iy0 + 3 <= j.src_h) {
-      DotPhaseRow<V, MR, NV>(j, blk, e, oy, iy0);
+    if (t_lo < t_hi && j.phases && iy0 >= 0 && iy0 + 3 <= j.src_h) {
+      DotPhaseRow<V, MR, NV>(j, blk, e, oy, iy0, t_lo, t_hi);
     } else if (t_lo < t_hi) {
       int n = 0;
       for (int ky = ky_lo; ky < ky_hi; ++ky) {
@@ -353,9 +354,8 @@ void DotRows(const typename DotTraits<typename V::Conv>::Args& a, bool up, int r
   const ColumnRange inside = InsideColumns(j.out_w, j.src_w, j.kw, j.sw, j.pl);
   j.x_lo = inside.lo;
   j.x_hi = inside.hi;
-  // A column range applies to the plain convolution; the fused upsample computes whole rows.
-  j.cb = up ? 0 : MaxOf(0, a.col_begin);
-  j.ce = up ? j.out_w : MinOf(j.out_w, a.col_end);
+  j.cb = MaxOf(0, a.col_begin);
+  j.ce = MinOf(j.out_w, a.col_end);
   if constexpr (T::kQuantized) j.coefficient = V::ZeroPointCoefficient(p.in_zero_point);
   j.phases = up && p.phase_weights != nullptr;
 

@@ -112,9 +112,9 @@ def missing_isa(a):
     """An ISA name this CPU cannot run, from `sfrt bench --peak --isa all`."""
     p = subprocess.run([a.sfrt, "bench", "--peak", "--isa", "all", "--peak-seconds", "0.01"],
                        capture_output=True, text=True, timeout=120)
-    runs = set(re.findall(r"^(ref|avx2|avx512|neon)\s", p.stdout, re.MULTILINE))
+    runs = set(re.findall(r"^(ref|avx2|avx512amx|avx512|neon)\s", p.stdout, re.MULTILINE))
     check(p.returncode == 0 and "ref" in runs, "bench --peak --isa all: %r" % p.stdout)
-    for isa in ("avx512", "avx2", "neon"):
+    for isa in ("avx512amx", "avx512", "avx2", "neon"):
         if isa not in runs:
             return isa, True
     return None, False

@@ -41,7 +41,8 @@ def main():
         print("FAIL: no JSON")
         return 1
     j = json.load(open(out))
-    for key in ("peak", "peak_int8", "peak_bf16", "peak_unavailable", "build", "cpu"):
+    for key in ("peak", "peak_int8", "peak_bf16", "peak_amx_int8", "peak_amx_bf16",
+                "peak_unavailable", "build", "cpu"):
         check(key in j, f"top-level key {key}")
     if failures:
         print("FAIL: " + "; ".join(failures))
@@ -49,7 +50,9 @@ def main():
     check([(r["isa"], r["threads"]) for r in j["peak"]] == [("ref", 1), ("ref", 2)],
           "peak: one ref row per thread count")
     unavailable = j["peak_unavailable"]
-    for name, ops, instruction in (("int8", "gops", "vpdpbusd"), ("bf16", "gflops", "vdpbf16ps")):
+    for name, ops, instruction in (("int8", "gops", "vpdpbusd"), ("bf16", "gflops", "vdpbf16ps"),
+                                   ("amx_int8", "gops", "tdpbusd"),
+                                   ("amx_bf16", "gflops", "tdpbf16ps")):
         rows = j["peak_" + name]
         if name in unavailable:
             check(rows == [], f"peak_{name}: rows although unavailable")

@@ -1,6 +1,7 @@
-// tools/profiling/peak_dot.h: the int8 (vpdpbusd) and bf16 (vdpbf16ps) peak loops give a
-// positive, finite throughput on 1 and 2 threads where this CPU has them (skipped, saying why,
-// where not); elsewhere they fail with the reason. AMX detection answers with a reason or "".
+// tools/profiling/peak_dot.h: the int8 (vpdpbusd, tdpbusd) and bf16 (vdpbf16ps, tdpbf16ps) peak
+// loops give a positive, finite throughput on 1 and 2 threads where this CPU has them (skipped,
+// saying why, where not); elsewhere they fail with the reason. AMX detection answers with a reason
+// or "".
 #include "profiling/peak_dot.h"
 
 #include <gtest/gtest.h>
@@ -20,7 +21,14 @@ TEST_P(PeakDotTest, GivesAPositiveFiniteThroughputNamingTheInstruction) {
   if (std::string why = PeakDotUnavailable(type); !why.empty()) {
     GTEST_SKIP() << DotTypeName(type) << " peak not available here: " << why;
   }
-  const bool int8 = type == DotType::kInt8;
+  struct Names {
+    const char* loop;
+    const char* instruction;
+  };
+  const Names names = type == DotType::kInt8      ? Names{"avx512_vnni", "vpdpbusd"}
+                      : type == DotType::kBf16    ? Names{"avx512_bf16", "vdpbf16ps"}
+                      : type == DotType::kAmxInt8 ? Names{"amx_int8", "tdpbusd"}
+                                                  : Names{"amx_bf16", "tdpbf16ps"};
   for (int threads : {1, 2}) {
     SCOPED_TRACE(threads);
     Result<PeakDot> peak = MeasurePeakDot(type, threads, 0.01);
@@ -30,10 +38,8 @@ TEST_P(PeakDotTest, GivesAPositiveFiniteThroughputNamingTheInstruction) {
     EXPECT_TRUE(std::isfinite(peak->gops));
     EXPECT_GT(peak->gops, 0.0);
     EXPECT_DOUBLE_EQ(peak->gmacs, peak->gops / 2);
-    EXPECT_NE(peak->kernel.find(int8 ? "avx512_vnni" : "avx512_bf16"), std::string::npos)
-        << peak->kernel;
-    EXPECT_NE(peak->kernel.find(int8 ? "vpdpbusd" : "vdpbf16ps"), std::string::npos)
-        << peak->kernel;
+    EXPECT_NE(peak->kernel.find(names.loop), std::string::npos) << peak->kernel;
+    EXPECT_NE(peak->kernel.find(names.instruction), std::string::npos) << peak->kernel;
   }
 }
 
@@ -50,7 +56,9 @@ TEST_P(PeakDotTest, FailsWithTheReasonWhereUnavailableAndOnZeroThreads) {
       << missing.message();
 }
 
-INSTANTIATE_TEST_SUITE_P(Types, PeakDotTest, ::testing::Values(DotType::kInt8, DotType::kBf16),
+INSTANTIATE_TEST_SUITE_P(Types, PeakDotTest,
+                         ::testing::Values(DotType::kInt8, DotType::kBf16, DotType::kAmxInt8,
+                                           DotType::kAmxBf16),
                          [](const ::testing::TestParamInfo<DotType>& param) {
                            return std::string(DotTypeName(param.param));
                          });
