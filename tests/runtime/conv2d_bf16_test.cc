@@ -562,10 +562,23 @@ TEST(Bf16Conversion, EveryIsaGivesTheBitsOfFloatToBf16) {
 // outputs, rows whose last tile overlaps the one before.
 void Bf16Kernels::CheckAmxBlocking() {
   std::vector<Bf16Shape> shapes = {
-      Conv(5, 40, 3, 64, 1),    Conv(4, 41, 12, 100, 1),  Conv(5, 75, 36, 64, 2),
-      Conv(3, 38, 32, 64, 1),   Conv(4, 50, 50, 130, 1),  Conv(3, 35, 100, 64, 1),
-      Conv(3, 34, 256, 128, 1), Conv(3, 34, 1024, 64, 1), Conv(4, 40, 20, 70, 1, 1),
-      Conv(6, 44, 9, 33, 2, 5), Conv(5, 12, 64, 64, 1),   Conv(4, 40, 64, 3, 1),
+      Conv(5, 40, 3, 64, 1),
+      Conv(4, 41, 12, 100, 1),
+      Conv(5, 75, 36, 64, 2),
+      Conv(3, 38, 32, 64, 1),
+      Conv(4, 50, 50, 130, 1),
+      Conv(3, 35, 100, 64, 1),
+      Conv(3, 34, 256, 128, 1),
+      Conv(3, 34, 1024, 64, 1),
+      Conv(4, 40, 20, 70, 1, 1),
+      Conv(6, 44, 9, 33, 2, 5),
+      Conv(5, 12, 64, 64, 1),
+      Conv(4, 40, 64, 3, 1),
+      // The same layouts with 16 pairs or more, which the tiles take (fewer: the fallback).
+      Conv(4, 50, 80, 130, 1),
+      Conv(4, 40, 32, 70, 1, 1),
+      Conv(6, 80, 32, 33, 2, 5),
+      Conv(3, 70, 32, 70, 1),
   };
   for (Bf16Shape up :
        {UpConv(4, 20, 32, 64), UpConv(3, 24, 32, 130, 1, 1), UpConv(3, 19, 50, 64, 0, 1),

@@ -726,9 +726,11 @@ TEST_F(Int8NeonDot, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
 // and leftovers, input channels of one group (3: read past the pixel), under one chunk of 16
 // groups (12, 36), exactly one (64), a chunk and a tail (100, 200), several (256, 1024); one,
 // partial and several output blocks of 64; 1x1, 3x3 and 5x5; a float output; rows too short for
-// a tile; the few-output layer (one C tile). The fused upsample with phase kernels, where the
-// tiles take each column phase's interior pixels: both crop parities, a chunk and a tail,
-// partial blocks, few outputs, rows whose last tile overlaps the one before, asymmetric pads.
+// a tile; the few-output layer (one C tile); under 16 groups the fallback computes the layer, so
+// the 1x1, 5x5, padded and row-stride layouts come again with 16 groups or more. The fused upsample
+// with phase kernels, where the tiles take each column phase's interior pixels: both crop parities,
+// a chunk and a tail, partial blocks, few outputs, rows whose last tile overlaps the one before,
+// asymmetric pads.
 void Int8Kernels::CheckAmxBlocking() {
   std::vector<Int8Shape> shapes = {
       Conv(5, 40, 3, 64, 1),
@@ -743,6 +745,11 @@ void Int8Kernels::CheckAmxBlocking() {
       {6, 44, 9, 33, 5, 2, SameUpper(6, 44, 5, 2)},
       Conv(5, 12, 64, 64, 1),
       Conv(5, 40, 64, 3, 1),
+      // The same layouts with 16 groups or more, which the tiles take.
+      Conv(4, 50, 160, 130, 1),
+      {4, 40, 64, 70, 1, 1, SameUpper(4, 40, 1, 1)},
+      {6, 80, 64, 33, 5, 2, SameUpper(6, 80, 5, 2)},
+      Conv(3, 70, 64, 70, 1),
   };
   Int8Shape padded = Conv(6, 37, 40, 64, 1);
   padded.pads = {0, 2, 2, 0};
@@ -750,6 +757,12 @@ void Int8Kernels::CheckAmxBlocking() {
   Int8Shape view = Conv(5, 36, 24, 64, 1);
   view.extra_row_bytes = 7;
   shapes.push_back(view);
+  for (int cin : {64, 96}) {
+    Int8Shape wide_padded = Conv(6, 37, cin, 64, 1);
+    wide_padded.pads = {0, 2, 2, 0};
+    wide_padded.extra_row_bytes = 5;
+    shapes.push_back(wide_padded);
+  }
   for (Int8Shape up :
        {UpConv(4, 20, 64, 64), UpConv(3, 24, 64, 130, 1, 1), UpConv(3, 19, 100, 64, 0, 1),
         UpConv(4, 37, 128, 3, 4, 0), UpConv(2, 17, 64, 64, 1, 0)}) {
