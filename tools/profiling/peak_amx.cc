@@ -75,30 +75,33 @@ void LoadOperands(uint8_t a_byte, uint8_t b_byte) {
   _tile_zero(5);
 }
 
-float RunInt8(int64_t iterations) {
+// tdpbusd (int8: u8 3 times s8 -2; the int32 sums wrap, never trap) or tdpbf16ps (bf16 zeros:
+// the sums stay finite however long the loop runs) into the 6 C tiles.
+template <bool kInt8>
+float Run(int64_t iterations) {
   Configure();
-  LoadOperands(3, 0xFE);  // u8 3 times s8 -2; the int32 sums wrap, never trap
-  for (int64_t i = 0; i < iterations; ++i) {
-    _tile_dpbusd(0, 6, 7);
-    _tile_dpbusd(1, 6, 7);
-    _tile_dpbusd(2, 6, 7);
-    _tile_dpbusd(3, 6, 7);
-    _tile_dpbusd(4, 6, 7);
-    _tile_dpbusd(5, 6, 7);
+  if constexpr (kInt8) {
+    LoadOperands(3, 0xFE);
+  } else {
+    LoadOperands(0, 0);
   }
-  return Collect();
-}
-
-float RunBf16(int64_t iterations) {
-  Configure();
-  LoadOperands(0, 0);  // bf16 zeros: the sums stay finite however long the loop runs
+  // The tile numbers are literals: GCC's tile intrinsics paste them into the instruction.
   for (int64_t i = 0; i < iterations; ++i) {
-    _tile_dpbf16ps(0, 6, 7);
-    _tile_dpbf16ps(1, 6, 7);
-    _tile_dpbf16ps(2, 6, 7);
-    _tile_dpbf16ps(3, 6, 7);
-    _tile_dpbf16ps(4, 6, 7);
-    _tile_dpbf16ps(5, 6, 7);
+    if constexpr (kInt8) {
+      _tile_dpbusd(0, 6, 7);
+      _tile_dpbusd(1, 6, 7);
+      _tile_dpbusd(2, 6, 7);
+      _tile_dpbusd(3, 6, 7);
+      _tile_dpbusd(4, 6, 7);
+      _tile_dpbusd(5, 6, 7);
+    } else {
+      _tile_dpbf16ps(0, 6, 7);
+      _tile_dpbf16ps(1, 6, 7);
+      _tile_dpbf16ps(2, 6, 7);
+      _tile_dpbf16ps(3, 6, 7);
+      _tile_dpbf16ps(4, 6, 7);
+      _tile_dpbf16ps(5, 6, 7);
+    }
   }
   return Collect();
 }
@@ -107,13 +110,13 @@ float RunBf16(int64_t iterations) {
 
 const PeakKernel* PeakKernelAmxInt8() {
   static const PeakKernel kernel = {"amx_int8: 6 C tiles x 16384 u8s8 MACs, tdpbusd",
-                                    2 * kChains * 16384, RunInt8};
+                                    2 * kChains * 16384, Run<true>};
   return &kernel;
 }
 
 const PeakKernel* PeakKernelAmxBf16() {
   static const PeakKernel kernel = {"amx_bf16: 6 C tiles x 8192 bf16 MACs, tdpbf16ps",
-                                    2 * kChains * 8192, RunBf16};
+                                    2 * kChains * 8192, Run<false>};
   return &kernel;
 }
 
