@@ -144,7 +144,6 @@ template <typename Conv>
 struct AmxJob {
   using Traits = DotTraits<Conv>;
   const typename Traits::Args* a = nullptr;
-  int groups = 0;
   int full = 0;    // groups per chunk (tiles 4 and 5)
   int chunks = 0;  // chunks of `full` groups, then the tail (tiles 6 and 7)
   int tail = 0;
@@ -274,7 +273,6 @@ void AmxConvRows(const typename DotTraits<Conv>::Args& a, int row_begin, int row
   }
   AmxJob<Conv> j;
   j.a = &a;
-  j.groups = groups;
   j.full = groups < kAmxRows ? groups : kAmxRows;
   j.chunks = groups / j.full;
   j.tail = groups - j.chunks * j.full;
