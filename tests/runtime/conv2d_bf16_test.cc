@@ -641,7 +641,9 @@ TEST_F(Bf16Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
   EXPECT_EQ(std::string(kernels_->upconv_name), "upconv2d_bf16__avx512amx_16x64");
   EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512Amx), kernels_);
   // avx512 keeps the AVX512_BF16 kernels, so that the two can be compared on one CPU.
-  EXPECT_EQ(Bf16KernelsFor(Isa::kAvx512), avx512::Bf16Kernels());
+  ASSERT_NE(Bf16KernelsFor(Isa::kAvx512), nullptr);
+  EXPECT_NE(std::string(Bf16KernelsFor(Isa::kAvx512)->conv_name).find("avx512bf16"),
+            std::string::npos);
 }
 
 TEST(Bf16Dispatch, OnlyAvx512WithBf16AndNeonWithBf16HaveBf16Kernels) {
