@@ -3,6 +3,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <map>
 
 #include "sfrt/crc32c.h"
 #include "sfrt/model.h"
@@ -186,11 +187,33 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
 
   // Tensors are written in layer order, weights then bias, which defines the checksum order.
   std::vector<flatbuffers::Offset<fb::Layer>> layers;
+  // Output channels by tensor name; the previous layer's under "" (what an empty `inputs` reads).
+  std::map<std::string, int> channels_of{{spec.input.name, spec.input.channels},
+                                         {"", spec.input.channels}};
   int channels = spec.input.channels;
   for (size_t i = 0; i < spec.layers.size(); ++i) {
     const LayerSpec& ls = spec.layers[i];
+    const std::string& layer_name =
+        std::visit([](const auto& l) -> const std::string& { return l.name; }, ls);
+    const std::vector<std::string>& inputs =
+        std::visit([](const auto& l) -> const std::vector<std::string>& { return l.inputs; }, ls);
+    const std::string where = LayerLabel(i, layer_name);
+    if (!inputs.empty() && options.schema_minor < 5) {
+      return Status::Error(where + ": named inputs need schema 1.5; writing 1." +
+                           std::to_string(options.schema_minor));
+    }
+    std::vector<int> read;  // channels of each input
+    for (const std::string& name : inputs.empty() ? std::vector<std::string>{""} : inputs) {
+      const auto found = channels_of.find(name);
+      if (found == channels_of.end()) {
+        return Status::Error(where + ": reads '" + name +
+                             "', which is neither the input nor an earlier layer");
+      }
+      read.push_back(found->second);
+    }
+    channels = read[0];
+    const auto names = inputs.empty() ? 0 : b.CreateVectorOfStrings(inputs);
     if (const auto* c = std::get_if<ConvSpec>(&ls)) {
-      const std::string where = LayerLabel(i, c->name);
       if (c->in_channels != channels) {
         return Status::Error(where + ": in_channels is " + std::to_string(c->in_channels) +
                              " but its input has " + std::to_string(channels));
@@ -251,23 +274,52 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
           int8 ? &output_quant : nullptr, phase_weights,
           phases ? b.CreateVector(c->phase_scales) : 0);
       layers.push_back(
-          fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union()));
+          fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union(), names));
       channels = c->out_channels;
     } else if (const auto* u = std::get_if<UpsampleSpec>(&ls)) {
       const auto up = fb::CreateUpsample(b, u->factor_h, u->factor_w);
       layers.push_back(
-          fb::CreateLayer(b, b.CreateString(u->name), fb::LayerOp::Upsample, up.Union()));
+          fb::CreateLayer(b, b.CreateString(u->name), fb::LayerOp::Upsample, up.Union(), names));
+    } else if (const auto* cat = std::get_if<ConcatSpec>(&ls)) {
+      if (options.schema_minor < 5) {
+        return Status::Error(where + ": Concat needs schema 1.5; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      channels = 0;
+      for (int part : read) channels += part;
+      layers.push_back(fb::CreateLayer(b, b.CreateString(cat->name), fb::LayerOp::Concat,
+                                       fb::CreateConcat(b).Union(), names));
+    } else if (const auto* add = std::get_if<AddSpec>(&ls)) {
+      if (options.schema_minor < 5) {
+        return Status::Error(where + ": Add needs schema 1.5; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      layers.push_back(fb::CreateLayer(
+          b, b.CreateString(add->name), fb::LayerOp::Add,
+          fb::CreateAdd(b, ToSchema(add->activation), add->leaky_slope).Union(), names));
     } else {
       const auto& cr = std::get<CropSpec>(ls);
+      if (cr.rule == CropRule::kToSecondInput && (options.schema_minor < 5 || inputs.size() != 2)) {
+        return Status::Error(where +
+                             ": a crop to its second input's size needs schema 1.5 and two "
+                             "inputs; has " +
+                             std::to_string(inputs.size()) + ", writing 1." +
+                             std::to_string(options.schema_minor));
+      }
       const fb::Padding amounts(cr.amounts.top, cr.amounts.left, cr.amounts.bottom,
                                 cr.amounts.right);
-      const auto crop = fb::CreateCrop(
-          b, cr.rule == CropRule::kToInputSize ? fb::CropRule::ToInputSize : fb::CropRule::Explicit,
-          &amounts, cr.excess_rows_from_top ? fb::RowSide::Top : fb::RowSide::Bottom,
-          cr.excess_cols_from_left ? fb::ColSide::Left : fb::ColSide::Right);
+      const auto crop =
+          fb::CreateCrop(b,
+                         cr.rule == CropRule::kToInputSize     ? fb::CropRule::ToInputSize
+                         : cr.rule == CropRule::kToSecondInput ? fb::CropRule::ToSecondInput
+                                                               : fb::CropRule::Explicit,
+                         &amounts, cr.excess_rows_from_top ? fb::RowSide::Top : fb::RowSide::Bottom,
+                         cr.excess_cols_from_left ? fb::ColSide::Left : fb::ColSide::Right);
       layers.push_back(
-          fb::CreateLayer(b, b.CreateString(cr.name), fb::LayerOp::Crop, crop.Union()));
+          fb::CreateLayer(b, b.CreateString(cr.name), fb::LayerOp::Crop, crop.Union(), names));
     }
+    channels_of[layer_name] = channels;
+    channels_of[""] = channels;
   }
   if (spec.output.channels != channels) {
     return Status::Error("output.channels is " + std::to_string(spec.output.channels) +

@@ -460,6 +460,11 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     return Status::Error("accuracy budget " + Sci(options.accuracy_budget) +
                          ": must be a finite number >= 0");
   }
+  if (IsGraph(model)) {
+    return Status::Error("model '" + model.name +
+                         "' is a graph (Concat, Add or named inputs): int8 and bf16 run on chain "
+                         "models only; export it in fp32");
+  }
   std::vector<int> conv_layers;
   std::vector<std::string> names;
   for (size_t i = 0; i < model.layers.size(); ++i) {

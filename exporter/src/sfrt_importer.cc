@@ -2,6 +2,7 @@
 
 #include <memory>
 #include <utility>
+#include <variant>
 
 #include "sfrt/model.h"
 
@@ -48,7 +49,11 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       return c;
     }
     case LayerKind::kUpsample:
-      return UpsampleSpec{layer.name, layer.upsample.factor_h, layer.upsample.factor_w};
+      return UpsampleSpec{layer.name, layer.upsample.factor_h, layer.upsample.factor_w, {}};
+    case LayerKind::kConcat:
+      return ConcatSpec{layer.name, {}};
+    case LayerKind::kAdd:
+      return AddSpec{layer.name, {}, layer.add.activation, layer.add.leaky_slope};
     case LayerKind::kCrop:
       break;
   }
@@ -97,7 +102,16 @@ Result<ModelSpec> ImportSfrt(const std::string& path) {
   spec.weight_type = meta.weight_type;
   spec.training = meta.training;
   spec.calibration = meta.calibration;
-  for (const LayerDesc& layer : model.layers()) spec.layers.push_back(LayerFromDesc(layer));
+  const auto layers = model.layers();
+  for (const LayerDesc& layer : layers) {
+    spec.layers.push_back(LayerFromDesc(layer));
+    if (model.is_chain()) continue;  // the previous layer: no names needed
+    std::vector<std::string> inputs;
+    for (int t : layer.inputs) {
+      inputs.push_back(t == kModelInput ? meta.input.name : layers[static_cast<size_t>(t)].name);
+    }
+    std::visit([&](auto& l) { l.inputs = std::move(inputs); }, spec.layers.back());
+  }
   return spec;
 }
 

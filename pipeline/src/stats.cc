@@ -117,6 +117,10 @@ std::string LayerOp(const LayerDesc& layer) {
     }
     case LayerKind::kCrop:
       return "crop";
+    case LayerKind::kConcat:
+      return "concat " + std::to_string(layer.inputs.size());
+    case LayerKind::kAdd:
+      return "add";
   }
   return "?";
 }

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string_view>
+#include <unordered_map>
 
 #include "sfrt/crc32c.h"
 #include "sfrt/model_limits.h"
@@ -150,20 +151,97 @@ Status TakeInt8Params(const Checker& check, const std::string& where, const fb::
   return CheckQuant(check, where, "output_quant", c.output_quant(), &p.output_quant);
 }
 
+// Layer `index`'s inputs as indices (kModelInput or an earlier layer) from the names the file
+// gives; none given: the previous layer (layer 0: the input), the form of files before 1.5.
+Status ResolveInputs(const Checker& check, const std::string& where,
+                     const flatbuffers::Vector<flatbuffers::Offset<flatbuffers::String>>* names,
+                     unsigned index, const std::unordered_map<std::string, int>& tensor_named,
+                     int ambiguous, const std::string& input_name, std::vector<int>& inputs) {
+  if (names == nullptr || names->size() == 0) {
+    inputs.assign(1, static_cast<int>(index) - 1);
+    return Status::Ok();
+  }
+  if (names->size() > static_cast<unsigned>(model_limits::kMaxLayers)) {
+    return check.Fail(where + ": names " + std::to_string(names->size()) + " inputs; at most " +
+                      std::to_string(model_limits::kMaxLayers) + " are supported");
+  }
+  for (unsigned k = 0; k < names->size(); ++k) {
+    const std::string name = names->Get(k) == nullptr ? "" : names->Get(k)->str();
+    const auto found = tensor_named.find(name);
+    if (found == tensor_named.end()) {
+      return check.Fail(where + ": inputs[" + std::to_string(k) + "] is '" + name +
+                        "', which is neither the model input ('" + input_name +
+                        "') nor a layer before it (a layer comes after the layers it reads)");
+    }
+    if (found->second == ambiguous) {
+      return check.Fail(where + ": inputs[" + std::to_string(k) + "] is '" + name +
+                        "', which names more than one earlier tensor");
+    }
+    inputs.push_back(found->second);
+  }
+  return Status::Ok();
+}
+
+// How many inputs `op` reads: [least, most].
+Status CheckArity(const Checker& check, const std::string& where, const char* op,
+                  const std::vector<int>& inputs, int least, int most) {
+  const int n = static_cast<int>(inputs.size());
+  if (n >= least && n <= most) return Status::Ok();
+  const std::string wanted =
+      least == most ? std::to_string(least) : std::to_string(least) + " or more";
+  return check.Fail(where + ": " + op + " reads " + wanted + " tensor" + (most == 1 ? "" : "s") +
+                    "; inputs names " + std::to_string(n));
+}
+
+// The graph as a whole: every layer's output but the last is read, and int8 and bf16 layers
+// only in chains. Fills the consumer counts and whether the graph is a chain.
+Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
+                  std::vector<int>& consumers, bool& is_chain) {
+  consumers.assign(layers.size(), 0);
+  is_chain = true;
+  for (size_t i = 0; i < layers.size(); ++i) {
+    for (int t : layers[i].inputs) {
+      if (t != kModelInput) ++consumers[static_cast<size_t>(t)];
+    }
+    if (layers[i].inputs != std::vector<int>{static_cast<int>(i) - 1}) is_chain = false;
+  }
+  for (size_t i = 0; i + 1 < layers.size(); ++i) {
+    if (consumers[i] == 0) {
+      return check.Fail("layer " + std::to_string(i) + " '" + layers[i].name +
+                        "': no layer reads its output (only the last layer's output leaves "
+                        "the model)");
+    }
+  }
+  if (is_chain) return Status::Ok();
+  for (size_t i = 0; i < layers.size(); ++i) {
+    if (layers[i].kind == LayerKind::kConv2D && layers[i].conv.precision != Precision::kFloat32) {
+      return check.Fail("layer " + std::to_string(i) + " '" + layers[i].name + "': precision " +
+                        PrecisionName(layers[i].conv.precision) +
+                        " in a model whose layers are not a chain; this runtime runs such "
+                        "models in fp32 only");
+    }
+  }
+  return Status::Ok();
+}
+
 // The phase kernels of an int8 convolution that reads a nearest-2x upsampling (schema 1.3).
-// `earlier`: the layers before it; take_tensor checks and CRCs a tensor as for the weights.
+// `earlier`: the layers before it; `input` the one it reads (kModelInput: the model input);
+// take_tensor checks and CRCs a tensor as for the weights.
 template <typename TakeTensor>
 Status TakePhaseWeights(const Checker& check, const std::string& where, const fb::Conv2D& c,
-                        const std::vector<LayerDesc>& earlier, ConvParams& p,
+                        const std::vector<LayerDesc>& earlier, int input, ConvParams& p,
                         TakeTensor& take_tensor) {
   if (p.precision != Precision::kInt8) {
     return check.Fail(where + ": phase_weights are given but the layer's precision is not int8");
   }
-  size_t k = earlier.size();
-  if (k > 0 && earlier[k - 1].kind == LayerKind::kCrop) --k;
-  const bool after_upsample = k > 0 && earlier[k - 1].kind == LayerKind::kUpsample &&
-                              earlier[k - 1].upsample.factor_h == 2 &&
-                              earlier[k - 1].upsample.factor_w == 2;
+  int k = input;
+  if (k >= 0 && earlier[static_cast<size_t>(k)].kind == LayerKind::kCrop) {
+    k = earlier[static_cast<size_t>(k)].inputs[0];
+  }
+  const bool after_upsample = k >= 0 &&
+                              earlier[static_cast<size_t>(k)].kind == LayerKind::kUpsample &&
+                              earlier[static_cast<size_t>(k)].upsample.factor_h == 2 &&
+                              earlier[static_cast<size_t>(k)].upsample.factor_w == 2;
   if (!after_upsample || p.kernel_h != 3 || p.kernel_w != 3 || p.stride_h != 1 || p.stride_w != 1) {
     return check.Fail(where +
                       ": phase_weights are given, but only a 3x3 stride-1 convolution that reads "
@@ -463,14 +541,28 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   }
   uint32_t crc = 0;
   bool saw_fp16 = false;
-  int channels = input.channels;
-  layers_.reserve(m->layers()->size());
+  const size_t layer_count = m->layers()->size();
+  layers_.reserve(layer_count);
+  std::vector<int> channels_of;  // output channels per layer
+  channels_of.reserve(layer_count);
+  auto channels_read = [&](int tensor) {
+    return tensor == kModelInput ? input.channels : channels_of[static_cast<size_t>(tensor)];
+  };
+  // The names Layer.inputs may use: the model input's and the earlier layers'.
+  constexpr int kAmbiguous = -2;
+  std::unordered_map<std::string, int> tensor_named;
+  tensor_named[input.name] = kModelInput;
   for (unsigned i = 0; i < m->layers()->size(); ++i) {
     const fb::Layer* fl = m->layers()->Get(i);
     LayerDesc layer;
     layer.name = Str(fl->name());
     if (layer.name.empty()) layer.name = "#" + std::to_string(i);
     const std::string where = "layer " + std::to_string(i) + " '" + layer.name + "'";
+    if (Status s = ResolveInputs(check, where, fl->inputs(), i, tensor_named, kAmbiguous,
+                                 input.name, layer.inputs);
+        !s.ok()) {
+      return s;
+    }
 
     // Checks one weight tensor and returns fp32 data for it (in place, or widened), or, for an
     // Int8 tensor (allowed only where int8_dst is given), its bytes in place.
@@ -565,9 +657,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         p.kernel_w = c->kernel_w();
         p.stride_h = c->stride_h();
         p.stride_w = c->stride_w();
-        if (p.in_channels != channels) {
+        if (Status s = CheckArity(check, where, "a Conv2D", layer.inputs, 1, 1); !s.ok()) return s;
+        if (p.in_channels != channels_read(layer.inputs[0])) {
           return check.Fail(where + ": in_channels is " + std::to_string(p.in_channels) +
-                            " but its input has " + std::to_string(channels) + " channels");
+                            " but its input has " + std::to_string(channels_read(layer.inputs[0])) +
+                            " channels");
         }
         if (p.out_channels <= 0 || p.out_channels > kMaxChannels) {
           return check.Fail(where + ": out_channels is " + std::to_string(p.out_channels) +
@@ -664,17 +758,23 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
         if (c->phase_weights() != nullptr || c->phase_scales() != nullptr) {
-          if (Status s = TakePhaseWeights(check, where, *c, layers_, p, take_tensor); !s.ok()) {
+          if (Status s =
+                  TakePhaseWeights(check, where, *c, layers_, layer.inputs[0], p, take_tensor);
+              !s.ok()) {
             return s;
           }
         }
-        channels = p.out_channels;
+        channels_of.push_back(p.out_channels);
         break;
       }
       case fb::LayerOp::Upsample: {
         const fb::Upsample* u = fl->op_as_Upsample();
         layer.kind = LayerKind::kUpsample;
         layer.upsample = {u->factor_h(), u->factor_w()};
+        if (Status s = CheckArity(check, where, "an Upsample", layer.inputs, 1, 1); !s.ok()) {
+          return s;
+        }
+        channels_of.push_back(channels_read(layer.inputs[0]));
         if (u->factor_h() < 1 || u->factor_h() > kMaxUpsample || u->factor_w() < 1 ||
             u->factor_w() > kMaxUpsample) {
           return check.Fail(where + ": upsampling factor is " + std::to_string(u->factor_h()) +
@@ -687,12 +787,16 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         const fb::Crop* c = fl->op_as_Crop();
         layer.kind = LayerKind::kCrop;
         CropParams& p = layer.crop;
+        channels_of.push_back(channels_read(layer.inputs[0]));
         switch (c->rule()) {
           case fb::CropRule::Explicit:
             p.rule = CropRule::kExplicit;
             break;
           case fb::CropRule::ToInputSize:
             p.rule = CropRule::kToInputSize;
+            break;
+          case fb::CropRule::ToSecondInput:
+            p.rule = CropRule::kToSecondInput;
             break;
           default:
             return check.Fail(where + ": crop rule is unknown value " +
@@ -704,16 +808,75 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
             p.amounts.right < 0) {
           return check.Fail(where + ": crop amounts must not be negative");
         }
+        if (p.rule == CropRule::kToSecondInput) {
+          if (Status s =
+                  CheckArity(check, where, "a Crop to its second input's size", layer.inputs, 2, 2);
+              !s.ok()) {
+            return s;
+          }
+        } else if (Status s = CheckArity(check, where, "a Crop", layer.inputs, 1, 1); !s.ok()) {
+          return s;
+        }
         p.excess_rows_from_top = c->excess_rows_from() == fb::RowSide::Top;
         p.excess_cols_from_left = c->excess_cols_from() == fb::ColSide::Left;
+        break;
+      }
+      case fb::LayerOp::Concat: {
+        layer.kind = LayerKind::kConcat;
+        if (Status s = CheckArity(check, where, "a Concat", layer.inputs, 2, kMaxLayers); !s.ok()) {
+          return s;
+        }
+        int64_t total = 0;
+        for (int t : layer.inputs) total += channels_read(t);
+        if (total > kMaxChannels) {
+          return check.Fail(where + ": concatenates " + std::to_string(total) +
+                            " channels; at most " + std::to_string(kMaxChannels) +
+                            " are supported");
+        }
+        channels_of.push_back(static_cast<int>(total));
+        break;
+      }
+      case fb::LayerOp::Add: {
+        const fb::Add* a = fl->op_as_Add();
+        layer.kind = LayerKind::kAdd;
+        if (Status s = CheckArity(check, where, "an Add", layer.inputs, 2, 2); !s.ok()) return s;
+        const int ca = channels_read(layer.inputs[0]);
+        const int cb = channels_read(layer.inputs[1]);
+        if (ca != cb) {
+          return check.Fail(where + ": adds tensors of " + std::to_string(ca) + " and " +
+                            std::to_string(cb) + " channels; both must have the same");
+        }
+        switch (a->activation()) {
+          case fb::Activation::None:
+            layer.add.activation = Activation::kNone;
+            break;
+          case fb::Activation::Relu:
+            layer.add.activation = Activation::kRelu;
+            break;
+          case fb::Activation::LeakyRelu:
+            layer.add.activation = Activation::kLeakyRelu;
+            break;
+          default:
+            return check.Fail(where + ": activation is unknown value " +
+                              std::to_string(static_cast<int>(a->activation())));
+        }
+        layer.add.leaky_slope = a->leaky_slope();
+        if (!std::isfinite(layer.add.leaky_slope)) {
+          return check.Fail(where + ": leaky_slope is not finite");
+        }
+        channels_of.push_back(ca);
         break;
       }
       default:
         return check.Fail(where + ": op type " + std::to_string(static_cast<int>(fl->op_type())) +
                           " is missing or unknown to this runtime");
     }
+    auto [named, fresh] = tensor_named.emplace(layer.name, static_cast<int>(i));
+    if (!fresh) named->second = kAmbiguous;
     layers_.push_back(std::move(layer));
   }
+  if (Status s = CheckGraph(check, layers_, consumers_, is_chain_); !s.ok()) return s;
+  const int channels = channels_of.back();
   if (metadata_.output.channels == 0) metadata_.output.channels = channels;
   if (metadata_.output.channels != channels) {
     return check.Fail("output.channels is " + std::to_string(metadata_.output.channels) +

@@ -12,6 +12,7 @@
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
+#include "kernels/ref/merge_ref.h"
 #include "kernels/ref/resample_ref.h"
 
 namespace sfrt {
@@ -94,6 +95,68 @@ void* AlignedScratch(std::vector<uint8_t>& storage, size_t bytes) {
   return storage.data() + (64 - reinterpret_cast<uintptr_t>(storage.data()) % 64) % 64;
 }
 
+// A model that is not a chain (schema 1.5; float32 only): each layer reads the outputs its
+// inputs name, and each output is freed after its last reader.
+void ForwardGraph(const Model& model, std::span<const float> input,
+                  const std::vector<LayerGeometry>& g, std::span<float> output,
+                  const LayerObserver& observer) {
+  const auto layers = model.layers();
+  const size_t n = layers.size();
+  std::vector<std::vector<float>> outputs(n);
+  std::vector<int> last_reader(n, -1);
+  for (size_t i = 0; i < n; ++i) {
+    for (int t : layers[i].inputs) {
+      if (t != kModelInput) last_reader[static_cast<size_t>(t)] = static_cast<int>(i);
+    }
+  }
+  const TensorShape in_shape = g.front().input;  // layer 0 can read only the model input
+  auto view_of = [&](int t) -> ConstTensorView {
+    const TensorShape& s = t == kModelInput ? in_shape : g[static_cast<size_t>(t)].output;
+    const float* data = t == kModelInput ? input.data() : outputs[static_cast<size_t>(t)].data();
+    return {data, s.height, s.width, s.channels, static_cast<ptrdiff_t>(s.width) * s.channels};
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const LayerDesc& layer = layers[i];
+    const TensorShape& s = g[i].output;
+    std::vector<float>& out = outputs[i];
+    out.resize(s.elements());
+    const TensorView dst = DenseView(out.data(), s.height, s.width, s.channels);
+    const ConstTensorView src = view_of(layer.inputs[0]);
+    switch (layer.kind) {
+      case LayerKind::kConv2D:
+        ref::Conv2d(src, layer.conv, g[i].pads, dst);
+        break;
+      case LayerKind::kUpsample:
+        ref::UpsampleNearest(src, layer.upsample.factor_h, layer.upsample.factor_w, dst);
+        break;
+      case LayerKind::kCrop: {
+        ConstTensorView v = src;
+        v.data = src.pixel(g[i].crop.top, g[i].crop.left);
+        v.height = s.height;
+        v.width = s.width;
+        ref::Copy(v, dst);
+        break;
+      }
+      case LayerKind::kConcat: {
+        std::vector<ConstTensorView> ins;
+        for (int t : layer.inputs) ins.push_back(view_of(t));
+        ref::ConcatRows(ins.data(), static_cast<int>(ins.size()), dst, 0, s.height);
+        break;
+      }
+      case LayerKind::kAdd:
+        ref::AddRows(src, view_of(layer.inputs[1]), layer.add, dst, 0, s.height);
+        break;
+    }
+    if (observer) observer(static_cast<int>(i), s, out);
+    for (int t : layer.inputs) {
+      if (t != kModelInput && last_reader[static_cast<size_t>(t)] == static_cast<int>(i)) {
+        outputs[static_cast<size_t>(t)] = {};
+      }
+    }
+  }
+  std::copy(outputs.back().begin(), outputs.back().end(), output.begin());
+}
+
 }  // namespace
 
 Status RunReferenceForward(const Model& model, std::span<const float> input, int height, int width,
@@ -109,6 +172,10 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
   if (output.size() < g.back().output.elements()) {
     return Status::Error("reference forward: output holds " + std::to_string(output.size()) +
                          " floats; " + std::to_string(g.back().output.elements()) + " needed");
+  }
+  if (!model.is_chain()) {
+    ForwardGraph(model, input, g, output, observer);
+    return Status::Ok();
   }
   Tensor cur;
   cur.shape = g.front().input;

@@ -16,6 +16,7 @@
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
+#include "kernels/ref/merge_ref.h"
 #include "kernels/ref/resample_ref.h"
 #include "kernels/winograd_job.h"
 #include "memory_planner.h"
@@ -42,6 +43,8 @@ struct Session::Step {
     kBf16Conv,      // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
                     // (kernels/bf16_job.h)
     kUpsampleBf16,  // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
+    kConcat,        // ref::ConcatRows
+    kAdd,           // ref::AddRows
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -72,6 +75,15 @@ struct Session::Step {
   QuantizeRowsFn quantize = nullptr;
   // kToBf16:
   ToBf16RowsFn to_bf16 = nullptr;
+};
+
+// Where each tensor is at the size being run: per layer output and element type (the model input
+// in the last slot), and a Concat's input views.
+struct Session::Views {
+  std::vector<ConstTensorView> f32;
+  std::vector<ConstByteView> u8;
+  std::vector<ConstBf16View> bf16;
+  std::vector<ConstTensorView> gather;
 };
 
 class Session::Pool : public ThreadPool {
@@ -190,6 +202,29 @@ void RefConvTrampoline(void* ctx, int begin, int end) {
   ref::Conv2d(job->in, *job->params, pads, rows);
 }
 
+struct ConcatJob {
+  const ConstTensorView* inputs;
+  int count;
+  TensorView out;
+};
+
+void ConcatTrampoline(void* ctx, int begin, int end) {
+  const ConcatJob* job = static_cast<const ConcatJob*>(ctx);
+  ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
+}
+
+struct AddJob {
+  ConstTensorView a;
+  ConstTensorView b;
+  const AddParams* params;
+  TensorView out;
+};
+
+void AddTrampoline(void* ctx, int begin, int end) {
+  const AddJob* job = static_cast<const AddJob*>(ctx);
+  ref::AddRows(job->a, job->b, *job->params, job->out, begin, end);
+}
+
 Status CheckTuning(const KernelTuning& tuning) {
   if (tuning.winograd_tile != 0 && tuning.winograd_tile != 2 && tuning.winograd_tile != 4) {
     return Status::Error("Session::Create: KernelTuning::winograd_tile is " +
@@ -233,6 +268,7 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
   }
 
   session->geometry_.resize(session->model_->layers().size());
+  session->shape_scratch_.resize(session->model_->layers().size());
   Status s =
       InferGeometry(*session->model_, options.max_height, options.max_width, session->geometry_);
   if (!s.ok()) {
@@ -315,6 +351,12 @@ Status Session::Plan() {
     }
     return step;
   };
+  // Whether layer `reader` is the only one that reads layer t's output (so a step may fuse both
+  // and t's output need never exist).
+  auto only_reader = [&](int reader, int t) {
+    return layers[reader].inputs[0] == t && model_->consumer_count(static_cast<size_t>(t)) == 1;
+  };
+  size_t gather = 0;  // the most inputs a Concat has
   for (int i = 0; i < n; ++i) {
     const LayerDesc& layer = layers[i];
     const int consumer = next_conv(i);
@@ -346,11 +388,19 @@ Status Session::Plan() {
     if (layer.kind == LayerKind::kCrop) {
       step.kind = Step::Kind::kCrop;
       step.kernel = i + 1 == n ? "ref::Copy" : "view";
+    } else if (layer.kind == LayerKind::kConcat) {  // float32: only chains hold int8 or bf16
+      step.kind = Step::Kind::kConcat;
+      step.kernel = "ref::ConcatRows";
+      gather = std::max(gather, layer.inputs.size());
+    } else if (layer.kind == LayerKind::kAdd) {
+      step.kind = Step::Kind::kAdd;
+      step.kernel = "ref::AddRows";
     } else if (layer.kind == LayerKind::kUpsample) {
       int conv = i + 1;
       int crop = -1;
-      if (conv < n && layers[conv].kind == LayerKind::kCrop) crop = conv++;
-      const bool conv_next = conv < n && layers[conv].kind == LayerKind::kConv2D;
+      if (conv < n && layers[conv].kind == LayerKind::kCrop && only_reader(conv, i)) crop = conv++;
+      const bool conv_next = conv < n && layers[conv].kind == LayerKind::kConv2D &&
+                             only_reader(conv, crop >= 0 ? crop : i);
       const bool factor2 = layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2;
       const bool fusable = kernels != nullptr && factor2 && conv_next &&
                            cur == Precision::kFloat32 && simd_fits(layers[conv].conv, true, 0);
@@ -508,28 +558,74 @@ Status Session::Plan() {
   }
 
   // 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is
-  // a view of its input. A tensor lives until the first step after it that is not a crop has
-  // read it (times are layer indices; a quantising step's tensor is born with the tensor it
-  // quantises). A uint8 tensor gets kInt8TensorSlack spare bytes that kernels may read.
+  // a view of its input. Times are layer indices: a tensor is born with the last layer of the
+  // step that writes it (a converting step's, with the tensor it converts) and lives until the
+  // last step that reads it, directly or through crops' views. A uint8 or bf16 tensor gets
+  // kInt8TensorSlack or kBf16TensorSlack spare bytes that kernels may read.
+  views_ = std::make_unique<Views>();
+  views_->gather.resize(gather);
+  views_->f32.resize(layers.size() + 1);
+  views_->u8.resize(layers.size() + 1);
+  views_->bf16.resize(layers.size() + 1);
   std::vector<BufferRequest> requests;
   std::vector<int> producers;
   const size_t m = steps_.size();
   tensor_of_step_.assign(m, -1);
-  for (size_t k = 0; k + 1 < m; ++k) {
+  // Per tensor slot (a layer's output; the model input last) and element type, the request
+  // that holds it (-1: none, or the caller's input).
+  auto slot_of = [&](int t) { return t == kModelInput ? layers.size() : static_cast<size_t>(t); };
+  std::vector<int> holder_f(layers.size() + 1, -1);
+  std::vector<int> holder_u8(layers.size() + 1, -1);
+  std::vector<int> holder_bf16(layers.size() + 1, -1);
+  auto holders = [&](const Step& step) -> std::vector<int>& {
+    return step.out_u8 ? holder_u8 : step.out_bf16 ? holder_bf16 : holder_f;
+  };
+  auto read = [&](int request, int time) {
+    if (request >= 0) {
+      BufferRequest& r = requests[static_cast<size_t>(request)];
+      r.last_use = std::max(r.last_use, time);
+    }
+  };
+  for (size_t k = 0; k < m; ++k) {
     const Step& step = steps_[k];
-    if (step.kind == Step::Kind::kCrop) continue;
-    size_t reader = k + 1;
-    while (reader + 1 < m && steps_[reader].kind == Step::Kind::kCrop) ++reader;
-    const bool quantize = step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
-    const int born = quantize ? step.first_layer - 1 : step.last_layer;
-    const TensorShape shape = !quantize              ? geometry_[step.last_layer].output
-                              : step.first_layer > 0 ? geometry_[step.first_layer - 1].output
-                                                     : geometry_[0].input;
+    const LayerDesc& first = layers[step.first_layer];
+    const size_t src = slot_of(first.inputs[0]);
+    const bool convert = step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
+    const int time = step.last_layer;
+    switch (step.kind) {
+      case Step::Kind::kConcat:
+      case Step::Kind::kAdd:
+        for (int t : first.inputs) read(holder_f[slot_of(t)], time);
+        break;
+      case Step::Kind::kInt8Conv:
+      case Step::Kind::kUpsampleU8:
+        read(holder_u8[src], time);
+        break;
+      case Step::Kind::kBf16Conv:
+      case Step::Kind::kUpsampleBf16:
+        read(holder_bf16[src], time);
+        break;
+      case Step::Kind::kCrop:  // a view: what reads it reads the same memory
+        read(holders(step)[src], time);
+        holders(step)[static_cast<size_t>(step.last_layer)] = holders(step)[src];
+        break;
+      default:  // the float32 readers: converting steps, float32 convolutions, upsamplings
+        read(holder_f[src], time);
+        break;
+    }
+    if (step.kind == Step::Kind::kCrop || k + 1 == m) continue;  // the last writes the output
+    const int born = convert ? step.first_layer - 1 : step.last_layer;
+    const TensorShape shape = !convert               ? geometry_[step.last_layer].output
+                              : src == layers.size() ? geometry_[0].input
+                                                     : geometry_[src].output;
     const size_t bytes = step.out_u8     ? shape.elements() + kInt8TensorSlack
                          : step.out_bf16 ? shape.elements() * sizeof(uint16_t) + kBf16TensorSlack
                                          : shape.elements() * sizeof(float);
     tensor_of_step_[k] = static_cast<int>(requests.size());
-    requests.push_back({bytes, born, steps_[reader].last_layer});
+    // A converting step's tensor is the converted form of its input's slot.
+    holders(step)[convert ? src : static_cast<size_t>(step.last_layer)] =
+        static_cast<int>(requests.size());
+    requests.push_back({bytes, born, born});
     producers.push_back(born);
   }
   // Winograd scratch (v and m) lives during its own step only, so it reuses memory that the
@@ -586,7 +682,9 @@ Result<TensorShape> Session::OutputShape(int height, int width) const {
                          " exceeds the session's maximum " + std::to_string(options_.max_height) +
                          "x" + std::to_string(options_.max_width));
   }
-  return InferOutputShape(*model_, height, width);
+  if (model_->is_chain()) return InferOutputShape(*model_, height, width);
+  if (Status s = InferGeometry(*model_, height, width, shape_scratch_); !s.ok()) return s;
+  return shape_scratch_.back().output;
 }
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output) {
@@ -632,8 +730,12 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       fn(ctx, 0, rows);
     }
   };
-  ConstTensorView cur{input.data(), in_shape.height, in_shape.width, in_shape.channels,
-                      static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
+  const auto layers = model_->layers();
+  Views& views = *views_;
+  const size_t input_slot = layers.size();
+  auto slot_of = [&](int t) { return t == kModelInput ? input_slot : static_cast<size_t>(t); };
+  views.f32[input_slot] = {input.data(), in_shape.height, in_shape.width, in_shape.channels,
+                           static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
   // An int8 or bf16 step's call (Args: Int8ConvArgs or Bf16ConvArgs with conv and in set): the
   // pads, and the upsampling it fuses (then `in` is the low-resolution map).
   auto reduced_args = [&]<typename Args>(const Step& step, Args args) {
@@ -673,27 +775,38 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Job>, &job);
     }
   };
-  ConstByteView cur8;   // the current tensor when it is uint8 (cur8.data != null)
-  ConstBf16View cur16;  // the current tensor when it is bf16 (cur16.data != null)
   if (timed) stamp(0);
   size_t step_index = 0;
   for (const Step& step : steps_) {
     ++step_index;
     const LayerGeometry& g = geometry_[step.last_layer];
     const bool last = step_index == steps_.size();
-    if (step.kind == Step::Kind::kCrop && cur8.data != nullptr) {
+    const LayerDesc& first = layers[step.first_layer];
+    // What the step reads (the tensor its first layer names, in the element type the step reads)
+    // and the slot its output goes to: its last layer's, or for a converting step the converted
+    // form of its input's slot.
+    const size_t src = slot_of(first.inputs[0]);
+    const size_t dst_slot = static_cast<size_t>(step.last_layer);
+    const ConstTensorView cur = views.f32[src];
+    const ConstByteView cur8 = views.u8[src];
+    const ConstBf16View cur16 = views.bf16[src];
+    if (step.kind == Step::Kind::kCrop && step.out_u8) {
       // A uint8 tensor is never the model's output: an int8 convolution whose output no int8
       // convolution reads writes float32.
-      cur8.data = cur8.pixel(g.crop.top, g.crop.left);
-      cur8.height = g.output.height;
-      cur8.width = g.output.width;
+      ConstByteView view = cur8;
+      view.data = cur8.pixel(g.crop.top, g.crop.left);
+      view.height = g.output.height;
+      view.width = g.output.width;
+      views.u8[dst_slot] = view;
       if (timed) stamp(step_index);
       continue;
     }
-    if (step.kind == Step::Kind::kCrop && cur16.data != nullptr) {
-      cur16.data = cur16.pixel(g.crop.top, g.crop.left);
-      cur16.height = g.output.height;
-      cur16.width = g.output.width;
+    if (step.kind == Step::Kind::kCrop && step.out_bf16) {
+      ConstBf16View view = cur16;
+      view.data = cur16.pixel(g.crop.top, g.crop.left);
+      view.height = g.output.height;
+      view.width = g.output.width;
+      views.bf16[dst_slot] = view;
       if (timed) stamp(step_index);
       continue;
     }
@@ -702,24 +815,26 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       uint16_t* dst16 = reinterpret_cast<uint16_t*>(
           reinterpret_cast<uint8_t*>(arena_) +
           plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset);
+      Bf16View written;
       if (step.kind == Step::Kind::kToBf16) {
         ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
         parallel_rows(cur.height, ToBf16Trampoline, &job);
-        cur16 = job.out;
+        written = job.out;
+        views.bf16[src] = written;
       } else if (step.kind == Step::Kind::kUpsampleBf16) {
-        const Bf16View out16 =
-            DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
-        const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
-        ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, out16);
-        cur16 = out16;
+        written = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
+        const UpsampleParams& u = layers[step.last_layer].upsample;
+        ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, written);
+        views.bf16[dst_slot] = written;
       } else {
         Bf16ConvArgs args = bf16_args(step, cur16);
         args.out_bf16 = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
         run_blocked(step.fn16, args, g.output.height);
-        cur16 = args.out_bf16;
+        written = args.out_bf16;
+        views.bf16[dst_slot] = written;
       }
       // The slack a kernel may read past the tensor: finite (bf16_job.h).
-      std::memset(dst16 + static_cast<size_t>(cur16.height) * cur16.width * cur16.channels, 0,
+      std::memset(dst16 + static_cast<size_t>(written.height) * written.width * written.channels, 0,
                   kBf16TensorSlack);
       if (timed) stamp(step_index);
       continue;
@@ -733,18 +848,18 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
                         DenseByteView(dst8, cur.height, cur.width, cur.channels),
                         1.0f / step.quant.scale, step.quant.zero_point};
         parallel_rows(cur.height, QuantizeTrampoline, &job);
-        cur8 = job.out;
+        views.u8[src] = job.out;
       } else if (step.kind == Step::Kind::kUpsampleU8) {
         const ByteView out8 =
             DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
-        const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
+        const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
-        cur8 = out8;
+        views.u8[dst_slot] = out8;
       } else {
         Int8ConvArgs args = int8_args(step, cur8);
         args.out_u8 = DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
         run_blocked(step.fn8, args, g.output.height);
-        cur8 = args.out_u8;
+        views.u8[dst_slot] = args.out_u8;
       }
       if (timed) stamp(step_index);
       continue;
@@ -758,7 +873,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         ref::Copy(view,
                   DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
       }
-      cur = view;
+      views.f32[dst_slot] = view;
       if (timed) stamp(step_index);
       continue;
     }
@@ -826,7 +941,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         break;
       }
       case Step::Kind::kUpsample: {
-        const UpsampleParams& u = model_->layers()[step.last_layer].upsample;
+        const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearest(cur, u.factor_h, u.factor_w, out);
         break;
       }
@@ -834,14 +949,24 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         Int8ConvArgs args = int8_args(step, cur8);
         args.out_f32 = out;
         run_blocked(step.fn8, args, out.height);
-        cur8 = {};
         break;
       }
       case Step::Kind::kBf16Conv: {  // float32 output
         Bf16ConvArgs args = bf16_args(step, cur16);
         args.out_f32 = out;
         run_blocked(step.fn16, args, out.height);
-        cur16 = {};
+        break;
+      }
+      case Step::Kind::kConcat: {
+        for (size_t k = 0; k < first.inputs.size(); ++k)
+          views.gather[k] = views.f32[slot_of(first.inputs[k])];
+        ConcatJob job{views.gather.data(), static_cast<int>(first.inputs.size()), out};
+        parallel_rows(out.height, ConcatTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kAdd: {
+        AddJob job{cur, views.f32[slot_of(first.inputs[1])], &first.add, out};
+        parallel_rows(out.height, AddTrampoline, &job);
         break;
       }
       case Step::Kind::kCrop:
@@ -851,7 +976,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kUpsampleBf16:
         break;
     }
-    cur = out;
+    views.f32[dst_slot] = out;
     if (timed) stamp(step_index);
   }
   return Status::Ok();

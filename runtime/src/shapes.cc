@@ -43,12 +43,41 @@ Status CheckInputSize(int height, int width) {
   return Status::Ok();
 }
 
-// Fills `g` for layer `i`, which receives `cur`, in a model whose input is height x width.
+std::string SizeText(const TensorShape& s) {
+  return std::to_string(s.height) + "x" + std::to_string(s.width) + "x" +
+         std::to_string(s.channels);
+}
+
+// Fills `g` for layer `i`, which reads `cur` (and, for a Concat or an Add, also the tensors
+// `shape_of` gives for its other inputs), in a model whose input is height x width.
+template <typename ShapeOf>
 Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
-                       const TensorShape& cur, LayerGeometry& g) {
+                       const TensorShape& cur, const ShapeOf& shape_of, LayerGeometry& g) {
   g = LayerGeometry{};
   g.input = cur;
   switch (layer.kind) {
+    case LayerKind::kConcat: {
+      g.output = cur;
+      for (size_t k = 1; k < layer.inputs.size(); ++k) {
+        const TensorShape other = shape_of(layer.inputs[k]);
+        if (other.height != cur.height || other.width != cur.width) {
+          return Status::Error(Quote(layer, i) + ": concatenates a " + SizeText(cur) +
+                               " tensor with a " + SizeText(other) +
+                               " one; all its inputs must have the same height and width");
+        }
+        g.output.channels += other.channels;
+      }
+      break;
+    }
+    case LayerKind::kAdd: {
+      const TensorShape other = shape_of(layer.inputs[1]);
+      if (!(other == cur)) {
+        return Status::Error(Quote(layer, i) + ": adds a " + SizeText(cur) + " tensor to a " +
+                             SizeText(other) + " one; both must have the same shape");
+      }
+      g.output = cur;
+      break;
+    }
     case LayerKind::kConv2D: {
       const ConvParams& c = layer.conv;
       const int oh = ConvOutputSize(cur.height, c.kernel_h, c.stride_h, c.padding_rule, c.pads.top,
@@ -84,11 +113,15 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
       if (c.rule == CropRule::kExplicit) {
         g.crop = c.amounts;
       } else {
-        const int excess_rows = cur.height - height;
-        const int excess_cols = cur.width - width;
+        const bool to_input = c.rule == CropRule::kToInputSize;
+        const TensorShape target =
+            to_input ? TensorShape{height, width, 0} : shape_of(layer.inputs[1]);
+        const int excess_rows = cur.height - target.height;
+        const int excess_cols = cur.width - target.width;
         if (excess_rows < 0 || excess_cols < 0) {
-          return Status::Error(Quote(layer, i) + ": crops to the input size " +
-                               std::to_string(height) + "x" + std::to_string(width) +
+          return Status::Error(Quote(layer, i) + ": crops to " +
+                               (to_input ? "the input size " : "its second input's size ") +
+                               std::to_string(target.height) + "x" + std::to_string(target.width) +
                                " but receives only " + std::to_string(cur.height) + "x" +
                                std::to_string(cur.width));
         }
@@ -119,21 +152,35 @@ Status InferGeometry(const Model& model, int height, int width, std::span<LayerG
                          " entries for " + std::to_string(layers.size()) + " layers");
   }
   if (Status s = CheckInputSize(height, width); !s.ok()) return s;
-  TensorShape cur{height, width, model.metadata().input.channels};
+  const TensorShape input{height, width, model.metadata().input.channels};
+  auto shape_of = [&](int tensor) {
+    return tensor == kModelInput ? input : out[static_cast<size_t>(tensor)].output;
+  };
   for (size_t i = 0; i < layers.size(); ++i) {
-    if (Status s = GeometryOfLayer(layers[i], i, height, width, cur, out[i]); !s.ok()) return s;
-    cur = out[i].output;
+    const TensorShape cur = shape_of(layers[i].inputs[0]);
+    if (Status s = GeometryOfLayer(layers[i], i, height, width, cur, shape_of, out[i]); !s.ok()) {
+      return s;
+    }
   }
   return Status::Ok();
 }
 
 Result<TensorShape> InferOutputShape(const Model& model, int height, int width) {
+  if (!model.is_chain()) {
+    Result<std::vector<LayerGeometry>> geometry = InferGeometry(model, height, width);
+    if (!geometry.ok()) return geometry.status();
+    return geometry->back().output;
+  }
   if (Status s = CheckInputSize(height, width); !s.ok()) return s;
   const auto layers = model.layers();
   TensorShape cur{height, width, model.metadata().input.channels};
+  // A chain's layers read only the previous one's output.
+  auto no_other_inputs = [](int) { return TensorShape{}; };
   LayerGeometry g;
   for (size_t i = 0; i < layers.size(); ++i) {
-    if (Status s = GeometryOfLayer(layers[i], i, height, width, cur, g); !s.ok()) return s;
+    if (Status s = GeometryOfLayer(layers[i], i, height, width, cur, no_other_inputs, g); !s.ok()) {
+      return s;
+    }
     cur = g.output;
   }
   return cur;

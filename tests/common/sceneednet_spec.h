@@ -37,7 +37,7 @@ inline exporter::ModelSpec SceneEdNetSpec(int width_divisor, uint32_t seed = 1) 
     spec.layers.push_back(c);
     channels = out;
   };
-  auto up = [&](int i) { spec.layers.push_back(UpsampleSpec{"up" + std::to_string(i), 2, 2}); };
+  auto up = [&](int i) { spec.layers.push_back(UpsampleSpec{"up" + std::to_string(i), 2, 2, {}}); };
   auto w = [&](int published) { return published / width_divisor; };
   conv("conv0", w(64), 2, true);
   conv("conv1", w(128), 2, true);
@@ -52,7 +52,7 @@ inline exporter::ModelSpec SceneEdNetSpec(int width_divisor, uint32_t seed = 1) 
   up(3);
   conv("conv8", w(128), 1, true);
   up(4);
-  spec.layers.push_back(CropSpec{"crop", CropRule::kToInputSize, {}, true, true});
+  spec.layers.push_back(CropSpec{"crop", CropRule::kToInputSize, {}, true, true, {}});
   conv("conv9", w(64), 1, true);
   conv("output", 3, 1, false);
   return spec;

@@ -1,6 +1,7 @@
 // Writes small valid .sfrt model files into a directory, as seeds for the model fuzz targets and
 // the fault-injection test: SceneEDNet at 1/16 and 1/64 width (fp32), 1/64 width with fp16
-// weights, and a three-layer chain with explicit padding and an explicit crop.
+// weights, a three-layer chain with explicit padding and an explicit crop, and SceneEDNet-U at
+// 1/64 width with a residual Add (a graph: named inputs, Concat, Add, crops to a second input).
 // Usage: sfrt_fuzz_make_model_seeds OUT_DIR
 #include <cstdio>
 #include <filesystem>
@@ -8,6 +9,7 @@
 #include <string>
 
 #include "common/sceneednet_spec.h"
+#include "common/unet_spec.h"
 #include "sfrt/exporter/model_writer.h"
 
 namespace {
@@ -27,8 +29,8 @@ sfrt::exporter::ModelSpec ExplicitChain() {
   conv.weights_hwio.assign(static_cast<size_t>(3 * 3 * 12 * 4), 0.25f);
   conv.bias.assign(4, -0.5f);
   spec.layers.push_back(conv);
-  spec.layers.push_back(UpsampleSpec{"up", 2, 3});
-  spec.layers.push_back(CropSpec{"crop", CropRule::kExplicit, {1, 1, 0, 2}, true, true});
+  spec.layers.push_back(UpsampleSpec{"up", 2, 3, {}});
+  spec.layers.push_back(CropSpec{"crop", CropRule::kExplicit, {1, 1, 0, 2}, true, true, {}});
   ConvSpec out;
   out.name = "output";
   out.in_channels = 4;
@@ -73,6 +75,7 @@ int main(int argc, char** argv) {
   const bool ok = Write(dir / "sceneednet-w16.sfrt", sfrt::testing::SceneEdNetSpec(16, 1)) &&
                   Write(dir / "sceneednet-w64.sfrt", sfrt::testing::SceneEdNetSpec(64, 2)) &&
                   Write(dir / "sceneednet-w64-fp16.sfrt", w64_fp16) &&
-                  Write(dir / "explicit-chain.sfrt", ExplicitChain());
+                  Write(dir / "explicit-chain.sfrt", ExplicitChain()) &&
+                  Write(dir / "sceneednet-u-w64.sfrt", sfrt::testing::SceneEdNetUSpec(64, 4, true));
   return ok ? 0 : 1;
 }

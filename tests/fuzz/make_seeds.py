@@ -3,7 +3,8 @@
 
 Writes OUT_DIR/<target>/ for every target of tests/fuzz:
   model_load, model_session  .sfrt files from sfrt_fuzz_make_model_seeds (SceneEDNet at 1/16 and
-                             1/64 width, fp16 weights, an explicit-padding/crop chain)
+                             1/64 width, fp16 weights, an explicit-padding/crop chain,
+                             SceneEDNet-U at 1/64 width with a residual Add: a graph)
   onnx_import                SceneEDNet ONNX at 1/64 width, 16x16, from
                              tests/fixtures/gen_sceneednet.py (tf and torch padding, opset 11
                              without constant folding)

@@ -509,7 +509,7 @@ TEST(ModelLimits, UpsamplingPastTheLimitIsRejectedNamingTheLayer) {
   exporter::ModelSpec spec = testing::SceneEdNetSpec(64, 7);
   for (int k = 0; k < 4; ++k) {
     spec.layers.insert(spec.layers.begin(),
-                       exporter::UpsampleSpec{"up" + std::to_string(k), 64, 64});
+                       exporter::UpsampleSpec{"up" + std::to_string(k), 64, 64, {}});
   }
   auto model = testing::LoadOrDie(spec);
   ASSERT_NE(model, nullptr);

@@ -21,6 +21,7 @@
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
+#include "common/unet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -96,11 +97,13 @@ class NoLock : public ::testing::Test {
  protected:
   // Runs `runs` frames at 96x128 after `warm_up` frames; returns what was called meanwhile.
   // precision: the model in it (int8: uint8 tensors, the quantising step, the int8 kernels;
-  // bf16: bf16 tensors, the converting step, the bf16 kernels).
+  // bf16: bf16 tensors, the converting step, the bf16 kernels). graph: SceneEDNet-U with a
+  // residual Add instead (float32; skip tensors, Concat and Add steps).
   Counts CountDuringRuns(const SessionOptions& options, int warm_up, int runs,
-                         Precision precision = Precision::kFloat32) {
+                         Precision precision = Precision::kFloat32, bool graph = false) {
     auto model = testing::LoadOrDie(
-        precision == Precision::kInt8       ? testing::Int8Spec(testing::SceneEdNetSpec(16))
+        graph                               ? testing::SceneEdNetUSpec(16, 1, true)
+        : precision == Precision::kInt8     ? testing::Int8Spec(testing::SceneEdNetSpec(16))
         : precision == Precision::kBFloat16 ? testing::Bf16Spec(testing::SceneEdNetSpec(16))
                                             : testing::SceneEdNetSpec(16));
     auto session = Session::Create(model, options);
@@ -165,6 +168,19 @@ TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
       EXPECT_EQ(c.futex_calls, 0);
       EXPECT_EQ(c.syscalls, 0);
     }
+    SCOPED_TRACE(std::string(IsaName(isa)) + " graph");
+    SessionOptions options;
+    options.max_height = 96;
+    options.max_width = 128;
+    options.isa = isa;
+    options.threads = 2;
+    options.spin_us = -1;
+    const Counts c = CountDuringRuns(options, 5, isa == Isa::kRef ? 10 : 100, Precision::kFloat32,
+                                     /*graph=*/true);
+    EXPECT_EQ(c.mutex_locks, 0);
+    EXPECT_EQ(c.cond_waits, 0);
+    EXPECT_EQ(c.futex_calls, 0);
+    EXPECT_EQ(c.syscalls, 0);
   }
 }
 

@@ -109,7 +109,7 @@ TEST(InferGeometry, RejectsNonPositiveSizes) {
 TEST(InferGeometry, ExplicitCropThatRemovesEverythingNamesTheLayer) {
   exporter::ModelSpec spec = testing::SceneEdNetSpec(16);
   std::get<exporter::CropSpec>(spec.layers[13]) = {
-      "crop", exporter::CropRule::kExplicit, {40, 0, 0, 0}, true, true};
+      "crop", exporter::CropRule::kExplicit, {40, 0, 0, 0}, true, true, {}};
   auto model = testing::LoadOrDie(spec);
   ASSERT_NE(model, nullptr);
   auto geometry = InferGeometry(*model, 20, 20);  // 32 rows reach the crop

@@ -806,6 +806,13 @@ int RunExport(const ExportArgs& args) {
   }
   if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
   std::string bf16_line;
+  if ((quantise || bf16) && exporter::IsGraph(spec)) {
+    return ReportError(kName,
+                       args.input +
+                           ": the model is a graph (Concat, Add or named inputs); --precision "
+                           "int8 and bf16 run on chain models only (drop --precision for fp32)",
+                       kExitFailure);
+  }
   if (quantise || bf16) {
     for (const exporter::LayerSpec& layer : spec.layers) {
       const auto* conv = std::get_if<exporter::ConvSpec>(&layer);

@@ -73,12 +73,33 @@ std::string OpString(const LayerDesc& layer) {
     case LayerKind::kCrop: {
       const CropParams& c = layer.crop;
       if (c.rule == CropRule::kExplicit) return "crop explicit";
-      return std::string("crop to input (rows from ") +
-             (c.excess_rows_from_top ? "top" : "bottom") + ", cols from " +
+      return std::string(c.rule == CropRule::kToSecondInput ? "crop to 2nd input"
+                                                            : "crop to input") +
+             " (rows from " + (c.excess_rows_from_top ? "top" : "bottom") + ", cols from " +
              (c.excess_cols_from_left ? "left" : "right") + ")";
     }
+    case LayerKind::kConcat:
+      return "concat channels";
+    case LayerKind::kAdd:
+      return layer.add.activation == Activation::kLeakyRelu
+                 ? "add + leaky(" + FormatFloat(layer.add.leaky_slope) + ")"
+             : layer.add.activation == Activation::kRelu ? "add + relu"
+                                                         : "add";
   }
   return "?";
+}
+
+// What a layer of a graph model reads, when it is not just the layer before it: " <- a, b".
+std::string InputsSuffix(const Model& model, size_t i) {
+  const LayerDesc& layer = model.layers()[i];
+  if (layer.inputs.size() == 1 && layer.inputs[0] == static_cast<int>(i) - 1) return "";
+  std::string names;
+  for (int t : layer.inputs) {
+    names += names.empty() ? " <- " : ", ";
+    names += t == kModelInput ? model.metadata().input.name
+                              : model.layers()[static_cast<size_t>(t)].name;
+  }
+  return names;
 }
 
 // The "pads" column: what is added (conv) or removed (crop) per side at this size.
@@ -90,6 +111,8 @@ std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
     case LayerKind::kCrop:
       return "crop " + PadsString(g.crop);
     case LayerKind::kUpsample:
+    case LayerKind::kConcat:
+    case LayerKind::kAdd:
       return "-";
   }
   return "?";
@@ -279,7 +302,7 @@ int RunInspect(const InspectArgs& args) {
     total_params += g.params;
     any_explicit |= layers[i].kind == LayerKind::kConv2D &&
                     layers[i].conv.padding_rule == PaddingRule::kExplicit;
-    table.Add({std::to_string(i), layers[i].name, OpString(layers[i]),
+    table.Add({std::to_string(i), layers[i].name, OpString(layers[i]) + InputsSuffix(*model, i),
                layers[i].kind == LayerKind::kConv2D ? PrecisionName(layers[i].conv.precision) : "-",
                PadsColumn(layers[i], g), ShapeString(g.output),
                layers[i].kind == LayerKind::kConv2D ? GroupDigits(g.macs) : "-",

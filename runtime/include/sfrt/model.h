@@ -11,7 +11,8 @@
 // Verification on load, in order: size and 64-byte alignment; file identifier "SFRT"; schema
 // major version (a different major is rejected naming both versions); the FlatBuffers verifier;
 // the CRC-32C of the whole file (schema 1.1; 1.0 files have none); the FlatBuffers verifier; then
-// semantic checks (layer chain and channel counts, weight shapes and byte counts, alignment,
+// semantic checks (the graph: every input an earlier layer or the model input, every output
+// read, channel counts; weight shapes and byte counts, alignment,
 // parameter ranges) and the CRC-32C of all weights. Any failure names the layer and field.
 #pragma once
 
@@ -29,12 +30,14 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 4;
+inline constexpr int kSchemaVersionMinor = 5;
 
-enum class LayerKind { kConv2D, kUpsample, kCrop };
+// kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32.
+enum class LayerKind { kConv2D, kUpsample, kCrop, kConcat, kAdd };
 enum class Activation { kNone, kRelu, kLeakyRelu };
 enum class PaddingRule { kExplicit, kSameUpper };
-enum class CropRule { kExplicit, kToInputSize };
+// kToSecondInput (schema 1.5): to the height and width of the crop's second input.
+enum class CropRule { kExplicit, kToInputSize, kToSecondInput };
 enum class WeightType { kFloat32, kFloat16 };
 // The arithmetic a convolution runs in (schema 1.3; every layer of an older file is kFloat32).
 // kInt8: see ConvParams and docs/model-format.md, "Int8 arithmetic".
@@ -98,16 +101,29 @@ struct UpsampleParams {  // nearest neighbour
 struct CropParams {
   CropRule rule = CropRule::kToInputSize;
   Padding amounts;                    // kExplicit: removed per side
-  bool excess_rows_from_top = true;   // kToInputSize
-  bool excess_cols_from_left = true;  // kToInputSize
+  bool excess_rows_from_top = true;   // kToInputSize, kToSecondInput
+  bool excess_cols_from_left = true;  // kToInputSize, kToSecondInput
 };
+
+struct AddParams {  // out = act(a + b)
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+};
+
+// The model input, where LayerDesc::inputs names it.
+inline constexpr int kModelInput = -1;
 
 struct LayerDesc {
   std::string name;
   LayerKind kind = LayerKind::kConv2D;
+  // What it reads, in order: indices of earlier layers, or kModelInput. One for kConv2D,
+  // kUpsample and kCrop (two for a kToSecondInput crop, which reads only the second's size), two
+  // for kAdd, two or more for kConcat (channels stacked in this order).
+  std::vector<int> inputs;
   ConvParams conv;          // valid when kind == kConv2D
   UpsampleParams upsample;  // valid when kind == kUpsample
   CropParams crop;          // valid when kind == kCrop
+  AddParams add;            // valid when kind == kAdd
 };
 
 struct InputDesc {
@@ -203,6 +219,11 @@ class Model {
 
   const ModelMetadata& metadata() const { return metadata_; }
   std::span<const LayerDesc> layers() const { return layers_; }
+  // True when every layer reads the one before it (layer 0: the input): the only form before
+  // schema 1.5, and the only one int8 and bf16 layers may take.
+  bool is_chain() const { return is_chain_; }
+  // How many layers read layer i's output (the last layer's: 0).
+  int consumer_count(size_t i) const { return consumers_[i]; }
   size_t file_bytes() const { return size_; }
   // Number of stored parameters (weights and biases of all layers).
   size_t parameter_count() const;
@@ -217,6 +238,8 @@ class Model {
   size_t size_ = 0;
   ModelMetadata metadata_;
   std::vector<LayerDesc> layers_;
+  std::vector<int> consumers_;  // per layer
+  bool is_chain_ = true;
   std::vector<std::vector<float>> widened_;  // fp32 copies of fp16 tensors
 };
 

@@ -8,6 +8,9 @@
 //
 // Ownership: a Session shares ownership of its Model; the input and output buffers belong to the
 // caller and are only accessed during Run().
+// Graphs (schema 1.5): each step reads the tensors its layer names; a tensor stays in the arena
+// until its last reader has run, and a fusion applies only where the fused layers' outputs have
+// no other reader.
 // Kernels: Create() also chooses the instruction set (SessionOptions::isa, see sfrt/isa.h),
 // packs every convolution's weights for it into memory the session owns (allocated once), fuses
 // each nearest-2x upsample (+ crop) into the 3x3 convolution that reads it (optimised ISAs only;
@@ -106,7 +109,7 @@ class Session {
   Session& operator=(const Session&) = delete;
 
   // Output shape for an input of height x width. Allocates nothing on success (only an error's
-  // message is built on the heap).
+  // message is built on the heap). Not thread-safe (a graph model's uses session scratch).
   Result<TensorShape> OutputShape(int height, int width) const;
 
   // input: height x width x input channels, NHWC float32 in the model's channel order.
@@ -136,6 +139,7 @@ class Session {
 
  private:
   struct Step;
+  struct Views;
   class Pool;
   Session() = default;
   Status Plan();
@@ -144,6 +148,8 @@ class Session {
   std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops
   std::vector<LayerGeometry> geometry_;  // scratch for Run(), sized at creation
   std::vector<int> tensor_of_step_;      // step -> index into plan_ (-1: none)
+  std::unique_ptr<Views> views_;         // where each tensor is during Run(), sized at creation
+  mutable std::vector<LayerGeometry> shape_scratch_;  // OutputShape() of a graph model
   size_t arena_bytes_ = 0;
   float* arena_ = nullptr;  // 64-byte aligned, arena_bytes_ long
   Isa isa_ = Isa::kRef;

@@ -28,7 +28,7 @@ inline constexpr int kMaxTensorSide = 1 << 20;
 
 // What one layer does at one input size.
 struct LayerGeometry {
-  TensorShape input;
+  TensorShape input;  // the first input's
   TensorShape output;
   Padding pads;         // Conv2D: the amounts in effect at this size
   Padding crop;         // Crop: rows/cols removed per side at this size
@@ -45,8 +45,9 @@ int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
 // `out.size() == model.layers().size()`. Errors name the layer and the offending size.
 Status InferGeometry(const Model& model, int height, int width, std::span<LayerGeometry> out);
 
-// The last layer's output shape for an input of height x width, without per-layer storage:
-// allocates nothing on success (the message of an error is the only allocation).
+// The last layer's output shape for an input of height x width. For a chain model (is_chain())
+// it keeps no per-layer storage and allocates nothing on success (the message of an error is the
+// only allocation); for a graph it allocates the layers' geometry (Session::OutputShape does not).
 Result<TensorShape> InferOutputShape(const Model& model, int height, int width);
 
 // Convenience for tools: allocates the vector.

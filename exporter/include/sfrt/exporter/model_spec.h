@@ -29,8 +29,12 @@ using Pads = sfrt::Padding;
 using vocabulary::ColorOrder;  // the shared words (sfrt/vocabulary/stereo_input.h)
 using vocabulary::ImageSlot;
 
+// Every layer's `inputs` names the tensors it reads (schema 1.5): earlier layers' names or the
+// model input's (InputSpec::name). Empty: the previous layer (layer 0: the input), as in a chain.
+
 struct ConvSpec {
   std::string name;
+  std::vector<std::string> inputs;
   int in_channels = 0;
   int out_channels = 0;
   int kernel_h = 3;
@@ -64,17 +68,31 @@ struct UpsampleSpec {
   std::string name;
   int factor_h = 1;
   int factor_w = 1;
+  std::vector<std::string> inputs;
 };
 
 struct CropSpec {
   std::string name;
   CropRule rule = CropRule::kToInputSize;
   Pads amounts;                       // rows/cols removed per side when rule == kExplicit
-  bool excess_rows_from_top = true;   // kToInputSize: remove excess rows from the top
-  bool excess_cols_from_left = true;  // kToInputSize: remove excess columns from the left
+  bool excess_rows_from_top = true;   // kToInputSize, kToSecondInput: excess rows from the top
+  bool excess_cols_from_left = true;  // ... excess columns from the left
+  std::vector<std::string> inputs;    // kToSecondInput: two (the second gives the size)
 };
 
-using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec>;
+struct ConcatSpec {  // schema 1.5: channels stacked in input order
+  std::string name;
+  std::vector<std::string> inputs;  // two or more
+};
+
+struct AddSpec {  // schema 1.5: act(a + b)
+  std::string name;
+  std::vector<std::string> inputs;  // two
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+};
+
+using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec>;
 
 struct InputSpec {
   std::string name = "stereo_pairs";
@@ -118,11 +136,23 @@ struct ModelSpec {
   InputSpec input;
   OutputSpec output;
   CameraSpec camera;
-  std::vector<LayerSpec> layers;  // a chain: layer i consumes layer i-1's output
+  std::vector<LayerSpec> layers;  // each after the layers it reads; the last is the output
   WeightType weight_type = WeightType::kFloat32;
   TrainingState training = TrainingState::kUnknown;  // written from schema 1.2
   // Schema 1.3: how the quantisation was chosen (sfrt export --calibration); written when set.
   std::optional<CalibrationDesc> calibration;
 };
+
+// Whether some layer names its inputs or reads two tensors (a graph, schema 1.5), rather than each
+// layer reading the one before it.
+inline bool IsGraph(const ModelSpec& spec) {
+  for (const LayerSpec& layer : spec.layers) {
+    if (std::holds_alternative<ConcatSpec>(layer) || std::holds_alternative<AddSpec>(layer)) {
+      return true;
+    }
+    if (!std::visit([](const auto& l) { return l.inputs.empty(); }, layer)) return true;
+  }
+  return false;
+}
 
 }  // namespace sfrt::exporter

@@ -15,13 +15,14 @@ const char* ExporterVersion();
 
 struct SerializeOptions {
   // Schema minor version to write (major is always kSchemaVersionMajor). kSchemaVersionMinor
-  // (3, the default) writes Model.file_crc32c, the CRC-32C of the whole file, the 1.2 fields
-  // (Model.training; OutputDesc.units as stated) and the 1.3 ones (int8 convolutions, the
-  // calibration record; a float32 model's tables are those of 1.2); 2 the 1.2 layout; 1 the 1.1
-  // layout (the file CRC, a fixed units text, no training state); 0 the 1.0 layout, whose only
-  // checksum covers the weights. Every 1.x runtime reads them all; 0 to 2 exist so tests can
-  // keep checking that this runtime still reads older files. Int8 layers and a calibration
-  // record need 1.3.
+  // (5, the default) writes Model.file_crc32c, the CRC-32C of the whole file, the 1.2 fields
+  // (Model.training; OutputDesc.units as stated), the 1.3 ones (int8 convolutions, the
+  // calibration record), 1.4's bf16 and 1.5's graphs (named inputs, Concat, Add, crops to a
+  // second input); a chain of float32 layers has the tables of 1.2. 2 writes the 1.2 layout; 1
+  // the 1.1 layout (the file CRC, a fixed units text, no training state); 0 the 1.0 layout, whose
+  // only checksum covers the weights. Every 1.x runtime reads the layouts up to its own; 0 to 2
+  // exist so tests can keep checking that this runtime still reads older files. Int8 layers and
+  // a calibration record need 1.3, bf16 1.4, graphs 1.5.
   int schema_minor = kSchemaVersionMinor;
 };
 

@@ -1,0 +1,357 @@
+// Models that are graphs, not chains (schema 1.5): named inputs, Concat, Add and crops to a
+// second input's size. SceneEDNet-U (tests/common/unet_spec.h) on every ISA against the scalar
+// reference forward, a hand-computed skip and residual, the arena's lifetimes, where fusions
+// still apply, and what the writer and the loader refuse.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/model_builders.h"
+#include "common/sceneednet_spec.h"
+#include "common/session_compare.h"
+#include "common/unet_spec.h"
+#include "sfrt/isa.h"
+#include "sfrt/reference.h"
+#include "sfrt/session.h"
+
+namespace sfrt {
+namespace {
+
+// The acceptance bound of issues 4 and 16: max error at most 1e-4 of the reference's largest
+// magnitude.
+constexpr double kRelativeTolerance = 1e-4;
+
+int LayerIndex(const Model& model, const std::string& name) {
+  const auto layers = model.layers();
+  for (size_t i = 0; i < layers.size(); ++i) {
+    if (layers[i].name == name) return static_cast<int>(i);
+  }
+  ADD_FAILURE() << "no layer '" << name << "'";
+  return -1;
+}
+
+std::vector<float> ReferenceOutput(const Model& model, const std::vector<float>& input, int height,
+                                   int width) {
+  Result<TensorShape> shape = InferOutputShape(model, height, width);
+  EXPECT_TRUE(shape.ok()) << shape.message();
+  if (!shape.ok()) return {};
+  std::vector<float> out(shape->elements(), NAN);
+  const Status s = RunReferenceForward(model, input, height, width, out);
+  EXPECT_TRUE(s.ok()) << s.message();
+  return out;
+}
+
+TEST(GraphModel, LoadsAsAGraphWithItsInputsResolvedToLayerIndices) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16));
+  ASSERT_NE(model, nullptr);
+  EXPECT_FALSE(model->is_chain());
+  const LayerDesc& cat1 = model->layers()[static_cast<size_t>(LayerIndex(*model, "cat1"))];
+  EXPECT_EQ(cat1.kind, LayerKind::kConcat);
+  EXPECT_EQ(cat1.inputs,
+            (std::vector<int>{LayerIndex(*model, "crop1"), LayerIndex(*model, "conv2")}));
+  EXPECT_EQ(model->layers()[0].inputs, std::vector<int>{kModelInput});
+  // conv0 is read by conv1, by crop3 (for its size) and by cat3.
+  EXPECT_EQ(model->consumer_count(0), 3);
+  // A chain file still loads as one.
+  auto chain = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  ASSERT_NE(chain, nullptr);
+  EXPECT_TRUE(chain->is_chain());
+}
+
+// Every ISA and thread count against the scalar reference forward (which runs the graph layer
+// by layer with tensors of its own), at two odd sizes whose skips need the crops.
+TEST(GraphSession, SceneEdNetUMatchesTheReferenceForwardOnEveryIsaAtOddSizes) {
+  for (bool residual : {false, true}) {
+    auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16, 3, residual));
+    ASSERT_NE(model, nullptr);
+    for (auto [h, w] : {std::pair{67, 121}, {37, 53}}) {
+      const auto input = testing::RandomImage(h, w, 12, 11);
+      const auto want = ReferenceOutput(*model, input, h, w);
+      for (Isa isa : SupportedIsas()) {
+        for (int threads : {1, 2}) {
+          SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads, " +
+                       std::to_string(h) + "x" + std::to_string(w) +
+                       (residual ? ", residual" : ""));
+          const auto got = testing::RunSession(model, isa, threads, input, h, w);
+          EXPECT_LE(testing::RelativeMaxError(got, want), kRelativeTolerance);
+        }
+      }
+    }
+  }
+}
+
+TEST(GraphSession, SmallerInputsGiveTheSameResultAsASessionPlannedForThem) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16, 4, true));
+  ASSERT_NE(model, nullptr);
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    SessionOptions options;
+    options.max_height = 96;
+    options.max_width = 128;
+    options.isa = isa;
+    auto big = Session::Create(model, options);
+    ASSERT_TRUE(big.ok()) << big.message();
+    const auto input = testing::RandomImage(67, 121, 12, 5);
+    std::vector<float> out(67 * 121 * 3, NAN);
+    ASSERT_TRUE((*big)->Run(input, 67, 121, out).ok());
+    EXPECT_EQ(out, testing::RunSession(model, isa, 1, input, 67, 121));
+  }
+}
+
+// out = [relu(3 x0 + 1), relu(3 x1 - 1), x0, x1]: a 1x1 convolution (2x + bias), an Add of its
+// input (a residual) and a Concat of the input behind it (a skip), computed here by hand.
+TEST(GraphSession, ConcatAndAddComputeWhatTheyNameOnEveryIsa) {
+  exporter::ModelSpec spec;
+  spec.name = "skip-and-residual";
+  spec.input.name = "x";
+  spec.input.channels = 2;
+  spec.input.image_order.clear();
+  spec.output.channels = 4;
+  spec.output.channel_names = {"a", "b", "x0", "x1"};
+  exporter::ConvSpec c;
+  c.name = "twice";
+  c.inputs = {"x"};
+  c.in_channels = 2;
+  c.out_channels = 2;
+  c.kernel_h = c.kernel_w = 1;
+  c.weights_hwio = {2, 0, 0, 2};
+  c.bias = {1, -1};
+  spec.layers.push_back(c);
+  spec.layers.push_back(exporter::AddSpec{"sum", {"twice", "x"}, Activation::kRelu, 0.0f});
+  spec.layers.push_back(exporter::ConcatSpec{"cat", {"sum", "x"}});
+  auto model = testing::LoadOrDie(spec);
+  ASSERT_NE(model, nullptr);
+  const int h = 5, w = 7;
+  std::vector<float> input(h * w * 2);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> dist(-1.0f, 1.0f);
+  for (float& v : input) v = dist(rng);
+  std::vector<float> want;
+  for (int p = 0; p < h * w; ++p) {
+    const float x0 = input[2 * p], x1 = input[2 * p + 1];
+    want.insert(want.end(), {std::max(3 * x0 + 1, 0.0f), std::max(3 * x1 - 1, 0.0f), x0, x1});
+  }
+  EXPECT_LE(testing::RelativeMaxError(ReferenceOutput(*model, input, h, w), want), 1e-6);
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    EXPECT_LE(testing::RelativeMaxError(testing::RunSession(model, isa, 2, input, h, w), want),
+              1e-6);
+  }
+}
+
+// A skip tensor stays in the arena until its last reader has run, and no two tensors alive at
+// the same time share a byte.
+TEST(GraphSession, SkipTensorsLiveUntilTheirLastReaderAndNeverOverlap) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16));
+  ASSERT_NE(model, nullptr);
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    SessionOptions options;
+    options.max_height = 67;
+    options.max_width = 121;
+    options.isa = isa;
+    auto session = Session::Create(model, options);
+    ASSERT_TRUE(session.ok()) << session.message();
+    const auto plan = (*session)->plan();
+    for (const std::string skip : {"conv0", "conv1", "conv2", "conv3"}) {
+      const int producer = LayerIndex(*model, skip);
+      const auto found = std::find_if(
+          plan.begin(), plan.end(), [&](const PlannedTensor& t) { return t.producer == producer; });
+      ASSERT_NE(found, plan.end()) << skip;
+      // Its last reader is the Concat of the decoder level it feeds.
+      const std::string cat = skip == "conv0"   ? "cat3"
+                              : skip == "conv1" ? "cat2"
+                              : skip == "conv2" ? "cat1"
+                                                : "cat4";
+      EXPECT_EQ(found->last_consumer, LayerIndex(*model, cat)) << skip;
+    }
+    for (size_t i = 0; i < plan.size(); ++i) {
+      for (size_t j = i + 1; j < plan.size(); ++j) {
+        const PlannedTensor& a = plan[i];
+        const PlannedTensor& b = plan[j];
+        const bool alive_together = a.producer <= b.last_consumer && b.producer <= a.last_consumer;
+        const bool share = a.offset < b.offset + b.bytes && b.offset < a.offset + a.bytes;
+        EXPECT_FALSE(alive_together && share) << "tensors " << i << " and " << j;
+      }
+    }
+    EXPECT_GE((*session)->arena_bytes(), plan.back().offset + plan.back().bytes);
+  }
+}
+
+// An upsampling whose output only the crop and convolution after it read still fuses into that
+// convolution; one that a Concat reads (through its crop) is computed on its own.
+TEST(GraphSession, UpsampleFusesOnlyWhereItsConvolutionIsItsOnlyReader) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16));
+  ASSERT_NE(model, nullptr);
+  for (Isa isa : SupportedIsas()) {
+    if (isa == Isa::kRef) continue;  // the reference path fuses nothing
+    SCOPED_TRACE(IsaName(isa));
+    SessionOptions options;
+    options.max_height = 67;
+    options.max_width = 121;
+    options.isa = isa;
+    auto session = Session::Create(model, options);
+    ASSERT_TRUE(session.ok()) << session.message();
+    const auto steps = (*session)->steps();
+    auto step_from = [&](const std::string& name) {
+      const int layer = LayerIndex(*model, name);
+      return std::find_if(steps.begin(), steps.end(),
+                          [&](const PlannedStep& s) { return s.first_layer == layer; });
+    };
+    const auto up4 = step_from("up4");
+    ASSERT_NE(up4, steps.end());
+    EXPECT_EQ(up4->last_layer, LayerIndex(*model, "conv9")) << up4->kernel;
+    for (const std::string up : {"up1", "up2", "up3"}) {
+      const auto step = step_from(up);
+      ASSERT_NE(step, steps.end()) << up;
+      EXPECT_EQ(step->last_layer, step->first_layer) << up << ": " << step->kernel;
+    }
+  }
+}
+
+// An upsampled (and cropped) tensor that a Concat reads besides the convolution after it must
+// exist: that convolution does not fuse the upsampling, and the result still matches.
+TEST(GraphSession, UpsampleWithASecondReaderIsNotFused) {
+  exporter::ModelSpec spec;
+  std::mt19937 rng(5);
+  std::normal_distribution<float> dist(0.0f, 0.2f);
+  auto conv = [&](const std::string& name, const std::string& input, int in, int out, int k,
+                  int stride) {
+    exporter::ConvSpec c;
+    c.name = name;
+    c.inputs = {input};
+    c.in_channels = in;
+    c.out_channels = out;
+    c.kernel_h = c.kernel_w = k;
+    c.stride_h = c.stride_w = stride;
+    c.padding_rule = PaddingRule::kSameUpper;
+    c.weights_hwio.resize(static_cast<size_t>(k) * k * in * out);
+    for (float& v : c.weights_hwio) v = dist(rng);
+    c.bias.assign(static_cast<size_t>(out), 0.05f);
+    spec.layers.push_back(c);
+  };
+  conv("down", spec.input.name, 12, 8, 3, 2);
+  spec.layers.push_back(exporter::UpsampleSpec{"up", 2, 2, {"down"}});
+  spec.layers.push_back(exporter::CropSpec{"crop", CropRule::kToInputSize, {}, true, true, {"up"}});
+  conv("smooth", "crop", 8, 8, 3, 1);
+  spec.layers.push_back(exporter::ConcatSpec{"cat", {"smooth", "crop"}});
+  conv("output", "cat", 16, 3, 1, 1);
+  auto model = testing::LoadOrDie(spec);
+  ASSERT_NE(model, nullptr);
+  const auto input = testing::RandomImage(21, 31, 12, 6);
+  const auto want = ReferenceOutput(*model, input, 21, 31);
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    EXPECT_LE(testing::RelativeMaxError(testing::RunSession(model, isa, 2, input, 21, 31), want),
+              kRelativeTolerance);
+    SessionOptions options;
+    options.max_height = 21;
+    options.max_width = 31;
+    options.isa = isa;
+    auto session = Session::Create(model, options);
+    ASSERT_TRUE(session.ok()) << session.message();
+    for (const PlannedStep& step : (*session)->steps()) {
+      EXPECT_FALSE(step.first_layer <= LayerIndex(*model, "up") &&
+                   step.last_layer >= LayerIndex(*model, "smooth"))
+          << step.kernel << " fuses layers " << step.first_layer << ".." << step.last_layer;
+    }
+  }
+}
+
+TEST(GraphSession, OutputShapeOfAGraphFollowsItsLastLayer) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16));
+  ASSERT_NE(model, nullptr);
+  SessionOptions options;
+  options.max_height = 96;
+  options.max_width = 128;
+  auto session = Session::Create(model, options);
+  ASSERT_TRUE(session.ok()) << session.message();
+  for (auto [h, w] : {std::pair{96, 128}, {37, 53}, {1, 1}}) {
+    Result<TensorShape> shape = (*session)->OutputShape(h, w);
+    ASSERT_TRUE(shape.ok()) << shape.message();
+    EXPECT_EQ(*shape, (TensorShape{h, w, 3}));
+  }
+}
+
+// Two tensors of different sizes cannot be concatenated: Session::Create (and shape inference)
+// name the layer and both shapes.
+TEST(GraphSession, ConcatOfDifferentSizesIsRefusedNamingTheLayer) {
+  exporter::ModelSpec spec;
+  spec.output.channels = 8;
+  spec.output.channel_names.clear();
+  for (int stride : {1, 2}) {
+    exporter::ConvSpec c;
+    c.name = "s" + std::to_string(stride);
+    c.inputs = {spec.input.name};
+    c.in_channels = 12;
+    c.out_channels = 4;
+    c.stride_h = c.stride_w = stride;
+    c.padding_rule = PaddingRule::kSameUpper;
+    c.weights_hwio.assign(9 * 12 * 4, 0.01f);
+    c.bias.assign(4, 0.0f);
+    spec.layers.push_back(c);
+  }
+  spec.layers.push_back(exporter::ConcatSpec{"mixed", {"s1", "s2"}});
+  auto model = testing::LoadOrDie(spec);
+  ASSERT_NE(model, nullptr);
+  SessionOptions options;
+  options.max_height = 20;
+  options.max_width = 30;
+  auto session = Session::Create(model, options);
+  ASSERT_FALSE(session.ok());
+  EXPECT_NE(session.message().find("'mixed': concatenates a 20x30x4 tensor with a 10x15x4 one"),
+            std::string::npos)
+      << session.message();
+}
+
+TEST(GraphWriter, RefusesNamesThatAreNeitherTheInputNorAnEarlierLayer) {
+  exporter::ModelSpec spec = testing::SceneEdNetUSpec(16);
+  std::get<exporter::ConvSpec>(spec.layers[1]).inputs = {"conv9"};  // conv1 reading a later layer
+  auto bytes = exporter::SerializeModel(spec);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("'conv1': reads 'conv9', which is neither the input nor an "
+                                 "earlier layer"),
+            std::string::npos)
+      << bytes.message();
+}
+
+TEST(GraphWriter, RefusesAGraphInASchemaBefore15) {
+  exporter::SerializeOptions options;
+  options.schema_minor = 4;
+  auto bytes = exporter::SerializeModel(testing::SceneEdNetUSpec(16), options);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("need schema 1.5; writing 1.4"), std::string::npos)
+      << bytes.message();
+}
+
+TEST(GraphLoading, RefusesAnAddWithOneInputNamingTheLayer) {
+  exporter::ModelSpec spec = testing::SceneEdNetUSpec(16, 1, true);
+  for (auto& layer : spec.layers) {
+    if (auto* add = std::get_if<exporter::AddSpec>(&layer)) add->inputs = {"conv5"};
+  }
+  // conv4 is still read by conv5, so the only fault is the Add's arity.
+  const auto bytes = testing::SerializeOrDie(spec);
+  auto model = Model::LoadBuffer(bytes.data(), bytes.size(), BufferOwnership::kCopy, {}, "g.sfrt");
+  ASSERT_FALSE(model.ok());
+  EXPECT_NE(model.message().find("'res5': an Add reads 2 tensors; inputs names 1"),
+            std::string::npos)
+      << model.message();
+}
+
+TEST(GraphLoading, RefusesALayerWhoseOutputNoLayerReads) {
+  exporter::ModelSpec spec = testing::SceneEdNetUSpec(16, 1, true);
+  for (auto& layer : spec.layers) {
+    if (auto* add = std::get_if<exporter::AddSpec>(&layer)) add->inputs = {"conv4", "conv4"};
+  }
+  const auto bytes = testing::SerializeOrDie(spec);
+  auto model = Model::LoadBuffer(bytes.data(), bytes.size(), BufferOwnership::kCopy, {}, "g.sfrt");
+  ASSERT_FALSE(model.ok());
+  EXPECT_NE(model.message().find("'conv5': no layer reads its output"), std::string::npos)
+      << model.message();
+}
+
+}  // namespace
+}  // namespace sfrt
