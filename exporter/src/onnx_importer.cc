@@ -6,11 +6,16 @@
 //     a constant (initialiser, Constant node, or the result of evaluating a supported op whose
 //     inputs are all constants; Shape/Size of any tensor with a static shape is a constant) or a
 //     runtime tensor with a static NCHW shape. Runtime tensors may only flow through Conv, Pad,
-//     BatchNormalization (inference), LeakyRelu, Relu, Resize, Upsample, Slice and Identity.
-//  4. Walk back from the graph output to the graph input: that path is the chain. Pads fold into
-//     the next Conv, a BatchNormalization folds into the Conv before it (its weights and bias
-//     scaled per output channel), activations fuse into the previous Conv, consecutive Slices
-//     merge into one crop. Padding and crop rules are decided from the amounts at the traced size.
+//     BatchNormalization (inference), LeakyRelu, Relu, Resize, Upsample, Slice, Identity, and
+//     Concat (channels) and Add, which read several of them.
+//  4. The layers are the ops the output depends on through runtime tensors, in file order: a
+//     graph (schema 1.5) whose layers name the layers they read, or, when each reads the one
+//     before it, a chain that names none. Pads fold into the Conv that reads them, a
+//     BatchNormalization folds into the Conv before it (its weights and bias scaled per output
+//     channel) and an activation fuses into the Conv (or Add) before it, where that layer's
+//     output has no other reader; consecutive Slices merge into one crop. Padding and crop rules
+//     are decided from the amounts at the traced size (a crop whose only reader is a Concat with
+//     a tensor of the crop's size becomes a crop to that tensor's size: a U-Net's skip).
 #include "sfrt/exporter/onnx_importer.h"
 
 #include "batch_norm_fold.h"
@@ -81,10 +86,10 @@ constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
 // Unsupported nodes named in one message; the rest are counted (a screenful at most).
 constexpr size_t kMaxListedNodes = 20;
 
-// Ops that may carry the network input (the chain).
-constexpr std::string_view kRuntimeOps[] = {"Conv",      "Pad",   "BatchNormalization",
-                                            "LeakyRelu", "Relu",  "Resize",
-                                            "Upsample",  "Slice", "Identity"};
+// Ops that may carry the network input. Concat (of channels) and Add read several such tensors.
+constexpr std::string_view kRuntimeOps[] = {
+    "Conv",     "Pad",   "BatchNormalization", "LeakyRelu", "Relu", "Resize",
+    "Upsample", "Slice", "Identity",           "Concat",    "Add"};
 // Ops evaluated at import when all their inputs are constants.
 // clang-format off
 constexpr std::string_view kFoldableOps[] = {
@@ -108,7 +113,7 @@ std::string SupportedOpsText() {
   text += " (constant subgraphs may also use";
   bool first = true;
   for (std::string_view op : kFoldableOps) {
-    if (op == "Slice" || op == "Identity") continue;  // already listed
+    if (Contains(kRuntimeOps, op)) continue;  // already listed
     text += first ? " " : ", ";
     text += op;
     first = false;
@@ -885,11 +890,21 @@ Pads SameUpperPads(int64_t in_h, int64_t in_w, int kh, int kw, int sh, int sw) {
 // ------------------------------------------------------------------------- the importer
 
 // A node whose data input is a runtime tensor.
-struct ChainOp {
-  enum class Kind { kConv, kPad, kBatchNorm, kActivation, kUpsample, kSlice, kIdentity };
+struct GraphOp {
+  enum class Kind {
+    kConv,
+    kPad,
+    kBatchNorm,
+    kActivation,
+    kUpsample,
+    kSlice,
+    kIdentity,
+    kConcat,
+    kAdd
+  };
   Kind kind = Kind::kIdentity;
   int node_index = 0;
-  std::string input;
+  std::vector<std::string> inputs;  // the runtime tensors it reads; one but for Concat and Add
   std::string output;
   Shape4 in_shape{};
   Shape4 out_shape{};
@@ -942,11 +957,13 @@ class Importer {
   Status ProcessConstant(int idx);
   Status FoldNode(int idx);
   Status ProcessRuntimeNode(int idx, const Shape4& in_shape);
-  Status ProcessConv(int idx, ChainOp& op);
-  Status ProcessPad(int idx, ChainOp& op);
-  Status ProcessBatchNorm(int idx, ChainOp& op);
-  Status ProcessResize(int idx, ChainOp& op);
-  Status ProcessSlice(int idx, ChainOp& op);
+  Status ProcessConv(int idx, GraphOp& op);
+  Status ProcessPad(int idx, GraphOp& op);
+  Status ProcessBatchNorm(int idx, GraphOp& op);
+  Status ProcessResize(int idx, GraphOp& op);
+  Status ProcessSlice(int idx, GraphOp& op);
+  // Concat and Add of runtime tensors.
+  Status ProcessMergeNode(int idx);
   Result<ModelSpec> Assemble();
   // The pads of Conv node `idx` (its own plus those of the Pad nodes `pad_nodes` folded into it)
   // against the loader's limit, kernel - 1 per side.
@@ -978,7 +995,7 @@ class Importer {
   std::unordered_map<std::string, Const> consts_;
   std::unordered_map<std::string, Shape4> runtime_;      // runtime tensor -> static shape
   std::unordered_map<std::string, size_t> producer_op_;  // runtime tensor -> index in ops_
-  std::vector<ChainOp> ops_;
+  std::vector<GraphOp> ops_;
   std::string input_name_;
   Shape4 input_shape_{};
 };
@@ -1602,7 +1619,7 @@ Status Importer::FoldNode(int idx) {
   return Status::Ok();
 }
 
-Status Importer::ProcessConv(int idx, ChainOp& op) {
+Status Importer::ProcessConv(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   if (n.input_size() < 2) return NodeError(idx, "needs a weight input");
   Dims wdims;
@@ -1637,7 +1654,7 @@ Status Importer::ProcessConv(int idx, ChainOp& op) {
   }
   if (in_ch != op.in_shape[1]) {
     return NodeError(idx, "weight " + Quote(n.input(1)) + " expects " + std::to_string(in_ch) +
-                              " input channels, the input tensor " + Quote(op.input) + " has " +
+                              " input channels, the input tensor " + Quote(op.inputs[0]) + " has " +
                               std::to_string(op.in_shape[1]));
   }
   if (out_ch < 1 || kh < 1 || kw < 1) {
@@ -1725,7 +1742,7 @@ Status Importer::ProcessConv(int idx, ChainOp& op) {
   return Status::Ok();
 }
 
-Status Importer::ProcessPad(int idx, ChainOp& op) {
+Status Importer::ProcessPad(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "constant"));
   if (mode != "constant") {
@@ -1766,7 +1783,7 @@ Status Importer::ProcessPad(int idx, ChainOp& op) {
   return Status::Ok();
 }
 
-Status Importer::ProcessResize(int idx, ChainOp& op) {
+Status Importer::ProcessResize(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   const bool is_resize = n.op_type() == "Resize";
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "nearest"));
@@ -1861,7 +1878,7 @@ Status Importer::ProcessResize(int idx, ChainOp& op) {
   return Status::Ok();
 }
 
-Status Importer::ProcessSlice(int idx, ChainOp& op) {
+Status Importer::ProcessSlice(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   if (n.input_size() < 3) return NodeError(idx, "needs inputs 'starts' and 'ends'");
   SFRT_ONNX_ASSIGN_OR_RETURN(const Const starts, GetConst(idx, 1));
@@ -1909,7 +1926,7 @@ Status Importer::ProcessSlice(int idx, ChainOp& op) {
   return Status::Ok();
 }
 
-Status Importer::ProcessBatchNorm(int idx, ChainOp& op) {
+Status Importer::ProcessBatchNorm(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   // Training mode normalises by the batch's own statistics: nothing to fold.
   const auto* mode = FindAttr(idx, "training_mode");
@@ -1961,36 +1978,36 @@ Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
                                 " depends on the network input; only input 0 may");
     }
   }
-  ChainOp op;
+  GraphOp op;
   op.node_index = idx;
-  op.input = n.input(0);
+  op.inputs = {n.input(0)};
   op.output = n.output(0);
   op.in_shape = in_shape;
   op.out_shape = in_shape;
   if (type == "Conv") {
-    op.kind = ChainOp::Kind::kConv;
+    op.kind = GraphOp::Kind::kConv;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessConv(idx, op));
   } else if (type == "Pad") {
-    op.kind = ChainOp::Kind::kPad;
+    op.kind = GraphOp::Kind::kPad;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessPad(idx, op));
   } else if (type == "BatchNormalization") {
-    op.kind = ChainOp::Kind::kBatchNorm;
+    op.kind = GraphOp::Kind::kBatchNorm;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessBatchNorm(idx, op));
   } else if (type == "LeakyRelu") {
-    op.kind = ChainOp::Kind::kActivation;
+    op.kind = GraphOp::Kind::kActivation;
     op.activation = Activation::kLeakyRelu;
     SFRT_ONNX_ASSIGN_OR_RETURN(op.slope, FloatAttr(idx, "alpha", 0.01f));
   } else if (type == "Relu") {
-    op.kind = ChainOp::Kind::kActivation;
+    op.kind = GraphOp::Kind::kActivation;
     op.activation = Activation::kRelu;
   } else if (type == "Resize" || type == "Upsample") {
-    op.kind = ChainOp::Kind::kUpsample;
+    op.kind = GraphOp::Kind::kUpsample;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessResize(idx, op));
   } else if (type == "Slice") {
-    op.kind = ChainOp::Kind::kSlice;
+    op.kind = GraphOp::Kind::kSlice;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessSlice(idx, op));
   } else if (type == "Identity") {
-    op.kind = ChainOp::Kind::kIdentity;
+    op.kind = GraphOp::Kind::kIdentity;
   } else {
     return Unsupported(idx, "");  // ProcessNode only routes runtime ops here
   }
@@ -2044,12 +2061,78 @@ Status Importer::ProcessNode(int idx) {
                                       Quote(n.input(runtime_slot)) + " depends on the network input"
                                 : "");
   }
+  if (type == "Concat" || type == "Add") return ProcessMergeNode(idx);
   if (runtime_slot != 0) {
     return NodeError(idx, "input " + std::to_string(runtime_slot) + " " +
                               Quote(n.input(runtime_slot)) +
                               " depends on the network input; only input 0 may");
   }
   return ProcessRuntimeNode(idx, runtime_.at(n.input(0)));
+}
+
+Status Importer::ProcessMergeNode(int idx) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const std::string& type = n.op_type();
+  if (n.output_size() < 1 || n.output(0).empty()) return NodeError(idx, "has no output");
+  GraphOp op;
+  op.node_index = idx;
+  op.output = n.output(0);
+  for (int k = 0; k < n.input_size(); ++k) {
+    const std::string& name = n.input(k);
+    if (runtime_.count(name) == 0) {
+      return Unsupported(
+          idx, "; " + type + " of a tensor that depends on the network input and " +
+                   (name.empty() ? std::string("an absent input") : "the constant " + Quote(name)) +
+                   " is not supported (" + type +
+                   " is only evaluated when all its inputs are constants, or "
+                   "runs on tensors that all depend on the network input)");
+    }
+    op.inputs.push_back(name);
+  }
+  const Shape4& first = runtime_.at(op.inputs[0]);
+  op.in_shape = first;
+  op.out_shape = first;
+  if (type == "Add") {
+    op.kind = GraphOp::Kind::kAdd;
+    if (op.inputs.size() != 2) {
+      return NodeError(idx, "has " + std::to_string(op.inputs.size()) + " inputs; Add has 2");
+    }
+    const Shape4& second = runtime_.at(op.inputs[1]);
+    if (second != first) {
+      return NodeError(idx, "adds " + Quote(op.inputs[0]) + " of shape " + ShapeText(first) +
+                                " and " + Quote(op.inputs[1]) + " of shape " + ShapeText(second) +
+                                "; only tensors of the same shape are added (no broadcasting)");
+    }
+  } else {
+    op.kind = GraphOp::Kind::kConcat;
+    constexpr int64_t kNoAxis = std::numeric_limits<int64_t>::min();
+    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis_attr, IntAttr(idx, "axis", kNoAxis));
+    if (axis_attr == kNoAxis) return NodeError(idx, "attribute 'axis' is missing");
+    auto axis = NormalizeAxis(axis_attr, 4, "attribute 'axis'");
+    if (!axis.ok()) return NodeError(idx, axis.message());
+    if (*axis != 1) {
+      return NodeError(idx, "concatenates along axis " + std::to_string(axis_attr) +
+                                "; only the channel axis (1) is supported");
+    }
+    if (op.inputs.size() < 2) return NodeError(idx, "has fewer than 2 inputs");
+    op.out_shape[1] = 0;
+    for (const std::string& name : op.inputs) {
+      const Shape4& s = runtime_.at(name);
+      if (s[0] != first[0] || s[2] != first[2] || s[3] != first[3]) {
+        return NodeError(idx, "concatenates " + Quote(op.inputs[0]) + " of shape " +
+                                  ShapeText(first) + " and " + Quote(name) + " of shape " +
+                                  ShapeText(s) + "; all must have the same height and width");
+      }
+      op.out_shape[1] += s[1];
+    }
+  }
+  if (op.out_shape[1] > std::numeric_limits<int32_t>::max()) {
+    return NodeError(idx, "output shape " + ShapeText(op.out_shape) + " is too large");
+  }
+  runtime_[op.output] = op.out_shape;
+  producer_op_[op.output] = ops_.size();
+  ops_.push_back(std::move(op));
+  return Status::Ok();
 }
 
 Status Importer::CheckConvPads(int idx, const ConvSpec& conv,
@@ -2083,33 +2166,31 @@ Result<ModelSpec> Importer::Assemble() {
                      (IsConst(out_name) ? " is a constant: it does not depend on the input"
                                         : " is not produced by any node"));
   }
-  // The chain: walk back from the output along input 0.
-  std::vector<size_t> chain;
-  for (std::string name = out_name; name != input_name_;) {
+  // The layers: the ops the output depends on through runtime tensors (an op whose output only
+  // Shape or Size nodes read is not one), in file order, which ONNX makes topological.
+  std::vector<bool> needed(ops_.size(), false);
+  for (std::vector<std::string> stack{out_name}; !stack.empty();) {
+    const std::string name = std::move(stack.back());
+    stack.pop_back();
+    if (name == input_name_) continue;
     const size_t i = producer_op_.at(name);
-    chain.push_back(i);
-    name = ops_[i].input;
+    if (needed[i]) continue;
+    needed[i] = true;
+    for (const std::string& in : ops_[i].inputs) stack.push_back(in);
   }
-  std::reverse(chain.begin(), chain.end());
-
-  // Runtime consumers of each tensor (Shape/Size consumers only read the static shape).
-  std::unordered_map<std::string, std::vector<size_t>> consumers;
-  for (size_t i = 0; i < ops_.size(); ++i) consumers[ops_[i].input].push_back(i);
-  for (size_t pos = 0; pos < chain.size(); ++pos) {
-    const ChainOp& op = ops_[chain[pos]];
-    const auto& users = consumers[op.output];
-    const size_t expected = pos + 1 < chain.size() ? 1 : 0;
-    if (users.size() != expected) {
-      std::string others;
-      for (size_t u : users) {
-        if (pos + 1 < chain.size() && u == chain[pos + 1]) continue;
-        others += (others.empty() ? "" : ", ") + NodeLabel(ops_[u].node_index);
-      }
-      return FileError(NodeLabel(op.node_index) + ": output " + Quote(op.output) +
-                       " is also used by " + others +
-                       "; the runtime executes a single chain (no branches)");
+  // The needed ops that read each runtime tensor (a Concat reading it twice counts once).
+  std::unordered_map<std::string, std::vector<size_t>> readers;
+  for (size_t i = 0; i < ops_.size(); ++i) {
+    if (!needed[i]) continue;
+    for (const std::string& in : ops_[i].inputs) {
+      auto& list = readers[in];
+      if (list.empty() || list.back() != i) list.push_back(i);
     }
   }
+  auto producer_label = [&](const std::string& tensor) {
+    return tensor == input_name_ ? std::string("the graph input")
+                                 : NodeLabel(ops_[producer_op_.at(tensor)].node_index);
+  };
 
   ModelSpec spec;
   std::set<std::string> used_names;
@@ -2129,6 +2210,8 @@ Result<ModelSpec> Importer::Assemble() {
     used_names.insert(name);
     return name;
   };
+  // The input's name is one a layer may read: no layer may take it.
+  used_names.insert(input_name_);
 
   struct ConvTrace {
     size_t layer = 0;
@@ -2138,117 +2221,175 @@ Result<ModelSpec> Importer::Assemble() {
   };
   struct CropTrace {
     size_t layer = 0;
+    std::string output;  // the runtime tensor it ends in (consecutive Slices merge)
     int64_t out_h = 0;
     int64_t out_w = 0;
   };
+  // What each runtime tensor is in the spec: the layer that computes it (or the input), and for a
+  // Pad's output the amounts waiting for the Conv that reads it.
+  struct Source {
+    std::string layer;     // a layer's name, or input_name_
+    int layer_index = -1;  // into spec.layers; -1 for the input
+    bool padded = false;   // a Pad's output: only a Conv (or another Pad) may read it
+    Pads pads;             // accumulated amounts when padded
+    std::vector<int> pad_nodes;
+    Shape4 pre_pad_shape{};
+  };
+  std::unordered_map<std::string, Source> source;
+  source[input_name_] = Source{input_name_, -1, false, {}, {}, {}};
   std::vector<ConvTrace> convs;
   std::vector<CropTrace> crops;
-  Pads pending;
-  std::vector<int> pending_pads;  // node indices of Pads waiting for their Conv
-  Shape4 pre_pad_shape{};
-  int prev_node = -1;          // previous non-Identity chain node
-  bool conv_can_fuse = false;  // the last layer is a Conv with no activation, directly before
-  bool last_was_slice = false;
-  int num_convs = 0, num_ups = 0, num_crops = 0;
+  int num_convs = 0, num_ups = 0, num_crops = 0, num_cats = 0, num_adds = 0;
+  // The layer that computes `tensor` when this op alone reads it, so that a BatchNormalization,
+  // an activation or another Slice may fold into it.
+  auto sole_reader = [&](const std::string& tensor) { return readers[tensor].size() == 1; };
+  auto add_layer = [&](LayerSpec layer, const std::string& output) {
+    const std::string name = std::visit([](const auto& l) { return l.name; }, layer);
+    source[output] = Source{name, static_cast<int>(spec.layers.size()), false, {}, {}, {}};
+    spec.layers.push_back(std::move(layer));
+  };
+  auto input_names = [&](const GraphOp& op) {
+    std::vector<std::string> names;
+    for (const std::string& in : op.inputs) names.push_back(source.at(in).layer);
+    return names;
+  };
 
-  for (size_t i : chain) {
-    const ChainOp& op = ops_[i];
-    if (op.kind == ChainOp::Kind::kIdentity) continue;
-    if (!pending_pads.empty() && op.kind != ChainOp::Kind::kConv &&
-        op.kind != ChainOp::Kind::kPad) {
-      return FileError(NodeLabel(pending_pads.back()) +
-                       ": a Pad must be followed by a Conv (it is folded into the Conv's "
-                       "padding), but it is followed by " +
-                       NodeLabel(op.node_index));
+  for (size_t i = 0; i < ops_.size(); ++i) {
+    if (!needed[i]) continue;
+    const GraphOp& op = ops_[i];
+    const std::string& in0 = op.inputs[0];
+    // A Pad's output is folded into the Conv that reads it; nothing else may read it.
+    for (const std::string& in : op.inputs) {
+      const Source& src = source.at(in);
+      if (src.padded && op.kind != GraphOp::Kind::kConv && op.kind != GraphOp::Kind::kPad) {
+        return FileError(NodeLabel(src.pad_nodes.back()) +
+                         ": a Pad must be followed by a Conv (it is folded into the Conv's "
+                         "padding), but it is followed by " +
+                         NodeLabel(op.node_index));
+      }
     }
     switch (op.kind) {
-      case ChainOp::Kind::kPad:
-        if (pending_pads.empty()) pre_pad_shape = op.in_shape;
-        pending.top += op.pads.top;
-        pending.left += op.pads.left;
-        pending.bottom += op.pads.bottom;
-        pending.right += op.pads.right;
-        pending_pads.push_back(op.node_index);
-        conv_can_fuse = false;
-        last_was_slice = false;
+      case GraphOp::Kind::kIdentity:
+        source[op.output] = source.at(in0);
         break;
-      case ChainOp::Kind::kConv: {
+      case GraphOp::Kind::kPad: {
+        Source padded = source.at(in0);
+        if (!padded.padded) padded.pre_pad_shape = op.in_shape;
+        padded.padded = true;
+        padded.pads.top += op.pads.top;
+        padded.pads.left += op.pads.left;
+        padded.pads.bottom += op.pads.bottom;
+        padded.pads.right += op.pads.right;
+        padded.pad_nodes.push_back(op.node_index);
+        source[op.output] = std::move(padded);
+        break;
+      }
+      case GraphOp::Kind::kConv: {
+        const Source& src = source.at(in0);
         ConvSpec conv = op.conv;
-        const Shape4 traced_in = pending_pads.empty() ? op.in_shape : pre_pad_shape;
-        conv.pads.top += pending.top;
-        conv.pads.left += pending.left;
-        conv.pads.bottom += pending.bottom;
-        conv.pads.right += pending.right;
-        SFRT_ONNX_RETURN_IF_ERROR(CheckConvPads(op.node_index, conv, pending_pads));
-        pending = Pads{};
-        pending_pads.clear();
+        const Shape4 traced_in = src.padded ? src.pre_pad_shape : op.in_shape;
+        conv.pads.top += src.pads.top;
+        conv.pads.left += src.pads.left;
+        conv.pads.bottom += src.pads.bottom;
+        conv.pads.right += src.pads.right;
+        SFRT_ONNX_RETURN_IF_ERROR(CheckConvPads(op.node_index, conv, src.pad_nodes));
         conv.name = unique_name(conv.name, "conv", num_convs++);
+        conv.inputs = {src.layer};
         convs.push_back({spec.layers.size(), op.node_index, traced_in[2], traced_in[3]});
-        spec.layers.emplace_back(std::move(conv));
-        conv_can_fuse = true;
-        last_was_slice = false;
+        add_layer(std::move(conv), op.output);
         break;
       }
-      case ChainOp::Kind::kBatchNorm: {
-        if (!conv_can_fuse) {
-          return FileError(NodeLabel(op.node_index) +
-                           ": a BatchNormalization must directly follow a Conv (it is folded "
-                           "into the Conv's weights and bias), but it follows " +
-                           (prev_node < 0 ? std::string("the graph input") : NodeLabel(prev_node)));
+      case GraphOp::Kind::kBatchNorm:
+      case GraphOp::Kind::kActivation: {
+        const bool bn = op.kind == GraphOp::Kind::kBatchNorm;
+        const Source& src = source.at(in0);
+        LayerSpec* layer = src.layer_index >= 0 ? &spec.layers[src.layer_index] : nullptr;
+        auto* conv = layer != nullptr ? std::get_if<ConvSpec>(layer) : nullptr;
+        auto* add = layer != nullptr ? std::get_if<AddSpec>(layer) : nullptr;
+        const bool activated = (conv != nullptr && conv->activation != Activation::kNone) ||
+                               (add != nullptr && add->activation != Activation::kNone);
+        // The producer must be a Conv (an Add, for an activation) that has no activation yet,
+        // whose output only this node reads (its output is then this node's).
+        const bool fits = (conv != nullptr || (!bn && add != nullptr)) && !activated &&
+                          source.at(in0).layer_index == static_cast<int>(spec.layers.size()) - 1 &&
+                          sole_reader(in0);
+        if (!fits) {
+          const std::string what = bn ? "a BatchNormalization must directly follow a Conv "
+                                        "(it is folded into the Conv's weights and bias)"
+                                      : "an activation must directly follow a Conv or an Add "
+                                        "(it is fused into it)";
+          std::string also;
+          if ((conv != nullptr || add != nullptr) && !sole_reader(in0)) {
+            for (size_t r : readers[in0]) {
+              if (r != i) also += (also.empty() ? "" : ", ") + NodeLabel(ops_[r].node_index);
+            }
+            also = "; its input " + Quote(in0) + " is also read by " + also;
+          }
+          return FileError(NodeLabel(op.node_index) + ": " + what + ", but it follows " +
+                           producer_label(in0) + also);
         }
-        FoldIntoConv(op.batch_norm, &std::get<ConvSpec>(spec.layers.back()));
-        break;  // an activation may still follow and fuse
-      }
-      case ChainOp::Kind::kActivation: {
-        if (!conv_can_fuse) {
-          return FileError(NodeLabel(op.node_index) +
-                           ": an activation must directly follow a Conv (it is fused into it), "
-                           "but it follows " +
-                           (prev_node < 0 ? std::string("the graph input") : NodeLabel(prev_node)));
+        if (bn) {
+          FoldIntoConv(op.batch_norm, conv);
+        } else if (conv != nullptr) {
+          conv->activation = op.activation;
+          conv->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
+        } else {
+          add->activation = op.activation;
+          add->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
         }
-        auto& conv = std::get<ConvSpec>(spec.layers.back());
-        conv.activation = op.activation;
-        conv.leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
-        conv_can_fuse = false;
+        source[op.output] = source.at(in0);
         break;
       }
-      case ChainOp::Kind::kUpsample: {
+      case GraphOp::Kind::kUpsample: {
         UpsampleSpec up;
         up.name = unique_name(graph().node(op.node_index).name(), "up", num_ups++);
         up.factor_h = op.factor_h;
         up.factor_w = op.factor_w;
-        spec.layers.emplace_back(std::move(up));
-        conv_can_fuse = false;
-        last_was_slice = false;
+        up.inputs = {source.at(in0).layer};
+        add_layer(std::move(up), op.output);
         break;
       }
-      case ChainOp::Kind::kSlice: {
-        if (last_was_slice) {  // merge consecutive slices into one crop
-          auto& crop = std::get<CropSpec>(spec.layers.back());
+      case GraphOp::Kind::kSlice: {
+        const Source& src = source.at(in0);
+        const bool merge = !crops.empty() && crops.back().output == in0 && sole_reader(in0);
+        if (merge) {  // consecutive slices become one crop
+          auto& crop = std::get<CropSpec>(spec.layers[crops.back().layer]);
           crop.amounts.top += op.pads.top;
           crop.amounts.left += op.pads.left;
           crop.amounts.bottom += op.pads.bottom;
           crop.amounts.right += op.pads.right;
+          crops.back().output = op.output;
           crops.back().out_h = op.out_shape[2];
           crops.back().out_w = op.out_shape[3];
+          source[op.output] = src;
         } else {
           CropSpec crop;
           crop.name = unique_name(graph().node(op.node_index).name(), "crop", num_crops++);
           crop.amounts = op.pads;
-          crops.push_back({spec.layers.size(), op.out_shape[2], op.out_shape[3]});
-          spec.layers.emplace_back(std::move(crop));
+          crop.inputs = {src.layer};
+          crops.push_back({spec.layers.size(), op.output, op.out_shape[2], op.out_shape[3]});
+          add_layer(std::move(crop), op.output);
         }
-        conv_can_fuse = false;
-        last_was_slice = true;
         break;
       }
-      case ChainOp::Kind::kIdentity:
+      case GraphOp::Kind::kConcat: {
+        ConcatSpec cat;
+        cat.name = unique_name(graph().node(op.node_index).name(), "concat", num_cats++);
+        cat.inputs = input_names(op);
+        add_layer(std::move(cat), op.output);
         break;
+      }
+      case GraphOp::Kind::kAdd: {
+        AddSpec add;
+        add.name = unique_name(graph().node(op.node_index).name(), "add", num_adds++);
+        add.inputs = input_names(op);
+        add_layer(std::move(add), op.output);
+        break;
+      }
     }
-    prev_node = op.node_index;
   }
-  if (!pending_pads.empty()) {
-    return FileError(NodeLabel(pending_pads.back()) +
+  if (const Source& out = source.at(out_name); out.padded) {
+    return FileError(NodeLabel(out.pad_nodes.back()) +
                      ": a Pad must be followed by a Conv (it is folded into the Conv's "
                      "padding), but it ends the graph");
   }
@@ -2256,6 +2397,13 @@ Result<ModelSpec> Importer::Assemble() {
   if (spec.layers.size() > static_cast<size_t>(model_limits::kMaxLayers)) {
     return FileError("graph gives " + std::to_string(spec.layers.size()) + " layers; at most " +
                      std::to_string(model_limits::kMaxLayers) + " are supported");
+  }
+  // The graph output may be a fused layer's tensor that an earlier layer computes (an Identity
+  // or activation of it); the spec's output is its last layer.
+  if (source.at(out_name).layer_index != static_cast<int>(spec.layers.size()) - 1) {
+    return FileError("graph output " + Quote(out_name) + " is computed by layer " +
+                     Quote(source.at(out_name).layer) +
+                     ", which is not the last: the network's output must be its last layer");
   }
 
   // Padding rule.
@@ -2280,15 +2428,47 @@ Result<ModelSpec> Importer::Assemble() {
         same_upper ? PaddingRule::kSameUpper : PaddingRule::kExplicit;
   }
 
-  // Crop rule: a crop that restores the input size, removing on one side per axis, is the
-  // "crop to the input size" rule; anything else keeps its numbers.
+  // Crop rule: a crop, removing on one side per axis, whose only reader is a Concat with an
+  // earlier layer of the crop's size is "crop to that layer's size" (a U-Net cutting an upsampled
+  // tensor to its skip tensor's size); one that restores the input size is "crop to the input
+  // size"; anything else keeps its numbers.
+  std::unordered_map<std::string, size_t> layer_index;
+  for (size_t k = 0; k < spec.layers.size(); ++k) {
+    layer_index[std::visit([](const auto& l) { return l.name; }, spec.layers[k])] = k;
+  }
   for (const CropTrace& t : crops) {
     auto& crop = std::get<CropSpec>(spec.layers[t.layer]);
     const Pads& a = crop.amounts;
     const bool one_sided_rows = a.top == 0 || a.bottom == 0;
     const bool one_sided_cols = a.left == 0 || a.right == 0;
-    if (t.out_h == input_shape_[2] && t.out_w == input_shape_[3] && one_sided_rows &&
-        one_sided_cols) {
+    std::string reference;  // an earlier layer (or the input) of the crop's size that the same
+                            // Concat reads
+    const auto& crop_readers = readers[t.output];
+    if (crop_readers.size() == 1 && ops_[crop_readers[0]].kind == GraphOp::Kind::kConcat) {
+      for (const std::string& in : ops_[crop_readers[0]].inputs) {
+        const Source& other = source.at(in);
+        const Shape4& shape = runtime_.at(in);
+        if (in == t.output || other.padded || other.layer_index >= static_cast<int>(t.layer) ||
+            shape[2] != t.out_h || shape[3] != t.out_w) {
+          continue;
+        }
+        reference = other.layer;
+        break;
+      }
+    }
+    if (!reference.empty() && one_sided_rows && one_sided_cols) {
+      crop.rule = CropRule::kToSecondInput;
+      crop.inputs.push_back(reference);
+      // An axis with nothing removed at the traced size takes the other axis' side, or the end
+      // (bottom, right) where neither removes anything: PyTorch's x[..., :h, :w] idiom.
+      const bool rows_known = a.top > 0 || a.bottom > 0;
+      const bool cols_known = a.left > 0 || a.right > 0;
+      const bool rows_top = rows_known ? a.top > 0 : cols_known && a.left > 0;
+      const bool cols_left = cols_known ? a.left > 0 : rows_known && a.top > 0;
+      crop.excess_rows_from_top = rows_top;
+      crop.excess_cols_from_left = cols_left;
+    } else if (t.out_h == input_shape_[2] && t.out_w == input_shape_[3] && one_sided_rows &&
+               one_sided_cols) {
       crop.rule = CropRule::kToInputSize;
       crop.excess_rows_from_top = a.top > 0 || a.bottom == 0;
       crop.excess_cols_from_left = a.left > 0 || a.right == 0;
@@ -2307,6 +2487,23 @@ Result<ModelSpec> Importer::Assemble() {
   spec.input.traced_height = static_cast<int>(input_shape_[2]);
   spec.input.traced_width = static_cast<int>(input_shape_[3]);
   spec.output.channels = static_cast<int>(out_shape[1]);
+  // A chain (every layer reading the one before it) names no inputs: its file is what a runtime
+  // before schema 1.5 reads.
+  if (!IsGraph(spec)) return spec;
+  bool chain = true;
+  for (size_t k = 0; k < spec.layers.size() && chain; ++k) {
+    const std::string previous =
+        k == 0 ? input_name_ : std::visit([](const auto& l) { return l.name; }, spec.layers[k - 1]);
+    const auto& inputs = std::visit([](const auto& l) { return l.inputs; }, spec.layers[k]);
+    chain = (inputs.size() == 1 && inputs[0] == previous) &&
+            !std::holds_alternative<ConcatSpec>(spec.layers[k]) &&
+            !std::holds_alternative<AddSpec>(spec.layers[k]);
+  }
+  if (chain) {
+    for (LayerSpec& layer : spec.layers) std::visit([](auto& l) { l.inputs.clear(); }, layer);
+  } else {
+    spec.input.name = input_name_;  // the name the layers read it by
+  }
   return spec;
 }
 

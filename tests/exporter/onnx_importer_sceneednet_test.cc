@@ -197,6 +197,7 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryFixtureCaseAsTheDocumentedLayerChain) {
                               << "fixtures.generate_sceneednet test first (ctest -L fixtures)";
   bool saw_tf = false, saw_torch = false;
   for (const FixtureCase& fc : cases) {
+    if (fc.name[0] == 'u') continue;  // SceneEDNet-U: the test below
     SCOPED_TRACE(fc.name);
     CheckCase(fc);
     saw_tf = saw_tf || fc.name.find("_tf_") != std::string::npos;
@@ -204,6 +205,43 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryFixtureCaseAsTheDocumentedLayerChain) {
   }
   EXPECT_TRUE(saw_tf) << "the suite has no tf-padding case";
   EXPECT_TRUE(saw_torch) << "the suite has no torch-padding case";
+}
+
+// SceneEDNet-U (gen_sceneednet.py --arch sceneednet-u, u* cases): a graph of eleven
+// convolutions (batch norms folded into them), four Concats (conv3's skip and three decoder
+// levels), four upsamplings, three crops to the skip tensor's size and one to the input's.
+TEST(OnnxImporterSceneEDNet, ImportsEverySceneEdNetUCaseAsAGraphWithSkipsAndFoldedNorms) {
+  int u_cases = 0;
+  for (const FixtureCase& fc : ReadCases()) {
+    if (fc.name[0] != 'u') continue;
+    SCOPED_TRACE(fc.name);
+    ++u_cases;
+    const Result<ModelSpec> spec = ImportOnnx(FixtureDir() + "/" + fc.name + ".onnx");
+    ASSERT_TRUE(spec.ok()) << spec.message();
+    EXPECT_TRUE(IsGraph(*spec));
+    int convs = 0, cats = 0, ups = 0, skip_crops = 0, input_crops = 0;
+    for (const LayerSpec& layer : spec->layers) {
+      if (const auto* conv = std::get_if<ConvSpec>(&layer)) {
+        ++convs;
+        EXPECT_EQ(conv->activation,
+                  conv->name == "output" ? Activation::kNone : Activation::kLeakyRelu)
+            << conv->name;
+      }
+      cats += std::holds_alternative<ConcatSpec>(layer);
+      ups += std::holds_alternative<UpsampleSpec>(layer);
+      if (const auto* crop = std::get_if<CropSpec>(&layer)) {
+        skip_crops += crop->rule == CropRule::kToSecondInput;
+        input_crops += crop->rule == CropRule::kToInputSize;
+      }
+    }
+    EXPECT_EQ(spec->layers.size(), 23u);
+    EXPECT_EQ(convs, 11);
+    EXPECT_EQ(cats, 4);
+    EXPECT_EQ(ups, 4);
+    EXPECT_EQ(skip_crops, 3);
+    EXPECT_EQ(input_crops, 1);
+  }
+  EXPECT_GE(u_cases, 3) << "the suite has no SceneEDNet-U cases";
 }
 
 }  // namespace

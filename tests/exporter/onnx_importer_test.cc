@@ -1194,8 +1194,10 @@ TEST_F(OnnxImporter, RejectsActivationThatDoesNotFollowAConv) {
       {"node 'late_relu' (op Relu)", "directly follow a Conv", "node 'up' (op Resize)"});
 }
 
-TEST_F(OnnxImporter, RejectsConvOutputWithASecondConsumer) {
-  // c0's output feeds its LeakyRelu and also conv 'side', whose shape sets the Resize size.
+TEST_F(OnnxImporter, ConvOutputThatOnlyAShapeReadsBesidesItsActivationStillFuses) {
+  // c0's output feeds its LeakyRelu and conv 'side', whose output only a Shape reads (it sets the
+  // Resize size, a constant at the static input shape): 'side' is no layer, and the activation
+  // fuses into c0 as in a chain.
   OnnxModel m;
   m.Input("x", {1, 2, 4, 4});
   m.Conv("c0", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
@@ -1207,7 +1209,112 @@ TEST_F(OnnxImporter, RejectsConvOutputWithASecondConsumer) {
   SetString(m.Node("Resize", {"u", "", "", "sizes"}, {"y"}, "up"), "coordinate_transformation_mode",
             "asymmetric");
   m.Output("y");
-  ExpectImportError(m.Save("branch.onnx"), {"node 'c0' (op Conv)", "'t'", "node 'side' (op Conv)"});
+  auto spec = ImportOk(m.Save("shape_only_branch.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 2u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kLeakyRelu);
+  EXPECT_FALSE(IsGraph(*spec));
+}
+
+TEST_F(OnnxImporter, ActivationOfAConvOutputThatAnotherLayerReadsIsRefusedNamingIt) {
+  // c0's output feeds its LeakyRelu and conv 'side', both concatenated: the activation cannot
+  // be fused into c0, and a separate activation layer does not exist.
+  OnnxModel m;
+  m.Input("x", {1, 2, 4, 4});
+  m.Conv("c0", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("LeakyRelu", {"t"}, {"u"}, "act");
+  m.Conv("side", "t", "v", 2, 2, 3, 1, {1, 1, 1, 1});
+  SetInt(m.Node("Concat", {"u", "v"}, {"y"}, "cat"), "axis", 1);
+  m.Output("y");
+  ExpectImportError(m.Save("branch.onnx"),
+                    {"node 'act' (op LeakyRelu): an activation must directly follow a Conv",
+                     "node 'c0' (op Conv)", "'t' is also read by node 'side' (op Conv)"});
+}
+
+// A U-Net step and a residual: x -> c0 (relu) -> c1; add(c0, c1) + relu; concat(add, c0) -> c2.
+TEST_F(OnnxImporter, ConcatAndAddBecomeGraphLayersNamingWhatTheyRead) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 7});
+  m.Conv("c0", "x", "a0", 2, 3, 3, 1, {1, 1, 1, 1});
+  m.Node("Relu", {"a0"}, {"a"}, "r0");
+  m.Conv("c1", "a", "b", 3, 3, 3, 1, {1, 1, 1, 1});
+  m.Node("Add", {"a", "b"}, {"s0"}, "sum");
+  m.Node("Relu", {"s0"}, {"s"}, "r1");
+  SetInt(m.Node("Concat", {"s", "a"}, {"cat_out"}, "cat"), "axis", -3);
+  m.Conv("c2", "cat_out", "y", 6, 3, 1, 1, {});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("unet_step.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 5u);
+  EXPECT_TRUE(IsGraph(*spec));
+  EXPECT_EQ(spec->input.name, "x");
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).inputs, std::vector<std::string>{"x"});
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kRelu);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).inputs, std::vector<std::string>{"c0"});
+  const AddSpec& add = LayerAs<AddSpec>(*spec, 2);
+  EXPECT_EQ(add.name, "sum");
+  EXPECT_EQ(add.inputs, (std::vector<std::string>{"c0", "c1"}));
+  EXPECT_EQ(add.activation, Activation::kRelu);
+  EXPECT_EQ(LayerAs<ConcatSpec>(*spec, 3).inputs, (std::vector<std::string>{"sum", "c0"}));
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 4).in_channels, 6);
+  // The file it makes loads as a graph.
+  auto bytes = SerializeModel(*spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_FALSE((*model)->is_chain());
+}
+
+// An upsampled tensor sliced back to its skip tensor's size before a Concat (a U-Net decoder
+// at an odd size) is a crop to that tensor's size, which holds at every input size.
+TEST_F(OnnxImporter, SliceOfAnUpsamplingBeforeAConcatCropsToTheSkipTensorsSize) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 9, 11});
+  m.Conv("enc", "x", "e", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Conv("down", "e", "d", 2, 4, 3, 2, {1, 1, 1, 1});  // 5x6
+  m.Floats("scales", {4}, {1, 1, 2, 2});
+  auto& up = m.Node("Resize", {"d", "", "scales"}, {"u"}, "up");
+  SetString(up, "coordinate_transformation_mode", "asymmetric");
+  SetString(up, "nearest_mode", "floor");
+  m.Int64s("starts", {0, 0});
+  m.Int64s("ends", {9, 11});
+  m.Int64s("axes", {2, 3});
+  m.Node("Slice", {"u", "starts", "ends", "axes"}, {"c"}, "fit");  // 10x12 -> 9x11
+  SetInt(m.Node("Concat", {"c", "e"}, {"cat_out"}, "cat"), "axis", 1);
+  m.Conv("dec", "cat_out", "y", 6, 3, 3, 1, {1, 1, 1, 1});
+  m.Output("y");
+  auto spec = ImportOk(m.Save("unet_crop.onnx"));
+  ASSERT_TRUE(spec.ok());
+  const CropSpec& crop = LayerAs<CropSpec>(*spec, 3);
+  EXPECT_EQ(crop.rule, CropRule::kToSecondInput);
+  EXPECT_EQ(crop.inputs, (std::vector<std::string>{"up", "enc"}));
+  EXPECT_FALSE(crop.excess_rows_from_top);
+  EXPECT_FALSE(crop.excess_cols_from_left);
+  auto bytes = SerializeModel(*spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+}
+
+TEST_F(OnnxImporter, ConcatAlongAnotherAxisOrAddWithBroadcastingIsRefused) {
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 4, 4});
+    m.Conv("c0", "x", "a", 2, 2, 3, 1, {1, 1, 1, 1});
+    SetInt(m.Node("Concat", {"a", "x"}, {"y"}, "wide"), "axis", 3);
+    m.Output("y");
+    ExpectImportError(m.Save("concat_w.onnx"),
+                      {"node 'wide' (op Concat)", "along axis 3", "only the channel axis"});
+  }
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 4, 4});
+    m.Conv("c0", "x", "a", 2, 1, 3, 1, {1, 1, 1, 1});
+    m.Node("Add", {"a", "x"}, {"y"}, "bcast");
+    m.Output("y");
+    ExpectImportError(m.Save("add_bcast.onnx"),
+                      {"node 'bcast' (op Add)", "(1, 1, 4, 4)", "(1, 2, 4, 4)", "no broadcasting"});
+  }
 }
 
 TEST_F(OnnxImporter, RejectsTwoGraphOutputs) {

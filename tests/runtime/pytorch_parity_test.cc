@@ -127,5 +127,19 @@ TEST(PyTorchParity, SameUpperModelTracedAt540x960MatchesPyTorchAtAnOddSize) {
   EXPECT_LE(RelativeErrorAgainstPyTorch("w16_tf_540x960", odd), kRelativeTolerance);
 }
 
+// SceneEDNet-U (skip connections): its crops to the skip tensors' size, stored from a trace at
+// 540x960, must cut what PyTorch cuts at 67x121 (both cases share seed and width, so weights).
+TEST(PyTorchParity, SceneEdNetUTracedAt540x960MatchesPyTorchAtAnOddSize) {
+  FixtureCase odd;
+  for (const FixtureCase& c : ReadCases()) {
+    if (c.name == "u16_tf_67x121") odd = c;
+  }
+  ASSERT_EQ(odd.name, "u16_tf_67x121");
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    EXPECT_LE(RelativeErrorAgainstPyTorch("u16_tf_540x960", odd, isa), kRelativeTolerance);
+  }
+}
+
 }  // namespace
 }  // namespace sfrt

@@ -939,11 +939,18 @@ int RunExport(const ExportArgs& args) {
   int convs = 0;
   int upsamples = 0;
   int crops = 0;
+  int concats = 0;
+  int adds = 0;
   for (const LayerDesc& layer : model.layers()) {
     convs += layer.kind == LayerKind::kConv2D;
     upsamples += layer.kind == LayerKind::kUpsample;
     crops += layer.kind == LayerKind::kCrop;
+    concats += layer.kind == LayerKind::kConcat;
+    adds += layer.kind == LayerKind::kAdd;
   }
+  // A graph's skip connections: its Concats and Adds.
+  const std::string merges = (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
+                             (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
   std::string order;
   for (const std::string& slot : meta.input.image_order) {
     if (!order.empty()) order += ",";
@@ -957,7 +964,7 @@ int RunExport(const ExportArgs& args) {
             << "  source      " << meta.source_format << ", sha256 " << meta.source_sha256 << "\n"
             << "  name        " << meta.name << "\n"
             << "  layers      " << model.layers().size() << " (" << convs << " conv, " << upsamples
-            << " upsample, " << crops << " crop), traced at " << traced << "\n"
+            << " upsample, " << crops << " crop" << merges << "), traced at " << traced << "\n"
             << "  parameters  " << GroupDigits(model.parameter_count()) << "\n"
             << "  padding     " << DescribePadding(model) << "\n"
             << "  shapes      " << shapes_line << "\n"

@@ -98,6 +98,67 @@ class SceneEDNet(nn.Module):
         return self._conv(self.output, x)  # output, linear
 
 
+class SceneEDNetU(SceneEDNet):
+    """SceneEDNet with U-Net skip connections (issue 16's SceneEDNet-U).
+
+    The encoder is SceneEDNet's. conv3's output is stacked behind conv5's (both at 1/16 of the
+    input), and every decoder level stacks the encoder output of its resolution behind the
+    upsampled tensor: conv6 reads [up(conv5, conv3) cut to conv2's size, conv2], conv7
+    [up(conv6) cut to conv1's size, conv1], conv8 [up(conv7) cut to conv0's size, conv0]. An
+    upsampled tensor is cut to its skip's size by dropping the excess rows and columns at the
+    bottom and right (x[..., :h, :w]), which odd input sizes need; the last upsampling is cropped
+    to the input as in SceneEDNet. With batch_norm, every hidden convolution is followed by a
+    BatchNorm2d before its leaky ReLU (the exporter folds it into the convolution).
+    """
+
+    def __init__(self, width_div=1, padding="tf", batch_norm=False):
+        super().__init__(width_div, padding)
+        w = self.widths
+        conv_pad = 0 if padding == "tf" else 1
+        # Input channels of each hidden conv: the encoder as SceneEDNet, the decoder wider.
+        ins = (IN_CHANNELS, w[0], w[1], w[2], w[3], w[4], w[5] + w[3] + w[2], w[6] + w[1],
+               w[7] + w[0], w[8])
+        for i, (cin, cout, stride) in enumerate(zip(ins, w, STRIDES)):
+            setattr(self, f"conv{i}", nn.Conv2d(cin, cout, 3, stride=stride, padding=conv_pad,
+                                                bias=True))
+        self.batch_norm = batch_norm
+        if batch_norm:
+            self.norms = nn.ModuleList(nn.BatchNorm2d(c) for c in w)
+
+    def _conv_act_at(self, i, x):
+        y = self._conv(self.hidden_convs()[i], x)
+        if self.batch_norm:
+            y = self.norms[i](y)
+        return F.leaky_relu(y, negative_slope=LEAKY_ALPHA)
+
+    @staticmethod
+    def _up_to(x, skip):
+        x = SceneEDNet._up(x)
+        return torch.cat([x[:, :, :skip.shape[2], :skip.shape[3]], skip], dim=1)
+
+    def forward(self, x):
+        in_h, in_w = x.shape[2], x.shape[3]
+        enc = []
+        for i in range(4):  # conv0..conv3 (stride 2)
+            x = self._conv_act_at(i, x)
+            enc.append(x)
+        x = self._conv_act_at(4, x)
+        x = self._conv_act_at(5, x)
+        x = torch.cat([x, enc[3]], dim=1)
+        x = self._conv_act_at(6, self._up_to(x, enc[2]))
+        x = self._conv_act_at(7, self._up_to(x, enc[1]))
+        x = self._conv_act_at(8, self._up_to(x, enc[0]))
+        x = self._up(x)
+        excess_h = x.shape[2] - in_h
+        excess_w = x.shape[3] - in_w
+        x = x[:, :, excess_h:, excess_w:]
+        x = self._conv_act_at(9, x)
+        return self._conv(self.output, x)
+
+
+ARCHITECTURES = {"sceneednet": SceneEDNet, "sceneednet-u": SceneEDNetU}
+
+
 def epe_loss(pred, target, valid=None):
     """Mean over (valid) pixels of the Euclidean distance between predicted and true 3D vectors.
 

@@ -2,11 +2,13 @@
 // a ModelSpec.
 //
 // The graph must have one float32 input of static shape (1, C, H, W) (the traced size) and one
-// output, joined by a single chain of:
+// output, joined by a chain, or a graph (schema 1.5: skip connections), of:
 //   Conv       2-D, group 1, dilation 1, any kernel and strides; pads or auto_pad NOTSET,
 //              SAME_UPPER, VALID; bias optional. OIHW weights become HWIO.
 //   Pad        mode constant, value 0, H/W only; folded into the next Conv's pads.
-//   LeakyRelu  (alpha, ONNX default 0.01) and Relu: fused into the Conv right before them.
+//   BatchNormalization  (inference) folded into the Conv right before it.
+//   LeakyRelu  (alpha, ONNX default 0.01) and Relu: fused into the Conv (or Add) right before
+//              them. Fusing needs that layer's output to have no other reader.
 //   Resize     mode nearest with integer H/W factors (from scales, or sizes over the traced
 //   Upsample   shape), when the coordinate_transformation_mode / nearest_mode pair computes
 //              in[floor(y / f)] at every size: asymmetric + floor; half_pixel or
@@ -16,6 +18,10 @@
 //   Slice      axes 2/3 (no-op on axes 0/1), step 1, any start/end (negative, INT64_MAX);
 //              consecutive Slices form one crop.
 //   Identity
+//   Concat     along the channels (axis 1 or -3) of tensors of equal height and width.
+//   Add        of two tensors of the same shape (no broadcasting).
+// A chain imports with no layer naming its inputs (the files a pre-1.5 runtime reads); a graph
+// names them, with InputSpec::name the graph input's name.
 // Initialisers and Constant nodes (FLOAT, DOUBLE, INT64, INT32, BOOL; raw_data or typed fields)
 // are constants, and so is the result of any supported shape op whose inputs are all constants:
 // Shape/Size (of any tensor, all shapes are static), Gather, Cast, Concat, Unsqueeze, Squeeze,
@@ -30,10 +36,16 @@
 //   ConvSpec::pads always holds the traced amounts.
 // - Crop: a crop whose output has the graph input's H and W and that removes rows (columns) on at
 //   most one side becomes CropRule::kToInputSize, removing the excess from the side the traced
-//   slice removed it from (top/left when it removed nothing on that axis). Any other crop is
-//   kExplicit. CropSpec::amounts always holds the traced amounts.
+//   slice removed it from (top/left when it removed nothing on that axis). A crop whose only
+//   reader is a Concat that also reads an earlier tensor of the crop's output size, removing on
+//   at most one side per axis, becomes CropRule::kToSecondInput with that tensor as its second
+//   input (a U-Net cutting an upsampled tensor to its skip's size; an axis with nothing removed
+//   takes the other axis' side, or bottom/right as PyTorch's x[..., :h, :w]). Any other crop is
+//   kExplicit. CropSpec::amounts always holds the traced amounts. torch.onnx.export drops a
+//   slice that removes nothing at the traced size, so trace a model whose crops depend on the
+//   size at a size where they remove something (or with padding computed from x.shape).
 // - Layer names are the ONNX node names (a crop takes its first Slice's name); unnamed nodes get
-//   conv<i>, up<i>, crop<i> (counting from 0 per kind).
+//   conv<i>, up<i>, crop<i>, concat<i>, add<i> (counting from 0 per kind).
 //
 // Errors are one line naming the file and, where there is one, the node ("node '<name>' (op
 // <Type>)"), the attribute or input and the offending value.
