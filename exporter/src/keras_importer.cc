@@ -4,11 +4,14 @@
 //     follows it: hdf5_vlen_guard.h; every object header, the root's before H5Fopen, is checked
 //     before libhdf5 loads it: hdf5_header_guard.h). Read `backend` and `keras_version`.
 //  2. Parse the architecture JSON (the file's `model_config`, or the --architecture file).
-//  3. Find the chain: walk back from the single output layer to the InputLayer along each
-//     layer's single inbound tensor (functional), or take the list (Sequential). A
-//     multi_gpu_model wrapper is recognised first and replaced by its nested model.
-//  4. Turn the chain into ModelSpec layers, reading each Conv2D's kernel and bias datasets and
-//     tracking the shape at the built size; fold ZeroPadding2D, fuse activations.
+//  3. Find the layers: walk back from the single output layer to the InputLayer along every
+//     inbound tensor (functional; a graph when a Concatenate or Add reads several), or take the
+//     list (Sequential). A multi_gpu_model wrapper is recognised first and replaced by its nested
+//     model.
+//  4. Turn them into ModelSpec layers in the layer list's order, reading each Conv2D's kernel
+//     and bias datasets and tracking every tensor's shape at the built size; fold ZeroPadding2D
+//     and BatchNormalization, fuse activations where the layer before has no other reader. A
+//     chain names no inputs; a graph names them (schema 1.5).
 //  5. Check that every weighted layer of the weights group was used, then decide crop rules.
 #include "sfrt/exporter/keras_importer.h"
 
@@ -55,7 +58,7 @@ using nlohmann::json;
 
 constexpr char kSupportedLayers[] =
     "InputLayer, Conv2D, BatchNormalization (folded into the Conv2D before it), LeakyReLU, "
-    "Activation, UpSampling2D, Cropping2D, ZeroPadding2D (and a "
+    "Activation, UpSampling2D, Cropping2D, ZeroPadding2D, Concatenate (channels), Add (and a "
     "multi_gpu_model wrapper: InputLayer/Lambda/Concatenate around one nested Model)";
 // Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
 constexpr uint64_t kMaxTensorElements = uint64_t{1} << 30;
@@ -333,12 +336,15 @@ bool IsNestedModelClass(const std::string& cls) {
 struct ChainLayer {
   std::string name;
   std::string cls;
-  const json* config = nullptr;  // the layer's "config" object
+  const json* config = nullptr;      // the layer's "config" object
+  std::vector<std::string> inbound;  // the layers (or the InputLayer) it reads, in order
 };
 
+// The layers from the input to the output: a chain, or a graph whose layers read several.
 struct ChainModel {
   std::string name;
-  std::vector<ChainLayer> layers;  // input first
+  std::string input_name;          // what the first layer reads
+  std::vector<ChainLayer> layers;  // each after the layers it reads (the InputLayer not among them)
   int height = 0;                  // built size; 0 when None
   int width = 0;
   int channels = 0;
@@ -678,10 +684,12 @@ Result<ChainModel> Importer::ParseSequential(const json& layers, const std::stri
       }
       SFRT_KERAS_RETURN_IF_ERROR(ReadInputShape(*l, *shape, &model));
       have_input = true;
+      model.input_name = l->cls == "InputLayer" ? l->name : "input";
       if (l->cls == "InputLayer") continue;
     } else if (l->cls == "InputLayer") {
       return LayerFail(*l, "a second InputLayer inside a Sequential");
     }
+    l->inbound = {model.layers.empty() ? model.input_name : model.layers.back().name};
     model.layers.push_back(*l);
   }
   return model;
@@ -731,53 +739,69 @@ Result<ChainModel> Importer::ParseFunctional(const json& config, const std::stri
                 " is not one output");
   }
 
-  // Walk back from the output along each layer's single inbound tensor.
-  std::vector<size_t> chain;
-  std::string name = (*outputs)[0];
-  while (true) {
+  // The layers the output depends on: walk back along every inbound tensor.
+  std::vector<bool> reached(all.size(), false);
+  std::vector<size_t> input_layers;
+  for (std::vector<std::string> stack{(*outputs)[0]}; !stack.empty();) {
+    const std::string name = std::move(stack.back());
+    stack.pop_back();
     auto it = index.find(name);
     if (it == index.end()) {
       return Fail(label + ": layer " + Quote(name) + " is referenced but not in the layer list");
     }
-    if (chain.size() > all.size()) return Fail(label + ": the layer graph has a cycle");
-    chain.push_back(it->second);
-    const ChainLayer& l = all[it->second];
-    if (l.cls == "InputLayer") break;
+    if (reached[it->second]) continue;
+    reached[it->second] = true;
+    ChainLayer& l = all[it->second];
+    if (l.cls == "InputLayer") {
+      input_layers.push_back(it->second);
+      continue;
+    }
     const json* nodes = Find(*entries[it->second], "inbound_nodes");
     if (nodes == nullptr || !nodes->is_array() || nodes->empty()) {
       return LayerFail(l, "has no inbound node and is not an InputLayer");
     }
     if (nodes->size() != 1) {
       return LayerFail(l, "is called " + std::to_string(nodes->size()) +
-                              " times; shared layers are not supported (the runtime executes a "
-                              "single chain)");
+                              " times; shared layers are not supported");
     }
     const json& node = (*nodes)[0];
     if (!node.is_array() || node.empty()) {
       return LayerFail(l, "inbound node " + JsonText(node) + " is not in Keras 2 format");
     }
-    if (node.size() != 1) {
-      return LayerFail(l, "takes " + std::to_string(node.size()) +
-                              " inputs; the runtime executes a single chain of " +
-                              kSupportedLayers);
+    for (const json& tensor : node) {
+      if (!tensor.is_array() || tensor.empty() || !tensor[0].is_string()) {
+        return LayerFail(l, "inbound node " + JsonText(node) + " is not in Keras 2 format");
+      }
+      l.inbound.push_back(tensor[0].get<std::string>());
+      stack.push_back(l.inbound.back());
     }
-    const json& tensor = node[0];
-    if (!tensor.is_array() || tensor.empty() || !tensor[0].is_string()) {
-      return LayerFail(l, "inbound node " + JsonText(node) + " is not in Keras 2 format");
+  }
+  if (input_layers.size() != 1 || all[input_layers[0]].name != (*inputs)[0]) {
+    std::string found;
+    for (size_t i : input_layers) found += (found.empty() ? "" : ", ") + Quote(all[i].name);
+    return Fail(label + ": the output depends on InputLayer " + found +
+                ", not on the model input " + Quote((*inputs)[0]) + " alone");
+  }
+  // Keras lists a model's layers so that each comes after the layers it reads.
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (!reached[i]) continue;
+    for (const std::string& in : all[i].inbound) {
+      if (index.at(in) >= i) {
+        return LayerFail(all[i], "reads layer " + Quote(in) +
+                                     ", which the layer list gives after it (the layer graph has "
+                                     "a cycle or is out of order)");
+      }
     }
-    name = tensor[0].get<std::string>();
   }
-  std::reverse(chain.begin(), chain.end());
-  const ChainLayer& input = all[chain.front()];
-  if (input.name != (*inputs)[0]) {
-    return Fail(label + ": the output depends on InputLayer " + Quote(input.name) +
-                ", not on the model input " + Quote((*inputs)[0]));
-  }
+  const ChainLayer& input = all[input_layers[0]];
   ChainModel model;
+  model.input_name = input.name;
   const json* shape = Find(*input.config, "batch_input_shape");
   if (shape == nullptr) return LayerFail(input, "has no batch_input_shape");
   SFRT_KERAS_RETURN_IF_ERROR(ReadInputShape(input, *shape, &model));
-  for (size_t i = 1; i < chain.size(); ++i) model.layers.push_back(all[chain[i]]);
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (reached[i] && i != input_layers[0]) model.layers.push_back(all[i]);
+  }
   return model;
 }
 
@@ -879,15 +903,34 @@ Status CheckChannelsLast(const ChainLayer& l, const std::string& path) {
 }
 
 Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
-  int h = model.height;  // 0 when the built size is unknown
-  int w = model.width;
-  int c = model.channels;
-  const bool known = h > 0 && w > 0;
-  Pads pending;
-  const ChainLayer* pending_pad = nullptr;
-  bool fusable = false;  // the last layer is a Conv2D without activation
+  const bool known = model.height > 0 && model.width > 0;
+  // What each Keras layer's output is in the spec: its size at the built size (0 when unknown),
+  // the spec layer that computes it (or the input), and ZeroPadding2D amounts waiting for the
+  // Conv2D that reads it.
+  struct Tensor {
+    int h = 0;
+    int w = 0;
+    int c = 0;
+    std::string layer;
+    int index = -1;  // into spec->layers; -1: the input
+    Pads pads;
+    const ChainLayer* pad_layer = nullptr;
+  };
+  std::unordered_map<std::string, Tensor> tensors;
+  tensors[model.input_name] =
+      Tensor{model.height, model.width, model.channels, model.input_name, -1, {}, nullptr};
+  std::unordered_map<std::string, std::vector<const ChainLayer*>> readers;
+  for (const ChainLayer& l : model.layers) {
+    for (size_t k = 0; k < l.inbound.size(); ++k) {
+      if (std::find(l.inbound.begin(), l.inbound.begin() + k, l.inbound[k]) ==
+          l.inbound.begin() + k) {
+        readers[l.inbound[k]].push_back(&l);
+      }
+    }
+  }
   struct CropTrace {
     size_t layer = 0;
+    std::string output;  // the Cropping2D layer's name
     int out_h = 0;
     int out_w = 0;
   };
@@ -896,13 +939,69 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
 
   for (const ChainLayer& l : model.layers) {
     const json& cfg = *l.config;
-    if (pending_pad != nullptr && l.cls != "Conv2D" && l.cls != "ZeroPadding2D") {
-      return LayerFail(*pending_pad,
-                       "must be followed by a Conv2D with padding 'valid' (it is "
-                       "folded into the convolution), but is followed by layer " +
-                           Quote(l.name) + " (" + Printable(l.cls) + ")");
+    for (const std::string& name : l.inbound) {
+      const auto found = tensors.find(name);
+      if (found == tensors.end()) {
+        return LayerFail(l, "reads layer " + Quote(name) + ", which is not computed before it");
+      }
+      const Tensor& t = found->second;
+      if (t.pad_layer != nullptr && l.cls != "Conv2D" && l.cls != "ZeroPadding2D") {
+        return LayerFail(*t.pad_layer,
+                         "must be followed by a Conv2D with padding 'valid' (it is "
+                         "folded into the convolution), but is followed by layer " +
+                             Quote(l.name) + " (" + Printable(l.cls) + ")");
+      }
     }
+    const Tensor in = tensors.at(l.inbound[0]);  // a copy: adding a layer rehashes `tensors`
+    int h = in.h;
+    int w = in.w;
+    int c = in.c;
+    Pads pending = in.pads;
+    const ChainLayer* pending_pad = in.pad_layer;
+    auto one_input = [&](const char* what) {
+      if (l.inbound.size() == 1) return Status::Ok();
+      return LayerFail(
+          l, "reads " + std::to_string(l.inbound.size()) + " tensors; " + what + " reads one");
+    };
+    // A new spec layer computing this Keras layer's output.
+    auto add_layer = [&](LayerSpec layer) {
+      tensors[l.name] = Tensor{h, w, c, l.name, static_cast<int>(spec->layers.size()), {}, nullptr};
+      spec->layers.push_back(std::move(layer));
+    };
+    // The Conv2D (or, for activations, Add) that computes `in` when this layer may fold or fuse
+    // into it: no activation yet, and no other layer reads its output.
+    auto fusion_target = [&](bool add_too) -> LayerSpec* {
+      if (in.index < 0 || in.pad_layer != nullptr || readers[l.inbound[0]].size() != 1) {
+        return nullptr;
+      }
+      LayerSpec* target = &spec->layers[static_cast<size_t>(in.index)];
+      if (const auto* conv = std::get_if<ConvSpec>(target)) {
+        return conv->activation == Activation::kNone ? target : nullptr;
+      }
+      if (const auto* add = std::get_if<AddSpec>(target); add != nullptr && add_too) {
+        return add->activation == Activation::kNone ? target : nullptr;
+      }
+      return nullptr;
+    };
+    auto fusion_refused = [&](const std::string& what) {
+      std::string also;
+      for (const ChainLayer* r : readers[l.inbound[0]]) {
+        if (r != &l) also += (also.empty() ? "" : ", ") + Quote(r->name);
+      }
+      return LayerFail(l, what + (also.empty() ? "" : "; its input is also read by layer " + also));
+    };
+    auto set_activation = [&](LayerSpec* target, Activation act, float slope) {
+      if (auto* conv = std::get_if<ConvSpec>(target)) {
+        conv->activation = act;
+        conv->leaky_slope = slope;
+      } else {
+        auto& add = std::get<AddSpec>(*target);
+        add.activation = act;
+        add.leaky_slope = slope;
+      }
+    };
     if (l.cls == "Conv2D") {
+      if (Status s = one_input("a Conv2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
       auto field = [&](const char* key) { return Find(cfg, key); };
       int filters_value = 0;
@@ -1031,16 +1130,18 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
         conv.bias.assign(static_cast<size_t>(*filters), 0.0f);
       }
       c = *filters;
-      fusable = conv.activation == Activation::kNone;
-      spec->layers.emplace_back(std::move(conv));
+      conv.inputs = {in.layer};
       ++convs;
+      add_layer(std::move(conv));
     } else if (l.cls == "BatchNormalization") {
       // Inference normalisation with the moving statistics, folded into the Conv2D before it:
       // weights * gamma / sqrt(var + epsilon) per output channel, bias shifted.
-      if (!fusable) {
-        return LayerFail(l,
-                         "must directly follow a Conv2D with activation 'linear' (it is folded "
-                         "into the convolution's weights and bias)");
+      if (Status s = one_input("a BatchNormalization"); !s.ok()) return s;
+      LayerSpec* target = fusion_target(false);
+      if (target == nullptr) {
+        return fusion_refused(
+            "must directly follow a Conv2D with activation 'linear' (it is folded "
+            "into the convolution's weights and bias)");
       }
       const json* axis = Find(cfg, "axis");
       const json* axis_value =
@@ -1088,9 +1189,10 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
                 std::to_string(static_cast<double>(values[3][static_cast<size_t>(bad)]) + epsilon) +
                 " is not positive");
       }
-      FoldIntoConv(affine, &std::get<ConvSpec>(spec->layers.back()));
-      // `fusable` stays: an activation may follow and fuse.
+      FoldIntoConv(affine, &std::get<ConvSpec>(*target));
+      tensors[l.name] = in;  // an activation may still follow and fuse
     } else if (l.cls == "LeakyReLU") {
+      if (Status s = one_input("a LeakyReLU"); !s.ok()) return s;
       const json* alpha = Find(cfg, "alpha");
       if (alpha == nullptr) {
         return LayerFail(l,
@@ -1100,31 +1202,36 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       if (!alpha->is_number() || !std::isfinite(alpha->get<double>())) {
         return LayerFail(l, "alpha " + JsonText(*alpha) + " is not a finite number");
       }
-      if (!fusable) {
-        return LayerFail(l,
-                         "must directly follow a Conv2D with activation 'linear' (it is "
-                         "fused into the convolution)");
+      LayerSpec* target = fusion_target(true);
+      if (target == nullptr) {
+        return fusion_refused(
+            "must directly follow a Conv2D with activation 'linear' or an Add (it is "
+            "fused into it)");
       }
-      auto& conv = std::get<ConvSpec>(spec->layers.back());
-      conv.activation = Activation::kLeakyRelu;
-      conv.leaky_slope = static_cast<float>(alpha->get<double>());
-      fusable = false;
+      set_activation(target, Activation::kLeakyRelu, static_cast<float>(alpha->get<double>()));
+      tensors[l.name] = in;
     } else if (l.cls == "Activation") {
+      if (Status s = one_input("an Activation"); !s.ok()) return s;
       const json* a = Find(cfg, "activation");
       const std::string act = a != nullptr && a->is_string() ? a->get<std::string>() : "";
-      if (act == "linear") continue;  // identity: keeps `fusable` as it is
+      if (act == "linear") {  // identity
+        tensors[l.name] = in;
+        continue;
+      }
       if (act != "relu") {
         return LayerFail(l, "activation " + (a ? JsonText(*a) : std::string("(missing)")) +
                                 " is not supported (linear, relu)");
       }
-      if (!fusable) {
-        return LayerFail(l,
-                         "must directly follow a Conv2D with activation 'linear' (it is "
-                         "fused into the convolution)");
+      LayerSpec* target = fusion_target(true);
+      if (target == nullptr) {
+        return fusion_refused(
+            "must directly follow a Conv2D with activation 'linear' or an Add (it is "
+            "fused into it)");
       }
-      std::get<ConvSpec>(spec->layers.back()).activation = Activation::kRelu;
-      fusable = false;
+      set_activation(target, Activation::kRelu, 0.0f);
+      tensors[l.name] = in;
     } else if (l.cls == "UpSampling2D") {
+      if (Status s = one_input("an UpSampling2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
       std::array<int, 2> factors_value{};
       const std::array<int, 2>* factors = &factors_value;
@@ -1142,11 +1249,12 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       up.name = l.name;
       up.factor_h = (*factors)[0];
       up.factor_w = (*factors)[1];
-      spec->layers.emplace_back(std::move(up));
+      up.inputs = {in.layer};
       h *= (*factors)[0];
       w *= (*factors)[1];
-      fusable = false;
+      add_layer(std::move(up));
     } else if (l.cls == "Cropping2D") {
+      if (Status s = one_input("a Cropping2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
       Pads amounts_value;
       const Pads* amounts = &amounts_value;
@@ -1167,22 +1275,64 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       crop.name = l.name;
       crop.rule = CropRule::kExplicit;
       crop.amounts = *amounts;
-      crops.push_back({spec->layers.size(), h, w});
-      spec->layers.emplace_back(std::move(crop));
-      fusable = false;
+      crop.inputs = {in.layer};
+      crops.push_back({spec->layers.size(), l.name, h, w});
+      add_layer(std::move(crop));
     } else if (l.cls == "ZeroPadding2D") {
+      if (Status s = one_input("a ZeroPadding2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
       Pads amounts_value;
       const Pads* amounts = &amounts_value;
       if (!GetSidePads(Find(cfg, "padding"), &amounts_value)) {
         return LayerFail(l, "'padding' is missing or not ((top, bottom), (left, right))");
       }
-      pending.top += amounts->top;
-      pending.left += amounts->left;
-      pending.bottom += amounts->bottom;
-      pending.right += amounts->right;
-      pending_pad = &l;
-      fusable = false;
+      Tensor padded = in;
+      padded.pads.top += amounts->top;
+      padded.pads.left += amounts->left;
+      padded.pads.bottom += amounts->bottom;
+      padded.pads.right += amounts->right;
+      padded.pad_layer = &l;
+      tensors[l.name] = padded;
+    } else if (l.cls == "Concatenate" || l.cls == "Add") {
+      const bool concat = l.cls == "Concatenate";
+      if (concat) {
+        const json* axis = Find(cfg, "axis");
+        if (axis != nullptr && !(axis->is_number_integer() &&
+                                 (axis->get<int64_t>() == -1 || axis->get<int64_t>() == 3))) {
+          return LayerFail(
+              l, "axis " + JsonText(*axis) + " is not supported (only the channels axis, -1 or 3)");
+        }
+      }
+      if (l.inbound.size() < 2 || (!concat && l.inbound.size() != 2)) {
+        return LayerFail(l, "reads " + std::to_string(l.inbound.size()) + " tensors; " +
+                                (concat ? "a Concatenate reads two or more" : "an Add reads two"));
+      }
+      std::vector<std::string> names;
+      int channels = 0;
+      for (const std::string& name : l.inbound) {
+        const Tensor& t = tensors.at(name);
+        const bool size_differs = known && (t.h != in.h || t.w != in.w);
+        if (size_differs || (!concat && t.c != in.c)) {
+          return LayerFail(
+              l, "reads " + Quote(l.inbound[0]) + " (" + std::to_string(in.h) + "x" +
+                     std::to_string(in.w) + "x" + std::to_string(in.c) + ") and " + Quote(name) +
+                     " (" + std::to_string(t.h) + "x" + std::to_string(t.w) + "x" +
+                     std::to_string(t.c) + "); " +
+                     (concat ? "their heights and widths must match" : "their shapes must match"));
+        }
+        channels += t.c;
+        names.push_back(t.layer);
+      }
+      if (concat) {
+        if (channels > model_limits::kMaxChannels) {
+          return LayerFail(l, "concatenates " + std::to_string(channels) + " channels; at most " +
+                                  std::to_string(model_limits::kMaxChannels));
+        }
+        c = channels;
+        add_layer(ConcatSpec{l.name, std::move(names)});
+      } else {
+        add_layer(AddSpec{l.name, std::move(names), Activation::kNone, 0.0f});
+      }
     } else if (IsNestedModelClass(l.cls)) {
       return LayerFail(l, std::string("nested models are supported only as a multi_gpu_model "
                                       "wrapper (InputLayer/Lambda/Concatenate around one nested "
@@ -1193,8 +1343,9 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
           l, std::string("layer class is not supported (supported: ") + kSupportedLayers + ")");
     }
   }
-  if (pending_pad != nullptr) {
-    return LayerFail(*pending_pad,
+  const Tensor& out = tensors.at(model.layers.back().name);
+  if (out.pad_layer != nullptr) {
+    return LayerFail(*out.pad_layer,
                      "ends the model; it must be followed by a Conv2D with "
                      "padding 'valid'");
   }
@@ -1203,14 +1354,35 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
     return Fail("the model gives " + std::to_string(spec->layers.size()) + " layers; at most " +
                 std::to_string(model_limits::kMaxLayers) + " are supported");
   }
+  if (out.index != static_cast<int>(spec->layers.size()) - 1) {
+    return Fail("the model's output " + Quote(model.layers.back().name) + " is computed by layer " +
+                Quote(out.layer) +
+                ", which is not the last: the network's output must be its last layer");
+  }
 
   for (const CropTrace& t : crops) {
     auto& crop = std::get<CropSpec>(spec->layers[t.layer]);
     const Pads& a = crop.amounts;
     const bool one_sided = (a.top == 0 || a.bottom == 0) && (a.left == 0 || a.right == 0);
+    // A crop whose only reader is a Concatenate that also reads an earlier tensor of the crop's
+    // built size: a U-Net cutting an upsampled tensor to its skip's size.
+    std::string reference;
+    const auto& crop_readers = readers[t.output];
+    if (known && one_sided && crop_readers.size() == 1 && crop_readers[0]->cls == "Concatenate") {
+      for (const std::string& name : crop_readers[0]->inbound) {
+        const Tensor& other = tensors.at(name);
+        if (name != t.output && other.pad_layer == nullptr &&
+            other.index < static_cast<int>(t.layer) && other.h == t.out_h && other.w == t.out_w) {
+          reference = other.layer;
+          break;
+        }
+      }
+    }
     std::string why;
     if (!known) {
       why = "the model's input height/width are None, so the size it was built for is unknown";
+    } else if (!reference.empty()) {
+      why.clear();
     } else if (t.out_h != model.height || t.out_w != model.width) {
       why = "at the built size " + std::to_string(model.height) + "x" +
             std::to_string(model.width) + " its output is " + std::to_string(t.out_h) + "x" +
@@ -1218,7 +1390,15 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
     } else if (!one_sided) {
       why = "it crops both sides of an axis";
     }
-    if (why.empty()) {
+    if (why.empty() && !reference.empty()) {
+      // An axis with nothing removed takes the other axis' side, or the end (bottom, right).
+      const bool rows_known = a.top > 0 || a.bottom > 0;
+      const bool cols_known = a.left > 0 || a.right > 0;
+      crop.rule = CropRule::kToSecondInput;
+      crop.inputs.push_back(reference);
+      crop.excess_rows_from_top = rows_known ? a.top > 0 : cols_known && a.left > 0;
+      crop.excess_cols_from_left = cols_known ? a.left > 0 : rows_known && a.top > 0;
+    } else if (why.empty()) {
       crop.rule = CropRule::kToInputSize;
       crop.excess_rows_from_top = a.top > 0 || a.bottom == 0;
       crop.excess_cols_from_left = a.left > 0 || a.right == 0;
@@ -1237,7 +1417,24 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
   }
   spec->input.traced_height = model.height;
   spec->input.traced_width = model.width;
-  spec->output.channels = c;
+  spec->output.channels = out.c;
+  // A chain (every layer reading the one before it) names no inputs: its file is what a runtime
+  // before schema 1.5 reads. A graph names them, and the input by the InputLayer's name.
+  bool chain = true;
+  for (size_t k = 0; k < spec->layers.size() && chain; ++k) {
+    const std::string previous =
+        k == 0 ? model.input_name
+               : std::visit([](const auto& x) { return x.name; }, spec->layers[k - 1]);
+    const auto& inputs = std::visit([](const auto& x) { return x.inputs; }, spec->layers[k]);
+    chain = inputs.size() == 1 && inputs[0] == previous &&
+            !std::holds_alternative<ConcatSpec>(spec->layers[k]) &&
+            !std::holds_alternative<AddSpec>(spec->layers[k]);
+  }
+  if (chain) {
+    for (LayerSpec& layer : spec->layers) std::visit([](auto& x) { x.inputs.clear(); }, layer);
+  } else {
+    spec->input.name = model.input_name;
+  }
   return Status::Ok();
 }
 

@@ -113,7 +113,8 @@ TEST(KerasImport, FixtureSuiteIsPresent) {
 TEST(KerasImport, EveryFixtureModelMatchesPyTorch) {
   for (const char* name :
        {"keras_w16_67x121", "keras_w16_540x960", "keras_w1_35x61", "keras_multigpu_w16_67x121",
-        "keras_seq_67x121", "keras_anysize_w16_67x121", "keras_bn_w16_67x121"}) {
+        "keras_seq_67x121", "keras_anysize_w16_67x121", "keras_bn_w16_67x121",
+        "keras_unet_bn_w16_67x121", "keras_unet_bn_w16_37x53"}) {
     SCOPED_TRACE(name);
     EXPECT_LE(ErrorAgainstPyTorch(name, name), kRelativeTolerance);
   }
@@ -127,6 +128,32 @@ TEST(KerasImport, BatchNormalizationAfterAConvIsFoldedIntoIt) {
   ASSERT_TRUE(with.ok()) << with.message();
   ASSERT_TRUE(without.ok()) << without.message();
   EXPECT_EQ(LayerNames(with->spec), LayerNames(without->spec));
+}
+
+// SceneEDNet-U with BatchNormalization and Concatenate (gen_keras_h5.py unet_layers): a graph of
+// eleven convolutions (the normalisations folded into them), four Concats, three crops to the
+// skip's size and one to the input's; built at 37x53, it matches PyTorch at 67x121 (same
+// weights), so the crops hold at a size they were not built for.
+TEST(KerasImport, SceneEdNetUWithBatchNormAndConcatenateIsAGraphThatHoldsAtAnotherSize) {
+  const KerasImportResult imported = Import("keras_unet_bn_w16_37x53");
+  const ModelSpec& spec = imported.spec;
+  ASSERT_EQ(spec.layers.size(), 23u);
+  EXPECT_TRUE(IsGraph(spec));
+  EXPECT_EQ(spec.input.name, "input_1");
+  int convs = 0, cats = 0, skip_crops = 0;
+  for (const LayerSpec& l : spec.layers) {
+    EXPECT_FALSE(std::visit([](const auto& x) { return x.name; }, l).starts_with("batch_norm"));
+    convs += std::holds_alternative<ConvSpec>(l);
+    cats += std::holds_alternative<ConcatSpec>(l);
+    if (const auto* crop = std::get_if<CropSpec>(&l)) {
+      skip_crops += crop->rule == CropRule::kToSecondInput;
+    }
+  }
+  EXPECT_EQ(convs, 11);
+  EXPECT_EQ(cats, 4);
+  EXPECT_EQ(skip_crops, 3);
+  EXPECT_LE(ErrorAgainstPyTorch("keras_unet_bn_w16_37x53", "keras_unet_bn_w16_67x121"),
+            kRelativeTolerance);
 }
 
 TEST(KerasImport, WeightsOnlyFileWithArchitectureJsonMatchesPyTorch) {

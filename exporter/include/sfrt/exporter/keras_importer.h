@@ -13,17 +13,26 @@
 //                 Given for a full-model file, the architecture file replaces `model_config`.
 // Architectures: functional `Model` (class_name "Model" or "Functional") and `Sequential`
 // (config as a list, Keras <= 2.2.2, or {"layers": [...]}). The layers from the input to the
-// single output must form one chain of:
+// single output form a chain, or (functional) a graph with skip connections (schema 1.5), of:
 //   InputLayer     batch_input_shape (None, H, W, C); H/W may be None (traced size unknown)
 //   Conv2D         channels_last, dilation 1, any kernel and strides, padding 'same' (stored as
 //                  PaddingRule::kSameUpper: TensorFlow pads the excess at the bottom/right) or
 //                  'valid' (explicit, plus any ZeroPadding2D right before it), use_bias,
 //                  activation 'linear' or 'relu'. Kernels (kh, kw, in, out) are HWIO as stored.
-//   LeakyReLU      `alpha` (required), fused into the Conv2D right before it
+//   BatchNormalization  inference (moving statistics), channels axis; folded into the Conv2D
+//                  (activation 'linear') right before it
+//   LeakyReLU      `alpha` (required), fused into the Conv2D (or Add) right before it
 //   Activation     'linear' (dropped) or 'relu' (fused into the Conv2D right before it)
 //   UpSampling2D   integer size, interpolation 'nearest'
 //   Cropping2D     ((top, bottom), (left, right)); see "Crop rule"
 //   ZeroPadding2D  folded into the next Conv2D, which must use padding 'valid'
+//   Concatenate    axis -1 (channels) of tensors of equal height and width
+//   Add            of two tensors of the same shape
+// BatchNormalization and activations fold into the layer before them only where no other layer
+// reads that layer's output. A Cropping2D whose only reader is a Concatenate that also reads an
+// earlier tensor of the crop's built size becomes CropRule::kToSecondInput (a U-Net cutting an
+// upsampled tensor to its skip's size; an axis with nothing removed takes the other axis' side,
+// or bottom/right).
 // Anything else is an error naming the layer, its class and this set.
 //
 // multi_gpu_model checkpoints: when the saved model is a wrapper (InputLayer, Lambda and
