@@ -1391,13 +1391,7 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       why = "it crops both sides of an axis";
     }
     if (why.empty() && !reference.empty()) {
-      // An axis with nothing removed takes the other axis' side, or the end (bottom, right).
-      const bool rows_known = a.top > 0 || a.bottom > 0;
-      const bool cols_known = a.left > 0 || a.right > 0;
-      crop.rule = CropRule::kToSecondInput;
-      crop.inputs.push_back(reference);
-      crop.excess_rows_from_top = rows_known ? a.top > 0 : cols_known && a.left > 0;
-      crop.excess_cols_from_left = cols_known ? a.left > 0 : rows_known && a.top > 0;
+      CropToSecondInput(crop, reference);
     } else if (why.empty()) {
       crop.rule = CropRule::kToInputSize;
       crop.excess_rows_from_top = a.top > 0 || a.bottom == 0;
@@ -1418,23 +1412,7 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
   spec->input.traced_height = model.height;
   spec->input.traced_width = model.width;
   spec->output.channels = out.c;
-  // A chain (every layer reading the one before it) names no inputs: its file is what a runtime
-  // before schema 1.5 reads. A graph names them, and the input by the InputLayer's name.
-  bool chain = true;
-  for (size_t k = 0; k < spec->layers.size() && chain; ++k) {
-    const std::string previous =
-        k == 0 ? model.input_name
-               : std::visit([](const auto& x) { return x.name; }, spec->layers[k - 1]);
-    const auto& inputs = std::visit([](const auto& x) { return x.inputs; }, spec->layers[k]);
-    chain = inputs.size() == 1 && inputs[0] == previous &&
-            !std::holds_alternative<ConcatSpec>(spec->layers[k]) &&
-            !std::holds_alternative<AddSpec>(spec->layers[k]);
-  }
-  if (chain) {
-    for (LayerSpec& layer : spec->layers) std::visit([](auto& x) { x.inputs.clear(); }, layer);
-  } else {
-    spec->input.name = model.input_name;
-  }
+  KeepInputNamesOfAGraph(*spec, model.input_name);
   return Status::Ok();
 }
 

@@ -2457,16 +2457,7 @@ Result<ModelSpec> Importer::Assemble() {
       }
     }
     if (!reference.empty() && one_sided_rows && one_sided_cols) {
-      crop.rule = CropRule::kToSecondInput;
-      crop.inputs.push_back(reference);
-      // An axis with nothing removed at the traced size takes the other axis' side, or the end
-      // (bottom, right) where neither removes anything: PyTorch's x[..., :h, :w] idiom.
-      const bool rows_known = a.top > 0 || a.bottom > 0;
-      const bool cols_known = a.left > 0 || a.right > 0;
-      const bool rows_top = rows_known ? a.top > 0 : cols_known && a.left > 0;
-      const bool cols_left = cols_known ? a.left > 0 : rows_known && a.top > 0;
-      crop.excess_rows_from_top = rows_top;
-      crop.excess_cols_from_left = cols_left;
+      CropToSecondInput(crop, reference);
     } else if (t.out_h == input_shape_[2] && t.out_w == input_shape_[3] && one_sided_rows &&
                one_sided_cols) {
       crop.rule = CropRule::kToInputSize;
@@ -2487,23 +2478,7 @@ Result<ModelSpec> Importer::Assemble() {
   spec.input.traced_height = static_cast<int>(input_shape_[2]);
   spec.input.traced_width = static_cast<int>(input_shape_[3]);
   spec.output.channels = static_cast<int>(out_shape[1]);
-  // A chain (every layer reading the one before it) names no inputs: its file is what a runtime
-  // before schema 1.5 reads.
-  if (!IsGraph(spec)) return spec;
-  bool chain = true;
-  for (size_t k = 0; k < spec.layers.size() && chain; ++k) {
-    const std::string previous =
-        k == 0 ? input_name_ : std::visit([](const auto& l) { return l.name; }, spec.layers[k - 1]);
-    const auto& inputs = std::visit([](const auto& l) { return l.inputs; }, spec.layers[k]);
-    chain = (inputs.size() == 1 && inputs[0] == previous) &&
-            !std::holds_alternative<ConcatSpec>(spec.layers[k]) &&
-            !std::holds_alternative<AddSpec>(spec.layers[k]);
-  }
-  if (chain) {
-    for (LayerSpec& layer : spec.layers) std::visit([](auto& l) { l.inputs.clear(); }, layer);
-  } else {
-    spec.input.name = input_name_;  // the name the layers read it by
-  }
+  KeepInputNamesOfAGraph(spec, input_name_);
   return spec;
 }
 

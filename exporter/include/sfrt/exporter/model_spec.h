@@ -155,4 +155,40 @@ inline bool IsGraph(const ModelSpec& spec) {
   return false;
 }
 
+// For importers that name every layer's inputs: a chain (each layer reading the one before it,
+// layer 0 reading `input_name`, no Concat or Add) has the names dropped, so that its file is what
+// a runtime before schema 1.5 reads; a graph keeps them and names the input `input_name`.
+inline void KeepInputNamesOfAGraph(ModelSpec& spec, const std::string& input_name) {
+  if (!IsGraph(spec)) return;  // no layer names an input: already a chain's file
+  bool chain = true;
+  for (size_t k = 0; k < spec.layers.size() && chain; ++k) {
+    const std::string previous =
+        k == 0 ? input_name : std::visit([](const auto& l) { return l.name; }, spec.layers[k - 1]);
+    const auto& inputs = std::visit([](const auto& l) { return l.inputs; }, spec.layers[k]);
+    chain = inputs.size() == 1 && inputs[0] == previous &&
+            !std::holds_alternative<ConcatSpec>(spec.layers[k]) &&
+            !std::holds_alternative<AddSpec>(spec.layers[k]);
+  }
+  if (chain) {
+    for (LayerSpec& layer : spec.layers) std::visit([](auto& l) { l.inputs.clear(); }, layer);
+  } else {
+    spec.input.name = input_name;
+  }
+}
+
+// Makes `crop` (whose amounts are those removed at the traced size, on at most one side per
+// axis) a crop to the size of `reference`, its second input: a U-Net cutting an upsampled
+// tensor to its skip tensor's size. The excess goes from the side removed on each axis; an axis
+// with nothing removed takes the other axis' side, or the end (bottom, right) where neither
+// removed anything, as PyTorch's x[..., :h, :w] does.
+inline void CropToSecondInput(CropSpec& crop, const std::string& reference) {
+  const Pads& a = crop.amounts;
+  const bool rows_known = a.top > 0 || a.bottom > 0;
+  const bool cols_known = a.left > 0 || a.right > 0;
+  crop.rule = CropRule::kToSecondInput;
+  crop.inputs.push_back(reference);
+  crop.excess_rows_from_top = rows_known ? a.top > 0 : cols_known && a.left > 0;
+  crop.excess_cols_from_left = cols_known ? a.left > 0 : rows_known && a.top > 0;
+}
+
 }  // namespace sfrt::exporter
