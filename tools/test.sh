@@ -6,15 +6,20 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+stage() { echo "== $1 (${SECONDS} s since the start)"; }
 bash tools/install-deps.sh
 presets=("$@")
 [[ ${#presets[@]} -gt 0 ]] || presets=(release asan)
 for preset in "${presets[@]}"; do
-  echo "== ${preset}: configure and build"
+  stage "${preset}: configure and build"
   cmake --preset "${preset}" >/dev/null
   cmake --build --preset "${preset}" -- --no-print-directory -s
-  echo "== ${preset}: test"
+  stage "${preset}: test"
   ctest --preset "${preset}"
 done
 # Third stage of the default run: the aarch64 cross build, NEON tests under qemu.
-if [[ $# -eq 0 ]]; then bash tools/test-aarch64.sh; fi
+if [[ $# -eq 0 ]]; then
+  stage "aarch64"
+  bash tools/test-aarch64.sh
+fi
+stage "done"

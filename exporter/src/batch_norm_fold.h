@@ -36,9 +36,11 @@ inline long BatchNormAffine(const std::vector<float>& gamma, const std::vector<f
   return -1;
 }
 
-// Applies `affine` (one entry per output channel) to a float32 convolution's HWIO weights (the
-// output channel innermost) and bias (created as zeros when absent).
-inline void FoldIntoConv(const ChannelAffine& affine, ConvSpec* conv) {
+// Applies `affine` (one entry per output channel) to a float32 convolution's (ConvSpec) or
+// transposed convolution's (ConvTransposeSpec) HWIO weights (the output channel innermost) and
+// bias (created as zeros when absent).
+template <typename Spec>
+void FoldIntoConv(const ChannelAffine& affine, Spec* conv) {
   const auto oc = static_cast<size_t>(conv->out_channels);
   if (conv->bias.empty()) conv->bias.assign(oc, 0.0f);
   for (size_t i = 0; i < conv->weights_hwio.size(); ++i) {

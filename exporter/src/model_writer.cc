@@ -297,6 +297,34 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       layers.push_back(fb::CreateLayer(
           b, b.CreateString(add->name), fb::LayerOp::Add,
           fb::CreateAdd(b, ToSchema(add->activation), add->leaky_slope).Union(), names));
+    } else if (const auto* d = std::get_if<ConvTransposeSpec>(&ls)) {
+      if (options.schema_minor < 6) {
+        return Status::Error(where + ": ConvTranspose2D needs schema 1.6; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      if (d->in_channels != channels) {
+        return Status::Error(where + ": in_channels is " + std::to_string(d->in_channels) +
+                             " but its input has " + std::to_string(channels));
+      }
+      const size_t want =
+          static_cast<size_t>(d->kernel_h) * d->kernel_w * d->in_channels * d->out_channels;
+      if (d->weights_hwio.size() != want ||
+          d->bias.size() != static_cast<size_t>(d->out_channels)) {
+        return Status::Error(where + ": holds " + std::to_string(d->weights_hwio.size()) +
+                             " weights and " + std::to_string(d->bias.size()) + " biases; needs " +
+                             std::to_string(want) + " and " + std::to_string(d->out_channels));
+      }
+      const auto weights =
+          w.AddTensor(d->weights_hwio, {d->kernel_h, d->kernel_w, d->in_channels, d->out_channels});
+      const auto bias = w.AddTensor(d->bias, {d->out_channels});
+      const fb::Padding pads(d->pads.top, d->pads.left, d->pads.bottom, d->pads.right);
+      const auto deconv = fb::CreateConvTranspose2D(
+          b, d->in_channels, d->out_channels, d->kernel_h, d->kernel_w, d->stride_h, d->stride_w,
+          &pads, d->output_padding_h, d->output_padding_w, ToSchema(d->activation), d->leaky_slope,
+          weights, bias);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(d->name), fb::LayerOp::ConvTranspose2D,
+                                       deconv.Union(), names));
+      channels = d->out_channels;
     } else {
       const auto& cr = std::get<CropSpec>(ls);
       if (cr.rule == CropRule::kToSecondInput && (options.schema_minor < 5 || inputs.size() != 2)) {

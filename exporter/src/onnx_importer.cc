@@ -89,7 +89,7 @@ constexpr size_t kMaxListedNodes = 20;
 // Ops that may carry the network input. Concat (of channels) and Add read several such tensors.
 constexpr std::string_view kRuntimeOps[] = {
     "Conv",     "Pad",   "BatchNormalization", "LeakyRelu", "Relu", "Resize",
-    "Upsample", "Slice", "Identity",           "Concat",    "Add"};
+    "Upsample", "Slice", "Identity",           "Concat",    "Add",  "ConvTranspose"};
 // Ops evaluated at import when all their inputs are constants.
 // clang-format off
 constexpr std::string_view kFoldableOps[] = {
@@ -900,7 +900,8 @@ struct GraphOp {
     kSlice,
     kIdentity,
     kConcat,
-    kAdd
+    kAdd,
+    kConvTranspose
   };
   Kind kind = Kind::kIdentity;
   int node_index = 0;
@@ -908,8 +909,9 @@ struct GraphOp {
   std::string output;
   Shape4 in_shape{};
   Shape4 out_shape{};
-  ConvSpec conv;  // kConv; pads = the Conv's own amounts at the traced size
-  Pads pads;      // kPad: amounts added; kSlice: amounts removed
+  ConvSpec conv;             // kConv; pads = the Conv's own amounts at the traced size
+  ConvTransposeSpec deconv;  // kConvTranspose
+  Pads pads;                 // kPad: amounts added; kSlice: amounts removed
   Activation activation = Activation::kNone;
   float slope = 0.0f;
   int factor_h = 1;
@@ -958,6 +960,7 @@ class Importer {
   Status FoldNode(int idx);
   Status ProcessRuntimeNode(int idx, const Shape4& in_shape);
   Status ProcessConv(int idx, GraphOp& op);
+  Status ProcessConvTranspose(int idx, GraphOp& op);
   Status ProcessPad(int idx, GraphOp& op);
   Status ProcessBatchNorm(int idx, GraphOp& op);
   Status ProcessResize(int idx, GraphOp& op);
@@ -1742,6 +1745,136 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   return Status::Ok();
 }
 
+// ONNX ConvTranspose (opsets 1-17): weights (C_in, C_out, kH, kW), each input pixel scattered
+// through the kernel at stride `strides`, `pads` removed from the full output's borders and
+// `output_padding` added at its end: exactly sfrt's ConvTranspose2D with HWIO weights.
+Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (n.input_size() < 2) return NodeError(idx, "needs a weight input");
+  Dims wdims;
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<float> w, GetFloats(idx, 1, &wdims));
+  if (wdims.size() != 4) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has shape " + JoinInts(wdims) +
+                              "; only 2-D transposed convolutions (IOHW weights) are supported");
+  }
+  const int64_t in_ch = wdims[0], out_ch = wdims[1], kh = wdims[2], kw = wdims[3];
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t group, IntAttr(idx, "group", 1));
+  if (group != 1) {
+    return NodeError(
+        idx, "attribute 'group' = " + std::to_string(group) + " is not supported (only group 1)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, IntsAttr(idx, "dilations"));
+  for (int64_t d : dilations) {
+    if (d != 1) {
+      return NodeError(idx, "attribute 'dilations' = " + JoinInts(dilations) +
+                                " is not supported (only dilation 1)");
+    }
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
+                             IntsAttr(idx, "kernel_shape"));
+  if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{kh, kw}) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts(kernel_shape) +
+                              " does not match the weight shape " + JoinInts(wdims));
+  }
+  if (in_ch != op.in_shape[1]) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " expects " + std::to_string(in_ch) +
+                              " input channels, the input tensor " + Quote(op.inputs[0]) + " has " +
+                              std::to_string(op.in_shape[1]));
+  }
+  if (out_ch < 1 || kh < 1 || kw < 1 || kh > model_limits::kMaxKernel ||
+      kw > model_limits::kMaxKernel || out_ch > model_limits::kMaxChannels) {
+    return NodeError(
+        idx, "weight " + Quote(n.input(1)) + " has shape " + JoinInts(wdims) +
+                 "; kernel sides must be in 1.." + std::to_string(model_limits::kMaxKernel) +
+                 " and output channels in 1.." + std::to_string(model_limits::kMaxChannels));
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> strides, IntsAttr(idx, "strides"));
+  if (strides.empty()) strides = {1, 1};
+  if (strides.size() != 2 || strides[0] < 1 || strides[1] < 1 ||
+      strides[0] > model_limits::kMaxStride || strides[1] > model_limits::kMaxStride) {
+    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) + " is not supported (1.." +
+                              std::to_string(model_limits::kMaxStride) + " per axis)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> out_pad, IntsAttr(idx, "output_padding"));
+  if (out_pad.empty()) out_pad = {0, 0};
+  if (out_pad.size() != 2 || out_pad[0] < 0 || out_pad[1] < 0 || out_pad[0] >= strides[0] ||
+      out_pad[1] >= strides[1]) {
+    return NodeError(idx, "attribute 'output_padding' = " + JoinInts(out_pad) +
+                              " is not supported (two values, each below its stride)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
+  if (auto_pad == "VALID" || (auto_pad == "NOTSET" && pads.empty())) pads = {0, 0, 0, 0};
+  if (auto_pad != "NOTSET" && auto_pad != "VALID") {
+    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
+                              " is not supported for ConvTranspose (NOTSET, VALID)");
+  }
+  if (pads.size() != 4) {
+    return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
+  }
+  // pads are (top, left, bottom, right); each removes output rows or columns the kernel wrote.
+  const int64_t limits[4] = {kh, kw, kh, kw};
+  for (size_t k = 0; k < 4; ++k) {
+    if (pads[k] < 0 || pads[k] >= limits[k]) {
+      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) +
+                                " is not supported (each at least 0 and below its kernel side)");
+    }
+  }
+  const int64_t in_h = op.in_shape[2];
+  const int64_t in_w = op.in_shape[3];
+  const int64_t out_h = (in_h - 1) * strides[0] - pads[0] - pads[2] + kh + out_pad[0];
+  const int64_t out_w = (in_w - 1) * strides[1] - pads[1] - pads[3] + kw + out_pad[1];
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> output_shape,
+                             IntsAttr(idx, "output_shape"));
+  if (!output_shape.empty() &&
+      (output_shape.size() < 2 || output_shape[output_shape.size() - 2] != out_h ||
+       output_shape.back() != out_w)) {
+    return NodeError(idx, "attribute 'output_shape' = " + JoinInts(output_shape) +
+                              " differs from the size its pads give (" + std::to_string(out_h) +
+                              "x" + std::to_string(out_w) +
+                              "); give pads and output_padding instead");
+  }
+  if (out_h < 1 || out_w < 1) {
+    return NodeError(idx, "its pads leave an empty output (" + std::to_string(out_h) + "x" +
+                              std::to_string(out_w) + ")");
+  }
+  op.out_shape = {1, out_ch, out_h, out_w};
+
+  ConvTransposeSpec& d = op.deconv;
+  d.name = n.name();
+  d.in_channels = static_cast<int>(in_ch);
+  d.out_channels = static_cast<int>(out_ch);
+  d.kernel_h = static_cast<int>(kh);
+  d.kernel_w = static_cast<int>(kw);
+  d.stride_h = static_cast<int>(strides[0]);
+  d.stride_w = static_cast<int>(strides[1]);
+  d.pads = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
+                static_cast<int>(pads[3])};
+  d.output_padding_h = static_cast<int>(out_pad[0]);
+  d.output_padding_w = static_cast<int>(out_pad[1]);
+  d.weights_hwio.resize(w.size());
+  for (int64_t ci = 0; ci < in_ch; ++ci) {
+    for (int64_t co = 0; co < out_ch; ++co) {
+      for (int64_t ky = 0; ky < kh; ++ky) {
+        for (int64_t kx = 0; kx < kw; ++kx) {
+          d.weights_hwio[((ky * kw + kx) * in_ch + ci) * out_ch + co] =
+              w[((ci * out_ch + co) * kh + ky) * kw + kx];
+        }
+      }
+    }
+  }
+  d.bias.assign(static_cast<size_t>(out_ch), 0.0f);
+  if (n.input_size() > 2 && !n.input(2).empty()) {
+    Dims bdims;
+    SFRT_ONNX_ASSIGN_OR_RETURN(d.bias, GetFloats(idx, 2, &bdims));
+    if (bdims != Dims{out_ch}) {
+      return NodeError(idx, "bias " + Quote(n.input(2)) + " has shape " + JoinInts(bdims) +
+                                ", expected [" + std::to_string(out_ch) + "]");
+    }
+  }
+  return Status::Ok();
+}
+
 Status Importer::ProcessPad(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "constant"));
@@ -1987,6 +2120,9 @@ Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
   if (type == "Conv") {
     op.kind = GraphOp::Kind::kConv;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessConv(idx, op));
+  } else if (type == "ConvTranspose") {
+    op.kind = GraphOp::Kind::kConvTranspose;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessConvTranspose(idx, op));
   } else if (type == "Pad") {
     op.kind = GraphOp::Kind::kPad;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessPad(idx, op));
@@ -2239,7 +2375,7 @@ Result<ModelSpec> Importer::Assemble() {
   source[input_name_] = Source{input_name_, -1, false, {}, {}, {}};
   std::vector<ConvTrace> convs;
   std::vector<CropTrace> crops;
-  int num_convs = 0, num_ups = 0, num_crops = 0, num_cats = 0, num_adds = 0;
+  int num_convs = 0, num_ups = 0, num_crops = 0, num_cats = 0, num_adds = 0, num_deconvs = 0;
   // The layer that computes `tensor` when this op alone reads it, so that a BatchNormalization,
   // an activation or another Slice may fold into it.
   auto sole_reader = [&](const std::string& tensor) { return readers[tensor].size() == 1; };
@@ -2299,27 +2435,38 @@ Result<ModelSpec> Importer::Assemble() {
         add_layer(std::move(conv), op.output);
         break;
       }
+      case GraphOp::Kind::kConvTranspose: {
+        ConvTransposeSpec deconv = op.deconv;
+        deconv.name = unique_name(deconv.name, "deconv", num_deconvs++);
+        deconv.inputs = {source.at(in0).layer};
+        add_layer(std::move(deconv), op.output);
+        break;
+      }
       case GraphOp::Kind::kBatchNorm:
       case GraphOp::Kind::kActivation: {
         const bool bn = op.kind == GraphOp::Kind::kBatchNorm;
         const Source& src = source.at(in0);
         LayerSpec* layer = src.layer_index >= 0 ? &spec.layers[src.layer_index] : nullptr;
         auto* conv = layer != nullptr ? std::get_if<ConvSpec>(layer) : nullptr;
+        auto* deconv = layer != nullptr ? std::get_if<ConvTransposeSpec>(layer) : nullptr;
         auto* add = layer != nullptr ? std::get_if<AddSpec>(layer) : nullptr;
         const bool activated = (conv != nullptr && conv->activation != Activation::kNone) ||
+                               (deconv != nullptr && deconv->activation != Activation::kNone) ||
                                (add != nullptr && add->activation != Activation::kNone);
-        // The producer must be a Conv (an Add, for an activation) that has no activation yet,
-        // whose output only this node reads (its output is then this node's).
-        const bool fits = (conv != nullptr || (!bn && add != nullptr)) && !activated &&
+        // The producer must be a Conv or ConvTranspose (or an Add, for an activation) that has no
+        // activation yet, whose output only this node reads (its output is then this node's).
+        const bool fits = (conv != nullptr || deconv != nullptr || (!bn && add != nullptr)) &&
+                          !activated &&
                           source.at(in0).layer_index == static_cast<int>(spec.layers.size()) - 1 &&
                           sole_reader(in0);
         if (!fits) {
-          const std::string what = bn ? "a BatchNormalization must directly follow a Conv "
-                                        "(it is folded into the Conv's weights and bias)"
-                                      : "an activation must directly follow a Conv or an Add "
-                                        "(it is fused into it)";
+          const std::string what =
+              bn ? "a BatchNormalization must directly follow a Conv or ConvTranspose (it is "
+                   "folded into its weights and bias)"
+                 : "an activation must directly follow a Conv, ConvTranspose or Add (it is fused "
+                   "into it)";
           std::string also;
-          if ((conv != nullptr || add != nullptr) && !sole_reader(in0)) {
+          if ((conv != nullptr || deconv != nullptr || add != nullptr) && !sole_reader(in0)) {
             for (size_t r : readers[in0]) {
               if (r != i) also += (also.empty() ? "" : ", ") + NodeLabel(ops_[r].node_index);
             }
@@ -2328,11 +2475,16 @@ Result<ModelSpec> Importer::Assemble() {
           return FileError(NodeLabel(op.node_index) + ": " + what + ", but it follows " +
                            producer_label(in0) + also);
         }
-        if (bn) {
+        if (bn && conv != nullptr) {
           FoldIntoConv(op.batch_norm, conv);
+        } else if (bn) {
+          FoldIntoConv(op.batch_norm, deconv);
         } else if (conv != nullptr) {
           conv->activation = op.activation;
           conv->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
+        } else if (deconv != nullptr) {
+          deconv->activation = op.activation;
+          deconv->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
         } else {
           add->activation = op.activation;
           add->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;

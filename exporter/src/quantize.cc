@@ -460,10 +460,10 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     return Status::Error("accuracy budget " + Sci(options.accuracy_budget) +
                          ": must be a finite number >= 0");
   }
-  if (IsGraph(model)) {
-    return Status::Error("model '" + model.name +
-                         "' is a graph (Concat, Add or named inputs): int8 and bf16 run on chain "
-                         "models only; export it in fp32");
+  if (const std::string why = Float32OnlyReason(model); !why.empty()) {
+    return Status::Error("model '" + model.name + "': " + why +
+                         "; int8 and bf16 run on chains of convolutions, upsamplings and crops "
+                         "only; export it in fp32");
   }
   std::vector<int> conv_layers;
   std::vector<std::string> names;

@@ -54,6 +54,27 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       return ConcatSpec{layer.name, {}};
     case LayerKind::kAdd:
       return AddSpec{layer.name, {}, layer.add.activation, layer.add.leaky_slope};
+    case LayerKind::kConvTranspose2D: {
+      const ConvTransposeParams& p = layer.deconv;
+      ConvTransposeSpec d;
+      d.name = layer.name;
+      d.in_channels = p.in_channels;
+      d.out_channels = p.out_channels;
+      d.kernel_h = p.kernel_h;
+      d.kernel_w = p.kernel_w;
+      d.stride_h = p.stride_h;
+      d.stride_w = p.stride_w;
+      d.pads = p.pads;
+      d.output_padding_h = p.output_padding_h;
+      d.output_padding_w = p.output_padding_w;
+      d.activation = p.activation;
+      d.leaky_slope = p.leaky_slope;
+      const size_t count = static_cast<size_t>(p.kernel_h) * p.kernel_w * p.in_channels *
+                           static_cast<size_t>(p.out_channels);
+      d.weights_hwio.assign(p.weights, p.weights + count);
+      d.bias.assign(p.bias, p.bias + p.out_channels);
+      return d;
+    }
     case LayerKind::kCrop:
       break;
   }

@@ -121,6 +121,13 @@ std::string LayerOp(const LayerDesc& layer) {
       return "concat " + std::to_string(layer.inputs.size());
     case LayerKind::kAdd:
       return "add";
+    case LayerKind::kConvTranspose2D: {
+      const ConvTransposeParams& c = layer.deconv;
+      std::string op = "deconv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
+                       "/s" + std::to_string(c.stride_h);
+      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
+      return op;
+    }
   }
   return "?";
 }

@@ -182,6 +182,28 @@ Status ResolveInputs(const Checker& check, const std::string& where,
   return Status::Ok();
 }
 
+// A layer's fused activation as the file states it.
+Status TakeActivation(const Checker& check, const std::string& where, fb::Activation stored,
+                      float slope, Activation* activation, float* leaky_slope) {
+  switch (stored) {
+    case fb::Activation::None:
+      *activation = Activation::kNone;
+      break;
+    case fb::Activation::Relu:
+      *activation = Activation::kRelu;
+      break;
+    case fb::Activation::LeakyRelu:
+      *activation = Activation::kLeakyRelu;
+      break;
+    default:
+      return check.Fail(where + ": activation is unknown value " +
+                        std::to_string(static_cast<int>(stored)));
+  }
+  *leaky_slope = slope;
+  if (!std::isfinite(slope)) return check.Fail(where + ": leaky_slope is not finite");
+  return Status::Ok();
+}
+
 // How many inputs `op` reads: [least, most].
 Status CheckArity(const Checker& check, const std::string& where, const char* op,
                   const std::vector<int>& inputs, int least, int most) {
@@ -194,7 +216,8 @@ Status CheckArity(const Checker& check, const std::string& where, const char* op
 }
 
 // The graph as a whole: every layer's output but the last is read, and int8 and bf16 layers
-// only in chains. Fills the consumer counts and whether the graph is a chain.
+// only in chains of the ops before 1.5 and ConvTranspose2D. Fills the consumer counts and whether
+// the graph is a chain.
 Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
                   std::vector<int>& consumers, bool& is_chain) {
   consumers.assign(layers.size(), 0);
@@ -212,13 +235,15 @@ Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
                         "the model)");
     }
   }
-  if (is_chain) return Status::Ok();
+  bool transposed = false;
+  for (const LayerDesc& layer : layers) transposed |= layer.kind == LayerKind::kConvTranspose2D;
+  if (is_chain && !transposed) return Status::Ok();
   for (size_t i = 0; i < layers.size(); ++i) {
     if (layers[i].kind == LayerKind::kConv2D && layers[i].conv.precision != Precision::kFloat32) {
       return check.Fail("layer " + std::to_string(i) + " '" + layers[i].name + "': precision " +
-                        PrecisionName(layers[i].conv.precision) +
-                        " in a model whose layers are not a chain; this runtime runs such "
-                        "models in fp32 only");
+                        PrecisionName(layers[i].conv.precision) + " in a model " +
+                        (is_chain ? "with a ConvTranspose2D" : "whose layers are not a chain") +
+                        "; this runtime runs such models in fp32 only");
     }
   }
   return Status::Ok();
@@ -293,10 +318,15 @@ Model::~Model() = default;
 size_t Model::parameter_count() const {
   size_t n = 0;
   for (const LayerDesc& l : layers_) {
-    if (l.kind != LayerKind::kConv2D) continue;
-    const ConvParams& c = l.conv;
-    n += static_cast<size_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
-         static_cast<size_t>(c.out_channels);
+    if (l.kind == LayerKind::kConv2D) {
+      const ConvParams& c = l.conv;
+      n += static_cast<size_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+           static_cast<size_t>(c.out_channels);
+    } else if (l.kind == LayerKind::kConvTranspose2D) {
+      const ConvTransposeParams& c = l.deconv;
+      n += static_cast<size_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+           static_cast<size_t>(c.out_channels);
+    }
   }
   return n;
 }
@@ -702,22 +732,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                               "; must be in 0.." + std::to_string(model_limits::MaxPad(limit)));
           }
         }
-        switch (c->activation()) {
-          case fb::Activation::None:
-            p.activation = Activation::kNone;
-            break;
-          case fb::Activation::Relu:
-            p.activation = Activation::kRelu;
-            break;
-          case fb::Activation::LeakyRelu:
-            p.activation = Activation::kLeakyRelu;
-            break;
-          default:
-            return check.Fail(where + ": activation is unknown value " +
-                              std::to_string(static_cast<int>(c->activation())));
+        if (Status s = TakeActivation(check, where, c->activation(), c->leaky_slope(),
+                                      &p.activation, &p.leaky_slope);
+            !s.ok()) {
+          return s;
         }
-        p.leaky_slope = c->leaky_slope();
-        if (!std::isfinite(p.leaky_slope)) return check.Fail(where + ": leaky_slope is not finite");
         switch (c->precision()) {
           case fb::Precision::Float32:
             p.precision = Precision::kFloat32;
@@ -846,25 +865,82 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           return check.Fail(where + ": adds tensors of " + std::to_string(ca) + " and " +
                             std::to_string(cb) + " channels; both must have the same");
         }
-        switch (a->activation()) {
-          case fb::Activation::None:
-            layer.add.activation = Activation::kNone;
-            break;
-          case fb::Activation::Relu:
-            layer.add.activation = Activation::kRelu;
-            break;
-          case fb::Activation::LeakyRelu:
-            layer.add.activation = Activation::kLeakyRelu;
-            break;
-          default:
-            return check.Fail(where + ": activation is unknown value " +
-                              std::to_string(static_cast<int>(a->activation())));
-        }
-        layer.add.leaky_slope = a->leaky_slope();
-        if (!std::isfinite(layer.add.leaky_slope)) {
-          return check.Fail(where + ": leaky_slope is not finite");
+        if (Status s = TakeActivation(check, where, a->activation(), a->leaky_slope(),
+                                      &layer.add.activation, &layer.add.leaky_slope);
+            !s.ok()) {
+          return s;
         }
         channels_of.push_back(ca);
+        break;
+      }
+      case fb::LayerOp::ConvTranspose2D: {
+        const fb::ConvTranspose2D* c = fl->op_as_ConvTranspose2D();
+        layer.kind = LayerKind::kConvTranspose2D;
+        ConvTransposeParams& p = layer.deconv;
+        p.in_channels = c->in_channels();
+        p.out_channels = c->out_channels();
+        p.kernel_h = c->kernel_h();
+        p.kernel_w = c->kernel_w();
+        p.stride_h = c->stride_h();
+        p.stride_w = c->stride_w();
+        p.output_padding_h = c->output_padding_h();
+        p.output_padding_w = c->output_padding_w();
+        if (Status s = CheckArity(check, where, "a ConvTranspose2D", layer.inputs, 1, 1); !s.ok()) {
+          return s;
+        }
+        if (p.in_channels != channels_read(layer.inputs[0])) {
+          return check.Fail(where + ": in_channels is " + std::to_string(p.in_channels) +
+                            " but its input has " + std::to_string(channels_read(layer.inputs[0])) +
+                            " channels");
+        }
+        if (p.out_channels <= 0 || p.out_channels > kMaxChannels) {
+          return check.Fail(where + ": out_channels is " + std::to_string(p.out_channels) +
+                            "; must be in 1.." + std::to_string(kMaxChannels));
+        }
+        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 ||
+            p.kernel_w > kMaxKernel) {
+          return check.Fail(where + ": kernel is " + std::to_string(p.kernel_h) + "x" +
+                            std::to_string(p.kernel_w) + "; each side must be in 1.." +
+                            std::to_string(kMaxKernel));
+        }
+        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 ||
+            p.stride_w > kMaxStride) {
+          return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
+                            std::to_string(p.stride_w) + "; each must be in 1.." +
+                            std::to_string(kMaxStride));
+        }
+        if (const fb::Padding* pads = c->pads()) {
+          p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
+        }
+        for (const auto& [amount, side, kernel] : {std::tuple{p.pads.top, "top", p.kernel_h},
+                                                   std::tuple{p.pads.bottom, "bottom", p.kernel_h},
+                                                   std::tuple{p.pads.left, "left", p.kernel_w},
+                                                   std::tuple{p.pads.right, "right", p.kernel_w}}) {
+          if (amount < 0 || amount >= kernel) {
+            return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
+                              "; must be in 0.." + std::to_string(kernel - 1));
+          }
+        }
+        if (p.output_padding_h < 0 || p.output_padding_h >= p.stride_h || p.output_padding_w < 0 ||
+            p.output_padding_w >= p.stride_w) {
+          return check.Fail(where + ": output padding is " + std::to_string(p.output_padding_h) +
+                            "x" + std::to_string(p.output_padding_w) +
+                            "; each must be at least 0 and less than its stride (" +
+                            std::to_string(p.stride_h) + "x" + std::to_string(p.stride_w) + ")");
+        }
+        if (Status s = TakeActivation(check, where, c->activation(), c->leaky_slope(),
+                                      &p.activation, &p.leaky_slope);
+            !s.ok()) {
+          return s;
+        }
+        if (Status s =
+                take_tensor(c->weights(), "weights",
+                            {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels}, &p.weights);
+            !s.ok()) {
+          return s;
+        }
+        if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
+        channels_of.push_back(p.out_channels);
         break;
       }
       default:

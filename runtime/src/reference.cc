@@ -12,6 +12,7 @@
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
+#include "kernels/ref/conv_transpose_ref.h"
 #include "kernels/ref/merge_ref.h"
 #include "kernels/ref/resample_ref.h"
 
@@ -146,6 +147,9 @@ void ForwardGraph(const Model& model, std::span<const float> input,
       case LayerKind::kAdd:
         ref::AddRows(src, view_of(layer.inputs[1]), layer.add, dst, 0, s.height);
         break;
+      case LayerKind::kConvTranspose2D:
+        ref::ConvTranspose2dRows(src, layer.deconv, dst, 0, s.height);
+        break;
     }
     if (observer) observer(static_cast<int>(i), s, out);
     for (int t : layer.inputs) {
@@ -173,7 +177,11 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
     return Status::Error("reference forward: output holds " + std::to_string(output.size()) +
                          " floats; " + std::to_string(g.back().output.elements()) + " needed");
   }
-  if (!model.is_chain()) {
+  // Graphs, and models with a ConvTranspose2D, are float32 throughout (the loader checks).
+  const bool transposed = std::any_of(layers.begin(), layers.end(), [](const LayerDesc& l) {
+    return l.kind == LayerKind::kConvTranspose2D;
+  });
+  if (!model.is_chain() || transposed) {
     ForwardGraph(model, input, g, output, observer);
     return Status::Ok();
   }

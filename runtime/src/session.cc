@@ -16,6 +16,7 @@
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
+#include "kernels/ref/conv_transpose_ref.h"
 #include "kernels/ref/merge_ref.h"
 #include "kernels/ref/resample_ref.h"
 #include "kernels/winograd_job.h"
@@ -29,22 +30,23 @@ namespace sfrt {
 // One entry of the flat list Run() walks.
 struct Session::Step {
   enum class Kind {
-    kConv,          // SIMD convolution (packed weights)
-    kUpConv,        // SIMD fused upsample 2x (+ crop) + 3x3 convolution
-    kRefConv,       // ref::Conv2d
-    kUpsample,      // ref::UpsampleNearest
-    kCrop,          // a view of the previous tensor (a copy only when it is the model's output)
-    kWinograd,      // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
-    kQuantize,      // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
-    kInt8Conv,      // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
-                    // or first_layer says so (kernels/int8_job.h)
-    kUpsampleU8,    // ref::UpsampleNearestPlane (an upsampling no int8 convolution fuses)
-    kToBf16,        // the float32 tensor a bf16 convolution reads, to bf16 (ToBf16KernelFor)
-    kBf16Conv,      // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
-                    // (kernels/bf16_job.h)
-    kUpsampleBf16,  // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
-    kConcat,        // ref::ConcatRows
-    kAdd,           // ref::AddRows
+    kConv,           // SIMD convolution (packed weights)
+    kUpConv,         // SIMD fused upsample 2x (+ crop) + 3x3 convolution
+    kRefConv,        // ref::Conv2d
+    kUpsample,       // ref::UpsampleNearest
+    kCrop,           // a view of the previous tensor (a copy only when it is the model's output)
+    kWinograd,       // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
+    kQuantize,       // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
+    kInt8Conv,       // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
+                     // or first_layer says so (kernels/int8_job.h)
+    kUpsampleU8,     // ref::UpsampleNearestPlane (an upsampling no int8 convolution fuses)
+    kToBf16,         // the float32 tensor a bf16 convolution reads, to bf16 (ToBf16KernelFor)
+    kBf16Conv,       // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
+                     // (kernels/bf16_job.h)
+    kUpsampleBf16,   // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
+    kConcat,         // ref::ConcatRows
+    kAdd,            // ref::AddRows
+    kConvTranspose,  // ref::ConvTranspose2dRows
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -225,6 +227,17 @@ void AddTrampoline(void* ctx, int begin, int end) {
   ref::AddRows(job->a, job->b, *job->params, job->out, begin, end);
 }
 
+struct ConvTransposeJob {
+  ConstTensorView in;
+  const ConvTransposeParams* params;
+  TensorView out;
+};
+
+void ConvTransposeTrampoline(void* ctx, int begin, int end) {
+  const ConvTransposeJob* job = static_cast<const ConvTransposeJob*>(ctx);
+  ref::ConvTranspose2dRows(job->in, *job->params, job->out, begin, end);
+}
+
 Status CheckTuning(const KernelTuning& tuning) {
   if (tuning.winograd_tile != 0 && tuning.winograd_tile != 2 && tuning.winograd_tile != 4) {
     return Status::Error("Session::Create: KernelTuning::winograd_tile is " +
@@ -395,6 +408,9 @@ Status Session::Plan() {
     } else if (layer.kind == LayerKind::kAdd) {
       step.kind = Step::Kind::kAdd;
       step.kernel = "ref::AddRows";
+    } else if (layer.kind == LayerKind::kConvTranspose2D) {  // float32 (the loader checks)
+      step.kind = Step::Kind::kConvTranspose;
+      step.kernel = "ref::ConvTranspose2dRows";
     } else if (layer.kind == LayerKind::kUpsample) {
       int conv = i + 1;
       int crop = -1;
@@ -967,6 +983,11 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kAdd: {
         AddJob job{cur, views.f32[slot_of(first.inputs[1])], &first.add, out};
         parallel_rows(out.height, AddTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kConvTranspose: {
+        ConvTransposeJob job{cur, &first.deconv, out};
+        parallel_rows(out.height, ConvTransposeTrampoline, &job);
         break;
       }
       case Step::Kind::kCrop:

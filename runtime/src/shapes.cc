@@ -96,6 +96,26 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
       g.macs = static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w * c.in_channels;
       break;
     }
+    case LayerKind::kConvTranspose2D: {
+      const ConvTransposeParams& c = layer.deconv;
+      // In 64 bits: a side up to kMaxTensorSide times a stride up to kMaxStride.
+      const int64_t oh = (int64_t{cur.height} - 1) * c.stride_h - c.pads.top - c.pads.bottom +
+                         c.kernel_h + c.output_padding_h;
+      const int64_t ow = (int64_t{cur.width} - 1) * c.stride_w - c.pads.left - c.pads.right +
+                         c.kernel_w + c.output_padding_w;
+      if (oh <= 0 || ow <= 0 || oh > kMaxTensorSide || ow > kMaxTensorSide) {
+        return Status::Error(Quote(layer, i) + ": a " + std::to_string(cur.height) + "x" +
+                             std::to_string(cur.width) + " input gives a " + std::to_string(oh) +
+                             "x" + std::to_string(ow) + " output; each side must be in 1.." +
+                             std::to_string(kMaxTensorSide));
+      }
+      g.output = {static_cast<int>(oh), static_cast<int>(ow), c.out_channels};
+      g.pads = c.pads;
+      g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+                 static_cast<uint64_t>(c.out_channels);
+      g.macs = static_cast<uint64_t>(cur.elements()) * c.kernel_h * c.kernel_w * c.out_channels;
+      break;
+    }
     case LayerKind::kUpsample:
       if (cur.height > kMaxTensorSide / layer.upsample.factor_h ||
           cur.width > kMaxTensorSide / layer.upsample.factor_w) {

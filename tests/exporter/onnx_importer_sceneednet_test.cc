@@ -197,7 +197,7 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryFixtureCaseAsTheDocumentedLayerChain) {
                               << "fixtures.generate_sceneednet test first (ctest -L fixtures)";
   bool saw_tf = false, saw_torch = false;
   for (const FixtureCase& fc : cases) {
-    if (fc.name[0] == 'u') continue;  // SceneEDNet-U: the test below
+    if (fc.name[0] != 'w') continue;  // SceneEDNet-U and FlowNetS: the tests below
     SCOPED_TRACE(fc.name);
     CheckCase(fc);
     saw_tf = saw_tf || fc.name.find("_tf_") != std::string::npos;
@@ -242,6 +242,47 @@ TEST(OnnxImporterSceneEDNet, ImportsEverySceneEdNetUCaseAsAGraphWithSkipsAndFold
     EXPECT_EQ(input_crops, 1);
   }
   EXPECT_GE(u_cases, 3) << "the suite has no SceneEDNet-U cases";
+}
+
+// The FlowNetS-style network (gen_sceneednet.py --arch flownets, f* cases): fifteen
+// convolutions and eight transposed convolutions (batch norms folded into both: no layer
+// normalises), four Concats of three tensors, and the crops odd sizes need.
+TEST(OnnxImporterSceneEDNet, ImportsEveryFlowNetSCaseWithTransposedConvolutionsAndFoldedNorms) {
+  int f_cases = 0;
+  for (const FixtureCase& fc : ReadCases()) {
+    if (fc.name[0] != 'f') continue;
+    SCOPED_TRACE(fc.name);
+    ++f_cases;
+    const Result<ModelSpec> spec = ImportOnnx(FixtureDir() + "/" + fc.name + ".onnx");
+    ASSERT_TRUE(spec.ok()) << spec.message();
+    int convs = 0, deconvs = 0, cats = 0, leaky = 0;
+    for (const LayerSpec& layer : spec->layers) {
+      if (const auto* conv = std::get_if<ConvSpec>(&layer)) {
+        ++convs;
+        leaky += conv->activation == Activation::kLeakyRelu;
+      }
+      if (const auto* deconv = std::get_if<ConvTransposeSpec>(&layer)) {
+        ++deconvs;
+        EXPECT_EQ(deconv->kernel_h, 4);
+        EXPECT_EQ(deconv->stride_h, 2);
+        EXPECT_EQ(deconv->pads, (Pads{1, 1, 1, 1}));
+        // Feature deconvolutions carry the leaky ReLU, the flow upsamplings none.
+        EXPECT_EQ(deconv->activation,
+                  deconv->name.rfind("deconv", 0) == 0 ? Activation::kLeakyRelu : Activation::kNone)
+            << deconv->name;
+      }
+      if (const auto* cat = std::get_if<ConcatSpec>(&layer)) {
+        ++cats;
+        EXPECT_EQ(cat->inputs.size(), 3u);
+      }
+    }
+    EXPECT_EQ(convs, 15);
+    EXPECT_EQ(leaky, 10);  // the encoder; predictions are linear
+    EXPECT_EQ(deconvs, 8);
+    EXPECT_EQ(cats, 4);
+    EXPECT_EQ(Float32OnlyReason(*spec), "the model is a graph (Concat, Add or named inputs)");
+  }
+  EXPECT_GE(f_cases, 3) << "the suite has no FlowNetS cases";
 }
 
 }  // namespace

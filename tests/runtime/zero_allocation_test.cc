@@ -10,6 +10,7 @@
 #include <string>
 
 #include "common/bf16_spec.h"
+#include "common/deconv_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
@@ -115,31 +116,34 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   }
 }
 
-// A graph (SceneEDNet-U with a residual Add): skip tensors, Concat and Add steps, and the
-// views Run() keeps of every layer's output, on every ISA and with a pool.
+// Graphs (SceneEDNet-U with a residual Add; a decoder of transposed convolutions): skip
+// tensors, Concat, Add and ConvTranspose2D steps, and the views Run() keeps of every layer's
+// output, on every ISA and with a pool.
 TEST(ZeroAllocation, RunOfAGraphAllocatesNothingAtAnySizeUpToTheMaximum) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(16, 1, true));
-  for (Isa isa : SupportedIsas()) {
-    for (int threads : {1, 2}) {
-      SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");
-      SessionOptions options;
-      options.max_height = 96;
-      options.max_width = 128;
-      options.isa = isa;
-      options.threads = threads;
-      auto session = Session::Create(model, options);
-      ASSERT_TRUE(session.ok()) << session.message();
-      std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
-      for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
-        const long before = g_allocations.load();
-        const Status s = (*session)->Run(input, h, w, output);
-        const long allocated = g_allocations.load() - before;
-        ASSERT_TRUE(s.ok()) << s.message();
-        EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << ") allocated " << allocated
-                                << " times";
+  for (auto model : {testing::LoadOrDie(testing::SceneEdNetUSpec(16, 1, true)),
+                     testing::LoadOrDie(testing::TwoLevelDecoderSpec())})
+    for (Isa isa : SupportedIsas()) {
+      for (int threads : {1, 2}) {
+        SCOPED_TRACE(model->metadata().name + ", " + std::string(IsaName(isa)) + ", " +
+                     std::to_string(threads) + " threads");
+        SessionOptions options;
+        options.max_height = 96;
+        options.max_width = 128;
+        options.isa = isa;
+        options.threads = threads;
+        auto session = Session::Create(model, options);
+        ASSERT_TRUE(session.ok()) << session.message();
+        std::vector<float> input(96 * 128 * 12, 100.0f), output(96 * 128 * 3);
+        for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
+          const long before = g_allocations.load();
+          const Status s = (*session)->Run(input, h, w, output);
+          const long allocated = g_allocations.load() - before;
+          ASSERT_TRUE(s.ok()) << s.message();
+          EXPECT_EQ(allocated, 0) << "Run(" << h << "x" << w << ") allocated " << allocated
+                                  << " times";
+        }
       }
     }
-  }
 }
 
 TEST(ZeroAllocation, OutputShapeAllocatesNothing) {

@@ -806,11 +806,12 @@ int RunExport(const ExportArgs& args) {
   }
   if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
   std::string bf16_line;
-  if ((quantise || bf16) && exporter::IsGraph(spec)) {
+  if (const std::string why = exporter::Float32OnlyReason(spec);
+      (quantise || bf16) && !why.empty()) {
     return ReportError(kName,
-                       args.input +
-                           ": the model is a graph (Concat, Add or named inputs); --precision "
-                           "int8 and bf16 run on chain models only (drop --precision for fp32)",
+                       args.input + ": " + why +
+                           "; --precision int8 and bf16 run on chains of convolutions, "
+                           "upsamplings and crops only (drop --precision for fp32)",
                        kExitFailure);
   }
   if (quantise || bf16) {
@@ -941,15 +942,19 @@ int RunExport(const ExportArgs& args) {
   int crops = 0;
   int concats = 0;
   int adds = 0;
+  int deconvs = 0;
   for (const LayerDesc& layer : model.layers()) {
+    deconvs += layer.kind == LayerKind::kConvTranspose2D;
     convs += layer.kind == LayerKind::kConv2D;
     upsamples += layer.kind == LayerKind::kUpsample;
     crops += layer.kind == LayerKind::kCrop;
     concats += layer.kind == LayerKind::kConcat;
     adds += layer.kind == LayerKind::kAdd;
   }
-  // A graph's skip connections: its Concats and Adds.
-  const std::string merges = (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
+  // The ops beyond a chain of convolutions: transposed convolutions, and a graph's skip
+  // connections (Concats and Adds).
+  const std::string merges = (deconvs > 0 ? ", " + std::to_string(deconvs) + " deconv" : "") +
+                             (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
                              (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
   std::string order;
   for (const std::string& slot : meta.input.image_order) {

@@ -78,6 +78,22 @@ std::string OpString(const LayerDesc& layer) {
              " (rows from " + (c.excess_rows_from_top ? "top" : "bottom") + ", cols from " +
              (c.excess_cols_from_left ? "left" : "right") + ")";
     }
+    case LayerKind::kConvTranspose2D: {
+      const ConvTransposeParams& c = layer.deconv;
+      std::string op = "deconv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
+                       "/s" + std::to_string(c.stride_h);
+      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
+      if (c.output_padding_h > 0 || c.output_padding_w > 0) {
+        op += " outpad " + std::to_string(c.output_padding_h) + "," +
+              std::to_string(c.output_padding_w);
+      }
+      if (c.activation == Activation::kLeakyRelu) {
+        op += " + leaky(" + FormatFloat(c.leaky_slope) + ")";
+      } else if (c.activation == Activation::kRelu) {
+        op += " + relu";
+      }
+      return op;
+    }
     case LayerKind::kConcat:
       return "concat channels";
     case LayerKind::kAdd:
@@ -110,6 +126,8 @@ std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
              (layer.conv.padding_rule == PaddingRule::kSameUpper ? " same-upper" : " explicit");
     case LayerKind::kCrop:
       return "crop " + PadsString(g.crop);
+    case LayerKind::kConvTranspose2D:
+      return "crop " + PadsString(g.pads);
     case LayerKind::kUpsample:
     case LayerKind::kConcat:
     case LayerKind::kAdd:
@@ -302,10 +320,14 @@ int RunInspect(const InspectArgs& args) {
     total_params += g.params;
     any_explicit |= layers[i].kind == LayerKind::kConv2D &&
                     layers[i].conv.padding_rule == PaddingRule::kExplicit;
+    const bool conv = layers[i].kind == LayerKind::kConv2D;
+    const bool deconv = layers[i].kind == LayerKind::kConvTranspose2D;  // float32 only
     table.Add({std::to_string(i), layers[i].name, OpString(layers[i]) + InputsSuffix(*model, i),
-               layers[i].kind == LayerKind::kConv2D ? PrecisionName(layers[i].conv.precision) : "-",
+               conv     ? PrecisionName(layers[i].conv.precision)
+               : deconv ? PrecisionName(Precision::kFloat32)
+                        : "-",
                PadsColumn(layers[i], g), ShapeString(g.output),
-               layers[i].kind == LayerKind::kConv2D ? GroupDigits(g.macs) : "-",
+               conv || deconv ? GroupDigits(g.macs) : "-",
                g.params > 0 ? GroupDigits(g.params) : "-"});
   }
   char gmac[32];

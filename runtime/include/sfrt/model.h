@@ -30,10 +30,11 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 5;
+inline constexpr int kSchemaVersionMinor = 6;
 
-// kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32.
-enum class LayerKind { kConv2D, kUpsample, kCrop, kConcat, kAdd };
+// kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
+// as does kConvTranspose2D (schema 1.6).
+enum class LayerKind { kConv2D, kUpsample, kCrop, kConcat, kAdd, kConvTranspose2D };
 enum class Activation { kNone, kRelu, kLeakyRelu };
 enum class PaddingRule { kExplicit, kSameUpper };
 // kToSecondInput (schema 1.5): to the height and width of the crop's second input.
@@ -93,6 +94,26 @@ struct ConvParams {
   const float* phase_scales = nullptr;  // [4 * out_channels]
 };
 
+// A transposed convolution (schema 1.6, float32): every input pixel (iy, ix) adds
+// in[iy][ix] . weights[ky][kx] to output pixel (iy * stride_h - pads.top + ky,
+// ix * stride_w - pads.left + kx); then bias and activation. Output side per axis:
+// (in - 1) * stride - pad_before - pad_after + kernel + output_padding.
+struct ConvTransposeParams {
+  int in_channels = 0;
+  int out_channels = 0;
+  int kernel_h = 0;
+  int kernel_w = 0;
+  int stride_h = 1;
+  int stride_w = 1;
+  Padding pads;
+  int output_padding_h = 0;  // < stride_h: rows added at the bottom
+  int output_padding_w = 0;  // < stride_w: columns added at the right
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+  const float* weights = nullptr;  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]
+  const float* bias = nullptr;     // [out_channels]
+};
+
 struct UpsampleParams {  // nearest neighbour
   int factor_h = 1;
   int factor_w = 1;
@@ -118,12 +139,14 @@ struct LayerDesc {
   LayerKind kind = LayerKind::kConv2D;
   // What it reads, in order: indices of earlier layers, or kModelInput. One for kConv2D,
   // kUpsample and kCrop (two for a kToSecondInput crop, which reads only the second's size), two
-  // for kAdd, two or more for kConcat (channels stacked in this order).
+  // for kAdd, two or more for kConcat (channels stacked in this order), one for
+  // kConvTranspose2D.
   std::vector<int> inputs;
-  ConvParams conv;          // valid when kind == kConv2D
-  UpsampleParams upsample;  // valid when kind == kUpsample
-  CropParams crop;          // valid when kind == kCrop
-  AddParams add;            // valid when kind == kAdd
+  ConvParams conv;             // valid when kind == kConv2D
+  UpsampleParams upsample;     // valid when kind == kUpsample
+  CropParams crop;             // valid when kind == kCrop
+  AddParams add;               // valid when kind == kAdd
+  ConvTransposeParams deconv;  // valid when kind == kConvTranspose2D
 };
 
 struct InputDesc {

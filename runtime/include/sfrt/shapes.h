@@ -30,9 +30,9 @@ inline constexpr int kMaxTensorSide = 1 << 20;
 struct LayerGeometry {
   TensorShape input;  // the first input's
   TensorShape output;
-  Padding pads;         // Conv2D: the amounts in effect at this size
+  Padding pads;         // Conv2D, ConvTranspose2D: the amounts in effect at this size
   Padding crop;         // Crop: rows/cols removed per side at this size
-  uint64_t macs = 0;    // multiply-accumulates (Conv2D only)
+  uint64_t macs = 0;    // multiply-accumulates (Conv2D and ConvTranspose2D)
   uint64_t params = 0;  // weights + biases
 };
 

@@ -92,7 +92,26 @@ struct AddSpec {  // schema 1.5: act(a + b)
   float leaky_slope = 0.0f;
 };
 
-using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec>;
+struct ConvTransposeSpec {  // schema 1.6 (sfrt/model.h, ConvTransposeParams); float32
+  std::string name;
+  std::vector<std::string> inputs;
+  int in_channels = 0;
+  int out_channels = 0;
+  int kernel_h = 4;
+  int kernel_w = 4;
+  int stride_h = 2;
+  int stride_w = 2;
+  Pads pads;                 // removed from the full output's borders
+  int output_padding_h = 0;  // rows added at the bottom (< stride_h)
+  int output_padding_w = 0;  // columns added at the right (< stride_w)
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+  std::vector<float> weights_hwio;  // kernel_h * kernel_w * in_channels * out_channels
+  std::vector<float> bias;          // out_channels
+};
+
+using LayerSpec =
+    std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec, ConvTransposeSpec>;
 
 struct InputSpec {
   std::string name = "stereo_pairs";
@@ -153,6 +172,18 @@ inline bool IsGraph(const ModelSpec& spec) {
     if (!std::visit([](const auto& l) { return l.inputs.empty(); }, layer)) return true;
   }
   return false;
+}
+
+// Why the model runs in float32 only (int8 and bf16 run on chains of the ops before schema 1.5),
+// or "" when it may be quantised.
+inline std::string Float32OnlyReason(const ModelSpec& spec) {
+  if (IsGraph(spec)) return "the model is a graph (Concat, Add or named inputs)";
+  for (const LayerSpec& layer : spec.layers) {
+    if (const auto* d = std::get_if<ConvTransposeSpec>(&layer)) {
+      return "the model has a ConvTranspose2D ('" + d->name + "')";
+    }
+  }
+  return "";
 }
 
 // For importers that name every layer's inputs: a chain (each layer reading the one before it,

@@ -1,0 +1,105 @@
+"""Reference encoder-decoder networks beyond SceneEDNet (issue 16), written here from the papers.
+
+FlowNetS (Dosovitskiy et al., "FlowNet: Learning Optical Flow with Convolutional Networks",
+ICCV 2015), adapted to scene flow: the same 12-channel input as SceneEDNet (two stereo pairs)
+and 3-channel predictions. Its contracting part is ten convolutions (7x7/2, 5x5/2, 5x5/2, then
+3x3 with strides 1 and 2 alternating); its expanding part, at each of four levels, stacks the
+encoder tensor of that resolution, a 4x4/2 transposed convolution of the level below (leaky
+ReLU) and the level below's prediction upsampled by its own 4x4/2 transposed convolution, and
+predicts from the stack with a 3x3 convolution. The network's output is the finest prediction,
+at a quarter of the input's resolution, as the paper's (which a bilinear upsampling outside the
+network brings to full size). Odd input sizes make a transposed convolution's output one row or
+column larger than the encoder tensor beside it: it is cut to that size (x[..., :h, :w]). With
+batch_norm, every encoder convolution and every feature transposed convolution is followed by a
+BatchNorm2d before its leaky ReLU (the paper's FlowNetS has none; FlowNet 2.0's variants do).
+Leaky ReLU slope 0.1, as the paper's implementation.
+"""
+
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+IN_CHANNELS = 12
+OUT_CHANNELS = 3
+LEAKY = 0.1
+# (name, kernel, stride, width) of the contracting part at full width.
+FLOWNETS_ENCODER = (("conv1", 7, 2, 64), ("conv2", 5, 2, 128), ("conv3", 5, 2, 256),
+                    ("conv3_1", 3, 1, 256), ("conv4", 3, 2, 512), ("conv4_1", 3, 1, 512),
+                    ("conv5", 3, 2, 512), ("conv5_1", 3, 1, 512), ("conv6", 3, 2, 1024),
+                    ("conv6_1", 3, 1, 1024))
+# (level, encoder tensor it stacks with, width of its feature transposed convolution)
+FLOWNETS_DECODER = ((5, "conv5_1", 512), (4, "conv4_1", 256), (3, "conv3_1", 128),
+                    (2, "conv2", 64))
+WIDTH_DIVS = (1, 2, 4, 8, 16, 32, 64)
+
+
+class FlowNetS(nn.Module):
+    """FlowNetS-style scene flow network with widths divided by `width_div`."""
+
+    def __init__(self, width_div=1, batch_norm=False):
+        super().__init__()
+        if width_div not in WIDTH_DIVS:
+            raise ValueError(f"width_div must be one of {WIDTH_DIVS}, got {width_div!r}")
+        self.batch_norm = batch_norm
+        widths = {}
+        cin = IN_CHANNELS
+        norms = []
+        for name, k, s, w in FLOWNETS_ENCODER:
+            w //= width_div
+            setattr(self, name, nn.Conv2d(cin, w, k, stride=s, padding=(k - 1) // 2))
+            norms.append(w)
+            widths[name] = w
+            cin = w
+        below = cin  # channels of the level below (conv6_1, then each concat)
+        self.flow6 = nn.Conv2d(below, OUT_CHANNELS, 3, padding=1)
+        for level, skip, w in FLOWNETS_DECODER:
+            w //= width_div
+            setattr(self, f"deconv{level}", nn.ConvTranspose2d(below, w, 4, stride=2, padding=1))
+            setattr(self, f"up_flow{level + 1}",
+                    nn.ConvTranspose2d(OUT_CHANNELS, OUT_CHANNELS, 4, stride=2, padding=1,
+                                       bias=False))
+            norms.append(w)
+            below = widths[skip] + w + OUT_CHANNELS
+            setattr(self, f"flow{level}", nn.Conv2d(below, OUT_CHANNELS, 3, padding=1))
+        if batch_norm:
+            self.norms = nn.ModuleList(nn.BatchNorm2d(c) for c in norms)
+        self.output = self.flow2
+
+    def hidden_convs(self):
+        """Every convolution but the output one, in the order the fixture initialises them."""
+        convs = [getattr(self, name) for name, *_ in FLOWNETS_ENCODER] + [self.flow6]
+        for level, _, _ in FLOWNETS_DECODER:
+            convs += [getattr(self, f"deconv{level}"), getattr(self, f"up_flow{level + 1}")]
+            if level != 2:
+                convs.append(getattr(self, f"flow{level}"))
+        return convs
+
+    def _act(self, i, y):
+        if self.batch_norm:
+            y = self.norms[i](y)
+        return F.leaky_relu(y, negative_slope=LEAKY)
+
+    @staticmethod
+    def _cut(x, like):
+        return x[:, :, :like.shape[2], :like.shape[3]]
+
+    def forward(self, x):
+        enc = {}
+        for i, (name, *_) in enumerate(FLOWNETS_ENCODER):
+            x = self._act(i, getattr(self, name)(x))
+            enc[name] = x
+        flow = self.flow6(x)
+        for j, (level, skip, _) in enumerate(FLOWNETS_DECODER):
+            s = enc[skip]
+            feat = self._act(len(FLOWNETS_ENCODER) + j, getattr(self, f"deconv{level}")(x))
+            up = getattr(self, f"up_flow{level + 1}")(flow)
+            x = torch.cat([s, self._cut(feat, s), self._cut(up, s)], dim=1)
+            flow = getattr(self, f"flow{level}")(x)
+        return flow
+
+    @staticmethod
+    def output_size(height, width):
+        """The finest prediction's size: conv1 and conv2 each halve, rounding up."""
+        for _ in range(2):
+            height, width = (height + 1) // 2, (width + 1) // 2
+        return height, width
