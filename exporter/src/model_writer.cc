@@ -325,6 +325,20 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       layers.push_back(fb::CreateLayer(b, b.CreateString(d->name), fb::LayerOp::ConvTranspose2D,
                                        deconv.Union(), names));
       channels = d->out_channels;
+    } else if (const auto* pool = std::get_if<PoolSpec>(&ls)) {
+      if (options.schema_minor < 6) {
+        return Status::Error(where + ": Pool2D needs schema 1.6; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      const fb::Padding pads(pool->pads.top, pool->pads.left, pool->pads.bottom, pool->pads.right);
+      const auto op = fb::CreatePool2D(
+          b, pool->kind == PoolKind::kMax ? fb::PoolKind::Max : fb::PoolKind::Average,
+          pool->kernel_h, pool->kernel_w, pool->stride_h, pool->stride_w,
+          pool->padding_rule == PaddingRule::kSameUpper ? fb::PaddingRule::SameUpper
+                                                        : fb::PaddingRule::Explicit,
+          &pads, pool->ceil_mode, pool->count_include_pad);
+      layers.push_back(
+          fb::CreateLayer(b, b.CreateString(pool->name), fb::LayerOp::Pool2D, op.Union(), names));
     } else {
       const auto& cr = std::get<CropSpec>(ls);
       if (cr.rule == CropRule::kToSecondInput && (options.schema_minor < 5 || inputs.size() != 2)) {

@@ -48,6 +48,7 @@
 
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model_limits.h"
+#include "sfrt/shapes.h"
 
 #define SFRT_ONNX_CONCAT_INNER(a, b) a##b
 #define SFRT_ONNX_CONCAT(a, b) SFRT_ONNX_CONCAT_INNER(a, b)
@@ -88,8 +89,9 @@ constexpr size_t kMaxListedNodes = 20;
 
 // Ops that may carry the network input. Concat (of channels) and Add read several such tensors.
 constexpr std::string_view kRuntimeOps[] = {
-    "Conv",     "Pad",   "BatchNormalization", "LeakyRelu", "Relu", "Resize",
-    "Upsample", "Slice", "Identity",           "Concat",    "Add",  "ConvTranspose"};
+    "Conv",     "Pad",        "BatchNormalization", "LeakyRelu", "Relu", "Resize",
+    "Upsample", "Slice",      "Identity",           "Concat",    "Add",  "ConvTranspose",
+    "MaxPool",  "AveragePool"};
 // Ops evaluated at import when all their inputs are constants.
 // clang-format off
 constexpr std::string_view kFoldableOps[] = {
@@ -901,7 +903,8 @@ struct GraphOp {
     kIdentity,
     kConcat,
     kAdd,
-    kConvTranspose
+    kConvTranspose,
+    kPool
   };
   Kind kind = Kind::kIdentity;
   int node_index = 0;
@@ -911,6 +914,7 @@ struct GraphOp {
   Shape4 out_shape{};
   ConvSpec conv;             // kConv; pads = the Conv's own amounts at the traced size
   ConvTransposeSpec deconv;  // kConvTranspose
+  PoolSpec pool;             // kPool
   Pads pads;                 // kPad: amounts added; kSlice: amounts removed
   Activation activation = Activation::kNone;
   float slope = 0.0f;
@@ -961,6 +965,7 @@ class Importer {
   Status ProcessRuntimeNode(int idx, const Shape4& in_shape);
   Status ProcessConv(int idx, GraphOp& op);
   Status ProcessConvTranspose(int idx, GraphOp& op);
+  Status ProcessPool(int idx, GraphOp& op);
   Status ProcessPad(int idx, GraphOp& op);
   Status ProcessBatchNorm(int idx, GraphOp& op);
   Status ProcessResize(int idx, GraphOp& op);
@@ -1875,6 +1880,90 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
   return Status::Ok();
 }
 
+// ONNX MaxPool and AveragePool (opsets 1-17), 2-D: explicit pads, VALID or SAME_UPPER,
+// ceil_mode, count_include_pad; a MaxPool's optional Indices output must not be used.
+Status Importer::ProcessPool(int idx, GraphOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const bool max = n.op_type() == "MaxPool";
+  if (n.output_size() > 1 && !n.output(1).empty()) {
+    return NodeError(idx, "its Indices output " + Quote(n.output(1)) + " is not supported");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel, IntsAttr(idx, "kernel_shape"));
+  if (kernel.size() != 2 || kernel[0] < 1 || kernel[1] < 1 ||
+      kernel[0] > model_limits::kMaxKernel || kernel[1] > model_limits::kMaxKernel) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts(kernel) +
+                              " is not supported (two sides, each 1.." +
+                              std::to_string(model_limits::kMaxKernel) + ")");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, IntsAttr(idx, "dilations"));
+  for (int64_t d : dilations) {
+    if (d != 1) {
+      return NodeError(idx, "attribute 'dilations' = " + JoinInts(dilations) +
+                                " is not supported (only dilation 1)");
+    }
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t storage_order, IntAttr(idx, "storage_order", 0));
+  if (storage_order != 0) {
+    return NodeError(idx, "attribute 'storage_order' = " + std::to_string(storage_order) +
+                              " is not supported (only 0)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> strides, IntsAttr(idx, "strides"));
+  if (strides.empty()) strides = {1, 1};
+  if (strides.size() != 2 || strides[0] < 1 || strides[1] < 1 ||
+      strides[0] > model_limits::kMaxStride || strides[1] > model_limits::kMaxStride) {
+    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) + " is not supported (1.." +
+                              std::to_string(model_limits::kMaxStride) + " per axis)");
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t ceil_mode, IntAttr(idx, "ceil_mode", 0));
+  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t count_include_pad, IntAttr(idx, "count_include_pad", 0));
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
+  PoolSpec& p = op.pool;
+  p.name = n.name();
+  p.kind = max ? PoolKind::kMax : PoolKind::kAverage;
+  p.kernel_h = static_cast<int>(kernel[0]);
+  p.kernel_w = static_cast<int>(kernel[1]);
+  p.stride_h = static_cast<int>(strides[0]);
+  p.stride_w = static_cast<int>(strides[1]);
+  p.ceil_mode = ceil_mode != 0;
+  p.count_include_pad = !max && count_include_pad != 0;
+  const int64_t in_h = op.in_shape[2];
+  const int64_t in_w = op.in_shape[3];
+  if (auto_pad == "SAME_UPPER") {
+    p.padding_rule = PaddingRule::kSameUpper;
+    p.pads = SameUpperPads(in_h, in_w, p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+  } else if (auto_pad == "NOTSET" || auto_pad == "VALID") {
+    if (auto_pad == "VALID" || pads.empty()) pads = {0, 0, 0, 0};
+    if (pads.size() != 4) {
+      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
+    }
+    const int64_t limits[4] = {kernel[0], kernel[1], kernel[0], kernel[1]};
+    for (size_t k = 0; k < 4; ++k) {
+      if (pads[k] < 0 || pads[k] >= limits[k]) {
+        return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) +
+                                  " is not supported (each at least 0 and below its window side)");
+      }
+    }
+    p.pads = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
+                  static_cast<int>(pads[3])};
+  } else {
+    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
+                              " is not supported (NOTSET, SAME_UPPER, VALID)");
+  }
+  int before = 0, after = 0;
+  const int out_h = PoolOutputSize(static_cast<int>(in_h), p.kernel_h, p.stride_h, p.padding_rule,
+                                   p.pads.top, p.pads.bottom, p.ceil_mode, &before, &after);
+  const int out_w = PoolOutputSize(static_cast<int>(in_w), p.kernel_w, p.stride_w, p.padding_rule,
+                                   p.pads.left, p.pads.right, p.ceil_mode, &before, &after);
+  if (out_h < 1 || out_w < 1) {
+    return NodeError(idx, "its " + JoinInts(kernel) + " window does not fit the " +
+                              std::to_string(in_h) + "x" + std::to_string(in_w) +
+                              " input with its pads");
+  }
+  op.out_shape = {1, op.in_shape[1], out_h, out_w};
+  return Status::Ok();
+}
+
 Status Importer::ProcessPad(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "constant"));
@@ -2123,6 +2212,9 @@ Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
   } else if (type == "ConvTranspose") {
     op.kind = GraphOp::Kind::kConvTranspose;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessConvTranspose(idx, op));
+  } else if (type == "MaxPool" || type == "AveragePool") {
+    op.kind = GraphOp::Kind::kPool;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessPool(idx, op));
   } else if (type == "Pad") {
     op.kind = GraphOp::Kind::kPad;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessPad(idx, op));
@@ -2375,7 +2467,8 @@ Result<ModelSpec> Importer::Assemble() {
   source[input_name_] = Source{input_name_, -1, false, {}, {}, {}};
   std::vector<ConvTrace> convs;
   std::vector<CropTrace> crops;
-  int num_convs = 0, num_ups = 0, num_crops = 0, num_cats = 0, num_adds = 0, num_deconvs = 0;
+  int num_convs = 0, num_ups = 0, num_crops = 0, num_cats = 0, num_adds = 0, num_deconvs = 0,
+      num_pools = 0;
   // The layer that computes `tensor` when this op alone reads it, so that a BatchNormalization,
   // an activation or another Slice may fold into it.
   auto sole_reader = [&](const std::string& tensor) { return readers[tensor].size() == 1; };
@@ -2394,13 +2487,16 @@ Result<ModelSpec> Importer::Assemble() {
     if (!needed[i]) continue;
     const GraphOp& op = ops_[i];
     const std::string& in0 = op.inputs[0];
-    // A Pad's output is folded into the Conv that reads it; nothing else may read it.
+    // A Pad's output is folded into the Conv (or AveragePool, as torch.onnx.export writes an
+    // AvgPool2d that counts its pads) that reads it; nothing else may read it.
     for (const std::string& in : op.inputs) {
       const Source& src = source.at(in);
-      if (src.padded && op.kind != GraphOp::Kind::kConv && op.kind != GraphOp::Kind::kPad) {
+      const bool average = op.kind == GraphOp::Kind::kPool && op.pool.kind == PoolKind::kAverage;
+      if (src.padded && op.kind != GraphOp::Kind::kConv && op.kind != GraphOp::Kind::kPad &&
+          !average) {
         return FileError(NodeLabel(src.pad_nodes.back()) +
-                         ": a Pad must be followed by a Conv (it is folded into the Conv's "
-                         "padding), but it is followed by " +
+                         ": a Pad must be followed by a Conv or an AveragePool (it is folded "
+                         "into its padding), but it is followed by " +
                          NodeLabel(op.node_index));
       }
     }
@@ -2433,6 +2529,45 @@ Result<ModelSpec> Importer::Assemble() {
         conv.inputs = {src.layer};
         convs.push_back({spec.layers.size(), op.node_index, traced_in[2], traced_in[3]});
         add_layer(std::move(conv), op.output);
+        break;
+      }
+      case GraphOp::Kind::kPool: {
+        PoolSpec pool = op.pool;
+        const Source& src = source.at(in0);
+        if (src.padded) {
+          // Zeros padded before an average: the pool's own pads, counted in the divisor. Its
+          // size at the traced input must stay what the file computes after the Pad.
+          if (pool.padding_rule != PaddingRule::kExplicit ||
+              (pool.pads != Pads{} && !pool.count_include_pad)) {
+            return FileError(NodeLabel(src.pad_nodes.back()) + ": a Pad before " +
+                             NodeLabel(op.node_index) +
+                             " folds into its pads only when it pads explicitly and counts them");
+          }
+          pool.pads.top += src.pads.top;
+          pool.pads.left += src.pads.left;
+          pool.pads.bottom += src.pads.bottom;
+          pool.pads.right += src.pads.right;
+          pool.count_include_pad = true;
+          int b = 0, a = 0;
+          const Shape4& pre = src.pre_pad_shape;
+          const int oh = PoolOutputSize(static_cast<int>(pre[2]), pool.kernel_h, pool.stride_h,
+                                        pool.padding_rule, pool.pads.top, pool.pads.bottom,
+                                        pool.ceil_mode, &b, &a);
+          const int ow = PoolOutputSize(static_cast<int>(pre[3]), pool.kernel_w, pool.stride_w,
+                                        pool.padding_rule, pool.pads.left, pool.pads.right,
+                                        pool.ceil_mode, &b, &a);
+          const bool in_range = pool.pads.top < pool.kernel_h && pool.pads.bottom < pool.kernel_h &&
+                                pool.pads.left < pool.kernel_w && pool.pads.right < pool.kernel_w;
+          if (!in_range || oh != op.out_shape[2] || ow != op.out_shape[3]) {
+            return FileError(NodeLabel(src.pad_nodes.back()) + ": the Pad before " +
+                             NodeLabel(op.node_index) +
+                             " cannot become the pool's own padding (pads below the window, the "
+                             "same output size)");
+          }
+        }
+        pool.name = unique_name(pool.name, "pool", num_pools++);
+        pool.inputs = {source.at(in0).layer};
+        add_layer(std::move(pool), op.output);
         break;
       }
       case GraphOp::Kind::kConvTranspose: {

@@ -75,6 +75,12 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       d.bias.assign(p.bias, p.bias + p.out_channels);
       return d;
     }
+    case LayerKind::kPool2D: {
+      const PoolParams& p = layer.pool;
+      return PoolSpec{layer.name,         {},         p.kind,         p.kernel_h, p.kernel_w,
+                      p.stride_h,         p.stride_w, p.padding_rule, p.pads,     p.ceil_mode,
+                      p.count_include_pad};
+    }
     case LayerKind::kCrop:
       break;
   }

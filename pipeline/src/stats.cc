@@ -121,6 +121,12 @@ std::string LayerOp(const LayerDesc& layer) {
       return "concat " + std::to_string(layer.inputs.size());
     case LayerKind::kAdd:
       return "add";
+    case LayerKind::kPool2D: {
+      const PoolParams& p = layer.pool;
+      return std::string(p.kind == PoolKind::kMax ? "maxpool " : "avgpool ") +
+             std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
+             std::to_string(p.stride_h);
+    }
     case LayerKind::kConvTranspose2D: {
       const ConvTransposeParams& c = layer.deconv;
       std::string op = "deconv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +

@@ -216,7 +216,7 @@ Status CheckArity(const Checker& check, const std::string& where, const char* op
 }
 
 // The graph as a whole: every layer's output but the last is read, and int8 and bf16 layers
-// only in chains of the ops before 1.5 and ConvTranspose2D. Fills the consumer counts and whether
+// only in chains without a float32-only op (Float32OnlyKind). Fills the consumer counts and whether
 // the graph is a chain.
 Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
                   std::vector<int>& consumers, bool& is_chain) {
@@ -235,14 +235,17 @@ Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
                         "the model)");
     }
   }
-  bool transposed = false;
-  for (const LayerDesc& layer : layers) transposed |= layer.kind == LayerKind::kConvTranspose2D;
-  if (is_chain && !transposed) return Status::Ok();
+  const LayerDesc* float32_only = nullptr;
+  for (const LayerDesc& layer : layers) {
+    if (float32_only == nullptr && Float32OnlyKind(layer.kind)) float32_only = &layer;
+  }
+  if (is_chain && float32_only == nullptr) return Status::Ok();
   for (size_t i = 0; i < layers.size(); ++i) {
     if (layers[i].kind == LayerKind::kConv2D && layers[i].conv.precision != Precision::kFloat32) {
       return check.Fail("layer " + std::to_string(i) + " '" + layers[i].name + "': precision " +
                         PrecisionName(layers[i].conv.precision) + " in a model " +
-                        (is_chain ? "with a ConvTranspose2D" : "whose layers are not a chain") +
+                        (is_chain ? "with layer '" + float32_only->name + "', which runs in fp32"
+                                  : std::string("whose layers are not a chain")) +
                         "; this runtime runs such models in fp32 only");
     }
   }
@@ -941,6 +944,66 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         if (Status s = take_tensor(c->bias(), "bias", {p.out_channels}, &p.bias); !s.ok()) return s;
         channels_of.push_back(p.out_channels);
+        break;
+      }
+      case fb::LayerOp::Pool2D: {
+        const fb::Pool2D* c = fl->op_as_Pool2D();
+        layer.kind = LayerKind::kPool2D;
+        PoolParams& p = layer.pool;
+        if (Status s = CheckArity(check, where, "a Pool2D", layer.inputs, 1, 1); !s.ok()) return s;
+        switch (c->kind()) {
+          case fb::PoolKind::Max:
+            p.kind = PoolKind::kMax;
+            break;
+          case fb::PoolKind::Average:
+            p.kind = PoolKind::kAverage;
+            break;
+          default:
+            return check.Fail(where + ": pool kind is unknown value " +
+                              std::to_string(static_cast<int>(c->kind())));
+        }
+        p.kernel_h = c->kernel_h();
+        p.kernel_w = c->kernel_w();
+        p.stride_h = c->stride_h();
+        p.stride_w = c->stride_w();
+        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 ||
+            p.kernel_w > kMaxKernel) {
+          return check.Fail(where + ": window is " + std::to_string(p.kernel_h) + "x" +
+                            std::to_string(p.kernel_w) + "; each side must be in 1.." +
+                            std::to_string(kMaxKernel));
+        }
+        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 ||
+            p.stride_w > kMaxStride) {
+          return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
+                            std::to_string(p.stride_w) + "; each must be in 1.." +
+                            std::to_string(kMaxStride));
+        }
+        switch (c->padding_rule()) {
+          case fb::PaddingRule::Explicit:
+            p.padding_rule = PaddingRule::kExplicit;
+            break;
+          case fb::PaddingRule::SameUpper:
+            p.padding_rule = PaddingRule::kSameUpper;
+            break;
+          default:
+            return check.Fail(where + ": padding_rule is unknown value " +
+                              std::to_string(static_cast<int>(c->padding_rule())));
+        }
+        if (const fb::Padding* pads = c->pads()) {
+          p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
+        }
+        for (const auto& [amount, side, kernel] : {std::tuple{p.pads.top, "top", p.kernel_h},
+                                                   std::tuple{p.pads.bottom, "bottom", p.kernel_h},
+                                                   std::tuple{p.pads.left, "left", p.kernel_w},
+                                                   std::tuple{p.pads.right, "right", p.kernel_w}}) {
+          if (amount < 0 || amount >= kernel) {
+            return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
+                              "; must be in 0.." + std::to_string(kernel - 1));
+          }
+        }
+        p.ceil_mode = c->ceil_mode();
+        p.count_include_pad = c->count_include_pad();
+        channels_of.push_back(channels_read(layer.inputs[0]));
         break;
       }
       default:

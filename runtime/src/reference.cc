@@ -14,6 +14,7 @@
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/conv_transpose_ref.h"
 #include "kernels/ref/merge_ref.h"
+#include "kernels/ref/pool_ref.h"
 #include "kernels/ref/resample_ref.h"
 
 namespace sfrt {
@@ -150,6 +151,9 @@ void ForwardGraph(const Model& model, std::span<const float> input,
       case LayerKind::kConvTranspose2D:
         ref::ConvTranspose2dRows(src, layer.deconv, dst, 0, s.height);
         break;
+      case LayerKind::kPool2D:
+        ref::PoolRows(src, layer.pool, g[i].pads, dst, 0, s.height);
+        break;
     }
     if (observer) observer(static_cast<int>(i), s, out);
     for (int t : layer.inputs) {
@@ -177,11 +181,10 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
     return Status::Error("reference forward: output holds " + std::to_string(output.size()) +
                          " floats; " + std::to_string(g.back().output.elements()) + " needed");
   }
-  // Graphs, and models with a ConvTranspose2D, are float32 throughout (the loader checks).
-  const bool transposed = std::any_of(layers.begin(), layers.end(), [](const LayerDesc& l) {
-    return l.kind == LayerKind::kConvTranspose2D;
-  });
-  if (!model.is_chain() || transposed) {
+  // Graphs, and models with a float32-only op, are float32 throughout (the loader checks).
+  const bool float32_only = std::any_of(layers.begin(), layers.end(),
+                                        [](const LayerDesc& l) { return Float32OnlyKind(l.kind); });
+  if (!model.is_chain() || float32_only) {
     ForwardGraph(model, input, g, output, observer);
     return Status::Ok();
   }

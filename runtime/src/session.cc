@@ -18,6 +18,7 @@
 #include "kernels/ref/conv2d_ref.h"
 #include "kernels/ref/conv_transpose_ref.h"
 #include "kernels/ref/merge_ref.h"
+#include "kernels/ref/pool_ref.h"
 #include "kernels/ref/resample_ref.h"
 #include "kernels/winograd_job.h"
 #include "memory_planner.h"
@@ -47,6 +48,7 @@ struct Session::Step {
     kConcat,         // ref::ConcatRows
     kAdd,            // ref::AddRows
     kConvTranspose,  // ref::ConvTranspose2dRows
+    kPool,           // ref::PoolRows
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -225,6 +227,18 @@ struct AddJob {
 void AddTrampoline(void* ctx, int begin, int end) {
   const AddJob* job = static_cast<const AddJob*>(ctx);
   ref::AddRows(job->a, job->b, *job->params, job->out, begin, end);
+}
+
+struct PoolJob {
+  ConstTensorView in;
+  const PoolParams* params;
+  Padding pads;
+  TensorView out;
+};
+
+void PoolTrampoline(void* ctx, int begin, int end) {
+  const PoolJob* job = static_cast<const PoolJob*>(ctx);
+  ref::PoolRows(job->in, *job->params, job->pads, job->out, begin, end);
 }
 
 struct ConvTransposeJob {
@@ -411,6 +425,9 @@ Status Session::Plan() {
     } else if (layer.kind == LayerKind::kConvTranspose2D) {  // float32 (the loader checks)
       step.kind = Step::Kind::kConvTranspose;
       step.kernel = "ref::ConvTranspose2dRows";
+    } else if (layer.kind == LayerKind::kPool2D) {  // float32 (the loader checks)
+      step.kind = Step::Kind::kPool;
+      step.kernel = "ref::PoolRows";
     } else if (layer.kind == LayerKind::kUpsample) {
       int conv = i + 1;
       int crop = -1;
@@ -988,6 +1005,11 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kConvTranspose: {
         ConvTransposeJob job{cur, &first.deconv, out};
         parallel_rows(out.height, ConvTransposeTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kPool: {
+        PoolJob job{cur, &first.pool, g.pads, out};
+        parallel_rows(out.height, PoolTrampoline, &job);
         break;
       }
       case Step::Kind::kCrop:

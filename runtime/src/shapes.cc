@@ -28,6 +28,23 @@ int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
   return (padded - kernel) / stride + 1;
 }
 
+int PoolOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
+                   int explicit_after, bool ceil_mode, int* pad_before, int* pad_after) {
+  if (rule == PaddingRule::kSameUpper || !ceil_mode) {
+    return ConvOutputSize(in, kernel, stride, rule, explicit_before, explicit_after, pad_before,
+                          pad_after);
+  }
+  *pad_before = explicit_before;
+  *pad_after = explicit_after;
+  // ceil(span / stride) + 1, span possibly negative (a window wider than the padded input still
+  // gives one output in ceil mode, as in PyTorch and ONNX).
+  const int64_t span = int64_t{in} + explicit_before + explicit_after - kernel;
+  const int64_t up = span + stride - 1;
+  int64_t out = (up >= 0 ? up / stride : -((-up + stride - 1) / stride)) + 1;
+  if (out >= 1 && (out - 1) * stride >= int64_t{in} + explicit_before) --out;
+  return static_cast<int>(std::max<int64_t>(out, 0));
+}
+
 namespace {
 
 // The input size every query accepts, whatever the model.
@@ -114,6 +131,21 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
       g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
                  static_cast<uint64_t>(c.out_channels);
       g.macs = static_cast<uint64_t>(cur.elements()) * c.kernel_h * c.kernel_w * c.out_channels;
+      break;
+    }
+    case LayerKind::kPool2D: {
+      const PoolParams& p = layer.pool;
+      const int oh = PoolOutputSize(cur.height, p.kernel_h, p.stride_h, p.padding_rule, p.pads.top,
+                                    p.pads.bottom, p.ceil_mode, &g.pads.top, &g.pads.bottom);
+      const int ow = PoolOutputSize(cur.width, p.kernel_w, p.stride_w, p.padding_rule, p.pads.left,
+                                    p.pads.right, p.ceil_mode, &g.pads.left, &g.pads.right);
+      if (oh <= 0 || ow <= 0) {
+        return Status::Error(Quote(layer, i) + ": input " + std::to_string(cur.height) + "x" +
+                             std::to_string(cur.width) + " is smaller than its " +
+                             std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) +
+                             " window with its padding");
+      }
+      g.output = {oh, ow, cur.channels};
       break;
     }
     case LayerKind::kUpsample:

@@ -285,5 +285,41 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryFlowNetSCaseWithTransposedConvolutionsA
   EXPECT_GE(f_cases, 3) << "the suite has no FlowNetS cases";
 }
 
+// The pooling encoder (gen_sceneednet.py --arch poolnet, p* cases): five convolutions (batch
+// norms folded) and four poolings with the attributes PyTorch gave them.
+TEST(OnnxImporterSceneEDNet, ImportsEveryPoolNetCaseWithItsPoolingAttributes) {
+  int p_cases = 0;
+  for (const FixtureCase& fc : ReadCases()) {
+    if (fc.name[0] != 'p') continue;
+    SCOPED_TRACE(fc.name);
+    ++p_cases;
+    const Result<ModelSpec> spec = ImportOnnx(FixtureDir() + "/" + fc.name + ".onnx");
+    ASSERT_TRUE(spec.ok()) << spec.message();
+    std::vector<PoolSpec> pools;
+    int convs = 0;
+    for (const LayerSpec& layer : spec->layers) {
+      convs += std::holds_alternative<ConvSpec>(layer);
+      if (const auto* pool = std::get_if<PoolSpec>(&layer)) pools.push_back(*pool);
+    }
+    EXPECT_EQ(convs, 5);
+    ASSERT_EQ(pools.size(), 4u);
+    // reference_nets.PoolNet: MaxPool2d(3, 2, 1), AvgPool2d(2, 2, ceil), AvgPool2d(3, 2, 1,
+    // ceil, counting pads), MaxPool2d(2, 1, ceil).
+    EXPECT_EQ(pools[0].kind, PoolKind::kMax);
+    EXPECT_EQ(pools[0].pads, (Pads{1, 1, 1, 1}));
+    EXPECT_FALSE(pools[0].ceil_mode);
+    EXPECT_EQ(pools[1].kind, PoolKind::kAverage);
+    EXPECT_TRUE(pools[1].ceil_mode);
+    EXPECT_FALSE(pools[1].count_include_pad);
+    EXPECT_EQ(pools[2].kind, PoolKind::kAverage);
+    EXPECT_TRUE(pools[2].count_include_pad);
+    EXPECT_EQ(pools[2].kernel_h, 3);
+    EXPECT_EQ(pools[3].kind, PoolKind::kMax);
+    EXPECT_EQ(pools[3].stride_h, 1);
+    EXPECT_EQ(Float32OnlyReason(*spec), "the model has a Pool2D ('" + pools[0].name + "')");
+  }
+  EXPECT_GE(p_cases, 2) << "the suite has no poolnet cases";
+}
+
 }  // namespace
 }  // namespace sfrt::exporter

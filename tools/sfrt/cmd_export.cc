@@ -943,7 +943,9 @@ int RunExport(const ExportArgs& args) {
   int concats = 0;
   int adds = 0;
   int deconvs = 0;
+  int pools = 0;
   for (const LayerDesc& layer : model.layers()) {
+    pools += layer.kind == LayerKind::kPool2D;
     deconvs += layer.kind == LayerKind::kConvTranspose2D;
     convs += layer.kind == LayerKind::kConv2D;
     upsamples += layer.kind == LayerKind::kUpsample;
@@ -951,9 +953,10 @@ int RunExport(const ExportArgs& args) {
     concats += layer.kind == LayerKind::kConcat;
     adds += layer.kind == LayerKind::kAdd;
   }
-  // The ops beyond a chain of convolutions: transposed convolutions, and a graph's skip
+  // The ops beyond a chain of convolutions: transposed convolutions, poolings, and a graph's skip
   // connections (Concats and Adds).
   const std::string merges = (deconvs > 0 ? ", " + std::to_string(deconvs) + " deconv" : "") +
+                             (pools > 0 ? ", " + std::to_string(pools) + " pool" : "") +
                              (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
                              (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
   std::string order;

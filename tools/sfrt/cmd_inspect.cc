@@ -94,6 +94,16 @@ std::string OpString(const LayerDesc& layer) {
       }
       return op;
     }
+    case LayerKind::kPool2D: {
+      const PoolParams& p = layer.pool;
+      std::string op = std::string(p.kind == PoolKind::kMax ? "maxpool " : "avgpool ") +
+                       std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
+                       std::to_string(p.stride_h);
+      if (p.stride_w != p.stride_h) op += "x" + std::to_string(p.stride_w);
+      if (p.ceil_mode) op += " ceil";
+      if (p.kind == PoolKind::kAverage && p.count_include_pad) op += " count-pads";
+      return op;
+    }
     case LayerKind::kConcat:
       return "concat channels";
     case LayerKind::kAdd:
@@ -128,6 +138,9 @@ std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
       return "crop " + PadsString(g.crop);
     case LayerKind::kConvTranspose2D:
       return "crop " + PadsString(g.pads);
+    case LayerKind::kPool2D:
+      return PadsString(g.pads) +
+             (layer.pool.padding_rule == PaddingRule::kSameUpper ? " same-upper" : " explicit");
     case LayerKind::kUpsample:
     case LayerKind::kConcat:
     case LayerKind::kAdd:

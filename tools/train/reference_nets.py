@@ -103,3 +103,41 @@ class FlowNetS(nn.Module):
         for _ in range(2):
             height, width = (height + 1) // 2, (width + 1) // 2
         return height, width
+
+
+class PoolNet(nn.Module):
+    """An encoder that downsamples by pooling, as U-Net encoders do, for operator coverage:
+    max pooling with padding, average pooling in ceil mode with and without the pads counted,
+    and a max pooling in ceil mode, each after a 3x3 convolution (leaky ReLU); a 1x1
+    convolution predicts 3 channels at an eighth of the input's size (rounded up).
+    """
+
+    def __init__(self, width_div=16, batch_norm=False):
+        super().__init__()
+        if width_div not in WIDTH_DIVS:
+            raise ValueError(f"width_div must be one of {WIDTH_DIVS}, got {width_div!r}")
+        w = [c // width_div for c in (64, 128, 256, 512)]
+        self.batch_norm = batch_norm
+        self.conv0 = nn.Conv2d(IN_CHANNELS, w[0], 3, padding=1)
+        self.pool0 = nn.MaxPool2d(3, stride=2, padding=1)
+        self.conv1 = nn.Conv2d(w[0], w[1], 3, padding=1)
+        self.pool1 = nn.AvgPool2d(2, stride=2, ceil_mode=True, count_include_pad=False)
+        self.conv2 = nn.Conv2d(w[1], w[2], 3, padding=1)
+        self.pool2 = nn.AvgPool2d(3, stride=2, padding=1, ceil_mode=True, count_include_pad=True)
+        self.conv3 = nn.Conv2d(w[2], w[3], 3, padding=1)
+        self.pool3 = nn.MaxPool2d(2, stride=1, ceil_mode=True)
+        self.output = nn.Conv2d(w[3], OUT_CHANNELS, 1)
+        if batch_norm:
+            self.norms = nn.ModuleList(nn.BatchNorm2d(c) for c in w)
+
+    def hidden_convs(self):
+        return [self.conv0, self.conv1, self.conv2, self.conv3]
+
+    def forward(self, x):
+        for i, (conv, pool) in enumerate(((self.conv0, self.pool0), (self.conv1, self.pool1),
+                                          (self.conv2, self.pool2), (self.conv3, self.pool3))):
+            y = conv(x)
+            if self.batch_norm:
+                y = self.norms[i](y)
+            x = pool(F.leaky_relu(y, negative_slope=LEAKY))
+        return self.output(x)

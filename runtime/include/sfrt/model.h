@@ -33,8 +33,13 @@ inline constexpr int kSchemaVersionMajor = 1;
 inline constexpr int kSchemaVersionMinor = 6;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
-// as does kConvTranspose2D (schema 1.6).
-enum class LayerKind { kConv2D, kUpsample, kCrop, kConcat, kAdd, kConvTranspose2D };
+// as do kConvTranspose2D and kPool2D (schema 1.6).
+enum class LayerKind { kConv2D, kUpsample, kCrop, kConcat, kAdd, kConvTranspose2D, kPool2D };
+// Layers that run in float32 only: a model with one holds no int8 or bf16 convolution.
+inline bool Float32OnlyKind(LayerKind kind) {
+  return kind == LayerKind::kConcat || kind == LayerKind::kAdd ||
+         kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D;
+}
 enum class Activation { kNone, kRelu, kLeakyRelu };
 enum class PaddingRule { kExplicit, kSameUpper };
 // kToSecondInput (schema 1.5): to the height and width of the crop's second input.
@@ -114,6 +119,23 @@ struct ConvTransposeParams {
   const float* bias = nullptr;     // [out_channels]
 };
 
+// Max or average pooling (schema 1.6, float32; docs/model-format.md, "Pool2D"): window (y, x)
+// covers input rows y * stride_h - pads.top .. + kernel_h - 1 and likewise columns; padded
+// positions never win a max; an average divides by the window's input positions, or with
+// count_include_pad by its positions up to the end of the padded input.
+enum class PoolKind { kMax, kAverage };
+struct PoolParams {
+  PoolKind kind = PoolKind::kMax;
+  int kernel_h = 1;
+  int kernel_w = 1;
+  int stride_h = 1;
+  int stride_w = 1;
+  PaddingRule padding_rule = PaddingRule::kExplicit;
+  Padding pads;  // the rule when kExplicit; as stored otherwise
+  bool ceil_mode = false;
+  bool count_include_pad = false;
+};
+
 struct UpsampleParams {  // nearest neighbour
   int factor_h = 1;
   int factor_w = 1;
@@ -140,13 +162,14 @@ struct LayerDesc {
   // What it reads, in order: indices of earlier layers, or kModelInput. One for kConv2D,
   // kUpsample and kCrop (two for a kToSecondInput crop, which reads only the second's size), two
   // for kAdd, two or more for kConcat (channels stacked in this order), one for
-  // kConvTranspose2D.
+  // kConvTranspose2D and kPool2D.
   std::vector<int> inputs;
   ConvParams conv;             // valid when kind == kConv2D
   UpsampleParams upsample;     // valid when kind == kUpsample
   CropParams crop;             // valid when kind == kCrop
   AddParams add;               // valid when kind == kAdd
   ConvTransposeParams deconv;  // valid when kind == kConvTranspose2D
+  PoolParams pool;             // valid when kind == kPool2D
 };
 
 struct InputDesc {

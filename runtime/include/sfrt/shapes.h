@@ -30,11 +30,16 @@ inline constexpr int kMaxTensorSide = 1 << 20;
 struct LayerGeometry {
   TensorShape input;  // the first input's
   TensorShape output;
-  Padding pads;         // Conv2D, ConvTranspose2D: the amounts in effect at this size
+  Padding pads;         // Conv2D, ConvTranspose2D, Pool2D: the amounts in effect at this size
   Padding crop;         // Crop: rows/cols removed per side at this size
   uint64_t macs = 0;    // multiply-accumulates (Conv2D and ConvTranspose2D)
   uint64_t params = 0;  // weights + biases
 };
+
+// Pooling output size along one axis (PoolParams): as ConvOutputSize, rounded up when
+// `ceil_mode` (then a last window starting past the input and its leading pad is dropped).
+int PoolOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
+                   int explicit_after, bool ceil_mode, int* pad_before, int* pad_after);
 
 // Convolution output size along one axis; `pad_before`/`pad_after` receive the amounts.
 // Returns <= 0 when the window does not fit.

@@ -20,6 +20,7 @@ using sfrt::Activation;
 using sfrt::CalibrationDesc;
 using sfrt::CropRule;
 using sfrt::PaddingRule;
+using sfrt::PoolKind;
 using sfrt::Precision;
 using sfrt::QuantParams;
 using sfrt::TrainingState;
@@ -110,8 +111,22 @@ struct ConvTransposeSpec {  // schema 1.6 (sfrt/model.h, ConvTransposeParams); f
   std::vector<float> bias;          // out_channels
 };
 
-using LayerSpec =
-    std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec, ConvTransposeSpec>;
+struct PoolSpec {  // schema 1.6 (sfrt/model.h, PoolParams); float32
+  std::string name;
+  std::vector<std::string> inputs;
+  PoolKind kind = PoolKind::kMax;
+  int kernel_h = 2;
+  int kernel_w = 2;
+  int stride_h = 2;
+  int stride_w = 2;
+  PaddingRule padding_rule = PaddingRule::kExplicit;
+  Pads pads;  // the amounts at the traced size; the rule when padding_rule == kExplicit
+  bool ceil_mode = false;
+  bool count_include_pad = false;  // kAverage
+};
+
+using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec,
+                               ConvTransposeSpec, PoolSpec>;
 
 struct InputSpec {
   std::string name = "stereo_pairs";
@@ -181,6 +196,9 @@ inline std::string Float32OnlyReason(const ModelSpec& spec) {
   for (const LayerSpec& layer : spec.layers) {
     if (const auto* d = std::get_if<ConvTransposeSpec>(&layer)) {
       return "the model has a ConvTranspose2D ('" + d->name + "')";
+    }
+    if (const auto* p = std::get_if<PoolSpec>(&layer)) {
+      return "the model has a Pool2D ('" + p->name + "')";
     }
   }
   return "";
