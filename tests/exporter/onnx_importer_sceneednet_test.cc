@@ -285,6 +285,42 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryFlowNetSCaseWithTransposedConvolutionsA
   EXPECT_GE(f_cases, 3) << "the suite has no FlowNetS cases";
 }
 
+// The DispNetS-style network (gen_sceneednet.py --arch dispnets, d* cases): FlowNetS's encoder,
+// and at each of five decoder levels an upconvolution, an upsampled prediction, a Concat of three
+// tensors and an iconv (batch norms folded: only convolutions, transposed convolutions, crops and
+// Concats remain).
+TEST(OnnxImporterSceneEDNet, ImportsEveryDispNetSCaseWithIconvsAfterEachConcat) {
+  int d_cases = 0;
+  for (const FixtureCase& fc : ReadCases()) {
+    if (fc.name[0] != 'd') continue;
+    SCOPED_TRACE(fc.name);
+    ++d_cases;
+    const Result<ModelSpec> spec = ImportOnnx(FixtureDir() + "/" + fc.name + ".onnx");
+    ASSERT_TRUE(spec.ok()) << spec.message();
+    int convs = 0, deconvs = 0, cats = 0, others = 0;
+    for (size_t i = 0; i < spec->layers.size(); ++i) {
+      const LayerSpec& layer = spec->layers[i];
+      convs += std::holds_alternative<ConvSpec>(layer);
+      deconvs += std::holds_alternative<ConvTransposeSpec>(layer);
+      others += std::holds_alternative<UpsampleSpec>(layer) ||
+                std::holds_alternative<PoolSpec>(layer) || std::holds_alternative<AddSpec>(layer);
+      if (std::holds_alternative<ConcatSpec>(layer)) {
+        ++cats;
+        // The iconv reads the Concat.
+        ASSERT_LT(i + 1, spec->layers.size());
+        const auto* iconv = std::get_if<ConvSpec>(&spec->layers[i + 1]);
+        ASSERT_NE(iconv, nullptr);
+        EXPECT_EQ(iconv->activation, Activation::kLeakyRelu);
+      }
+    }
+    EXPECT_EQ(convs, 21);  // 10 encoder, pr6, and an iconv and a prediction per level
+    EXPECT_EQ(deconvs, 10);
+    EXPECT_EQ(cats, 5);
+    EXPECT_EQ(others, 0);
+  }
+  EXPECT_GE(d_cases, 3) << "the suite has no DispNetS cases";
+}
+
 // The pooling encoder (gen_sceneednet.py --arch poolnet, p* cases): five convolutions (batch
 // norms folded) and four poolings with the attributes PyTorch gave them.
 TEST(OnnxImporterSceneEDNet, ImportsEveryPoolNetCaseWithItsPoolingAttributes) {

@@ -1,5 +1,10 @@
 """Reference encoder-decoder networks beyond SceneEDNet (issue 16), written here from the papers.
 
+DispNetS (Mayer et al., "A Large Dataset to Train Convolutional Networks for Disparity, Optical
+Flow, and Scene Flow Estimation", CVPR 2016) is below FlowNetS: the same contracting part, and
+an expanding part whose every level convolves its stack once more (iconv, 3x3) before
+predicting, down to half the input's resolution.
+
 FlowNetS (Dosovitskiy et al., "FlowNet: Learning Optical Flow with Convolutional Networks",
 ICCV 2015), adapted to scene flow: the same 12-channel input as SceneEDNet (two stereo pairs)
 and 3-channel predictions. Its contracting part is ten convolutions (7x7/2, 5x5/2, 5x5/2, then
@@ -141,3 +146,82 @@ class PoolNet(nn.Module):
                 y = self.norms[i](y)
             x = pool(F.leaky_relu(y, negative_slope=LEAKY))
         return self.output(x)
+
+
+# (level, encoder tensor it stacks with, width of its upconvolution and iconv) at full width.
+DISPNETS_DECODER = ((5, "conv5_1", 512), (4, "conv4_1", 256), (3, "conv3_1", 128),
+                    (2, "conv2", 64), (1, "conv1", 32))
+
+
+class DispNetS(nn.Module):
+    """DispNetS-style network (scene flow: 12 channels in, 3-channel predictions) with widths
+    divided by `width_div`. The encoder is FlowNetS's; each decoder level stacks the encoder
+    tensor of its resolution, a 4x4/2 transposed convolution of the level below (leaky ReLU) and
+    the level below's prediction upsampled by a 4x4/2 transposed convolution, convolves the stack
+    (iconv, 3x3, leaky ReLU) and predicts from that (3x3). The output is the finest prediction,
+    pr1, at half the input's resolution (rounded up). Odd sizes cut the transposed convolutions'
+    outputs to the encoder tensor's size. With batch_norm, a BatchNorm2d before every leaky ReLU
+    of the encoder, the upconvolutions and the iconvs.
+    """
+
+    def __init__(self, width_div=1, batch_norm=False):
+        super().__init__()
+        if width_div not in WIDTH_DIVS:
+            raise ValueError(f"width_div must be one of {WIDTH_DIVS}, got {width_div!r}")
+        self.batch_norm = batch_norm
+        widths = {}
+        cin = IN_CHANNELS
+        norms = []
+        for name, k, s, w in FLOWNETS_ENCODER:
+            w //= width_div
+            setattr(self, name, nn.Conv2d(cin, w, k, stride=s, padding=(k - 1) // 2))
+            norms.append(w)
+            widths[name] = w
+            cin = w
+        self.pr6 = nn.Conv2d(cin, OUT_CHANNELS, 3, padding=1)
+        below = cin
+        for level, skip, w in DISPNETS_DECODER:
+            w = max(w // width_div, 1)
+            setattr(self, f"upconv{level}", nn.ConvTranspose2d(below, w, 4, stride=2, padding=1))
+            setattr(self, f"up_pr{level + 1}",
+                    nn.ConvTranspose2d(OUT_CHANNELS, OUT_CHANNELS, 4, stride=2, padding=1,
+                                       bias=False))
+            setattr(self, f"iconv{level}",
+                    nn.Conv2d(w + OUT_CHANNELS + widths[skip], w, 3, padding=1))
+            setattr(self, f"pr{level}", nn.Conv2d(w, OUT_CHANNELS, 3, padding=1))
+            norms += [w, w]
+            below = w
+        if batch_norm:
+            self.norms = nn.ModuleList(nn.BatchNorm2d(c) for c in norms)
+        self.output = self.pr1
+
+    def hidden_convs(self):
+        """Every convolution but the output one, in the order the fixture initialises them."""
+        convs = [getattr(self, name) for name, *_ in FLOWNETS_ENCODER] + [self.pr6]
+        for level, _, _ in DISPNETS_DECODER:
+            convs += [getattr(self, f"upconv{level}"), getattr(self, f"up_pr{level + 1}"),
+                      getattr(self, f"iconv{level}")]
+            if level != 1:
+                convs.append(getattr(self, f"pr{level}"))
+        return convs
+
+    def _act(self, i, y):
+        if self.batch_norm:
+            y = self.norms[i](y)
+        return F.leaky_relu(y, negative_slope=LEAKY)
+
+    def forward(self, x):
+        enc = {}
+        for i, (name, *_) in enumerate(FLOWNETS_ENCODER):
+            x = self._act(i, getattr(self, name)(x))
+            enc[name] = x
+        pr = self.pr6(x)
+        n = len(FLOWNETS_ENCODER)
+        for j, (level, skip, _) in enumerate(DISPNETS_DECODER):
+            s = enc[skip]
+            up = self._act(n + 2 * j, getattr(self, f"upconv{level}")(x))
+            up_pr = getattr(self, f"up_pr{level + 1}")(pr)
+            x = torch.cat([FlowNetS._cut(up, s), FlowNetS._cut(up_pr, s), s], dim=1)
+            x = self._act(n + 2 * j + 1, getattr(self, f"iconv{level}")(x))
+            pr = getattr(self, f"pr{level}")(x)
+        return pr
