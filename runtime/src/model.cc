@@ -204,6 +204,50 @@ Status TakeActivation(const Checker& check, const std::string& where, fb::Activa
   return Status::Ok();
 }
 
+// A convolution's (or transposed convolution's) channels: in_channels as its input has them,
+// out_channels in range.
+Status CheckChannels(const Checker& check, const std::string& where, int in_channels, int input_has,
+                     int out_channels) {
+  if (in_channels != input_has) {
+    return check.Fail(where + ": in_channels is " + std::to_string(in_channels) +
+                      " but its input has " + std::to_string(input_has) + " channels");
+  }
+  if (out_channels <= 0 || out_channels > kMaxChannels) {
+    return check.Fail(where + ": out_channels is " + std::to_string(out_channels) +
+                      "; must be in 1.." + std::to_string(kMaxChannels));
+  }
+  return Status::Ok();
+}
+
+// A kernel's or pooling window's sides and strides against the loader's limits; `what` names
+// the window in the message ("kernel", "window").
+Status CheckWindow(const Checker& check, const std::string& where, const char* what, int kh, int kw,
+                   int sh, int sw) {
+  if (kh < 1 || kh > kMaxKernel || kw < 1 || kw > kMaxKernel) {
+    return check.Fail(where + ": " + what + " is " + std::to_string(kh) + "x" + std::to_string(kw) +
+                      "; each side must be in 1.." + std::to_string(kMaxKernel));
+  }
+  if (sh < 1 || sh > kMaxStride || sw < 1 || sw > kMaxStride) {
+    return check.Fail(where + ": stride is " + std::to_string(sh) + "x" + std::to_string(sw) +
+                      "; each must be in 1.." + std::to_string(kMaxStride));
+  }
+  return Status::Ok();
+}
+
+// Pads of a transposed convolution or a pooling: each at least 0 and below its kernel side.
+Status CheckPadsBelowKernel(const Checker& check, const std::string& where, const Padding& pads,
+                            int kh, int kw) {
+  for (const auto& [amount, side, kernel] :
+       {std::tuple{pads.top, "top", kh}, std::tuple{pads.bottom, "bottom", kh},
+        std::tuple{pads.left, "left", kw}, std::tuple{pads.right, "right", kw}}) {
+    if (amount < 0 || amount >= kernel) {
+      return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
+                        "; must be in 0.." + std::to_string(kernel - 1));
+    }
+  }
+  return Status::Ok();
+}
+
 // How many inputs `op` reads: [least, most].
 Status CheckArity(const Checker& check, const std::string& where, const char* op,
                   const std::vector<int>& inputs, int least, int most) {
@@ -691,26 +735,15 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         p.stride_h = c->stride_h();
         p.stride_w = c->stride_w();
         if (Status s = CheckArity(check, where, "a Conv2D", layer.inputs, 1, 1); !s.ok()) return s;
-        if (p.in_channels != channels_read(layer.inputs[0])) {
-          return check.Fail(where + ": in_channels is " + std::to_string(p.in_channels) +
-                            " but its input has " + std::to_string(channels_read(layer.inputs[0])) +
-                            " channels");
+        if (Status s = CheckChannels(check, where, p.in_channels, channels_read(layer.inputs[0]),
+                                     p.out_channels);
+            !s.ok()) {
+          return s;
         }
-        if (p.out_channels <= 0 || p.out_channels > kMaxChannels) {
-          return check.Fail(where + ": out_channels is " + std::to_string(p.out_channels) +
-                            "; must be in 1.." + std::to_string(kMaxChannels));
-        }
-        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 ||
-            p.kernel_w > kMaxKernel) {
-          return check.Fail(where + ": kernel is " + std::to_string(p.kernel_h) + "x" +
-                            std::to_string(p.kernel_w) + "; each side must be in 1.." +
-                            std::to_string(kMaxKernel));
-        }
-        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 ||
-            p.stride_w > kMaxStride) {
-          return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
-                            std::to_string(p.stride_w) + "; each must be in 1.." +
-                            std::to_string(kMaxStride));
+        if (Status s =
+                CheckWindow(check, where, "kernel", p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+            !s.ok()) {
+          return s;
         }
         switch (c->padding_rule()) {
           case fb::PaddingRule::Explicit:
@@ -891,38 +924,22 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         if (Status s = CheckArity(check, where, "a ConvTranspose2D", layer.inputs, 1, 1); !s.ok()) {
           return s;
         }
-        if (p.in_channels != channels_read(layer.inputs[0])) {
-          return check.Fail(where + ": in_channels is " + std::to_string(p.in_channels) +
-                            " but its input has " + std::to_string(channels_read(layer.inputs[0])) +
-                            " channels");
+        if (Status s = CheckChannels(check, where, p.in_channels, channels_read(layer.inputs[0]),
+                                     p.out_channels);
+            !s.ok()) {
+          return s;
         }
-        if (p.out_channels <= 0 || p.out_channels > kMaxChannels) {
-          return check.Fail(where + ": out_channels is " + std::to_string(p.out_channels) +
-                            "; must be in 1.." + std::to_string(kMaxChannels));
-        }
-        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 ||
-            p.kernel_w > kMaxKernel) {
-          return check.Fail(where + ": kernel is " + std::to_string(p.kernel_h) + "x" +
-                            std::to_string(p.kernel_w) + "; each side must be in 1.." +
-                            std::to_string(kMaxKernel));
-        }
-        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 ||
-            p.stride_w > kMaxStride) {
-          return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
-                            std::to_string(p.stride_w) + "; each must be in 1.." +
-                            std::to_string(kMaxStride));
+        if (Status s =
+                CheckWindow(check, where, "kernel", p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+            !s.ok()) {
+          return s;
         }
         if (const fb::Padding* pads = c->pads()) {
           p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
         }
-        for (const auto& [amount, side, kernel] : {std::tuple{p.pads.top, "top", p.kernel_h},
-                                                   std::tuple{p.pads.bottom, "bottom", p.kernel_h},
-                                                   std::tuple{p.pads.left, "left", p.kernel_w},
-                                                   std::tuple{p.pads.right, "right", p.kernel_w}}) {
-          if (amount < 0 || amount >= kernel) {
-            return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
-                              "; must be in 0.." + std::to_string(kernel - 1));
-          }
+        if (Status s = CheckPadsBelowKernel(check, where, p.pads, p.kernel_h, p.kernel_w);
+            !s.ok()) {
+          return s;
         }
         if (p.output_padding_h < 0 || p.output_padding_h >= p.stride_h || p.output_padding_w < 0 ||
             p.output_padding_w >= p.stride_w) {
@@ -966,17 +983,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         p.kernel_w = c->kernel_w();
         p.stride_h = c->stride_h();
         p.stride_w = c->stride_w();
-        if (p.kernel_h < 1 || p.kernel_h > kMaxKernel || p.kernel_w < 1 ||
-            p.kernel_w > kMaxKernel) {
-          return check.Fail(where + ": window is " + std::to_string(p.kernel_h) + "x" +
-                            std::to_string(p.kernel_w) + "; each side must be in 1.." +
-                            std::to_string(kMaxKernel));
-        }
-        if (p.stride_h < 1 || p.stride_h > kMaxStride || p.stride_w < 1 ||
-            p.stride_w > kMaxStride) {
-          return check.Fail(where + ": stride is " + std::to_string(p.stride_h) + "x" +
-                            std::to_string(p.stride_w) + "; each must be in 1.." +
-                            std::to_string(kMaxStride));
+        if (Status s =
+                CheckWindow(check, where, "window", p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+            !s.ok()) {
+          return s;
         }
         switch (c->padding_rule()) {
           case fb::PaddingRule::Explicit:
@@ -992,14 +1002,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         if (const fb::Padding* pads = c->pads()) {
           p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
         }
-        for (const auto& [amount, side, kernel] : {std::tuple{p.pads.top, "top", p.kernel_h},
-                                                   std::tuple{p.pads.bottom, "bottom", p.kernel_h},
-                                                   std::tuple{p.pads.left, "left", p.kernel_w},
-                                                   std::tuple{p.pads.right, "right", p.kernel_w}}) {
-          if (amount < 0 || amount >= kernel) {
-            return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
-                              "; must be in 0.." + std::to_string(kernel - 1));
-          }
+        if (Status s = CheckPadsBelowKernel(check, where, p.pads, p.kernel_h, p.kernel_w);
+            !s.ok()) {
+          return s;
         }
         p.ceil_mode = c->ceil_mode();
         p.count_include_pad = c->count_include_pad();
