@@ -38,6 +38,29 @@ FLOWNETS_DECODER = ((5, "conv5_1", 512), (4, "conv4_1", 256), (3, "conv3_1", 128
 WIDTH_DIVS = (1, 2, 4, 8, 16, 32, 64)
 
 
+def _add_encoder(module, width_div):
+    """Adds FlowNetS's contracting part to `module`; returns each layer's width by name, in
+    order."""
+    widths = {}
+    cin = IN_CHANNELS
+    for name, k, s, w in FLOWNETS_ENCODER:
+        w //= width_div
+        setattr(module, name, nn.Conv2d(cin, w, k, stride=s, padding=(k - 1) // 2))
+        widths[name] = w
+        cin = w
+    return widths
+
+
+def _encode(module, x):
+    """Runs the contracting part (module._act(i, .) after layer i); returns the last tensor and
+    every layer's output by name."""
+    enc = {}
+    for i, (name, *_) in enumerate(FLOWNETS_ENCODER):
+        x = module._act(i, getattr(module, name)(x))
+        enc[name] = x
+    return x, enc
+
+
 class FlowNetS(nn.Module):
     """FlowNetS-style scene flow network with widths divided by `width_div`."""
 
@@ -46,15 +69,9 @@ class FlowNetS(nn.Module):
         if width_div not in WIDTH_DIVS:
             raise ValueError(f"width_div must be one of {WIDTH_DIVS}, got {width_div!r}")
         self.batch_norm = batch_norm
-        widths = {}
-        cin = IN_CHANNELS
-        norms = []
-        for name, k, s, w in FLOWNETS_ENCODER:
-            w //= width_div
-            setattr(self, name, nn.Conv2d(cin, w, k, stride=s, padding=(k - 1) // 2))
-            norms.append(w)
-            widths[name] = w
-            cin = w
+        widths = _add_encoder(self, width_div)
+        norms = list(widths.values())
+        cin = norms[-1]
         below = cin  # channels of the level below (conv6_1, then each concat)
         self.flow6 = nn.Conv2d(below, OUT_CHANNELS, 3, padding=1)
         for level, skip, w in FLOWNETS_DECODER:
@@ -89,10 +106,7 @@ class FlowNetS(nn.Module):
         return x[:, :, :like.shape[2], :like.shape[3]]
 
     def forward(self, x):
-        enc = {}
-        for i, (name, *_) in enumerate(FLOWNETS_ENCODER):
-            x = self._act(i, getattr(self, name)(x))
-            enc[name] = x
+        x, enc = _encode(self, x)
         flow = self.flow6(x)
         for j, (level, skip, _) in enumerate(FLOWNETS_DECODER):
             s = enc[skip]
@@ -169,15 +183,9 @@ class DispNetS(nn.Module):
         if width_div not in WIDTH_DIVS:
             raise ValueError(f"width_div must be one of {WIDTH_DIVS}, got {width_div!r}")
         self.batch_norm = batch_norm
-        widths = {}
-        cin = IN_CHANNELS
-        norms = []
-        for name, k, s, w in FLOWNETS_ENCODER:
-            w //= width_div
-            setattr(self, name, nn.Conv2d(cin, w, k, stride=s, padding=(k - 1) // 2))
-            norms.append(w)
-            widths[name] = w
-            cin = w
+        widths = _add_encoder(self, width_div)
+        norms = list(widths.values())
+        cin = norms[-1]
         self.pr6 = nn.Conv2d(cin, OUT_CHANNELS, 3, padding=1)
         below = cin
         for level, skip, w in DISPNETS_DECODER:
@@ -211,10 +219,7 @@ class DispNetS(nn.Module):
         return F.leaky_relu(y, negative_slope=LEAKY)
 
     def forward(self, x):
-        enc = {}
-        for i, (name, *_) in enumerate(FLOWNETS_ENCODER):
-            x = self._act(i, getattr(self, name)(x))
-            enc[name] = x
+        x, enc = _encode(self, x)
         pr = self.pr6(x)
         n = len(FLOWNETS_ENCODER)
         for j, (level, skip, _) in enumerate(DISPNETS_DECODER):
