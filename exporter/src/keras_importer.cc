@@ -1411,7 +1411,7 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
   }
   spec->input.traced_height = model.height;
   spec->input.traced_width = model.width;
-  spec->output.channels = out.c;
+  SetOutputChannels(*spec, out.c);
   KeepInputNamesOfAGraph(*spec, model.input_name);
   return Status::Ok();
 }

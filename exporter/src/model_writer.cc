@@ -78,6 +78,18 @@ class Writer {
   uint32_t crc_ = 0;
 };
 
+fb::PaddingRule ToSchema(PaddingRule r) {
+  switch (r) {
+    case PaddingRule::kSameUpper:
+      return fb::PaddingRule::SameUpper;
+    case PaddingRule::kSameLower:
+      return fb::PaddingRule::SameLower;
+    case PaddingRule::kExplicit:
+      break;
+  }
+  return fb::PaddingRule::Explicit;
+}
+
 fb::Activation ToSchema(Activation a) {
   switch (a) {
     case Activation::kNone:
@@ -213,6 +225,15 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
     }
     channels = read[0];
     const auto names = inputs.empty() ? 0 : b.CreateVectorOfStrings(inputs);
+    const auto* conv_spec = std::get_if<ConvSpec>(&ls);
+    const auto* pool_spec = std::get_if<PoolSpec>(&ls);
+    const bool same_lower =
+        (conv_spec != nullptr && conv_spec->padding_rule == PaddingRule::kSameLower) ||
+        (pool_spec != nullptr && pool_spec->padding_rule == PaddingRule::kSameLower);
+    if (same_lower && options.schema_minor < 7) {
+      return Status::Error(where + ": padding rule SameLower needs schema 1.7; writing 1." +
+                           std::to_string(options.schema_minor));
+    }
     if (const auto* c = std::get_if<ConvSpec>(&ls)) {
       if (c->in_channels != channels) {
         return Status::Error(where + ": in_channels is " + std::to_string(c->in_channels) +
@@ -267,11 +288,9 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       const fb::QuantParams output_quant(c->output_quant.scale, c->output_quant.zero_point);
       const auto conv = fb::CreateConv2D(
           b, c->in_channels, c->out_channels, c->kernel_h, c->kernel_w, c->stride_h, c->stride_w,
-          c->padding_rule == PaddingRule::kSameUpper ? fb::PaddingRule::SameUpper
-                                                     : fb::PaddingRule::Explicit,
-          &pads, ToSchema(c->activation), c->leaky_slope, weights, bias, ToSchema(c->precision),
-          int8 ? b.CreateVector(c->weight_scales) : 0, int8 ? &input_quant : nullptr,
-          int8 ? &output_quant : nullptr, phase_weights,
+          ToSchema(c->padding_rule), &pads, ToSchema(c->activation), c->leaky_slope, weights, bias,
+          ToSchema(c->precision), int8 ? b.CreateVector(c->weight_scales) : 0,
+          int8 ? &input_quant : nullptr, int8 ? &output_quant : nullptr, phase_weights,
           phases ? b.CreateVector(c->phase_scales) : 0);
       layers.push_back(
           fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union(), names));
@@ -334,9 +353,7 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       const auto op = fb::CreatePool2D(
           b, pool->kind == PoolKind::kMax ? fb::PoolKind::Max : fb::PoolKind::Average,
           pool->kernel_h, pool->kernel_w, pool->stride_h, pool->stride_w,
-          pool->padding_rule == PaddingRule::kSameUpper ? fb::PaddingRule::SameUpper
-                                                        : fb::PaddingRule::Explicit,
-          &pads, pool->ceil_mode, pool->count_include_pad);
+          ToSchema(pool->padding_rule), &pads, pool->ceil_mode, pool->count_include_pad);
       layers.push_back(
           fb::CreateLayer(b, b.CreateString(pool->name), fb::LayerOp::Pool2D, op.Union(), names));
     } else {
@@ -366,6 +383,13 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
   if (spec.output.channels != channels) {
     return Status::Error("output.channels is " + std::to_string(spec.output.channels) +
                          " but the last layer produces " + std::to_string(channels));
+  }
+  if (!spec.output.channel_names.empty() &&
+      static_cast<int>(spec.output.channel_names.size()) != channels) {
+    return Status::Error("output.channel_names has " +
+                         std::to_string(spec.output.channel_names.size()) +
+                         " names for an output of " + std::to_string(channels) +
+                         " channels; give one per channel or none");
   }
 
   const auto layers_offset = b.CreateVector(layers);

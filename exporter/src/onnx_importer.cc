@@ -889,6 +889,13 @@ Pads SameUpperPads(int64_t in_h, int64_t in_w, int kh, int kw, int sh, int sw) {
   return Pads{top, left, bottom, right};
 }
 
+// ONNX SAME_UPPER or SAME_LOWER amounts: the same totals, SAME_LOWER's larger half first.
+Pads SamePads(PaddingRule rule, int64_t in_h, int64_t in_w, int kh, int kw, int sh, int sw) {
+  const Pads upper = SameUpperPads(in_h, in_w, kh, kw, sh, sw);
+  if (rule != PaddingRule::kSameLower) return upper;
+  return Pads{upper.bottom, upper.right, upper.top, upper.left};
+}
+
 // ------------------------------------------------------------------------- the importer
 
 // A node whose data input is a runtime tensor.
@@ -1688,6 +1695,7 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
   Pads p;
+  PaddingRule rule = PaddingRule::kExplicit;
   if (auto_pad == "NOTSET") {
     if (pads.empty()) pads = {0, 0, 0, 0};
     if (pads.size() != 4) {
@@ -1702,12 +1710,15 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
              static_cast<int>(pads[3])};
   } else if (auto_pad == "VALID") {
     p = Pads{};
-  } else if (auto_pad == "SAME_UPPER") {
-    p = SameUpperPads(in_h, in_w, static_cast<int>(kh), static_cast<int>(kw),
-                      static_cast<int>(strides[0]), static_cast<int>(strides[1]));
+  } else if (auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER") {
+    // SAME_UPPER is found again from the pads with the rest of the network's convolutions;
+    // SAME_LOWER keeps its own rule.
+    if (auto_pad == "SAME_LOWER") rule = PaddingRule::kSameLower;
+    p = SamePads(rule, in_h, in_w, static_cast<int>(kh), static_cast<int>(kw),
+                 static_cast<int>(strides[0]), static_cast<int>(strides[1]));
   } else {
     return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
-                              " is not supported (NOTSET, SAME_UPPER, VALID)");
+                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
   }
   const int64_t padded_h = in_h + p.top + p.bottom;
   const int64_t padded_w = in_w + p.left + p.right;
@@ -1727,6 +1738,7 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   c.stride_h = static_cast<int>(strides[0]);
   c.stride_w = static_cast<int>(strides[1]);
   c.pads = p;
+  c.padding_rule = rule;
   c.weights_hwio.resize(w.size());
   for (int64_t co = 0; co < out_ch; ++co) {
     for (int64_t ci = 0; ci < in_ch; ++ci) {
@@ -1929,9 +1941,9 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
   p.count_include_pad = !max && count_include_pad != 0;
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
-  if (auto_pad == "SAME_UPPER") {
-    p.padding_rule = PaddingRule::kSameUpper;
-    p.pads = SameUpperPads(in_h, in_w, p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+  if (auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER") {
+    p.padding_rule = auto_pad == "SAME_UPPER" ? PaddingRule::kSameUpper : PaddingRule::kSameLower;
+    p.pads = SamePads(p.padding_rule, in_h, in_w, p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
   } else if (auto_pad == "NOTSET" || auto_pad == "VALID") {
     if (auto_pad == "VALID" || pads.empty()) pads = {0, 0, 0, 0};
     if (pads.size() != 4) {
@@ -1948,7 +1960,7 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
                   static_cast<int>(pads[3])};
   } else {
     return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
-                              " is not supported (NOTSET, SAME_UPPER, VALID)");
+                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
   }
   int before = 0, after = 0;
   const int out_h = PoolOutputSize(static_cast<int>(in_h), p.kernel_h, p.stride_h, p.padding_rule,
@@ -2524,6 +2536,8 @@ Result<ModelSpec> Importer::Assemble() {
         conv.pads.left += src.pads.left;
         conv.pads.bottom += src.pads.bottom;
         conv.pads.right += src.pads.right;
+        // A folded Pad's amounts are fixed: the sum holds at the traced size only.
+        if (src.padded) conv.padding_rule = PaddingRule::kExplicit;
         SFRT_ONNX_RETURN_IF_ERROR(CheckConvPads(op.node_index, conv, src.pad_nodes));
         conv.name = unique_name(conv.name, "conv", num_convs++);
         conv.inputs = {src.layer};
@@ -2700,6 +2714,11 @@ Result<ModelSpec> Importer::Assemble() {
     const Pads same =
         SameUpperPads(t.in_h, t.in_w, conv.kernel_h, conv.kernel_w, conv.stride_h, conv.stride_w);
     if (conv.pads == same) continue;
+    // A SAME_LOWER conv keeps its rule (kAuto) whatever the others do.
+    if (conv.padding_rule == PaddingRule::kSameLower &&
+        options_.padding == PaddingDetection::kAuto) {
+      continue;
+    }
     all_same_upper = false;
     if (options_.padding == PaddingDetection::kSameUpper) {
       return FileError("conv " + Quote(conv.name) + ": traced pads " + PadsText(conv.pads) +
@@ -2711,8 +2730,12 @@ Result<ModelSpec> Importer::Assemble() {
   const bool same_upper = options_.padding == PaddingDetection::kSameUpper ||
                           (options_.padding == PaddingDetection::kAuto && all_same_upper);
   for (const ConvTrace& t : convs) {
-    std::get<ConvSpec>(spec.layers[t.layer]).padding_rule =
-        same_upper ? PaddingRule::kSameUpper : PaddingRule::kExplicit;
+    auto& conv = std::get<ConvSpec>(spec.layers[t.layer]);
+    if (conv.padding_rule == PaddingRule::kSameLower &&
+        options_.padding == PaddingDetection::kAuto) {
+      continue;
+    }
+    conv.padding_rule = same_upper ? PaddingRule::kSameUpper : PaddingRule::kExplicit;
   }
 
   // Crop rule: a crop, removing on one side per axis, whose only reader is a Concat with an
@@ -2764,7 +2787,7 @@ Result<ModelSpec> Importer::Assemble() {
   }
   spec.input.traced_height = static_cast<int>(input_shape_[2]);
   spec.input.traced_width = static_cast<int>(input_shape_[3]);
-  spec.output.channels = static_cast<int>(out_shape[1]);
+  SetOutputChannels(spec, static_cast<int>(out_shape[1]));
   KeepInputNamesOfAGraph(spec, input_name_);
   return spec;
 }

@@ -36,7 +36,7 @@ int ResolveThreads(int threads) {
 
 std::vector<std::string> LimitsMarkdownRows() {
   std::vector<std::string> rows;
-  for (const IntRange* r : {&kInputSide, &kFrameSide, &kThreads, &kCameraBuffers}) {
+  for (const IntRange* r : {&kInputSide, &kTensorSide, &kFrameSide, &kThreads, &kCameraBuffers}) {
     std::string extra = r->unit;
     if (r->note[0] != '\0') extra += (extra.empty() ? "" : "; ") + std::string(r->note);
     rows.push_back("| " + std::string(r->what) + " | " + std::to_string(r->lo) + ".." +

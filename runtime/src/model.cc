@@ -348,6 +348,18 @@ Status TakePhaseWeights(const Checker& check, const std::string& where, const fb
 
 }  // namespace
 
+const char* PaddingRuleName(PaddingRule rule) {
+  switch (rule) {
+    case PaddingRule::kExplicit:
+      return "explicit";
+    case PaddingRule::kSameUpper:
+      return "same-upper";
+    case PaddingRule::kSameLower:
+      return "same-lower";
+  }
+  return "?";
+}
+
 const char* PrecisionName(Precision precision) {
   switch (precision) {
     case Precision::kFloat32:
@@ -752,6 +764,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           case fb::PaddingRule::SameUpper:
             p.padding_rule = PaddingRule::kSameUpper;
             break;
+          case fb::PaddingRule::SameLower:
+            p.padding_rule = PaddingRule::kSameLower;
+            break;
           default:
             return check.Fail(where + ": padding_rule is unknown value " +
                               std::to_string(static_cast<int>(c->padding_rule())));
@@ -994,6 +1009,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
             break;
           case fb::PaddingRule::SameUpper:
             p.padding_rule = PaddingRule::kSameUpper;
+            break;
+          case fb::PaddingRule::SameLower:
+            p.padding_rule = PaddingRule::kSameLower;
             break;
           default:
             return check.Fail(where + ": padding_rule is unknown value " +

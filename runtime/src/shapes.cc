@@ -14,11 +14,12 @@ std::string Quote(const LayerDesc& layer, size_t index) {
 
 int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
                    int explicit_after, int* pad_before, int* pad_after) {
-  if (rule == PaddingRule::kSameUpper) {
+  if (rule != PaddingRule::kExplicit) {
     const int out = (in + stride - 1) / stride;
     const int total = std::max((out - 1) * stride + kernel - in, 0);
-    *pad_before = total / 2;
-    *pad_after = total - total / 2;
+    const int smaller = total / 2;
+    *pad_before = rule == PaddingRule::kSameUpper ? smaller : total - smaller;
+    *pad_after = total - *pad_before;
     return out;
   }
   *pad_before = explicit_before;
@@ -30,7 +31,7 @@ int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
 
 int PoolOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
                    int explicit_after, bool ceil_mode, int* pad_before, int* pad_after) {
-  if (rule == PaddingRule::kSameUpper || !ceil_mode) {
+  if (rule != PaddingRule::kExplicit || !ceil_mode) {
     return ConvOutputSize(in, kernel, stride, rule, explicit_before, explicit_after, pad_before,
                           pad_after);
   }

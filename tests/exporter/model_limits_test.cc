@@ -30,7 +30,7 @@ ModelSpec OneConv(const ConvSpec& conv) {
   ModelSpec spec;
   spec.input.channels = conv.in_channels;
   spec.input.image_order.clear();
-  spec.output.channels = conv.out_channels;
+  exporter::SetOutputChannels(spec, conv.out_channels);
   spec.output.channel_names.clear();
   spec.layers.emplace_back(conv);
   return spec;

@@ -139,6 +139,34 @@ TEST(ModelWriter, RejectsWrongWeightCounts) {
   EXPECT_NE(bytes.message().find("'conv0'"), std::string::npos) << bytes.message();
 }
 
+TEST(ModelWriter, RejectsChannelNamesThatDoNotCountTheOutputChannels) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  spec.output.channel_names = {"dX", "dY"};
+  auto bytes = SerializeModel(spec);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("output.channel_names has 2 names for an output of 3 channels"),
+            std::string::npos)
+      << bytes.message();
+}
+
+TEST(ModelWriter, APlainTensorInputWithAnyChannelCountRoundTrips) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
+  first.in_channels = 5;
+  first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * 5 *
+                            first.out_channels);
+  spec.input.channels = 5;
+  spec.input.image_order.clear();
+  SetOutputChannels(spec, 3);
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  EXPECT_EQ((*model)->metadata().input.channels, 5);
+  EXPECT_TRUE((*model)->metadata().input.image_order.empty());
+  EXPECT_EQ((*model)->metadata().output.channel_names.size(), 3u);
+}
+
 TEST(ModelWriter, UnitsAndTrainingStateRoundTripFromSchema12) {
   ModelSpec spec = testing::SceneEdNetSpec(16);
   spec.output.units = "metres";

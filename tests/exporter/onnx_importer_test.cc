@@ -1078,13 +1078,27 @@ TEST_F(OnnxImporter, RejectsDilatedConv) {
   ExpectImportError(m.Save("dilation.onnx"), {"node 'dilated' (op Conv)", "'dilations' = [2, 2]"});
 }
 
-TEST_F(OnnxImporter, RejectsSameLowerAutoPad) {
+TEST_F(OnnxImporter, KeepsSameLowerAutoPadAsItsOwnRuleBesideSameUpperConvs) {
   OnnxModel m;
   m.Input("x", {1, 2, 8, 8});
-  SetString(m.Conv("lower", "x", "y", 2, 2, 3, 2, {}), "auto_pad", "SAME_LOWER");
+  SetString(m.Conv("lower", "x", "h", 2, 2, 3, 2, {}), "auto_pad", "SAME_LOWER");
+  m.Conv("upper", "h", "y", 2, 2, 3, 2, {0, 0, 1, 1});  // TensorFlow 'same' at 4x4
   m.Output("y");
-  ExpectImportError(m.Save("same_lower.onnx"),
-                    {"node 'lower' (op Conv)", "'auto_pad' = 'SAME_LOWER'"});
+  auto spec = ImportOk(m.Save("same_lower.onnx"));
+  ASSERT_TRUE(spec.ok());
+  // total 1 at in = 8, stride 2: the odd pixel goes first.
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).pads, (Pads{1, 1, 0, 0}));
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).padding_rule, PaddingRule::kSameLower);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).padding_rule, PaddingRule::kSameUpper);
+}
+
+TEST_F(OnnxImporter, RejectsAnUnknownAutoPad) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 8, 8});
+  SetString(m.Conv("odd", "x", "y", 2, 2, 3, 2, {}), "auto_pad", "SAME_MIDDLE");
+  m.Output("y");
+  ExpectImportError(m.Save("same_middle.onnx"),
+                    {"node 'odd' (op Conv)", "'auto_pad' = 'SAME_MIDDLE'", "SAME_LOWER"});
 }
 
 TEST_F(OnnxImporter, RejectsLinearResize) {

@@ -123,7 +123,30 @@ INSTANTIATE_TEST_SUITE_P(
                       ConvCase{8, 5, 2, 3, 3, 2, PaddingRule::kExplicit, {0, 2, 1, 0}},
                       ConvCase{4, 4, 17, 33, 1, 1, PaddingRule::kExplicit, {0, 0, 0, 0}},
                       ConvCase{9, 6, 3, 2, 5, 3, PaddingRule::kSameUpper, {}},
-                      ConvCase{1, 1, 4, 3, 3, 1, PaddingRule::kSameUpper, {}}));
+                      ConvCase{1, 1, 4, 3, 3, 1, PaddingRule::kSameUpper, {}},
+                      ConvCase{8, 7, 3, 4, 4, 1, PaddingRule::kSameLower, {}},
+                      ConvCase{6, 9, 5, 3, 3, 2, PaddingRule::kSameLower, {}}));
+
+// ONNX SAME_LOWER pads the same total as SAME_UPPER, with the odd pixel first.
+TEST(ConvOutputSize, SameLowerPadsTheSameTotalWithTheLargerHalfFirst) {
+  struct Case {
+    int in, kernel, stride, upper_before, upper_after;
+  };
+  for (const Case c : {Case{540, 3, 2, 0, 1}, Case{135, 3, 2, 1, 1}, Case{8, 4, 1, 1, 2},
+                       Case{5, 3, 2, 1, 1}, Case{7, 1, 1, 0, 0}}) {
+    int upper_before = -1, upper_after = -1, lower_before = -1, lower_after = -1;
+    const int upper_out = ConvOutputSize(c.in, c.kernel, c.stride, PaddingRule::kSameUpper, 9, 9,
+                                         &upper_before, &upper_after);
+    const int lower_out = ConvOutputSize(c.in, c.kernel, c.stride, PaddingRule::kSameLower, 9, 9,
+                                         &lower_before, &lower_after);
+    EXPECT_EQ(upper_out, (c.in + c.stride - 1) / c.stride) << c.in;
+    EXPECT_EQ(lower_out, upper_out) << c.in;
+    EXPECT_EQ(upper_before, c.upper_before) << c.in;
+    EXPECT_EQ(upper_after, c.upper_after) << c.in;
+    EXPECT_EQ(lower_before, c.upper_after) << c.in;
+    EXPECT_EQ(lower_after, c.upper_before) << c.in;
+  }
+}
 
 TEST(UpsampleNearestRef, RepeatsEachPixelFactorTimes) {
   const std::vector<float> in = {1, 10, 2, 20, 3, 30, 4, 40};  // 2x2, 2 channels

@@ -109,7 +109,7 @@ TEST(GraphSession, ConcatAndAddComputeWhatTheyNameOnEveryIsa) {
   spec.input.name = "x";
   spec.input.channels = 2;
   spec.input.image_order.clear();
-  spec.output.channels = 4;
+  exporter::SetOutputChannels(spec, 4);
   spec.output.channel_names = {"a", "b", "x0", "x1"};
   exporter::ConvSpec c;
   c.name = "twice";
@@ -280,7 +280,7 @@ TEST(GraphSession, OutputShapeOfAGraphFollowsItsLastLayer) {
 // name the layer and both shapes.
 TEST(GraphSession, ConcatOfDifferentSizesIsRefusedNamingTheLayer) {
   exporter::ModelSpec spec;
-  spec.output.channels = 8;
+  exporter::SetOutputChannels(spec, 8);
   spec.output.channel_names.clear();
   for (int stride : {1, 2}) {
     exporter::ConvSpec c;

@@ -56,6 +56,7 @@ struct ExportArgs {
   std::string padding = "auto";
   std::string color_order;
   std::string image_order;
+  std::string input_kind = "auto";
   float scale = 1.0f;
   std::string mean;
   std::string std;
@@ -87,8 +88,9 @@ struct ExportArgs {
 
 // The flags that set metadata; with a .sfrt source only the given ones replace the file's values.
 constexpr const char* kMetadataFlags[] = {
-    "--name",  "--color-order", "--image-order", "--scale", "--mean",  "--std",
-    "--focal", "--baseline",    "--cx",          "--cy",    "--units", "--training-state"};
+    "--name", "--input-kind", "--color-order",   "--image-order", "--scale",
+    "--mean", "--std",        "--focal",         "--baseline",    "--cx",
+    "--cy",   "--units",      "--training-state"};
 constexpr size_t kMaxUnitsLength = 64;
 // Flags that only apply with --calibration.
 constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibration-frames",
@@ -96,6 +98,50 @@ constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibratio
 
 bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
+}
+
+// Whether the network's input is images (3 channels each, in `image_order`) or a plain tensor fed
+// as given (--input-kind). A .sfrt source without --input-kind keeps what its file says.
+Result<bool> InputIsImages(const ExportArgs& args, const exporter::ModelSpec& spec,
+                           const std::vector<exporter::ImageSlot>& image_order, bool sfrt_source) {
+  const int channels = spec.input.channels;
+  const int image_channels = 3 * static_cast<int>(image_order.size());
+  std::string kind = args.input_kind;
+  if (sfrt_source && !Given(args, "--input-kind")) {
+    kind = spec.input.image_order.empty() ? "tensor" : "images";
+  } else if (kind == "auto") {
+    kind = channels == image_channels ? "images" : "tensor";
+  }
+  if (kind == "images") {
+    if (channels != image_channels) {
+      return Status::Error(args.input + ": the network's input has " + std::to_string(channels) +
+                           " channels; --input-kind images takes " +
+                           std::to_string(image_channels) +
+                           " (3 per image of --image-order, default L0,R0,L1,R1)");
+    }
+    return true;
+  }
+  for (const char* flag : {"--image-order", "--color-order", "--scale", "--mean", "--std"}) {
+    if (Given(args, flag)) {
+      return Status::Error(std::string(flag) + " describes image inputs, but the input is a " +
+                           std::to_string(channels) + "-channel plain tensor (--input-kind " +
+                           args.input_kind + "); give --input-kind images for images");
+    }
+  }
+  return false;
+}
+
+// The report's description of the input: the images and their preprocessing, or a plain tensor.
+std::string InputLine(const InputDesc& input) {
+  const std::string channels = std::to_string(input.channels) + " channels: ";
+  if (input.image_order.empty()) return channels + "a plain tensor, fed as given";
+  std::string order;
+  for (const std::string& slot : input.image_order) order += (order.empty() ? "" : ",") + slot;
+  return channels + order + ", " + input.color_order + ", value = (pixel * " +
+         FormatFloat(input.scale) + " - mean) / std, mean " + FormatFloat(input.mean[0]) + "," +
+         FormatFloat(input.mean[1]) + "," + FormatFloat(input.mean[2]) + ", std " +
+         FormatFloat(input.std[0]) + "," + FormatFloat(input.std[1]) + "," +
+         FormatFloat(input.std[2]);
 }
 
 // Empty when `units` can be stored: 1..64 printable ASCII characters.
@@ -187,28 +233,32 @@ bool ParseImageOrder(const std::string& text, std::vector<exporter::ImageSlot>* 
 // One line describing how the model's convolutions pad, as the loaded file states it.
 std::string DescribePadding(const Model& model) {
   int same_upper = 0;
+  int same_lower = 0;
   int explicit_pads = 0;
   for (const LayerDesc& layer : model.layers()) {
     if (layer.kind != LayerKind::kConv2D) continue;
-    if (layer.conv.padding_rule == PaddingRule::kSameUpper) {
-      ++same_upper;
-    } else {
-      ++explicit_pads;
-    }
+    same_upper += layer.conv.padding_rule == PaddingRule::kSameUpper;
+    same_lower += layer.conv.padding_rule == PaddingRule::kSameLower;
+    explicit_pads += layer.conv.padding_rule == PaddingRule::kExplicit;
   }
   const InputDesc& in = model.metadata().input;
   std::string traced = in.traced_height > 0 ? std::to_string(in.traced_height) + "x" +
                                                   std::to_string(in.traced_width)
                                             : "an unknown size";
-  if (explicit_pads == 0) {
-    return "same-upper at all " + std::to_string(same_upper) +
-           " convs (pads computed per input size)";
+  const int convs = same_upper + same_lower + explicit_pads;
+  for (const auto& [count, rule] :
+       {std::pair{same_upper, "same-upper"}, {same_lower, "same-lower"}}) {
+    if (count == convs) {
+      return std::string(rule) + " at all " + std::to_string(count) +
+             " convs (pads computed per input size)";
+    }
   }
-  if (same_upper == 0) {
+  if (explicit_pads == convs) {
     return "explicit at all " + std::to_string(explicit_pads) + " convs (the amounts traced at " +
            traced + ", applied unchanged at every size)";
   }
   return "mixed: " + std::to_string(same_upper) + " convs same-upper, " +
+         (same_lower > 0 ? std::to_string(same_lower) + " same-lower, " : "") +
          std::to_string(explicit_pads) + " explicit (as traced at " + traced + ")";
 }
 
@@ -839,23 +889,27 @@ int RunExport(const ExportArgs& args) {
                 "session loads them; activations bf16 between them)";
   }
 
-  // The image order must account for every input channel (3 per image).
-  if (3 * static_cast<int>(image_order.size()) != spec.input.channels) {
-    return ReportError(kName,
-                       args.input + ": the network's input has " +
-                           std::to_string(spec.input.channels) + " channels; sfrt models take " +
-                           std::to_string(3 * image_order.size()) +
-                           " (the four RGB images L0, R0, L1, R1, ordered by --image-order)",
-                       kExitFailure);
-  }
   // Apply the flags (a .sfrt source keeps its own value of each flag not given).
   auto apply = [&](std::string_view flag) { return !sfrt_source || Given(args, flag); };
+  Result<bool> images = InputIsImages(args, spec, image_order, sfrt_source);
+  if (!images.ok()) return ReportError(kName, images.message(), kExitFailure);
+  if (*images) {
+    if (apply("--image-order") || apply("--input-kind")) spec.input.image_order = image_order;
+    if (apply("--color-order")) spec.input.color_order = color_order;
+    if (apply("--scale")) spec.input.scale = args.scale;
+    if (apply("--mean")) spec.input.mean = mean;
+    if (apply("--std")) spec.input.std = stddev;
+  } else {
+    // A plain tensor is fed as given: no image order, and the pixel transform is the identity.
+    const exporter::InputSpec plain;
+    if (spec.input.name == plain.name) spec.input.name = "tensor";
+    spec.input.image_order.clear();
+    spec.input.color_order = plain.color_order;
+    spec.input.scale = plain.scale;
+    spec.input.mean = plain.mean;
+    spec.input.std = plain.std;
+  }
   if (!args.name.empty()) spec.name = args.name;
-  if (apply("--image-order")) spec.input.image_order = image_order;
-  if (apply("--color-order")) spec.input.color_order = color_order;
-  if (apply("--scale")) spec.input.scale = args.scale;
-  if (apply("--mean")) spec.input.mean = mean;
-  if (apply("--std")) spec.input.std = stddev;
   if (apply("--focal")) spec.camera.focal_px = args.focal;
   if (apply("--baseline")) spec.camera.baseline = args.baseline;
   if (apply("--cx")) spec.camera.cx = args.cx;
@@ -959,11 +1013,6 @@ int RunExport(const ExportArgs& args) {
                              (pools > 0 ? ", " + std::to_string(pools) + " pool" : "") +
                              (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
                              (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
-  std::string order;
-  for (const std::string& slot : meta.input.image_order) {
-    if (!order.empty()) order += ",";
-    order += slot;
-  }
   const std::string traced =
       meta.input.traced_height > 0
           ? std::to_string(meta.input.traced_height) + "x" + std::to_string(meta.input.traced_width)
@@ -976,12 +1025,7 @@ int RunExport(const ExportArgs& args) {
             << "  parameters  " << GroupDigits(model.parameter_count()) << "\n"
             << "  padding     " << DescribePadding(model) << "\n"
             << "  shapes      " << shapes_line << "\n"
-            << "  input       " << meta.input.channels << " channels: " << order << ", "
-            << meta.input.color_order << ", value = (pixel * " << FormatFloat(meta.input.scale)
-            << " - mean) / std, mean " << FormatFloat(meta.input.mean[0]) << ","
-            << FormatFloat(meta.input.mean[1]) << "," << FormatFloat(meta.input.mean[2]) << ", std "
-            << FormatFloat(meta.input.std[0]) << "," << FormatFloat(meta.input.std[1]) << ","
-            << FormatFloat(meta.input.std[2]) << "\n"
+            << "  input       " << InputLine(meta.input) << "\n"
             << "  camera      f " << FormatFloat(meta.camera.focal_px) << " px, baseline "
             << FormatFloat(meta.camera.baseline) << ", cx " << FormatFloat(meta.camera.cx)
             << ", cy " << FormatFloat(meta.camera.cy) << "\n"
@@ -1029,6 +1073,13 @@ Command AddExportCommand(CLI::App& parent) {
   cmd->add_option("--image-order", args->image_order,
                   "Order of the four images along the input channels, e.g. L0,R0,L1,R1 "
                   "(default; L = left, R = right, 0 = time t, 1 = t+1)");
+  cmd->add_option("--input-kind", args->input_kind,
+                  "What the network's input holds: images (3 channels per image of "
+                  "--image-order, preprocessed by the metadata), tensor (any channel count, fed "
+                  "as given: sfrt infer --input-npy), or auto: images when the channel count is 3 "
+                  "per image of --image-order, else tensor")
+      ->check(CLI::IsMember({"auto", "images", "tensor"}))
+      ->capture_default_str();
   cmd->add_option("--scale", args->scale,
                   "Pixel scale: fed value = (pixel * scale - mean[c]) / std[c]")
       ->capture_default_str();

@@ -157,8 +157,10 @@ Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc)
                          std::to_string(desc.channels) + ") or (1, H, W, " +
                          std::to_string(desc.channels) + ")");
   }
-  if (std::string problem = config::CheckSize(
-          config::kInputSide, path + ": shape " + array->ShapeString() + ":", shape[0], shape[1]);
+  const config::IntRange& sides =
+      desc.image_order.empty() ? config::kTensorSide : config::kInputSide;
+  if (std::string problem =
+          config::CheckSize(sides, path + ": shape " + array->ShapeString(), shape[0], shape[1]);
       !problem.empty()) {
     return Status::Error(problem);
   }

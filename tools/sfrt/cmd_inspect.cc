@@ -39,6 +39,15 @@ std::string Triple(const float v[3]) {
   return FormatFloat(v[0]) + "," + FormatFloat(v[1]) + "," + FormatFloat(v[2]);
 }
 
+// The input's kind: images with their order and preprocessing, or a plain tensor.
+std::string InputKindLines(const InputDesc& input) {
+  if (input.image_order.empty()) return "  kind            plain tensor, fed as given\n";
+  return "  kind            images\n  image order     " + Join(input.image_order, ",") +
+         "\n  color order     " + input.color_order + "\n  value           (pixel * " +
+         FormatFloat(input.scale) + " - mean[c]) / std[c], mean " + Triple(input.mean) + ", std " +
+         Triple(input.std) + "\n";
+}
+
 std::string PadsString(const Padding& p) {
   return std::to_string(p.top) + "," + std::to_string(p.left) + "," + std::to_string(p.bottom) +
          "," + std::to_string(p.right);
@@ -132,15 +141,13 @@ std::string InputsSuffix(const Model& model, size_t i) {
 std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
   switch (layer.kind) {
     case LayerKind::kConv2D:
-      return PadsString(g.pads) +
-             (layer.conv.padding_rule == PaddingRule::kSameUpper ? " same-upper" : " explicit");
+      return PadsString(g.pads) + " " + PaddingRuleName(layer.conv.padding_rule);
     case LayerKind::kCrop:
       return "crop " + PadsString(g.crop);
     case LayerKind::kConvTranspose2D:
       return "crop " + PadsString(g.pads);
     case LayerKind::kPool2D:
-      return PadsString(g.pads) +
-             (layer.pool.padding_rule == PaddingRule::kSameUpper ? " same-upper" : " explicit");
+      return PadsString(g.pads) + " " + PaddingRuleName(layer.pool.padding_rule);
     case LayerKind::kUpsample:
     case LayerKind::kConcat:
     case LayerKind::kAdd:
@@ -287,15 +294,12 @@ int RunInspect(const InspectArgs& args) {
       << "  source sha256   " << meta.source_sha256 << "\n"
       << "input     " << meta.input.name << "\n"
       << "  channels        " << meta.input.channels << "\n"
-      << "  image order     " << Join(meta.input.image_order, ",") << "\n"
-      << "  color order     " << meta.input.color_order << "\n"
-      << "  value           (pixel * " << FormatFloat(meta.input.scale)
-      << " - mean[c]) / std[c], mean " << Triple(meta.input.mean) << ", std "
-      << Triple(meta.input.std) << "\n"
-      << "  traced size     " << traced << "\n"
+      << InputKindLines(meta.input) << "  traced size     " << traced << "\n"
       << "output    " << meta.output.name << "\n"
-      << "  channels        " << meta.output.channels << " ("
-      << Join(meta.output.channel_names, ", ") << ")\n"
+      << "  channels        " << meta.output.channels
+      << (meta.output.channel_names.empty() ? std::string(" (unnamed)")
+                                            : " (" + Join(meta.output.channel_names, ", ") + ")")
+      << "\n"
       << "  units           " << UnitsText(meta) << "\n"
       << "camera    (training)\n"
       << "  focal           " << FormatFloat(meta.camera.focal_px) << " px\n"

@@ -30,7 +30,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 6;
+inline constexpr int kSchemaVersionMinor = 7;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
 // as do kConvTranspose2D and kPool2D (schema 1.6).
@@ -41,7 +41,10 @@ inline bool Float32OnlyKind(LayerKind kind) {
          kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D;
 }
 enum class Activation { kNone, kRelu, kLeakyRelu };
-enum class PaddingRule { kExplicit, kSameUpper };
+// kSameLower (schema 1.7): ONNX SAME_LOWER, the larger half of an odd total at the top/left.
+enum class PaddingRule { kExplicit, kSameUpper, kSameLower };
+// "explicit", "same-upper", "same-lower".
+const char* PaddingRuleName(PaddingRule rule);
 // kToSecondInput (schema 1.5): to the height and width of the crop's second input.
 enum class CropRule { kExplicit, kToInputSize, kToSecondInput };
 enum class WeightType { kFloat32, kFloat16 };

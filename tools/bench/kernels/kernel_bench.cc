@@ -98,7 +98,7 @@ std::shared_ptr<const Model> BuildModel(const LayerCase& c, std::string* error) 
   spec.name = "bench-" + c.name;
   spec.input.channels = c.conv.in_channels;
   spec.input.image_order.clear();
-  spec.output.channels = c.conv.out_channels;
+  exporter::SetOutputChannels(spec, c.conv.out_channels);
   spec.output.channel_names.clear();
   if (c.upsample) spec.layers.push_back(exporter::UpsampleSpec{"up", 2, 2, {}});
   if (c.crop.top != 0 || c.crop.left != 0) {

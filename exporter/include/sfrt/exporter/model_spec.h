@@ -240,4 +240,13 @@ inline void CropToSecondInput(CropSpec& crop, const std::string& reference) {
   crop.excess_cols_from_left = cols_known ? a.left > 0 : rows_known && a.top > 0;
 }
 
+// Sets the output's channel count as the importer found it. The default names (dX, dY, dZ)
+// describe a 3-channel scene flow; any other count is left unnamed rather than misnamed.
+inline void SetOutputChannels(ModelSpec& spec, int channels) {
+  spec.output.channels = channels;
+  if (static_cast<int>(spec.output.channel_names.size()) != channels) {
+    spec.output.channel_names.clear();
+  }
+}
+
 }  // namespace sfrt::exporter

@@ -25,6 +25,11 @@ struct IntRange {
 // bench, eval and inspect, the shape of an `infer --input-npy` array, and the profile's
 // model.input_height/input_width and latency.fallback_height/fallback_width.
 inline constexpr IntRange kInputSide = {"input size", 16, 4096, "pixels per side", ""};
+// A plain-tensor input (a model whose input is not images, e.g. an operator test), each side: the
+// shape of an `infer --input-npy` array for such a model. The model's own shapes decide whether
+// its layers fit a small size.
+inline constexpr IntRange kTensorSide = {"tensor size", 1, 4096, "pixels per side",
+                                         "models whose input is a plain tensor"};
 // Camera and image frame size, each side: run --camera-size, synth --size, the profile's
 // camera.width/height (a side-by-side frame: each half).
 inline constexpr IntRange kFrameSide = {"frame size", 16, 8192, "pixels per side", ""};
