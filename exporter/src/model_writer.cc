@@ -344,6 +344,41 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       layers.push_back(fb::CreateLayer(b, b.CreateString(d->name), fb::LayerOp::ConvTranspose2D,
                                        deconv.Union(), names));
       channels = d->out_channels;
+    } else if (const auto* affine = std::get_if<ChannelAffineSpec>(&ls)) {
+      if (options.schema_minor < 7) {
+        return Status::Error(where + ": ChannelAffine needs schema 1.7; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      if (affine->scale.size() != static_cast<size_t>(channels) ||
+          affine->shift.size() != static_cast<size_t>(channels)) {
+        return Status::Error(where + ": holds " + std::to_string(affine->scale.size()) +
+                             " scales and " + std::to_string(affine->shift.size()) +
+                             " shifts; its input has " + std::to_string(channels) + " channels");
+      }
+      const auto scale = w.AddTensor(affine->scale, {channels});
+      const auto shift = w.AddTensor(affine->shift, {channels});
+      const auto op = fb::CreateChannelAffine(b, scale, shift, ToSchema(affine->activation),
+                                              affine->leaky_slope);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(affine->name), fb::LayerOp::ChannelAffine,
+                                       op.Union(), names));
+    } else if (const auto* resize = std::get_if<ResizeSpec>(&ls)) {
+      if (options.schema_minor < 7) {
+        return Status::Error(where + ": Resize needs schema 1.7; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
+      const ResizeParams& r = resize->params;
+      static_assert(static_cast<int>(ResizeMode::kCubic) ==
+                    static_cast<int>(fb::ResizeMode::Cubic));
+      static_assert(static_cast<int>(ResizeCoordinates::kTfHalfPixelForNn) ==
+                    static_cast<int>(fb::ResizeCoordinates::TfHalfPixelForNn));
+      static_assert(static_cast<int>(NearestRounding::kCeil) ==
+                    static_cast<int>(fb::NearestRounding::Ceil));
+      const auto op = fb::CreateResize(
+          b, static_cast<fb::ResizeMode>(r.mode), static_cast<fb::ResizeCoordinates>(r.coordinates),
+          static_cast<fb::NearestRounding>(r.nearest), r.scale_num_h, r.scale_den_h, r.scale_num_w,
+          r.scale_den_w, r.cubic_coeff_a, r.exclude_outside);
+      layers.push_back(
+          fb::CreateLayer(b, b.CreateString(resize->name), fb::LayerOp::Resize, op.Union(), names));
     } else if (const auto* pool = std::get_if<PoolSpec>(&ls)) {
       if (options.schema_minor < 6) {
         return Status::Error(where + ": Pool2D needs schema 1.6; writing 1." +

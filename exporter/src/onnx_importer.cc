@@ -7,7 +7,9 @@
 //     inputs are all constants; Shape/Size of any tensor with a static shape is a constant) or a
 //     runtime tensor with a static NCHW shape. Runtime tensors may only flow through Conv, Pad,
 //     BatchNormalization (inference), LeakyRelu, Relu, Resize, Upsample, Slice, Identity, and
-//     Concat (channels) and Add, which read several of them.
+//     Concat (channels) and Add, which read several of them. A Resize that is nearest upsampling
+//     by integer factors equal to in[floor(y / f)] becomes an Upsample; any other (linear, cubic,
+//     other scales or roundings) a Resize layer (schema 1.7) with its scales as exact fractions.
 //  4. The layers are the ops the output depends on through runtime tensors, in file order: a
 //     graph (schema 1.5) whose layers name the layers they read, or, when each reads the one
 //     before it, a chain that names none. Pads fold into the Conv that reads them, a
@@ -37,6 +39,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <string>
@@ -911,7 +914,8 @@ struct GraphOp {
     kConcat,
     kAdd,
     kConvTranspose,
-    kPool
+    kPool,
+    kResize
   };
   Kind kind = Kind::kIdentity;
   int node_index = 0;
@@ -922,6 +926,7 @@ struct GraphOp {
   ConvSpec conv;             // kConv; pads = the Conv's own amounts at the traced size
   ConvTransposeSpec deconv;  // kConvTranspose
   PoolSpec pool;             // kPool
+  ResizeParams resize;       // kResize (a resize that is not nearest upsampling by integers)
   Pads pads;                 // kPad: amounts added; kSlice: amounts removed
   Activation activation = Activation::kNone;
   float slope = 0.0f;
@@ -976,6 +981,8 @@ class Importer {
   Status ProcessPad(int idx, GraphOp& op);
   Status ProcessBatchNorm(int idx, GraphOp& op);
   Status ProcessResize(int idx, GraphOp& op);
+  Status ResizeScales(int idx, const GraphOp& op, const std::vector<double>& scales,
+                      const std::vector<int64_t>& sizes, int64_t num[2], int64_t den[2]);
   Status ProcessSlice(int idx, GraphOp& op);
   // Concat and Add of runtime tensors.
   Status ProcessMergeNode(int idx);
@@ -2017,19 +2024,77 @@ Status Importer::ProcessPad(int idx, GraphOp& op) {
   return Status::Ok();
 }
 
+// Scales (from 'scales', or 'sizes' over the traced input) as exact fractions: a float scale is a
+// binary fraction, a size ratio is sizes / input. Only H and W may be scaled.
+Status Importer::ResizeScales(int idx, const GraphOp& op, const std::vector<double>& scales,
+                              const std::vector<int64_t>& sizes, int64_t num[2], int64_t den[2]) {
+  const std::string what = scales.empty() ? "input 'sizes' = " + JoinInts(sizes)
+                                          : "input 'scales' = " + JoinReals(scales);
+  if ((scales.empty() ? sizes.size() : scales.size()) != 4) {
+    return NodeError(idx, what + " must have 4 values (NCHW)");
+  }
+  for (int k = 0; k < 4; ++k) {
+    int64_t n = 1;
+    int64_t d = 1;
+    if (!scales.empty()) {
+      const double s = scales[k];
+      if (!std::isfinite(s) || s <= 0 || s > model_limits::kMaxUpsample) {
+        return NodeError(idx, what + ": value " + FormatDouble(s) + " on axis " +
+                                  std::to_string(k) + " is not in (0, " +
+                                  std::to_string(model_limits::kMaxUpsample) + "]");
+      }
+      // s * 2^e is an integer for some e <= 32 when s came from a float.
+      int e = 0;
+      while (e < 32 && std::ldexp(s, e) != std::floor(std::ldexp(s, e))) ++e;
+      if (std::ldexp(s, e) != std::floor(std::ldexp(s, e))) {
+        return NodeError(idx, what + ": value " + FormatDouble(s) + " on axis " +
+                                  std::to_string(k) + " is not a float32 number");
+      }
+      n = static_cast<int64_t>(std::ldexp(s, e));
+      d = int64_t{1} << e;
+    } else {
+      if (sizes[k] < 1 || sizes[k] > op.in_shape[k] * model_limits::kMaxUpsample) {
+        return NodeError(idx, what + " for an input of shape " + ShapeText(op.in_shape) +
+                                  ": axis " + std::to_string(k) + " is not in 1.." +
+                                  std::to_string(model_limits::kMaxUpsample) + " times the input");
+      }
+      n = sizes[k];
+      d = op.in_shape[k];
+    }
+    const int64_t g = std::gcd(n, d);
+    n /= g;
+    d /= g;
+    if (k < 2 && (n != 1 || d != 1)) {
+      return NodeError(idx, what + " scales the batch or channel axis; only H and W");
+    }
+    if (k >= 2) {
+      num[k - 2] = n;
+      den[k - 2] = d;
+    }
+  }
+  return Status::Ok();
+}
+
 Status Importer::ProcessResize(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   const bool is_resize = n.op_type() == "Resize";
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "nearest"));
-  if (mode != "nearest") {
-    return NodeError(idx, "attribute 'mode' = " + Quote(mode) + " is not supported (only nearest)");
+  if (mode != "nearest" && mode != "linear" && mode != "cubic") {
+    return NodeError(
+        idx, "attribute 'mode' = " + Quote(mode) + " is not supported (nearest, linear, cubic)");
   }
   std::string ctm = "asymmetric";
   std::string nearest_mode = "floor";  // Upsample: in[floor(y / scale)]
+  float cubic_a = -0.75f;
+  int64_t exclude_outside = 0;
   if (is_resize) {
     SFRT_ONNX_ASSIGN_OR_RETURN(ctm,
                                StringAttr(idx, "coordinate_transformation_mode", "half_pixel"));
     SFRT_ONNX_ASSIGN_OR_RETURN(nearest_mode, StringAttr(idx, "nearest_mode", "round_prefer_floor"));
+    SFRT_ONNX_ASSIGN_OR_RETURN(cubic_a, FloatAttr(idx, "cubic_coeff_a", -0.75f));
+    SFRT_ONNX_ASSIGN_OR_RETURN(exclude_outside, IntAttr(idx, "exclude_outside", 0));
+  } else if (mode == "cubic") {
+    return NodeError(idx, "attribute 'mode' = 'cubic' is not an Upsample mode (nearest, linear)");
   }
   // Scales or sizes.
   std::vector<double> scales;
@@ -2055,60 +2120,77 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
   } else {
     return NodeError(idx, "no scales given");
   }
-  int64_t factors[4] = {1, 1, 1, 1};
-  if (!scales.empty()) {
-    if (scales.size() != 4) {
-      return NodeError(idx, "input 'scales' = " + JoinReals(scales) + " must have 4 values (NCHW)");
-    }
-    for (int k = 0; k < 4; ++k) {
-      const double r = std::round(scales[k]);
-      if (!std::isfinite(scales[k]) || r < 1.0 || r > 1024.0 || std::fabs(scales[k] - r) > 1e-6) {
-        return NodeError(idx, "input 'scales' = " + JoinReals(scales) + ": value " +
-                                  FormatDouble(scales[k]) + " on axis " + std::to_string(k) +
-                                  " is not a positive integer factor");
-      }
-      factors[k] = static_cast<int64_t>(r);
-    }
-  } else {
-    if (sizes.size() != 4) {
-      return NodeError(idx, "input 'sizes' = " + JoinInts(sizes) + " must have 4 values (NCHW)");
-    }
-    for (int k = 0; k < 4; ++k) {
-      if (sizes[k] < op.in_shape[k] || sizes[k] % op.in_shape[k] != 0 ||
-          sizes[k] / op.in_shape[k] > 1024) {
-        return NodeError(idx, "input 'sizes' = " + JoinInts(sizes) + " for an input of shape " +
-                                  ShapeText(op.in_shape) + ": axis " + std::to_string(k) +
-                                  " is not a positive integer factor");
-      }
-      factors[k] = sizes[k] / op.in_shape[k];
+  int64_t num[2] = {1, 1};
+  int64_t den[2] = {1, 1};
+  SFRT_ONNX_RETURN_IF_ERROR(ResizeScales(idx, op, scales, sizes, num, den));
+  op.out_shape = {op.in_shape[0], op.in_shape[1], op.in_shape[2] * num[0] / den[0],
+                  op.in_shape[3] * num[1] / den[1]};
+  if (op.out_shape[2] < 1 || op.out_shape[3] < 1) {
+    return NodeError(
+        idx, "resizes " + ShapeText(op.in_shape) + " to an empty " + ShapeText(op.out_shape));
+  }
+
+  // Nearest upsampling by integer factors that is in[floor(y / f)] stays an Upsample, which the
+  // runtime fuses into the convolution after it.
+  if (mode == "nearest" && den[0] == 1 && den[1] == 1 &&
+      NearestIsFloorOfQuotient(ctm, nearest_mode, num[0]) &&
+      NearestIsFloorOfQuotient(ctm, nearest_mode, num[1])) {
+    op.kind = GraphOp::Kind::kUpsample;
+    op.factor_h = static_cast<int>(num[0]);
+    op.factor_w = static_cast<int>(num[1]);
+    return Status::Ok();
+  }
+
+  ResizeParams& r = op.resize;
+  op.kind = GraphOp::Kind::kResize;
+  r.mode = mode == "nearest"  ? ResizeMode::kNearest
+           : mode == "linear" ? ResizeMode::kLinear
+                              : ResizeMode::kCubic;
+  static const std::pair<const char*, ResizeCoordinates> kCoordinates[] = {
+      {"half_pixel", ResizeCoordinates::kHalfPixel},
+      {"pytorch_half_pixel", ResizeCoordinates::kPytorchHalfPixel},
+      {"align_corners", ResizeCoordinates::kAlignCorners},
+      {"asymmetric", ResizeCoordinates::kAsymmetric},
+      {"tf_half_pixel_for_nn", ResizeCoordinates::kTfHalfPixelForNn}};
+  bool known = false;
+  for (const auto& [name, value] : kCoordinates) {
+    if (ctm == name) {
+      r.coordinates = value;
+      known = true;
     }
   }
-  if (factors[0] != 1 || factors[1] != 1) {
-    return NodeError(idx, "scales the batch or channel axis (factors " +
-                              JoinInts({factors[0], factors[1]}) + "); only H and W");
+  if (!known) {
+    return NodeError(idx, "attribute 'coordinate_transformation_mode' = " + Quote(ctm) +
+                              " is not supported (half_pixel, pytorch_half_pixel, align_corners, "
+                              "asymmetric, tf_half_pixel_for_nn)");
   }
-  for (int k = 2; k < 4; ++k) {
-    if (!NearestIsFloorOfQuotient(ctm, nearest_mode, factors[k])) {
-      return NodeError(idx, "attribute 'coordinate_transformation_mode' = " + Quote(ctm) +
-                                " with 'nearest_mode' = " + Quote(nearest_mode) +
-                                " is not in[floor(y / " + std::to_string(factors[k]) +
-                                ")] nearest upsampling (accepted: asymmetric + "
-                                "floor; half_pixel or pytorch_half_pixel + round_prefer_floor or "
-                                "round_prefer_ceil; tf_half_pixel_for_nn + floor; asymmetric + "
-                                "round_prefer_floor and align_corners + round_prefer_floor or "
-                                "round_prefer_ceil at factors up to 2)");
+  static const std::pair<const char*, NearestRounding> kRounding[] = {
+      {"round_prefer_floor", NearestRounding::kRoundPreferFloor},
+      {"round_prefer_ceil", NearestRounding::kRoundPreferCeil},
+      {"floor", NearestRounding::kFloor},
+      {"ceil", NearestRounding::kCeil}};
+  known = false;
+  for (const auto& [name, value] : kRounding) {
+    if (nearest_mode == name) {
+      r.nearest = value;
+      known = true;
     }
   }
-  if (factors[2] > model_limits::kMaxUpsample || factors[3] > model_limits::kMaxUpsample) {
-    return NodeError(idx, std::string(scales.empty() ? "input 'sizes'" : "input 'scales'") +
-                              " gives factors " + JoinInts({factors[2], factors[3]}) +
-                              ", above the largest upsampling factor " +
-                              std::to_string(model_limits::kMaxUpsample));
+  if (!known) {
+    return NodeError(idx, "attribute 'nearest_mode' = " + Quote(nearest_mode) +
+                              " is not supported (round_prefer_floor, round_prefer_ceil, floor, "
+                              "ceil)");
   }
-  op.factor_h = static_cast<int>(factors[2]);
-  op.factor_w = static_cast<int>(factors[3]);
-  op.out_shape = {op.in_shape[0], op.in_shape[1], op.in_shape[2] * factors[2],
-                  op.in_shape[3] * factors[3]};
+  if (!std::isfinite(cubic_a)) {
+    return NodeError(idx,
+                     "attribute 'cubic_coeff_a' = " + FormatDouble(cubic_a) + " is not finite");
+  }
+  r.scale_num_h = num[0];
+  r.scale_den_h = den[0];
+  r.scale_num_w = num[1];
+  r.scale_den_w = den[1];
+  r.cubic_coeff_a = cubic_a;
+  r.exclude_outside = exclude_outside != 0;
   return Status::Ok();
 }
 
@@ -2427,10 +2509,6 @@ Result<ModelSpec> Importer::Assemble() {
       if (list.empty() || list.back() != i) list.push_back(i);
     }
   }
-  auto producer_label = [&](const std::string& tensor) {
-    return tensor == input_name_ ? std::string("the graph input")
-                                 : NodeLabel(ops_[producer_op_.at(tensor)].node_index);
-  };
 
   ModelSpec spec;
   std::set<std::string> used_names;
@@ -2480,7 +2558,7 @@ Result<ModelSpec> Importer::Assemble() {
   std::vector<ConvTrace> convs;
   std::vector<CropTrace> crops;
   int num_convs = 0, num_ups = 0, num_crops = 0, num_cats = 0, num_adds = 0, num_deconvs = 0,
-      num_pools = 0;
+      num_pools = 0, num_affines = 0;
   // The layer that computes `tensor` when this op alone reads it, so that a BatchNormalization,
   // an activation or another Slice may fold into it.
   auto sole_reader = [&](const std::string& tensor) { return readers[tensor].size() == 1; };
@@ -2609,20 +2687,17 @@ Result<ModelSpec> Importer::Assemble() {
                           source.at(in0).layer_index == static_cast<int>(spec.layers.size()) - 1 &&
                           sole_reader(in0);
         if (!fits) {
-          const std::string what =
-              bn ? "a BatchNormalization must directly follow a Conv or ConvTranspose (it is "
-                   "folded into its weights and bias)"
-                 : "an activation must directly follow a Conv, ConvTranspose or Add (it is fused "
-                   "into it)";
-          std::string also;
-          if ((conv != nullptr || deconv != nullptr || add != nullptr) && !sole_reader(in0)) {
-            for (size_t r : readers[in0]) {
-              if (r != i) also += (also.empty() ? "" : ", ") + NodeLabel(ops_[r].node_index);
-            }
-            also = "; its input " + Quote(in0) + " is also read by " + also;
-          }
-          return FileError(NodeLabel(op.node_index) + ": " + what + ", but it follows " +
-                           producer_label(in0) + also);
+          // Nothing to fold or fuse into: a per-channel scale and shift of its own (schema 1.7).
+          ChannelAffineSpec affine;
+          affine.name = unique_name(graph().node(op.node_index).name(), "affine", num_affines++);
+          affine.inputs = {source.at(in0).layer};
+          const size_t channels = static_cast<size_t>(op.in_shape[1]);
+          affine.scale = bn ? op.batch_norm.scale : std::vector<float>(channels, 1.0f);
+          affine.shift = bn ? op.batch_norm.shift : std::vector<float>(channels, 0.0f);
+          affine.activation = bn ? Activation::kNone : op.activation;
+          affine.leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
+          add_layer(std::move(affine), op.output);
+          break;
         }
         if (bn && conv != nullptr) {
           FoldIntoConv(op.batch_norm, conv);
@@ -2639,6 +2714,14 @@ Result<ModelSpec> Importer::Assemble() {
           add->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
         }
         source[op.output] = source.at(in0);
+        break;
+      }
+      case GraphOp::Kind::kResize: {
+        ResizeSpec resize;
+        resize.name = unique_name(graph().node(op.node_index).name(), "resize", num_ups++);
+        resize.params = op.resize;
+        resize.inputs = {source.at(in0).layer};
+        add_layer(std::move(resize), op.output);
         break;
       }
       case GraphOp::Kind::kUpsample: {

@@ -81,6 +81,17 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
                       p.stride_h,         p.stride_w, p.padding_rule, p.pads,     p.ceil_mode,
                       p.count_include_pad};
     }
+    case LayerKind::kResize:
+      return ResizeSpec{layer.name, {}, layer.resize};
+    case LayerKind::kChannelAffine: {
+      const ChannelAffineParams& a = layer.affine;
+      return ChannelAffineSpec{layer.name,
+                               {},
+                               std::vector<float>(a.scale, a.scale + a.channels),
+                               std::vector<float>(a.shift, a.shift + a.channels),
+                               a.activation,
+                               a.leaky_slope};
+    }
     case LayerKind::kCrop:
       break;
   }

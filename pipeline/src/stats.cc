@@ -121,6 +121,10 @@ std::string LayerOp(const LayerDesc& layer) {
       return "concat " + std::to_string(layer.inputs.size());
     case LayerKind::kAdd:
       return "add";
+    case LayerKind::kResize:
+      return std::string("resize ") + ResizeModeName(layer.resize.mode);
+    case LayerKind::kChannelAffine:
+      return "scale+shift";
     case LayerKind::kPool2D: {
       const PoolParams& p = layer.pool;
       return std::string(p.kind == PoolKind::kMax ? "maxpool " : "avgpool ") +

@@ -50,6 +50,8 @@ constexpr size_t kTensorAlignment = 64;
 using model_limits::kMaxChannels;
 using model_limits::kMaxKernel;
 using model_limits::kMaxLayers;
+using model_limits::kMaxResizeDen;
+using model_limits::kMaxResizeNum;
 using model_limits::kMaxStride;
 using model_limits::kMaxUpsample;
 
@@ -259,6 +261,83 @@ Status CheckArity(const Checker& check, const std::string& where, const char* op
                     "; inputs names " + std::to_string(n));
 }
 
+// A Resize table's fields, each range and enum value checked (the layer named in errors).
+Status ParseResize(const Checker& check, const std::string& where, const fb::Resize& r,
+                   ResizeParams& p) {
+  switch (r.mode()) {
+    case fb::ResizeMode::Nearest:
+      p.mode = ResizeMode::kNearest;
+      break;
+    case fb::ResizeMode::Linear:
+      p.mode = ResizeMode::kLinear;
+      break;
+    case fb::ResizeMode::Cubic:
+      p.mode = ResizeMode::kCubic;
+      break;
+    default:
+      return check.Fail(where + ": resize mode is unknown value " +
+                        std::to_string(static_cast<int>(r.mode())));
+  }
+  switch (r.coordinates()) {
+    case fb::ResizeCoordinates::HalfPixel:
+      p.coordinates = ResizeCoordinates::kHalfPixel;
+      break;
+    case fb::ResizeCoordinates::PytorchHalfPixel:
+      p.coordinates = ResizeCoordinates::kPytorchHalfPixel;
+      break;
+    case fb::ResizeCoordinates::AlignCorners:
+      p.coordinates = ResizeCoordinates::kAlignCorners;
+      break;
+    case fb::ResizeCoordinates::Asymmetric:
+      p.coordinates = ResizeCoordinates::kAsymmetric;
+      break;
+    case fb::ResizeCoordinates::TfHalfPixelForNn:
+      p.coordinates = ResizeCoordinates::kTfHalfPixelForNn;
+      break;
+    default:
+      return check.Fail(where + ": resize coordinates is unknown value " +
+                        std::to_string(static_cast<int>(r.coordinates())));
+  }
+  switch (r.nearest()) {
+    case fb::NearestRounding::RoundPreferFloor:
+      p.nearest = NearestRounding::kRoundPreferFloor;
+      break;
+    case fb::NearestRounding::RoundPreferCeil:
+      p.nearest = NearestRounding::kRoundPreferCeil;
+      break;
+    case fb::NearestRounding::Floor:
+      p.nearest = NearestRounding::kFloor;
+      break;
+    case fb::NearestRounding::Ceil:
+      p.nearest = NearestRounding::kCeil;
+      break;
+    default:
+      return check.Fail(where + ": resize nearest rounding is unknown value " +
+                        std::to_string(static_cast<int>(r.nearest())));
+  }
+  p.scale_num_h = r.scale_num_h();
+  p.scale_den_h = r.scale_den_h();
+  p.scale_num_w = r.scale_num_w();
+  p.scale_den_w = r.scale_den_w();
+  for (const auto& [num, den, axis] : {std::tuple{p.scale_num_h, p.scale_den_h, "h"},
+                                       std::tuple{p.scale_num_w, p.scale_den_w, "w"}}) {
+    if (num < 1 || num > kMaxResizeNum || den < 1 || den > kMaxResizeDen ||
+        num > den * kMaxUpsample) {
+      return check.Fail(
+          where + ": scale_" + axis + " is " + std::to_string(num) + "/" + std::to_string(den) +
+          "; numerator must be in 1.." + std::to_string(kMaxResizeNum) + ", denominator in 1.." +
+          std::to_string(kMaxResizeDen) + ", the ratio at most " + std::to_string(kMaxUpsample));
+    }
+  }
+  p.cubic_coeff_a = r.cubic_coeff_a();
+  if (!std::isfinite(p.cubic_coeff_a)) {
+    return check.Fail(where + ": cubic_coeff_a is " + std::to_string(p.cubic_coeff_a) +
+                      "; must be finite");
+  }
+  p.exclude_outside = r.exclude_outside();
+  return Status::Ok();
+}
+
 // The graph as a whole: every layer's output but the last is read, and int8 and bf16 layers
 // only in chains without a float32-only op (Float32OnlyKind). Fills the consumer counts and whether
 // the graph is a chain.
@@ -348,6 +427,48 @@ Status TakePhaseWeights(const Checker& check, const std::string& where, const fb
 
 }  // namespace
 
+const char* ResizeModeName(ResizeMode mode) {
+  switch (mode) {
+    case ResizeMode::kNearest:
+      return "nearest";
+    case ResizeMode::kLinear:
+      return "linear";
+    case ResizeMode::kCubic:
+      return "cubic";
+  }
+  return "?";
+}
+
+const char* ResizeCoordinatesName(ResizeCoordinates coordinates) {
+  switch (coordinates) {
+    case ResizeCoordinates::kHalfPixel:
+      return "half_pixel";
+    case ResizeCoordinates::kPytorchHalfPixel:
+      return "pytorch_half_pixel";
+    case ResizeCoordinates::kAlignCorners:
+      return "align_corners";
+    case ResizeCoordinates::kAsymmetric:
+      return "asymmetric";
+    case ResizeCoordinates::kTfHalfPixelForNn:
+      return "tf_half_pixel_for_nn";
+  }
+  return "?";
+}
+
+const char* NearestRoundingName(NearestRounding rounding) {
+  switch (rounding) {
+    case NearestRounding::kRoundPreferFloor:
+      return "round_prefer_floor";
+    case NearestRounding::kRoundPreferCeil:
+      return "round_prefer_ceil";
+    case NearestRounding::kFloor:
+      return "floor";
+    case NearestRounding::kCeil:
+      return "ceil";
+  }
+  return "?";
+}
+
 const char* PaddingRuleName(PaddingRule rule) {
   switch (rule) {
     case PaddingRule::kExplicit:
@@ -385,6 +506,8 @@ size_t Model::parameter_count() const {
       const ConvTransposeParams& c = l.deconv;
       n += static_cast<size_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
            static_cast<size_t>(c.out_channels);
+    } else if (l.kind == LayerKind::kChannelAffine) {
+      n += 2 * static_cast<size_t>(l.affine.channels);
     }
   }
   return n;
@@ -1026,6 +1149,32 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         p.ceil_mode = c->ceil_mode();
         p.count_include_pad = c->count_include_pad();
+        channels_of.push_back(channels_read(layer.inputs[0]));
+        break;
+      }
+      case fb::LayerOp::ChannelAffine: {
+        const fb::ChannelAffine* a = fl->op_as_ChannelAffine();
+        layer.kind = LayerKind::kChannelAffine;
+        ChannelAffineParams& p = layer.affine;
+        if (Status s = CheckArity(check, where, "a ChannelAffine", layer.inputs, 1, 1); !s.ok()) {
+          return s;
+        }
+        p.channels = channels_read(layer.inputs[0]);
+        if (Status s = take_tensor(a->scale(), "scale", {p.channels}, &p.scale); !s.ok()) return s;
+        if (Status s = take_tensor(a->shift(), "shift", {p.channels}, &p.shift); !s.ok()) return s;
+        if (Status s = TakeActivation(check, where, a->activation(), a->leaky_slope(),
+                                      &p.activation, &p.leaky_slope);
+            !s.ok()) {
+          return s;
+        }
+        channels_of.push_back(p.channels);
+        break;
+      }
+      case fb::LayerOp::Resize: {
+        const fb::Resize* r = fl->op_as_Resize();
+        layer.kind = LayerKind::kResize;
+        if (Status s = CheckArity(check, where, "a Resize", layer.inputs, 1, 1); !s.ok()) return s;
+        if (Status s = ParseResize(check, where, *r, layer.resize); !s.ok()) return s;
         channels_of.push_back(channels_read(layer.inputs[0]));
         break;
       }

@@ -9,6 +9,7 @@
 #include "int8_packing.h"
 #include "kernels/bf16_job.h"
 #include "kernels/int8_job.h"
+#include "kernels/ref/affine_ref.h"
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
@@ -16,6 +17,7 @@
 #include "kernels/ref/merge_ref.h"
 #include "kernels/ref/pool_ref.h"
 #include "kernels/ref/resample_ref.h"
+#include "kernels/ref/resize_ref.h"
 
 namespace sfrt {
 namespace {
@@ -153,6 +155,12 @@ void ForwardGraph(const Model& model, std::span<const float> input,
         break;
       case LayerKind::kPool2D:
         ref::PoolRows(src, layer.pool, g[i].pads, dst, 0, s.height);
+        break;
+      case LayerKind::kResize:
+        ref::ResizeRows(src, layer.resize, dst, 0, s.height);
+        break;
+      case LayerKind::kChannelAffine:
+        ref::ChannelAffineRows(src, layer.affine, dst, 0, s.height);
         break;
     }
     if (observer) observer(static_cast<int>(i), s, out);

@@ -13,6 +13,7 @@
 #include "kernels/bf16_job.h"
 #include "kernels/conv_job.h"
 #include "kernels/int8_job.h"
+#include "kernels/ref/affine_ref.h"
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
@@ -20,6 +21,7 @@
 #include "kernels/ref/merge_ref.h"
 #include "kernels/ref/pool_ref.h"
 #include "kernels/ref/resample_ref.h"
+#include "kernels/ref/resize_ref.h"
 #include "kernels/winograd_job.h"
 #include "memory_planner.h"
 #include "thread_pool.h"
@@ -49,6 +51,8 @@ struct Session::Step {
     kAdd,            // ref::AddRows
     kConvTranspose,  // ref::ConvTranspose2dRows
     kPool,           // ref::PoolRows
+    kResize,         // ref::ResizeRows
+    kChannelAffine,  // ref::ChannelAffineRows
   };
   Kind kind = Kind::kRefConv;
   int first_layer = 0;
@@ -241,6 +245,28 @@ void PoolTrampoline(void* ctx, int begin, int end) {
   ref::PoolRows(job->in, *job->params, job->pads, job->out, begin, end);
 }
 
+struct ResizeJob {
+  ConstTensorView in;
+  const ResizeParams* params;
+  TensorView out;
+};
+
+void ResizeTrampoline(void* ctx, int begin, int end) {
+  const ResizeJob* job = static_cast<const ResizeJob*>(ctx);
+  ref::ResizeRows(job->in, *job->params, job->out, begin, end);
+}
+
+struct ChannelAffineJob {
+  ConstTensorView in;
+  const ChannelAffineParams* params;
+  TensorView out;
+};
+
+void ChannelAffineTrampoline(void* ctx, int begin, int end) {
+  const ChannelAffineJob* job = static_cast<const ChannelAffineJob*>(ctx);
+  ref::ChannelAffineRows(job->in, *job->params, job->out, begin, end);
+}
+
 struct ConvTransposeJob {
   ConstTensorView in;
   const ConvTransposeParams* params;
@@ -428,6 +454,12 @@ Status Session::Plan() {
     } else if (layer.kind == LayerKind::kPool2D) {  // float32 (the loader checks)
       step.kind = Step::Kind::kPool;
       step.kernel = "ref::PoolRows";
+    } else if (layer.kind == LayerKind::kResize) {  // float32 (the loader checks)
+      step.kind = Step::Kind::kResize;
+      step.kernel = "ref::ResizeRows";
+    } else if (layer.kind == LayerKind::kChannelAffine) {  // float32 (the loader checks)
+      step.kind = Step::Kind::kChannelAffine;
+      step.kernel = "ref::ChannelAffineRows";
     } else if (layer.kind == LayerKind::kUpsample) {
       int conv = i + 1;
       int crop = -1;
@@ -1010,6 +1042,16 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kPool: {
         PoolJob job{cur, &first.pool, g.pads, out};
         parallel_rows(out.height, PoolTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kResize: {
+        ResizeJob job{cur, &first.resize, out};
+        parallel_rows(out.height, ResizeTrampoline, &job);
+        break;
+      }
+      case Step::Kind::kChannelAffine: {
+        ChannelAffineJob job{cur, &first.affine, out};
+        parallel_rows(out.height, ChannelAffineTrampoline, &job);
         break;
       }
       case Step::Kind::kCrop:

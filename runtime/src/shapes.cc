@@ -29,6 +29,8 @@ int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
   return (padded - kernel) / stride + 1;
 }
 
+int64_t ResizeOutputSize(int in, int64_t num, int64_t den) { return int64_t{in} * num / den; }
+
 int PoolOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
                    int explicit_after, bool ceil_mode, int* pad_before, int* pad_after) {
   if (rule != PaddingRule::kExplicit || !ceil_mode) {
@@ -132,6 +134,22 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
       g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
                  static_cast<uint64_t>(c.out_channels);
       g.macs = static_cast<uint64_t>(cur.elements()) * c.kernel_h * c.kernel_w * c.out_channels;
+      break;
+    }
+    case LayerKind::kChannelAffine:
+      g.output = cur;
+      break;
+    case LayerKind::kResize: {
+      const ResizeParams& r = layer.resize;
+      const int64_t oh = ResizeOutputSize(cur.height, r.scale_num_h, r.scale_den_h);
+      const int64_t ow = ResizeOutputSize(cur.width, r.scale_num_w, r.scale_den_w);
+      if (oh < 1 || ow < 1 || oh > kMaxTensorSide || ow > kMaxTensorSide) {
+        return Status::Error(Quote(layer, i) + ": resizing " + std::to_string(cur.height) + "x" +
+                             std::to_string(cur.width) + " gives " + std::to_string(oh) + "x" +
+                             std::to_string(ow) + ", outside 1.." + std::to_string(kMaxTensorSide) +
+                             " per side");
+      }
+      g.output = {static_cast<int>(oh), static_cast<int>(ow), cur.channels};
       break;
     }
     case LayerKind::kPool2D: {

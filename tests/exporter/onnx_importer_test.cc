@@ -742,7 +742,7 @@ bool ReferenceIsFloorOfQuotient(const std::string& ctm, const std::string& neare
   return true;
 }
 
-TEST_F(OnnxImporter, ResizeAcceptsExactlyTheModesThatAreFloorOfQuotientForItsFactor) {
+TEST_F(OnnxImporter, NearestResizeIsAnUpsampleExactlyForTheModesThatAreFloorOfQuotient) {
   int accepted = 0;
   int rejected = 0;
   for (const char* ctm : {"asymmetric", "half_pixel", "pytorch_half_pixel", "tf_half_pixel_for_nn",
@@ -756,13 +756,21 @@ TEST_F(OnnxImporter, ResizeAcceptsExactlyTheModesThatAreFloorOfQuotientForItsFac
         rc.nearest_mode = nm;
         const std::string path = ResizeModel("resize_modes.onnx", rc);
         const bool exact = ReferenceIsFloorOfQuotient(ctm, nm, f);
+        auto spec = ImportOk(path);
+        ASSERT_TRUE(spec.ok());
+        ASSERT_EQ(spec->layers.size(), 2u);
         if (exact) {
           ++accepted;
-          auto spec = ImportOk(path);
+          EXPECT_EQ(LayerAs<UpsampleSpec>(*spec, 1).factor_h, f);
         } else {
+          // Any other mode is a general Resize with the node's own rounding.
           ++rejected;
-          ExpectImportError(path, {"node 'up' (op Resize)", "coordinate_transformation_mode",
-                                   std::string("'") + ctm + "'", std::string("'") + nm + "'"});
+          const ResizeParams& r = LayerAs<ResizeSpec>(*spec, 1).params;
+          EXPECT_EQ(r.mode, ResizeMode::kNearest);
+          EXPECT_STREQ(ResizeCoordinatesName(r.coordinates), ctm);
+          EXPECT_STREQ(NearestRoundingName(r.nearest), nm);
+          EXPECT_EQ(r.scale_num_h, f);
+          EXPECT_EQ(r.scale_den_h, 1);
         }
       }
     }
@@ -1038,17 +1046,22 @@ TEST_F(OnnxImporter, FoldsInferenceBatchNormIntoThePrecedingConv) {
   }
 }
 
-TEST_F(OnnxImporter, BatchNormNotDirectlyAfterAConvIsRefusedNamingBoth) {
+TEST_F(OnnxImporter, BatchNormNotDirectlyAfterAConvBecomesAPerChannelScaleAndShift) {
   OnnxModel m(15);
   m.Input("x", {1, 2, 5, 5});
   m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
   m.Node("Relu", {"t"}, {"r"}, "relu");
   AddBatchNorm(m, "r", {"y"});
   m.Output("y");
-  ExpectImportError(m.Save("relu_bn.onnx"),
-                    {"node 'bn' (op BatchNormalization): a BatchNormalization must directly "
-                     "follow a Conv",
-                     "but it follows node 'relu' (op Relu)"});
+  auto spec = ImportOk(m.Save("relu_bn.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 2u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kRelu);
+  const auto& bn = LayerAs<ChannelAffineSpec>(*spec, 1);
+  EXPECT_EQ(bn.name, "bn");
+  ASSERT_EQ(bn.scale.size(), 2u);
+  ASSERT_EQ(bn.shift.size(), 2u);
+  EXPECT_EQ(bn.activation, Activation::kNone);
 }
 
 TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
@@ -1101,25 +1114,50 @@ TEST_F(OnnxImporter, RejectsAnUnknownAutoPad) {
                     {"node 'odd' (op Conv)", "'auto_pad' = 'SAME_MIDDLE'", "SAME_LOWER"});
 }
 
-TEST_F(OnnxImporter, RejectsLinearResize) {
+TEST_F(OnnxImporter, LinearResizeBecomesAResizeLayer) {
   ResizeCase rc;
   rc.scales = {1, 1, 2, 2};
   rc.mode = "linear";
-  ExpectImportError(ResizeModel("linear.onnx", rc), {"node 'up' (op Resize)", "'mode' = 'linear'"});
+  rc.ctm = "align_corners";
+  auto spec = ImportOk(ResizeModel("linear.onnx", rc));
+  ASSERT_TRUE(spec.ok());
+  const ResizeSpec& resize = LayerAs<ResizeSpec>(*spec, 1);
+  EXPECT_EQ(resize.name, "up");
+  EXPECT_EQ(resize.params.mode, ResizeMode::kLinear);
+  EXPECT_EQ(resize.params.coordinates, ResizeCoordinates::kAlignCorners);
 }
 
-TEST_F(OnnxImporter, RejectsNonIntegerScale) {
+TEST_F(OnnxImporter, RejectsAnUnknownResizeMode) {
   ResizeCase rc;
-  rc.scales = {1, 1, 1.5f, 2};
-  ExpectImportError(ResizeModel("scale_1_5.onnx", rc),
-                    {"node 'up' (op Resize)", "'scales'", "1.5", "not a positive integer factor"});
+  rc.scales = {1, 1, 2, 2};
+  rc.mode = "area";
+  ExpectImportError(ResizeModel("area.onnx", rc),
+                    {"node 'up' (op Resize)", "'mode' = 'area'", "nearest, linear, cubic"});
 }
 
-TEST_F(OnnxImporter, RejectsSizesThatAreNotMultiplesOfTheInput) {
+TEST_F(OnnxImporter, NonIntegerScalesAreKeptAsExactFractions) {
   ResizeCase rc;
-  rc.sizes = {1, 2, 12, 20};  // 8 -> 12
-  ExpectImportError(ResizeModel("sizes_12.onnx", rc),
-                    {"node 'up' (op Resize)", "'sizes' = [1, 2, 12, 20]"});
+  rc.scales = {1, 1, 1.5f, 0.6f};
+  auto spec = ImportOk(ResizeModel("scale_1_5.onnx", rc));
+  ASSERT_TRUE(spec.ok());
+  const ResizeParams& r = LayerAs<ResizeSpec>(*spec, 1).params;
+  EXPECT_EQ(r.scale_num_h, 3);
+  EXPECT_EQ(r.scale_den_h, 2);
+  // 0.6f is 10066330 / 2^24 exactly.
+  EXPECT_EQ(static_cast<double>(r.scale_num_w) / static_cast<double>(r.scale_den_w),
+            static_cast<double>(0.6f));
+}
+
+TEST_F(OnnxImporter, SizesThatAreNotMultiplesOfTheInputGiveTheirRatio) {
+  ResizeCase rc;
+  rc.sizes = {1, 2, 12, 20};  // 8 -> 12, 10 -> 20
+  auto spec = ImportOk(ResizeModel("sizes_12.onnx", rc));
+  ASSERT_TRUE(spec.ok());
+  const ResizeParams& r = LayerAs<ResizeSpec>(*spec, 1).params;
+  EXPECT_EQ(r.scale_num_h, 3);
+  EXPECT_EQ(r.scale_den_h, 2);
+  EXPECT_EQ(r.scale_num_w, 2);
+  EXPECT_EQ(r.scale_den_w, 1);
 }
 
 TEST_F(OnnxImporter, RejectsResizeOfTheChannelAxis) {
@@ -1196,16 +1234,17 @@ TEST_F(OnnxImporter, RejectsSliceOfTheChannelAxis) {
   ExpectImportError(m.Save("slice_channels.onnx"), {"node 'half' (op Slice)", "axis 1 (channels)"});
 }
 
-TEST_F(OnnxImporter, RejectsActivationThatDoesNotFollowAConv) {
+TEST_F(OnnxImporter, ActivationThatDoesNotFollowAConvBecomesItsOwnLayer) {
   OnnxModel m;
   m.Input("x", {1, 2, 4, 4});
   m.Floats("scales", {4}, {1, 1, 2, 2});
   m.Node("Resize", {"x", "", "scales"}, {"u"}, "up");
   m.Node("Relu", {"u"}, {"y"}, "late_relu");
   m.Output("y");
-  ExpectImportError(
-      m.Save("relu_after_resize.onnx"),
-      {"node 'late_relu' (op Relu)", "directly follow a Conv", "node 'up' (op Resize)"});
+  auto spec = ImportOk(m.Save("relu_after_resize.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 2u);
+  EXPECT_EQ(LayerAs<ChannelAffineSpec>(*spec, 1).activation, Activation::kRelu);
 }
 
 TEST_F(OnnxImporter, ConvOutputThatOnlyAShapeReadsBesidesItsActivationStillFuses) {
@@ -1230,9 +1269,9 @@ TEST_F(OnnxImporter, ConvOutputThatOnlyAShapeReadsBesidesItsActivationStillFuses
   EXPECT_FALSE(IsGraph(*spec));
 }
 
-TEST_F(OnnxImporter, ActivationOfAConvOutputThatAnotherLayerReadsIsRefusedNamingIt) {
+TEST_F(OnnxImporter, ActivationOfAConvOutputThatAnotherLayerReadsBecomesItsOwnLayer) {
   // c0's output feeds its LeakyRelu and conv 'side', both concatenated: the activation cannot
-  // be fused into c0, and a separate activation layer does not exist.
+  // be fused into c0, so it is a ChannelAffine of its own (scale 1, shift 0).
   OnnxModel m;
   m.Input("x", {1, 2, 4, 4});
   m.Conv("c0", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
@@ -1240,9 +1279,17 @@ TEST_F(OnnxImporter, ActivationOfAConvOutputThatAnotherLayerReadsIsRefusedNaming
   m.Conv("side", "t", "v", 2, 2, 3, 1, {1, 1, 1, 1});
   SetInt(m.Node("Concat", {"u", "v"}, {"y"}, "cat"), "axis", 1);
   m.Output("y");
-  ExpectImportError(m.Save("branch.onnx"),
-                    {"node 'act' (op LeakyRelu): an activation must directly follow a Conv",
-                     "node 'c0' (op Conv)", "'t' is also read by node 'side' (op Conv)"});
+  auto spec = ImportOk(m.Save("branch.onnx"));
+  ASSERT_TRUE(spec.ok());
+  ASSERT_EQ(spec->layers.size(), 4u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kNone);
+  const auto& act = LayerAs<ChannelAffineSpec>(*spec, 1);
+  EXPECT_EQ(act.name, "act");
+  EXPECT_EQ(act.inputs, std::vector<std::string>{"c0"});
+  EXPECT_EQ(act.scale, std::vector<float>(2, 1.0f));
+  EXPECT_EQ(act.shift, std::vector<float>(2, 0.0f));
+  EXPECT_EQ(act.activation, Activation::kLeakyRelu);
+  EXPECT_FLOAT_EQ(act.leaky_slope, 0.01f);
 }
 
 // A U-Net step and a residual: x -> c0 (relu) -> c1; add(c0, c1) + relu; concat(add, c0) -> c2.
@@ -1558,8 +1605,8 @@ TEST_F(OnnxImporter, UpsampleFactorAboveTheLoaderLimitNamesNodeAndScales) {
   m.Node("Resize", {"t", "", "scales"}, {"y"}, "up");
   m.Output("y");
   ExpectImportError(m.Save("upsample.onnx"),
-                    {"node 'up' (op Resize)", "input 'scales' gives factors [1, 65]",
-                     "largest upsampling factor 64"});
+                    {"node 'up' (op Resize)", "input 'scales' = [1, 1, 1, 65]",
+                     "value 65 on axis 3 is not in (0, 64]"});
 }
 
 TEST_F(OnnxImporter, MoreLayersThanTheLoaderLimitAreRefusedWithTheirCount) {

@@ -998,7 +998,9 @@ int RunExport(const ExportArgs& args) {
   int adds = 0;
   int deconvs = 0;
   int pools = 0;
+  int resizes = 0;
   for (const LayerDesc& layer : model.layers()) {
+    resizes += layer.kind == LayerKind::kResize;
     pools += layer.kind == LayerKind::kPool2D;
     deconvs += layer.kind == LayerKind::kConvTranspose2D;
     convs += layer.kind == LayerKind::kConv2D;
@@ -1011,6 +1013,7 @@ int RunExport(const ExportArgs& args) {
   // connections (Concats and Adds).
   const std::string merges = (deconvs > 0 ? ", " + std::to_string(deconvs) + " deconv" : "") +
                              (pools > 0 ? ", " + std::to_string(pools) + " pool" : "") +
+                             (resizes > 0 ? ", " + std::to_string(resizes) + " resize" : "") +
                              (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
                              (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
   const std::string traced =

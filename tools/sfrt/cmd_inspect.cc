@@ -113,6 +113,31 @@ std::string OpString(const LayerDesc& layer) {
       if (p.kind == PoolKind::kAverage && p.count_include_pad) op += " count-pads";
       return op;
     }
+    case LayerKind::kResize: {
+      const ResizeParams& r = layer.resize;
+      auto scale = [](int64_t num, int64_t den) {
+        return den == 1 ? std::to_string(num) : std::to_string(num) + "/" + std::to_string(den);
+      };
+      std::string op = std::string("resize ") + ResizeModeName(r.mode) + " x" +
+                       scale(r.scale_num_h, r.scale_den_h) + "," +
+                       scale(r.scale_num_w, r.scale_den_w) + " " +
+                       ResizeCoordinatesName(r.coordinates);
+      if (r.mode == ResizeMode::kNearest) op += std::string(" ") + NearestRoundingName(r.nearest);
+      if (r.mode == ResizeMode::kCubic) {
+        op += " a=" + FormatFloat(r.cubic_coeff_a) + (r.exclude_outside ? " exclude-outside" : "");
+      }
+      return op;
+    }
+    case LayerKind::kChannelAffine: {
+      const ChannelAffineParams& a = layer.affine;
+      std::string op = "scale+shift per channel";
+      if (a.activation == Activation::kLeakyRelu) {
+        op += " + leaky(" + FormatFloat(a.leaky_slope) + ")";
+      } else if (a.activation == Activation::kRelu) {
+        op += " + relu";
+      }
+      return op;
+    }
     case LayerKind::kConcat:
       return "concat channels";
     case LayerKind::kAdd:
@@ -149,6 +174,8 @@ std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
     case LayerKind::kPool2D:
       return PadsString(g.pads) + " " + PaddingRuleName(layer.pool.padding_rule);
     case LayerKind::kUpsample:
+    case LayerKind::kResize:
+    case LayerKind::kChannelAffine:
     case LayerKind::kConcat:
     case LayerKind::kAdd:
       return "-";

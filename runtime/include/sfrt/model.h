@@ -34,11 +34,22 @@ inline constexpr int kSchemaVersionMinor = 7;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
 // as do kConvTranspose2D and kPool2D (schema 1.6).
-enum class LayerKind { kConv2D, kUpsample, kCrop, kConcat, kAdd, kConvTranspose2D, kPool2D };
+enum class LayerKind {
+  kConv2D,
+  kUpsample,
+  kCrop,
+  kConcat,
+  kAdd,
+  kConvTranspose2D,
+  kPool2D,
+  kResize,        // schema 1.7
+  kChannelAffine  // schema 1.7
+};
 // Layers that run in float32 only: a model with one holds no int8 or bf16 convolution.
 inline bool Float32OnlyKind(LayerKind kind) {
   return kind == LayerKind::kConcat || kind == LayerKind::kAdd ||
-         kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D;
+         kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D ||
+         kind == LayerKind::kResize || kind == LayerKind::kChannelAffine;
 }
 enum class Activation { kNone, kRelu, kLeakyRelu };
 // kSameLower (schema 1.7): ONNX SAME_LOWER, the larger half of an odd total at the top/left.
@@ -139,6 +150,39 @@ struct PoolParams {
   bool count_include_pad = false;
 };
 
+// Resizing as ONNX Resize computes it (schema 1.7, float32; docs/model-format.md, "Resize"):
+// output side = floor(in * scale_num / scale_den); output pixel y maps to the source coordinate
+// the coordinate mode gives (scale = scale_num / scale_den; align_corners divides by the unrounded
+// output length in * scale, as ONNX does), which is rounded (kNearest) or
+// interpolated between the 2 (kLinear) or 4 (kCubic) nearest rows, indices clamped to the input;
+// likewise along x. kUpsample stays the op for nearest upsampling by integer factors.
+enum class ResizeMode { kNearest, kLinear, kCubic };
+enum class ResizeCoordinates {
+  kHalfPixel,         // (y + 0.5) / scale - 0.5
+  kPytorchHalfPixel,  // the same, but 0 when the output side is 1
+  kAlignCorners,      // y * (in - 1) / (out - 1), 0 when out is 1
+  kAsymmetric,        // y / scale
+  kTfHalfPixelForNn   // (y + 0.5) / scale
+};
+enum class NearestRounding { kRoundPreferFloor, kRoundPreferCeil, kFloor, kCeil };
+// ONNX's words: "nearest", "linear", "cubic"; "half_pixel", "pytorch_half_pixel",
+// "align_corners", "asymmetric", "tf_half_pixel_for_nn"; "round_prefer_floor",
+// "round_prefer_ceil", "floor", "ceil".
+const char* ResizeModeName(ResizeMode mode);
+const char* ResizeCoordinatesName(ResizeCoordinates coordinates);
+const char* NearestRoundingName(NearestRounding rounding);
+struct ResizeParams {
+  ResizeMode mode = ResizeMode::kNearest;
+  ResizeCoordinates coordinates = ResizeCoordinates::kHalfPixel;
+  NearestRounding nearest = NearestRounding::kRoundPreferFloor;  // kNearest
+  int64_t scale_num_h = 1;
+  int64_t scale_den_h = 1;
+  int64_t scale_num_w = 1;
+  int64_t scale_den_w = 1;
+  float cubic_coeff_a = -0.75f;  // kCubic
+  bool exclude_outside = false;  // kCubic: weights of taps outside the input are dropped
+};
+
 struct UpsampleParams {  // nearest neighbour
   int factor_h = 1;
   int factor_w = 1;
@@ -149,6 +193,16 @@ struct CropParams {
   Padding amounts;                    // kExplicit: removed per side
   bool excess_rows_from_top = true;   // kToInputSize, kToSecondInput
   bool excess_cols_from_left = true;  // kToInputSize, kToSecondInput
+};
+
+// Schema 1.7, float32: out[c] = act(in[c] * scale[c] + shift[c]) (docs/model-format.md,
+// "ChannelAffine").
+struct ChannelAffineParams {
+  int channels = 0;
+  const float* scale = nullptr;  // [channels]
+  const float* shift = nullptr;  // [channels]
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
 };
 
 struct AddParams {  // out = act(a + b)
@@ -165,7 +219,7 @@ struct LayerDesc {
   // What it reads, in order: indices of earlier layers, or kModelInput. One for kConv2D,
   // kUpsample and kCrop (two for a kToSecondInput crop, which reads only the second's size), two
   // for kAdd, two or more for kConcat (channels stacked in this order), one for
-  // kConvTranspose2D and kPool2D.
+  // kConvTranspose2D, kPool2D, kResize and kChannelAffine.
   std::vector<int> inputs;
   ConvParams conv;             // valid when kind == kConv2D
   UpsampleParams upsample;     // valid when kind == kUpsample
@@ -173,6 +227,8 @@ struct LayerDesc {
   AddParams add;               // valid when kind == kAdd
   ConvTransposeParams deconv;  // valid when kind == kConvTranspose2D
   PoolParams pool;             // valid when kind == kPool2D
+  ResizeParams resize;         // valid when kind == kResize
+  ChannelAffineParams affine;  // valid when kind == kChannelAffine
 };
 
 struct InputDesc {

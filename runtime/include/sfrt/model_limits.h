@@ -3,6 +3,8 @@
 // rejects; tests/exporter/model_limits_test.cc builds a model at each limit and one past it.
 #pragma once
 
+#include <cstdint>
+
 namespace sfrt::model_limits {
 
 // Layers in one model.
@@ -15,6 +17,10 @@ inline constexpr int kMaxKernel = 31;
 inline constexpr int kMaxStride = 16;
 // Each Upsample factor: 1..kMaxUpsample.
 inline constexpr int kMaxUpsample = 64;
+// Resize scales (schema 1.7): numerator 1..kMaxResizeNum, denominator 1..kMaxResizeDen, their
+// ratio at most kMaxUpsample.
+inline constexpr int64_t kMaxResizeNum = int64_t{1} << 40;
+inline constexpr int64_t kMaxResizeDen = int64_t{1} << 32;
 // Explicit Conv2D pads on a side: 0..MaxPad(kernel side along that axis).
 constexpr int MaxPad(int kernel) { return kernel - 1; }
 

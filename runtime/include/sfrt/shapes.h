@@ -41,6 +41,9 @@ struct LayerGeometry {
 int PoolOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
                    int explicit_after, bool ceil_mode, int* pad_before, int* pad_after);
 
+// Resize output size along one axis (ResizeParams): floor(in * num / den).
+int64_t ResizeOutputSize(int in, int64_t num, int64_t den);
+
 // Convolution output size along one axis; `pad_before`/`pad_after` receive the amounts.
 // Returns <= 0 when the window does not fit.
 int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,

@@ -125,8 +125,23 @@ struct PoolSpec {  // schema 1.6 (sfrt/model.h, PoolParams); float32
   bool count_include_pad = false;  // kAverage
 };
 
+struct ResizeSpec {  // schema 1.7 (sfrt/model.h, ResizeParams); float32
+  std::string name;
+  std::vector<std::string> inputs;
+  sfrt::ResizeParams params;
+};
+
+struct ChannelAffineSpec {  // schema 1.7 (sfrt/model.h, ChannelAffineParams); float32
+  std::string name;
+  std::vector<std::string> inputs;
+  std::vector<float> scale;  // one per channel
+  std::vector<float> shift;  // one per channel
+  Activation activation = Activation::kNone;
+  float leaky_slope = 0.0f;
+};
+
 using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec,
-                               ConvTransposeSpec, PoolSpec>;
+                               ConvTransposeSpec, PoolSpec, ResizeSpec, ChannelAffineSpec>;
 
 struct InputSpec {
   std::string name = "stereo_pairs";
@@ -199,6 +214,12 @@ inline std::string Float32OnlyReason(const ModelSpec& spec) {
     }
     if (const auto* p = std::get_if<PoolSpec>(&layer)) {
       return "the model has a Pool2D ('" + p->name + "')";
+    }
+    if (const auto* r = std::get_if<ResizeSpec>(&layer)) {
+      return "the model has a Resize ('" + r->name + "')";
+    }
+    if (const auto* a = std::get_if<ChannelAffineSpec>(&layer)) {
+      return "the model has a ChannelAffine ('" + a->name + "')";
     }
   }
   return "";
