@@ -1828,11 +1828,42 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
   }
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
   SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
-  if (auto_pad == "VALID" || (auto_pad == "NOTSET" && pads.empty())) pads = {0, 0, 0, 0};
-  if (auto_pad != "NOTSET" && auto_pad != "VALID") {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> output_shape,
+                             IntsAttr(idx, "output_shape"));
+  if (auto_pad != "NOTSET" && auto_pad != "VALID" && auto_pad != "SAME_UPPER" &&
+      auto_pad != "SAME_LOWER") {
     return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
-                              " is not supported for ConvTranspose (NOTSET, VALID)");
+                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
   }
+  if (!output_shape.empty() && output_shape.size() < 2) {
+    return NodeError(idx, "attribute 'output_shape' = " + JoinInts(output_shape) +
+                              " needs the output height and width");
+  }
+  const bool same = auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER";
+  if (same || (!output_shape.empty() && auto_pad == "NOTSET" && pads.empty())) {
+    // ONNX: the pads (and, where they would be negative, extra output padding) that give the
+    // asked-for size: in * stride for SAME_*, else output_shape; the odd pixel goes to the end
+    // for SAME_UPPER, to the start otherwise.
+    pads = {0, 0, 0, 0};
+    for (int a = 0; a < 2; ++a) {
+      const int64_t in = op.in_shape[2 + a];
+      const int64_t kernel = a == 0 ? kh : kw;
+      const int64_t target = same ? in * strides[a] : output_shape[output_shape.size() - 2 + a];
+      const int64_t total = (in - 1) * strides[a] + out_pad[a] + kernel - target;
+      if (total < 0) {
+        out_pad[a] -= total;
+        continue;
+      }
+      const int64_t larger = total - total / 2;
+      pads[a] = auto_pad == "SAME_UPPER" ? total / 2 : larger;
+      pads[a + 2] = total - pads[a];
+    }
+    if (out_pad[0] >= strides[0] || out_pad[1] >= strides[1]) {
+      return NodeError(idx, "its output size needs output padding " + JoinInts(out_pad) +
+                                ", not below its strides " + JoinInts(strides));
+    }
+  }
+  if (auto_pad == "VALID" || (auto_pad == "NOTSET" && pads.empty())) pads = {0, 0, 0, 0};
   if (pads.size() != 4) {
     return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
   }
@@ -1848,11 +1879,8 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
   const int64_t in_w = op.in_shape[3];
   const int64_t out_h = (in_h - 1) * strides[0] - pads[0] - pads[2] + kh + out_pad[0];
   const int64_t out_w = (in_w - 1) * strides[1] - pads[1] - pads[3] + kw + out_pad[1];
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> output_shape,
-                             IntsAttr(idx, "output_shape"));
   if (!output_shape.empty() &&
-      (output_shape.size() < 2 || output_shape[output_shape.size() - 2] != out_h ||
-       output_shape.back() != out_w)) {
+      (output_shape[output_shape.size() - 2] != out_h || output_shape.back() != out_w)) {
     return NodeError(idx, "attribute 'output_shape' = " + JoinInts(output_shape) +
                               " differs from the size its pads give (" + std::to_string(out_h) +
                               "x" + std::to_string(out_w) +

@@ -1105,6 +1105,37 @@ TEST_F(OnnxImporter, KeepsSameLowerAutoPadAsItsOwnRuleBesideSameUpperConvs) {
   EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).padding_rule, PaddingRule::kSameUpper);
 }
 
+// ConvTranspose's auto_pad and output_shape become pads and output padding at the traced size:
+// 3 -> 6 at stride 2, kernel 3 leaves one extra row (total padding 1), cut at the start for
+// SAME_LOWER; output_shape 8 needs one row more than the kernel writes (output padding 1).
+TEST_F(OnnxImporter, ConvTransposeAutoPadAndOutputShapeBecomePadsAndOutputPadding) {
+  struct Case {
+    const char* auto_pad;
+    std::vector<int64_t> output_shape;
+    Pads pads;
+    int output_padding;
+  };
+  for (const Case& c :
+       {Case{"SAME_LOWER", {}, {1, 1, 0, 0}, 0}, Case{"SAME_UPPER", {}, {0, 0, 1, 1}, 0},
+        Case{"NOTSET", {8, 8}, {0, 0, 0, 0}, 1}}) {
+    SCOPED_TRACE(c.auto_pad);
+    OnnxModel m;
+    m.Input("x", {1, 1, 3, 3});
+    m.Floats("w", {1, 2, 3, 3}, std::vector<float>(18, 0.5f));
+    auto& n = m.Node("ConvTranspose", {"x", "w"}, {"y"}, "up");
+    SetInts(n, "strides", {2, 2});
+    SetString(n, "auto_pad", c.auto_pad);
+    if (!c.output_shape.empty()) SetInts(n, "output_shape", c.output_shape);
+    m.Output("y");
+    auto spec = ImportOk(m.Save("deconv_auto_pad.onnx"));
+    ASSERT_TRUE(spec.ok());
+    const auto& d = LayerAs<ConvTransposeSpec>(*spec, 0);
+    EXPECT_EQ(d.pads, c.pads);
+    EXPECT_EQ(d.output_padding_h, c.output_padding);
+    EXPECT_EQ(d.output_padding_w, c.output_padding);
+  }
+}
+
 TEST_F(OnnxImporter, RejectsAnUnknownAutoPad) {
   OnnxModel m;
   m.Input("x", {1, 2, 8, 8});
