@@ -98,6 +98,14 @@ fb::Activation ToSchema(Activation a) {
       return fb::Activation::Relu;
     case Activation::kLeakyRelu:
       return fb::Activation::LeakyRelu;
+    case Activation::kElu:
+      return fb::Activation::Elu;
+    case Activation::kSigmoid:
+      return fb::Activation::Sigmoid;
+    case Activation::kTanh:
+      return fb::Activation::Tanh;
+    case Activation::kClip:
+      return fb::Activation::Clip;
   }
   return fb::Activation::None;
 }
@@ -234,13 +242,39 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       return Status::Error(where + ": padding rule SameLower needs schema 1.7; writing 1." +
                            std::to_string(options.schema_minor));
     }
+    // Schema 1.8 fields in use: the layer goes under its op's V2 union member (which readers
+    // before 1.8 refuse rather than ignore the fields).
+    const auto* deconv_spec = std::get_if<ConvTransposeSpec>(&ls);
+    const bool v2 =
+        (conv_spec != nullptr &&
+         (conv_spec->dilation_h != 1 || conv_spec->dilation_w != 1 || conv_spec->groups != 1)) ||
+        (pool_spec != nullptr && (pool_spec->dilation_h != 1 || pool_spec->dilation_w != 1)) ||
+        (deconv_spec != nullptr && (deconv_spec->dilation_h != 1 || deconv_spec->dilation_w != 1));
+    if (v2 && options.schema_minor < 8) {
+      return Status::Error(where + ": dilation or groups other than 1 need schema 1.8; writing 1." +
+                           std::to_string(options.schema_minor));
+    }
+    const auto* affine_spec = std::get_if<ChannelAffineSpec>(&ls);
+    if (affine_spec != nullptr && options.schema_minor < 8 &&
+        affine_spec->activation != Activation::kNone &&
+        affine_spec->activation != Activation::kRelu &&
+        affine_spec->activation != Activation::kLeakyRelu) {
+      return Status::Error(where + ": activation " + ActivationName(affine_spec->activation) +
+                           " needs schema 1.8; writing 1." + std::to_string(options.schema_minor));
+    }
     if (const auto* c = std::get_if<ConvSpec>(&ls)) {
       if (c->in_channels != channels) {
         return Status::Error(where + ": in_channels is " + std::to_string(c->in_channels) +
                              " but its input has " + std::to_string(channels));
       }
+      if (c->groups < 1 || c->in_channels % c->groups != 0 || c->out_channels % c->groups != 0) {
+        return Status::Error(where + ": groups is " + std::to_string(c->groups) +
+                             "; must divide in_channels (" + std::to_string(c->in_channels) +
+                             ") and out_channels (" + std::to_string(c->out_channels) + ")");
+      }
+      const int group_in = c->in_channels / c->groups;
       const size_t want =
-          static_cast<size_t>(c->kernel_h) * c->kernel_w * c->in_channels * c->out_channels;
+          static_cast<size_t>(c->kernel_h) * c->kernel_w * group_in * c->out_channels;
       const bool int8 = c->precision == Precision::kInt8;
       if (int8 && options.schema_minor < 3) {
         return Status::Error(where + ": precision int8 needs schema 1.3; writing 1." +
@@ -261,10 +295,9 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
                              std::to_string(want) + " and " + std::to_string(c->out_channels));
       }
       const auto weights =
-          int8 ? w.AddInt8Tensor(c->weights_q,
-                                 {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels})
-               : w.AddTensor(c->weights_hwio,
-                             {c->kernel_h, c->kernel_w, c->in_channels, c->out_channels});
+          int8
+              ? w.AddInt8Tensor(c->weights_q, {c->kernel_h, c->kernel_w, group_in, c->out_channels})
+              : w.AddTensor(c->weights_hwio, {c->kernel_h, c->kernel_w, group_in, c->out_channels});
       const auto bias = w.AddTensor(c->bias, {c->out_channels});
       // After the bias, as the loader checksums them.
       const bool phases = !c->phase_weights_q.empty() || !c->phase_scales.empty();
@@ -291,9 +324,10 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
           ToSchema(c->padding_rule), &pads, ToSchema(c->activation), c->leaky_slope, weights, bias,
           ToSchema(c->precision), int8 ? b.CreateVector(c->weight_scales) : 0,
           int8 ? &input_quant : nullptr, int8 ? &output_quant : nullptr, phase_weights,
-          phases ? b.CreateVector(c->phase_scales) : 0);
-      layers.push_back(
-          fb::CreateLayer(b, b.CreateString(c->name), fb::LayerOp::Conv2D, conv.Union(), names));
+          phases ? b.CreateVector(c->phase_scales) : 0, c->dilation_h, c->dilation_w, c->groups);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(c->name),
+                                       v2 ? fb::LayerOp::Conv2DV2 : fb::LayerOp::Conv2D,
+                                       conv.Union(), names));
       channels = c->out_channels;
     } else if (const auto* u = std::get_if<UpsampleSpec>(&ls)) {
       const auto up = fb::CreateUpsample(b, u->factor_h, u->factor_w);
@@ -340,9 +374,11 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       const auto deconv = fb::CreateConvTranspose2D(
           b, d->in_channels, d->out_channels, d->kernel_h, d->kernel_w, d->stride_h, d->stride_w,
           &pads, d->output_padding_h, d->output_padding_w, ToSchema(d->activation), d->leaky_slope,
-          weights, bias);
-      layers.push_back(fb::CreateLayer(b, b.CreateString(d->name), fb::LayerOp::ConvTranspose2D,
-                                       deconv.Union(), names));
+          weights, bias, d->dilation_h, d->dilation_w);
+      layers.push_back(
+          fb::CreateLayer(b, b.CreateString(d->name),
+                          v2 ? fb::LayerOp::ConvTranspose2DV2 : fb::LayerOp::ConvTranspose2D,
+                          deconv.Union(), names));
       channels = d->out_channels;
     } else if (const auto* affine = std::get_if<ChannelAffineSpec>(&ls)) {
       if (options.schema_minor < 7) {
@@ -358,7 +394,8 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       const auto scale = w.AddTensor(affine->scale, {channels});
       const auto shift = w.AddTensor(affine->shift, {channels});
       const auto op = fb::CreateChannelAffine(b, scale, shift, ToSchema(affine->activation),
-                                              affine->leaky_slope);
+                                              affine->leaky_slope, affine->elu_alpha,
+                                              affine->clip_min, affine->clip_max);
       layers.push_back(fb::CreateLayer(b, b.CreateString(affine->name), fb::LayerOp::ChannelAffine,
                                        op.Union(), names));
     } else if (const auto* resize = std::get_if<ResizeSpec>(&ls)) {
@@ -388,9 +425,11 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       const auto op = fb::CreatePool2D(
           b, pool->kind == PoolKind::kMax ? fb::PoolKind::Max : fb::PoolKind::Average,
           pool->kernel_h, pool->kernel_w, pool->stride_h, pool->stride_w,
-          ToSchema(pool->padding_rule), &pads, pool->ceil_mode, pool->count_include_pad);
-      layers.push_back(
-          fb::CreateLayer(b, b.CreateString(pool->name), fb::LayerOp::Pool2D, op.Union(), names));
+          ToSchema(pool->padding_rule), &pads, pool->ceil_mode, pool->count_include_pad,
+          pool->dilation_h, pool->dilation_w);
+      layers.push_back(fb::CreateLayer(b, b.CreateString(pool->name),
+                                       v2 ? fb::LayerOp::Pool2DV2 : fb::LayerOp::Pool2D, op.Union(),
+                                       names));
     } else {
       const auto& cr = std::get<CropSpec>(ls);
       if (cr.rule == CropRule::kToSecondInput && (options.schema_minor < 5 || inputs.size() != 2)) {

@@ -1005,6 +1005,8 @@ class Importer {
   const onnx::AttributeProto* FindAttr(int idx, std::string_view name) const;
   Result<int64_t> IntAttr(int idx, std::string_view name, int64_t fallback) const;
   Result<std::vector<int64_t>> IntsAttr(int idx, std::string_view name) const;
+  // A 2-D dilations attribute: {1, 1} when absent; each value in 1..kMaxDilation.
+  Result<std::vector<int64_t>> DilationsAttr(int idx, std::string_view name) const;
   Result<float> FloatAttr(int idx, std::string_view name, float fallback) const;
   Result<std::string> StringAttr(int idx, std::string_view name, const std::string& fallback) const;
 
@@ -1036,6 +1038,18 @@ Result<int64_t> Importer::IntAttr(int idx, std::string_view name, int64_t fallba
     return NodeError(idx, "attribute '" + std::string(name) + "' is not an integer");
   }
   return a->i();
+}
+
+Result<std::vector<int64_t>> Importer::DilationsAttr(int idx, std::string_view name) const {
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> dilations, IntsAttr(idx, name));
+  if (dilations.empty()) dilations = {1, 1};
+  if (dilations.size() != 2 || dilations[0] < 1 || dilations[1] < 1 ||
+      dilations[0] > model_limits::kMaxDilation || dilations[1] > model_limits::kMaxDilation) {
+    return NodeError(idx, "attribute '" + std::string(name) + "' = " + JoinInts(dilations) +
+                              " is not supported (two values, each 1.." +
+                              std::to_string(model_limits::kMaxDilation) + ")");
+  }
+  return dilations;
 }
 
 Result<std::vector<int64_t>> Importer::IntsAttr(int idx, std::string_view name) const {
@@ -1650,19 +1664,16 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
     return NodeError(idx, "weight " + Quote(n.input(1)) + " has shape " + JoinInts(wdims) +
                               "; only 2-D convolutions (OIHW weights) are supported");
   }
-  const int64_t out_ch = wdims[0], in_ch = wdims[1], kh = wdims[2], kw = wdims[3];
+  // The weight's second dimension is the inputs per group.
+  const int64_t out_ch = wdims[0], group_in = wdims[1], kh = wdims[2], kw = wdims[3];
   SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t group, IntAttr(idx, "group", 1));
-  if (group != 1) {
-    return NodeError(
-        idx, "attribute 'group' = " + std::to_string(group) + " is not supported (only group 1)");
+  if (group < 1 || group > model_limits::kMaxChannels || out_ch % group != 0) {
+    return NodeError(idx, "attribute 'group' = " + std::to_string(group) +
+                              " must be positive and divide the weight's " +
+                              std::to_string(out_ch) + " output channels");
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, IntsAttr(idx, "dilations"));
-  for (int64_t d : dilations) {
-    if (d != 1) {
-      return NodeError(idx, "attribute 'dilations' = " + JoinInts(dilations) +
-                                " is not supported (only dilation 1)");
-    }
-  }
+  const int64_t in_ch = group_in * group;
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, DilationsAttr(idx, "dilations"));
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
                              IntsAttr(idx, "kernel_shape"));
   if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{kh, kw}) {
@@ -1675,7 +1686,8 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
     return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) + " is not supported");
   }
   if (in_ch != op.in_shape[1]) {
-    return NodeError(idx, "weight " + Quote(n.input(1)) + " expects " + std::to_string(in_ch) +
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " with group " + std::to_string(group) +
+                              " expects " + std::to_string(in_ch) +
                               " input channels, the input tensor " + Quote(op.inputs[0]) + " has " +
                               std::to_string(op.in_shape[1]));
   }
@@ -1701,6 +1713,8 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
+  const int64_t extent_h = (kh - 1) * dilations[0] + 1;  // the window's rows
+  const int64_t extent_w = (kw - 1) * dilations[1] + 1;
   Pads p;
   PaddingRule rule = PaddingRule::kExplicit;
   if (auto_pad == "NOTSET") {
@@ -1721,7 +1735,7 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
     // SAME_UPPER is found again from the pads with the rest of the network's convolutions;
     // SAME_LOWER keeps its own rule.
     if (auto_pad == "SAME_LOWER") rule = PaddingRule::kSameLower;
-    p = SamePads(rule, in_h, in_w, static_cast<int>(kh), static_cast<int>(kw),
+    p = SamePads(rule, in_h, in_w, static_cast<int>(extent_h), static_cast<int>(extent_w),
                  static_cast<int>(strides[0]), static_cast<int>(strides[1]));
   } else {
     return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
@@ -1729,12 +1743,17 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   }
   const int64_t padded_h = in_h + p.top + p.bottom;
   const int64_t padded_w = in_w + p.left + p.right;
-  if (padded_h < kh || padded_w < kw) {
-    return NodeError(idx, "kernel " + std::to_string(kh) + "x" + std::to_string(kw) +
-                              " is larger than the padded input " + std::to_string(padded_h) + "x" +
-                              std::to_string(padded_w));
+  if (padded_h < extent_h || padded_w < extent_w) {
+    return NodeError(
+        idx, "kernel " + std::to_string(kh) + "x" + std::to_string(kw) +
+                 (extent_h != kh || extent_w != kw ? " (dilated to " + std::to_string(extent_h) +
+                                                         "x" + std::to_string(extent_w) + ")"
+                                                   : std::string()) +
+                 " is larger than the padded input " + std::to_string(padded_h) + "x" +
+                 std::to_string(padded_w));
   }
-  op.out_shape = {1, out_ch, (padded_h - kh) / strides[0] + 1, (padded_w - kw) / strides[1] + 1};
+  op.out_shape = {1, out_ch, (padded_h - extent_h) / strides[0] + 1,
+                  (padded_w - extent_w) / strides[1] + 1};
 
   ConvSpec& c = op.conv;
   c.name = n.name();
@@ -1744,15 +1763,19 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   c.kernel_w = static_cast<int>(kw);
   c.stride_h = static_cast<int>(strides[0]);
   c.stride_w = static_cast<int>(strides[1]);
+  c.dilation_h = static_cast<int>(dilations[0]);
+  c.dilation_w = static_cast<int>(dilations[1]);
+  c.groups = static_cast<int>(group);
   c.pads = p;
   c.padding_rule = rule;
   c.weights_hwio.resize(w.size());
+  // OIHW with I the inputs per group -> HWIO with the same I: the output index stays global.
   for (int64_t co = 0; co < out_ch; ++co) {
-    for (int64_t ci = 0; ci < in_ch; ++ci) {
+    for (int64_t ci = 0; ci < group_in; ++ci) {
       for (int64_t ky = 0; ky < kh; ++ky) {
         for (int64_t kx = 0; kx < kw; ++kx) {
-          c.weights_hwio[((ky * kw + kx) * in_ch + ci) * out_ch + co] =
-              w[((co * in_ch + ci) * kh + ky) * kw + kx];
+          c.weights_hwio[((ky * kw + kx) * group_in + ci) * out_ch + co] =
+              w[((co * group_in + ci) * kh + ky) * kw + kx];
         }
       }
     }
@@ -1787,13 +1810,7 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
     return NodeError(
         idx, "attribute 'group' = " + std::to_string(group) + " is not supported (only group 1)");
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, IntsAttr(idx, "dilations"));
-  for (int64_t d : dilations) {
-    if (d != 1) {
-      return NodeError(idx, "attribute 'dilations' = " + JoinInts(dilations) +
-                                " is not supported (only dilation 1)");
-    }
-  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, DilationsAttr(idx, "dilations"));
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
                              IntsAttr(idx, "kernel_shape"));
   if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{kh, kw}) {
@@ -1847,7 +1864,7 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
     pads = {0, 0, 0, 0};
     for (int a = 0; a < 2; ++a) {
       const int64_t in = op.in_shape[2 + a];
-      const int64_t kernel = a == 0 ? kh : kw;
+      const int64_t kernel = ((a == 0 ? kh : kw) - 1) * dilations[a] + 1;
       const int64_t target = same ? in * strides[a] : output_shape[output_shape.size() - 2 + a];
       const int64_t total = (in - 1) * strides[a] + out_pad[a] + kernel - target;
       if (total < 0) {
@@ -1868,7 +1885,9 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
     return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
   }
   // pads are (top, left, bottom, right); each removes output rows or columns the kernel wrote.
-  const int64_t limits[4] = {kh, kw, kh, kw};
+  const int64_t extent_h = (kh - 1) * dilations[0] + 1;
+  const int64_t extent_w = (kw - 1) * dilations[1] + 1;
+  const int64_t limits[4] = {extent_h, extent_w, extent_h, extent_w};
   for (size_t k = 0; k < 4; ++k) {
     if (pads[k] < 0 || pads[k] >= limits[k]) {
       return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) +
@@ -1877,8 +1896,8 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
   }
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
-  const int64_t out_h = (in_h - 1) * strides[0] - pads[0] - pads[2] + kh + out_pad[0];
-  const int64_t out_w = (in_w - 1) * strides[1] - pads[1] - pads[3] + kw + out_pad[1];
+  const int64_t out_h = (in_h - 1) * strides[0] - pads[0] - pads[2] + extent_h + out_pad[0];
+  const int64_t out_w = (in_w - 1) * strides[1] - pads[1] - pads[3] + extent_w + out_pad[1];
   if (!output_shape.empty() &&
       (output_shape[output_shape.size() - 2] != out_h || output_shape.back() != out_w)) {
     return NodeError(idx, "attribute 'output_shape' = " + JoinInts(output_shape) +
@@ -1900,6 +1919,8 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
   d.kernel_w = static_cast<int>(kw);
   d.stride_h = static_cast<int>(strides[0]);
   d.stride_w = static_cast<int>(strides[1]);
+  d.dilation_h = static_cast<int>(dilations[0]);
+  d.dilation_w = static_cast<int>(dilations[1]);
   d.pads = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
                 static_cast<int>(pads[3])};
   d.output_padding_h = static_cast<int>(out_pad[0]);
@@ -1942,13 +1963,7 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
                               " is not supported (two sides, each 1.." +
                               std::to_string(model_limits::kMaxKernel) + ")");
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, IntsAttr(idx, "dilations"));
-  for (int64_t d : dilations) {
-    if (d != 1) {
-      return NodeError(idx, "attribute 'dilations' = " + JoinInts(dilations) +
-                                " is not supported (only dilation 1)");
-    }
-  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, DilationsAttr(idx, "dilations"));
   SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t storage_order, IntAttr(idx, "storage_order", 0));
   if (storage_order != 0) {
     return NodeError(idx, "attribute 'storage_order' = " + std::to_string(storage_order) +
@@ -1972,23 +1987,28 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
   p.kernel_w = static_cast<int>(kernel[1]);
   p.stride_h = static_cast<int>(strides[0]);
   p.stride_w = static_cast<int>(strides[1]);
+  p.dilation_h = static_cast<int>(dilations[0]);
+  p.dilation_w = static_cast<int>(dilations[1]);
+  const int extent_h = DilatedExtent(p.kernel_h, p.dilation_h);
+  const int extent_w = DilatedExtent(p.kernel_w, p.dilation_w);
   p.ceil_mode = ceil_mode != 0;
   p.count_include_pad = !max && count_include_pad != 0;
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
   if (auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER") {
     p.padding_rule = auto_pad == "SAME_UPPER" ? PaddingRule::kSameUpper : PaddingRule::kSameLower;
-    p.pads = SamePads(p.padding_rule, in_h, in_w, p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+    p.pads = SamePads(p.padding_rule, in_h, in_w, extent_h, extent_w, p.stride_h, p.stride_w);
   } else if (auto_pad == "NOTSET" || auto_pad == "VALID") {
     if (auto_pad == "VALID" || pads.empty()) pads = {0, 0, 0, 0};
     if (pads.size() != 4) {
       return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
     }
-    const int64_t limits[4] = {kernel[0], kernel[1], kernel[0], kernel[1]};
+    const int64_t limits[4] = {extent_h, extent_w, extent_h, extent_w};
     for (size_t k = 0; k < 4; ++k) {
       if (pads[k] < 0 || pads[k] >= limits[k]) {
         return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) +
-                                  " is not supported (each at least 0 and below its window side)");
+                                  " is not supported (each at least 0 and below its window's "
+                                  "dilated side)");
       }
     }
     p.pads = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
@@ -1998,9 +2018,9 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
                               " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
   }
   int before = 0, after = 0;
-  const int out_h = PoolOutputSize(static_cast<int>(in_h), p.kernel_h, p.stride_h, p.padding_rule,
+  const int out_h = PoolOutputSize(static_cast<int>(in_h), extent_h, p.stride_h, p.padding_rule,
                                    p.pads.top, p.pads.bottom, p.ceil_mode, &before, &after);
-  const int out_w = PoolOutputSize(static_cast<int>(in_w), p.kernel_w, p.stride_w, p.padding_rule,
+  const int out_w = PoolOutputSize(static_cast<int>(in_w), extent_w, p.stride_w, p.padding_rule,
                                    p.pads.left, p.pads.right, p.ceil_mode, &before, &after);
   if (out_h < 1 || out_w < 1) {
     return NodeError(idx, "its " + JoinInts(kernel) + " window does not fit the " +
@@ -2488,21 +2508,21 @@ Status Importer::ProcessMergeNode(int idx) {
 Status Importer::CheckConvPads(int idx, const ConvSpec& conv,
                                const std::vector<int>& pad_nodes) const {
   const Pads& p = conv.pads;
-  if (p.top <= model_limits::MaxPad(conv.kernel_h) &&
-      p.bottom <= model_limits::MaxPad(conv.kernel_h) &&
-      p.left <= model_limits::MaxPad(conv.kernel_w) &&
-      p.right <= model_limits::MaxPad(conv.kernel_w)) {
+  const int extent_h = DilatedExtent(conv.kernel_h, conv.dilation_h);
+  const int extent_w = DilatedExtent(conv.kernel_w, conv.dilation_w);
+  const int max_h = model_limits::MaxPad(extent_h);
+  const int max_w = model_limits::MaxPad(extent_w);
+  if (p.top <= max_h && p.bottom <= max_h && p.left <= max_w && p.right <= max_w) {
     return Status::Ok();
   }
   std::string folded;
   for (int pad : pad_nodes) folded += (folded.empty() ? "" : ", ") + NodeLabel(pad);
   return NodeError(idx, "attribute 'pads' = " + JoinInts({p.top, p.left, p.bottom, p.right}) +
                             (folded.empty() ? "" : " (with " + folded + " folded in)") +
-                            " exceed kernel - 1 (at most " +
-                            std::to_string(model_limits::MaxPad(conv.kernel_h)) + " top/bottom, " +
-                            std::to_string(model_limits::MaxPad(conv.kernel_w)) +
-                            " left/right for the " + std::to_string(conv.kernel_h) + "x" +
-                            std::to_string(conv.kernel_w) + " kernel)");
+                            " exceed the kernel's extent - 1 (at most " + std::to_string(max_h) +
+                            " top/bottom, " + std::to_string(max_w) + " left/right for the " +
+                            std::to_string(extent_h) + "x" + std::to_string(extent_w) +
+                            " kernel)");
 }
 
 Result<ModelSpec> Importer::Assemble() {
@@ -2670,14 +2690,16 @@ Result<ModelSpec> Importer::Assemble() {
           pool.count_include_pad = true;
           int b = 0, a = 0;
           const Shape4& pre = src.pre_pad_shape;
-          const int oh = PoolOutputSize(static_cast<int>(pre[2]), pool.kernel_h, pool.stride_h,
+          const int extent_h = DilatedExtent(pool.kernel_h, pool.dilation_h);
+          const int extent_w = DilatedExtent(pool.kernel_w, pool.dilation_w);
+          const int oh = PoolOutputSize(static_cast<int>(pre[2]), extent_h, pool.stride_h,
                                         pool.padding_rule, pool.pads.top, pool.pads.bottom,
                                         pool.ceil_mode, &b, &a);
-          const int ow = PoolOutputSize(static_cast<int>(pre[3]), pool.kernel_w, pool.stride_w,
+          const int ow = PoolOutputSize(static_cast<int>(pre[3]), extent_w, pool.stride_w,
                                         pool.padding_rule, pool.pads.left, pool.pads.right,
                                         pool.ceil_mode, &b, &a);
-          const bool in_range = pool.pads.top < pool.kernel_h && pool.pads.bottom < pool.kernel_h &&
-                                pool.pads.left < pool.kernel_w && pool.pads.right < pool.kernel_w;
+          const bool in_range = pool.pads.top < extent_h && pool.pads.bottom < extent_h &&
+                                pool.pads.left < extent_w && pool.pads.right < extent_w;
           if (!in_range || oh != op.out_shape[2] || ow != op.out_shape[3]) {
             return FileError(NodeLabel(src.pad_nodes.back()) + ": the Pad before " +
                              NodeLabel(op.node_index) +
@@ -2823,7 +2845,8 @@ Result<ModelSpec> Importer::Assemble() {
   for (const ConvTrace& t : convs) {
     auto& conv = std::get<ConvSpec>(spec.layers[t.layer]);
     const Pads same =
-        SameUpperPads(t.in_h, t.in_w, conv.kernel_h, conv.kernel_w, conv.stride_h, conv.stride_w);
+        SameUpperPads(t.in_h, t.in_w, DilatedExtent(conv.kernel_h, conv.dilation_h),
+                      DilatedExtent(conv.kernel_w, conv.dilation_w), conv.stride_h, conv.stride_w);
     if (conv.pads == same) continue;
     // A SAME_LOWER conv keeps its rule (kAuto) whatever the others do.
     if (conv.padding_rule == PaddingRule::kSameLower &&

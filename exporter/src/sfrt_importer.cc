@@ -26,12 +26,15 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       c.kernel_w = p.kernel_w;
       c.stride_h = p.stride_h;
       c.stride_w = p.stride_w;
+      c.dilation_h = p.dilation_h;
+      c.dilation_w = p.dilation_w;
+      c.groups = p.groups;
       c.padding_rule = p.padding_rule;
       c.pads = p.pads;
       c.activation = p.activation;
       c.leaky_slope = p.leaky_slope;
-      const size_t count = static_cast<size_t>(p.kernel_h) * p.kernel_w * p.in_channels *
-                           static_cast<size_t>(p.out_channels);
+      const size_t count = static_cast<size_t>(p.kernel_h) * p.kernel_w *
+                           (p.in_channels / p.groups) * static_cast<size_t>(p.out_channels);
       c.bias.assign(p.bias, p.bias + p.out_channels);
       c.precision = p.precision;
       if (p.precision == Precision::kInt8) {
@@ -64,6 +67,8 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       d.kernel_w = p.kernel_w;
       d.stride_h = p.stride_h;
       d.stride_w = p.stride_w;
+      d.dilation_h = p.dilation_h;
+      d.dilation_w = p.dilation_w;
       d.pads = p.pads;
       d.output_padding_h = p.output_padding_h;
       d.output_padding_w = p.output_padding_w;
@@ -77,9 +82,20 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
     }
     case LayerKind::kPool2D: {
       const PoolParams& p = layer.pool;
-      return PoolSpec{layer.name,         {},         p.kind,         p.kernel_h, p.kernel_w,
-                      p.stride_h,         p.stride_w, p.padding_rule, p.pads,     p.ceil_mode,
-                      p.count_include_pad};
+      PoolSpec pool;
+      pool.name = layer.name;
+      pool.kind = p.kind;
+      pool.kernel_h = p.kernel_h;
+      pool.kernel_w = p.kernel_w;
+      pool.stride_h = p.stride_h;
+      pool.stride_w = p.stride_w;
+      pool.dilation_h = p.dilation_h;
+      pool.dilation_w = p.dilation_w;
+      pool.padding_rule = p.padding_rule;
+      pool.pads = p.pads;
+      pool.ceil_mode = p.ceil_mode;
+      pool.count_include_pad = p.count_include_pad;
+      return pool;
     }
     case LayerKind::kResize:
       return ResizeSpec{layer.name, {}, layer.resize};
@@ -90,7 +106,10 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
                                std::vector<float>(a.scale, a.scale + a.channels),
                                std::vector<float>(a.shift, a.shift + a.channels),
                                a.activation,
-                               a.leaky_slope};
+                               a.leaky_slope,
+                               a.elu_alpha,
+                               a.clip_min,
+                               a.clip_max};
     }
     case LayerKind::kCrop:
       break;

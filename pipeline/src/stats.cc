@@ -107,6 +107,8 @@ std::string LayerOp(const LayerDesc& layer) {
       std::string op = "conv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
                        "/s" + std::to_string(c.stride_h);
       if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
+      if (c.dilation_h != 1 || c.dilation_w != 1) op += " dil" + std::to_string(c.dilation_h);
+      if (c.groups > 1) op += c.groups == c.in_channels ? " dw" : " g" + std::to_string(c.groups);
       return op;
     }
     case LayerKind::kUpsample: {

@@ -48,6 +48,7 @@ constexpr size_t kTensorAlignment = 64;
 // Limits that keep a hostile file from making verification or planning pathological; the
 // importers check the same table (sfrt/model_limits.h).
 using model_limits::kMaxChannels;
+using model_limits::kMaxDilation;
 using model_limits::kMaxKernel;
 using model_limits::kMaxLayers;
 using model_limits::kMaxResizeDen;
@@ -185,8 +186,11 @@ Status ResolveInputs(const Checker& check, const std::string& where,
 }
 
 // A layer's fused activation as the file states it.
+// A layer's activation. Elu, Sigmoid, Tanh and Clip (schema 1.8) only when `all_kinds` (a
+// ChannelAffine, whose parameters hold theirs).
 Status TakeActivation(const Checker& check, const std::string& where, fb::Activation stored,
-                      float slope, Activation* activation, float* leaky_slope) {
+                      float slope, Activation* activation, float* leaky_slope,
+                      bool all_kinds = false) {
   switch (stored) {
     case fb::Activation::None:
       *activation = Activation::kNone;
@@ -197,9 +201,26 @@ Status TakeActivation(const Checker& check, const std::string& where, fb::Activa
     case fb::Activation::LeakyRelu:
       *activation = Activation::kLeakyRelu;
       break;
+    case fb::Activation::Elu:
+      *activation = Activation::kElu;
+      break;
+    case fb::Activation::Sigmoid:
+      *activation = Activation::kSigmoid;
+      break;
+    case fb::Activation::Tanh:
+      *activation = Activation::kTanh;
+      break;
+    case fb::Activation::Clip:
+      *activation = Activation::kClip;
+      break;
     default:
       return check.Fail(where + ": activation is unknown value " +
                         std::to_string(static_cast<int>(stored)));
+  }
+  if (!all_kinds && *activation != Activation::kNone && *activation != Activation::kRelu &&
+      *activation != Activation::kLeakyRelu) {
+    return check.Fail(where + ": activation is " + ActivationName(*activation) +
+                      ", which only a ChannelAffine layer takes (others: none, relu, leaky-relu)");
   }
   *leaky_slope = slope;
   if (!std::isfinite(slope)) return check.Fail(where + ": leaky_slope is not finite");
@@ -236,7 +257,24 @@ Status CheckWindow(const Checker& check, const std::string& where, const char* w
   return Status::Ok();
 }
 
-// Pads of a transposed convolution or a pooling: each at least 0 and below its kernel side.
+// Dilations (schema 1.8): each in 1..kMaxDilation, and 1 unless the layer is stored under its
+// op's V2 union member (`v2`), which readers before 1.8 refuse rather than ignore the field.
+Status CheckDilation(const Checker& check, const std::string& where, int dh, int dw, bool v2,
+                     const char* op) {
+  if (dh < 1 || dh > kMaxDilation || dw < 1 || dw > kMaxDilation) {
+    return check.Fail(where + ": dilation is " + std::to_string(dh) + "x" + std::to_string(dw) +
+                      "; each must be in 1.." + std::to_string(kMaxDilation));
+  }
+  if (!v2 && (dh != 1 || dw != 1)) {
+    return check.Fail(where + ": dilation is " + std::to_string(dh) + "x" + std::to_string(dw) +
+                      " in a layer stored as op " + op + "; a dilated one is stored as " + op +
+                      "V2 (a miswritten file)");
+  }
+  return Status::Ok();
+}
+
+// Pads of a transposed convolution or a pooling: each at least 0 and below its kernel side
+// (the dilated extent).
 Status CheckPadsBelowKernel(const Checker& check, const std::string& where, const Padding& pads,
                             int kh, int kw) {
   for (const auto& [amount, side, kernel] :
@@ -481,6 +519,26 @@ const char* PaddingRuleName(PaddingRule rule) {
   return "?";
 }
 
+const char* ActivationName(Activation activation) {
+  switch (activation) {
+    case Activation::kNone:
+      return "none";
+    case Activation::kRelu:
+      return "relu";
+    case Activation::kLeakyRelu:
+      return "leaky-relu";
+    case Activation::kElu:
+      return "elu";
+    case Activation::kSigmoid:
+      return "sigmoid";
+    case Activation::kTanh:
+      return "tanh";
+    case Activation::kClip:
+      return "clip";
+  }
+  return "?";
+}
+
 const char* PrecisionName(Precision precision) {
   switch (precision) {
     case Precision::kFloat32:
@@ -500,7 +558,8 @@ size_t Model::parameter_count() const {
   for (const LayerDesc& l : layers_) {
     if (l.kind == LayerKind::kConv2D) {
       const ConvParams& c = l.conv;
-      n += static_cast<size_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+      n += static_cast<size_t>(c.kernel_h) * c.kernel_w * (c.in_channels / c.groups) *
+               c.out_channels +
            static_cast<size_t>(c.out_channels);
     } else if (l.kind == LayerKind::kConvTranspose2D) {
       const ConvTransposeParams& c = l.deconv;
@@ -859,8 +918,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                         " has no op table (damaged file)");
     }
     switch (fl->op_type()) {
-      case fb::LayerOp::Conv2D: {
-        const fb::Conv2D* c = fl->op_as_Conv2D();
+      case fb::LayerOp::Conv2D:
+      case fb::LayerOp::Conv2DV2: {
+        const bool v2 = fl->op_type() == fb::LayerOp::Conv2DV2;
+        const fb::Conv2D* c = v2 ? fl->op_as_Conv2DV2() : fl->op_as_Conv2D();
         layer.kind = LayerKind::kConv2D;
         ConvParams& p = layer.conv;
         p.in_channels = c->in_channels();
@@ -869,6 +930,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         p.kernel_w = c->kernel_w();
         p.stride_h = c->stride_h();
         p.stride_w = c->stride_w();
+        p.dilation_h = c->dilation_h();
+        p.dilation_w = c->dilation_w();
+        p.groups = c->groups();
         if (Status s = CheckArity(check, where, "a Conv2D", layer.inputs, 1, 1); !s.ok()) return s;
         if (Status s = CheckChannels(check, where, p.in_channels, channels_read(layer.inputs[0]),
                                      p.out_channels);
@@ -879,6 +943,21 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                 CheckWindow(check, where, "kernel", p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
             !s.ok()) {
           return s;
+        }
+        if (Status s = CheckDilation(check, where, p.dilation_h, p.dilation_w, v2, "Conv2D");
+            !s.ok()) {
+          return s;
+        }
+        if (p.groups < 1 || p.in_channels % p.groups != 0 || p.out_channels % p.groups != 0) {
+          return check.Fail(where + ": groups is " + std::to_string(p.groups) +
+                            "; must be at least 1 and divide in_channels (" +
+                            std::to_string(p.in_channels) + ") and out_channels (" +
+                            std::to_string(p.out_channels) + ")");
+        }
+        if (!v2 && p.groups != 1) {
+          return check.Fail(where + ": groups is " + std::to_string(p.groups) +
+                            " in a layer stored as op Conv2D; a grouped one is stored as Conv2DV2 "
+                            "(a miswritten file)");
         }
         switch (c->padding_rule()) {
           case fb::PaddingRule::Explicit:
@@ -897,10 +976,12 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         if (const fb::Padding* pads = c->pads()) {
           p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
         }
-        for (const auto& [amount, side, limit] : {std::tuple{p.pads.top, "top", p.kernel_h},
-                                                  std::tuple{p.pads.bottom, "bottom", p.kernel_h},
-                                                  std::tuple{p.pads.left, "left", p.kernel_w},
-                                                  std::tuple{p.pads.right, "right", p.kernel_w}}) {
+        const int extent_h = DilatedExtent(p.kernel_h, p.dilation_h);
+        const int extent_w = DilatedExtent(p.kernel_w, p.dilation_w);
+        for (const auto& [amount, side, limit] : {std::tuple{p.pads.top, "top", extent_h},
+                                                  std::tuple{p.pads.bottom, "bottom", extent_h},
+                                                  std::tuple{p.pads.left, "left", extent_w},
+                                                  std::tuple{p.pads.right, "right", extent_w}}) {
           if (amount < 0 || amount > model_limits::MaxPad(limit)) {
             return check.Fail(where + ": pads." + side + " is " + std::to_string(amount) +
                               "; must be in 0.." + std::to_string(model_limits::MaxPad(limit)));
@@ -929,13 +1010,19 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                 std::to_string(kSchemaVersionMinor) +
                 ") does not know; it runs fp32, int8 and bf16");
         }
+        if (p.precision != Precision::kFloat32 &&
+            (p.dilation_h != 1 || p.dilation_w != 1 || p.groups != 1)) {
+          return check.Fail(where + ": precision is " + PrecisionName(p.precision) +
+                            ", but a dilated or grouped convolution runs in fp32 only");
+        }
         if (p.precision == Precision::kInt8) {
           if (Status s = TakeInt8Params(check, where, *c, p); !s.ok()) return s;
           metadata_.has_int8 = true;
         }
-        if (Status s = take_tensor(
-                c->weights(), "weights", {p.kernel_h, p.kernel_w, p.in_channels, p.out_channels},
-                &p.weights, p.precision == Precision::kInt8 ? &p.weights_q : nullptr);
+        if (Status s =
+                take_tensor(c->weights(), "weights",
+                            {p.kernel_h, p.kernel_w, p.in_channels / p.groups, p.out_channels},
+                            &p.weights, p.precision == Precision::kInt8 ? &p.weights_q : nullptr);
             !s.ok()) {
           return s;
         }
@@ -1047,8 +1134,11 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         channels_of.push_back(ca);
         break;
       }
-      case fb::LayerOp::ConvTranspose2D: {
-        const fb::ConvTranspose2D* c = fl->op_as_ConvTranspose2D();
+      case fb::LayerOp::ConvTranspose2D:
+      case fb::LayerOp::ConvTranspose2DV2: {
+        const bool v2 = fl->op_type() == fb::LayerOp::ConvTranspose2DV2;
+        const fb::ConvTranspose2D* c =
+            v2 ? fl->op_as_ConvTranspose2DV2() : fl->op_as_ConvTranspose2D();
         layer.kind = LayerKind::kConvTranspose2D;
         ConvTransposeParams& p = layer.deconv;
         p.in_channels = c->in_channels();
@@ -1059,6 +1149,8 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         p.stride_w = c->stride_w();
         p.output_padding_h = c->output_padding_h();
         p.output_padding_w = c->output_padding_w();
+        p.dilation_h = c->dilation_h();
+        p.dilation_w = c->dilation_w();
         if (Status s = CheckArity(check, where, "a ConvTranspose2D", layer.inputs, 1, 1); !s.ok()) {
           return s;
         }
@@ -1072,10 +1164,17 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
             !s.ok()) {
           return s;
         }
+        if (Status s =
+                CheckDilation(check, where, p.dilation_h, p.dilation_w, v2, "ConvTranspose2D");
+            !s.ok()) {
+          return s;
+        }
         if (const fb::Padding* pads = c->pads()) {
           p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
         }
-        if (Status s = CheckPadsBelowKernel(check, where, p.pads, p.kernel_h, p.kernel_w);
+        if (Status s =
+                CheckPadsBelowKernel(check, where, p.pads, DilatedExtent(p.kernel_h, p.dilation_h),
+                                     DilatedExtent(p.kernel_w, p.dilation_w));
             !s.ok()) {
           return s;
         }
@@ -1101,8 +1200,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         channels_of.push_back(p.out_channels);
         break;
       }
-      case fb::LayerOp::Pool2D: {
-        const fb::Pool2D* c = fl->op_as_Pool2D();
+      case fb::LayerOp::Pool2D:
+      case fb::LayerOp::Pool2DV2: {
+        const bool v2 = fl->op_type() == fb::LayerOp::Pool2DV2;
+        const fb::Pool2D* c = v2 ? fl->op_as_Pool2DV2() : fl->op_as_Pool2D();
         layer.kind = LayerKind::kPool2D;
         PoolParams& p = layer.pool;
         if (Status s = CheckArity(check, where, "a Pool2D", layer.inputs, 1, 1); !s.ok()) return s;
@@ -1121,8 +1222,14 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         p.kernel_w = c->kernel_w();
         p.stride_h = c->stride_h();
         p.stride_w = c->stride_w();
+        p.dilation_h = c->dilation_h();
+        p.dilation_w = c->dilation_w();
         if (Status s =
                 CheckWindow(check, where, "window", p.kernel_h, p.kernel_w, p.stride_h, p.stride_w);
+            !s.ok()) {
+          return s;
+        }
+        if (Status s = CheckDilation(check, where, p.dilation_h, p.dilation_w, v2, "Pool2D");
             !s.ok()) {
           return s;
         }
@@ -1143,7 +1250,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         if (const fb::Padding* pads = c->pads()) {
           p.pads = {pads->top(), pads->left(), pads->bottom(), pads->right()};
         }
-        if (Status s = CheckPadsBelowKernel(check, where, p.pads, p.kernel_h, p.kernel_w);
+        if (Status s =
+                CheckPadsBelowKernel(check, where, p.pads, DilatedExtent(p.kernel_h, p.dilation_h),
+                                     DilatedExtent(p.kernel_w, p.dilation_w));
             !s.ok()) {
           return s;
         }
@@ -1163,9 +1272,17 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         if (Status s = take_tensor(a->scale(), "scale", {p.channels}, &p.scale); !s.ok()) return s;
         if (Status s = take_tensor(a->shift(), "shift", {p.channels}, &p.shift); !s.ok()) return s;
         if (Status s = TakeActivation(check, where, a->activation(), a->leaky_slope(),
-                                      &p.activation, &p.leaky_slope);
+                                      &p.activation, &p.leaky_slope, true);
             !s.ok()) {
           return s;
+        }
+        p.elu_alpha = a->elu_alpha();
+        p.clip_min = a->clip_min();
+        p.clip_max = a->clip_max();
+        if (!std::isfinite(p.elu_alpha)) return check.Fail(where + ": elu_alpha is not finite");
+        if (p.activation == Activation::kClip && !(p.clip_min <= p.clip_max)) {
+          return check.Fail(where + ": clip range is " + std::to_string(p.clip_min) + ".." +
+                            std::to_string(p.clip_max) + "; clip_min must be at most clip_max");
         }
         channels_of.push_back(p.channels);
         break;

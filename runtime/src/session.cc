@@ -370,6 +370,7 @@ Status Session::Plan() {
     step.out_bf16 = element == Precision::kBFloat16;
   };
   auto simd_fits = [](const ConvParams& p, bool upsampled, int max_taps) {
+    if (!UndilatedUngrouped(p)) return false;
     return upsampled ? p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1
                      : p.kernel_h * p.kernel_w <= max_taps;
   };
@@ -504,7 +505,7 @@ Status Session::Plan() {
       step.kind = Step::Kind::kWinograd;
       step.winograd = winograd;
       step.kernel = winograd->name;
-    } else if (kernels != nullptr && layer.conv.kernel_h * layer.conv.kernel_w <= kMaxConvTaps) {
+    } else if (kernels != nullptr && simd_fits(layer.conv, false, kMaxConvTaps)) {
       step.kind = Step::Kind::kConv;
     } else {
       step.kind = Step::Kind::kRefConv;

@@ -100,10 +100,12 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
     }
     case LayerKind::kConv2D: {
       const ConvParams& c = layer.conv;
-      const int oh = ConvOutputSize(cur.height, c.kernel_h, c.stride_h, c.padding_rule, c.pads.top,
-                                    c.pads.bottom, &g.pads.top, &g.pads.bottom);
-      const int ow = ConvOutputSize(cur.width, c.kernel_w, c.stride_w, c.padding_rule, c.pads.left,
-                                    c.pads.right, &g.pads.left, &g.pads.right);
+      const int oh =
+          ConvOutputSize(cur.height, DilatedExtent(c.kernel_h, c.dilation_h), c.stride_h,
+                         c.padding_rule, c.pads.top, c.pads.bottom, &g.pads.top, &g.pads.bottom);
+      const int ow =
+          ConvOutputSize(cur.width, DilatedExtent(c.kernel_w, c.dilation_w), c.stride_w,
+                         c.padding_rule, c.pads.left, c.pads.right, &g.pads.left, &g.pads.right);
       if (oh <= 0 || ow <= 0) {
         return Status::Error(Quote(layer, i) + ": input " + std::to_string(cur.height) + "x" +
                              std::to_string(cur.width) + " is smaller than its " +
@@ -111,18 +113,19 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
                              " kernel with its padding");
       }
       g.output = {oh, ow, c.out_channels};
-      g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels * c.out_channels +
+      const uint64_t group_inputs = static_cast<uint64_t>(c.in_channels / c.groups);
+      g.params = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * group_inputs * c.out_channels +
                  static_cast<uint64_t>(c.out_channels);
-      g.macs = static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w * c.in_channels;
+      g.macs = static_cast<uint64_t>(g.output.elements()) * c.kernel_h * c.kernel_w * group_inputs;
       break;
     }
     case LayerKind::kConvTranspose2D: {
       const ConvTransposeParams& c = layer.deconv;
       // In 64 bits: a side up to kMaxTensorSide times a stride up to kMaxStride.
       const int64_t oh = (int64_t{cur.height} - 1) * c.stride_h - c.pads.top - c.pads.bottom +
-                         c.kernel_h + c.output_padding_h;
+                         DilatedExtent(c.kernel_h, c.dilation_h) + c.output_padding_h;
       const int64_t ow = (int64_t{cur.width} - 1) * c.stride_w - c.pads.left - c.pads.right +
-                         c.kernel_w + c.output_padding_w;
+                         DilatedExtent(c.kernel_w, c.dilation_w) + c.output_padding_w;
       if (oh <= 0 || ow <= 0 || oh > kMaxTensorSide || ow > kMaxTensorSide) {
         return Status::Error(Quote(layer, i) + ": a " + std::to_string(cur.height) + "x" +
                              std::to_string(cur.width) + " input gives a " + std::to_string(oh) +
@@ -154,10 +157,12 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
     }
     case LayerKind::kPool2D: {
       const PoolParams& p = layer.pool;
-      const int oh = PoolOutputSize(cur.height, p.kernel_h, p.stride_h, p.padding_rule, p.pads.top,
-                                    p.pads.bottom, p.ceil_mode, &g.pads.top, &g.pads.bottom);
-      const int ow = PoolOutputSize(cur.width, p.kernel_w, p.stride_w, p.padding_rule, p.pads.left,
-                                    p.pads.right, p.ceil_mode, &g.pads.left, &g.pads.right);
+      const int oh = PoolOutputSize(cur.height, DilatedExtent(p.kernel_h, p.dilation_h), p.stride_h,
+                                    p.padding_rule, p.pads.top, p.pads.bottom, p.ceil_mode,
+                                    &g.pads.top, &g.pads.bottom);
+      const int ow = PoolOutputSize(cur.width, DilatedExtent(p.kernel_w, p.dilation_w), p.stride_w,
+                                    p.padding_rule, p.pads.left, p.pads.right, p.ceil_mode,
+                                    &g.pads.left, &g.pads.right);
       if (oh <= 0 || ow <= 0) {
         return Status::Error(Quote(layer, i) + ": input " + std::to_string(cur.height) + "x" +
                              std::to_string(cur.width) + " is smaller than its " +

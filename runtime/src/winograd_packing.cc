@@ -44,7 +44,8 @@ void TransformWeights(const ConvParams& p, int nr, int blocks, float* u) {
 
 bool WinogradUpApplies(const ConvParams& p) {
   return p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1 &&
-         p.in_channels >= kWinogradMinChannels && p.out_channels >= kWinogradMinChannels;
+         UndilatedUngrouped(p) && p.in_channels >= kWinogradMinChannels &&
+         p.out_channels >= kWinogradMinChannels;
 }
 
 size_t PackedWinogradUpFloats(const ConvParams& p, int nr) {
@@ -124,7 +125,8 @@ PackedWinograd PackWinogradUp(const ConvParams& p, int nr, float* dst) {
 
 bool WinogradApplies(const ConvParams& p) {
   return p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1 &&
-         p.in_channels >= kWinogradMinChannels && p.out_channels >= kWinogradMinChannels;
+         UndilatedUngrouped(p) && p.in_channels >= kWinogradMinChannels &&
+         p.out_channels >= kWinogradMinChannels;
 }
 
 size_t PackedWinogradFloats(const ConvParams& p, int m, int nr) {

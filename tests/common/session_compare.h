@@ -12,7 +12,9 @@
 
 #include "common/relative_error.h"  // RelativeMaxError, used with RunSession
 #include "sfrt/isa.h"
+#include "sfrt/reference.h"
 #include "sfrt/session.h"
+#include "sfrt/shapes.h"
 
 namespace sfrt::testing {
 
@@ -46,6 +48,30 @@ inline std::vector<float> RunSession(std::shared_ptr<const Model> model, Isa isa
   const Status s = (*session)->Run(input, height, width, out);
   EXPECT_TRUE(s.ok()) << s.message();
   return s.ok() ? out : std::vector<float>{};
+}
+
+// Runs `model` at each size on every ISA this CPU runs, with 1 and 2 threads, on seeded input
+// of `channels` channels, and expects each output within `tolerance` (RelativeMaxError) of the
+// reference forward (sfrt/reference.h).
+inline void ExpectEveryIsaMatchesTheReferenceForward(
+    const std::shared_ptr<const Model>& model, std::initializer_list<std::pair<int, int>> sizes,
+    int channels, double tolerance, uint32_t seed = 4) {
+  for (auto [h, w] : sizes) {
+    const auto input = RandomImage(h, w, channels, seed);
+    auto shape = InferOutputShape(*model, h, w);
+    ASSERT_TRUE(shape.ok()) << shape.message();
+    std::vector<float> want(shape->elements(), NAN);
+    const Status s = RunReferenceForward(*model, input, h, w, want);
+    ASSERT_TRUE(s.ok()) << s.message();
+    for (Isa isa : SupportedIsas()) {
+      for (int threads : {1, 2}) {
+        SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads, " +
+                     std::to_string(h) + "x" + std::to_string(w));
+        const auto got = RunSession(model, isa, threads, input, h, w);
+        EXPECT_LE(RelativeMaxError(got, want), tolerance);
+      }
+    }
+  }
 }
 
 }  // namespace sfrt::testing

@@ -1075,20 +1075,65 @@ TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
                     {"node 'shift' (op Add): unsupported", "only evaluated when all its inputs"});
 }
 
-TEST_F(OnnxImporter, RejectsGroupedConv) {
+TEST_F(OnnxImporter, ImportsAGroupedConvWithEachGroupsWeightsAtItsOwnInputs) {
   OnnxModel m;
-  m.Input("x", {1, 2, 5, 5});
-  SetInt(m.Conv("grouped", "x", "y", 1, 2, 3, 1, {1, 1, 1, 1}), "group", 2);
+  m.Input("x", {1, 4, 5, 5});
+  // Weight (4, 2, 3, 3): 4 outputs, 2 inputs per group, 2 groups.
+  SetInt(m.Conv("grouped", "x", "y", 2, 4, 3, 1, {1, 1, 1, 1}), "group", 2);
   m.Output("y");
-  ExpectImportError(m.Save("group.onnx"), {"node 'grouped' (op Conv)", "'group' = 2"});
+  auto spec = ImportOk(m.Save("group.onnx"));
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  ASSERT_EQ(spec->layers.size(), 1u);
+  const auto& c = std::get<ConvSpec>(spec->layers[0]);
+  EXPECT_EQ(c.groups, 2);
+  EXPECT_EQ(c.in_channels, 4);
+  EXPECT_EQ(c.out_channels, 4);
+  ASSERT_EQ(c.weights_hwio.size(), 3u * 3 * 2 * 4);
+  for (int co = 0; co < 4; ++co) {
+    for (int ci = 0; ci < 2; ++ci) {
+      for (int ky = 0; ky < 3; ++ky) {
+        for (int kx = 0; kx < 3; ++kx) {
+          EXPECT_EQ(c.weights_hwio[static_cast<size_t>(((ky * 3 + kx) * 2 + ci) * 4 + co)],
+                    WeightValue(((co * 2 + ci) * 3 + ky) * 3 + kx));
+        }
+      }
+    }
+  }
 }
 
-TEST_F(OnnxImporter, RejectsDilatedConv) {
+TEST_F(OnnxImporter, ImportsADilatedConvAndPadsItsDilatedExtentForSameUpper) {
   OnnxModel m;
   m.Input("x", {1, 2, 9, 9});
-  SetInts(m.Conv("dilated", "x", "y", 2, 2, 3, 1, {2, 2, 2, 2}), "dilations", {2, 2});
+  auto& n = m.Conv("dilated", "x", "y", 2, 2, 3, 1, {});
+  SetInts(n, "dilations", {2, 3});
+  SetString(n, "auto_pad", "SAME_UPPER");
   m.Output("y");
-  ExpectImportError(m.Save("dilation.onnx"), {"node 'dilated' (op Conv)", "'dilations' = [2, 2]"});
+  auto spec = ImportOk(m.Save("dilation.onnx"));
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  const auto& c = std::get<ConvSpec>(spec->layers[0]);
+  EXPECT_EQ(c.dilation_h, 2);
+  EXPECT_EQ(c.dilation_w, 3);
+  EXPECT_EQ(c.padding_rule, PaddingRule::kSameUpper);
+  // Extents 5 and 7 at stride 1: 4 and 6 rows and columns of padding, halved.
+  EXPECT_EQ(c.pads, (Pads{2, 3, 2, 3}));
+}
+
+TEST_F(OnnxImporter, RejectsAGroupThatDoesNotDivideTheOutputs) {
+  OnnxModel m;
+  m.Input("x", {1, 3, 5, 5});
+  SetInt(m.Conv("grouped", "x", "y", 1, 4, 3, 1, {1, 1, 1, 1}), "group", 3);
+  m.Output("y");
+  ExpectImportError(m.Save("group3.onnx"),
+                    {"node 'grouped' (op Conv)", "'group' = 3", "divide the weight's 4 output"});
+}
+
+TEST_F(OnnxImporter, RejectsADilationOfZero) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 9, 9});
+  SetInts(m.Conv("dilated", "x", "y", 2, 2, 3, 1, {2, 2, 2, 2}), "dilations", {0, 1});
+  m.Output("y");
+  ExpectImportError(m.Save("dilation0.onnx"),
+                    {"node 'dilated' (op Conv)", "'dilations' = [0, 1]", "each 1..64"});
 }
 
 TEST_F(OnnxImporter, KeepsSameLowerAutoPadAsItsOwnRuleBesideSameUpperConvs) {
@@ -1597,7 +1642,7 @@ TEST_F(OnnxImporter, ConvPadsAboveKernelMinusOneNameNodeAndPads) {
   m.Output("y");
   const std::string path = m.Save("pads.onnx");
   ExpectImportError(path, {"node 'conv0' (op Conv): attribute 'pads' = [0, 1152, 0, 0]",
-                           "exceed kernel - 1", "at most 2 top/bottom, 2 left/right"});
+                           "exceed the kernel's extent - 1", "at most 2 top/bottom, 2 left/right"});
   // One past the limit on each side is refused; the limit itself imports.
   for (int side = 0; side < 4; ++side) {
     std::vector<int64_t> pads = {0, 0, 0, 0};
@@ -1625,7 +1670,7 @@ TEST_F(OnnxImporter, PadNodeFoldedIntoConvPastKernelMinusOneNamesBothNodes) {
   m.Output("y");
   ExpectImportError(m.Save("pad_fold.onnx"),
                     {"node 'conv0' (op Conv): attribute 'pads' = [0, 3, 0, 0]",
-                     "node 'wide_pad' (op Pad) folded in", "exceed kernel - 1"});
+                     "node 'wide_pad' (op Pad) folded in", "exceed the kernel's extent - 1"});
 }
 
 TEST_F(OnnxImporter, UpsampleFactorAboveTheLoaderLimitNamesNodeAndScales) {

@@ -139,11 +139,22 @@ exporter::ModelSpec PoolingEncoderSpec() {
     return c;
   };
   spec.layers.push_back(conv("conv0", 12, 8, 3));
-  spec.layers.push_back(PoolSpec{
-      "pool0", {}, PoolKind::kMax, 3, 3, 2, 2, PaddingRule::kExplicit, {1, 1, 1, 1}, false, false});
+  spec.layers.push_back(PoolSpec{"pool0",
+                                 {},
+                                 PoolKind::kMax,
+                                 3,
+                                 3,
+                                 2,
+                                 2,
+                                 1,
+                                 1,
+                                 PaddingRule::kExplicit,
+                                 {1, 1, 1, 1},
+                                 false,
+                                 false});
   spec.layers.push_back(conv("conv1", 8, 16, 3));
   spec.layers.push_back(PoolSpec{
-      "pool1", {}, PoolKind::kAverage, 2, 2, 2, 2, PaddingRule::kExplicit, {}, true, false});
+      "pool1", {}, PoolKind::kAverage, 2, 2, 2, 2, 1, 1, PaddingRule::kExplicit, {}, true, false});
   ConvSpec out = conv("output", 16, 3, 1);
   out.activation = Activation::kNone;
   spec.layers.push_back(out);

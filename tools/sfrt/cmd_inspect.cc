@@ -58,6 +58,31 @@ std::string ShapeString(const TensorShape& s) {
          std::to_string(s.channels);
 }
 
+// " + relu", " + leaky(0.1)", " + clip(0..6)", ...; empty for none. `affine` holds the
+// parameters of the ChannelAffine-only kinds.
+std::string ActivationSuffix(Activation activation, float leaky_slope,
+                             const ChannelAffineParams* affine = nullptr) {
+  switch (activation) {
+    case Activation::kNone:
+      return "";
+    case Activation::kLeakyRelu:
+      return " + leaky(" + FormatFloat(leaky_slope) + ")";
+    case Activation::kElu:
+      return " + elu(" + FormatFloat(affine->elu_alpha) + ")";
+    case Activation::kClip:
+      return " + clip(" + FormatFloat(affine->clip_min) + ".." + FormatFloat(affine->clip_max) +
+             ")";
+    default:
+      return std::string(" + ") + ActivationName(activation);
+  }
+}
+
+// " dilation 2x2", " groups 4", " depthwise": the schema 1.8 fields that are not 1.
+std::string DilationSuffix(int dh, int dw) {
+  if (dh == 1 && dw == 1) return "";
+  return " dilation " + std::to_string(dh) + (dw == dh ? "" : "x" + std::to_string(dw));
+}
+
 std::string OpString(const LayerDesc& layer) {
   switch (layer.kind) {
     case LayerKind::kConv2D: {
@@ -65,12 +90,11 @@ std::string OpString(const LayerDesc& layer) {
       std::string op = "conv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
                        "/s" + std::to_string(c.stride_h);
       if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
-      if (c.activation == Activation::kLeakyRelu) {
-        op += " + leaky(" + FormatFloat(c.leaky_slope) + ")";
-      } else if (c.activation == Activation::kRelu) {
-        op += " + relu";
+      op += DilationSuffix(c.dilation_h, c.dilation_w);
+      if (c.groups > 1) {
+        op += c.groups == c.in_channels ? " depthwise" : " groups " + std::to_string(c.groups);
       }
-      return op;
+      return op + ActivationSuffix(c.activation, c.leaky_slope);
     }
     case LayerKind::kUpsample: {
       const UpsampleParams& u = layer.upsample;
@@ -96,12 +120,8 @@ std::string OpString(const LayerDesc& layer) {
         op += " outpad " + std::to_string(c.output_padding_h) + "," +
               std::to_string(c.output_padding_w);
       }
-      if (c.activation == Activation::kLeakyRelu) {
-        op += " + leaky(" + FormatFloat(c.leaky_slope) + ")";
-      } else if (c.activation == Activation::kRelu) {
-        op += " + relu";
-      }
-      return op;
+      return op + DilationSuffix(c.dilation_h, c.dilation_w) +
+             ActivationSuffix(c.activation, c.leaky_slope);
     }
     case LayerKind::kPool2D: {
       const PoolParams& p = layer.pool;
@@ -109,6 +129,7 @@ std::string OpString(const LayerDesc& layer) {
                        std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
                        std::to_string(p.stride_h);
       if (p.stride_w != p.stride_h) op += "x" + std::to_string(p.stride_w);
+      op += DilationSuffix(p.dilation_h, p.dilation_w);
       if (p.ceil_mode) op += " ceil";
       if (p.kind == PoolKind::kAverage && p.count_include_pad) op += " count-pads";
       return op;
@@ -130,21 +151,12 @@ std::string OpString(const LayerDesc& layer) {
     }
     case LayerKind::kChannelAffine: {
       const ChannelAffineParams& a = layer.affine;
-      std::string op = "scale+shift per channel";
-      if (a.activation == Activation::kLeakyRelu) {
-        op += " + leaky(" + FormatFloat(a.leaky_slope) + ")";
-      } else if (a.activation == Activation::kRelu) {
-        op += " + relu";
-      }
-      return op;
+      return "scale+shift per channel" + ActivationSuffix(a.activation, a.leaky_slope, &a);
     }
     case LayerKind::kConcat:
       return "concat channels";
     case LayerKind::kAdd:
-      return layer.add.activation == Activation::kLeakyRelu
-                 ? "add + leaky(" + FormatFloat(layer.add.leaky_slope) + ")"
-             : layer.add.activation == Activation::kRelu ? "add + relu"
-                                                         : "add";
+      return "add" + ActivationSuffix(layer.add.activation, layer.add.leaky_slope);
   }
   return "?";
 }

@@ -55,10 +55,21 @@ uint64_t StoredParameterBytes(const Model& model) {
   const uint64_t wide = model.metadata().weight_type == WeightType::kFloat16 ? 2 : 4;
   uint64_t bytes = 0;
   for (const LayerDesc& layer : model.layers()) {
+    if (layer.kind == LayerKind::kConvTranspose2D) {  // float32 or float16, as stored
+      const ConvTransposeParams& d = layer.deconv;
+      bytes += (static_cast<uint64_t>(d.kernel_h) * d.kernel_w * d.in_channels * d.out_channels +
+                static_cast<uint64_t>(d.out_channels)) *
+               wide;
+      continue;
+    }
+    if (layer.kind == LayerKind::kChannelAffine) {
+      bytes += 2 * static_cast<uint64_t>(layer.affine.channels) * wide;
+      continue;
+    }
     if (layer.kind != LayerKind::kConv2D) continue;
     const ConvParams& c = layer.conv;
-    const uint64_t weights = static_cast<uint64_t>(c.kernel_h) * c.kernel_w * c.in_channels *
-                             static_cast<uint64_t>(c.out_channels);
+    const uint64_t weights = static_cast<uint64_t>(c.kernel_h) * c.kernel_w *
+                             (c.in_channels / c.groups) * static_cast<uint64_t>(c.out_channels);
     const uint64_t outs = static_cast<uint64_t>(c.out_channels);
     bytes += c.precision == Precision::kInt8 ? weights + outs * 4 + outs * wide
                                              : (weights + outs) * wide;

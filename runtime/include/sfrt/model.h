@@ -30,7 +30,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 7;
+inline constexpr int kSchemaVersionMinor = 8;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
 // as do kConvTranspose2D and kPool2D (schema 1.6).
@@ -51,7 +51,11 @@ inline bool Float32OnlyKind(LayerKind kind) {
          kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D ||
          kind == LayerKind::kResize || kind == LayerKind::kChannelAffine;
 }
-enum class Activation { kNone, kRelu, kLeakyRelu };
+// kElu, kSigmoid, kTanh and kClip (schema 1.8) are taken by kChannelAffine layers only (their
+// parameters are in ChannelAffineParams); every layer kind takes the first three.
+enum class Activation { kNone, kRelu, kLeakyRelu, kElu, kSigmoid, kTanh, kClip };
+// "none", "relu", "leaky-relu", "elu", "sigmoid", "tanh", "clip".
+const char* ActivationName(Activation activation);
 // kSameLower (schema 1.7): ONNX SAME_LOWER, the larger half of an odd total at the top/left.
 enum class PaddingRule { kExplicit, kSameUpper, kSameLower };
 // "explicit", "same-upper", "same-lower".
@@ -73,6 +77,9 @@ struct QuantParams {
 // Whether a model's weights were learned (schema 1.2; kUnknown in older files).
 enum class TrainingState { kUnknown, kTrained, kUntrained };
 
+// The input rows (or columns) a window of `kernel` taps `dilation` apart spans.
+constexpr int DilatedExtent(int kernel, int dilation) { return (kernel - 1) * dilation + 1; }
+
 struct Padding {
   int top = 0;
   int left = 0;
@@ -88,12 +95,20 @@ struct ConvParams {
   int kernel_w = 0;
   int stride_h = 1;
   int stride_w = 1;
+  // Schema 1.8, float32 only: tap (ky, kx) of output (oy, ox) reads input
+  // (oy * stride_h - pads.top + ky * dilation_h, ox * stride_w - pads.left + kx * dilation_w);
+  // with `groups` g, output channel co reads only input channels of its group
+  // (co / (out_channels / g)), and `weights` hold in_channels / g inputs per tap. Depthwise:
+  // g == in_channels.
+  int dilation_h = 1;
+  int dilation_w = 1;
+  int groups = 1;
   PaddingRule padding_rule = PaddingRule::kExplicit;
   Padding pads;  // the rule when kExplicit; as stored (the traced size's amounts) otherwise
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
-  // HWIO: [kernel_h][kernel_w][in_channels][out_channels]. Null when precision is kInt8. For
-  // kBFloat16 the float32 weights, which a session rounds to bf16 (kernels/bf16_job.h).
+  // HWIO: [kernel_h][kernel_w][in_channels / groups][out_channels]. Null when precision is kInt8.
+  // For kBFloat16 the float32 weights, which a session rounds to bf16 (kernels/bf16_job.h).
   const float* weights = nullptr;
   const float* bias = nullptr;  // [out_channels], every precision
   Precision precision = Precision::kFloat32;
@@ -113,10 +128,17 @@ struct ConvParams {
   const float* phase_scales = nullptr;  // [4 * out_channels]
 };
 
+// Neither dilated nor grouped: the convolutions that int8, bf16 and every SIMD kernel take (the
+// others run in float32 on the reference kernel).
+inline bool UndilatedUngrouped(const ConvParams& p) {
+  return p.dilation_h == 1 && p.dilation_w == 1 && p.groups == 1;
+}
+
 // A transposed convolution (schema 1.6, float32): every input pixel (iy, ix) adds
 // in[iy][ix] . weights[ky][kx] to output pixel (iy * stride_h - pads.top + ky,
 // ix * stride_w - pads.left + kx); then bias and activation. Output side per axis:
-// (in - 1) * stride - pad_before - pad_after + kernel + output_padding.
+// (in - 1) * stride - pad_before - pad_after + (kernel - 1) * dilation + 1 + output_padding;
+// tap ky lands dilation_h * ky rows down rather than ky (schema 1.8).
 struct ConvTransposeParams {
   int in_channels = 0;
   int out_channels = 0;
@@ -124,6 +146,8 @@ struct ConvTransposeParams {
   int kernel_w = 0;
   int stride_h = 1;
   int stride_w = 1;
+  int dilation_h = 1;
+  int dilation_w = 1;
   Padding pads;
   int output_padding_h = 0;  // < stride_h: rows added at the bottom
   int output_padding_w = 0;  // < stride_w: columns added at the right
@@ -144,6 +168,10 @@ struct PoolParams {
   int kernel_w = 1;
   int stride_h = 1;
   int stride_w = 1;
+  // Schema 1.8: tap ky reads row y * stride_h - pads.top + ky * dilation_h; the window's extent
+  // (kernel - 1) * dilation + 1 takes the kernel side's place in sizes and padding.
+  int dilation_h = 1;
+  int dilation_w = 1;
   PaddingRule padding_rule = PaddingRule::kExplicit;
   Padding pads;  // the rule when kExplicit; as stored otherwise
   bool ceil_mode = false;
@@ -203,6 +231,9 @@ struct ChannelAffineParams {
   const float* shift = nullptr;  // [channels]
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
+  float elu_alpha = 1.0f;  // kElu: v > 0 ? v : elu_alpha * (exp(v) - 1)
+  float clip_min = 0.0f;   // kClip: min(max(v, clip_min), clip_max)
+  float clip_max = 0.0f;
 };
 
 struct AddParams {  // out = act(a + b)

@@ -15,6 +15,8 @@ inline constexpr int kMaxChannels = 1 << 16;
 inline constexpr int kMaxKernel = 31;
 // Each Conv2D stride: 1..kMaxStride.
 inline constexpr int kMaxStride = 16;
+// Each dilation of a Conv2D, ConvTranspose2D or Pool2D (schema 1.8): 1..kMaxDilation.
+inline constexpr int kMaxDilation = 64;
 // Each Upsample factor: 1..kMaxUpsample.
 inline constexpr int kMaxUpsample = 64;
 // Resize scales (schema 1.7): numerator 1..kMaxResizeNum, denominator 1..kMaxResizeDen, their

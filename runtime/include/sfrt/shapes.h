@@ -45,7 +45,8 @@ int PoolOutputSize(int in, int kernel, int stride, PaddingRule rule, int explici
 int64_t ResizeOutputSize(int in, int64_t num, int64_t den);
 
 // Convolution output size along one axis; `pad_before`/`pad_after` receive the amounts.
-// Returns <= 0 when the window does not fit.
+// `kernel` is the window's extent (DilatedExtent for a dilated one). Returns <= 0 when the
+// window does not fit.
 int ConvOutputSize(int in, int kernel, int stride, PaddingRule rule, int explicit_before,
                    int explicit_after, int* pad_before, int* pad_after);
 

@@ -2,6 +2,8 @@
 
 #include <cassert>
 
+#include "kernels/ref/activation_ref.h"
+
 namespace sfrt::ref {
 
 void ChannelAffineRows(const ConstTensorView& in, const ChannelAffineParams& p,
@@ -12,10 +14,7 @@ void ChannelAffineRows(const ConstTensorView& in, const ChannelAffineParams& p,
       const float* src = in.pixel(y, x);
       float* dst = out.pixel(y, x);
       for (int c = 0; c < p.channels; ++c) {
-        float v = src[c] * p.scale[c] + p.shift[c];
-        if (p.activation == Activation::kRelu && v < 0) v = 0;
-        if (p.activation == Activation::kLeakyRelu && v < 0) v *= p.leaky_slope;
-        dst[c] = v;
+        dst[c] = ActivateAffine(src[c] * p.scale[c] + p.shift[c], p);
       }
     }
   }

@@ -3,13 +3,16 @@
 #include <cassert>
 #include <cstring>
 
+#include "kernels/ref/activation_ref.h"
+
 namespace sfrt::ref {
 namespace {
 
-// The input index that tap k of an output coordinate reads along one axis, or -1: the tap
-// reaches output `o` from input `i` where o = i * stride - pad + k.
-int SourceOf(int o, int k, int stride, int pad, int in_size) {
-  const int t = o + pad - k;
+// The input index that the tap at offset `reach` (tap index times dilation) of an output
+// coordinate reads along one axis, or -1: it reaches output `o` from input `i` where
+// o = i * stride - pad + reach.
+int SourceOf(int o, int reach, int stride, int pad, int in_size) {
+  const int t = o + pad - reach;
   if (t < 0 || t % stride != 0) return -1;
   const int i = t / stride;
   return i < in_size ? i : -1;
@@ -27,10 +30,10 @@ void ConvTranspose2dRows(const ConstTensorView& in, const ConvTransposeParams& p
       float* dst = out.pixel(y, x);
       std::memcpy(dst, p.bias, sizeof(float) * static_cast<size_t>(oc));
       for (int ky = 0; ky < p.kernel_h; ++ky) {
-        const int iy = SourceOf(y, ky, p.stride_h, p.pads.top, in.height);
+        const int iy = SourceOf(y, ky * p.dilation_h, p.stride_h, p.pads.top, in.height);
         if (iy < 0) continue;
         for (int kx = 0; kx < p.kernel_w; ++kx) {
-          const int ix = SourceOf(x, kx, p.stride_w, p.pads.left, in.width);
+          const int ix = SourceOf(x, kx * p.dilation_w, p.stride_w, p.pads.left, in.width);
           if (ix < 0) continue;
           const float* src = in.pixel(iy, ix);
           const float* w = p.weights + (static_cast<size_t>(ky) * p.kernel_w + kx) * tap_floats;
@@ -40,19 +43,7 @@ void ConvTranspose2dRows(const ConstTensorView& in, const ConvTransposeParams& p
           }
         }
       }
-      for (int o = 0; o < oc; ++o) {
-        const float v = dst[o];
-        switch (p.activation) {
-          case Activation::kNone:
-            break;
-          case Activation::kRelu:
-            dst[o] = v > 0.0f ? v : 0.0f;
-            break;
-          case Activation::kLeakyRelu:
-            dst[o] = v > 0.0f ? v : v * p.leaky_slope;
-            break;
-        }
-      }
+      for (int o = 0; o < oc; ++o) dst[o] = Activate(dst[o], p.activation, p.leaky_slope);
     }
   }
 }

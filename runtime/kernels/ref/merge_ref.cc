@@ -3,6 +3,8 @@
 #include <cassert>
 #include <cstring>
 
+#include "kernels/ref/activation_ref.h"
+
 namespace sfrt::ref {
 
 void ConcatRows(const ConstTensorView* inputs, int count, const TensorView& out, int row_begin,
@@ -29,18 +31,7 @@ void AddRows(const ConstTensorView& a, const ConstTensorView& b, const AddParams
     const float* pb = b.pixel(y, 0);
     float* po = out.pixel(y, 0);
     for (int i = 0; i < n; ++i) {
-      const float v = pa[i] + pb[i];
-      switch (params.activation) {
-        case Activation::kNone:
-          po[i] = v;
-          break;
-        case Activation::kRelu:
-          po[i] = v > 0.0f ? v : 0.0f;
-          break;
-        case Activation::kLeakyRelu:
-          po[i] = v > 0.0f ? v : v * params.leaky_slope;
-          break;
-      }
+      po[i] = Activate(pa[i] + pb[i], params.activation, params.leaky_slope);
     }
   }
 }

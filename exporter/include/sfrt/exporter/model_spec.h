@@ -42,11 +42,14 @@ struct ConvSpec {
   int kernel_w = 3;
   int stride_h = 1;
   int stride_w = 1;
+  int dilation_h = 1;  // schema 1.8 (sfrt/model.h, ConvParams); float32 only when not 1
+  int dilation_w = 1;
+  int groups = 1;  // schema 1.8; divides in_channels and out_channels
   PaddingRule padding_rule = PaddingRule::kExplicit;
   Pads pads;  // the amounts at the traced size; the rule when padding_rule == kExplicit
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
-  // kFloat32: kernel_h * kernel_w * in_channels * out_channels; empty when kInt8.
+  // kFloat32: kernel_h * kernel_w * (in_channels / groups) * out_channels; empty when kInt8.
   std::vector<float> weights_hwio;
   std::vector<float> bias;  // out_channels, every precision
   // Schema 1.3. kInt8: weights_q replaces weights_hwio (same HWIO order, real weight =
@@ -102,6 +105,8 @@ struct ConvTransposeSpec {  // schema 1.6 (sfrt/model.h, ConvTransposeParams); f
   int kernel_w = 4;
   int stride_h = 2;
   int stride_w = 2;
+  int dilation_h = 1;  // schema 1.8
+  int dilation_w = 1;
   Pads pads;                 // removed from the full output's borders
   int output_padding_h = 0;  // rows added at the bottom (< stride_h)
   int output_padding_w = 0;  // columns added at the right (< stride_w)
@@ -119,6 +124,8 @@ struct PoolSpec {  // schema 1.6 (sfrt/model.h, PoolParams); float32
   int kernel_w = 2;
   int stride_h = 2;
   int stride_w = 2;
+  int dilation_h = 1;  // schema 1.8
+  int dilation_w = 1;
   PaddingRule padding_rule = PaddingRule::kExplicit;
   Pads pads;  // the amounts at the traced size; the rule when padding_rule == kExplicit
   bool ceil_mode = false;
@@ -136,8 +143,12 @@ struct ChannelAffineSpec {  // schema 1.7 (sfrt/model.h, ChannelAffineParams); f
   std::vector<std::string> inputs;
   std::vector<float> scale;  // one per channel
   std::vector<float> shift;  // one per channel
+  // Every kind; kElu, kSigmoid, kTanh and kClip need schema 1.8.
   Activation activation = Activation::kNone;
   float leaky_slope = 0.0f;
+  float elu_alpha = 1.0f;  // kElu
+  float clip_min = 0.0f;   // kClip
+  float clip_max = 0.0f;
 };
 
 using LayerSpec = std::variant<ConvSpec, UpsampleSpec, CropSpec, ConcatSpec, AddSpec,
@@ -220,6 +231,10 @@ inline std::string Float32OnlyReason(const ModelSpec& spec) {
     }
     if (const auto* a = std::get_if<ChannelAffineSpec>(&layer)) {
       return "the model has a ChannelAffine ('" + a->name + "')";
+    }
+    const auto* c = std::get_if<ConvSpec>(&layer);
+    if (c != nullptr && (c->dilation_h != 1 || c->dilation_w != 1 || c->groups != 1)) {
+      return "the model has a dilated or grouped Conv2D ('" + c->name + "')";
     }
   }
   return "";

@@ -15,14 +15,15 @@ const char* ExporterVersion();
 
 struct SerializeOptions {
   // Schema minor version to write (major is always kSchemaVersionMajor). kSchemaVersionMinor
-  // (5, the default) writes Model.file_crc32c, the CRC-32C of the whole file, the 1.2 fields
+  // (the default) writes Model.file_crc32c, the CRC-32C of the whole file, the 1.2 fields
   // (Model.training; OutputDesc.units as stated), the 1.3 ones (int8 convolutions, the
   // calibration record), 1.4's bf16 and 1.5's graphs (named inputs, Concat, Add, crops to a
   // second input); a chain of float32 layers has the tables of 1.2. 2 writes the 1.2 layout; 1
   // the 1.1 layout (the file CRC, a fixed units text, no training state); 0 the 1.0 layout, whose
   // only checksum covers the weights. Every 1.x runtime reads the layouts up to its own; 0 to 2
   // exist so tests can keep checking that this runtime still reads older files. Int8 layers and
-  // a calibration record need 1.3, bf16 1.4, graphs 1.5.
+  // a calibration record need 1.3, bf16 1.4, graphs 1.5, ConvTranspose2D and Pool2D 1.6, SameLower,
+  // Resize and ChannelAffine 1.7, dilation, groups and the ChannelAffine-only activations 1.8.
   int schema_minor = kSchemaVersionMinor;
 };
 
