@@ -57,7 +57,8 @@ namespace {
 using nlohmann::json;
 
 constexpr char kSupportedLayers[] =
-    "InputLayer, Conv2D, BatchNormalization (folded into the Conv2D before it), LeakyReLU, "
+    "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, BatchNormalization "
+    "(folded into the Conv2D before it), LeakyReLU, "
     "Activation, UpSampling2D, Cropping2D, ZeroPadding2D, Concatenate (channels), Add (and a "
     "multi_gpu_model wrapper: InputLayer/Lambda/Concatenate around one nested Model)";
 // Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
@@ -945,7 +946,8 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
         return LayerFail(l, "reads layer " + Quote(name) + ", which is not computed before it");
       }
       const Tensor& t = found->second;
-      if (t.pad_layer != nullptr && l.cls != "Conv2D" && l.cls != "ZeroPadding2D") {
+      if (t.pad_layer != nullptr && l.cls != "Conv2D" && l.cls != "DepthwiseConv2D" &&
+          l.cls != "ZeroPadding2D") {
         return LayerFail(*t.pad_layer,
                          "must be followed by a Conv2D with padding 'valid' (it is "
                          "folded into the convolution), but is followed by layer " +
@@ -1000,13 +1002,26 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
         add.leaky_slope = slope;
       }
     };
-    if (l.cls == "Conv2D") {
-      if (Status s = one_input("a Conv2D"); !s.ok()) return s;
+    if (l.cls == "Conv2D" || l.cls == "DepthwiseConv2D") {
+      // DepthwiseConv2D: depth_multiplier outputs per input channel, kernel (kh, kw, in,
+      // multiplier), which is HWIO with one input per group (output c * multiplier + m).
+      const bool depthwise = l.cls == "DepthwiseConv2D";
+      if (Status s = one_input(depthwise ? "a DepthwiseConv2D" : "a Conv2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
       auto field = [&](const char* key) { return Find(cfg, key); };
       int filters_value = 0;
       std::array<int, 2> kernel_value{};
-      if (!GetInt(field("filters"), 1, model_limits::kMaxChannels, &filters_value)) {
+      int groups = 1;
+      if (depthwise) {
+        int multiplier = 1;
+        if (const json* m = field("depth_multiplier");
+            m != nullptr && !GetInt(m, 1, model_limits::kMaxChannels / c, &multiplier)) {
+          return LayerFail(l, "depth_multiplier " + JsonText(*m) + " is not an integer in 1.." +
+                                  std::to_string(model_limits::kMaxChannels / c));
+        }
+        filters_value = c * multiplier;
+        groups = c;
+      } else if (!GetInt(field("filters"), 1, model_limits::kMaxChannels, &filters_value)) {
         return LayerFail(l, "'filters' is missing or not an integer in 1.." +
                                 std::to_string(model_limits::kMaxChannels));
       }
@@ -1023,15 +1038,18 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
                                   std::to_string(model_limits::kMaxStride));
         }
       }
+      std::array<int, 2> dilation{1, 1};
       if (const json* d = field("dilation_rate")) {
-        std::array<int, 2> v{};
-        if (!GetPair(d, 1, kMaxDim, &v) || v[0] != 1 || v[1] != 1) {
-          return LayerFail(l, "dilation_rate " + JsonText(*d) + " is not supported (only 1)");
+        if (!GetPair(d, 1, model_limits::kMaxDilation, &dilation)) {
+          return LayerFail(l, "dilation_rate " + JsonText(*d) + " is not integers in 1.." +
+                                  std::to_string(model_limits::kMaxDilation));
         }
       }
-      if (const json* g = field("groups")) {
-        if (int v = 0; !GetInt(g, 1, kMaxDim, &v) || v != 1) {
-          return LayerFail(l, "groups " + JsonText(*g) + " is not supported (only 1)");
+      if (const json* g = field("groups"); g != nullptr && !depthwise) {
+        if (!GetInt(g, 1, c, &groups) || c % groups != 0 || filters_value % groups != 0) {
+          return LayerFail(l, "groups " + JsonText(*g) + " does not divide its " +
+                                  std::to_string(c) + " input channels and " +
+                                  std::to_string(filters_value) + " filters");
         }
       }
       std::string padding = "valid";
@@ -1066,7 +1084,13 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       conv.kernel_w = (*kernel)[1];
       conv.stride_h = strides[0];
       conv.stride_w = strides[1];
+      conv.dilation_h = dilation[0];
+      conv.dilation_w = dilation[1];
+      conv.groups = groups;
       conv.activation = activation == "relu" ? Activation::kRelu : Activation::kNone;
+      // The window's rows and columns (the kernel's dilated extent).
+      const int extent_h = DilatedExtent(conv.kernel_h, conv.dilation_h);
+      const int extent_w = DilatedExtent(conv.kernel_w, conv.dilation_w);
       if (padding == "same") {
         if (pending_pad != nullptr) {
           return LayerFail(l, "follows ZeroPadding2D " + Quote(pending_pad->name) +
@@ -1074,19 +1098,18 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
         }
         conv.padding_rule = PaddingRule::kSameUpper;
         if (known) {
-          const auto [top, bottom] = SameAxis(h, conv.stride_h, conv.kernel_h);
-          const auto [left, right] = SameAxis(w, conv.stride_w, conv.kernel_w);
+          const auto [top, bottom] = SameAxis(h, conv.stride_h, extent_h);
+          const auto [left, right] = SameAxis(w, conv.stride_w, extent_w);
           conv.pads = Pads{top, left, bottom, right};
         }
       } else {
         conv.padding_rule = PaddingRule::kExplicit;
         conv.pads = pending;
         // The model format takes explicit pads of at most kernel - 1 per side (as the loader).
-        for (const auto& [amount, side, size] :
-             {std::tuple{conv.pads.top, "top", conv.kernel_h},
-              std::tuple{conv.pads.bottom, "bottom", conv.kernel_h},
-              std::tuple{conv.pads.left, "left", conv.kernel_w},
-              std::tuple{conv.pads.right, "right", conv.kernel_w}}) {
+        for (const auto& [amount, side, size] : {std::tuple{conv.pads.top, "top", extent_h},
+                                                 std::tuple{conv.pads.bottom, "bottom", extent_h},
+                                                 std::tuple{conv.pads.left, "left", extent_w},
+                                                 std::tuple{conv.pads.right, "right", extent_w}}) {
           if (amount > model_limits::MaxPad(size)) {
             return LayerFail(l, "follows ZeroPadding2D " +
                                     Quote(pending_pad != nullptr ? pending_pad->name : "") +
@@ -1102,23 +1125,31 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       if (known) {
         const int ph = h + conv.pads.top + conv.pads.bottom;
         const int pw = w + conv.pads.left + conv.pads.right;
-        if (ph < conv.kernel_h || pw < conv.kernel_w) {
+        if (ph < extent_h || pw < extent_w) {
           return LayerFail(l, "its " + std::to_string(ph) + "x" + std::to_string(pw) +
                                   " input at the built size is smaller than the kernel");
         }
-        h = (ph - conv.kernel_h) / conv.stride_h + 1;
-        w = (pw - conv.kernel_w) / conv.stride_w + 1;
+        h = (ph - extent_h) / conv.stride_h + 1;
+        w = (pw - extent_w) / conv.stride_w + 1;
       }
       Result<std::vector<std::string>> paths = WeightPaths(l, use_bias ? 2 : 1);
       if (!paths.ok()) return paths.status();
-      const std::string meaning = "(kernel_size " + std::to_string(conv.kernel_h) + "x" +
-                                  std::to_string(conv.kernel_w) + ", " + std::to_string(c) +
-                                  " input channels, filters " + std::to_string(*filters) + ")";
-      auto kernel_values =
-          ReadDataset(l, (*paths)[0],
-                      {static_cast<uint64_t>(conv.kernel_h), static_cast<uint64_t>(conv.kernel_w),
-                       static_cast<uint64_t>(c), static_cast<uint64_t>(*filters)},
-                      meaning);
+      const std::string meaning =
+          "(kernel_size " + std::to_string(conv.kernel_h) + "x" + std::to_string(conv.kernel_w) +
+          ", " + std::to_string(c) + " input channels, " +
+          (depthwise ? "depth_multiplier " + std::to_string(*filters / c)
+                     : "filters " + std::to_string(*filters) +
+                           (groups > 1 ? ", groups " + std::to_string(groups) : "")) +
+          ")";
+      // Conv2D: (kh, kw, in / groups, filters); DepthwiseConv2D: (kh, kw, in, multiplier).
+      const uint64_t third =
+          depthwise ? static_cast<uint64_t>(c) : static_cast<uint64_t>(c / groups);
+      const uint64_t fourth =
+          depthwise ? static_cast<uint64_t>(*filters / c) : static_cast<uint64_t>(*filters);
+      auto kernel_values = ReadDataset(l, (*paths)[0],
+                                       {static_cast<uint64_t>(conv.kernel_h),
+                                        static_cast<uint64_t>(conv.kernel_w), third, fourth},
+                                       meaning);
       if (!kernel_values.ok()) return kernel_values.status();
       conv.weights_hwio = std::move(kernel_values).value();
       if (use_bias) {

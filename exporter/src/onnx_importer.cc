@@ -5,19 +5,23 @@
 //  3. Walk the live nodes in file order (ONNX requires topological order). Every tensor is either
 //     a constant (initialiser, Constant node, or the result of evaluating a supported op whose
 //     inputs are all constants; Shape/Size of any tensor with a static shape is a constant) or a
-//     runtime tensor with a static NCHW shape. Runtime tensors may only flow through Conv, Pad,
-//     BatchNormalization (inference), LeakyRelu, Relu, Resize, Upsample, Slice, Identity, and
-//     Concat (channels) and Add, which read several of them. A Resize that is nearest upsampling
+//     runtime tensor with a static NCHW shape. Runtime tensors may only flow through Conv (any
+//     group and dilation), ConvTranspose, MaxPool, AveragePool, Pad, BatchNormalization
+//     (inference), Relu, LeakyRelu, Elu, Sigmoid, Tanh, Clip, Add/Sub/Mul/Div by a per-channel
+//     constant, Resize, Upsample, Slice, Identity, and Concat (channels) and Add, which read
+//     several of them. A Resize that is nearest upsampling
 //     by integer factors equal to in[floor(y / f)] becomes an Upsample; any other (linear, cubic,
 //     other scales or roundings) a Resize layer (schema 1.7) with its scales as exact fractions.
 //  4. The layers are the ops the output depends on through runtime tensors, in file order: a
 //     graph (schema 1.5) whose layers name the layers they read, or, when each reads the one
 //     before it, a chain that names none. Pads fold into the Conv that reads them, a
 //     BatchNormalization folds into the Conv before it (its weights and bias scaled per output
-//     channel) and an activation fuses into the Conv (or Add) before it, where that layer's
-//     output has no other reader; consecutive Slices merge into one crop. Padding and crop rules
-//     are decided from the amounts at the traced size (a crop whose only reader is a Concat with
-//     a tensor of the crop's size becomes a crop to that tensor's size: a U-Net's skip).
+//     channel), as does an Add/Sub/Mul/Div by a constant; ReLU and LeakyReLU fuse into the Conv,
+//     ConvTranspose or Add before them, and any activation into a ChannelAffine, where that
+//     layer's output has no other reader (otherwise each becomes a ChannelAffine); consecutive
+//     Slices merge into one crop. Padding and crop rules are decided from the amounts at the traced
+//     size (a crop whose only reader is a Concat with a tensor of the crop's size becomes a crop to
+//     that tensor's size: a U-Net's skip).
 #include "sfrt/exporter/onnx_importer.h"
 
 #include "batch_norm_fold.h"
@@ -91,10 +95,13 @@ constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
 constexpr size_t kMaxListedNodes = 20;
 
 // Ops that may carry the network input. Concat (of channels) and Add read several such tensors.
+// Sub, Mul and Div (and Add) by a per-channel constant become a scale and shift.
+// clang-format off
 constexpr std::string_view kRuntimeOps[] = {
-    "Conv",     "Pad",        "BatchNormalization", "LeakyRelu", "Relu", "Resize",
-    "Upsample", "Slice",      "Identity",           "Concat",    "Add",  "ConvTranspose",
-    "MaxPool",  "AveragePool"};
+    "Conv", "Pad", "BatchNormalization", "LeakyRelu", "Relu", "Elu", "Sigmoid", "Tanh", "Clip",
+    "Resize", "Upsample", "Slice", "Identity", "Concat", "Add", "Sub", "Mul", "Div",
+    "ConvTranspose", "MaxPool", "AveragePool"};
+// clang-format on
 // Ops evaluated at import when all their inputs are constants.
 // clang-format off
 constexpr std::string_view kFoldableOps[] = {
@@ -125,6 +132,13 @@ std::string SupportedOpsText() {
   }
   text += ")";
   return text;
+}
+
+// A float for messages, as short as %g writes it.
+std::string FormatFloat(float v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", static_cast<double>(v));
+  return buf;
 }
 
 std::string JoinInts(const std::vector<int64_t>& values) {
@@ -907,6 +921,7 @@ struct GraphOp {
     kConv,
     kPad,
     kBatchNorm,
+    kAffine,  // Add, Sub, Mul or Div by a per-channel constant (in batch_norm)
     kActivation,
     kUpsample,
     kSlice,
@@ -930,9 +945,12 @@ struct GraphOp {
   Pads pads;                 // kPad: amounts added; kSlice: amounts removed
   Activation activation = Activation::kNone;
   float slope = 0.0f;
+  float elu_alpha = 1.0f;  // kElu
+  float clip_min = 0.0f;   // kClip
+  float clip_max = 0.0f;
   int factor_h = 1;
   int factor_w = 1;
-  ChannelAffine batch_norm;  // kBatchNorm (batch_norm_fold.h)
+  ChannelAffine batch_norm;  // kBatchNorm and kAffine (batch_norm_fold.h)
 };
 
 class Importer {
@@ -974,7 +992,11 @@ class Importer {
   Status ProcessNode(int idx);
   Status ProcessConstant(int idx);
   Status FoldNode(int idx);
-  Status ProcessRuntimeNode(int idx, const Shape4& in_shape);
+  // A node whose input `slot` is a runtime tensor and whose other inputs are constants.
+  Status ProcessRuntimeNode(int idx, int slot);
+  Status ProcessClip(int idx, GraphOp& op);
+  // Add, Sub, Mul or Div of the runtime tensor at `slot` and a per-channel constant.
+  Status ProcessElementwise(int idx, int slot, GraphOp& op);
   Status ProcessConv(int idx, GraphOp& op);
   Status ProcessConvTranspose(int idx, GraphOp& op);
   Status ProcessPool(int idx, GraphOp& op);
@@ -2331,20 +2353,22 @@ Status Importer::ProcessBatchNorm(int idx, GraphOp& op) {
   return Status::Ok();
 }
 
-Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
+Status Importer::ProcessRuntimeNode(int idx, int slot) {
   const onnx::NodeProto& n = graph().node(idx);
   const std::string& type = n.op_type();
   if (n.output_size() < 1 || n.output(0).empty()) return NodeError(idx, "has no output");
-  // Only input 0 carries activations; every other input must be a constant.
-  for (int k = 1; k < n.input_size(); ++k) {
-    if (runtime_.count(n.input(k)) > 0) {
+  // Only input `slot` carries activations; every other input must be a constant.
+  for (int k = 0; k < n.input_size(); ++k) {
+    if (k != slot && runtime_.count(n.input(k)) > 0) {
       return NodeError(idx, "input " + std::to_string(k) + " " + Quote(n.input(k)) +
-                                " depends on the network input; only input 0 may");
+                                " depends on the network input; only input " +
+                                std::to_string(slot) + " may");
     }
   }
+  const Shape4& in_shape = runtime_.at(n.input(slot));
   GraphOp op;
   op.node_index = idx;
-  op.inputs = {n.input(0)};
+  op.inputs = {n.input(slot)};
   op.output = n.output(0);
   op.in_shape = in_shape;
   op.out_shape = in_shape;
@@ -2370,6 +2394,19 @@ Status Importer::ProcessRuntimeNode(int idx, const Shape4& in_shape) {
   } else if (type == "Relu") {
     op.kind = GraphOp::Kind::kActivation;
     op.activation = Activation::kRelu;
+  } else if (type == "Elu") {
+    op.kind = GraphOp::Kind::kActivation;
+    op.activation = Activation::kElu;
+    SFRT_ONNX_ASSIGN_OR_RETURN(op.elu_alpha, FloatAttr(idx, "alpha", 1.0f));
+  } else if (type == "Sigmoid" || type == "Tanh") {
+    op.kind = GraphOp::Kind::kActivation;
+    op.activation = type == "Sigmoid" ? Activation::kSigmoid : Activation::kTanh;
+  } else if (type == "Clip") {
+    op.kind = GraphOp::Kind::kActivation;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessClip(idx, op));
+  } else if (type == "Add" || type == "Sub" || type == "Mul" || type == "Div") {
+    op.kind = GraphOp::Kind::kAffine;
+    SFRT_ONNX_RETURN_IF_ERROR(ProcessElementwise(idx, slot, op));
   } else if (type == "Resize" || type == "Upsample") {
     op.kind = GraphOp::Kind::kUpsample;
     SFRT_ONNX_RETURN_IF_ERROR(ProcessResize(idx, op));
@@ -2431,13 +2468,108 @@ Status Importer::ProcessNode(int idx) {
                                       Quote(n.input(runtime_slot)) + " depends on the network input"
                                 : "");
   }
-  if (type == "Concat" || type == "Add") return ProcessMergeNode(idx);
+  int runtime_inputs = 0;
+  for (int k = 0; k < n.input_size(); ++k) runtime_inputs += runtime_.count(n.input(k)) > 0;
+  const bool elementwise = type == "Add" || type == "Sub" || type == "Mul" || type == "Div";
+  if (type == "Concat" || (type == "Add" && runtime_inputs > 1)) return ProcessMergeNode(idx);
+  if (elementwise) {
+    if (runtime_inputs > 1 || n.input_size() != 2) {
+      return Unsupported(idx, "; " + Printable(type) +
+                                  " runs on one tensor that depends on the network input and a "
+                                  "per-channel constant (Add also on two such tensors)");
+    }
+    return ProcessRuntimeNode(idx, runtime_slot);
+  }
   if (runtime_slot != 0) {
     return NodeError(idx, "input " + std::to_string(runtime_slot) + " " +
                               Quote(n.input(runtime_slot)) +
                               " depends on the network input; only input 0 may");
   }
-  return ProcessRuntimeNode(idx, runtime_.at(n.input(0)));
+  return ProcessRuntimeNode(idx, 0);
+}
+
+// ONNX Clip (opsets 11-17): min and max as optional constant inputs 1 and 2, absent meaning
+// unbounded. Clip(0, unbounded) is a ReLU (which fuses into the producing convolution).
+Status Importer::ProcessClip(int idx, GraphOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  float bounds[2] = {-std::numeric_limits<float>::infinity(),
+                     std::numeric_limits<float>::infinity()};
+  for (int k = 1; k <= 2; ++k) {
+    if (n.input_size() <= k || n.input(k).empty()) continue;
+    Dims dims;
+    SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<float> v, GetFloats(idx, k, &dims));
+    if (v.size() != 1 || std::isnan(v[0])) {
+      return NodeError(idx, std::string(k == 1 ? "min " : "max ") + Quote(n.input(k)) +
+                                " must be one number; has shape " + JoinInts(dims));
+    }
+    bounds[k - 1] = v[0];
+  }
+  if (bounds[0] > bounds[1]) {
+    return NodeError(idx,
+                     "min " + FormatFloat(bounds[0]) + " is above max " + FormatFloat(bounds[1]));
+  }
+  if (bounds[0] == 0.0f && std::isinf(bounds[1])) {
+    op.activation = Activation::kRelu;
+    return Status::Ok();
+  }
+  op.activation = Activation::kClip;
+  op.clip_min = bounds[0];
+  op.clip_max = bounds[1];
+  return Status::Ok();
+}
+
+// x + c, x - c, c - x, x * c and x / c for a constant c that varies at most along the channels
+// (shapes that broadcast to [1, C, 1, 1]): out = x * scale[ch] + shift[ch]. x / c becomes
+// x * (1 / c), within a rounding of the division.
+Status Importer::ProcessElementwise(int idx, int slot, GraphOp& op) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const std::string& type = n.op_type();
+  const int other = 1 - slot;
+  Dims dims;
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<float> c, GetFloats(idx, other, &dims));
+  const int64_t channels = op.in_shape[1];
+  // Right-aligned against (N, C, H, W): every axis but C of size 1, C of size 1 or `channels`.
+  bool per_channel = dims.size() <= 4;
+  for (size_t k = 0; per_channel && k < dims.size(); ++k) {
+    const size_t axis = 4 - dims.size() + k;
+    per_channel = dims[k] == 1 || (axis == 1 && dims[k] == channels);
+  }
+  if (!per_channel || c.empty()) {
+    return Unsupported(idx, "; the constant " + Quote(n.input(other)) + " has shape " +
+                                JoinInts(dims) + ", which varies along more than the " +
+                                std::to_string(channels) +
+                                " channels (only per-channel constants are supported)");
+  }
+  if (type == "Div" && slot == 1) {
+    return Unsupported(idx,
+                       "; a constant divided by a tensor that depends on the network input "
+                       "is not supported (only the tensor divided by a constant)");
+  }
+  ChannelAffine& a = op.batch_norm;
+  a.scale.assign(static_cast<size_t>(channels), 1.0f);
+  a.shift.assign(static_cast<size_t>(channels), 0.0f);
+  for (size_t ch = 0; ch < a.scale.size(); ++ch) {
+    const float v = c.size() == 1 ? c[0] : c[ch];
+    if (type == "Mul") {
+      a.scale[ch] = v;
+    } else if (type == "Add") {
+      a.shift[ch] = v;
+    } else if (type == "Sub") {
+      a.scale[ch] = slot == 0 ? 1.0f : -1.0f;
+      a.shift[ch] = slot == 0 ? -v : v;
+    } else {  // Div
+      if (v == 0.0f || !std::isfinite(1.0f / v)) {
+        return NodeError(idx, "divides by " + FormatFloat(v) + " (channel " + std::to_string(ch) +
+                                  " of " + Quote(n.input(other)) + ")");
+      }
+      a.scale[ch] = 1.0f / v;
+    }
+    if (!std::isfinite(v)) {
+      return NodeError(idx, "the constant " + Quote(n.input(other)) + " holds " + FormatFloat(v) +
+                                " (channel " + std::to_string(ch) + ")");
+    }
+  }
+  return Status::Ok();
 }
 
 Status Importer::ProcessMergeNode(int idx) {
@@ -2521,8 +2653,7 @@ Status Importer::CheckConvPads(int idx, const ConvSpec& conv,
                             (folded.empty() ? "" : " (with " + folded + " folded in)") +
                             " exceed the kernel's extent - 1 (at most " + std::to_string(max_h) +
                             " top/bottom, " + std::to_string(max_w) + " left/right for the " +
-                            std::to_string(extent_h) + "x" + std::to_string(extent_w) +
-                            " kernel)");
+                            std::to_string(extent_h) + "x" + std::to_string(extent_w) + " kernel)");
 }
 
 Result<ModelSpec> Importer::Assemble() {
@@ -2692,12 +2823,12 @@ Result<ModelSpec> Importer::Assemble() {
           const Shape4& pre = src.pre_pad_shape;
           const int extent_h = DilatedExtent(pool.kernel_h, pool.dilation_h);
           const int extent_w = DilatedExtent(pool.kernel_w, pool.dilation_w);
-          const int oh = PoolOutputSize(static_cast<int>(pre[2]), extent_h, pool.stride_h,
-                                        pool.padding_rule, pool.pads.top, pool.pads.bottom,
-                                        pool.ceil_mode, &b, &a);
-          const int ow = PoolOutputSize(static_cast<int>(pre[3]), extent_w, pool.stride_w,
-                                        pool.padding_rule, pool.pads.left, pool.pads.right,
-                                        pool.ceil_mode, &b, &a);
+          const int oh =
+              PoolOutputSize(static_cast<int>(pre[2]), extent_h, pool.stride_h, pool.padding_rule,
+                             pool.pads.top, pool.pads.bottom, pool.ceil_mode, &b, &a);
+          const int ow =
+              PoolOutputSize(static_cast<int>(pre[3]), extent_w, pool.stride_w, pool.padding_rule,
+                             pool.pads.left, pool.pads.right, pool.ceil_mode, &b, &a);
           const bool in_range = pool.pads.top < extent_h && pool.pads.bottom < extent_h &&
                                 pool.pads.left < extent_w && pool.pads.right < extent_w;
           if (!in_range || oh != op.out_shape[2] || ow != op.out_shape[3]) {
@@ -2720,48 +2851,68 @@ Result<ModelSpec> Importer::Assemble() {
         break;
       }
       case GraphOp::Kind::kBatchNorm:
+      case GraphOp::Kind::kAffine:
       case GraphOp::Kind::kActivation: {
-        const bool bn = op.kind == GraphOp::Kind::kBatchNorm;
+        // A scale and shift folds into the Conv or ConvTranspose before it, or joins a
+        // ChannelAffine before it; an activation fuses into a Conv, ConvTranspose or Add (ReLU
+        // and LeakyReLU) or a ChannelAffine (any). The layer before must have no activation yet
+        // and be read by this node only (its output is then this node's). Otherwise the node
+        // becomes a ChannelAffine of its own (schema 1.7).
+        const bool scales = op.kind != GraphOp::Kind::kActivation;
         const Source& src = source.at(in0);
-        LayerSpec* layer = src.layer_index >= 0 ? &spec.layers[src.layer_index] : nullptr;
+        const bool last_and_sole = src.layer_index >= 0 &&
+                                   src.layer_index == static_cast<int>(spec.layers.size()) - 1 &&
+                                   sole_reader(in0);
+        LayerSpec* layer = last_and_sole ? &spec.layers[src.layer_index] : nullptr;
         auto* conv = layer != nullptr ? std::get_if<ConvSpec>(layer) : nullptr;
         auto* deconv = layer != nullptr ? std::get_if<ConvTransposeSpec>(layer) : nullptr;
         auto* add = layer != nullptr ? std::get_if<AddSpec>(layer) : nullptr;
-        const bool activated = (conv != nullptr && conv->activation != Activation::kNone) ||
-                               (deconv != nullptr && deconv->activation != Activation::kNone) ||
-                               (add != nullptr && add->activation != Activation::kNone);
-        // The producer must be a Conv or ConvTranspose (or an Add, for an activation) that has no
-        // activation yet, whose output only this node reads (its output is then this node's).
-        const bool fits = (conv != nullptr || deconv != nullptr || (!bn && add != nullptr)) &&
-                          !activated &&
-                          source.at(in0).layer_index == static_cast<int>(spec.layers.size()) - 1 &&
-                          sole_reader(in0);
-        if (!fits) {
-          // Nothing to fold or fuse into: a per-channel scale and shift of its own (schema 1.7).
-          ChannelAffineSpec affine;
-          affine.name = unique_name(graph().node(op.node_index).name(), "affine", num_affines++);
-          affine.inputs = {source.at(in0).layer};
-          const size_t channels = static_cast<size_t>(op.in_shape[1]);
-          affine.scale = bn ? op.batch_norm.scale : std::vector<float>(channels, 1.0f);
-          affine.shift = bn ? op.batch_norm.shift : std::vector<float>(channels, 0.0f);
-          affine.activation = bn ? Activation::kNone : op.activation;
-          affine.leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
-          add_layer(std::move(affine), op.output);
-          break;
-        }
-        if (bn && conv != nullptr) {
+        auto* affine = layer != nullptr ? std::get_if<ChannelAffineSpec>(layer) : nullptr;
+        if (conv != nullptr && conv->activation != Activation::kNone) conv = nullptr;
+        if (deconv != nullptr && deconv->activation != Activation::kNone) deconv = nullptr;
+        if (add != nullptr && add->activation != Activation::kNone) add = nullptr;
+        if (affine != nullptr && affine->activation != Activation::kNone) affine = nullptr;
+        const bool fusable_activation =
+            op.activation == Activation::kRelu || op.activation == Activation::kLeakyRelu;
+        const float slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
+        auto activate = [&](ChannelAffineSpec& a) {
+          a.activation = op.activation;
+          a.leaky_slope = slope;
+          a.elu_alpha = op.elu_alpha;
+          a.clip_min = op.clip_min;
+          a.clip_max = op.clip_max;
+        };
+        if (scales && conv != nullptr) {
           FoldIntoConv(op.batch_norm, conv);
-        } else if (bn) {
+        } else if (scales && deconv != nullptr) {
           FoldIntoConv(op.batch_norm, deconv);
-        } else if (conv != nullptr) {
+        } else if (scales && affine != nullptr) {  // a * (x * s + t) + b
+          for (size_t ch = 0; ch < affine->scale.size(); ++ch) {
+            affine->scale[ch] *= op.batch_norm.scale[ch];
+            affine->shift[ch] =
+                affine->shift[ch] * op.batch_norm.scale[ch] + op.batch_norm.shift[ch];
+          }
+        } else if (!scales && fusable_activation && conv != nullptr) {
           conv->activation = op.activation;
-          conv->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
-        } else if (deconv != nullptr) {
+          conv->leaky_slope = slope;
+        } else if (!scales && fusable_activation && deconv != nullptr) {
           deconv->activation = op.activation;
-          deconv->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
-        } else {
+          deconv->leaky_slope = slope;
+        } else if (!scales && fusable_activation && add != nullptr) {
           add->activation = op.activation;
-          add->leaky_slope = op.activation == Activation::kLeakyRelu ? op.slope : 0.0f;
+          add->leaky_slope = slope;
+        } else if (!scales && affine != nullptr) {
+          activate(*affine);
+        } else {
+          ChannelAffineSpec own;
+          own.name = unique_name(graph().node(op.node_index).name(), "affine", num_affines++);
+          own.inputs = {src.layer};
+          const size_t channels = static_cast<size_t>(op.in_shape[1]);
+          own.scale = scales ? op.batch_norm.scale : std::vector<float>(channels, 1.0f);
+          own.shift = scales ? op.batch_norm.shift : std::vector<float>(channels, 0.0f);
+          if (!scales) activate(own);
+          add_layer(std::move(own), op.output);
+          break;
         }
         source[op.output] = source.at(in0);
         break;

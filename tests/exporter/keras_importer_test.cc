@@ -114,10 +114,30 @@ TEST(KerasImport, EveryFixtureModelMatchesPyTorch) {
   for (const char* name :
        {"keras_w16_67x121", "keras_w16_540x960", "keras_w1_35x61", "keras_multigpu_w16_67x121",
         "keras_seq_67x121", "keras_anysize_w16_67x121", "keras_bn_w16_67x121",
-        "keras_unet_bn_w16_67x121", "keras_unet_bn_w16_37x53"}) {
+        "keras_unet_bn_w16_67x121", "keras_unet_bn_w16_37x53", "keras_separable_37x53"}) {
     SCOPED_TRACE(name);
     EXPECT_LE(ErrorAgainstPyTorch(name, name), kRelativeTolerance);
   }
+}
+
+// DepthwiseConv2D (depth_multiplier 2) and a Conv2D with groups and dilation_rate keep them;
+// EveryFixtureModelMatchesPyTorch runs the model.
+TEST(KerasImport, DepthwiseAndGroupedDilatedConvolutionsKeepTheirGroupsAndDilation) {
+  const KerasImportResult imported = Import("keras_separable_37x53");
+  const ConvSpec* depthwise = FindConv(imported.spec, "depthwise");
+  ASSERT_NE(depthwise, nullptr);
+  EXPECT_EQ(depthwise->groups, 8);
+  EXPECT_EQ(depthwise->in_channels, 8);
+  EXPECT_EQ(depthwise->out_channels, 16);
+  EXPECT_EQ(depthwise->dilation_h, 2);
+  EXPECT_EQ(depthwise->dilation_w, 2);
+  EXPECT_EQ(depthwise->pads, (Pads{2, 2, 2, 2}));  // 'same' for the 5x5 dilated extent
+  const ConvSpec* grouped = FindConv(imported.spec, "grouped");
+  ASSERT_NE(grouped, nullptr);
+  EXPECT_EQ(grouped->groups, 4);
+  EXPECT_EQ(grouped->dilation_h, 1);
+  EXPECT_EQ(grouped->dilation_w, 2);
+  EXPECT_EQ(grouped->weights_hwio.size(), 3u * 3 * 4 * 8);
 }
 
 // A BatchNormalization after a Conv2D with activation 'linear' is folded into it: the same 11
@@ -304,10 +324,11 @@ TEST(KerasImport, MalformedFilesFailWithOneLineNamingTheLayerOrDataset) {
       {"bad_alpha_missing.h5", {"layer 'leaky_re_lu_3' (LeakyReLU)", "no 'alpha'"}},
       {"bad_unknown_layer.h5",
        {"layer 'dense_1' (Dense)", "not supported",
-        "InputLayer, Conv2D, BatchNormalization (folded into the Conv2D before it), LeakyReLU, "
-        "Activation, UpSampling2D, Cropping2D, ZeroPadding2D"}},
+        "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, BatchNormalization "
+        "(folded into the Conv2D before it), LeakyReLU, Activation, UpSampling2D, Cropping2D, "
+        "ZeroPadding2D"}},
       {"bad_truncated.h5", {"truncated", "stored_eof"}},
-      {"bad_dilation.h5", {"layer 'conv4' (Conv2D)", "dilation_rate [2,2]"}},
+      {"bad_dilation.h5", {"layer 'conv4' (Conv2D)", "dilation_rate [0,2] is not integers"}},
       {"bad_channels_first.h5", {"layer 'up_sampling2d_2' (UpSampling2D)", "channels_first"}},
       {"bad_activation.h5", {"layer 'output' (Conv2D)", "activation 'tanh'"}},
       {"bad_weight_count.h5",

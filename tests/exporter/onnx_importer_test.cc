@@ -923,22 +923,22 @@ TEST_F(OnnxImporter, RejectsUnsupportedOpNamingNodeAndOpType) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});
   m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
-  m.Node("Sigmoid", {"t"}, {"y"}, "squash");
+  m.Node("Softsign", {"t"}, {"y"}, "squash");
   m.Output("y");
-  ExpectImportError(m.Save("sigmoid.onnx"),
-                    {"node 'squash' (op Sigmoid): unsupported; supported ops: Conv, Pad"});
+  ExpectImportError(m.Save("softsign.onnx"),
+                    {"node 'squash' (op Softsign): unsupported; supported ops: Conv, Pad"});
 }
 
 TEST_F(OnnxImporter, ExportListsEveryUnsupportedOnnxNodeWithItsOp) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});
   m.Conv("c", "x", "t0", 2, 2, 3, 1, {1, 1, 1, 1});
-  m.Node("Sigmoid", {"t0"}, {"t1"}, "squash");
-  m.Node("Tanh", {"t1"}, {"t2"}, "");  // unnamed: labelled by its index
+  m.Node("Softsign", {"t0"}, {"t1"}, "squash");
+  m.Node("Erf", {"t1"}, {"t2"}, "");  // unnamed: labelled by its index
   m.Node("Softplus", {"t2"}, {"y"}, "soft");
   m.Output("y");
   ExpectImportError(m.Save("three.onnx"),
-                    {"3 nodes are unsupported: node 'squash' (op Sigmoid), node #2 (op Tanh), "
+                    {"3 nodes are unsupported: node 'squash' (op Softsign), node #2 (op Erf), "
                      "node 'soft' (op Softplus); supported ops (default ONNX domain): Conv, Pad"});
 }
 
@@ -948,13 +948,13 @@ TEST_F(OnnxImporter, ExportListsAtMostTwentyUnsupportedNodesThenTheirCount) {
   m.Conv("c", "x", "t0", 2, 2, 3, 1, {1, 1, 1, 1});
   constexpr int kNodes = 26;
   for (int i = 0; i < kNodes; ++i) {
-    m.Node("Sigmoid", {"t" + std::to_string(i)},
+    m.Node("Softsign", {"t" + std::to_string(i)},
            {i + 1 == kNodes ? "y" : "t" + std::to_string(i + 1)}, "s" + std::to_string(i));
   }
   m.Output("y");
   const std::string path = m.Save("many.onnx");
-  ExpectImportError(path, {"26 nodes are unsupported: node 's0' (op Sigmoid)",
-                           "node 's19' (op Sigmoid) and 6 more;"});
+  ExpectImportError(path, {"26 nodes are unsupported: node 's0' (op Softsign)",
+                           "node 's19' (op Softsign) and 6 more;"});
   const Result<ModelSpec> r = ImportOnnx(path);
   EXPECT_EQ(r.message().find("'s20'"), std::string::npos) << r.message();
 }
@@ -1064,15 +1064,113 @@ TEST_F(OnnxImporter, BatchNormNotDirectlyAfterAConvBecomesAPerChannelScaleAndShi
   EXPECT_EQ(bn.activation, Activation::kNone);
 }
 
-TEST_F(OnnxImporter, RejectsArithmeticOnTheNetworkPath) {
+TEST_F(OnnxImporter, FoldsArithmeticByPerChannelConstantsIntoTheConvBefore) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});
-  m.Floats("one", {}, {1.0f});
-  m.Node("Add", {"x", "one"}, {"t"}, "shift");
-  m.Conv("c", "t", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Floats("gain", {1, 2, 1, 1}, {2.0f, -0.5f});
+  m.Floats("offset", {2, 1, 1}, {0.25f, 1.0f});
+  m.Floats("four", {}, {4.0f});
+  m.Node("Mul", {"gain", "t"}, {"t1"}, "gain");  // the constant first
+  m.Node("Sub", {"t1", "offset"}, {"t2"}, "offset");
+  m.Node("Div", {"t2", "four"}, {"y"}, "quarter");
   m.Output("y");
-  ExpectImportError(m.Save("add.onnx"),
-                    {"node 'shift' (op Add): unsupported", "only evaluated when all its inputs"});
+  auto spec = ImportOk(m.Save("arith.onnx"));
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  ASSERT_EQ(spec->layers.size(), 1u);
+  const auto& c = LayerAs<ConvSpec>(*spec, 0);
+  // ((conv * gain) - offset) / 4, per output channel: weights times gain / 4, and the bias
+  // (BiasValue(co)) likewise, less offset / 4.
+  const float gain[2] = {2.0f, -0.5f}, offset[2] = {0.25f, 1.0f};
+  for (int co = 0; co < 2; ++co) {
+    EXPECT_FLOAT_EQ(c.bias[static_cast<size_t>(co)],
+                    (BiasValue(co) * gain[co] - offset[co]) * 0.25f);
+    // Tap (0, 0), input 0: OIHW element co * 18.
+    EXPECT_FLOAT_EQ(c.weights_hwio[static_cast<size_t>(co)],
+                    WeightValue(co * 18) * gain[co] * 0.25f);
+  }
+}
+
+TEST_F(OnnxImporter, TurnsSigmoidTimesTwoMinusOneIntoChannelAffines) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Conv("c", "x", "t", 2, 3, 3, 1, {1, 1, 1, 1});
+  m.Floats("two", {}, {2.0f});
+  m.Floats("one", {}, {1.0f});
+  m.Node("Sigmoid", {"t"}, {"s"}, "squash");
+  m.Node("Mul", {"s", "two"}, {"s2"}, "double");
+  m.Node("Sub", {"s2", "one"}, {"y"}, "centre");
+  m.Output("y");
+  auto spec = ImportOk(m.Save("sigmoid.onnx"));
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  ASSERT_EQ(spec->layers.size(), 3u);
+  const auto& squash = LayerAs<ChannelAffineSpec>(*spec, 1);
+  EXPECT_EQ(squash.activation, Activation::kSigmoid);
+  EXPECT_EQ(squash.scale, std::vector<float>(3, 1.0f));
+  EXPECT_EQ(squash.shift, std::vector<float>(3, 0.0f));
+  // The Mul and the Sub after it make one scale and shift (the sigmoid is already activated).
+  const auto& affine = LayerAs<ChannelAffineSpec>(*spec, 2);
+  EXPECT_EQ(affine.activation, Activation::kNone);
+  EXPECT_EQ(affine.scale, std::vector<float>(3, 2.0f));
+  EXPECT_EQ(affine.shift, std::vector<float>(3, -1.0f));
+}
+
+TEST_F(OnnxImporter, ClipFromZeroUnboundedFusesAsReluAndReluSixBecomesAClip) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 5, 5});
+  m.Floats("zero", {}, {0.0f});
+  m.Floats("six", {}, {6.0f});
+  m.Conv("c0", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Clip", {"t", "zero", ""}, {"r"}, "relu");
+  m.Conv("c1", "r", "u", 2, 2, 3, 1, {1, 1, 1, 1});
+  m.Node("Clip", {"u", "zero", "six"}, {"v"}, "relu6");
+  SetFloat(m.Node("Elu", {"v"}, {"y"}, "elu"), "alpha", 0.5f);
+  m.Output("y");
+  auto spec = ImportOk(m.Save("clip.onnx"));
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  ASSERT_EQ(spec->layers.size(), 4u);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 0).activation, Activation::kRelu);
+  EXPECT_EQ(LayerAs<ConvSpec>(*spec, 1).activation, Activation::kNone);
+  const auto& relu6 = LayerAs<ChannelAffineSpec>(*spec, 2);
+  EXPECT_EQ(relu6.activation, Activation::kClip);
+  EXPECT_EQ(relu6.clip_min, 0.0f);
+  EXPECT_EQ(relu6.clip_max, 6.0f);
+  const auto& elu = LayerAs<ChannelAffineSpec>(*spec, 3);
+  EXPECT_EQ(elu.activation, Activation::kElu);
+  EXPECT_EQ(elu.elu_alpha, 0.5f);
+}
+
+TEST_F(OnnxImporter, RefusesArithmeticThatIsNotAPerChannelScaleAndShift) {
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 5, 5});
+    m.Floats("ramp", {1, 1, 1, 5}, {1, 2, 3, 4, 5});
+    m.Node("Mul", {"x", "ramp"}, {"t"}, "ramp");
+    m.Conv("c", "t", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+    m.Output("y");
+    ExpectImportError(m.Save("ramp.onnx"),
+                      {"node 'ramp' (op Mul): unsupported", "has shape [1, 1, 1, 5]",
+                       "only per-channel constants"});
+  }
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 5, 5});
+    m.Floats("one", {}, {1.0f});
+    m.Node("Div", {"one", "x"}, {"t"}, "invert");
+    m.Conv("c", "t", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+    m.Output("y");
+    ExpectImportError(m.Save("invert.onnx"),
+                      {"node 'invert' (op Div): unsupported", "a constant divided by a tensor"});
+  }
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 5, 5});
+    m.Conv("c", "x", "t", 2, 2, 3, 1, {1, 1, 1, 1});
+    m.Node("Mul", {"t", "x"}, {"y"}, "square");
+    m.Output("y");
+    ExpectImportError(m.Save("square.onnx"),
+                      {"node 'square' (op Mul): unsupported", "and a per-channel constant"});
+  }
 }
 
 TEST_F(OnnxImporter, ImportsAGroupedConvWithEachGroupsWeightsAtItsOwnInputs) {
@@ -1561,9 +1659,9 @@ TEST_F(OnnxImporter, RejectsWeightsWithTooFewValues) {
 TEST_F(OnnxImporter, ErrorMessagesStayOnOneLineWhateverTheNames) {
   OnnxModel m;
   m.Input("x", {1, 2, 5, 5});
-  m.Node("Sigmoid", {"x"}, {"y"}, "bad\nname");
+  m.Node("Softsign", {"x"}, {"y"}, "bad\nname");
   m.Output("y");
-  ExpectImportError(m.Save("newline.onnx"), {"bad?name", "(op Sigmoid)"});
+  ExpectImportError(m.Save("newline.onnx"), {"bad?name", "(op Softsign)"});
 }
 
 // Found by fuzz_onnx_import: a 1-channel network kept the default image order (four images, 12

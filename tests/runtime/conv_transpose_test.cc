@@ -121,22 +121,13 @@ TEST(ConvTransposeSession, TwoLevelDecoderMatchesTheReferenceForwardOnEveryIsaAt
   auto model = testing::LoadOrDie(testing::TwoLevelDecoderSpec());
   ASSERT_NE(model, nullptr);
   for (auto [h, w] : {std::pair{67, 121}, {37, 53}, {8, 8}}) {
-    const auto input = testing::RandomImage(h, w, 12, 3);
     auto shape = InferOutputShape(*model, h, w);
     ASSERT_TRUE(shape.ok()) << shape.message();
     EXPECT_EQ(shape->height, h);
     EXPECT_EQ(shape->width, w);
-    std::vector<float> want(shape->elements(), NAN);
-    ASSERT_TRUE(RunReferenceForward(*model, input, h, w, want).ok());
-    for (Isa isa : SupportedIsas()) {
-      for (int threads : {1, 2}) {
-        SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads, " +
-                     std::to_string(h) + "x" + std::to_string(w));
-        const auto got = testing::RunSession(model, isa, threads, input, h, w);
-        EXPECT_LE(testing::RelativeMaxError(got, want), kRelativeTolerance);
-      }
-    }
   }
+  testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}, {8, 8}}, 12,
+                                                    kRelativeTolerance, 3);
 }
 
 TEST(ConvTransposeSession, ReportsTheReferenceKernelForItsStep) {

@@ -165,21 +165,8 @@ TEST(PoolSession, PoolingEncoderMatchesTheReferenceForwardOnEveryIsa) {
   auto model = testing::LoadOrDie(PoolingEncoderSpec());
   ASSERT_NE(model, nullptr);
   EXPECT_TRUE(model->is_chain());
-  for (auto [h, w] : {std::pair{67, 121}, {37, 53}, {3, 2}}) {
-    const auto input = testing::RandomImage(h, w, 12, 9);
-    auto shape = InferOutputShape(*model, h, w);
-    ASSERT_TRUE(shape.ok()) << shape.message();
-    std::vector<float> want(shape->elements(), NAN);
-    ASSERT_TRUE(RunReferenceForward(*model, input, h, w, want).ok());
-    for (Isa isa : SupportedIsas()) {
-      for (int threads : {1, 2}) {
-        SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads, " +
-                     std::to_string(h) + "x" + std::to_string(w));
-        const auto got = testing::RunSession(model, isa, threads, input, h, w);
-        EXPECT_LE(testing::RelativeMaxError(got, want), 1e-5);
-      }
-    }
-  }
+  testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}, {3, 2}}, 12, 1e-5,
+                                                    9);
 }
 
 TEST(PoolLoading, RefusesAPadAsLargeAsTheWindowNamingTheLayer) {

@@ -11,6 +11,7 @@
 
 #include "common/bf16_spec.h"
 #include "common/deconv_spec.h"
+#include "common/float_ops_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
@@ -116,12 +117,15 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   }
 }
 
-// Graphs (SceneEDNet-U with a residual Add; a decoder of transposed convolutions): skip
-// tensors, Concat, Add and ConvTranspose2D steps, and the views Run() keeps of every layer's
-// output, on every ISA and with a pool.
+// Graphs (SceneEDNet-U with a residual Add; a decoder of transposed convolutions) and a chain
+// of every float32-only layer kind (pooling, dilated and grouped convolutions, ChannelAffine,
+// Resize): skip tensors, Concat, Add, ConvTranspose2D, Pool2D, Resize and ChannelAffine steps,
+// grouped and dilated convolutions on the reference kernel, and the views Run() keeps of every
+// layer's output, on every ISA and with a pool.
 TEST(ZeroAllocation, RunOfAGraphAllocatesNothingAtAnySizeUpToTheMaximum) {
   for (auto model : {testing::LoadOrDie(testing::SceneEdNetUSpec(16, 1, true)),
-                     testing::LoadOrDie(testing::TwoLevelDecoderSpec())})
+                     testing::LoadOrDie(testing::TwoLevelDecoderSpec()),
+                     testing::LoadOrDie(testing::FloatOpsChainSpec())})
     for (Isa isa : SupportedIsas()) {
       for (int threads : {1, 2}) {
         SCOPED_TRACE(model->metadata().name + ", " + std::string(IsaName(isa)) + ", " +

@@ -7,7 +7,10 @@ usage: onnx_node_tests.py --sfrt BIN --work DIR [--isa ref,avx2,...] [--case NAM
    into DIR/data (generated here, never committed). Debian's python3-onnx 1.12 still calls numpy
    aliases that numpy 1.24 removed (np.float, np.int, ...); they are restored first.
 2. Picks every 4-D case of the operators in OPERATORS: the graph's first input and its outputs
-   are 4-D float tensors.
+   are 4-D float tensors. Cases of the element-wise activations (ACTIVATIONS) whose data is 3-D
+   run as one image of (1, C, H, W): the same values, so the same expected output. A case written
+   at an opset below 11 (sfrt reads 11-17) is labelled 11 when each of its operators is defined
+   the same at 11 (its version in force at 11 dates from the case's opset or before).
 3. Prepares each: inputs after the first that the case feeds (weights, scales, sizes) become
    initializers holding the case's values; a batch of N is run as N one-image runs of a batch-1
    model (sfrt runs one image at a time).
@@ -33,6 +36,8 @@ OPERATORS = {
 }
 # Nodes a case may hold besides those operators.
 HELPERS = {"Constant"}
+# Element-wise on every value: a 3-D case is run with a leading batch dimension of 1.
+ACTIVATIONS = {"Relu", "LeakyRelu", "Elu", "Sigmoid", "Tanh", "Clip"}
 
 PASS = "pass"
 EXPECTED = {
@@ -103,8 +108,20 @@ EXPECTED = {
     "test_resize_upsample_sizes_nearest_floor_align_corners": PASS,
     "test_resize_upsample_sizes_nearest_round_prefer_ceil_asymmetric": PASS,
     "test_resize_tf_crop_and_resize": "tf_crop_and_resize",
-    # Activations (their other cases are 1-D or 3-D).
-    "test_celu_expanded": "Elu and element-wise Div/Mul by constants",
+    # Activations (3-D cases run as (1, C, H, W); their 1-D cases are not picked).
+    "test_celu_expanded": PASS,
+    "test_relu": PASS,
+    "test_leakyrelu": PASS,
+    "test_leakyrelu_default": PASS,
+    "test_elu": PASS,
+    "test_elu_default": PASS,
+    "test_sigmoid": PASS,
+    "test_tanh": PASS,
+    "test_clip": PASS,
+    "test_clip_default_min": PASS,
+    "test_clip_default_max": PASS,
+    "test_clip_default_int8_min": "int8 tensors (sfrt runs float32)",
+    "test_clip_default_int8_max": "int8 tensors (sfrt runs float32)",
 }
 
 TOLERANCE = 1e-4
@@ -135,11 +152,22 @@ def is_float(value_info):
     return value_info.type.tensor_type.elem_type == onnx.TensorProto.FLOAT
 
 
+def lifted(model):
+    """Whether a case is an element-wise activation on 3-D data, run as (1, C, H, W)."""
+    graph = model.graph
+    ops = {node.op_type for node in graph.node}
+    return (ops <= ACTIVATIONS | HELPERS and bool(ops & ACTIVATIONS) and len(graph.input) > 0
+            and len(dims(graph.input[0])) == 3 and all(len(dims(o)) == 3 for o in graph.output))
+
+
 def picked(model):
-    """Whether a case is one of this harness's: its ops are ours and its data is 4-D."""
+    """Whether a case is one of this harness's: its ops are ours and its data is 4-D (or it is
+    lifted())."""
     ops = {node.op_type for node in model.graph.node}
     if not ops <= OPERATORS | HELPERS or not ops & OPERATORS:
         return False
+    if lifted(model):
+        return True
     graph = model.graph
     if len(graph.input) == 0 or len(dims(graph.input[0])) != 4:
         return False
@@ -155,18 +183,33 @@ def read_tensor(path):
     return numpy_helper.to_array(tensor)
 
 
+def raise_opset(model):
+    """Labels a case below opset 11 as opset 11 when that changes none of its operators."""
+    from onnx import defs
+    for opset in model.opset_import:
+        if opset.domain not in ("", "ai.onnx") or opset.version >= 11:
+            continue
+        if all(defs.get_schema(n.op_type, 11).since_version <= opset.version
+               for n in model.graph.node):
+            opset.version = 11
+
+
 def prepare(model, inputs):
     """Returns a batch-1 model whose only graph input is the first; the rest become initializers."""
     import onnx
     from onnx import numpy_helper
+    raise_opset(model)
     graph = model.graph
     first = graph.input[0]
+    lift = lifted(model)
     for value_info, value in zip(list(graph.input[1:]), inputs[1:]):
         graph.initializer.append(numpy_helper.from_array(value, value_info.name))
         graph.input.remove(value_info)
     for value_info in [first, *graph.output]:
         shape = value_info.type.tensor_type.shape
-        if shape.dim:
+        if lift:
+            shape.dim.insert(0, onnx.TensorShapeProto.Dimension(dim_value=1))
+        elif shape.dim:
             shape.dim[0].dim_value = 1
     onnx.checker.check_model(model)
     return model
@@ -207,6 +250,9 @@ def run_case(sfrt, case_dir, work, isas):
     expected = read_tensor(os.path.join(data_dir, "output_0.pb"))
     if inputs[0].dtype != np.float32 or expected.dtype != np.float32:
         return f"data is {inputs[0].dtype} -> {expected.dtype}, not float32", None
+    if lifted(model):
+        inputs[0] = inputs[0][None]
+        expected = expected[None]
     os.makedirs(work, exist_ok=True)
     model_file = os.path.join(work, "model.onnx")
     try:
