@@ -9,9 +9,9 @@
 //     group and dilation), ConvTranspose, MaxPool, AveragePool, Pad, BatchNormalization
 //     (inference), Relu, LeakyRelu, Elu, Sigmoid, Tanh, Clip, Add/Sub/Mul/Div by a per-channel
 //     constant, Resize, Upsample, Slice, Identity, and Concat (channels) and Add, which read
-//     several of them. A Resize that is nearest upsampling
-//     by integer factors equal to in[floor(y / f)] becomes an Upsample; any other (linear, cubic,
-//     other scales or roundings) a Resize layer (schema 1.7) with its scales as exact fractions.
+//     several of them. A Resize that is nearest upsampling by integer factors equal to
+//     in[floor(y / f)] becomes an Upsample; any other (linear, cubic, other scales or roundings)
+//     a Resize layer (schema 1.7) with its scales as exact fractions.
 //  4. The layers are the ops the output depends on through runtime tensors, in file order: a
 //     graph (schema 1.5) whose layers name the layers they read, or, when each reads the one
 //     before it, a chain that names none. Pads fold into the Conv that reads them, a
@@ -19,9 +19,9 @@
 //     channel), as does an Add/Sub/Mul/Div by a constant; ReLU and LeakyReLU fuse into the Conv,
 //     ConvTranspose or Add before them, and any activation into a ChannelAffine, where that
 //     layer's output has no other reader (otherwise each becomes a ChannelAffine); consecutive
-//     Slices merge into one crop. Padding and crop rules are decided from the amounts at the traced
-//     size (a crop whose only reader is a Concat with a tensor of the crop's size becomes a crop to
-//     that tensor's size: a U-Net's skip).
+//     Slices merge into one crop. Padding and crop rules are decided from the amounts at the
+//     traced size (a crop whose only reader is a Concat with a tensor of the crop's size becomes
+//     a crop to that tensor's size: a U-Net's skip).
 #include "sfrt/exporter/onnx_importer.h"
 
 #include "batch_norm_fold.h"

@@ -185,9 +185,8 @@ Status ResolveInputs(const Checker& check, const std::string& where,
   return Status::Ok();
 }
 
-// A layer's fused activation as the file states it.
-// A layer's activation. Elu, Sigmoid, Tanh and Clip (schema 1.8) only when `all_kinds` (a
-// ChannelAffine, whose parameters hold theirs).
+// A layer's activation as the file states it. Elu, Sigmoid, Tanh and Clip (schema 1.8) only
+// when `all_kinds` (a ChannelAffine, whose parameters hold theirs).
 Status TakeActivation(const Checker& check, const std::string& where, fb::Activation stored,
                       float slope, Activation* activation, float* leaky_slope,
                       bool all_kinds = false) {
