@@ -64,10 +64,11 @@ struct Session::Step {
   const char* kernel = "";
   const WinogradKernels* winograd = nullptr;  // kWinograd
   PackedWinograd wpacked;
-  size_t scratch_offset = 0;  // kWinograd: bytes from the arena start of its v and m buffers
+  size_t scratch_offset = 0;  // kWinograd, upwinograd: bytes from the arena start of v and m
   // kUpConv on the Winograd phase path (interior pixels; the direct kernel does the border):
   const WinogradKernels* upwinograd = nullptr;
-  int band_rows = 0;      // tile rows per pass, so that v and m stay small (planned at Create)
+  // kWinograd and upwinograd: tile rows per pass, so that v and m stay small (planned at Create)
+  int band_rows = 0;
   bool out_u8 = false;    // the step writes uint8
   bool out_bf16 = false;  // the step writes bf16 (float32 when neither)
   Precision precision = Precision::kFloat32;
@@ -705,7 +706,8 @@ Status Session::Plan() {
     const LayerGeometry& g = geometry_[step.last_layer];
     size_t floats_needed = 0;
     if (step.kind == Step::Kind::kWinograd) {
-      floats_needed = WinogradScratchFloats(step.wpacked, g.output.height, g.output.width);
+      step.band_rows = WinogradBandRows(step.wpacked, g.output.height, g.output.width);
+      floats_needed = WinogradBandScratchFloats(step.wpacked, step.band_rows, g.output.width);
     } else {
       const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
       const UpGrid u =
@@ -980,27 +982,11 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         }
         break;
       }
-      case Step::Kind::kWinograd: {
-        WinogradArgs args;
-        args.conv = &step.wpacked;
-        args.in = cur;
-        args.out = out;
-        args.pads = g.pads;
-        args.tiles_h = WinogradTiles(out.height, step.wpacked.m);
-        args.tiles_w = WinogradTiles(out.width, step.wpacked.m);
-        args.v = arena_ + step.scratch_offset / sizeof(float);
-        args.m = args.v + static_cast<size_t>(step.wpacked.alpha) * step.wpacked.alpha *
-                              args.tiles_h * args.tiles_w * step.wpacked.k_stride;
-        const int tiles = args.tiles_h * args.tiles_w;
-        const int items = step.wpacked.alpha * step.wpacked.alpha * step.wpacked.blocks;
-        WinogradJob input_job{step.winograd->input, &args};
-        WinogradJob product{step.winograd->product, &args};
-        WinogradJob output_job{step.winograd->output, &args};
-        parallel_rows(tiles, WinogradTrampoline, &input_job);
-        parallel_rows(items, WinogradTrampoline, &product);
-        parallel_rows(tiles, WinogradTrampoline, &output_job);
+      case Step::Kind::kWinograd:
+        RunWinogradBands(*step.winograd, step.wpacked, step.band_rows,
+                         arena_ + step.scratch_offset / sizeof(float), cur, out, g.pads,
+                         parallel_rows);
         break;
-      }
       case Step::Kind::kRefConv: {
         RefConvJob job{step.params, cur, out, g.pads};
         parallel_rows(out.height, RefConvTrampoline, &job);

@@ -1,5 +1,7 @@
-// Running the Winograd passes (kernels/winograd_job.h) of the fused upsample-conv over its
-// interior, band by band, on any parallel-for: shared by Session::Run and the tests.
+// Running the Winograd passes (kernels/winograd_job.h) band by band of tile rows, so that the
+// transformed input and products (the scratch) stay small however large the image: a plain
+// Winograd convolution, and the fused upsample-conv over its interior. On any parallel-for;
+// shared by Session::Run and the tests.
 #pragma once
 
 #include <cstddef>
@@ -88,10 +90,14 @@ void RunUpWinogradBands(const WinogradKernels& k, const PackedWinograd& w, int b
   }
 }
 
-// Tile rows per band for a layer whose interior is `tiles_w` tiles wide and `tiles_h` high.
-inline int UpWinogradBandRows(const PackedWinograd& w, int tiles_h, int tiles_w) {
-  const size_t per_tile = 9 * (static_cast<size_t>(w.k_stride) + w.n_stride);
-  const size_t weights = 9 * static_cast<size_t>(w.in_channels) * w.n_stride * sizeof(float);
+// Tile rows per band of a grid `tiles_w` tiles wide and `tiles_h` high whose transforms have
+// `points` points (alpha^2): the band's scratch stays within kUpWinogradBandBytes, or the
+// layer's transformed weights where those are larger.
+inline int WinogradBandRowsFor(int points, const PackedWinograd& w, int tiles_h, int tiles_w) {
+  const size_t per_tile =
+      static_cast<size_t>(points) * (static_cast<size_t>(w.k_stride) + w.n_stride);
+  const size_t weights =
+      static_cast<size_t>(points) * static_cast<size_t>(w.in_channels) * w.n_stride * sizeof(float);
   const size_t budget = weights > kUpWinogradBandBytes ? weights : kUpWinogradBandBytes;
   const size_t row_floats = per_tile * static_cast<size_t>(tiles_w > 0 ? tiles_w : 1);
   size_t rows = budget / sizeof(float) / row_floats;
@@ -99,10 +105,59 @@ inline int UpWinogradBandRows(const PackedWinograd& w, int tiles_h, int tiles_w)
   return rows < 1 ? 1 : static_cast<int>(rows);
 }
 
+// Tile rows per band for a fused layer whose interior is `tiles_w` tiles wide and `tiles_h` high.
+inline int UpWinogradBandRows(const PackedWinograd& w, int tiles_h, int tiles_w) {
+  return WinogradBandRowsFor(9, w, tiles_h, tiles_w);
+}
+
 // Scratch floats of RunUpWinogradBands with `band_rows` rows of `tiles_w` tiles.
 inline size_t UpWinogradScratchFloats(const PackedWinograd& w, int band_rows, int tiles_w) {
   return 9 * (static_cast<size_t>(w.k_stride) + w.n_stride) * static_cast<size_t>(band_rows) *
          static_cast<size_t>(tiles_w > 0 ? tiles_w : 1);
+}
+
+// Tile rows per band of a plain Winograd convolution with an out_h x out_w output.
+inline int WinogradBandRows(const PackedWinograd& w, int out_h, int out_w) {
+  return WinogradBandRowsFor(w.alpha * w.alpha, w, WinogradTiles(out_h, w.m),
+                             WinogradTiles(out_w, w.m));
+}
+
+// Scratch floats of RunWinogradBands with `band_rows` tile rows at an output width of out_w.
+inline size_t WinogradBandScratchFloats(const PackedWinograd& w, int band_rows, int out_w) {
+  return static_cast<size_t>(w.alpha) * w.alpha * (static_cast<size_t>(w.k_stride) + w.n_stride) *
+         static_cast<size_t>(band_rows) * static_cast<size_t>(WinogradTiles(out_w, w.m));
+}
+
+// A plain Winograd convolution of `in` into `out` (pads: those in effect at this size), band by
+// band of `band_rows` tile rows: each band is the same passes over a view of its output rows,
+// with the top pad shifted so that its tiles read the input rows they read in the whole grid.
+template <typename Parallel>
+void RunWinogradBands(const WinogradKernels& k, const PackedWinograd& w, int band_rows,
+                      float* scratch, const ConstTensorView& in, const TensorView& out,
+                      const Padding& pads, Parallel parallel) {
+  const int tiles_h = WinogradTiles(out.height, w.m);
+  WinogradArgs a;
+  a.conv = &w;
+  a.in = in;
+  a.tiles_w = WinogradTiles(out.width, w.m);
+  a.pads = pads;
+  for (int r0 = 0; r0 < tiles_h; r0 += band_rows) {
+    const int y0 = r0 * w.m;
+    a.tiles_h = tiles_h - r0 < band_rows ? tiles_h - r0 : band_rows;
+    a.out = out;
+    a.out.data = out.pixel(y0, 0);
+    a.out.height = out.height - y0 < a.tiles_h * w.m ? out.height - y0 : a.tiles_h * w.m;
+    a.pads.top = pads.top - y0;
+    const int tiles = a.tiles_h * a.tiles_w;
+    a.v = scratch;
+    a.m = scratch + static_cast<size_t>(w.alpha) * w.alpha * tiles * w.k_stride;
+    WinogradJob input_job{k.input, &a};
+    WinogradJob product_job{k.product, &a};
+    WinogradJob output_job{k.output, &a};
+    parallel(tiles, WinogradTrampoline, &input_job);
+    parallel(w.alpha * w.alpha * w.blocks, WinogradTrampoline, &product_job);
+    parallel(tiles, WinogradTrampoline, &output_job);
+  }
 }
 
 }  // namespace sfrt

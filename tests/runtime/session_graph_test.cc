@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <random>
 #include <string>
 #include <vector>
@@ -178,6 +179,52 @@ TEST(GraphSession, SkipTensorsLiveUntilTheirLastReaderAndNeverOverlap) {
       }
     }
     EXPECT_GE((*session)->arena_bytes(), plan.back().offset + plan.back().bytes);
+  }
+}
+
+// Issue 16's bound on SceneEDNet-U's memory: at 540x960, full width, the arena is at most the
+// two largest tensors alive at the same time (skips aside) plus the skip tensors (conv0..conv3's
+// outputs, alive until their decoder level), on every ISA's plan. The figures are printed.
+TEST(GraphSession, SceneEdNetUArenaAt540x960IsAtMostTheTwoLargestLiveTensorsPlusTheSkips) {
+  auto model = testing::LoadOrDie(testing::SceneEdNetUSpec(1));
+  ASSERT_NE(model, nullptr);
+  std::vector<int> skips;
+  for (const char* name : {"conv0", "conv1", "conv2", "conv3"}) {
+    skips.push_back(LayerIndex(*model, name));
+  }
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    auto session = Session::Create(model, {540, 960, isa});
+    ASSERT_TRUE(session.ok()) << session.message();
+    const auto plan = (*session)->plan();
+    size_t skip_bytes = 0;
+    int skips_found = 0;
+    for (const PlannedTensor& t : plan) {
+      if (std::find(skips.begin(), skips.end(), t.producer) != skips.end()) {
+        skip_bytes += t.bytes;
+        ++skips_found;
+      }
+    }
+    EXPECT_EQ(skips_found, 4);
+    // The two largest other tensors alive together, over every layer's time.
+    size_t pair_bytes = 0;
+    for (int time = 0; time < static_cast<int>(model->layers().size()); ++time) {
+      size_t first = 0, second = 0;
+      for (const PlannedTensor& t : plan) {
+        const bool skip = std::find(skips.begin(), skips.end(), t.producer) != skips.end();
+        if (skip || t.producer > time || t.last_consumer < time) continue;
+        if (t.bytes > first) {
+          second = first;
+          first = t.bytes;
+        } else if (t.bytes > second) {
+          second = t.bytes;
+        }
+      }
+      pair_bytes = std::max(pair_bytes, first + second);
+    }
+    std::printf("  %-10s arena %zu bytes; two largest live %zu + skips %zu = %zu\n", IsaName(isa),
+                (*session)->arena_bytes(), pair_bytes, skip_bytes, pair_bytes + skip_bytes);
+    EXPECT_LE((*session)->arena_bytes(), pair_bytes + skip_bytes);
   }
 }
 

@@ -158,6 +158,35 @@ TEST_P(WinogradSimd, MatchesDirectReferenceOnEveryShapeOfTheTable) {
   }
 }
 
+// Band by band of tile rows (RunWinogradBands, as a session runs a large layer): one row per
+// band, three, and the whole grid in one give the whole-grid result on every shape.
+TEST_P(WinogradSimd, BandsOfTileRowsGiveTheWholeGridsResult) {
+  const int m = GetParam().m;
+  auto serial = [](int n, auto fn, void* ctx) { fn(ctx, 0, n); };
+  for (size_t i = 0; i < Cases().size(); ++i) {
+    const Case& c = Cases()[i];
+    SCOPED_TRACE(Describe(c) + " " + kernels_->name);
+    const ConvProblem& pr = ProblemOf(i);
+    AlignedFloats packed(PackedWinogradFloats(pr.params, m, kernels_->nr));
+    const PackedWinograd w = PackWinograd(pr.params, m, kernels_->nr, packed.data);
+    const int tiles_h = WinogradTiles(pr.out_h, m);
+    std::vector<float> whole;
+    for (int band_rows : {tiles_h, 1, 3}) {
+      SCOPED_TRACE("band of " + std::to_string(band_rows) + " tile rows");
+      AlignedFloats scratch(WinogradBandScratchFloats(w, band_rows, pr.out_w));
+      std::vector<float> got(pr.want.size(), NAN);
+      RunWinogradBands(*kernels_, w, band_rows, scratch.data, pr.in,
+                       DenseView(got.data(), pr.out_h, pr.out_w, c.cout), c.pads, serial);
+      EXPECT_LE(RelativeMaxError(got, pr.want), m == 2 ? kToleranceF2 : kToleranceF4);
+      if (whole.empty()) {
+        whole = got;
+      } else {
+        EXPECT_EQ(got, whole);  // the same sums, band or not
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(EveryIsa, WinogradSimd,
                          ::testing::Values(IsaAndTile{Isa::kAvx2, 2}, IsaAndTile{Isa::kAvx2, 4},
                                            IsaAndTile{Isa::kAvx512, 2}, IsaAndTile{Isa::kAvx512, 4},
