@@ -357,5 +357,56 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryPoolNetCaseWithItsPoolingAttributes) {
   EXPECT_GE(p_cases, 2) << "the suite has no poolnet cases";
 }
 
+// The depthwise-separable network (gen_sceneednet.py --arch separable, s* cases): eight
+// convolutions, three of them depthwise (the second dilated by 2, the third with stride 2 and
+// two outputs per input), batch norms folded into them (every scale and shift but the last is
+// the identity), each ReLU6 a clip of its own after the ReLU PyTorch exports, and
+// sigmoid(x) * 2 - 1 as a sigmoid and one scale and shift.
+TEST(OnnxImporterSceneEDNet, ImportsEverySeparableCaseWithDepthwiseDilatedConvolutions) {
+  int s_cases = 0;
+  for (const FixtureCase& fc : ReadCases()) {
+    if (fc.name[0] != 's') continue;
+    SCOPED_TRACE(fc.name);
+    ++s_cases;
+    const Result<ModelSpec> spec = ImportOnnx(FixtureDir() + "/" + fc.name + ".onnx");
+    ASSERT_TRUE(spec.ok()) << spec.message();
+    std::vector<ConvSpec> convs;
+    std::vector<ChannelAffineSpec> affines;
+    for (const LayerSpec& layer : spec->layers) {
+      if (const auto* c = std::get_if<ConvSpec>(&layer)) convs.push_back(*c);
+      if (const auto* a = std::get_if<ChannelAffineSpec>(&layer)) affines.push_back(*a);
+    }
+    ASSERT_EQ(convs.size(), 8u);
+    // SeparableNet at width / 16: conv0 12->4, dw1 (4 groups), pw1 4->8, dw2 (8 groups,
+    // dilation 2), pw2, dw3 (8 groups, 8->16, stride 2), pw3 16->16, output 16->3.
+    EXPECT_EQ(convs[1].groups, 4);
+    EXPECT_EQ(convs[3].groups, 8);
+    EXPECT_EQ(convs[3].dilation_h, 2);
+    EXPECT_EQ(convs[3].dilation_w, 2);
+    EXPECT_EQ(convs[3].pads, (Pads{2, 2, 2, 2}));
+    EXPECT_EQ(convs[5].groups, 8);
+    EXPECT_EQ(convs[5].out_channels, 16);
+    EXPECT_EQ(convs[5].stride_h, 2);
+    for (size_t k : {size_t{0}, size_t{2}, size_t{4}, size_t{6}, size_t{7}}) {
+      EXPECT_EQ(convs[k].groups, 1) << convs[k].name;
+    }
+    ASSERT_EQ(affines.size(), 9u);
+    for (size_t k = 0; k + 1 < affines.size(); ++k) {
+      SCOPED_TRACE(affines[k].name);
+      EXPECT_EQ(affines[k].activation, k < 7 ? Activation::kClip : Activation::kSigmoid);
+      EXPECT_EQ(affines[k].scale, std::vector<float>(affines[k].scale.size(), 1.0f));
+      EXPECT_EQ(affines[k].shift, std::vector<float>(affines[k].shift.size(), 0.0f));
+      if (k < 7) {
+        EXPECT_EQ(affines[k].clip_min, 0.0f);
+        EXPECT_EQ(affines[k].clip_max, 6.0f);
+      }
+    }
+    EXPECT_EQ(affines.back().activation, Activation::kNone);
+    EXPECT_EQ(affines.back().scale, std::vector<float>(3, 2.0f));
+    EXPECT_EQ(affines.back().shift, std::vector<float>(3, -1.0f));
+  }
+  EXPECT_GE(s_cases, 3) << "the suite has no separable cases";
+}
+
 }  // namespace
 }  // namespace sfrt::exporter

@@ -162,6 +162,45 @@ class PoolNet(nn.Module):
         return self.output(x)
 
 
+class SeparableNet(nn.Module):
+    """A depthwise-separable network (MobileNet-style blocks) for operator coverage: a 3x3
+    stride-2 convolution, then three blocks of a depthwise 3x3 convolution (the second dilated by
+    2, the third with stride 2 and two outputs per input) and a pointwise 1x1 convolution, each
+    followed by ReLU6 (a Clip in ONNX); a 1x1 convolution predicts 3 channels, squashed to -1..1
+    by sigmoid(x) * 2 - 1 (a Sigmoid, a Mul and a Sub in ONNX). The output is at a quarter of
+    the input's size (rounded up). With batch_norm, a BatchNorm2d before every ReLU6.
+    """
+
+    def __init__(self, width_div=16, batch_norm=False):
+        super().__init__()
+        if width_div not in WIDTH_DIVS:
+            raise ValueError(f"width_div must be one of {WIDTH_DIVS}, got {width_div!r}")
+        w = [c // width_div for c in (64, 128, 256)]
+        self.batch_norm = batch_norm
+        self.conv0 = nn.Conv2d(IN_CHANNELS, w[0], 3, stride=2, padding=1)
+        self.dw1 = nn.Conv2d(w[0], w[0], 3, padding=1, groups=w[0])
+        self.pw1 = nn.Conv2d(w[0], w[1], 1)
+        self.dw2 = nn.Conv2d(w[1], w[1], 3, padding=2, dilation=2, groups=w[1])
+        self.pw2 = nn.Conv2d(w[1], w[1], 1)
+        self.dw3 = nn.Conv2d(w[1], 2 * w[1], 3, stride=2, padding=1, groups=w[1])
+        self.pw3 = nn.Conv2d(2 * w[1], w[2], 1)
+        self.output = nn.Conv2d(w[2], OUT_CHANNELS, 1)
+        if batch_norm:
+            self.norms = nn.ModuleList(nn.BatchNorm2d(conv.out_channels)
+                                       for conv in self.hidden_convs())
+
+    def hidden_convs(self):
+        return [self.conv0, self.dw1, self.pw1, self.dw2, self.pw2, self.dw3, self.pw3]
+
+    def forward(self, x):
+        for i, conv in enumerate(self.hidden_convs()):
+            x = conv(x)
+            if self.batch_norm:
+                x = self.norms[i](x)
+            x = F.relu6(x)
+        return torch.sigmoid(self.output(x)) * 2 - 1
+
+
 # (level, encoder tensor it stacks with, width of its upconvolution and iconv) at full width.
 DISPNETS_DECODER = ((5, "conv5_1", 512), (4, "conv4_1", 256), (3, "conv3_1", 128),
                     (2, "conv2", 64), (1, "conv1", 32))
