@@ -110,10 +110,17 @@ inline int UpWinogradBandRows(const PackedWinograd& w, int tiles_h, int tiles_w)
   return WinogradBandRowsFor(9, w, tiles_h, tiles_w);
 }
 
+// Scratch floats (v and m) of a band of `band_rows` rows of `tiles_w` tiles whose transforms
+// have `points` points.
+inline size_t WinogradBandScratchFloatsFor(int points, const PackedWinograd& w, int band_rows,
+                                           int tiles_w) {
+  return static_cast<size_t>(points) * (static_cast<size_t>(w.k_stride) + w.n_stride) *
+         static_cast<size_t>(band_rows) * static_cast<size_t>(tiles_w > 0 ? tiles_w : 1);
+}
+
 // Scratch floats of RunUpWinogradBands with `band_rows` rows of `tiles_w` tiles.
 inline size_t UpWinogradScratchFloats(const PackedWinograd& w, int band_rows, int tiles_w) {
-  return 9 * (static_cast<size_t>(w.k_stride) + w.n_stride) * static_cast<size_t>(band_rows) *
-         static_cast<size_t>(tiles_w > 0 ? tiles_w : 1);
+  return WinogradBandScratchFloatsFor(9, w, band_rows, tiles_w);
 }
 
 // Tile rows per band of a plain Winograd convolution with an out_h x out_w output.
@@ -124,8 +131,7 @@ inline int WinogradBandRows(const PackedWinograd& w, int out_h, int out_w) {
 
 // Scratch floats of RunWinogradBands with `band_rows` tile rows at an output width of out_w.
 inline size_t WinogradBandScratchFloats(const PackedWinograd& w, int band_rows, int out_w) {
-  return static_cast<size_t>(w.alpha) * w.alpha * (static_cast<size_t>(w.k_stride) + w.n_stride) *
-         static_cast<size_t>(band_rows) * static_cast<size_t>(WinogradTiles(out_w, w.m));
+  return WinogradBandScratchFloatsFor(w.alpha * w.alpha, w, band_rows, WinogradTiles(out_w, w.m));
 }
 
 // A plain Winograd convolution of `in` into `out` (pads: those in effect at this size), band by
