@@ -57,10 +57,11 @@ namespace {
 using nlohmann::json;
 
 constexpr char kSupportedLayers[] =
-    "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, BatchNormalization "
-    "(folded into the Conv2D before it), LeakyReLU, "
-    "Activation, UpSampling2D, Cropping2D, ZeroPadding2D, Concatenate (channels), Add (and a "
-    "multi_gpu_model wrapper: InputLayer/Lambda/Concatenate around one nested Model)";
+    "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, Conv2DTranspose, "
+    "BatchNormalization (folded into the convolution before it), LeakyReLU, Activation, "
+    "UpSampling2D (nearest), MaxPooling2D, AveragePooling2D, Cropping2D, ZeroPadding2D, "
+    "Concatenate (channels), Add (and a multi_gpu_model wrapper: InputLayer/Lambda/Concatenate "
+    "around one nested Model)";
 // Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
 constexpr uint64_t kMaxTensorElements = uint64_t{1} << 30;
 // Upper bound on dimensions read from the architecture (kernel sizes, strides, crops, ...).
@@ -399,6 +400,11 @@ class Importer {
   Result<std::vector<float>> ReadDataset(const ChainLayer& l, const std::string& path,
                                          const std::vector<uint64_t>& want,
                                          const std::string& meaning);
+  // The layer's 'padding': "same" or "valid" (absent: "valid").
+  Result<std::string> SameOrValid(const ChainLayer& l) const;
+  // A Conv2DTranspose reading `in_channels`, with its weights, activation and TensorFlow's
+  // output size as pads and output padding.
+  Result<ConvTransposeSpec> ReadConvTranspose(const ChainLayer& l, int in_channels);
   Status Build(const ChainModel& model, ModelSpec* spec);
   Status CheckAllWeightsUsed();
 
@@ -903,6 +909,134 @@ Status CheckChannelsLast(const ChainLayer& l, const std::string& path) {
                        "): data_format " + JsonText(*f) + " is not supported (only channels_last)");
 }
 
+Result<std::string> Importer::SameOrValid(const ChainLayer& l) const {
+  const json* p = Find(*l.config, "padding");
+  if (p == nullptr) return std::string("valid");
+  if (!p->is_string()) return LayerFail(l, "padding " + JsonText(*p) + " is not a string");
+  std::string padding = p->get<std::string>();
+  if (padding != "same" && padding != "valid") {
+    return LayerFail(l, "padding " + Quote(padding) + " is not supported (same, valid)");
+  }
+  return padding;
+}
+
+// Keras' Conv2DTranspose is TensorFlow's conv2d_transpose: input pixel i scatters kernel tap k
+// to output row i * stride + k * dilation - top, kernel (kh, kw, filters, in). Its output length
+// L (Keras' deconv_output_length, with the dilated extent e = (k - 1) * d + 1) is in * stride
+// (+ max(e - stride, 0) for 'valid') without output_padding, else (in - 1) * stride + e -
+// 2 * pad + output_padding with pad = e / 2 for 'same' and 0 for 'valid'. TensorFlow places
+// it like the forward convolution of an L-long input: 'valid' crops nothing at the top, 'same'
+// crops top = total / 2 of total = max((in - 1) * stride + e - L, 0). The full output
+// ((in - 1) * stride + e rows) then loses `top` rows at the top and what exceeds L at the
+// bottom, or gains zero rows (bias only) there up to L. Neither amount depends on `in`.
+Result<ConvTransposeSpec> Importer::ReadConvTranspose(const ChainLayer& l, int in_channels) {
+  const json& cfg = *l.config;
+  ConvTransposeSpec d;
+  d.name = l.name;
+  d.in_channels = in_channels;
+  if (!GetInt(Find(cfg, "filters"), 1, model_limits::kMaxChannels, &d.out_channels)) {
+    return LayerFail(l, "'filters' is missing or not an integer in 1.." +
+                            std::to_string(model_limits::kMaxChannels));
+  }
+  std::array<int, 2> kernel{};
+  if (!GetPair(Find(cfg, "kernel_size"), 1, model_limits::kMaxKernel, &kernel)) {
+    return LayerFail(l, "'kernel_size' is missing or not integers in 1.." +
+                            std::to_string(model_limits::kMaxKernel));
+  }
+  std::array<int, 2> strides{1, 1};
+  if (const json* st = Find(cfg, "strides");
+      st != nullptr && !GetPair(st, 1, model_limits::kMaxStride, &strides)) {
+    return LayerFail(l, "strides " + JsonText(*st) + " are not integers in 1.." +
+                            std::to_string(model_limits::kMaxStride));
+  }
+  std::array<int, 2> dilation{1, 1};
+  if (const json* dr = Find(cfg, "dilation_rate");
+      dr != nullptr && !GetPair(dr, 1, model_limits::kMaxDilation, &dilation)) {
+    return LayerFail(l, "dilation_rate " + JsonText(*dr) + " is not integers in 1.." +
+                            std::to_string(model_limits::kMaxDilation));
+  }
+  Result<std::string> padding = SameOrValid(l);
+  if (!padding.ok()) return padding.status();
+  const json* op = Find(cfg, "output_padding");
+  std::array<int, 2> output_padding{};
+  const bool has_output_padding = op != nullptr && !op->is_null();
+  if (has_output_padding && !GetPair(op, 0, model_limits::kMaxStride, &output_padding)) {
+    return LayerFail(l, "output_padding " + JsonText(*op) + " is not integers >= 0");
+  }
+  d.kernel_h = kernel[0];
+  d.kernel_w = kernel[1];
+  d.stride_h = strides[0];
+  d.stride_w = strides[1];
+  d.dilation_h = dilation[0];
+  d.dilation_w = dilation[1];
+  const bool same = *padding == "same";
+  // Per axis: the rows cropped at the top and bottom and added at the bottom, from the output
+  // length at an input of one pixel (the amounts are the same at every length).
+  struct Placement {
+    int top = 0, bottom = 0, added = 0;
+  };
+  auto place = [&](int k, int s, int dil, int out_pad) {
+    const int e = DilatedExtent(k, dil);
+    const int length = !has_output_padding ? s + (same ? 0 : std::max(e - s, 0))
+                                           : e - 2 * (same ? e / 2 : 0) + out_pad;
+    Placement p;
+    p.top = same ? std::max(e - length, 0) / 2 : 0;
+    const int rest = e - p.top;  // full rows after the top crop
+    p.bottom = std::max(rest - length, 0);
+    p.added = std::max(length - rest, 0);
+    return p;
+  };
+  const Placement ph = place(d.kernel_h, d.stride_h, d.dilation_h, output_padding[0]);
+  const Placement pw = place(d.kernel_w, d.stride_w, d.dilation_w, output_padding[1]);
+  if (ph.added >= d.stride_h || pw.added >= d.stride_w) {
+    return LayerFail(l, "its output gains " + std::to_string(std::max(ph.added, pw.added)) +
+                            " zero rows or columns beyond the kernel's reach; the model format "
+                            "takes fewer than the stride");
+  }
+  d.pads = Pads{ph.top, pw.top, ph.bottom, pw.bottom};
+  d.output_padding_h = ph.added;
+  d.output_padding_w = pw.added;
+  bool use_bias = true;
+  if (const json* b = Find(cfg, "use_bias")) {
+    if (!b->is_boolean()) return LayerFail(l, "use_bias " + JsonText(*b) + " is not a bool");
+    use_bias = b->get<bool>();
+  }
+  std::string activation = "linear";
+  if (const json* a = Find(cfg, "activation")) {
+    activation = a->is_string() ? a->get<std::string>() : JsonText(*a);
+  }
+  if (activation != "linear" && activation != "relu") {
+    return LayerFail(l, "activation " + Quote(activation) + " is not supported (linear, relu)");
+  }
+  d.activation = activation == "relu" ? Activation::kRelu : Activation::kNone;
+  Result<std::vector<std::string>> paths = WeightPaths(l, use_bias ? 2 : 1);
+  if (!paths.ok()) return paths.status();
+  const auto kh = static_cast<size_t>(d.kernel_h), kw = static_cast<size_t>(d.kernel_w);
+  const auto ci = static_cast<size_t>(in_channels), co = static_cast<size_t>(d.out_channels);
+  auto kernel_values =
+      ReadDataset(l, (*paths)[0], {kh, kw, co, ci},
+                  "(kernel_size " + std::to_string(kh) + "x" + std::to_string(kw) + ", filters " +
+                      std::to_string(co) + ", " + std::to_string(ci) + " input channels)");
+  if (!kernel_values.ok()) return kernel_values.status();
+  // (kh, kw, out, in) -> HWIO (kh, kw, in, out).
+  d.weights_hwio.resize(kernel_values->size());
+  for (size_t t = 0; t < kh * kw; ++t) {
+    for (size_t o = 0; o < co; ++o) {
+      for (size_t i = 0; i < ci; ++i) {
+        d.weights_hwio[(t * ci + i) * co + o] = (*kernel_values)[(t * co + o) * ci + i];
+      }
+    }
+  }
+  if (use_bias) {
+    auto bias = ReadDataset(l, (*paths)[1], {co}, "(filters " + std::to_string(co) + ")");
+    if (!bias.ok()) return bias.status();
+    d.bias = std::move(bias).value();
+  } else {
+    d.bias.assign(co, 0.0f);
+  }
+  return d;
+}
+
 Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
   const bool known = model.height > 0 && model.width > 0;
   // What each Keras layer's output is in the spec: its size at the built size (0 when unknown),
@@ -980,6 +1114,9 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       if (const auto* conv = std::get_if<ConvSpec>(target)) {
         return conv->activation == Activation::kNone ? target : nullptr;
       }
+      if (const auto* deconv = std::get_if<ConvTransposeSpec>(target)) {
+        return deconv->activation == Activation::kNone ? target : nullptr;
+      }
       if (const auto* add = std::get_if<AddSpec>(target); add != nullptr && add_too) {
         return add->activation == Activation::kNone ? target : nullptr;
       }
@@ -996,6 +1133,9 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       if (auto* conv = std::get_if<ConvSpec>(target)) {
         conv->activation = act;
         conv->leaky_slope = slope;
+      } else if (auto* deconv = std::get_if<ConvTransposeSpec>(target)) {
+        deconv->activation = act;
+        deconv->leaky_slope = slope;
       } else {
         auto& add = std::get<AddSpec>(*target);
         add.activation = act;
@@ -1052,14 +1192,9 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
                                   std::to_string(filters_value) + " filters");
         }
       }
-      std::string padding = "valid";
-      if (const json* p = field("padding")) {
-        if (!p->is_string()) return LayerFail(l, "padding " + JsonText(*p) + " is not a string");
-        padding = p->get<std::string>();
-      }
-      if (padding != "same" && padding != "valid") {
-        return LayerFail(l, "padding " + Quote(padding) + " is not supported (same, valid)");
-      }
+      Result<std::string> padding_value = SameOrValid(l);
+      if (!padding_value.ok()) return padding_value.status();
+      const std::string& padding = *padding_value;
       bool use_bias = true;
       if (const json* b = field("use_bias")) {
         if (!b->is_boolean()) return LayerFail(l, "use_bias " + JsonText(*b) + " is not a bool");
@@ -1171,8 +1306,8 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       LayerSpec* target = fusion_target(false);
       if (target == nullptr) {
         return fusion_refused(
-            "must directly follow a Conv2D with activation 'linear' (it is folded "
-            "into the convolution's weights and bias)");
+            "must directly follow a Conv2D, DepthwiseConv2D or Conv2DTranspose with activation "
+            "'linear' (it is folded into the convolution's weights and bias)");
       }
       const json* axis = Find(cfg, "axis");
       const json* axis_value =
@@ -1220,7 +1355,11 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
                 std::to_string(static_cast<double>(values[3][static_cast<size_t>(bad)]) + epsilon) +
                 " is not positive");
       }
-      FoldIntoConv(affine, &std::get<ConvSpec>(*target));
+      if (auto* conv = std::get_if<ConvSpec>(target)) {
+        FoldIntoConv(affine, conv);
+      } else {
+        FoldIntoConv(affine, &std::get<ConvTransposeSpec>(*target));
+      }
       tensors[l.name] = in;  // an activation may still follow and fuse
     } else if (l.cls == "LeakyReLU") {
       if (Status s = one_input("a LeakyReLU"); !s.ok()) return s;
@@ -1236,7 +1375,7 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       LayerSpec* target = fusion_target(true);
       if (target == nullptr) {
         return fusion_refused(
-            "must directly follow a Conv2D with activation 'linear' or an Add (it is "
+            "must directly follow a convolution with activation 'linear' or an Add (it is "
             "fused into it)");
       }
       set_activation(target, Activation::kLeakyRelu, static_cast<float>(alpha->get<double>()));
@@ -1256,11 +1395,79 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
       LayerSpec* target = fusion_target(true);
       if (target == nullptr) {
         return fusion_refused(
-            "must directly follow a Conv2D with activation 'linear' or an Add (it is "
+            "must directly follow a convolution with activation 'linear' or an Add (it is "
             "fused into it)");
       }
       set_activation(target, Activation::kRelu, 0.0f);
       tensors[l.name] = in;
+    } else if (l.cls == "Conv2DTranspose") {
+      if (Status st = one_input("a Conv2DTranspose"); !st.ok()) return st;
+      SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+      Result<ConvTransposeSpec> deconv = ReadConvTranspose(l, c);
+      if (!deconv.ok()) return deconv.status();
+      if (known) {
+        h = (h - 1) * deconv->stride_h + DilatedExtent(deconv->kernel_h, deconv->dilation_h) -
+            deconv->pads.top - deconv->pads.bottom + deconv->output_padding_h;
+        w = (w - 1) * deconv->stride_w + DilatedExtent(deconv->kernel_w, deconv->dilation_w) -
+            deconv->pads.left - deconv->pads.right + deconv->output_padding_w;
+        if (h < 1 || w < 1) {
+          return LayerFail(l, "crops its output at the built size to nothing");
+        }
+      }
+      c = deconv->out_channels;
+      deconv->inputs = {in.layer};
+      ++convs;
+      add_layer(std::move(deconv).value());
+    } else if (l.cls == "MaxPooling2D" || l.cls == "AveragePooling2D") {
+      if (Status st = one_input(l.cls == "MaxPooling2D" ? "a MaxPooling2D" : "an AveragePooling2D");
+          !st.ok()) {
+        return st;
+      }
+      SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+      std::array<int, 2> size{2, 2};
+      if (const json* ps = Find(cfg, "pool_size");
+          ps != nullptr && !GetPair(ps, 1, model_limits::kMaxKernel, &size)) {
+        return LayerFail(l, "pool_size " + JsonText(*ps) + " is not integers in 1.." +
+                                std::to_string(model_limits::kMaxKernel));
+      }
+      std::array<int, 2> strides = size;  // Keras: strides None means pool_size
+      if (const json* st = Find(cfg, "strides");
+          st != nullptr && !st->is_null() && !GetPair(st, 1, model_limits::kMaxStride, &strides)) {
+        return LayerFail(l, "strides " + JsonText(*st) + " are not integers in 1.." +
+                                std::to_string(model_limits::kMaxStride));
+      }
+      Result<std::string> padding = SameOrValid(l);
+      if (!padding.ok()) return padding.status();
+      PoolSpec pool;
+      pool.name = l.name;
+      pool.kind = l.cls == "MaxPooling2D" ? PoolKind::kMax : PoolKind::kAverage;
+      pool.kernel_h = size[0];
+      pool.kernel_w = size[1];
+      pool.stride_h = strides[0];
+      pool.stride_w = strides[1];
+      // TensorFlow's 'same' pads the larger half at the bottom/right; its averages count only
+      // the input positions under the window.
+      pool.count_include_pad = false;
+      if (*padding == "same") {
+        pool.padding_rule = PaddingRule::kSameUpper;
+        if (known) {
+          const auto [top, bottom] = SameAxis(h, pool.stride_h, pool.kernel_h);
+          const auto [left, right] = SameAxis(w, pool.stride_w, pool.kernel_w);
+          pool.pads = Pads{top, left, bottom, right};
+        }
+      }
+      if (known) {
+        const int ph = h + pool.pads.top + pool.pads.bottom;
+        const int pw = w + pool.pads.left + pool.pads.right;
+        if (ph < pool.kernel_h || pw < pool.kernel_w) {
+          return LayerFail(l, "its " + std::to_string(h) + "x" + std::to_string(w) +
+                                  " input at the built size is smaller than the pool");
+        }
+        h = (ph - pool.kernel_h) / pool.stride_h + 1;
+        w = (pw - pool.kernel_w) / pool.stride_w + 1;
+      }
+      pool.inputs = {in.layer};
+      add_layer(std::move(pool));
     } else if (l.cls == "UpSampling2D") {
       if (Status s = one_input("an UpSampling2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));

@@ -404,16 +404,23 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
                              std::to_string(options.schema_minor));
       }
       const ResizeParams& r = resize->params;
+      if (r.coordinates == ResizeCoordinates::kTfCropAndResize && options.schema_minor < 9) {
+        return Status::Error(where +
+                             ": Resize coordinates tf_crop_and_resize need schema 1.9; "
+                             "writing 1." +
+                             std::to_string(options.schema_minor));
+      }
       static_assert(static_cast<int>(ResizeMode::kCubic) ==
                     static_cast<int>(fb::ResizeMode::Cubic));
-      static_assert(static_cast<int>(ResizeCoordinates::kTfHalfPixelForNn) ==
-                    static_cast<int>(fb::ResizeCoordinates::TfHalfPixelForNn));
+      static_assert(static_cast<int>(ResizeCoordinates::kTfCropAndResize) ==
+                    static_cast<int>(fb::ResizeCoordinates::TfCropAndResize));
       static_assert(static_cast<int>(NearestRounding::kCeil) ==
                     static_cast<int>(fb::NearestRounding::Ceil));
       const auto op = fb::CreateResize(
           b, static_cast<fb::ResizeMode>(r.mode), static_cast<fb::ResizeCoordinates>(r.coordinates),
           static_cast<fb::NearestRounding>(r.nearest), r.scale_num_h, r.scale_den_h, r.scale_num_w,
-          r.scale_den_w, r.cubic_coeff_a, r.exclude_outside);
+          r.scale_den_w, r.cubic_coeff_a, r.exclude_outside, r.roi_start_h, r.roi_start_w,
+          r.roi_end_h, r.roi_end_w, r.extrapolation_value);
       layers.push_back(
           fb::CreateLayer(b, b.CreateString(resize->name), fb::LayerOp::Resize, op.Union(), names));
     } else if (const auto* pool = std::get_if<PoolSpec>(&ls)) {

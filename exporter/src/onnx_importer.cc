@@ -854,7 +854,7 @@ Result<Const> Range(const Const& start, const Const& limit, const Const& delta) 
 //   x = k + (r (n-1) - k) / (2n - 1), whose fraction lies strictly inside (-1/2, 1/2) for
 //   0 <= k <= n-1, so round_prefer_floor/ceil give k; floor/ceil do not. At f >= 3, r = f-1,
 //   k = 0 gives a fraction (f-1)(n-1)/(fn-1) > 1/2 once n > 3: not exact.
-// - tf_crop_and_resize depends on roi: never accepted.
+// - tf_crop_and_resize depends on roi: never accepted (it stays a Resize).
 bool NearestIsFloorOfQuotient(const std::string& ctm, const std::string& nearest_mode, int64_t f) {
   const bool round_mode =
       nearest_mode == "round_prefer_floor" || nearest_mode == "round_prefer_ceil";
@@ -1003,6 +1003,7 @@ class Importer {
   Status ProcessPad(int idx, GraphOp& op);
   Status ProcessBatchNorm(int idx, GraphOp& op);
   Status ProcessResize(int idx, GraphOp& op);
+  Status ResizeRegionOfInterest(int idx, float extrapolation_value, ResizeParams& r);
   Status ResizeScales(int idx, const GraphOp& op, const std::vector<double>& scales,
                       const std::vector<int64_t>& sizes, int64_t num[2], int64_t den[2]);
   Status ProcessSlice(int idx, GraphOp& op);
@@ -2157,12 +2158,14 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
   std::string nearest_mode = "floor";  // Upsample: in[floor(y / scale)]
   float cubic_a = -0.75f;
   int64_t exclude_outside = 0;
+  float extrapolation_value = 0.0f;
   if (is_resize) {
     SFRT_ONNX_ASSIGN_OR_RETURN(ctm,
                                StringAttr(idx, "coordinate_transformation_mode", "half_pixel"));
     SFRT_ONNX_ASSIGN_OR_RETURN(nearest_mode, StringAttr(idx, "nearest_mode", "round_prefer_floor"));
     SFRT_ONNX_ASSIGN_OR_RETURN(cubic_a, FloatAttr(idx, "cubic_coeff_a", -0.75f));
     SFRT_ONNX_ASSIGN_OR_RETURN(exclude_outside, IntAttr(idx, "exclude_outside", 0));
+    SFRT_ONNX_ASSIGN_OR_RETURN(extrapolation_value, FloatAttr(idx, "extrapolation_value", 0.0f));
   } else if (mode == "cubic") {
     return NodeError(idx, "attribute 'mode' = 'cubic' is not an Upsample mode (nearest, linear)");
   }
@@ -2221,7 +2224,8 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
       {"pytorch_half_pixel", ResizeCoordinates::kPytorchHalfPixel},
       {"align_corners", ResizeCoordinates::kAlignCorners},
       {"asymmetric", ResizeCoordinates::kAsymmetric},
-      {"tf_half_pixel_for_nn", ResizeCoordinates::kTfHalfPixelForNn}};
+      {"tf_half_pixel_for_nn", ResizeCoordinates::kTfHalfPixelForNn},
+      {"tf_crop_and_resize", ResizeCoordinates::kTfCropAndResize}};
   bool known = false;
   for (const auto& [name, value] : kCoordinates) {
     if (ctm == name) {
@@ -2232,7 +2236,10 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
   if (!known) {
     return NodeError(idx, "attribute 'coordinate_transformation_mode' = " + Quote(ctm) +
                               " is not supported (half_pixel, pytorch_half_pixel, align_corners, "
-                              "asymmetric, tf_half_pixel_for_nn)");
+                              "asymmetric, tf_half_pixel_for_nn, tf_crop_and_resize)");
+  }
+  if (r.coordinates == ResizeCoordinates::kTfCropAndResize) {
+    SFRT_ONNX_RETURN_IF_ERROR(ResizeRegionOfInterest(idx, extrapolation_value, r));
   }
   static const std::pair<const char*, NearestRounding> kRounding[] = {
       {"round_prefer_floor", NearestRounding::kRoundPreferFloor},
@@ -2261,6 +2268,51 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
   r.scale_den_w = den[1];
   r.cubic_coeff_a = cubic_a;
   r.exclude_outside = exclude_outside != 0;
+  return Status::Ok();
+}
+
+// tf_crop_and_resize's region of interest, input 1 (ONNX: starts then ends of every axis, as
+// fractions of the input's sides): only H and W may be cut; batch and channels span 0..1.
+Status Importer::ResizeRegionOfInterest(int idx, float extrapolation_value, ResizeParams& r) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> roi, GetOptionalConst(idx, 1));
+  if (!roi.has_value() || roi->size() == 0) {
+    return NodeError(idx,
+                     "coordinate_transformation_mode 'tf_crop_and_resize' needs the input "
+                     "'roi' (8 values: starts then ends of N, C, H, W)");
+  }
+  std::vector<double> v;
+  for (size_t i = 0; i < roi->size(); ++i) v.push_back(roi->Real(i));
+  auto text = [&v] {
+    std::string t;
+    for (double x : v) t += (t.empty() ? "" : ", ") + FormatDouble(x);
+    return "[" + t + "]";
+  };
+  if (v.size() != 8) {
+    return NodeError(idx, "input 'roi' has " + std::to_string(v.size()) +
+                              " values; a 4-D Resize needs 8 (starts then ends of N, C, H, W)");
+  }
+  if (v[0] != 0 || v[1] != 0 || v[4] != 1 || v[5] != 1) {
+    return NodeError(idx, "input 'roi' = " + text() +
+                              " cuts the batch or channel axis; only H and W (starts 2, 3, ends "
+                              "6, 7) can be cut");
+  }
+  for (int i : {2, 3, 6, 7}) {
+    if (!(std::fabs(v[static_cast<size_t>(i)]) <= model_limits::kMaxResizeRoi)) {
+      return NodeError(idx, "input 'roi' = " + text() +
+                                ": every value must be finite and within -" +
+                                FormatDouble(model_limits::kMaxResizeRoi) + ".." +
+                                FormatDouble(model_limits::kMaxResizeRoi));
+    }
+  }
+  if (!std::isfinite(extrapolation_value)) {
+    return NodeError(idx, "attribute 'extrapolation_value' = " + FormatDouble(extrapolation_value) +
+                              " is not finite");
+  }
+  r.roi_start_h = static_cast<float>(v[2]);
+  r.roi_start_w = static_cast<float>(v[3]);
+  r.roi_end_h = static_cast<float>(v[6]);
+  r.roi_end_w = static_cast<float>(v[7]);
+  r.extrapolation_value = extrapolation_value;
   return Status::Ok();
 }
 

@@ -53,6 +53,7 @@ using model_limits::kMaxKernel;
 using model_limits::kMaxLayers;
 using model_limits::kMaxResizeDen;
 using model_limits::kMaxResizeNum;
+using model_limits::kMaxResizeRoi;
 using model_limits::kMaxStride;
 using model_limits::kMaxUpsample;
 
@@ -331,6 +332,9 @@ Status ParseResize(const Checker& check, const std::string& where, const fb::Res
     case fb::ResizeCoordinates::TfHalfPixelForNn:
       p.coordinates = ResizeCoordinates::kTfHalfPixelForNn;
       break;
+    case fb::ResizeCoordinates::TfCropAndResize:
+      p.coordinates = ResizeCoordinates::kTfCropAndResize;
+      break;
     default:
       return check.Fail(where + ": resize coordinates is unknown value " +
                         std::to_string(static_cast<int>(r.coordinates())));
@@ -372,6 +376,25 @@ Status ParseResize(const Checker& check, const std::string& where, const fb::Res
                       "; must be finite");
   }
   p.exclude_outside = r.exclude_outside();
+  p.roi_start_h = r.roi_start_h();
+  p.roi_start_w = r.roi_start_w();
+  p.roi_end_h = r.roi_end_h();
+  p.roi_end_w = r.roi_end_w();
+  p.extrapolation_value = r.extrapolation_value();
+  for (const auto& [value, field] :
+       {std::pair{p.roi_start_h, "roi_start_h"}, std::pair{p.roi_start_w, "roi_start_w"},
+        std::pair{p.roi_end_h, "roi_end_h"}, std::pair{p.roi_end_w, "roi_end_w"}}) {
+    if (!(std::fabs(value) <= kMaxResizeRoi)) {
+      return check.Fail(where + ": " + field + " is " + std::to_string(value) +
+                        "; must be finite and within -" +
+                        std::to_string(static_cast<int>(kMaxResizeRoi)) + ".." +
+                        std::to_string(static_cast<int>(kMaxResizeRoi)));
+    }
+  }
+  if (!std::isfinite(p.extrapolation_value)) {
+    return check.Fail(where + ": extrapolation_value is " + std::to_string(p.extrapolation_value) +
+                      "; must be finite");
+  }
   return Status::Ok();
 }
 
@@ -488,6 +511,8 @@ const char* ResizeCoordinatesName(ResizeCoordinates coordinates) {
       return "asymmetric";
     case ResizeCoordinates::kTfHalfPixelForNn:
       return "tf_half_pixel_for_nn";
+    case ResizeCoordinates::kTfCropAndResize:
+      return "tf_crop_and_resize";
   }
   return "?";
 }

@@ -114,7 +114,8 @@ TEST(KerasImport, EveryFixtureModelMatchesPyTorch) {
   for (const char* name :
        {"keras_w16_67x121", "keras_w16_540x960", "keras_w1_35x61", "keras_multigpu_w16_67x121",
         "keras_seq_67x121", "keras_anysize_w16_67x121", "keras_bn_w16_67x121",
-        "keras_unet_bn_w16_67x121", "keras_unet_bn_w16_37x53", "keras_separable_37x53"}) {
+        "keras_unet_bn_w16_67x121", "keras_unet_bn_w16_37x53", "keras_separable_37x53",
+        "keras_decoder_36x52"}) {
     SCOPED_TRACE(name);
     EXPECT_LE(ErrorAgainstPyTorch(name, name), kRelativeTolerance);
   }
@@ -138,6 +139,44 @@ TEST(KerasImport, DepthwiseAndGroupedDilatedConvolutionsKeepTheirGroupsAndDilati
   EXPECT_EQ(grouped->dilation_h, 1);
   EXPECT_EQ(grouped->dilation_w, 2);
   EXPECT_EQ(grouped->weights_hwio.size(), 3u * 3 * 4 * 8);
+}
+
+// Conv2DTranspose becomes a transposed convolution whose crops and output padding place
+// TensorFlow's output (gen_keras_h5.py decoder_layers; EveryFixtureModelMatchesPyTorch runs
+// it): 'same' 3x3/2 crops its extra row at the bottom, output_padding 1 keeps it, 'valid' 1x1/2
+// adds a row and column of bias; the BatchNormalization and ReLU after a Conv2DTranspose fold
+// and fuse into it; pooling layers keep their kind, window and rule.
+TEST(KerasImport, Conv2DTransposeAndPoolingKeepTensorFlowsPlacement) {
+  const KerasImportResult imported = Import("keras_decoder_36x52");
+  const ModelSpec& spec = imported.spec;
+  ASSERT_EQ(spec.layers.size(), 10u) << ::testing::PrintToString(LayerNames(spec));
+  auto deconv = [&](size_t i) { return std::get_if<ConvTransposeSpec>(&spec.layers[i]); };
+  auto pool = [&](size_t i) { return std::get_if<PoolSpec>(&spec.layers[i]); };
+  ASSERT_NE(pool(1), nullptr);
+  EXPECT_EQ(pool(1)->kind, PoolKind::kMax);
+  EXPECT_EQ(pool(1)->stride_h, 2);  // strides None: the pool size
+  EXPECT_EQ(pool(1)->padding_rule, PaddingRule::kExplicit);
+  ASSERT_NE(pool(2), nullptr);
+  EXPECT_EQ(pool(2)->kind, PoolKind::kAverage);
+  EXPECT_EQ(pool(2)->padding_rule, PaddingRule::kSameUpper);
+  EXPECT_FALSE(pool(2)->count_include_pad);
+  ASSERT_NE(deconv(3), nullptr);
+  EXPECT_EQ(deconv(3)->name, "deconv1");
+  EXPECT_EQ(deconv(3)->activation, Activation::kRelu);
+  EXPECT_EQ(deconv(3)->pads, (Pads{0, 0, 0, 0}));
+  ASSERT_NE(deconv(5), nullptr);
+  EXPECT_EQ(deconv(5)->pads, (Pads{0, 0, 1, 1}));  // top, left, bottom, right
+  EXPECT_EQ(deconv(5)->activation, Activation::kLeakyRelu);
+  ASSERT_NE(deconv(7), nullptr);
+  EXPECT_EQ(deconv(7)->pads, (Pads{0, 1, 1, 1}));
+  EXPECT_EQ(deconv(7)->output_padding_h, 0);
+  ASSERT_NE(deconv(8), nullptr);
+  EXPECT_EQ(deconv(8)->pads, (Pads{0, 0, 0, 0}));
+  EXPECT_EQ(deconv(8)->output_padding_h, 1);
+  EXPECT_EQ(deconv(8)->output_padding_w, 1);
+  // Keras' kernel (kh, kw, filters, in) became HWIO (kh, kw, in, filters).
+  EXPECT_EQ(deconv(8)->in_channels, 8);
+  EXPECT_EQ(deconv(8)->weights_hwio.size(), 8u * 8);
 }
 
 // A BatchNormalization after a Conv2D with activation 'linear' is folded into it: the same 11
@@ -324,9 +363,9 @@ TEST(KerasImport, MalformedFilesFailWithOneLineNamingTheLayerOrDataset) {
       {"bad_alpha_missing.h5", {"layer 'leaky_re_lu_3' (LeakyReLU)", "no 'alpha'"}},
       {"bad_unknown_layer.h5",
        {"layer 'dense_1' (Dense)", "not supported",
-        "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, BatchNormalization "
-        "(folded into the Conv2D before it), LeakyReLU, Activation, UpSampling2D, Cropping2D, "
-        "ZeroPadding2D"}},
+        "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, Conv2DTranspose, "
+        "BatchNormalization (folded into the convolution before it), LeakyReLU, Activation, "
+        "UpSampling2D (nearest), MaxPooling2D, AveragePooling2D, Cropping2D, ZeroPadding2D"}},
       {"bad_truncated.h5", {"truncated", "stored_eof"}},
       {"bad_dilation.h5", {"layer 'conv4' (Conv2D)", "dilation_rate [0,2] is not integers"}},
       {"bad_channels_first.h5", {"layer 'up_sampling2d_2' (UpSampling2D)", "channels_first"}},

@@ -1,6 +1,6 @@
-// Files for fuzz targets whose parsers take paths (calibration, image, profile): the process's
-// private scratch directory and an abort-on-failure writer. A fuzz target cannot report errors,
-// so both abort with the reason (perror) where they cannot do their job.
+// Files for fuzz targets (and tests) whose parsers take paths (calibration, image, profile): the
+// process's private scratch directory and an abort-on-failure writer. A fuzz target cannot
+// report errors, so both abort with the reason (perror) where they cannot do their job.
 #pragma once
 
 #include <unistd.h>

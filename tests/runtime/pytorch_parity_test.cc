@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/run_against_reference.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/onnx_importer.h"
 #include "sfrt/isa.h"
@@ -61,40 +62,10 @@ double RelativeErrorAgainstPyTorch(const std::string& model_case, const FixtureC
   EXPECT_TRUE(input.ok()) << input.message();
   EXPECT_TRUE(expected.ok()) << expected.message();
   if (!model.ok() || !input.ok() || !expected.ok()) return INFINITY;
-  const int h = data_case.height, w = data_case.width;
-  EXPECT_EQ(input->shape, (std::vector<int64_t>{h, w, 12}));
-  if (input->data.size() != size_t(h) * w * 12) return INFINITY;
-
-  SessionOptions options;
-  options.max_height = h;
-  options.max_width = w;
-  options.isa = isa;
-  auto session = Session::Create(*model, options);
-  EXPECT_TRUE(session.ok()) << session.message();
-  if (!session.ok()) return INFINITY;
+  EXPECT_EQ(input->shape, (std::vector<int64_t>{data_case.height, data_case.width, 12}));
   // SceneEDNet's output has the input's size; FlowNetS's finest prediction a quarter of it.
-  const Result<TensorShape> shape = (*session)->OutputShape(h, w);
-  EXPECT_TRUE(shape.ok()) << shape.message();
-  if (!shape.ok()) return INFINITY;
-  EXPECT_EQ(expected->shape, (std::vector<int64_t>{shape->height, shape->width, 3}));
-  if (expected->data.size() != shape->elements()) return INFINITY;
-  std::vector<float> out(expected->data.size());
-  const Status s = (*session)->Run(input->data, h, w, out);
-  EXPECT_TRUE(s.ok()) << s.message();
-  if (!s.ok()) return INFINITY;
-
-  double max_ref = 0.0, max_err = 0.0;
-  for (size_t i = 0; i < out.size(); ++i) {
-    if (!std::isfinite(out[i])) return INFINITY;
-    max_ref = std::max(max_ref, std::abs(double(expected->data[i])));
-    max_err = std::max(max_err, std::abs(double(out[i]) - expected->data[i]));
-  }
-  EXPECT_GT(max_ref, 0.0);
-  const double relative = max_err / max_ref;
-  std::printf(
-      "  %-6s model %-24s data %-24s %4dx%-4d max|ref| %.4g  max abs err %.3g  relative %.3g\n",
-      IsaName(isa), model_case.c_str(), data_case.name.c_str(), h, w, max_ref, max_err, relative);
-  return relative;
+  return testing::RelativeErrorOfRun(*model, *input, *expected, isa,
+                                     "model " + model_case + " data " + data_case.name);
 }
 
 TEST(PyTorchParity, EveryFixtureCaseMatchesPyTorch) {

@@ -1,6 +1,7 @@
 // General resizing (schema 1.7): the reference kernel against values PyTorch documents for
 // bilinear interpolation, a decoder with linear and cubic resizes on every ISA against the
-// reference forward, and what the loader and the writer refuse. (ONNX's own Resize test cases,
+// reference forward, tf_crop_and_resize (schema 1.9) against values worked out by hand, and
+// what the loader and the writer refuse. (ONNX's own Resize test cases,
 // every mode and coordinate rule: tests/tools/onnx_node_tests.py.)
 #include <gtest/gtest.h>
 
@@ -77,6 +78,59 @@ TEST(ResizeRef, CubicKeepsConstantsForAnyAAndARampForAMinusHalf) {
   }
 }
 
+// ONNX's tf_crop_and_resize example (its Resize test case): the 4x4 input 1..16, roi H 0.4..1.2
+// and W 0.6..1.7, sizes 3x3 (scale 3/4), extrapolation 10. Output row y reads source row
+// 0.4 * 3 + y * 0.8 * 3 / 2 = 1.2, 2.4, 3.6 and column 1.8, 3.45, 5.1; a source beyond 3 is
+// outside the input, so that pixel is 10. Inside: linear 1 + 4 * row + col.
+ResizeParams CropAndResizeExample(ResizeMode mode) {
+  ResizeParams p;
+  p.mode = mode;
+  p.coordinates = ResizeCoordinates::kTfCropAndResize;
+  p.scale_num_h = p.scale_num_w = 3;
+  p.scale_den_h = p.scale_den_w = 4;
+  p.roi_start_h = 0.4f;
+  p.roi_start_w = 0.6f;
+  p.roi_end_h = 1.2f;
+  p.roi_end_w = 1.7f;
+  p.extrapolation_value = 10.0f;
+  return p;
+}
+
+std::vector<float> Resize4x4To3x3(const ResizeParams& p) {
+  std::vector<float> in(16);
+  for (int k = 0; k < 16; ++k) in[static_cast<size_t>(k)] = static_cast<float>(k + 1);
+  std::vector<float> out(9, NAN);
+  ref::ResizeRows({in.data(), 4, 4, 1, 4}, p, DenseView(out.data(), 3, 3, 1), 0, 3);
+  return out;
+}
+
+TEST(ResizeRef, CropAndResizeSamplesTheRegionAndExtrapolatesOutsideTheInput) {
+  const auto linear = Resize4x4To3x3(CropAndResizeExample(ResizeMode::kLinear));
+  const std::vector<float> want = {
+      1 + 4 * 1.2f + 1.8f, 10, 10, 1 + 4 * 2.4f + 1.8f, 10, 10, 10, 10, 10};
+  for (size_t k = 0; k < want.size(); ++k) EXPECT_NEAR(linear[k], want[k], 1e-5) << "element " << k;
+  // Nearest (round_prefer_floor): rows 1.2 -> 1, 2.4 -> 2; column 1.8 -> 2.
+  const auto nearest = Resize4x4To3x3(CropAndResizeExample(ResizeMode::kNearest));
+  EXPECT_EQ(nearest[0], 1 + 4 * 1 + 2);
+  EXPECT_EQ(nearest[3], 1 + 4 * 2 + 2);
+  EXPECT_EQ(nearest[1], 10);
+  EXPECT_EQ(nearest[8], 10);
+}
+
+TEST(ResizeRef, CropAndResizeToOnePixelSamplesTheRegionsCentre) {
+  ResizeParams p = CropAndResizeExample(ResizeMode::kLinear);
+  p.scale_num_h = p.scale_num_w = 1;  // 4 -> 1: source (start + end) / 2 * 3
+  std::vector<float> in(16);
+  for (int k = 0; k < 16; ++k) in[static_cast<size_t>(k)] = static_cast<float>(k + 1);
+  float out = NAN;
+  ref::ResizeRows({in.data(), 4, 4, 1, 4}, p, DenseView(&out, 1, 1, 1), 0, 1);
+  // Row 0.8 * 3 = 2.4, column 1.15 * 3 = 3.45 > 3: outside.
+  EXPECT_EQ(out, 10.0f);
+  p.roi_end_w = 1.0f;  // column 0.8 * 3 = 2.4
+  ref::ResizeRows({in.data(), 4, 4, 1, 4}, p, DenseView(&out, 1, 1, 1), 0, 1);
+  EXPECT_NEAR(out, 1 + 4 * 2.4f + 2.4f, 1e-5);
+}
+
 // conv 3x3/2 -> linear x2 (half_pixel) -> conv 3x3 -> cubic x3/2 (align_corners) -> conv 1x1.
 exporter::ModelSpec ResizingDecoderSpec() {
   using namespace sfrt::exporter;
@@ -146,6 +200,57 @@ TEST(ResizeWriting, NeedsSchema17) {
   auto bytes = exporter::SerializeModel(ResizingDecoderSpec(), options);
   ASSERT_FALSE(bytes.ok());
   EXPECT_NE(bytes.message().find("'up0': Resize needs schema 1.7; writing 1.6"), std::string::npos)
+      << bytes.message();
+}
+
+// A decoder whose first resize crops and resizes: written, loaded (the region and the value
+// kept) and run on every ISA.
+exporter::ModelSpec CropAndResizeDecoderSpec() {
+  exporter::ModelSpec spec = ResizingDecoderSpec();
+  ResizeParams& r = std::get<exporter::ResizeSpec>(spec.layers[1]).params;
+  r.coordinates = ResizeCoordinates::kTfCropAndResize;
+  r.roi_start_h = 0.25f;
+  r.roi_start_w = -0.1f;
+  r.roi_end_h = 0.75f;
+  r.roi_end_w = 1.2f;
+  r.extrapolation_value = -0.5f;
+  return spec;
+}
+
+TEST(ResizeSession, CropAndResizeKeepsItsRegionThroughTheFileOnEveryIsa) {
+  auto model = testing::LoadOrDie(CropAndResizeDecoderSpec());
+  ASSERT_NE(model, nullptr);
+  const ResizeParams& r = model->layers()[1].resize;
+  EXPECT_EQ(r.coordinates, ResizeCoordinates::kTfCropAndResize);
+  EXPECT_EQ(r.roi_start_h, 0.25f);
+  EXPECT_EQ(r.roi_start_w, -0.1f);
+  EXPECT_EQ(r.roi_end_h, 0.75f);
+  EXPECT_EQ(r.roi_end_w, 1.2f);
+  EXPECT_EQ(r.extrapolation_value, -0.5f);
+  EXPECT_EQ(model->metadata().schema_minor, 9);
+  testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 10);
+}
+
+TEST(ResizeLoading, RefusesANonFiniteRegionOfInterestNamingTheField) {
+  exporter::ModelSpec spec = CropAndResizeDecoderSpec();
+  std::get<exporter::ResizeSpec>(spec.layers[1]).params.roi_end_w = INFINITY;
+  const auto bytes = testing::SerializeOrDie(spec);
+  auto model = Model::LoadBuffer(bytes.data(), bytes.size(), BufferOwnership::kCopy, {}, "r.sfrt");
+  ASSERT_FALSE(model.ok());
+  EXPECT_NE(model.message().find("layer 1 'up0': roi_end_w is inf; must be finite and within "
+                                 "-64..64"),
+            std::string::npos)
+      << model.message();
+}
+
+TEST(ResizeWriting, CropAndResizeNeedsSchema19) {
+  exporter::SerializeOptions options;
+  options.schema_minor = 8;
+  auto bytes = exporter::SerializeModel(CropAndResizeDecoderSpec(), options);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find(
+                "'up0': Resize coordinates tf_crop_and_resize need schema 1.9; writing 1.8"),
+            std::string::npos)
       << bytes.message();
 }
 

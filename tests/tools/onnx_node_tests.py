@@ -107,7 +107,7 @@ EXPECTED = {
     "test_resize_upsample_sizes_nearest_ceil_half_pixel": PASS,
     "test_resize_upsample_sizes_nearest_floor_align_corners": PASS,
     "test_resize_upsample_sizes_nearest_round_prefer_ceil_asymmetric": PASS,
-    "test_resize_tf_crop_and_resize": "tf_crop_and_resize",
+    "test_resize_tf_crop_and_resize": PASS,
     # Activations (3-D cases run as (1, C, H, W); their 1-D cases are not picked).
     "test_celu_expanded": PASS,
     "test_relu": PASS,

@@ -147,6 +147,11 @@ std::string OpString(const LayerDesc& layer) {
       if (r.mode == ResizeMode::kCubic) {
         op += " a=" + FormatFloat(r.cubic_coeff_a) + (r.exclude_outside ? " exclude-outside" : "");
       }
+      if (r.coordinates == ResizeCoordinates::kTfCropAndResize) {
+        op += " roi " + FormatFloat(r.roi_start_h) + "," + FormatFloat(r.roi_start_w) + ".." +
+              FormatFloat(r.roi_end_h) + "," + FormatFloat(r.roi_end_w) + " outside " +
+              FormatFloat(r.extrapolation_value);
+      }
       return op;
     }
     case LayerKind::kChannelAffine: {

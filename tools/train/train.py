@@ -1,9 +1,11 @@
 #!/usr/bin/python3
-"""Training reference for SceneEDNet on Scene Flow-layout data (e.g. from `sfrt synth`).
+"""Training reference for SceneEDNet (or SceneEDNet-U, --arch) on Scene Flow-layout data (e.g.
+from `sfrt synth`).
 
 Run with Debian's /usr/bin/python3 (python3-torch 1.13, python3-onnx, python3-numpy); CPU only.
 
-  train.py --data DIR [DIR ...] --out RUN [--val DIR] [--width-div 8] [--recipe adam|paper]
+  train.py --data DIR [DIR ...] --out RUN [--val DIR] [--arch sceneednet|sceneednet-u]
+           [--batch-norm] [--width-div 8] [--recipe adam|paper]
            [--epochs N] [--batch B] [--max-minutes M] [--export --sfrt path/to/sfrt]
 
 Recipes:
@@ -197,10 +199,22 @@ def export(model, args, cam, height, width):
         raise SystemExit(f"train.py: sfrt export failed with exit code {rc}")
 
 
+def build_model(arch, width_div, batch_norm):
+    """The network to train: SceneEDNet as published or SceneEDNet-U (skip connections), TF
+    'same' padding. Batch norm (SceneEDNet-U only) is folded into the convolutions at export."""
+    if arch == "sceneednet":
+        if batch_norm:
+            raise SystemExit("train.py: --batch-norm needs --arch sceneednet-u")
+        return sceneednet.SceneEDNet(width_div, "tf")
+    return sceneednet.SceneEDNetU(width_div, "tf", batch_norm=batch_norm)
+
+
 def export_only(args):
     with open(os.path.join(args.out, "config.json"), encoding="utf-8") as f:
         config = json.load(f)
-    model = sceneednet.SceneEDNet(config["width_div"], "tf")
+    # Runs from before --arch trained the published chain.
+    model = build_model(config.get("arch", "sceneednet"), config["width_div"],
+                        config.get("batch_norm", False))
     name = "best.pt" if args.export_from == "best" else "checkpoint.pt"
     state = torch.load(os.path.join(args.out, name))
     model.load_state_dict(state["model"])
@@ -217,6 +231,12 @@ def parse_args(argv):
     p.add_argument("--data", nargs="+", default=[], help="training data set roots")
     p.add_argument("--val", nargs="*", default=[], help="validation data set roots")
     p.add_argument("--out", required=True, help="run directory (created)")
+    p.add_argument("--arch", choices=tuple(sceneednet.ARCHITECTURES), default="sceneednet",
+                   help="sceneednet: the published chain; sceneednet-u: with skip connections "
+                        "from conv0..conv3 to the decoder (default sceneednet)")
+    p.add_argument("--batch-norm", action="store_true",
+                   help="sceneednet-u: a BatchNorm2d after every hidden convolution (folded "
+                        "into the convolutions at export)")
     p.add_argument("--width-div", type=int, default=8, choices=sceneednet.WIDTH_DIVS)
     p.add_argument("--downsample", type=int, default=1,
                    help="train at 1/N of the data's resolution (area average; the recorded "
@@ -291,7 +311,7 @@ def main(argv=None):
             print(f"warning validation camera {vcam} differs from training camera {cam}")
     n, height, width = x.shape[0], x.shape[1], x.shape[2]
 
-    model = sceneednet.SceneEDNet(args.width_div, "tf")
+    model = build_model(args.arch, args.width_div, args.batch_norm)
     if args.recipe == "paper":
         opt = torch.optim.SGD(model.parameters(), lr=args.lr, momentum=0.5)
     else:
@@ -319,7 +339,8 @@ def main(argv=None):
                    "pixel_scale": PIXEL_SCALE, "pixel_mean": PIXEL_MEAN,
                    "pixel_std": PIXEL_STD, "torch": torch.__version__}, f, indent=2)
     params = sum(p.numel() for p in model.parameters())
-    print(f"model   SceneEDNet width/{args.width_div}, {params:,} parameters; {n} samples "
+    print(f"model   {args.arch} width/{args.width_div}"
+          f"{' with batch norm' if args.batch_norm else ''}, {params:,} parameters; {n} samples "
           f"{height}x{width}, batch {args.batch}, recipe {args.recipe}, lr {args.lr:g}",
           flush=True)
 

@@ -30,7 +30,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 8;
+inline constexpr int kSchemaVersionMinor = 9;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
 // as do kConvTranspose2D and kPool2D (schema 1.6).
@@ -184,18 +184,23 @@ struct PoolParams {
 // output length in * scale, as ONNX does), which is rounded (kNearest) or
 // interpolated between the 2 (kLinear) or 4 (kCubic) nearest rows, indices clamped to the input;
 // likewise along x. kUpsample stays the op for nearest upsampling by integer factors.
+// kTfCropAndResize (schema 1.9) maps the output onto a region of interest and gives pixels whose
+// source lies outside the input `extrapolation_value`.
 enum class ResizeMode { kNearest, kLinear, kCubic };
 enum class ResizeCoordinates {
   kHalfPixel,         // (y + 0.5) / scale - 0.5
   kPytorchHalfPixel,  // the same, but 0 when the output side is 1
   kAlignCorners,      // y * (in - 1) / (out - 1), 0 when out is 1
   kAsymmetric,        // y / scale
-  kTfHalfPixelForNn   // (y + 0.5) / scale
+  kTfHalfPixelForNn,  // (y + 0.5) / scale
+  // start * (in - 1) + y * (end - start) * (in - 1) / (out - 1), or (start + end) / 2 * (in - 1)
+  // when out is 1; start and end are the region of interest's fractions of the input side.
+  kTfCropAndResize
 };
 enum class NearestRounding { kRoundPreferFloor, kRoundPreferCeil, kFloor, kCeil };
 // ONNX's words: "nearest", "linear", "cubic"; "half_pixel", "pytorch_half_pixel",
-// "align_corners", "asymmetric", "tf_half_pixel_for_nn"; "round_prefer_floor",
-// "round_prefer_ceil", "floor", "ceil".
+// "align_corners", "asymmetric", "tf_half_pixel_for_nn", "tf_crop_and_resize";
+// "round_prefer_floor", "round_prefer_ceil", "floor", "ceil".
 const char* ResizeModeName(ResizeMode mode);
 const char* ResizeCoordinatesName(ResizeCoordinates coordinates);
 const char* NearestRoundingName(NearestRounding rounding);
@@ -209,6 +214,14 @@ struct ResizeParams {
   int64_t scale_den_w = 1;
   float cubic_coeff_a = -0.75f;  // kCubic
   bool exclude_outside = false;  // kCubic: weights of taps outside the input are dropped
+  // kTfCropAndResize: the region of interest (ONNX roi) as fractions of the input's height and
+  // width (outside [0, 1] allowed), and the value of output pixels whose source coordinate lies
+  // outside [0, in - 1] on either axis.
+  float roi_start_h = 0.0f;
+  float roi_start_w = 0.0f;
+  float roi_end_h = 1.0f;
+  float roi_end_w = 1.0f;
+  float extrapolation_value = 0.0f;
 };
 
 struct UpsampleParams {  // nearest neighbour

@@ -23,6 +23,8 @@ inline constexpr int kMaxUpsample = 64;
 // ratio at most kMaxUpsample.
 inline constexpr int64_t kMaxResizeNum = int64_t{1} << 40;
 inline constexpr int64_t kMaxResizeDen = int64_t{1} << 32;
+// tf_crop_and_resize's region of interest (schema 1.9): each fraction within -64..64.
+inline constexpr float kMaxResizeRoi = 64.0f;
 // Explicit Conv2D pads on a side: 0..MaxPad(kernel side along that axis).
 constexpr int MaxPad(int kernel) { return kernel - 1; }
 

@@ -8,8 +8,10 @@ namespace sfrt::ref {
 namespace {
 
 // The source coordinate of output position y (docs/model-format.md, "Resize"). `out` is the
-// unrounded output length in * scale, as ONNX's reference uses it.
-double SourceCoordinate(ResizeCoordinates mode, int y, int in, double out, double scale) {
+// unrounded output length in * scale, as ONNX's reference uses it; [roi_start, roi_end] the
+// region of interest (kTfCropAndResize).
+double SourceCoordinate(ResizeCoordinates mode, int y, int in, double out, double scale,
+                        double roi_start, double roi_end) {
   switch (mode) {
     case ResizeCoordinates::kHalfPixel:
       return (y + 0.5) / scale - 0.5;
@@ -21,6 +23,9 @@ double SourceCoordinate(ResizeCoordinates mode, int y, int in, double out, doubl
       return y / scale;
     case ResizeCoordinates::kTfHalfPixelForNn:
       return (y + 0.5) / scale;
+    case ResizeCoordinates::kTfCropAndResize:
+      return out > 1 ? roi_start * (in - 1) + y * (roi_end - roi_start) * (in - 1) / (out - 1)
+                     : 0.5 * (roi_start + roi_end) * (in - 1);
   }
   return 0.0;
 }
@@ -48,11 +53,19 @@ double Cubic(double a, double d) {
 
 }  // namespace
 
-ResizeTaps ResizeAxisTaps(const ResizeParams& p, int y, int in, int64_t num, int64_t den) {
-  const double scale = static_cast<double>(num) / static_cast<double>(den);
-  const double x = SourceCoordinate(p.coordinates, y, in, in * scale, scale);
+ResizeTaps ResizeAxisTaps(const ResizeParams& p, ResizeAxis axis, int y, int in) {
+  const bool h = axis == ResizeAxis::kHeight;
+  const double scale = static_cast<double>(h ? p.scale_num_h : p.scale_num_w) /
+                       static_cast<double>(h ? p.scale_den_h : p.scale_den_w);
+  const double x =
+      SourceCoordinate(p.coordinates, y, in, in * scale, scale, h ? p.roi_start_h : p.roi_start_w,
+                       h ? p.roi_end_h : p.roi_end_w);
   auto clamp = [in](long long i) { return static_cast<int>(std::clamp<long long>(i, 0, in - 1)); };
   ResizeTaps taps;
+  if (p.coordinates == ResizeCoordinates::kTfCropAndResize && (x < 0 || x > in - 1)) {
+    taps.outside = true;
+    return taps;
+  }
   if (p.mode == ResizeMode::kNearest) {
     taps.count = 1;
     taps.index[0] = clamp(NearestIndex(p.nearest, x));
@@ -91,10 +104,14 @@ void ResizeRows(const ConstTensorView& in, const ResizeParams& p, const TensorVi
   assert(in.channels == out.channels);
   const int channels = in.channels;
   for (int y = row_begin; y < row_end; ++y) {
-    const ResizeTaps rows = ResizeAxisTaps(p, y, in.height, p.scale_num_h, p.scale_den_h);
+    const ResizeTaps rows = ResizeAxisTaps(p, ResizeAxis::kHeight, y, in.height);
     for (int x = 0; x < out.width; ++x) {
-      const ResizeTaps cols = ResizeAxisTaps(p, x, in.width, p.scale_num_w, p.scale_den_w);
+      const ResizeTaps cols = ResizeAxisTaps(p, ResizeAxis::kWidth, x, in.width);
       float* dst = out.pixel(y, x);
+      if (rows.outside || cols.outside) {
+        std::fill(dst, dst + channels, p.extrapolation_value);
+        continue;
+      }
       std::fill(dst, dst + channels, 0.0f);
       for (int r = 0; r < rows.count; ++r) {
         for (int c = 0; c < cols.count; ++c) {

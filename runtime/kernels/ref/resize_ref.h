@@ -7,15 +7,20 @@
 
 namespace sfrt::ref {
 
-// At most 4 taps per axis (kCubic), with weights summing to 1.
+// At most 4 taps per axis (kCubic), with weights summing to 1. `outside`
+// (kTfCropAndResize): the source coordinate lies outside the input, so the output pixel is the
+// extrapolation value and the taps are unused.
 struct ResizeTaps {
   int count = 0;
   int index[4] = {0, 0, 0, 0};
   float weight[4] = {0, 0, 0, 0};
+  bool outside = false;
 };
 
-// The taps output position `y` of an axis of length `in` reads; `num` / `den` is the axis' scale.
-ResizeTaps ResizeAxisTaps(const ResizeParams& params, int y, int in, int64_t num, int64_t den);
+enum class ResizeAxis { kHeight, kWidth };
+
+// The taps output position `y` of `axis` reads, the input being `in` long along it.
+ResizeTaps ResizeAxisTaps(const ResizeParams& params, ResizeAxis axis, int y, int in);
 
 // `out` has the layer's output size for `in` (sfrt/shapes.h) and in's channels.
 void ResizeRows(const ConstTensorView& in, const ResizeParams& params, const TensorView& out,

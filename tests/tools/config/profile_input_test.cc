@@ -1,7 +1,6 @@
 // Bounded profile input (issue 15, item 9): the size cap before parsing, the cap on printed
 // errors, a tab in the indentation, and binary files. Every fixture is generated here.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -9,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "fuzz/scratch_dir.h"
 #include "sfrt/config/limits.h"
 #include "sfrt/config/profile.h"
 
@@ -17,12 +17,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A file under a fresh per-process directory in the system temporary directory.
+// A file under the process's scratch directory (removed with it at exit).
 std::string WriteFixture(const std::string& name, const std::string& bytes) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("sfrt_profile_input_" + std::to_string(getpid()));
-  fs::create_directories(dir);
-  const fs::path path = dir / name;
+  const fs::path path = fuzz::ScratchDir("sfrt_profile_input") / name;
   std::ofstream(path, std::ios::binary)
       .write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   return path.string();

@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Smoke test of tools/train/train.py: synthesise a 3-frame tree at 64x96 with `sfrt synth`,
 train width/16 for 12 Adam iterations on its 2 samples (the loss must decrease), export to
-ONNX and .sfrt, and check the .sfrt loads (`sfrt inspect`) and runs (`sfrt eval`)."""
+ONNX and .sfrt, and check the .sfrt loads (`sfrt inspect`) and runs (`sfrt eval`) with
+PyTorch's validation EPE. Extra arguments after the options go to train.py (e.g. --arch
+sceneednet-u --batch-norm)."""
 import argparse
 import csv
 import json
@@ -23,7 +25,7 @@ def main():
     p.add_argument("--sfrt", required=True)
     p.add_argument("--train-dir", required=True)
     p.add_argument("--work", required=True)
-    args = p.parse_args()
+    args, train_extra = p.parse_known_args()
     shutil.rmtree(args.work, ignore_errors=True)
     os.makedirs(args.work)
     tree = os.path.join(args.work, "tree")
@@ -34,7 +36,7 @@ def main():
          "--out", out, "--width-div", "16", "--recipe", "adam", "--lr", "2e-3", "--batch", "2",
          "--max-iters", "12", "--log-every", "1", "--val-every", "6", "--export",
          "--export-from", "last", "--sfrt", args.sfrt, "--name", "smoke",
-         "--require-decrease"])
+         "--require-decrease"] + train_extra)
     for name in ("log.csv", "checkpoint.pt", "best.pt", "config.json", "model.onnx",
                  "model.sfrt"):
         if not os.path.isfile(os.path.join(out, name)):
