@@ -7,7 +7,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,6 +20,28 @@
 #include "sfrt/session.h"
 
 namespace sfrt::testing {
+
+// One line of a fixture directory's cases.txt (tests/fixtures/gen_sceneednet.py): the file stem
+// and the input size.
+struct ReferenceCase {
+  std::string name;
+  int height = 0;
+  int width = 0;
+};
+
+// The cases listed in `dir`/cases.txt, "NAME HEIGHT WIDTH" per line; lines that do not parse are
+// skipped (callers require a minimum count, so a missing list fails).
+inline std::vector<ReferenceCase> ReadReferenceCases(const std::string& dir) {
+  std::vector<ReferenceCase> cases;
+  std::ifstream in(dir + "/cases.txt");
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    ReferenceCase c;
+    if (fields >> c.name >> c.height >> c.width) cases.push_back(c);
+  }
+  return cases;
+}
 
 // Runs `model` on `isa` at the size of `input` (H, W, C) and returns RelativeMaxError of its
 // output against `expected`, which must have the session's output shape; infinity, with a test

@@ -8,8 +8,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -25,25 +23,11 @@ namespace {
 constexpr double kRelativeTolerance = 1e-4;
 constexpr size_t kMinimumCases = 4;  // the four reference networks at least
 
-struct ExportedCase {
-  std::string name;
-  int height = 0;
-  int width = 0;
-};
+using ExportedCase = testing::ReferenceCase;
 
 std::string CaseDir() { return SFRT_EXPORTED_MODELS_DIR; }
 
-std::vector<ExportedCase> ReadCases() {
-  std::vector<ExportedCase> cases;
-  std::ifstream in(CaseDir() + "/cases.txt");
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream fields(line);
-    ExportedCase c;
-    if (fields >> c.name >> c.height >> c.width) cases.push_back(c);
-  }
-  return cases;
-}
+std::vector<ExportedCase> ReadCases() { return testing::ReadReferenceCases(CaseDir()); }
 
 // Error of `isa`'s output relative to the reference's largest magnitude; infinity on any failure
 // (reported by the EXPECTs).

@@ -5,8 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include "common/run_against_reference.h"
 #include "sfrt/exporter/model_writer.h"
@@ -21,23 +19,9 @@ namespace {
 
 constexpr double kRelativeTolerance = 1e-4;
 
-struct FixtureCase {
-  std::string name;
-  int height = 0;
-  int width = 0;
-};
+using FixtureCase = testing::ReferenceCase;
 
-std::vector<FixtureCase> ReadCases() {
-  std::vector<FixtureCase> cases;
-  std::ifstream in(std::string(SFRT_FIXTURE_DIR) + "/cases.txt");
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream fields(line);
-    FixtureCase c;
-    if (fields >> c.name >> c.height >> c.width) cases.push_back(c);
-  }
-  return cases;
-}
+std::vector<FixtureCase> ReadCases() { return testing::ReadReferenceCases(SFRT_FIXTURE_DIR); }
 
 TEST(PyTorchParity, FixtureSuiteIsPresent) {
   // Fails (rather than skips) when the generator did not run: parity must never be silent.
