@@ -59,7 +59,8 @@ using nlohmann::json;
 constexpr char kSupportedLayers[] =
     "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, Conv2DTranspose, "
     "BatchNormalization (folded into the convolution before it), LeakyReLU, Activation, "
-    "UpSampling2D (nearest), MaxPooling2D, AveragePooling2D, Cropping2D, ZeroPadding2D, "
+    "UpSampling2D (nearest and bilinear), MaxPooling2D, AveragePooling2D, Cropping2D, "
+    "ZeroPadding2D, "
     "Concatenate (channels), Add (and a multi_gpu_model wrapper: InputLayer/Lambda/Concatenate "
     "around one nested Model)";
 // Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
@@ -387,6 +388,7 @@ class Importer {
     return Quote(src_.root_label == "/" ? rel : src_.root_label + "/" + rel);
   }
 
+  Result<ResizeCoordinates> BilinearGrid(const ChainLayer& l);
   Result<bool> PathExists(hid_t loc, const std::string& path);
   Status Open();
   Status OpenFile();
@@ -511,6 +513,42 @@ Status Importer::Open() {
     if (value->has_value() && (*value)->size() == 1) *out = (**value)[0];
   }
   return Status::Ok();
+}
+
+// Keras 2.4 and later run only on TensorFlow 2 ("2.4.0", "2.9.0", "3.1.0"); 2.0-2.3 (and the
+// "-tf" versions tf.keras wrote up to TensorFlow 2.1) may have run on TensorFlow 1.
+bool SavedOnTensorFlow2(const std::string& keras_version) {
+  int major = 0;
+  int minor = 0;
+  char dot = 0;
+  std::istringstream in(keras_version);
+  if (!(in >> major >> dot >> minor) || dot != '.') return false;
+  return major > 2 || (major == 2 && minor >= 4);
+}
+
+Result<ResizeCoordinates> Importer::BilinearGrid(const ChainLayer& l) {
+  switch (options_.bilinear_grid) {
+    case KerasBilinearGrid::kHalfPixel:
+      return ResizeCoordinates::kHalfPixel;
+    case KerasBilinearGrid::kAsymmetric:
+      return ResizeCoordinates::kAsymmetric;
+    case KerasBilinearGrid::kFromKerasVersion:
+      break;
+  }
+  if (SavedOnTensorFlow2(keras_version_)) {
+    notes_.push_back("bilinear UpSampling2D " + Quote(l.name) +
+                     " samples on TensorFlow 2's half-pixel grid (the file was saved by Keras " +
+                     Printable(keras_version_) + ")");
+    return ResizeCoordinates::kHalfPixel;
+  }
+  return LayerFail(l,
+                   "bilinear interpolation samples on a grid that depends on the TensorFlow "
+                   "the model ran on, which a file saved by Keras " +
+                       Printable(keras_version_.empty() ? "(no version)" : keras_version_) +
+                       " does not record: TensorFlow 2 uses half-pixel centres, TensorFlow 1 "
+                       "the asymmetric grid (align_corners=False); say which with "
+                       "KerasImportOptions::bilinear_grid (sfrt export --keras-bilinear "
+                       "half-pixel or asymmetric)");
 }
 
 Status Importer::OpenFile() {
@@ -1477,20 +1515,35 @@ Status Importer::Build(const ChainModel& model, ModelSpec* spec) {
         return LayerFail(l, "'size' is missing or not integers in 1.." +
                                 std::to_string(model_limits::kMaxUpsample));
       }
+      bool bilinear = false;
       if (const json* interp = Find(cfg, "interpolation")) {
-        if (!interp->is_string() || interp->get<std::string>() != "nearest") {
+        bilinear = interp->is_string() && interp->get<std::string>() == "bilinear";
+        if (!bilinear && (!interp->is_string() || interp->get<std::string>() != "nearest")) {
           return LayerFail(
-              l, "interpolation " + JsonText(*interp) + " is not supported (only nearest)");
+              l, "interpolation " + JsonText(*interp) + " is not supported (nearest or bilinear)");
         }
       }
-      UpsampleSpec up;
-      up.name = l.name;
-      up.factor_h = (*factors)[0];
-      up.factor_w = (*factors)[1];
-      up.inputs = {in.layer};
       h *= (*factors)[0];
       w *= (*factors)[1];
-      add_layer(std::move(up));
+      if (bilinear) {
+        Result<ResizeCoordinates> grid = BilinearGrid(l);
+        if (!grid.ok()) return grid.status();
+        ResizeSpec resize;
+        resize.name = l.name;
+        resize.params.mode = ResizeMode::kLinear;
+        resize.params.coordinates = *grid;
+        resize.params.scale_num_h = (*factors)[0];
+        resize.params.scale_num_w = (*factors)[1];
+        resize.inputs = {in.layer};
+        add_layer(std::move(resize));
+      } else {
+        UpsampleSpec up;
+        up.name = l.name;
+        up.factor_h = (*factors)[0];
+        up.factor_w = (*factors)[1];
+        up.inputs = {in.layer};
+        add_layer(std::move(up));
+      }
     } else if (l.cls == "Cropping2D") {
       if (Status s = one_input("a Cropping2D"); !s.ok()) return s;
       SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));

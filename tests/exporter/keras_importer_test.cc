@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <tuple>
 #include <variant>
 #include <vector>
 
@@ -115,10 +116,64 @@ TEST(KerasImport, EveryFixtureModelMatchesPyTorch) {
        {"keras_w16_67x121", "keras_w16_540x960", "keras_w1_35x61", "keras_multigpu_w16_67x121",
         "keras_seq_67x121", "keras_anysize_w16_67x121", "keras_bn_w16_67x121",
         "keras_unet_bn_w16_67x121", "keras_unet_bn_w16_37x53", "keras_separable_37x53",
-        "keras_decoder_36x52"}) {
+        "keras_decoder_36x52", "keras_bilinear_tf2_36x52"}) {
     SCOPED_TRACE(name);
     EXPECT_LE(ErrorAgainstPyTorch(name, name), kRelativeTolerance);
   }
+}
+
+const ResizeSpec* FindResize(const ModelSpec& spec, const std::string& name) {
+  for (const LayerSpec& l : spec.layers) {
+    if (const auto* r = std::get_if<ResizeSpec>(&l); r != nullptr && r->name == name) return r;
+  }
+  return nullptr;
+}
+
+// A bilinear UpSampling2D becomes a linear Resize by its factors. A file saved by Keras 2.9 ran
+// on TensorFlow 2: the half-pixel grid, said in a note (EveryFixtureModelMatchesPyTorch runs it).
+TEST(KerasImport, BilinearUpsamplingOfATensorFlow2FileSamplesOnTheHalfPixelGrid) {
+  const KerasImportResult imported = Import("keras_bilinear_tf2_36x52");
+  for (auto [name, fh, fw] : {std::tuple{"up_sampling2d_1", 2, 2}, {"up_sampling2d_2", 3, 2}}) {
+    SCOPED_TRACE(name);
+    const ResizeSpec* resize = FindResize(imported.spec, name);
+    ASSERT_NE(resize, nullptr);
+    EXPECT_EQ(resize->params.mode, ResizeMode::kLinear);
+    EXPECT_EQ(resize->params.coordinates, ResizeCoordinates::kHalfPixel);
+    EXPECT_EQ(resize->params.scale_num_h, fh);
+    EXPECT_EQ(resize->params.scale_den_h, 1);
+    EXPECT_EQ(resize->params.scale_num_w, fw);
+    EXPECT_EQ(resize->params.scale_den_w, 1);
+  }
+  EXPECT_TRUE(std::any_of(imported.notes.begin(), imported.notes.end(), [](const std::string& n) {
+    return n.find("half-pixel grid (the file was saved by Keras 2.9.0)") != std::string::npos;
+  }));
+}
+
+// Keras 2.2.4 ran on TensorFlow 1 or 2, whose grids differ, and the file does not say which:
+// the importer asks, naming the layer; told "asymmetric" (TensorFlow 1, as the fixture's
+// reference assumes) it matches, told "half-pixel" it does not.
+TEST(KerasImport, BilinearUpsamplingOfAKeras22FileNeedsTheGridStated) {
+  const std::string path = Fixture("keras_bilinear_tf1_36x52.h5");
+  Result<KerasImportResult> refused = ImportKerasH5(path);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find(path + ": layer 'up_sampling2d_1' (UpSampling2D): bilinear "
+                                          "interpolation samples on a grid that depends on"),
+            std::string::npos)
+      << refused.message();
+  EXPECT_NE(refused.message().find("--keras-bilinear"), std::string::npos) << refused.message();
+
+  const io::NpyArray input = Npy("keras_bilinear_tf1_36x52.input.npy");
+  const std::vector<float> expected = Npy("keras_bilinear_tf1_36x52.output.npy").data;
+  KerasImportOptions options;
+  options.bilinear_grid = KerasBilinearGrid::kAsymmetric;
+  Result<KerasImportResult> asymmetric = ImportKerasH5(path, options);
+  ASSERT_TRUE(asymmetric.ok()) << asymmetric.message();
+  EXPECT_LE(RelativeError(RunModel(asymmetric->spec, input, nullptr), expected),
+            kRelativeTolerance);
+  options.bilinear_grid = KerasBilinearGrid::kHalfPixel;
+  Result<KerasImportResult> half_pixel = ImportKerasH5(path, options);
+  ASSERT_TRUE(half_pixel.ok()) << half_pixel.message();
+  EXPECT_GT(RelativeError(RunModel(half_pixel->spec, input, nullptr), expected), 1e-2);
 }
 
 // DepthwiseConv2D (depth_multiplier 2) and a Conv2D with groups and dilation_rate keep them;
@@ -365,7 +420,8 @@ TEST(KerasImport, MalformedFilesFailWithOneLineNamingTheLayerOrDataset) {
        {"layer 'dense_1' (Dense)", "not supported",
         "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, Conv2DTranspose, "
         "BatchNormalization (folded into the convolution before it), LeakyReLU, Activation, "
-        "UpSampling2D (nearest), MaxPooling2D, AveragePooling2D, Cropping2D, ZeroPadding2D"}},
+        "UpSampling2D (nearest and bilinear), MaxPooling2D, AveragePooling2D, Cropping2D, "
+        "ZeroPadding2D"}},
       {"bad_truncated.h5", {"truncated", "stored_eof"}},
       {"bad_dilation.h5", {"layer 'conv4' (Conv2D)", "dilation_rate [0,2] is not integers"}},
       {"bad_channels_first.h5", {"layer 'up_sampling2d_2' (UpSampling2D)", "channels_first"}},

@@ -65,6 +65,7 @@ struct ExportArgs {
   float cx = 0;
   float cy = 0;
   std::string architecture;
+  std::string keras_bilinear;
   std::string weights = "fp32";
   bool check = false;
   std::string check_input;
@@ -737,6 +738,12 @@ int RunExport(const ExportArgs& args) {
   if (!keras && !args.architecture.empty()) {
     return ReportError(kName, "--architecture applies to Keras .h5 input only", kExitUsage);
   }
+  if (!keras && !args.keras_bilinear.empty()) {
+    return ReportError(kName,
+                       "--keras-bilinear applies to Keras .h5 input only (ONNX Resize states its "
+                       "coordinate_transformation_mode)",
+                       kExitUsage);
+  }
   if (args.output.empty()) return ReportError(kName, "-o: output path is empty", kExitUsage);
   // int8 and auto quantise from calibration frames; bf16 only marks the layers (the runtime
   // rounds the float32 weights to bf16 at load).
@@ -832,6 +839,11 @@ int RunExport(const ExportArgs& args) {
   if (keras) {
     exporter::KerasImportOptions keras_options;
     keras_options.architecture_json = args.architecture;
+    if (args.keras_bilinear == "half-pixel") {
+      keras_options.bilinear_grid = exporter::KerasBilinearGrid::kHalfPixel;
+    } else if (args.keras_bilinear == "asymmetric") {
+      keras_options.bilinear_grid = exporter::KerasBilinearGrid::kAsymmetric;
+    }
     if (std::string crash = ProbeKerasImportInChild(args.input, keras_options); !crash.empty()) {
       return ReportError(kName, crash, kExitFailure);
     }
@@ -1110,6 +1122,12 @@ Command AddExportCommand(CLI::App& parent) {
   cmd->add_option("--architecture", args->architecture,
                   "Keras only: architecture JSON (model.to_json()); needed for a weights-only "
                   ".h5 from save_weights(), replaces a full model's own model_config");
+  cmd->add_option("--keras-bilinear", args->keras_bilinear,
+                  "Keras only: the grid of bilinear UpSampling2D layers, half-pixel (TensorFlow "
+                  "2) or asymmetric (TensorFlow 1: align_corners=False); default: half-pixel for "
+                  "files saved by Keras 2.4 or later, others refused (Keras 2.0-2.3 ran on "
+                  "either)")
+      ->check(CLI::IsMember({"half-pixel", "asymmetric"}));
   cmd->add_option("--weights", args->weights,
                   "Weight storage: fp32, or fp16 (IEEE half: about half the file; the runtime "
                   "widens to float32 once at load and computes in float32)")

@@ -19,6 +19,10 @@ Augmentation (--augment): random horizontal crop offsets are NOT used (they woul
 principal point); a random brightness/contrast change, the same for all four images, and with
 --noise N a contrast difference of up to 5% per image and Gaussian noise of sigma up to N grey
 levels (real stereo pairs differ in exposure and carry sensor noise; the renderer's do not).
+Two exact geometric augmentations: --vflip mirrors half of the samples top to bottom (a rectified
+rig mirrored about its horizontal plane is still rectified: rows flip, dY changes sign; needs the
+principal point on the middle row, cy = (H - 1) / 2), and --static-share P replaces a share P of
+the samples by a still scene (L0, R0 shown at t and t+1, true flow zero).
 
 Files in RUN/: log.csv (one row per logged iteration and per validation), checkpoint.pt (latest:
 model, optimiser, iteration; --resume continues from it), best.pt (lowest validation EPE when
@@ -57,6 +61,31 @@ def to_input(x_uint8):
 
 def to_target(y):
     return torch.from_numpy(y).permute(0, 3, 1, 2).contiguous()
+
+
+def mirror_rows(xb, yb, mask):
+    """Mirrors the samples where `mask` is set top to bottom: images and flow flip rows, and the
+    flow's Y component (camera y points down) changes sign. Exact when cy = (H - 1) / 2."""
+    if not mask.any():
+        return xb, yb
+    m = torch.from_numpy(mask)
+    xb, yb = xb.clone(), yb.clone()
+    xb[m] = xb[m].flip(2)
+    flipped = yb[m].flip(2)
+    flipped[:, 1] = -flipped[:, 1]
+    yb[m] = flipped
+    return xb, yb
+
+
+def still_scene(xb, yb, mask):
+    """Replaces the samples where `mask` is set by (L0, R0, L0, R0) with zero flow."""
+    if not mask.any():
+        return xb, yb
+    m = torch.from_numpy(mask)
+    xb, yb = xb.clone(), yb.clone()
+    xb[m, 6:12] = xb[m, 0:6]
+    yb[m] = 0.0
+    return xb, yb
 
 
 def downsample(x, y, cam, factor):
@@ -256,6 +285,12 @@ def parse_args(argv):
     p.add_argument("--noise", type=float, default=0.0,
                    help="with --augment: the largest noise sigma in 8-bit grey levels; each "
                         "sample draws its sigma from [0, NOISE] (default 0: none)")
+    p.add_argument("--vflip", action="store_true",
+                   help="mirror half of the samples top to bottom (dY changes sign); exact for "
+                        "a rectified rig with cy = (H - 1) / 2, refused otherwise")
+    p.add_argument("--static-share", type=float, default=0.0,
+                   help="replace this share of the samples (0..1) by a still scene: the t "
+                        "images again at t+1, zero flow (default 0)")
     p.add_argument("--init", default="",
                    help="start from these weights (a best.pt or checkpoint.pt), not from "
                         "random ones; the optimiser and iteration count start fresh")
@@ -288,6 +323,8 @@ def parse_args(argv):
     args = p.parse_args(argv)
     if not args.data and not args.export_only:
         p.error("--data is required (unless --export-only)")
+    if not 0.0 <= args.static_share <= 1.0:
+        p.error(f"--static-share {args.static_share:g}: must be within 0..1")
     if args.lr is None:
         args.lr = 1e-3 if args.recipe == "adam" else 1e-5
     return args
@@ -310,6 +347,10 @@ def main(argv=None):
         if vcam != cam:
             print(f"warning validation camera {vcam} differs from training camera {cam}")
     n, height, width = x.shape[0], x.shape[1], x.shape[2]
+    if args.vflip and abs(cam["cy"] - (height - 1) / 2) > 1e-3:
+        sys.exit(f"train.py: --vflip needs the principal point on the middle row, but the "
+                 f"training camera has cy {cam['cy']:g} for {height} rows (middle "
+                 f"{(height - 1) / 2:g}); mirroring would move it")
 
     model = build_model(args.arch, args.width_div, args.batch_norm)
     if args.recipe == "paper":
@@ -385,6 +426,10 @@ def main(argv=None):
         pos += args.batch
         epoch = it // iters_per_epoch
         xb, yb = to_input(x[idx]), to_target(y[idx])
+        if args.vflip:
+            xb, yb = mirror_rows(xb, yb, rng.random(len(idx)) < 0.5)
+        if args.static_share > 0:
+            xb, yb = still_scene(xb, yb, rng.random(len(idx)) < args.static_share)
         if args.augment:
             gain = torch.from_numpy(rng.uniform(0.8, 1.2, size=(len(idx), 1, 1, 1))).float()
             bias = torch.from_numpy(rng.uniform(-0.3, 0.3, size=(len(idx), 1, 1, 1))).float()

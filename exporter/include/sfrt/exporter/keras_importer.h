@@ -67,10 +67,22 @@
 
 namespace sfrt::exporter {
 
+// Where a bilinear UpSampling2D samples its input. TensorFlow 2 (tf.keras of Keras 2.4 and
+// later, Keras 3) resizes on the half-pixel grid, source = (y + 0.5) / factor - 0.5; TensorFlow 1
+// (tf.keras and Keras 2.0-2.3 on it) on the asymmetric one, source = y / factor
+// (align_corners=False without half-pixel centres). Both clamp to the edge.
+enum class KerasBilinearGrid {
+  kFromKerasVersion,  // half-pixel for files saved by Keras 2.4 or later; others are refused,
+                      // since Keras 2.0-2.3 ran on either TensorFlow and the file does not say
+  kHalfPixel,
+  kAsymmetric,
+};
+
 struct KerasImportOptions {
   // Path of a JSON file holding the architecture (`model.to_json()`). Required for weights-only
   // files; replaces the file's own `model_config` when given.
   std::string architecture_json;
+  KerasBilinearGrid bilinear_grid = KerasBilinearGrid::kFromKerasVersion;
 };
 
 struct KerasImportResult {
