@@ -179,9 +179,15 @@ std::string ShapeText(const Shape4& s) {
 
 bool IsReal(int type) { return type == TensorProto::FLOAT || type == TensorProto::DOUBLE; }
 
+// 8- and 16-bit integers: every value is exact in float32.
+bool IsSmallInteger(int type) {
+  return type == TensorProto::INT8 || type == TensorProto::UINT8 || type == TensorProto::INT16 ||
+         type == TensorProto::UINT16;
+}
+
 bool IsSupportedType(int type) {
   return type == TensorProto::FLOAT || type == TensorProto::DOUBLE || type == TensorProto::INT64 ||
-         type == TensorProto::INT32 || type == TensorProto::BOOL;
+         type == TensorProto::INT32 || type == TensorProto::BOOL || IsSmallInteger(type);
 }
 
 std::string TypeName(int type) {
@@ -304,8 +310,9 @@ Result<Const> DecodeTensor(const TensorProto& t, const std::string& what) {
                          "weights inside the .onnx file)");
   }
   if (!IsSupportedType(t.data_type())) {
-    return Status::Error(what + " has unsupported element type " + TypeName(t.data_type()) +
-                         " (supported: FLOAT, DOUBLE, INT64, INT32, BOOL)");
+    return Status::Error(
+        what + " has unsupported element type " + TypeName(t.data_type()) +
+        " (supported: FLOAT, DOUBLE, INT64, INT32, INT16, UINT16, INT8, UINT8, BOOL)");
   }
   Dims dims(t.dims().begin(), t.dims().end());
   auto count = NumElements(dims);
@@ -361,6 +368,31 @@ Result<Const> DecodeTensor(const TensorProto& t, const std::string& what) {
         for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i));
       }
       break;
+    case TensorProto::INT8:
+    case TensorProto::UINT8:
+    case TensorProto::INT16:
+    case TensorProto::UINT16: {
+      const bool is_signed =
+          t.data_type() == TensorProto::INT8 || t.data_type() == TensorProto::INT16;
+      const size_t width =
+          t.data_type() == TensorProto::INT8 || t.data_type() == TensorProto::UINT8 ? 1 : 2;
+      c.ints.resize(n);
+      if (t.has_raw_data()) {
+        if (raw.size() != n * width) return mismatch(raw.size() / width);
+        for (size_t i = 0; i < n; ++i) {
+          uint32_t u = static_cast<unsigned char>(raw[width * i]);
+          if (width == 2)
+            u |= static_cast<uint32_t>(static_cast<unsigned char>(raw[2 * i + 1])) << 8;
+          const uint32_t sign_bit = width == 1 ? 0x80u : 0x8000u;
+          c.ints[i] = is_signed && (u & sign_bit) != 0 ? static_cast<int64_t>(u) - 2 * sign_bit
+                                                       : static_cast<int64_t>(u);
+        }
+      } else {  // int32_data holds one value per element
+        if (static_cast<size_t>(t.int32_data_size()) != n) return mismatch(t.int32_data_size());
+        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i));
+      }
+      break;
+    }
     default:  // BOOL
       c.ints.resize(n);
       if (t.has_raw_data()) {
@@ -995,6 +1027,7 @@ class Importer {
   // A node whose input `slot` is a runtime tensor and whose other inputs are constants.
   Status ProcessRuntimeNode(int idx, int slot);
   Status ProcessClip(int idx, GraphOp& op);
+  Status CheckIntegerGraph(const std::vector<bool>& needed) const;
   // Add, Sub, Mul or Div of the runtime tensor at `slot` and a per-channel constant.
   Status ProcessElementwise(int idx, int slot, GraphOp& op);
   Status ProcessConv(int idx, GraphOp& op);
@@ -1045,6 +1078,8 @@ class Importer {
   std::vector<GraphOp> ops_;
   std::string input_name_;
   Shape4 input_shape_{};
+  // The graph input's element type when it is an 8- or 16-bit integer; 0 for FLOAT.
+  int integer_io_type_ = 0;
 };
 
 const onnx::AttributeProto* Importer::FindAttr(int idx, std::string_view name) const {
@@ -1234,8 +1269,11 @@ Status Importer::ReadInput() {
   const std::string what = "graph input " + Quote(input_name_);
   if (!input->type().has_tensor_type()) return FileError(what + " is not a tensor");
   const auto& tt = input->type().tensor_type();
-  if (tt.elem_type() != TensorProto::FLOAT) {
-    return FileError(what + " has element type " + TypeName(tt.elem_type()) + ", expected FLOAT");
+  if (IsSmallInteger(tt.elem_type())) {
+    integer_io_type_ = tt.elem_type();  // Assemble checks that float32 computes it exactly
+  } else if (tt.elem_type() != TensorProto::FLOAT) {
+    return FileError(what + " has element type " + TypeName(tt.elem_type()) +
+                     ", expected FLOAT (or INT8, UINT8, INT16, UINT16 into selection operators)");
   }
   if (!tt.has_shape() || tt.shape().dim_size() != 4) {
     return FileError(what + " must have a static 4-D shape (1, C, H, W)" +
@@ -2540,6 +2578,57 @@ Status Importer::ProcessNode(int idx) {
   return ProcessRuntimeNode(idx, 0);
 }
 
+// A graph of 8- or 16-bit integers runs in float32, which holds every such value exactly, when
+// each output value is one of the input values or an integer constant: MaxPool, ReLU, Clip,
+// Concat, Slice, Pad, nearest resizing. Arithmetic (convolutions, averages, Add, which wraps
+// around in ONNX's integer types) is refused, as is an output of another type.
+Status Importer::CheckIntegerGraph(const std::vector<bool>& needed) const {
+  if (integer_io_type_ == 0) return Status::Ok();
+  const std::string type = TypeName(integer_io_type_);
+  const auto& out = graph().output(0);
+  const int out_type = out.type().has_tensor_type() ? out.type().tensor_type().elem_type() : 0;
+  if (out_type != integer_io_type_) {
+    return FileError("graph output " + Quote(out.name()) + " has element type " +
+                     TypeName(out_type) + ", but the input " + Quote(input_name_) + " is " + type +
+                     "; an integer graph must keep its type");
+  }
+  for (size_t i = 0; i < ops_.size(); ++i) {
+    if (!needed[i]) continue;
+    const GraphOp& op = ops_[i];
+    bool exact = false;
+    switch (op.kind) {
+      case GraphOp::Kind::kPool:
+        exact = op.pool.kind == PoolKind::kMax;
+        break;
+      case GraphOp::Kind::kActivation:
+        exact = op.activation == Activation::kRelu ||
+                (op.activation == Activation::kClip && std::trunc(op.clip_min) == op.clip_min &&
+                 (std::isinf(op.clip_max) || std::trunc(op.clip_max) == op.clip_max));
+        break;
+      case GraphOp::Kind::kResize:
+        exact = op.resize.mode == ResizeMode::kNearest &&
+                op.resize.coordinates != ResizeCoordinates::kTfCropAndResize;
+        break;
+      case GraphOp::Kind::kUpsample:
+      case GraphOp::Kind::kSlice:
+      case GraphOp::Kind::kIdentity:
+      case GraphOp::Kind::kConcat:
+      case GraphOp::Kind::kPad:
+        exact = true;
+        break;
+      default:
+        break;
+    }
+    if (!exact) {
+      return NodeError(op.node_index,
+                       "computes on the " + type + " input " + Quote(input_name_) +
+                           ", which sfrt runs in float32; that is exact only for MaxPool, Relu, "
+                           "Clip to integer bounds, Concat, Slice, Pad and nearest Resize");
+    }
+  }
+  return Status::Ok();
+}
+
 // ONNX Clip (opsets 11-17): min and max as optional constant inputs 1 and 2, absent meaning
 // unbounded. Clip(0, unbounded) is a ReLU (which fuses into the producing convolution).
 Status Importer::ProcessClip(int idx, GraphOp& op) {
@@ -2549,7 +2638,19 @@ Status Importer::ProcessClip(int idx, GraphOp& op) {
   for (int k = 1; k <= 2; ++k) {
     if (n.input_size() <= k || n.input(k).empty()) continue;
     Dims dims;
-    SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<float> v, GetFloats(idx, k, &dims));
+    std::vector<float> v;
+    if (integer_io_type_ != 0) {  // the bounds have the integer graph's type
+      SFRT_ONNX_ASSIGN_OR_RETURN(const Const c, GetConst(idx, k));
+      if (c.type != integer_io_type_) {
+        return NodeError(idx, "input " + std::to_string(k) + " " + Quote(n.input(k)) +
+                                  " has element type " + TypeName(c.type) + ", expected " +
+                                  TypeName(integer_io_type_) + " as the graph's input");
+      }
+      dims = c.dims;
+      for (int64_t value : c.ints) v.push_back(static_cast<float>(value));
+    } else {
+      SFRT_ONNX_ASSIGN_OR_RETURN(v, GetFloats(idx, k, &dims));
+    }
     if (v.size() != 1 || std::isnan(v[0])) {
       return NodeError(idx, std::string(k == 1 ? "min " : "max ") + Quote(n.input(k)) +
                                 " must be one number; has shape " + JoinInts(dims));
@@ -2731,6 +2832,7 @@ Result<ModelSpec> Importer::Assemble() {
     needed[i] = true;
     for (const std::string& in : ops_[i].inputs) stack.push_back(in);
   }
+  SFRT_ONNX_RETURN_IF_ERROR(CheckIntegerGraph(needed));
   // The needed ops that read each runtime tensor (a Concat reading it twice counts once).
   std::unordered_map<std::string, std::vector<size_t>> readers;
   for (size_t i = 0; i < ops_.size(); ++i) {

@@ -94,18 +94,27 @@ class OnnxModel {
   onnx::ModelProto& proto() { return proto_; }
   onnx::GraphProto& graph() { return *proto_.mutable_graph(); }
 
-  void Input(const std::string& name, const std::vector<int64_t>& dims) {
+  void Input(const std::string& name, const std::vector<int64_t>& dims,
+             int elem_type = onnx::TensorProto::FLOAT) {
     auto* in = graph().add_input();
     in->set_name(name);
     auto* tt = in->mutable_type()->mutable_tensor_type();
-    tt->set_elem_type(onnx::TensorProto::FLOAT);
+    tt->set_elem_type(elem_type);
     for (int64_t d : dims) tt->mutable_shape()->add_dim()->set_dim_value(d);
   }
 
-  void Output(const std::string& name) {
+  void Output(const std::string& name, int elem_type = onnx::TensorProto::FLOAT) {
     auto* out = graph().add_output();
     out->set_name(name);
-    out->mutable_type()->mutable_tensor_type()->set_elem_type(onnx::TensorProto::FLOAT);
+    out->mutable_type()->mutable_tensor_type()->set_elem_type(elem_type);
+  }
+
+  // A scalar INT8 initialiser stored as raw_data (one byte, two's complement).
+  void Int8(const std::string& name, int8_t value) {
+    auto* t = graph().add_initializer();
+    t->set_name(name);
+    t->set_data_type(onnx::TensorProto::INT8);
+    t->set_raw_data(std::string(1, static_cast<char>(value)));
   }
 
   // Float initialiser, stored as raw_data (as torch writes it) or as float_data.
@@ -1138,6 +1147,72 @@ TEST_F(OnnxImporter, ClipFromZeroUnboundedFusesAsReluAndReluSixBecomesAClip) {
   const auto& elu = LayerAs<ChannelAffineSpec>(*spec, 3);
   EXPECT_EQ(elu.activation, Activation::kElu);
   EXPECT_EQ(elu.elu_alpha, 0.5f);
+}
+
+// 8-bit integers are exact in float32, and so is an operator that only selects among its
+// input values and integer constants: Clip to INT8 bounds (the -3 read from its raw byte) and
+// MaxPool import as they would for float input.
+TEST_F(OnnxImporter, ImportsAnInt8GraphOfSelectionOperatorsWithItsIntegerClipBounds) {
+  OnnxModel m;
+  m.Input("x", {1, 2, 6, 6}, onnx::TensorProto::INT8);
+  m.Int8("low", -3);
+  m.Int8("high", 100);
+  m.Node("Clip", {"x", "low", "high"}, {"c"}, "clip");
+  auto& pool = m.Node("MaxPool", {"c"}, {"y"}, "pool");
+  SetInts(pool, "kernel_shape", {2, 2});
+  SetInts(pool, "strides", {2, 2});
+  m.Output("y", onnx::TensorProto::INT8);
+  auto spec = ImportOk(m.Save("int8_select.onnx"));
+  ASSERT_TRUE(spec.ok()) << spec.message();
+  ASSERT_EQ(spec->layers.size(), 2u);
+  const auto& clip = LayerAs<ChannelAffineSpec>(*spec, 0);
+  EXPECT_EQ(clip.activation, Activation::kClip);
+  EXPECT_EQ(clip.clip_min, -3.0f);
+  EXPECT_EQ(clip.clip_max, 100.0f);
+  EXPECT_EQ(LayerAs<PoolSpec>(*spec, 1).kind, PoolKind::kMax);
+}
+
+// Arithmetic on integers (a convolution; ONNX's integer Add even wraps around) is not what
+// float32 computes, an output of another type is not the graph's, and INT32 does not fit
+// float32: each refused, naming the node or tensor.
+TEST_F(OnnxImporter, RefusesIntegerGraphsThatFloat32WouldNotComputeExactly) {
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 5, 5}, onnx::TensorProto::UINT8);
+    m.Conv("c0", "x", "y", 2, 2, 3, 1, {1, 1, 1, 1});
+    m.Output("y", onnx::TensorProto::UINT8);
+    auto spec = ImportOnnx(m.Save("uint8_conv.onnx"));
+    ASSERT_FALSE(spec.ok());
+    EXPECT_NE(spec.message().find("node 'c0' (op Conv): computes on the UINT8 input 'x', which "
+                                  "sfrt runs in float32; that is exact only for MaxPool"),
+              std::string::npos)
+        << spec.message();
+  }
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 4, 4}, onnx::TensorProto::UINT8);
+    auto& pool = m.Node("MaxPool", {"x"}, {"y"}, "pool");
+    SetInts(pool, "kernel_shape", {2, 2});
+    m.Output("y");
+    auto spec = ImportOnnx(m.Save("uint8_to_float.onnx"));
+    ASSERT_FALSE(spec.ok());
+    EXPECT_NE(spec.message().find("graph output 'y' has element type FLOAT, but the input 'x' is "
+                                  "UINT8"),
+              std::string::npos)
+        << spec.message();
+  }
+  {
+    OnnxModel m;
+    m.Input("x", {1, 2, 4, 4}, onnx::TensorProto::INT32);
+    m.Node("Relu", {"x"}, {"y"}, "relu");
+    m.Output("y", onnx::TensorProto::INT32);
+    auto spec = ImportOnnx(m.Save("int32.onnx"));
+    ASSERT_FALSE(spec.ok());
+    EXPECT_NE(spec.message().find("graph input 'x' has element type INT32, expected FLOAT (or "
+                                  "INT8, UINT8, INT16, UINT16 into selection operators)"),
+              std::string::npos)
+        << spec.message();
+  }
 }
 
 TEST_F(OnnxImporter, RefusesArithmeticThatIsNotAPerChannelScaleAndShift) {
