@@ -1,5 +1,7 @@
 #!/usr/bin/python3
-"""Checks the schema of `sfrt eval --json` output: one object per method with the metrics."""
+"""Checks the schema of `sfrt eval --json` output: one object per method with the metrics; with
+--max-ratio R also that the model's EPE3D is at most R times zero flow's (a trained model's
+accuracy, so a broken export or kernel shows)."""
 import argparse
 import json
 import math
@@ -14,6 +16,8 @@ def main():
     p.add_argument("json")
     p.add_argument("--methods", nargs="+", required=True)
     p.add_argument("--frames", type=int, required=True)
+    p.add_argument("--max-ratio", type=float, default=None,
+                   help="fail unless sfrt's EPE3D / zero_flow's EPE3D is at most this")
     args = p.parse_args()
     with open(args.json, encoding="utf-8") as f:
         doc = json.load(f)
@@ -42,6 +46,12 @@ def main():
         seqs = m.get("sequences", {})
         if not seqs or any("epe3d" not in s for s in seqs.values()):
             problems.append(f"{method}: sequences missing or without epe3d")
+    if args.max_ratio is not None and not problems:
+        ratio = doc["sfrt"]["epe3d"] / doc["zero_flow"]["epe3d"]
+        print(f"sfrt EPE3D {doc['sfrt']['epe3d']:.5f} / zero flow {doc['zero_flow']['epe3d']:.5f}"
+              f" = {ratio:.3f} (at most {args.max_ratio:g})")
+        if not ratio <= args.max_ratio:
+            problems.append(f"sfrt / zero flow = {ratio:.3f} is above {args.max_ratio:g}")
     for line in problems:
         print(line)
     print("ok" if not problems else f"{len(problems)} problem(s)")
