@@ -60,9 +60,8 @@ constexpr char kSupportedLayers[] =
     "InputLayer, Conv2D (any dilation_rate and groups), DepthwiseConv2D, Conv2DTranspose, "
     "BatchNormalization (folded into the convolution before it), LeakyReLU, Activation, "
     "UpSampling2D (nearest and bilinear), MaxPooling2D, AveragePooling2D, Cropping2D, "
-    "ZeroPadding2D, "
-    "Concatenate (channels), Add (and a multi_gpu_model wrapper: InputLayer/Lambda/Concatenate "
-    "around one nested Model)";
+    "ZeroPadding2D, Concatenate (channels), Add (and a multi_gpu_model wrapper: "
+    "InputLayer/Lambda/Concatenate around one nested Model)";
 // Upper bound on one weight tensor's elements (the largest SceneEDNet kernel has 9.4 M).
 constexpr uint64_t kMaxTensorElements = uint64_t{1} << 30;
 // Upper bound on dimensions read from the architecture (kernel sizes, strides, crops, ...).
