@@ -2600,10 +2600,8 @@ Status Importer::CheckIntegerGraph(const std::vector<bool>& needed) const {
       case GraphOp::Kind::kPool:
         exact = op.pool.kind == PoolKind::kMax;
         break;
-      case GraphOp::Kind::kActivation:
-        exact = op.activation == Activation::kRelu ||
-                (op.activation == Activation::kClip && std::trunc(op.clip_min) == op.clip_min &&
-                 (std::isinf(op.clip_max) || std::trunc(op.clip_max) == op.clip_max));
+      case GraphOp::Kind::kActivation:  // ProcessClip took the bounds from integer constants
+        exact = op.activation == Activation::kRelu || op.activation == Activation::kClip;
         break;
       case GraphOp::Kind::kResize:
         exact = op.resize.mode == ResizeMode::kNearest &&
