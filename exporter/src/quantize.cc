@@ -113,18 +113,32 @@ struct QuantizedWeights {
 };
 
 // Whether layer `index` is a 3x3 stride-1 convolution that reads a nearest-2x upsampling
-// (with or without a crop between): the layers whose int8 form carries phase kernels.
-bool ReadsUpsampling(const ModelSpec& spec, size_t index) {
-  const auto* c = std::get_if<ConvSpec>(&spec.layers[index]);
-  if (c == nullptr || c->kernel_h != 3 || c->kernel_w != 3 || c->stride_h != 1 ||
-      c->stride_w != 1) {
+// (with or without a crop between): the layers whose int8 form carries phase kernels (the
+// loader's rule).
+bool ReadsUpsampling(std::span<const LayerDesc> layers, size_t index) {
+  const LayerDesc& l = layers[index];
+  if (l.kind != LayerKind::kConv2D || l.conv.kernel_h != 3 || l.conv.kernel_w != 3 ||
+      l.conv.stride_h != 1 || l.conv.stride_w != 1) {
     return false;
   }
-  size_t k = index;
-  if (k > 0 && std::holds_alternative<CropSpec>(spec.layers[k - 1])) --k;
-  if (k == 0) return false;
-  const auto* u = std::get_if<UpsampleSpec>(&spec.layers[k - 1]);
-  return u != nullptr && u->factor_h == 2 && u->factor_w == 2;
+  int k = l.inputs[0];
+  if (k >= 0 && layers[static_cast<size_t>(k)].kind == LayerKind::kCrop) {
+    k = layers[static_cast<size_t>(k)].inputs[0];
+  }
+  if (k < 0) return false;
+  const LayerDesc& u = layers[static_cast<size_t>(k)];
+  return u.kind == LayerKind::kUpsample && u.upsample.factor_h == 2 && u.upsample.factor_w == 2;
+}
+
+// The tensor whose values convolution `conv` reads: its input, through the nearest upsamplings
+// and crops before it (which only repeat or drop values). A layer index, or kModelInput.
+int ValuesRead(std::span<const LayerDesc> layers, size_t conv) {
+  int t = layers[conv].inputs[0];
+  while (t >= 0 && (layers[static_cast<size_t>(t)].kind == LayerKind::kUpsample ||
+                    layers[static_cast<size_t>(t)].kind == LayerKind::kCrop)) {
+    t = layers[static_cast<size_t>(t)].inputs[0];
+  }
+  return t;
 }
 
 Result<std::shared_ptr<const Model>> Load(const ModelSpec& spec, const std::string& label) {
@@ -147,11 +161,21 @@ class Calibrator {
   Calibrator(const CalibrationSet& data, const QuantizeOptions& options, const Model& fp32,
              std::vector<int> conv_layers)
       : data_(data), options_(options), fp32_(fp32), conv_layers_(std::move(conv_layers)) {
-    conv_of_layer_.assign(fp32_.layers().size(), -1);
+    const auto layers = fp32_.layers();
+    conv_of_layer_.assign(layers.size(), -1);
+    stats_of_layer_.assign(layers.size(), -1);
+    stats_.resize(1);  // the model input
+    auto observe = [&](int t) {
+      if (t == kModelInput || stats_of_layer_[static_cast<size_t>(t)] >= 0) return;
+      stats_of_layer_[static_cast<size_t>(t)] = static_cast<int>(stats_.size());
+      stats_.emplace_back();
+    };
     for (size_t j = 0; j < conv_layers_.size(); ++j) {
-      conv_of_layer_[static_cast<size_t>(conv_layers_[j])] = static_cast<int>(j);
+      const auto conv = static_cast<size_t>(conv_layers_[j]);
+      conv_of_layer_[conv] = static_cast<int>(j);
+      observe(ValuesRead(layers, conv));
+      observe(static_cast<int>(conv));
     }
-    stats_.resize(conv_layers_.size() + 1);
   }
 
   Status Prepare() {
@@ -178,7 +202,7 @@ class Calibrator {
         Status bad = Status::Ok();
         const LayerObserver observer = [&](int layer, const TensorShape&,
                                            std::span<const float> values) {
-          const int j = conv_of_layer_[static_cast<size_t>(layer)];
+          const int j = stats_of_layer_[static_cast<size_t>(layer)];
           if (j < 0 || !bad.ok()) return;
           if (pass == 0) {
             for (float v : values) {
@@ -189,9 +213,9 @@ class Calibrator {
                                   std::to_string(f) + "; its range cannot be quantised");
               return;
             }
-            stats_[static_cast<size_t>(j) + 1].AddRange(values);
+            stats_[static_cast<size_t>(j)].AddRange(values);
           } else {
-            stats_[static_cast<size_t>(j) + 1].AddHistogram(values);
+            stats_[static_cast<size_t>(j)].AddHistogram(values);
           }
         };
         std::vector<float> output(output_elements_);
@@ -207,10 +231,13 @@ class Calibrator {
     return Status::Ok();
   }
 
-  // The quantisation of activation tensor t: 0 the model input, j + 1 convolution j's output.
-  QuantParams TensorQuant(size_t t, double percentile) const {
-    const auto [lo, hi] = stats_[t].Range(percentile);
-    return ActivationQuantParams(lo, hi);
+  // The quantisation of what convolution j reads (ValuesRead), and of what it writes.
+  QuantParams InputQuant(size_t j, double percentile) const {
+    return TensorQuant(ValuesRead(fp32_.layers(), static_cast<size_t>(conv_layers_[j])),
+                       percentile);
+  }
+  QuantParams OutputQuant(size_t j, double percentile) const {
+    return TensorQuant(conv_layers_[j], percentile);
   }
 
   Result<Errors> Measure(const Model& quantised) {
@@ -281,6 +308,13 @@ class Calibrator {
     std::vector<float> output;
   };
 
+  // The quantisation of layer t's output (kModelInput: the model input's), an observed tensor.
+  QuantParams TensorQuant(int t, double percentile) const {
+    const int k = t == kModelInput ? 0 : stats_of_layer_[static_cast<size_t>(t)];
+    const auto [lo, hi] = stats_[static_cast<size_t>(k)].Range(percentile);
+    return ActivationQuantParams(lo, hi);
+  }
+
   void Progress(const char* pass, int frame) const {
     if (options_.progress) options_.progress(pass, frame + 1, data_.frames);
   }
@@ -290,6 +324,7 @@ class Calibrator {
   const Model& fp32_;
   std::vector<int> conv_layers_;
   std::vector<int> conv_of_layer_;
+  std::vector<int> stats_of_layer_;  // index into stats_ (0: the model input), -1 when unobserved
   std::vector<TensorStats> stats_;
   size_t output_elements_ = 0;
   bool cache_ = false;
@@ -298,7 +333,8 @@ class Calibrator {
 
 // `fp32` with each convolution in its precision: int8 quantised, bf16 marked.
 ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<Precision>& precision,
-                    const std::vector<QuantParams>& tensor_quant,
+                    const std::vector<QuantParams>& input_quant,
+                    const std::vector<QuantParams>& output_quant,
                     const std::vector<QuantizedWeights>& weights) {
   ModelSpec out = fp32;
   size_t j = 0;
@@ -312,8 +348,8 @@ ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<Precision>& precisi
       c->weights_hwio.shrink_to_fit();
       c->weights_q = weights[j].q;
       c->weight_scales = weights[j].scales;
-      c->input_quant = tensor_quant[j];
-      c->output_quant = tensor_quant[j + 1];
+      c->input_quant = input_quant[j];
+      c->output_quant = output_quant[j];
       c->phase_weights_q = weights[j].phase_q;
       c->phase_scales = weights[j].phase_scales;
     }
@@ -460,13 +496,9 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     return Status::Error("accuracy budget " + Sci(options.accuracy_budget) +
                          ": must be a finite number >= 0");
   }
-  if (const std::string why = Float32OnlyReason(model); !why.empty()) {
-    return Status::Error("model '" + model.name + "': " + why +
-                         "; int8 and bf16 run on chains of convolutions, upsamplings and crops "
-                         "only; export it in fp32");
-  }
   std::vector<int> conv_layers;
   std::vector<std::string> names;
+  std::vector<Precision> precision;  // int8 where it can be, float32 otherwise (ReducibleConv)
   for (size_t i = 0; i < model.layers.size(); ++i) {
     const auto* c = std::get_if<ConvSpec>(&model.layers[i]);
     if (c == nullptr) continue;
@@ -477,9 +509,13 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     }
     conv_layers.push_back(static_cast<int>(i));
     names.push_back(c->name);
+    precision.push_back(ReducibleConv(*c) ? Precision::kInt8 : Precision::kFloat32);
   }
-  if (conv_layers.empty()) {
-    return Status::Error("model '" + model.name + "' has no convolution to quantise");
+  auto reduced = [](Precision p) { return p != Precision::kFloat32; };
+  if (std::none_of(precision.begin(), precision.end(), reduced)) {
+    return Status::Error(
+        "model '" + model.name + "' has no convolution to quantise" +
+        (conv_layers.empty() ? std::string() : " (dilated and grouped ones run in fp32 only)"));
   }
   if (Status s = CheckCalibrationSet(data, model.input.channels); !s.ok()) return s;
 
@@ -491,26 +527,26 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   if (Status s = calibrator.Prepare(); !s.ok()) return s;
   if (Status s = calibrator.Observe(); !s.ok()) return s;
 
-  std::vector<QuantParams> tensor_quant;
-  for (size_t t = 0; t <= conv_layers.size(); ++t) {
-    tensor_quant.push_back(calibrator.TensorQuant(t, method->percentile));
+  std::vector<QuantParams> input_quant, output_quant;
+  for (size_t j = 0; j < conv_layers.size(); ++j) {
+    input_quant.push_back(calibrator.InputQuant(j, method->percentile));
+    output_quant.push_back(calibrator.OutputQuant(j, method->percentile));
   }
   std::vector<QuantizedWeights> weights(conv_layers.size());
   for (size_t j = 0; j < conv_layers.size(); ++j) {
+    if (!reduced(precision[j])) continue;
     const auto& c = std::get<ConvSpec>(model.layers[static_cast<size_t>(conv_layers[j])]);
     QuantizeWeights(c.weights_hwio, c.out_channels, &weights[j].q, &weights[j].scales);
-    if (ReadsUpsampling(model, static_cast<size_t>(conv_layers[j]))) {
+    if (ReadsUpsampling((*fp32)->layers(), static_cast<size_t>(conv_layers[j]))) {
       QuantizePhaseWeights(c.weights_hwio, c.in_channels, c.out_channels, &weights[j].phase_q,
                            &weights[j].phase_scales);
     }
   }
 
   QuantizeResult result;
-  std::vector<Precision> precision(conv_layers.size(), Precision::kInt8);
-  auto reduced = [](Precision p) { return p != Precision::kFloat32; };
   Errors errors;
   while (true) {
-    result.spec = BuildSpec(fp32_spec, precision, tensor_quant, weights);
+    result.spec = BuildSpec(fp32_spec, precision, input_quant, output_quant, weights);
     Result<std::shared_ptr<const Model>> quantised = Load(result.spec, "the quantised model");
     if (!quantised.ok()) return quantised.status();
     Result<Errors> measured = calibrator.Measure(**quantised);

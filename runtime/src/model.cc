@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -398,9 +399,9 @@ Status ParseResize(const Checker& check, const std::string& where, const fb::Res
   return Status::Ok();
 }
 
-// The graph as a whole: every layer's output but the last is read, and int8 and bf16 layers
-// only in chains without a float32-only op (Float32OnlyKind). Fills the consumer counts and whether
-// the graph is a chain.
+// The graph as a whole: every layer's output but the last is read. Fills the consumer counts and
+// whether the graph is a chain. int8 and bf16 convolutions may sit anywhere: in a graph, or beside
+// a float32-only op (Float32OnlyKind), they read and write float32 tensors (Session, reference.h).
 Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
                   std::vector<int>& consumers, bool& is_chain) {
   consumers.assign(layers.size(), 0);
@@ -416,20 +417,6 @@ Status CheckGraph(const Checker& check, const std::vector<LayerDesc>& layers,
       return check.Fail("layer " + std::to_string(i) + " '" + layers[i].name +
                         "': no layer reads its output (only the last layer's output leaves "
                         "the model)");
-    }
-  }
-  const LayerDesc* float32_only = nullptr;
-  for (const LayerDesc& layer : layers) {
-    if (float32_only == nullptr && Float32OnlyKind(layer.kind)) float32_only = &layer;
-  }
-  if (is_chain && float32_only == nullptr) return Status::Ok();
-  for (size_t i = 0; i < layers.size(); ++i) {
-    if (layers[i].kind == LayerKind::kConv2D && layers[i].conv.precision != Precision::kFloat32) {
-      return check.Fail("layer " + std::to_string(i) + " '" + layers[i].name + "': precision " +
-                        PrecisionName(layers[i].conv.precision) + " in a model " +
-                        (is_chain ? "with layer '" + float32_only->name + "', which runs in fp32"
-                                  : std::string("whose layers are not a chain")) +
-                        "; this runtime runs such models in fp32 only");
     }
   }
   return Status::Ok();
@@ -1328,6 +1315,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
     layers_.push_back(std::move(layer));
   }
   if (Status s = CheckGraph(check, layers_, consumers_, is_chain_); !s.ok()) return s;
+  float32_between_layers_ =
+      !is_chain_ || std::any_of(layers_.begin(), layers_.end(),
+                                [](const LayerDesc& l) { return Float32OnlyKind(l.kind); });
   const int channels = channels_of.back();
   if (metadata_.output.channels == 0) metadata_.output.channels = channels;
   if (metadata_.output.channels != channels) {
@@ -1336,9 +1326,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   }
   metadata_.weight_type = saw_fp16 ? WeightType::kFloat16 : WeightType::kFloat32;
 
-  // An int8 convolution that feeds an int8 convolution (through upsamplings and crops) hands it
-  // bytes quantised with its output_quant: the reader must read them with the same parameters.
-  for (size_t i = 0, prev = layers_.size(); i < layers_.size(); ++i) {
+  // In a chain, an int8 convolution that feeds an int8 convolution (through upsamplings and
+  // crops) hands it bytes quantised with its output_quant: the reader must read them with the
+  // same parameters. (Between float32 tensors each int8 convolution quantises its own input.)
+  for (size_t i = 0, prev = layers_.size(); i < layers_.size() && !float32_between_layers_; ++i) {
     if (layers_[i].kind != LayerKind::kConv2D) continue;
     if (prev < layers_.size()) {
       const ConvParams& a = layers_[prev].conv;

@@ -99,8 +99,78 @@ void* AlignedScratch(std::vector<uint8_t>& storage, size_t bytes) {
   return storage.data() + (64 - reinterpret_cast<uintptr_t>(storage.data()) % 64) % 64;
 }
 
-// A model that is not a chain (schema 1.5; float32 only): each layer reads the outputs its
-// inputs name, and each output is freed after its last reader.
+// Where a graph's convolution i reads a nearest-2x upsampling (through a crop or not) that only
+// it reads, in the layers just before it, as the session fuses them: the upsampling's index, and
+// the crop's in `crop` (-1: none); -1 when it does not.
+int FusedUpsampling(const Model& model, size_t i, int& crop) {
+  const auto layers = model.layers();
+  crop = -1;
+  int k = layers[i].inputs[0];
+  if (k < 0 || static_cast<size_t>(k) + 1 != i ||
+      model.consumer_count(static_cast<size_t>(k)) != 1) {
+    return -1;
+  }
+  if (layers[static_cast<size_t>(k)].kind == LayerKind::kCrop) {
+    crop = k;
+    k = layers[static_cast<size_t>(k)].inputs[0];
+    if (k < 0 || k + 1 != crop || model.consumer_count(static_cast<size_t>(k)) != 1) {
+      crop = -1;
+      return -1;
+    }
+  }
+  const LayerDesc& u = layers[static_cast<size_t>(k)];
+  if (u.kind != LayerKind::kUpsample || u.upsample.factor_h != 2 || u.upsample.factor_w != 2) {
+    crop = -1;
+    return -1;
+  }
+  return k;
+}
+
+// A graph's int8 or bf16 convolution (float32 tensors between layers): `in` converted to what it
+// reads, float32 written to `dst`. With `up` >= 0 it reads the map before that upsampling (`in`)
+// and the upsampling (`c`: the upsampling's or its crop's geometry), as the session does.
+void ReducedGraphConv(const ConvParams& p, const LayerGeometry& g, ConstTensorView in, bool up,
+                      const LayerGeometry& c, TensorView dst) {
+  Tensor t;
+  t.shape = {in.height, in.width, in.channels};
+  t.f.resize(t.shape.elements());
+  ref::Copy(in, DenseView(t.f.data(), in.height, in.width, in.channels));
+  auto fused = [&](auto& args) {
+    args.pads = g.pads;
+    args.out_f32 = dst;
+    if (!up) return;
+    args.upsampled = true;
+    args.crop_top = c.crop.top;
+    args.crop_left = c.crop.left;
+    args.c_height = c.output.height;
+    args.c_width = c.output.width;
+  };
+  std::vector<uint8_t> packing;
+  if (p.precision == Precision::kInt8) {
+    const Tensor q = Quantized(t, p.input_quant);
+    const PackedInt8Conv packed =
+        PackInt8Conv(p, 0, true, AlignedScratch(packing, PackedInt8Bytes(p, 0)));
+    Int8ConvArgs args;
+    args.conv = &packed;
+    args.in = q.qview();
+    fused(args);
+    ref::Conv2dInt8Rows(args, 0, dst.height, 0, 1);
+    return;
+  }
+  const Tensor h = ToBf16(t);
+  const bool phases =
+      up && p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1;
+  const PackedBf16Conv packed =
+      PackBf16Conv(p, 0, phases, true, AlignedScratch(packing, PackedBf16Bytes(p, 0, phases)));
+  Bf16ConvArgs args;
+  args.conv = &packed;
+  args.in = h.hview();
+  fused(args);
+  ref::Conv2dBf16Rows(args, 0, dst.height, 0, 1);
+}
+
+// A graph, or a chain with a float32-only layer (Model::float32_between_layers()): each layer
+// reads the outputs its inputs name, and each output is freed after its last reader.
 void ForwardGraph(const Model& model, std::span<const float> input,
                   const std::vector<LayerGeometry>& g, std::span<float> output,
                   const LayerObserver& observer) {
@@ -109,7 +179,14 @@ void ForwardGraph(const Model& model, std::span<const float> input,
   std::vector<std::vector<float>> outputs(n);
   std::vector<int> last_reader(n, -1);
   for (size_t i = 0; i < n; ++i) {
-    for (int t : layers[i].inputs) {
+    std::vector<int> reads = layers[i].inputs;
+    int crop = -1;
+    const int up =
+        layers[i].kind == LayerKind::kConv2D && layers[i].conv.precision != Precision::kFloat32
+            ? FusedUpsampling(model, i, crop)
+            : -1;
+    if (up >= 0) reads.push_back(layers[static_cast<size_t>(up)].inputs[0]);
+    for (int t : reads) {
       if (t != kModelInput) last_reader[static_cast<size_t>(t)] = static_cast<int>(i);
     }
   }
@@ -127,9 +204,21 @@ void ForwardGraph(const Model& model, std::span<const float> input,
     const TensorView dst = DenseView(out.data(), s.height, s.width, s.channels);
     const ConstTensorView src = view_of(layer.inputs[0]);
     switch (layer.kind) {
-      case LayerKind::kConv2D:
-        ref::Conv2d(src, layer.conv, g[i].pads, dst);
+      case LayerKind::kConv2D: {
+        if (layer.conv.precision == Precision::kFloat32) {
+          ref::Conv2d(src, layer.conv, g[i].pads, dst);
+          break;
+        }
+        int crop = -1;
+        const int up = FusedUpsampling(model, i, crop);
+        if (up < 0) {
+          ReducedGraphConv(layer.conv, g[i], src, false, g[i], dst);
+          break;
+        }
+        ReducedGraphConv(layer.conv, g[i], view_of(layers[static_cast<size_t>(up)].inputs[0]), true,
+                         g[static_cast<size_t>(crop >= 0 ? crop : up)], dst);
         break;
+      }
       case LayerKind::kUpsample:
         ref::UpsampleNearest(src, layer.upsample.factor_h, layer.upsample.factor_w, dst);
         break;
@@ -164,10 +253,8 @@ void ForwardGraph(const Model& model, std::span<const float> input,
         break;
     }
     if (observer) observer(static_cast<int>(i), s, out);
-    for (int t : layer.inputs) {
-      if (t != kModelInput && last_reader[static_cast<size_t>(t)] == static_cast<int>(i)) {
-        outputs[static_cast<size_t>(t)] = {};
-      }
+    for (size_t t = 0; t < i; ++t) {
+      if (last_reader[t] == static_cast<int>(i)) outputs[t] = {};
     }
   }
   std::copy(outputs.back().begin(), outputs.back().end(), output.begin());
@@ -189,10 +276,7 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
     return Status::Error("reference forward: output holds " + std::to_string(output.size()) +
                          " floats; " + std::to_string(g.back().output.elements()) + " needed");
   }
-  // Graphs, and models with a float32-only op, are float32 throughout (the loader checks).
-  const bool float32_only = std::any_of(layers.begin(), layers.end(),
-                                        [](const LayerDesc& l) { return Float32OnlyKind(l.kind); });
-  if (!model.is_chain() || float32_only) {
+  if (model.float32_between_layers()) {
     ForwardGraph(model, input, g, output, observer);
     return Status::Ok();
   }

@@ -411,31 +411,59 @@ Status Session::Plan() {
   auto only_reader = [&](int reader, int t) {
     return layers[reader].inputs[0] == t && model_->consumer_count(static_cast<size_t>(t)) == 1;
   };
+  // The step that converts the float32 tensor layer i reads into what convolution `reader`
+  // (int8 or bf16) reads.
+  auto convert_step = [&](int i, int reader) {
+    Step q;
+    q.first_layer = q.last_layer = i;
+    q.precision = precision_of(reader);
+    set_out(q, q.precision);
+    if (q.precision == Precision::kInt8) {
+      q.kind = Step::Kind::kQuantize;
+      const QuantizeKernel quantize = QuantizeKernelFor(isa_);
+      q.quantize = quantize.fn;
+      q.kernel = quantize.name;
+      q.quant = layers[reader].conv.input_quant;
+    } else {
+      q.kind = Step::Kind::kToBf16;
+      const ToBf16Kernel to_bf16 = ToBf16KernelFor(isa_);
+      q.to_bf16 = to_bf16.fn;
+      q.kernel = to_bf16.name;
+    }
+    return q;
+  };
+  // A graph, or a model with a float32-only op, keeps float32 tensors between layers: each int8
+  // or bf16 convolution converts the tensor it reads (before the upsampling it fuses, if any)
+  // and writes float32, so that Concat, Add and the other ops read float32. A chain keeps int8
+  // and bf16 tensors between convolutions of the same precision (`cur`).
+  const bool graph = model_->float32_between_layers();
+  // Per tensor slot (layer i's output at i, the model input at n), the converting step already
+  // planned for it in a graph: reused by a later reader of the same precision and quantisation.
+  std::vector<int> converted(static_cast<size_t>(n) + 1, -1);
+  auto convert_in_graph = [&](int i, int reader) {
+    const int t = layers[i].inputs[0];
+    int& slot = converted[t == kModelInput ? static_cast<size_t>(n) : static_cast<size_t>(t)];
+    const Step q = convert_step(i, reader);
+    if (slot >= 0) {
+      const Step& before = steps_[static_cast<size_t>(slot)];
+      if (before.precision == q.precision &&
+          (q.precision != Precision::kInt8 || (before.quant.scale == q.quant.scale &&
+                                               before.quant.zero_point == q.quant.zero_point))) {
+        return;
+      }
+    }
+    slot = static_cast<int>(steps_.size());
+    steps_.push_back(q);
+  };
   size_t gather = 0;  // the most inputs a Concat has
   for (int i = 0; i < n; ++i) {
     const LayerDesc& layer = layers[i];
     const int consumer = next_conv(i);
-    if (cur == Precision::kFloat32 && precision_of(consumer) != Precision::kFloat32) {
+    if (!graph && cur == Precision::kFloat32 && precision_of(consumer) != Precision::kFloat32) {
       // The float32 tensor here is read by an int8 or bf16 convolution: convert it once, before
       // any upsampling makes it larger.
-      Step q;
-      q.first_layer = q.last_layer = i;
-      q.precision = precision_of(consumer);
-      set_out(q, q.precision);
-      if (q.precision == Precision::kInt8) {
-        q.kind = Step::Kind::kQuantize;
-        const QuantizeKernel quantize = QuantizeKernelFor(isa_);
-        q.quantize = quantize.fn;
-        q.kernel = quantize.name;
-        q.quant = layers[consumer].conv.input_quant;
-      } else {
-        q.kind = Step::Kind::kToBf16;
-        const ToBf16Kernel to_bf16 = ToBf16KernelFor(isa_);
-        q.to_bf16 = to_bf16.fn;
-        q.kernel = to_bf16.name;
-      }
-      steps_.push_back(q);
-      cur = q.precision;
+      steps_.push_back(convert_step(i, consumer));
+      cur = steps_.back().precision;
     }
     Step step;
     step.first_layer = step.last_layer = i;
@@ -471,7 +499,13 @@ Status Session::Plan() {
       const bool factor2 = layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2;
       const bool fusable = kernels != nullptr && factor2 && conv_next &&
                            cur == Precision::kFloat32 && simd_fits(layers[conv].conv, true, 0);
-      if (cur != Precision::kFloat32 && factor2 && conv_next) {
+      if (graph && factor2 && conv_next && precision_of(conv) != Precision::kFloat32) {
+        convert_in_graph(i, conv);
+        step = reduced_step(conv, true, crop);
+        step.first_layer = i;
+        set_out(step, Precision::kFloat32);
+        i = conv;
+      } else if (cur != Precision::kFloat32 && factor2 && conv_next) {
         step = reduced_step(conv, true, crop);
         step.first_layer = i;
         cur = step.out_u8     ? Precision::kInt8
@@ -496,6 +530,11 @@ Status Session::Plan() {
         step.kind = Step::Kind::kUpsample;
         step.kernel = "ref::UpsampleNearest";
       }
+    } else if (graph && layer.conv.precision != Precision::kFloat32) {
+      convert_in_graph(i, i);
+      step = reduced_step(i, false, -1);
+      step.first_layer = i;
+      set_out(step, Precision::kFloat32);
     } else if (layer.conv.precision != Precision::kFloat32) {
       step = reduced_step(i, false, -1);
       step.first_layer = i;

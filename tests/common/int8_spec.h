@@ -8,6 +8,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <map>
+#include <string>
 #include <variant>
 #include <vector>
 
@@ -68,15 +70,24 @@ inline exporter::ModelSpec Int8Spec(exporter::ModelSpec spec,
   const QuantParams hidden{act_scale, act_zero_point};
   size_t k = 0;
   bool first = true;
-  bool reads_upsampling = false;  // the layers since the last convolution hold an upsampling
+  // Per layer name: whether its output is a nearest-2x upsampling, through a crop or not.
+  std::map<std::string, bool> upsampled;
+  std::string previous = spec.input.name;  // what a layer without named inputs reads
   for (exporter::LayerSpec& layer : spec.layers) {
-    auto* c = std::get_if<exporter::ConvSpec>(&layer);
+    const std::string name = std::visit([](const auto& l) { return l.name; }, layer);
+    const std::vector<std::string> inputs =
+        std::visit([](const auto& l) { return l.inputs; }, layer);
+    const std::string read = inputs.empty() ? previous : inputs[0];
+    previous = name;
+    upsampled[name] = false;
     if (const auto* u = std::get_if<exporter::UpsampleSpec>(&layer)) {
-      reads_upsampling = u->factor_h == 2 && u->factor_w == 2;
+      upsampled[name] = u->factor_h == 2 && u->factor_w == 2;
     }
+    if (std::holds_alternative<exporter::CropSpec>(layer)) upsampled[name] = upsampled[read];
+    auto* c = std::get_if<exporter::ConvSpec>(&layer);
     if (c == nullptr) continue;
-    reads_upsampling = reads_upsampling && c->kernel_h == 3 && c->kernel_w == 3 &&
-                       c->stride_h == 1 && c->stride_w == 1;
+    const bool reads_upsampling = upsampled[read] && c->kernel_h == 3 && c->kernel_w == 3 &&
+                                  c->stride_h == 1 && c->stride_w == 1;
     const bool int8 = k >= int8_convs.size() || int8_convs[k];
     ++k;
     if (int8) {
@@ -89,7 +100,6 @@ inline exporter::ModelSpec Int8Spec(exporter::ModelSpec spec,
       c->weights_hwio.clear();
     }
     first = false;
-    reads_upsampling = false;
   }
   return spec;
 }

@@ -280,7 +280,7 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryFlowNetSCaseWithTransposedConvolutionsA
     EXPECT_EQ(leaky, 10);  // the encoder; predictions are linear
     EXPECT_EQ(deconvs, 8);
     EXPECT_EQ(cats, 4);
-    EXPECT_EQ(Float32OnlyReason(*spec), "the model is a graph (Concat, Add or named inputs)");
+    EXPECT_TRUE(IsGraph(*spec));
   }
   EXPECT_GE(f_cases, 3) << "the suite has no FlowNetS cases";
 }
@@ -352,7 +352,6 @@ TEST(OnnxImporterSceneEDNet, ImportsEveryPoolNetCaseWithItsPoolingAttributes) {
     EXPECT_EQ(pools[2].kernel_h, 3);
     EXPECT_EQ(pools[3].kind, PoolKind::kMax);
     EXPECT_EQ(pools[3].stride_h, 1);
-    EXPECT_EQ(Float32OnlyReason(*spec), "the model has a Pool2D ('" + pools[0].name + "')");
   }
   EXPECT_GE(p_cases, 2) << "the suite has no poolnet cases";
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/sceneednet_spec.h"
+#include "common/unet_spec.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
@@ -369,6 +370,64 @@ TEST(Quantize, RefusesFramesWithTheWrongChannelCountOrNoFrames) {
   r = Quantize(testing::SceneEdNetSpec(16, 5), CalibrationSet{0, kHeight, kWidth, 12, {}}, {});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.message().find("the calibration set is empty"), std::string::npos) << r.message();
+}
+
+// Relative rms of `b` against `a`.
+double RelativeRms(const std::vector<float>& b, const std::vector<float>& a) {
+  double diff2 = 0, ref2 = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    diff2 += (static_cast<double>(b[i]) - a[i]) * (static_cast<double>(b[i]) - a[i]);
+    ref2 += static_cast<double>(a[i]) * a[i];
+  }
+  return std::sqrt(diff2 / ref2);
+}
+
+// A graph (SceneEDNet-U's skips: Concats of upsampled and cropped decoder tensors with encoder
+// ones): each convolution is calibrated on the tensor whose values it reads, a Concat's when it
+// reads one, through upsamplings and crops otherwise; conv9, which reads a crop of an
+// upsampling, gets phase kernels; the int8 model stays close to float32 on a frame the
+// calibration never saw.
+TEST(Quantize, Int8GraphIsCalibratedOnWhatEachConvolutionReads) {
+  const ModelSpec spec = testing::SceneEdNetUSpec(16, 5);
+  auto result = Quantize(spec, RandomFrames(4, 21), {});
+  ASSERT_TRUE(result.ok()) << result.message();
+  const std::vector<const ConvSpec*> convs = Convs(result->spec);
+  ASSERT_EQ(convs.size(), 11u);
+  for (const ConvSpec* c : convs) {
+    EXPECT_EQ(c->precision, Precision::kInt8) << c->name;
+    EXPECT_EQ(c->phase_weights_q.empty(), c->name != "conv9") << c->name;
+  }
+  // conv1 reads conv0's output; conv6 reads cat1 (a Concat of conv2 and an upsampled tensor),
+  // whose range is neither conv2's nor conv5's.
+  EXPECT_EQ(convs[0]->output_quant, convs[1]->input_quant);
+  EXPECT_NE(convs[6]->input_quant, convs[5]->output_quant);
+  EXPECT_LT(result->calibration.output_rms_rel, 0.05f);
+
+  const CalibrationSet held_out = RandomFrames(1, 99);
+  auto fp32 = LoadSpec(spec);
+  auto int8 = LoadSpec(result->spec);
+  ASSERT_TRUE(fp32 && int8);
+  EXPECT_TRUE(int8->float32_between_layers());
+  std::vector<float> a(static_cast<size_t>(kHeight) * kWidth * 3);
+  std::vector<float> b(a.size());
+  ASSERT_TRUE(RunReferenceForward(*fp32, held_out.values, kHeight, kWidth, a).ok());
+  ASSERT_TRUE(RunReferenceForward(*int8, held_out.values, kHeight, kWidth, b).ok());
+  EXPECT_LT(RelativeRms(b, a), 0.05);
+}
+
+// A dilated convolution has no int8 form: it stays float32 while the others become int8.
+TEST(Quantize, DilatedConvolutionsStayFloat32BesideInt8Ones) {
+  ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  auto& c1 = std::get<ConvSpec>(spec.layers[1]);
+  c1.dilation_h = c1.dilation_w = 2;
+  auto result = Quantize(spec, RandomFrames(2, 21), {});
+  ASSERT_TRUE(result.ok()) << result.message();
+  const std::vector<const ConvSpec*> convs = Convs(result->spec);
+  for (const ConvSpec* c : convs) {
+    EXPECT_EQ(c->precision, c == convs[1] ? Precision::kFloat32 : Precision::kInt8) << c->name;
+  }
+  EXPECT_FALSE(convs[1]->weights_hwio.empty());
+  EXPECT_NE(LoadSpec(result->spec), nullptr);
 }
 
 TEST(Quantize, RefusesAModelThatIsAlreadyInt8) {

@@ -1,7 +1,7 @@
 // Models that are graphs, not chains (schema 1.5): named inputs, Concat, Add and crops to a
 // second input's size. SceneEDNet-U (tests/common/unet_spec.h) on every ISA against the scalar
-// reference forward, a hand-computed skip and residual, the arena's lifetimes, where fusions
-// still apply, and what the writer and the loader refuse.
+// reference forward, in float32, int8 and bf16, a hand-computed skip and residual, the arena's
+// lifetimes, where fusions still apply, and what the writer and the loader refuse.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "common/bf16_spec.h"
+#include "common/int8_spec.h"
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
@@ -398,6 +400,111 @@ TEST(GraphLoading, RefusesALayerWhoseOutputNoLayerReads) {
   ASSERT_FALSE(model.ok());
   EXPECT_NE(model.message().find("'conv5': no layer reads its output"), std::string::npos)
       << model.message();
+}
+
+// The range of every value SceneEDNet-U's convolutions and Concats give on `input` (float32), for
+// Int8Spec's one activation quantisation.
+QuantParams ActivationRange(const Model& model, const std::vector<float>& input, int h, int w) {
+  float lo = 0.0f, hi = 0.0f;
+  const LayerObserver observe = [&](int, const TensorShape&, std::span<const float> values) {
+    for (float v : values) {
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+  };
+  Result<TensorShape> shape = InferOutputShape(model, h, w);
+  EXPECT_TRUE(shape.ok()) << shape.message();
+  std::vector<float> out(shape.ok() ? shape->elements() : 0);
+  EXPECT_TRUE(RunReferenceForward(model, input, h, w, out, observe).ok());
+  const float scale = (hi - lo) / 255.0f;
+  return {scale, static_cast<int>(std::lround(-lo / scale))};
+}
+
+// What a session planned for `model` at h x w runs: the number of steps of each kernel kind.
+struct PlanCounts {
+  int quantize = 0, to_bf16 = 0, int8_convs = 0, bf16_convs = 0, fused_upsampling = 0;
+};
+PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, int w) {
+  SessionOptions options;
+  options.max_height = h;
+  options.max_width = w;
+  options.isa = isa;
+  auto session = Session::Create(model, options);
+  EXPECT_TRUE(session.ok()) << session.message();
+  PlanCounts counts;
+  if (!session.ok()) return counts;
+  const auto layers = model->layers();
+  for (const PlannedStep& step : (*session)->steps()) {
+    const bool conv = layers[static_cast<size_t>(step.last_layer)].kind == LayerKind::kConv2D;
+    if (step.quantize) {
+      (step.precision == Precision::kInt8 ? counts.quantize : counts.to_bf16) += 1;
+    } else if (conv && step.precision == Precision::kInt8) {
+      ++counts.int8_convs;
+    } else if (conv && step.precision == Precision::kBFloat16) {
+      ++counts.bf16_convs;
+    }
+    if (conv && !step.quantize &&
+        layers[static_cast<size_t>(step.first_layer)].kind == LayerKind::kUpsample) {
+      ++counts.fused_upsampling;
+    }
+  }
+  return counts;
+}
+
+// Int8 convolutions in a graph read a converted copy of the float32 tensor they read (before the
+// upsampling they fuse) and write float32 for the Concats. The session on every ISA computes what
+// the reference forward computes, and the int8 model stays near the float32 one.
+TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
+  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
+  auto fp32 = testing::LoadOrDie(fp32_spec);
+  ASSERT_NE(fp32, nullptr);
+  const int h = 67, w = 121;
+  const auto input = testing::RandomImage(h, w, 12, 11);
+  const QuantParams range = ActivationRange(*fp32, input, h, w);
+  auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
+  ASSERT_NE(model, nullptr);
+  EXPECT_TRUE(model->float32_between_layers());
+  // 11 convolutions, each reading its own tensor; conv9 fuses up4 and its crop.
+  const PlanCounts counts = CountPlan(model, BestIsa(), h, w);
+  EXPECT_EQ(counts.int8_convs, 11);
+  EXPECT_EQ(counts.quantize, 11);
+  EXPECT_EQ(counts.fused_upsampling, 1);
+  // Float32 epilogues in SIMD registers may round the last bit otherwise than the scalar one.
+  testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 11);
+  // Against the float32 model: one activation range for every tensor, so a coarse bound (the
+  // int8 chain's bar is 5e-2 with a range per tensor).
+  const auto want = ReferenceOutput(*fp32, input, h, w);
+  const auto got = ReferenceOutput(*model, input, h, w);
+  EXPECT_LE(testing::RelativeMaxError(got, want), 0.15);
+}
+
+// The same for bf16: within the bf16 bar (2e-2) of the float32 model, and on every ISA within
+// 1e-2 of the reference forward (sums in another order), the same where bf16 runs on the
+// reference kernel.
+TEST(GraphSession, Bf16SceneEdNetURunsOnEveryIsaNearTheReferenceForward) {
+  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16, 2);
+  auto fp32 = testing::LoadOrDie(fp32_spec);
+  auto model = testing::LoadOrDie(testing::Bf16Spec(fp32_spec));
+  ASSERT_NE(fp32, nullptr);
+  ASSERT_NE(model, nullptr);
+  const PlanCounts counts = CountPlan(model, BestIsa(), 37, 53);
+  EXPECT_EQ(counts.bf16_convs, 11);
+  EXPECT_EQ(counts.to_bf16, 11);
+  EXPECT_EQ(counts.fused_upsampling, 1);
+  for (auto [h, w] : {std::pair{67, 121}, {37, 53}}) {
+    const auto input = testing::RandomImage(h, w, 12, 5);
+    const auto want = ReferenceOutput(*model, input, h, w);
+    EXPECT_LE(testing::RelativeMaxError(want, ReferenceOutput(*fp32, input, h, w)), 2e-2);
+    for (Isa isa : SupportedIsas()) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(h) + "x" + std::to_string(w));
+      const auto got = testing::RunSession(model, isa, 2, input, h, w);
+      if (Bf16KernelsAvailable(isa)) {
+        EXPECT_LE(testing::RelativeMaxError(got, want), 1e-2);
+      } else {
+        EXPECT_EQ(got, want);
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -117,13 +117,16 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   }
 }
 
-// Graphs (SceneEDNet-U with a residual Add; a decoder of transposed convolutions) and a chain
-// of every float32-only layer kind (pooling, dilated and grouped convolutions, ChannelAffine,
-// Resize): skip tensors, Concat, Add, ConvTranspose2D, Pool2D, Resize and ChannelAffine steps,
-// grouped and dilated convolutions on the reference kernel, and the views Run() keeps of every
-// layer's output, on every ISA and with a pool.
+// Graphs (SceneEDNet-U with a residual Add, in float32, int8 and bf16; a decoder of transposed
+// convolutions) and a chain of every float32-only layer kind (pooling, dilated and grouped
+// convolutions, ChannelAffine, Resize): skip tensors, Concat, Add, ConvTranspose2D, Pool2D,
+// Resize and ChannelAffine steps, the conversions before int8 and bf16 convolutions, grouped and
+// dilated convolutions on the reference kernel, and the views Run() keeps of every layer's
+// output, on every ISA and with a pool.
 TEST(ZeroAllocation, RunOfAGraphAllocatesNothingAtAnySizeUpToTheMaximum) {
-  for (auto model : {testing::LoadOrDie(testing::SceneEdNetUSpec(16, 1, true)),
+  const exporter::ModelSpec unet = testing::SceneEdNetUSpec(16, 1, true);
+  for (auto model : {testing::LoadOrDie(unet), testing::LoadOrDie(testing::Int8Spec(unet)),
+                     testing::LoadOrDie(testing::Bf16Spec(unet)),
                      testing::LoadOrDie(testing::TwoLevelDecoderSpec()),
                      testing::LoadOrDie(testing::FloatOpsChainSpec())})
     for (Isa isa : SupportedIsas()) {

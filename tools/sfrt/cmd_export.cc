@@ -868,14 +868,6 @@ int RunExport(const ExportArgs& args) {
   }
   if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
   std::string bf16_line;
-  if (const std::string why = exporter::Float32OnlyReason(spec);
-      (quantise || bf16) && !why.empty()) {
-    return ReportError(kName,
-                       args.input + ": " + why +
-                           "; --precision int8 and bf16 run on chains of convolutions, "
-                           "upsamplings and crops only (drop --precision for fp32)",
-                       kExitFailure);
-  }
   if (quantise || bf16) {
     for (const exporter::LayerSpec& layer : spec.layers) {
       const auto* conv = std::get_if<exporter::ConvSpec>(&layer);
@@ -889,16 +881,28 @@ int RunExport(const ExportArgs& args) {
     }
   }
   if (bf16) {
-    int convs = 0;
+    int convs = 0, marked = 0;
     for (exporter::LayerSpec& layer : spec.layers) {
       auto* conv = std::get_if<exporter::ConvSpec>(&layer);
       if (conv == nullptr) continue;
-      conv->precision = Precision::kBFloat16;
       ++convs;
+      if (!exporter::ReducibleConv(*conv)) continue;
+      conv->precision = Precision::kBFloat16;
+      ++marked;
     }
-    bf16_line = "  precision   bf16, all " + std::to_string(convs) +
+    if (marked == 0) {
+      return ReportError(kName,
+                         args.input + ": no convolution has a bf16 form (" + std::to_string(convs) +
+                             " found; dilated and grouped ones run in fp32 only): drop "
+                             "--precision",
+                         kExitFailure);
+    }
+    bf16_line = "  precision   bf16, " +
+                (marked == convs ? "all " + std::to_string(convs)
+                                 : std::to_string(marked) + " of " + std::to_string(convs)) +
                 " convolutions (weights stored as --weights says, rounded to bf16 when a "
-                "session loads them; activations bf16 between them)";
+                "session loads them; activations bf16 between the bf16 convolutions of a chain, "
+                "float32 in a graph or around a float32-only layer)";
   }
 
   // Apply the flags (a .sfrt source keeps its own value of each flag not given).
@@ -1145,9 +1149,9 @@ Command AddExportCommand(CLI::App& parent) {
                   "Parity check reference: the source framework's output for --check-input, "
                   "float32 .npy (H,W,3) or (1,H,W,3)");
   cmd->add_option("--precision", args->precision,
-                  "Arithmetic of the convolutions: fp32; bf16 (every convolution: bf16 weights "
-                  "and activations, float32 sums; no calibration); int8 (every convolution: "
-                  "int8 weights per output channel, uint8 activations, quantised from "
+                  "Arithmetic of the convolutions (dilated and grouped ones stay fp32): fp32; "
+                  "bf16 (bf16 weights and activations, float32 sums; no calibration); int8 "
+                  "(int8 weights per output channel, uint8 activations, quantised from "
                   "--calibration); auto (per layer int8, else bf16, else fp32, so that the "
                   "output's error stays within --accuracy-budget)")
       ->check(CLI::IsMember({"fp32", "bf16", "int8", "auto"}))
@@ -1199,9 +1203,12 @@ Command AddExportCommand(CLI::App& parent) {
       "(int8 to bf16, bf16 to float32; int8 straight to float32 with --no-auto-bf16), until\n"
       "the output's rms error is within --accuracy-budget. A .sfrt source\n"
       "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
-      "bf16 (--precision bf16) marks every convolution bf16: a session rounds the weights\n"
-      "to bf16 at load and keeps bf16 activations between the layers; measure its accuracy\n"
-      "with sfrt eval.\n"
+      "bf16 (--precision bf16) marks every convolution bf16 (dilated and grouped ones stay\n"
+      "fp32): a session rounds the weights to bf16 at load and keeps bf16 activations\n"
+      "between the layers of a chain; measure its accuracy with sfrt eval.\n"
+      "Graphs (Concat, Add, named inputs) and models with a pooling, resize, transposed\n"
+      "convolution or channel affine layer keep float32 tensors between layers: each int8\n"
+      "or bf16 convolution converts what it reads and writes float32.\n"
       "Parity check: prints max abs error, max error relative to the reference's largest\n"
       "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
       "written (an existing file at -o is left unchanged) and the exit code is 1.\n"

@@ -45,7 +45,8 @@ enum class LayerKind {
   kResize,        // schema 1.7
   kChannelAffine  // schema 1.7
 };
-// Layers that run in float32 only: a model with one holds no int8 or bf16 convolution.
+// Layers that run in float32 only. A model with one (or a graph) runs its int8 and bf16
+// convolutions between float32 tensors: each converts what it reads and writes float32.
 inline bool Float32OnlyKind(LayerKind kind) {
   return kind == LayerKind::kConcat || kind == LayerKind::kAdd ||
          kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D ||
@@ -369,8 +370,13 @@ class Model {
   const ModelMetadata& metadata() const { return metadata_; }
   std::span<const LayerDesc> layers() const { return layers_; }
   // True when every layer reads the one before it (layer 0: the input): the only form before
-  // schema 1.5, and the only one int8 and bf16 layers may take.
+  // schema 1.5.
   bool is_chain() const { return is_chain_; }
+  // True for a graph, or a chain with a float32-only layer (Float32OnlyKind): its tensors between
+  // layers are float32, and each int8 or bf16 convolution converts the tensor it reads (before
+  // the nearest-2x upsampling it fuses, if any) and writes float32. Otherwise int8 and bf16
+  // tensors pass between convolutions of the same precision.
+  bool float32_between_layers() const { return float32_between_layers_; }
   // How many layers read layer i's output (the last layer's: 0).
   int consumer_count(size_t i) const { return consumers_[i]; }
   size_t file_bytes() const { return size_; }
@@ -389,6 +395,7 @@ class Model {
   std::vector<LayerDesc> layers_;
   std::vector<int> consumers_;  // per layer
   bool is_chain_ = true;
+  bool float32_between_layers_ = false;
   std::vector<std::vector<float>> widened_;  // fp32 copies of fp16 tensors
 };
 

@@ -215,29 +215,11 @@ inline bool IsGraph(const ModelSpec& spec) {
   return false;
 }
 
-// Why the model runs in float32 only (int8 and bf16 run on chains of the ops before schema 1.5),
-// or "" when it may be quantised.
-inline std::string Float32OnlyReason(const ModelSpec& spec) {
-  if (IsGraph(spec)) return "the model is a graph (Concat, Add or named inputs)";
-  for (const LayerSpec& layer : spec.layers) {
-    if (const auto* d = std::get_if<ConvTransposeSpec>(&layer)) {
-      return "the model has a ConvTranspose2D ('" + d->name + "')";
-    }
-    if (const auto* p = std::get_if<PoolSpec>(&layer)) {
-      return "the model has a Pool2D ('" + p->name + "')";
-    }
-    if (const auto* r = std::get_if<ResizeSpec>(&layer)) {
-      return "the model has a Resize ('" + r->name + "')";
-    }
-    if (const auto* a = std::get_if<ChannelAffineSpec>(&layer)) {
-      return "the model has a ChannelAffine ('" + a->name + "')";
-    }
-    const auto* c = std::get_if<ConvSpec>(&layer);
-    if (c != nullptr && (c->dilation_h != 1 || c->dilation_w != 1 || c->groups != 1)) {
-      return "the model has a dilated or grouped Conv2D ('" + c->name + "')";
-    }
-  }
-  return "";
+// Whether the convolution has int8 and bf16 forms: dilated and grouped ones run in float32 only.
+// Any model may mix them with float32 layers (graphs and float32-only ops too: sfrt/model.h,
+// Model::float32_between_layers()).
+inline bool ReducibleConv(const ConvSpec& conv) {
+  return conv.dilation_h == 1 && conv.dilation_w == 1 && conv.groups == 1;
 }
 
 // For importers that name every layer's inputs: a chain (each layer reading the one before it,
