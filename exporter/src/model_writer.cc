@@ -428,12 +428,20 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
         return Status::Error(where + ": Pool2D needs schema 1.6; writing 1." +
                              std::to_string(options.schema_minor));
       }
+      if (pool->kind == PoolKind::kArgMax && options.schema_minor < 10) {
+        return Status::Error(where + ": Pool2D kind argmax needs schema 1.10; writing 1." +
+                             std::to_string(options.schema_minor));
+      }
       const fb::Padding pads(pool->pads.top, pool->pads.left, pool->pads.bottom, pool->pads.right);
-      const auto op = fb::CreatePool2D(
-          b, pool->kind == PoolKind::kMax ? fb::PoolKind::Max : fb::PoolKind::Average,
-          pool->kernel_h, pool->kernel_w, pool->stride_h, pool->stride_w,
-          ToSchema(pool->padding_rule), &pads, pool->ceil_mode, pool->count_include_pad,
-          pool->dilation_h, pool->dilation_w);
+      const auto op =
+          fb::CreatePool2D(b,
+                           pool->kind == PoolKind::kMax       ? fb::PoolKind::Max
+                           : pool->kind == PoolKind::kAverage ? fb::PoolKind::Average
+                                                              : fb::PoolKind::ArgMax,
+                           pool->kernel_h, pool->kernel_w, pool->stride_h, pool->stride_w,
+                           ToSchema(pool->padding_rule), &pads, pool->ceil_mode,
+                           pool->count_include_pad, pool->dilation_h, pool->dilation_w,
+                           pool->kind == PoolKind::kArgMax && pool->indices_column_major);
       layers.push_back(fb::CreateLayer(b, b.CreateString(pool->name),
                                        v2 ? fb::LayerOp::Pool2DV2 : fb::LayerOp::Pool2D, op.Union(),
                                        names));

@@ -1016,6 +1016,7 @@ class Importer {
   Status ReadOpset();
   Status ReadInitializers();
   Status ReadInput();
+  Status ChooseOutput();
   std::vector<bool> LiveNodes() const;
   // Live nodes whose op type (or domain) the importer does not know at all.
   std::vector<int> UnknownOpNodes(const std::vector<bool>& live) const;
@@ -1069,6 +1070,7 @@ class Importer {
   std::string_view bytes_;
   std::string path_;
   OnnxImportOptions options_;
+  int output_index_ = 0;  // the graph output the model computes (ChooseOutput)
   onnx::ModelProto model_;
   int64_t opset_ = 0;
   std::unordered_map<std::string, const TensorProto*> initializers_;
@@ -1305,6 +1307,25 @@ Status Importer::ReadInput() {
   return Status::Ok();
 }
 
+// The graph output the model computes: OnnxImportOptions::output, or the only one.
+Status Importer::ChooseOutput() {
+  std::string names;
+  for (int k = 0; k < graph().output_size(); ++k) {
+    if (graph().output(k).name() == options_.output) {
+      output_index_ = k;
+      return Status::Ok();
+    }
+    names += (k == 0 ? "" : ", ") + Quote(graph().output(k).name());
+  }
+  if (!options_.output.empty()) {
+    return FileError("graph has no output " + Quote(options_.output) + "; its outputs: " + names);
+  }
+  if (graph().output_size() == 1) return Status::Ok();
+  if (graph().output_size() == 0) return FileError("graph has no output");
+  return FileError("graph has " + std::to_string(graph().output_size()) + " outputs (" + names +
+                   "); an sfrt model computes one: choose it (sfrt export --onnx-output NAME)");
+}
+
 std::vector<bool> Importer::LiveNodes() const {
   std::unordered_map<std::string, int> producer;
   for (int i = 0; i < graph().node_size(); ++i) {
@@ -1313,8 +1334,7 @@ std::vector<bool> Importer::LiveNodes() const {
     }
   }
   std::vector<bool> live(graph().node_size(), false);
-  std::vector<std::string> stack;
-  for (const auto& out : graph().output()) stack.push_back(out.name());
+  std::vector<std::string> stack{graph().output(output_index_).name()};
   while (!stack.empty()) {
     const std::string name = std::move(stack.back());
     stack.pop_back();
@@ -2010,13 +2030,11 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
 }
 
 // ONNX MaxPool and AveragePool (opsets 1-17), 2-D: explicit pads, VALID or SAME_UPPER,
-// ceil_mode, count_include_pad; a MaxPool's optional Indices output must not be used.
+// ceil_mode, count_include_pad. A MaxPool's optional Indices output becomes a second op, an
+// argmax pool (ProcessRuntimeNode).
 Status Importer::ProcessPool(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   const bool max = n.op_type() == "MaxPool";
-  if (n.output_size() > 1 && !n.output(1).empty()) {
-    return NodeError(idx, "its Indices output " + Quote(n.output(1)) + " is not supported");
-  }
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel, IntsAttr(idx, "kernel_shape"));
   if (kernel.size() != 2 || kernel[0] < 1 || kernel[1] < 1 ||
       kernel[0] > model_limits::kMaxKernel || kernel[1] > model_limits::kMaxKernel) {
@@ -2025,10 +2043,11 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
                               std::to_string(model_limits::kMaxKernel) + ")");
   }
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, DilationsAttr(idx, "dilations"));
+  // How the Indices output numbers the input: row-major (0) or column-major (1).
   SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t storage_order, IntAttr(idx, "storage_order", 0));
-  if (storage_order != 0) {
+  if (storage_order != 0 && storage_order != 1) {
     return NodeError(idx, "attribute 'storage_order' = " + std::to_string(storage_order) +
-                              " is not supported (only 0)");
+                              " is not supported (0 or 1)");
   }
   SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> strides, IntsAttr(idx, "strides"));
   if (strides.empty()) strides = {1, 1};
@@ -2053,6 +2072,7 @@ Status Importer::ProcessPool(int idx, GraphOp& op) {
   const int extent_h = DilatedExtent(p.kernel_h, p.dilation_h);
   const int extent_w = DilatedExtent(p.kernel_w, p.dilation_w);
   p.ceil_mode = ceil_mode != 0;
+  p.indices_column_major = storage_order == 1;  // used by the Indices output only
   p.count_include_pad = !max && count_include_pad != 0;
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
@@ -2513,6 +2533,21 @@ Status Importer::ProcessRuntimeNode(int idx, int slot) {
       return NodeError(idx, "output shape " + ShapeText(op.out_shape) + " is too large");
     }
   }
+  if (type == "MaxPool" && n.output_size() > 1 && !n.output(1).empty()) {
+    // The Indices output: where each max is, as ONNX numbers the input's elements (batch 1):
+    // c * H * W + y * W + x, or c * H * W + x * H + y with storage_order 1.
+    GraphOp indices = op;
+    indices.output = n.output(1);
+    indices.pool.kind = PoolKind::kArgMax;
+    op.pool.indices_column_major = false;  // the values' pool has no indices
+    runtime_[indices.output] = indices.out_shape;
+    producer_op_[indices.output] = ops_.size() + 1;
+    runtime_[op.output] = op.out_shape;
+    producer_op_[op.output] = ops_.size();
+    ops_.push_back(std::move(op));
+    ops_.push_back(std::move(indices));
+    return Status::Ok();
+  }
   runtime_[op.output] = op.out_shape;
   producer_op_[op.output] = ops_.size();
   ops_.push_back(std::move(op));
@@ -2585,7 +2620,7 @@ Status Importer::ProcessNode(int idx) {
 Status Importer::CheckIntegerGraph(const std::vector<bool>& needed) const {
   if (integer_io_type_ == 0) return Status::Ok();
   const std::string type = TypeName(integer_io_type_);
-  const auto& out = graph().output(0);
+  const auto& out = graph().output(output_index_);
   const int out_type = out.type().has_tensor_type() ? out.type().tensor_type().elem_type() : 0;
   if (out_type != integer_io_type_) {
     return FileError("graph output " + Quote(out.name()) + " has element type " +
@@ -2808,11 +2843,7 @@ Status Importer::CheckConvPads(int idx, const ConvSpec& conv,
 }
 
 Result<ModelSpec> Importer::Assemble() {
-  if (graph().output_size() != 1) {
-    return FileError("graph has " + std::to_string(graph().output_size()) +
-                     " outputs; the network has exactly one (1, 3, H, W) output");
-  }
-  const std::string& out_name = graph().output(0).name();
+  const std::string& out_name = graph().output(output_index_).name();
   if (runtime_.count(out_name) == 0) {
     return FileError("graph output " + Quote(out_name) +
                      (IsConst(out_name) ? " is a constant: it does not depend on the input"
@@ -3234,6 +3265,7 @@ Result<ModelSpec> Importer::Run() {
   SFRT_ONNX_RETURN_IF_ERROR(ReadOpset());
   SFRT_ONNX_RETURN_IF_ERROR(ReadInitializers());
   SFRT_ONNX_RETURN_IF_ERROR(ReadInput());
+  SFRT_ONNX_RETURN_IF_ERROR(ChooseOutput());
   const std::vector<bool> live = LiveNodes();
   if (const std::vector<int> unknown = UnknownOpNodes(live); !unknown.empty()) {
     return UnsupportedNodesError(unknown);

@@ -129,7 +129,9 @@ std::string LayerOp(const LayerDesc& layer) {
       return "scale+shift";
     case LayerKind::kPool2D: {
       const PoolParams& p = layer.pool;
-      return std::string(p.kind == PoolKind::kMax ? "maxpool " : "avgpool ") +
+      return std::string(p.kind == PoolKind::kMax       ? "maxpool "
+                         : p.kind == PoolKind::kAverage ? "avgpool "
+                                                        : "argmax-pool ") +
              std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
              std::to_string(p.stride_h);
     }

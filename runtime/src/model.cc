@@ -1225,6 +1225,9 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
           case fb::PoolKind::Average:
             p.kind = PoolKind::kAverage;
             break;
+          case fb::PoolKind::ArgMax:
+            p.kind = PoolKind::kArgMax;
+            break;
           default:
             return check.Fail(where + ": pool kind is unknown value " +
                               std::to_string(static_cast<int>(c->kind())));
@@ -1269,6 +1272,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
         }
         p.ceil_mode = c->ceil_mode();
         p.count_include_pad = c->count_include_pad();
+        p.indices_column_major = c->indices_column_major();
+        if (p.indices_column_major && p.kind != PoolKind::kArgMax) {
+          return check.Fail(where + ": indices_column_major is set on a pool that is not argmax");
+        }
         channels_of.push_back(channels_read(layer.inputs[0]));
         break;
       }

@@ -169,6 +169,12 @@ Status GeometryOfLayer(const LayerDesc& layer, size_t i, int height, int width,
                              std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) +
                              " window with its padding");
       }
+      if (p.kind == PoolKind::kArgMax && cur.elements() > (size_t{1} << 24)) {
+        return Status::Error(Quote(layer, i) + ": an argmax pool over " +
+                             std::to_string(cur.height) + "x" + std::to_string(cur.width) + "x" +
+                             std::to_string(cur.channels) +
+                             " values: float32 holds their indices exactly up to 2^24 only");
+      }
       g.output = {oh, ow, cur.channels};
       break;
     }

@@ -1172,6 +1172,50 @@ TEST_F(OnnxImporter, ImportsAnInt8GraphOfSelectionOperatorsWithItsIntegerClipBou
   EXPECT_EQ(LayerAs<PoolSpec>(*spec, 1).kind, PoolKind::kMax);
 }
 
+// A MaxPool's Indices output (ONNX's second output, INT64) becomes an argmax pool when the
+// import chooses it; a graph of two outputs is refused unless one is chosen, listing both, and
+// a name that is no output is refused the same way. storage_order 1 numbers column-major.
+TEST_F(OnnxImporter, ImportsAMaxPoolsIndicesOutputAsAnArgMaxPoolWhenChosen) {
+  OnnxModel m;
+  m.Input("x", {1, 3, 6, 6});
+  auto& pool = m.Node("MaxPool", {"x"}, {"y", "where"}, "pool");
+  SetInts(pool, "kernel_shape", {2, 2});
+  SetInts(pool, "strides", {2, 2});
+  auto* order = pool.add_attribute();
+  order->set_name("storage_order");
+  order->set_type(onnx::AttributeProto::INT);
+  order->set_i(1);
+  m.Output("y");
+  m.Output("where", onnx::TensorProto::INT64);
+  const std::string path = m.Save("maxpool_argmax.onnx");
+  auto unchosen = ImportOnnx(path);
+  ASSERT_FALSE(unchosen.ok());
+  EXPECT_NE(unchosen.message().find("graph has 2 outputs ('y', 'where'); an sfrt model computes "
+                                    "one: choose it"),
+            std::string::npos)
+      << unchosen.message();
+  OnnxImportOptions options;
+  options.output = "elsewhere";
+  auto unknown = ImportOnnx(path, options);
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.message().find("graph has no output 'elsewhere'; its outputs: 'y', 'where'"),
+            std::string::npos)
+      << unknown.message();
+  options.output = "where";
+  auto indices = ImportOk(path, options);
+  ASSERT_TRUE(indices.ok());
+  ASSERT_EQ(indices->layers.size(), 1u);
+  EXPECT_EQ(LayerAs<PoolSpec>(*indices, 0).kind, PoolKind::kArgMax);
+  EXPECT_TRUE(LayerAs<PoolSpec>(*indices, 0).indices_column_major);
+  EXPECT_EQ(indices->output.channels, 3);
+  options.output = "y";
+  auto values = ImportOk(path, options);
+  ASSERT_TRUE(values.ok());
+  ASSERT_EQ(values->layers.size(), 1u);
+  EXPECT_EQ(LayerAs<PoolSpec>(*values, 0).kind, PoolKind::kMax);
+  EXPECT_FALSE(LayerAs<PoolSpec>(*values, 0).indices_column_major);
+}
+
 // Arithmetic on integers (a convolution; ONNX's integer Add even wraps around) is not what
 // float32 computes, an output of another type is not the graph's, and INT32 does not fit
 // float32: each refused, naming the node or tensor.

@@ -161,6 +161,69 @@ exporter::ModelSpec PoolingEncoderSpec() {
   return spec;
 }
 
+// The argmax pool (schema 1.10, ONNX MaxPool's Indices output): per window and channel the
+// first largest tap in row-major window order, as its index c * H * W + y * W + x in the input
+// (c * H * W + x * H + y column-major). Worked out by hand on 2 channels of 2x3, with a tie.
+TEST(PoolRef, ArgMaxGivesTheFirstLargestTapAsAnIndexOfTheInput) {
+  // Channel 0 (rows): 1 5 5 / 2 0 7; channel 1 is its negation. NHWC.
+  std::vector<float> in = {1, -1, 5, -5, 5, -5, 2, -2, 0, 0, 7, -7};
+  PoolParams p;
+  p.kind = PoolKind::kArgMax;
+  p.kernel_h = p.kernel_w = 2;
+  p.stride_h = p.stride_w = 1;
+  const ConstTensorView view{in.data(), 2, 3, 2, 6};
+  std::vector<float> out(4, NAN);
+  ref::PoolRows(view, p, {}, DenseView(out.data(), 1, 2, 2), 0, 1);
+  // Window 0: 5 at (0, 1); channel 1: 0 at (1, 1), plane offset 6. Window 1: 7 at (1, 2).
+  EXPECT_EQ(out, (std::vector<float>{1, 10, 5, 10}));
+  p.indices_column_major = true;
+  ref::PoolRows(view, p, {}, DenseView(out.data(), 1, 2, 2), 0, 1);
+  EXPECT_EQ(out, (std::vector<float>{2, 9, 5, 9}));
+  // A tie: 7 becomes 5, and window 1's first 5 in row-major order is at (0, 1).
+  in[10] = 5;
+  p.indices_column_major = false;
+  ref::PoolRows(view, p, {}, DenseView(out.data(), 1, 2, 2), 0, 1);
+  EXPECT_EQ(out, (std::vector<float>{1, 10, 1, 10}));
+  // Padding never wins, even over negative values: a 3x3 window padded by 1 on a 1x1 input.
+  const std::vector<float> one = {-4.0f};
+  p.kernel_h = p.kernel_w = 3;
+  std::vector<float> single(1, NAN);
+  ref::PoolRows(ConstTensorView{one.data(), 1, 1, 1, 1}, p, {1, 1, 1, 1},
+                DenseView(single.data(), 1, 1, 1), 0, 1);
+  EXPECT_EQ(single[0], 0.0f);
+}
+
+// Shape inference (so every session) refuses an argmax pool whose input has more than 2^24
+// values, whose indices float32 cannot hold exactly; the writer refuses it below schema 1.10.
+TEST(PoolShapes, AnArgMaxPoolOverMoreThan2To24ValuesIsRefusedAndNeedsSchema110) {
+  exporter::ModelSpec spec;
+  spec.name = "argmax";
+  spec.input.name = "x";
+  spec.input.channels = 64;
+  spec.input.image_order.clear();
+  exporter::SetOutputChannels(spec, 64);
+  exporter::PoolSpec pool;
+  pool.name = "where";
+  pool.inputs = {"x"};
+  pool.kind = PoolKind::kArgMax;
+  spec.layers.push_back(pool);
+  auto model = testing::LoadOrDie(spec);
+  ASSERT_NE(model, nullptr);
+  EXPECT_TRUE(InferGeometry(*model, 512, 512).ok());  // exactly 2^24
+  auto big = InferGeometry(*model, 512, 514);
+  ASSERT_FALSE(big.ok());
+  EXPECT_NE(big.message().find("'where'"), std::string::npos) << big.message();
+  EXPECT_NE(big.message().find("exactly up to 2^24"), std::string::npos) << big.message();
+  // The kind is new in schema 1.10: a 1.9 file cannot say it.
+  exporter::SerializeOptions options;
+  options.schema_minor = 9;
+  auto bytes = exporter::SerializeModel(spec, options);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_NE(bytes.message().find("Pool2D kind argmax needs schema 1.10; writing 1.9"),
+            std::string::npos)
+      << bytes.message();
+}
+
 TEST(PoolSession, PoolingEncoderMatchesTheReferenceForwardOnEveryIsa) {
   auto model = testing::LoadOrDie(PoolingEncoderSpec());
   ASSERT_NE(model, nullptr);

@@ -14,9 +14,11 @@ usage: onnx_node_tests.py --sfrt BIN --work DIR [--isa ref,avx2,...] [--case NAM
 3. Prepares each: inputs after the first that the case feeds (weights, scales, sizes) become
    initializers holding the case's values; a batch of N is run as N one-image runs of a batch-1
    model (sfrt runs one image at a time).
-4. `sfrt export --input-kind tensor`, then `sfrt infer --input-npy` for each batch item on each
-   ISA of --isa (default: every ISA `sfrt infer` accepts on this CPU), compared with the case's
-   expected output: |sfrt - expected| <= 1e-4 * max(1, max |expected|). A case of 8- or 16-bit
+4. `sfrt export --input-kind tensor` (once per graph output, with `--onnx-output`, when there
+   are several: MaxPool's values and Indices), then `sfrt infer --input-npy` for each batch item
+   on each ISA of --isa (default: every ISA `sfrt infer` accepts on this CPU), compared with the
+   case's expected output: |sfrt - expected| <= 1e-4 * max(1, max |expected|). MaxPool's INT64
+   Indices are compared as the float32 values sfrt writes (exact below 2^24). A case of 8- or 16-bit
    integers (MaxPool, Clip) is exported as it is (sfrt computes it in float32, which holds
    every such value) and fed and compared as float32 values.
 
@@ -70,8 +72,8 @@ EXPECTED = {
     "test_maxpool_2d_strides": PASS,
     "test_maxpool_2d_dilations": PASS,
     "test_maxpool_2d_uint8": PASS,
-    "test_maxpool_with_argmax_2d_precomputed_pads": "the Indices output",
-    "test_maxpool_with_argmax_2d_precomputed_strides": "the Indices output",
+    "test_maxpool_with_argmax_2d_precomputed_pads": PASS,
+    "test_maxpool_with_argmax_2d_precomputed_strides": PASS,
     # AveragePool.
     "test_averagepool_2d_default": PASS,
     "test_averagepool_2d_ceil": PASS,
@@ -243,53 +245,66 @@ def supported_isas(sfrt, model_file, input_file, work):
 
 def run_case(sfrt, case_dir, work, isas):
     """Returns (None, worst error relative to max(1, max |expected|)) when the case passes on
-    every ISA, else (what went wrong, None)."""
+    every ISA, else (what went wrong, None). A case with several outputs (MaxPool's values and
+    Indices) is exported once per output with `--onnx-output`."""
     import onnx
     model = onnx.load(os.path.join(case_dir, "model.onnx"))
     data_dir = os.path.join(case_dir, "test_data_set_0")
     inputs = [read_tensor(os.path.join(data_dir, f"input_{i}.pb"))
               for i in range(len(model.graph.input))]
-    expected = read_tensor(os.path.join(data_dir, "output_0.pb"))
+    names = [o.name for o in model.graph.output]
+    expected = [read_tensor(os.path.join(data_dir, f"output_{k}.pb")) for k in range(len(names))]
     small_integers = (np.int8, np.uint8, np.int16, np.uint16)
-    if inputs[0].dtype in small_integers and expected.dtype == inputs[0].dtype:
-        fed = inputs[0].astype(np.float32)  # the values, as `sfrt infer` reads them
-        expected = expected.astype(np.float32)
-    elif inputs[0].dtype != np.float32 or expected.dtype != np.float32:
-        return f"data is {inputs[0].dtype} -> {expected.dtype}, not float32", None
-    else:
-        fed = inputs[0]
+    fed = inputs[0]
+    for k, want in enumerate(expected):
+        if inputs[0].dtype in small_integers and want.dtype == inputs[0].dtype:
+            expected[k] = want.astype(np.float32)  # the values, as `sfrt infer` writes them
+        elif inputs[0].dtype == np.float32 and want.dtype == np.int64:
+            # MaxPool's Indices: sfrt writes them as float32, exact up to 2^24.
+            if want.size and np.abs(want).max() >= 2 ** 24:
+                return f"output {names[k]!r} holds indices beyond 2^24", None
+            expected[k] = want.astype(np.float32)
+        elif inputs[0].dtype != np.float32 or want.dtype != np.float32:
+            return f"data is {inputs[0].dtype} -> {want.dtype}, not float32", None
+    fed = fed.astype(np.float32)  # small integers: the values, as `sfrt infer` reads them
     if lifted(model):
         fed = fed[None]
-        expected = expected[None]
+        expected = [want[None] for want in expected]
     os.makedirs(work, exist_ok=True)
     model_file = os.path.join(work, "model.onnx")
     try:
         onnx.save(prepare(model, inputs), model_file)
     except Exception as e:  # the onnx checker's or numpy's message names the problem
         return f"preparing the model: {e}", None
-    sfrt_file = os.path.join(work, "model.sfrt")
-    exported = run([sfrt, "export", model_file, "-o", sfrt_file, "--input-kind", "tensor"])
-    if exported.returncode != 0:
-        return "export: " + first_line(exported.stderr + exported.stdout), None
     worst = 0.0
-    for b in range(fed.shape[0]):
-        input_file = os.path.join(work, f"input_{b}.npy")
-        np.save(input_file, np.ascontiguousarray(fed[b].transpose(1, 2, 0)))
-        want = expected[b].transpose(1, 2, 0)
-        bound = TOLERANCE * max(1.0, float(np.abs(want).max()))
-        for isa in isas:
-            out_file = os.path.join(work, f"output_{b}_{isa}.npy")
-            inferred = run([sfrt, "infer", "--model", sfrt_file, "--input-npy", input_file, "-o",
-                            out_file], dict(os.environ, SFRT_ISA=isa))
-            if inferred.returncode != 0:
-                return f"infer ({isa}): " + first_line(inferred.stderr + inferred.stdout), None
-            got = np.load(out_file)
-            if got.shape != want.shape:
-                return f"{isa}: output shape {got.shape}, expected {want.shape}", None
-            err = float(np.abs(got - want).max())
-            worst = max(worst, err / bound * TOLERANCE)
-            if not err <= bound:
-                return f"{isa}: max |error| {err:.3g} > {bound:.3g} (batch item {b})", None
+    for k, name in enumerate(names):
+        what = f"output {name!r}: " if len(names) > 1 else ""
+        sfrt_file = os.path.join(work, f"model_{k}.sfrt")
+        chosen = ["--onnx-output", name] if len(names) > 1 else []
+        exported = run([sfrt, "export", model_file, "-o", sfrt_file, "--input-kind", "tensor",
+                        *chosen])
+        if exported.returncode != 0:
+            return what + "export: " + first_line(exported.stderr + exported.stdout), None
+        for b in range(fed.shape[0]):
+            input_file = os.path.join(work, f"input_{b}.npy")
+            np.save(input_file, np.ascontiguousarray(fed[b].transpose(1, 2, 0)))
+            want = expected[k][b].transpose(1, 2, 0)
+            bound = TOLERANCE * max(1.0, float(np.abs(want).max()))
+            for isa in isas:
+                out_file = os.path.join(work, f"output_{k}_{b}_{isa}.npy")
+                inferred = run([sfrt, "infer", "--model", sfrt_file, "--input-npy", input_file,
+                                "-o", out_file], dict(os.environ, SFRT_ISA=isa))
+                if inferred.returncode != 0:
+                    return (what + f"infer ({isa}): " +
+                            first_line(inferred.stderr + inferred.stdout)), None
+                got = np.load(out_file)
+                if got.shape != want.shape:
+                    return what + f"{isa}: output shape {got.shape}, expected {want.shape}", None
+                err = float(np.abs(got - want).max())
+                worst = max(worst, err / bound * TOLERANCE)
+                if not err <= bound:
+                    return (what + f"{isa}: max |error| {err:.3g} > {bound:.3g} "
+                            f"(batch item {b})"), None
     return None, worst
 
 
@@ -331,7 +346,7 @@ def main():
             # Find the ISAs once, on the first case that should pass.
             problem, _ = run_case(args.sfrt, os.path.join(node_dir, case), probe, ["ref"])
             if problem is None:
-                isas = supported_isas(args.sfrt, os.path.join(probe, "model.sfrt"),
+                isas = supported_isas(args.sfrt, os.path.join(probe, "model_0.sfrt"),
                                       os.path.join(probe, "input_0.npy"), probe)
                 print(f"ISAs this CPU runs: {','.join(isas)}")
         problem, worst = run_case(args.sfrt, os.path.join(node_dir, case), work, isas or ["ref"])

@@ -66,6 +66,7 @@ struct ExportArgs {
   float cy = 0;
   std::string architecture;
   std::string keras_bilinear;
+  std::string onnx_output;
   std::string weights = "fp32";
   bool check = false;
   std::string check_input;
@@ -692,6 +693,7 @@ int RunExport(const ExportArgs& args) {
     return ReportError(kName, "--check-size applies to --check without --check-input", kExitUsage);
   }
   exporter::OnnxImportOptions import_options;
+  import_options.output = args.onnx_output;
   if (args.padding == "auto") {
     import_options.padding = exporter::PaddingDetection::kAuto;
   } else if (args.padding == "same-upper") {
@@ -737,6 +739,9 @@ int RunExport(const ExportArgs& args) {
   }
   if (!keras && !args.architecture.empty()) {
     return ReportError(kName, "--architecture applies to Keras .h5 input only", kExitUsage);
+  }
+  if (ext != ".onnx" && !args.onnx_output.empty()) {
+    return ReportError(kName, "--onnx-output applies to ONNX input only", kExitUsage);
   }
   if (!keras && !args.keras_bilinear.empty()) {
     return ReportError(kName,
@@ -1126,6 +1131,10 @@ Command AddExportCommand(CLI::App& parent) {
   cmd->add_option("--architecture", args->architecture,
                   "Keras only: architecture JSON (model.to_json()); needed for a weights-only "
                   ".h5 from save_weights(), replaces a full model's own model_config");
+  cmd->add_option("--onnx-output", args->onnx_output,
+                  "ONNX only: the graph output the model computes, for a graph with several "
+                  "(an sfrt model has one output; a MaxPool's Indices output becomes an argmax "
+                  "pool whose values are the indices)");
   cmd->add_option("--keras-bilinear", args->keras_bilinear,
                   "Keras only: the grid of bilinear UpSampling2D layers, half-pixel (TensorFlow "
                   "2) or asymmetric (TensorFlow 1: align_corners=False); default: half-pixel for "

@@ -125,13 +125,16 @@ std::string OpString(const LayerDesc& layer) {
     }
     case LayerKind::kPool2D: {
       const PoolParams& p = layer.pool;
-      std::string op = std::string(p.kind == PoolKind::kMax ? "maxpool " : "avgpool ") +
+      std::string op = std::string(p.kind == PoolKind::kMax       ? "maxpool "
+                                   : p.kind == PoolKind::kAverage ? "avgpool "
+                                                                  : "argmax-pool ") +
                        std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
                        std::to_string(p.stride_h);
       if (p.stride_w != p.stride_h) op += "x" + std::to_string(p.stride_w);
       op += DilationSuffix(p.dilation_h, p.dilation_w);
       if (p.ceil_mode) op += " ceil";
       if (p.kind == PoolKind::kAverage && p.count_include_pad) op += " count-pads";
+      if (p.kind == PoolKind::kArgMax && p.indices_column_major) op += " column-major";
       return op;
     }
     case LayerKind::kResize: {

@@ -30,7 +30,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 9;
+inline constexpr int kSchemaVersionMinor = 10;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
 // as do kConvTranspose2D and kPool2D (schema 1.6).
@@ -161,8 +161,12 @@ struct ConvTransposeParams {
 // Max or average pooling (schema 1.6, float32; docs/model-format.md, "Pool2D"): window (y, x)
 // covers input rows y * stride_h - pads.top .. + kernel_h - 1 and likewise columns; padded
 // positions never win a max; an average divides by the window's input positions, or with
-// count_include_pad by its positions up to the end of the padded input.
-enum class PoolKind { kMax, kAverage };
+// count_include_pad by its positions up to the end of the padded input. kArgMax (schema 1.10):
+// where the max is (the first in row-major window order among equal values), as the float32
+// index c * H * W + y * W + x of the input (H x W; c * H * W + x * H + y with
+// indices_column_major), ONNX MaxPool's Indices output; exact while the input holds at most 2^24
+// values (the session refuses larger ones).
+enum class PoolKind { kMax, kAverage, kArgMax };
 struct PoolParams {
   PoolKind kind = PoolKind::kMax;
   int kernel_h = 1;
@@ -177,6 +181,7 @@ struct PoolParams {
   Padding pads;  // the rule when kExplicit; as stored otherwise
   bool ceil_mode = false;
   bool count_include_pad = false;
+  bool indices_column_major = false;  // kArgMax only (schema 1.10)
 };
 
 // Resizing as ONNX Resize computes it (schema 1.7, float32; docs/model-format.md, "Resize"):

@@ -129,7 +129,8 @@ struct PoolSpec {  // schema 1.6 (sfrt/model.h, PoolParams); float32
   PaddingRule padding_rule = PaddingRule::kExplicit;
   Pads pads;  // the amounts at the traced size; the rule when padding_rule == kExplicit
   bool ceil_mode = false;
-  bool count_include_pad = false;  // kAverage
+  bool count_include_pad = false;     // kAverage
+  bool indices_column_major = false;  // kArgMax (schema 1.10; sfrt/model.h, PoolParams)
 };
 
 struct ResizeSpec {  // schema 1.7 (sfrt/model.h, ResizeParams); float32

@@ -67,6 +67,10 @@ enum class PaddingDetection {
 
 struct OnnxImportOptions {
   PaddingDetection padding = PaddingDetection::kAuto;
+  // The graph output the model computes (an sfrt model has one output). Empty: the graph's only
+  // output; a graph with several is refused, listing them. A MaxPool's Indices output (INT64 in
+  // ONNX) becomes an argmax pool whose float32 values are the indices.
+  std::string output;
 };
 
 // Fills layers, input (channels, traced size), output channels and producer (format, file
