@@ -127,8 +127,9 @@ int FusedUpsampling(const Model& model, size_t i, int& crop) {
 }
 
 // A graph's int8 or bf16 convolution (float32 tensors between layers): `in` converted to what it
-// reads, float32 written to `dst`. With `up` >= 0 it reads the map before that upsampling (`in`)
-// and the upsampling (`c`: the upsampling's or its crop's geometry), as the session does.
+// reads, float32 written to `dst`. With `up`, `in` is the map before a nearest-2x upsampling that
+// the convolution reads through the phase rule (`c`: the upsampling's or its crop's geometry), as
+// the session does.
 void ReducedGraphConv(const ConvParams& p, const LayerGeometry& g, ConstTensorView in, bool up,
                       const LayerGeometry& c, TensorView dst) {
   Tensor t;

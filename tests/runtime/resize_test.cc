@@ -227,7 +227,7 @@ TEST(ResizeSession, CropAndResizeKeepsItsRegionThroughTheFileOnEveryIsa) {
   EXPECT_EQ(r.roi_end_h, 0.75f);
   EXPECT_EQ(r.roi_end_w, 1.2f);
   EXPECT_EQ(r.extrapolation_value, -0.5f);
-  EXPECT_EQ(model->metadata().schema_minor, 9);
+  EXPECT_EQ(model->metadata().schema_minor, kSchemaVersionMinor);
   testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 10);
 }
 
