@@ -17,7 +17,7 @@ packages=(
   # tests, benchmarks, fuzzing (libFuzzer comes with clang's runtime) and memcheck
   libgtest-dev libgmock-dev libbenchmark-dev clang-14 libclang-rt-14-dev valgrind
   # reference models for tests (PyTorch builds SceneEDNet and exports ONNX)
-  python3 python3-numpy python3-torch python3-onnx python3-h5py python3-pil
+  python3 python3-numpy python3-torch python3-onnx python3-h5py python3-pil python3-flatbuffers
   # ROS 1 as Debian packages it: bag replay (ros/), the sfrt_ros node, and the master, rosbag
   # play and Python clients its tests use
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs

@@ -35,11 +35,15 @@ struct SynthArgs {
   std::string textures;
   double noise = 0;
   double blur = 0;
+  double pitch_rate = 0.004;
+  double max_speed = 0.10;
   int threads = 0;
   bool force = false;
   CLI::Option* focal_opt = nullptr;
   CLI::Option* cx_opt = nullptr;
   CLI::Option* cy_opt = nullptr;
+  CLI::Option* pitch_rate_opt = nullptr;
+  CLI::Option* max_speed_opt = nullptr;
 };
 
 int RunSynth(const SynthArgs& args) {
@@ -71,7 +75,8 @@ int RunSynth(const SynthArgs& args) {
         range("--objects", args.objects, 0, 200), range("--focal", focal, 1e-3, 1e7),
         range("--baseline", args.baseline, 1e-6, 1e6), range("--cx", cx, -1e6, 1e6),
         range("--cy", cy, -1e6, 1e6), range("--noise", args.noise, 0, 255),
-        range("--blur", args.blur, 0, 50)}) {
+        range("--blur", args.blur, 0, 50), range("--pitch-rate", args.pitch_rate, 0, 0.2),
+        range("--max-speed", args.max_speed, 0, 1)}) {
     if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
 
@@ -100,6 +105,15 @@ int RunSynth(const SynthArgs& args) {
       return ReportError(kName, "--out '" + args.out + "' exists and is not a directory",
                          kExitFailure);
   }
+  for (const CLI::Option* robot_only : {args.pitch_rate_opt, args.max_speed_opt}) {
+    if (robot_only->count() > 0 && args.scene != "robot") {
+      return ReportError(kName,
+                         robot_only->get_name() +
+                             ": only --scene robot has a driving rig (got --scene " + args.scene +
+                             ")",
+                         kExitUsage);
+    }
+  }
   if (!args.textures.empty()) {
     Result<std::vector<std::string>> files = synth::ListTextureImages(args.textures);
     if (!files.ok()) return ReportError(kName, "--textures: " + files.message(), kExitFailure);
@@ -111,6 +125,8 @@ int RunSynth(const SynthArgs& args) {
   options.scene.camera = synth::Camera{focal, args.baseline, cx, cy, width, height};
   options.scene.frames = args.frames;
   options.scene.objects = args.objects;
+  options.scene.max_pitch_rate = args.pitch_rate;
+  options.scene.max_speed = args.max_speed;
   options.sequences = args.sequences;
   options.seed = args.seed;
   options.texture_dir = args.textures;
@@ -186,6 +202,18 @@ Command AddSynthCommand(CLI::App& parent) {
   cmd->add_option("--noise", args->noise,
                   "Photometric noise, standard deviation in 8-bit grey levels (default 0)");
   cmd->add_option("--blur", args->blur, "Gaussian blur of the images, sigma in px (default 0)");
+  args->pitch_rate_opt =
+      cmd->add_option("--pitch-rate", args->pitch_rate,
+                      "--scene robot: the largest pitch rate of the rig in radians per frame, "
+                      "0..0.2, drawn per sequence (it shifts the image vertically by up to "
+                      "focal x rate px a frame)")
+          ->capture_default_str();
+  args->max_speed_opt =
+      cmd->add_option("--max-speed", args->max_speed,
+                      "--scene robot: the largest forward speed of the rig, scene units per "
+                      "frame, 0..1 (15% of the sequences creep at up to 0.01, the others drive "
+                      "at 0.01 to this)")
+          ->capture_default_str();
   cmd->add_option(
       "--threads", args->threads,
       "Rendering threads, 0..256 (0, the default: one per CPU; the output does not depend on it)");
@@ -197,7 +225,8 @@ Command AddSynthCommand(CLI::App& parent) {
       "textured box room, and textured spheres, boxes and flat cards moving and rotating\n"
       "rigidly; occlusion by ray casting per pixel centre. --scene room: the room moves\n"
       "slightly (ego-motion). --scene robot: metric, the rig drives through the room (speed up\n"
-      "to 0.1 m and turns up to 1.7 degrees per frame), some objects static.\n"
+      "to --max-speed and turns up to 1.7 degrees per frame, pitching up to --pitch-rate),\n"
+      "some objects static.\n"
       "Writing: the data set is written under <out>.partial-<pid> and renamed to --out only\n"
       "when every file is written and flushed; camera.json, with \"complete\": true, comes\n"
       "last (sfrt eval refuses an sfrt synth data set without it). On a failure (e.g. a full\n"

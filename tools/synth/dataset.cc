@@ -115,6 +115,10 @@ std::string CameraJson(const DatasetOptions& o) {
   s += "  \"objects\": " + std::to_string(o.scene.objects) + ",\n";
   s += std::string("  \"scene\": ") +
        (o.scene.preset == ScenePreset::kRobot ? "\"robot\"" : "\"room\"") + ",\n";
+  if (o.scene.preset == ScenePreset::kRobot) {
+    s += "  \"max_pitch_rate\": " + Number(o.scene.max_pitch_rate) + ",\n";
+    s += "  \"max_speed\": " + Number(o.scene.max_speed) + ",\n";
+  }
   s += "  \"textures\": " +
        (o.texture_dir.empty() ? std::string("\"procedural\"") : JsonString(o.texture_dir)) + ",\n";
   s += "  \"noise_sigma\": " + Number(o.noise_sigma) + ",\n";

@@ -285,11 +285,14 @@ Result<Scene> MakeRobotScene(const SceneOptions& options, uint64_t seed, int seq
     Quat q = Normalized(AxisRotation(1, rng.Uniform(-0.2, 0.2)) *
                         AxisRotation(0, rng.Uniform(-0.05, 0.05)) *
                         AxisRotation(2, rng.Uniform(-0.02, 0.02)));
-    const double speed =
-        rng.Uniform() < 0.15 ? rng.Uniform(0.0, 0.01) : rng.Uniform(0.01, 0.10);  // m per frame
+    const double speed = rng.Uniform() < 0.15
+                             ? rng.Uniform(0.0, 0.01)
+                             : rng.Uniform(0.01, std::max(0.01, options.max_speed));  // m/frame
     Vec3 v{speed * rng.Uniform(-0.15, 0.15), speed * rng.Uniform(-0.05, 0.05), speed};
+    // AxisRotation takes sin(angle / 2); angle / 2 is that within 1e-5 relative here.
+    const double pitch = options.max_pitch_rate / 2;
     const Quat turn = Normalized(AxisRotation(1, rng.Uniform(-0.015, 0.015)) *
-                                 AxisRotation(0, rng.Uniform(-0.002, 0.002)) *
+                                 AxisRotation(0, rng.Uniform(-pitch, pitch)) *
                                  AxisRotation(2, rng.Uniform(-0.002, 0.002)));
     const Vec3 margin{half.x - 0.6, half.y - 0.2, half.z - 0.6};
     Vec3 c{0, 0, 0};

@@ -99,6 +99,13 @@ struct SceneOptions {
   ScenePreset preset = ScenePreset::kRoom;
   int frames = 10;  // frames to render (poses are made for frames + 1)
   int objects = 8;  // moving objects besides the room
+  // kRobot: the largest pitch rate of the rig, radians per frame (drawn uniformly in +-this per
+  // sequence). The default 0.004 moves the image by at most f * 0.004 px a frame: a third of a
+  // pixel at f = 90 px, too little to learn vertical ego-motion from; a larger range shows it.
+  double max_pitch_rate = 0.004;
+  // kRobot: the largest forward speed, scene units per frame. 15% of the sequences creep at
+  // up to 0.01, the others drive at 0.01 to this (at most 0.01 when this is below it).
+  double max_speed = 0.10;
 };
 
 // A random scene for sequence `sequence` of the data set seeded with `seed`. Deterministic:

@@ -292,8 +292,10 @@ def parse_args(argv):
                    help="replace this share of the samples (0..1) by a still scene: the t "
                         "images again at t+1, zero flow (default 0)")
     p.add_argument("--init", default="",
-                   help="start from these weights (a best.pt or checkpoint.pt), not from "
-                        "random ones; the optimiser and iteration count start fresh")
+                   help="start from these weights (a best.pt or checkpoint.pt, or a float32 "
+                        ".sfrt file such as models/sceneednet-u.sfrt: its batch norm is folded, "
+                        "so train it without --batch-norm), not from random ones; the "
+                        "optimiser and iteration count start fresh")
     p.add_argument("--cache-dir", default="",
                    help="keep decoded, downsampled data sets here as .npy (faster restarts)")
     p.add_argument("--flow-scale", type=float, default=1.0,
@@ -362,7 +364,12 @@ def main(argv=None):
     it, best = 0, float("inf")
     spent = 0.0
     if args.init and not (args.resume and os.path.isfile(ckpt_path)):
-        model.load_state_dict(torch.load(args.init)["model"])
+        if args.init.endswith(".sfrt"):
+            import sfrt_weights  # needs python3-flatbuffers
+
+            sfrt_weights.load_into(model, args.init, output_scale=args.flow_scale)
+        else:
+            model.load_state_dict(torch.load(args.init)["model"])
         print(f"init    weights of {args.init}", flush=True)
     if args.resume and os.path.isfile(ckpt_path):
         state = torch.load(ckpt_path)

@@ -251,6 +251,52 @@ TEST(SynthGroundTruth, RobotSceneReprojectionMatchesFlowDisparityChangeAndSceneF
   CheckReprojection(o);
 }
 
+// The robot rig's pitch rate and forward speed stay within SceneOptions' ranges and use them:
+// the rate read back from the room's pose between frames, the speed from the camera's position in
+// the room. The defaults keep the ranges the held-out data was made with.
+TEST(SynthScene, RobotRigPitchesAndDrivesWithinTheChosenRanges) {
+  auto largest = [](const SceneOptions& scene_options) {
+    TextureSource textures;
+    double pitch = 0, speed = 0;
+    for (int sequence = 0; sequence < 40; ++sequence) {
+      Result<Scene> scene = MakeRandomScene(scene_options, 5, sequence, textures);
+      EXPECT_TRUE(scene.ok()) << scene.message();
+      if (!scene.ok()) break;
+      const SceneObject& room = scene->objects.front();
+      EXPECT_EQ(room.kind, ShapeKind::kRoom);
+      for (size_t t = 0; t + 1 < room.poses.size(); ++t) {
+        const Mat3& a = room.poses[t].rotation;
+        const Mat3& b = room.poses[t + 1].rotation;
+        // The body-frame turn a * b^T is yaw * pitch * roll; its (1, 2) entry is -sin(pitch).
+        const double m12 = a.m[1][0] * b.m[2][0] + a.m[1][1] * b.m[2][1] + a.m[1][2] * b.m[2][2];
+        pitch = std::max(pitch, std::asin(std::fabs(m12)));
+        const Vec3 step = room.poses[t + 1].ToLocal({0, 0, 0}) - room.poses[t].ToLocal({0, 0, 0});
+        // The velocity has lateral parts of at most 0.15 and 0.05 of the forward speed.
+        speed = std::max(speed, Norm(step) / std::sqrt(1 + 0.15 * 0.15 + 0.05 * 0.05));
+      }
+    }
+    return std::pair<double, double>{pitch, speed};
+  };
+  SceneOptions o;
+  o.preset = ScenePreset::kRobot;
+  o.camera = Camera{180.0, 0.12, 127.5, 95.5, 256, 192};
+  o.frames = 4;
+  o.objects = 0;
+  const auto [default_pitch, default_speed] = largest(o);
+  EXPECT_LE(default_pitch, 0.004 * 1.001);
+  EXPECT_GT(default_pitch, 0.003);
+  EXPECT_LE(default_speed, 0.10 * 1.001);
+  EXPECT_GT(default_speed, 0.08);
+
+  o.max_pitch_rate = 0.02;
+  o.max_speed = 0.03;
+  const auto [pitch, speed] = largest(o);
+  EXPECT_LE(pitch, 0.02 * 1.001);
+  EXPECT_GT(pitch, 0.015);
+  EXPECT_LE(speed, 0.03 * 1.001);
+  EXPECT_GT(speed, 0.025);
+}
+
 // Occlusion: a sphere in front of a card in front of the room wall; the nearest surface wins,
 // and on a random scene no object is ever hit nearer than the rendered depth.
 TEST(SynthGroundTruth, NearestSurfaceWinsOcclusion) {
