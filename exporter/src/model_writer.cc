@@ -120,6 +120,14 @@ fb::ImageSlot ToSchema(ImageSlot s) {
       return fb::ImageSlot::Left1;
     case ImageSlot::kRight1:
       return fb::ImageSlot::Right1;
+    case ImageSlot::kColor0:
+      return fb::ImageSlot::Color0;
+    case ImageSlot::kDepth0:
+      return fb::ImageSlot::Depth0;
+    case ImageSlot::kColor1:
+      return fb::ImageSlot::Color1;
+    case ImageSlot::kDepth1:
+      return fb::ImageSlot::Depth1;
   }
   return fb::ImageSlot::Left0;
 }
@@ -488,12 +496,20 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       b.CreateString(ps.source_format), b.CreateString(ps.source_file),
       b.CreateString(ps.source_sha256));
   std::vector<fb::ImageSlot> order;
-  for (ImageSlot s : spec.input.image_order) order.push_back(ToSchema(s));
+  for (ImageSlot s : spec.input.image_order) {
+    if (vocabulary::IsRgbdSlot(s) && options.schema_minor < 11) {
+      return Status::Error("input: RGB-D frames (image slot " +
+                           std::string(vocabulary::ImageSlotName(s)) +
+                           ") need schema 1.11; writing 1." + std::to_string(options.schema_minor));
+    }
+    order.push_back(ToSchema(s));
+  }
   const auto input = fb::CreateInputDesc(
       b, b.CreateString(spec.input.name), spec.input.channels, b.CreateVector(order),
       spec.input.color_order == ColorOrder::kBGR ? fb::ColorOrder::BGR : fb::ColorOrder::RGB,
       spec.input.scale, b.CreateVector(spec.input.mean.data(), 3),
-      b.CreateVector(spec.input.std.data(), 3), spec.input.traced_height, spec.input.traced_width);
+      b.CreateVector(spec.input.std.data(), 3), spec.input.traced_height, spec.input.traced_width,
+      spec.input.depth_mean, spec.input.depth_std, spec.input.depth_invalid);
   std::vector<flatbuffers::Offset<flatbuffers::String>> names;
   for (const auto& n : spec.output.channel_names) names.push_back(b.CreateString(n));
   // Before 1.2 the field held a fixed text, which 1.0 files keep.

@@ -151,6 +151,9 @@ Result<ModelSpec> ImportSfrt(const std::string& path) {
   }
   spec.input.traced_height = meta.input.traced_height;
   spec.input.traced_width = meta.input.traced_width;
+  spec.input.depth_mean = meta.input.depth_mean;
+  spec.input.depth_std = meta.input.depth_std;
+  spec.input.depth_invalid = meta.input.depth_invalid;
   spec.output.name = meta.output.name;
   spec.output.channels = meta.output.channels;
   spec.output.channel_names = meta.output.channel_names;

@@ -928,6 +928,13 @@ PipelineResult Runner::Run() {
   return result;
 }
 
+// "a,b,c".
+std::string JoinSlots(const std::vector<std::string>& slots) {
+  std::string text;
+  for (const std::string& slot : slots) text += (text.empty() ? "" : ",") + slot;
+  return text;
+}
+
 }  // namespace
 
 Result<std::string> ResolveVideoPath(const std::string& path) {
@@ -942,6 +949,12 @@ Result<std::string> ResolveVideoPath(const std::string& path) {
 }
 
 Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) {
+  if (input.is_rgbd()) {
+    return Status::Error("the model reads two RGB-D frames (" + JoinSlots(input.image_order) +
+                         "), and the pipeline reads stereo pairs; run it on files with sfrt "
+                         "infer --color0 --depth0 --color1 --depth1, or feed it through "
+                         "camera::RgbdPreprocessor");
+  }
   if (input.channels != 3 * static_cast<int>(input.image_order.size()) ||
       input.image_order.size() != 4) {
     return Status::Error("the model takes " + std::to_string(input.channels) +

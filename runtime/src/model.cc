@@ -89,18 +89,34 @@ float HalfToFloat(uint16_t h) {
   return std::bit_cast<float>(bits);
 }
 
+// "a,b,c".
+std::string Join(const std::vector<std::string>& words) {
+  std::string text;
+  for (const std::string& w : words) text += (text.empty() ? "" : ",") + w;
+  return text;
+}
+
 // The file's image slot as the vocabulary spells it (its names are string literals, so data()
 // ends in a NUL); null for a value the schema does not know.
 const char* ImageSlotName(fb::ImageSlot s) {
+  using vocabulary::ImageSlot;
   switch (s) {
     case fb::ImageSlot::Left0:
-      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kLeft0).data();
+      return vocabulary::ImageSlotName(ImageSlot::kLeft0).data();
     case fb::ImageSlot::Right0:
-      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kRight0).data();
+      return vocabulary::ImageSlotName(ImageSlot::kRight0).data();
     case fb::ImageSlot::Left1:
-      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kLeft1).data();
+      return vocabulary::ImageSlotName(ImageSlot::kLeft1).data();
     case fb::ImageSlot::Right1:
-      return vocabulary::ImageSlotName(vocabulary::ImageSlot::kRight1).data();
+      return vocabulary::ImageSlotName(ImageSlot::kRight1).data();
+    case fb::ImageSlot::Color0:
+      return vocabulary::ImageSlotName(ImageSlot::kColor0).data();
+    case fb::ImageSlot::Depth0:
+      return vocabulary::ImageSlotName(ImageSlot::kDepth0).data();
+    case fb::ImageSlot::Color1:
+      return vocabulary::ImageSlotName(ImageSlot::kColor1).data();
+    case fb::ImageSlot::Depth1:
+      return vocabulary::ImageSlotName(ImageSlot::kDepth1).data();
   }
   return nullptr;
 }
@@ -474,6 +490,14 @@ Status TakePhaseWeights(const Checker& check, const std::string& where, const fb
 
 }  // namespace
 
+bool InputDesc::is_rgbd() const {
+  for (const std::string& slot : image_order) {
+    const std::optional<vocabulary::ImageSlot> word = vocabulary::ImageSlotFromName(slot);
+    if (word && vocabulary::IsRgbdSlot(*word)) return true;
+  }
+  return false;
+}
+
 const char* ResizeModeName(ResizeMode mode) {
   switch (mode) {
     case ResizeMode::kNearest:
@@ -741,19 +765,36 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                       std::to_string(kMaxChannels));
   }
   if (in->image_order() != nullptr) {
+    int image_channels = 0;
+    int rgbd_slots = 0;
     for (auto slot : *in->image_order()) {
       const char* name = ImageSlotName(static_cast<fb::ImageSlot>(slot));
       if (name == nullptr) {
         return check.Fail("input.image_order holds unknown image slot " +
                           std::to_string(static_cast<int>(slot)));
       }
+      const vocabulary::ImageSlot word = *vocabulary::ImageSlotFromName(name);
+      for (const std::string& earlier : input.image_order) {
+        if (earlier == name) return check.Fail("input.image_order names " + earlier + " twice");
+      }
       input.image_order.push_back(name);
+      image_channels += vocabulary::SlotChannels(word);
+      rgbd_slots += vocabulary::IsRgbdSlot(word) ? 1 : 0;
     }
-    if (!input.image_order.empty() &&
-        static_cast<int>(input.image_order.size()) * 3 != input.channels) {
-      return check.Fail("input.image_order names " + std::to_string(input.image_order.size()) +
-                        " images (" + std::to_string(input.image_order.size() * 3) +
-                        " channels) but input.channels is " + std::to_string(input.channels));
+    const int slots = static_cast<int>(input.image_order.size());
+    if (rgbd_slots != 0 && rgbd_slots != slots) {
+      return check.Fail("input.image_order mixes stereo images and RGB-D frames (" +
+                        Join(input.image_order) + ")");
+    }
+    if (rgbd_slots != 0 && rgbd_slots != 4) {
+      return check.Fail("input.image_order names " + std::to_string(rgbd_slots) +
+                        " of the RGB-D frames' slots (" + Join(input.image_order) +
+                        "); must name color0, depth0, color1 and depth1");
+    }
+    if (slots != 0 && image_channels != input.channels) {
+      return check.Fail("input.image_order names " + std::to_string(slots) + " images (" +
+                        std::to_string(image_channels) + " channels) but input.channels is " +
+                        std::to_string(input.channels));
     }
   }
   switch (in->color_order()) {
@@ -788,6 +829,16 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   }
   input.traced_height = in->traced_height();
   input.traced_width = in->traced_width();
+  input.depth_mean = in->depth_mean();
+  input.depth_std = in->depth_std();
+  input.depth_invalid = in->depth_invalid();
+  if (!std::isfinite(input.depth_mean) || !std::isfinite(input.depth_std) ||
+      input.depth_std == 0.0f || !std::isfinite(input.depth_invalid)) {
+    return check.Fail("input.depth_mean, depth_std, depth_invalid are " +
+                      std::to_string(input.depth_mean) + ", " + std::to_string(input.depth_std) +
+                      ", " + std::to_string(input.depth_invalid) +
+                      "; must be finite, depth_std non-zero");
+  }
   if (const fb::OutputDesc* out = m->output()) {
     metadata_.output.name = Str(out->name());
     metadata_.output.channels = out->channels();

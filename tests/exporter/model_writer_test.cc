@@ -167,6 +167,103 @@ TEST(ModelWriter, APlainTensorInputWithAnyChannelCountRoundTrips) {
   EXPECT_EQ((*model)->metadata().output.channel_names.size(), 3u);
 }
 
+// SceneEDNet at 1/16 width reading two RGB-D frames (8 channels) in `order`.
+ModelSpec RgbdSpec(std::vector<ImageSlot> order) {
+  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
+  first.in_channels = 8;
+  first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * 8 *
+                            first.out_channels);
+  spec.input.channels = 8;
+  spec.input.image_order = std::move(order);
+  return spec;
+}
+
+TEST(ModelWriter, TwoRgbdFramesRoundTripWithTheirDepthPreprocessingFromSchema111) {
+  ModelSpec spec =
+      RgbdSpec({ImageSlot::kColor1, ImageSlot::kDepth1, ImageSlot::kColor0, ImageSlot::kDepth0});
+  spec.input.depth_mean = 2.5f;
+  spec.input.depth_std = 1.25f;
+  spec.input.depth_invalid = -3.0f;
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_TRUE(model.ok()) << model.message();
+  const InputDesc& in = (*model)->metadata().input;
+  EXPECT_EQ(in.image_order, (std::vector<std::string>{"color1", "depth1", "color0", "depth0"}));
+  EXPECT_TRUE(in.is_rgbd());
+  EXPECT_FALSE(in.is_tensor());
+  EXPECT_EQ(in.depth_mean, 2.5f);
+  EXPECT_EQ(in.depth_std, 1.25f);
+  EXPECT_EQ(in.depth_invalid, -3.0f);
+  // Re-exporting the file (sfrt export M.sfrt) keeps the frames and their preprocessing.
+  const fs::path path = fs::temp_directory_path() / "sfrt_rgbd_roundtrip.sfrt";
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes->data()),
+             static_cast<std::streamsize>(bytes->size()));
+  auto again = ImportSfrt(path.string());
+  fs::remove(path);
+  ASSERT_TRUE(again.ok()) << again.message();
+  EXPECT_EQ(again->input.image_order, spec.input.image_order);
+  EXPECT_EQ(again->input.depth_mean, 2.5f);
+  EXPECT_EQ(again->input.depth_std, 1.25f);
+  EXPECT_EQ(again->input.depth_invalid, -3.0f);
+
+  // A 1.10 reader would not know the slots: the writer refuses to label them 1.10.
+  SerializeOptions v110;
+  v110.schema_minor = 10;
+  auto old = SerializeModel(spec, v110);
+  ASSERT_FALSE(old.ok());
+  EXPECT_NE(old.message().find("input: RGB-D frames (image slot color1) need schema 1.11; "
+                               "writing 1.10"),
+            std::string::npos)
+      << old.message();
+}
+
+TEST(ModelWriter, LoaderRefusesAnRgbdOrderThatMixesKindsRepeatsOrMissesASlot) {
+  const struct {
+    std::vector<ImageSlot> order;
+    int channels;
+    const char* error;
+  } cases[] = {
+      {{ImageSlot::kColor0, ImageSlot::kDepth0, ImageSlot::kLeft1, ImageSlot::kDepth1},
+       8,
+       "input.image_order mixes stereo images and RGB-D frames (color0,depth0,left1,depth1)"},
+      {{ImageSlot::kColor0, ImageSlot::kDepth0, ImageSlot::kColor0, ImageSlot::kDepth1},
+       8,
+       "input.image_order names color0 twice"},
+      {{ImageSlot::kColor0, ImageSlot::kDepth0},
+       4,
+       "input.image_order names 2 of the RGB-D frames' slots (color0,depth0); must name color0, "
+       "depth0, color1 and depth1"},
+      {{ImageSlot::kColor0, ImageSlot::kDepth0, ImageSlot::kColor1, ImageSlot::kDepth1},
+       12,
+       "input.image_order names 4 images (8 channels) but input.channels is 12"},
+  };
+  for (const auto& c : cases) {
+    ModelSpec spec = RgbdSpec(c.order);
+    spec.input.channels = c.channels;
+    ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
+    first.in_channels = c.channels;
+    first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * c.channels *
+                              first.out_channels);
+    auto bytes = SerializeModel(spec);
+    ASSERT_TRUE(bytes.ok()) << bytes.message();
+    auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+    ASSERT_FALSE(model.ok()) << c.error;
+    EXPECT_NE(model.message().find(c.error), std::string::npos) << model.message();
+  }
+  ModelSpec spec =
+      RgbdSpec({ImageSlot::kColor0, ImageSlot::kDepth0, ImageSlot::kColor1, ImageSlot::kDepth1});
+  spec.input.depth_std = 0.0f;
+  auto bytes = SerializeModel(spec);
+  ASSERT_TRUE(bytes.ok()) << bytes.message();
+  auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
+  ASSERT_FALSE(model.ok());
+  EXPECT_NE(model.message().find("must be finite, depth_std non-zero"), std::string::npos)
+      << model.message();
+}
+
 TEST(ModelWriter, UnitsAndTrainingStateRoundTripFromSchema12) {
   ModelSpec spec = testing::SceneEdNetSpec(16);
   spec.output.units = "metres";

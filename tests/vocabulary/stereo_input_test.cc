@@ -22,7 +22,14 @@ TEST(StereoInputWords, EveryNameParsesBackToItsWordAndOthersAreRefused) {
   EXPECT_FALSE(ImageSlotFromName("left2"));
   EXPECT_FALSE(ImageSlotFromName(""));
   EXPECT_FALSE(ColorOrderFromName("bgr"));
-  EXPECT_EQ(ImageSlotName(static_cast<ImageSlot>(7)), "?");
+  EXPECT_EQ(ImageSlotName(static_cast<ImageSlot>(8)), "?");
+  // Stereo images fill 3 channels each; of the RGB-D frames, colour 3 and depth 1.
+  int stereo = 0, rgbd = 0;
+  for (ImageSlot s : kDefaultImageOrder) stereo += IsRgbdSlot(s) ? 100 : SlotChannels(s);
+  for (ImageSlot s : kDefaultRgbdOrder) rgbd += IsRgbdSlot(s) ? SlotChannels(s) : 100;
+  EXPECT_EQ(stereo, 12);
+  EXPECT_EQ(rgbd, 8);
+  EXPECT_EQ(ImageSlotName(ImageSlot::kDepth1), "depth1");
 }
 
 TEST(StereoInputWords, ModelFileMetadataIsSpelledWithTheVocabulary) {

@@ -127,6 +127,12 @@ class ModelRunner {
     runner->model_ = std::move(model).value();
     const InputDesc& in = runner->model_->metadata().input;
     const char* slots[4] = {"left0", "right0", "left1", "right1"};
+    if (in.is_rgbd()) {
+      return Status::Error(path +
+                           ": the model reads two RGB-D frames, and sfrt eval feeds stereo pairs "
+                           "(the Scene Flow datasets' layout); run it with sfrt infer --color0 "
+                           "--depth0 --color1 --depth1");
+    }
     if (in.channels != 12 || in.image_order.size() != 4) {
       return Status::Error(path + ": the model takes " + std::to_string(in.channels) +
                            " channels as " + std::to_string(in.image_order.size()) +

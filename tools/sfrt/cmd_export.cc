@@ -58,6 +58,9 @@ struct ExportArgs {
   std::string image_order;
   std::string input_kind = "auto";
   float scale = 1.0f;
+  float depth_mean = 0.0f;
+  float depth_std = 1.0f;
+  float depth_invalid = 0.0f;
   std::string mean;
   std::string std;
   float focal = 0;
@@ -90,9 +93,10 @@ struct ExportArgs {
 
 // The flags that set metadata; with a .sfrt source only the given ones replace the file's values.
 constexpr const char* kMetadataFlags[] = {
-    "--name", "--input-kind", "--color-order",   "--image-order", "--scale",
-    "--mean", "--std",        "--focal",         "--baseline",    "--cx",
-    "--cy",   "--units",      "--training-state"};
+    "--name", "--input-kind", "--color-order", "--image-order",   "--scale", "--mean",
+    "--std",  "--depth-mean", "--depth-std",   "--depth-invalid", "--focal", "--baseline",
+    "--cx",   "--cy",         "--units",       "--training-state"};
+constexpr const char* kDepthFlags[] = {"--depth-mean", "--depth-std", "--depth-invalid"};
 constexpr size_t kMaxUnitsLength = 64;
 // Flags that only apply with --calibration.
 constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibration-frames",
@@ -102,35 +106,71 @@ bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
 }
 
-// Whether the network's input is images (3 channels each, in `image_order`) or a plain tensor fed
-// as given (--input-kind). A .sfrt source without --input-kind keeps what its file says.
-Result<bool> InputIsImages(const ExportArgs& args, const exporter::ModelSpec& spec,
-                           const std::vector<exporter::ImageSlot>& image_order, bool sfrt_source) {
+// What the network's input holds (--input-kind).
+enum class InputKind { kImages, kRgbd, kTensor };
+
+bool IsRgbdOrder(const std::vector<exporter::ImageSlot>& order) {
+  return !order.empty() && vocabulary::IsRgbdSlot(order.front());
+}
+
+int OrderChannels(const std::vector<exporter::ImageSlot>& order) {
+  int channels = 0;
+  for (exporter::ImageSlot slot : order) channels += vocabulary::SlotChannels(slot);
+  return channels;
+}
+
+// The input kind --input-kind asks for, checked against the network's channel count and the
+// image order. `image_order` is --image-order's, or empty when it was not given. A .sfrt source
+// without --input-kind keeps what its file says.
+Result<InputKind> ChooseInputKind(const ExportArgs& args, const exporter::ModelSpec& spec,
+                                  const std::vector<exporter::ImageSlot>& image_order,
+                                  bool sfrt_source) {
   const int channels = spec.input.channels;
-  const int image_channels = 3 * static_cast<int>(image_order.size());
   std::string kind = args.input_kind;
   if (sfrt_source && !Given(args, "--input-kind")) {
-    kind = spec.input.image_order.empty() ? "tensor" : "images";
+    kind = spec.input.image_order.empty()        ? "tensor"
+           : IsRgbdOrder(spec.input.image_order) ? "rgbd"
+                                                 : "images";
   } else if (kind == "auto") {
-    kind = channels == image_channels ? "images" : "tensor";
+    const bool rgbd = IsRgbdOrder(image_order);
+    const int wanted = image_order.empty() ? 3 * vocabulary::kDefaultImageOrder.size()
+                                           : OrderChannels(image_order);
+    kind = channels != wanted ? "tensor" : rgbd ? "rgbd" : "images";
   }
-  if (kind == "images") {
-    if (channels != image_channels) {
-      return Status::Error(args.input + ": the network's input has " + std::to_string(channels) +
-                           " channels; --input-kind images takes " +
-                           std::to_string(image_channels) +
-                           " (3 per image of --image-order, default L0,R0,L1,R1)");
+  if (!image_order.empty() && kind != "tensor" && IsRgbdOrder(image_order) != (kind == "rgbd")) {
+    return Status::Error("--image-order '" + args.image_order + "' names " +
+                         (kind == "rgbd" ? "stereo images; --input-kind rgbd takes C0,D0,C1,D1"
+                                         : "RGB-D frames; give --input-kind rgbd for them"));
+  }
+  if (kind != "rgbd") {
+    for (const char* flag : kDepthFlags) {
+      if (Given(args, flag)) {
+        return Status::Error(std::string(flag) +
+                             " describes the depth maps of RGB-D frames, but the input is " +
+                             (kind == "images" ? "stereo images" : "a plain tensor") +
+                             "; give --input-kind rgbd for RGB-D frames");
+      }
     }
-    return true;
+  }
+  if (kind == "images" || kind == "rgbd") {
+    const bool rgbd = kind == "rgbd";
+    const int wanted = rgbd ? 8 : 12;
+    if (channels != wanted) {
+      return Status::Error(args.input + ": the network's input has " + std::to_string(channels) +
+                           " channels; --input-kind " + kind + " takes " + std::to_string(wanted) +
+                           (rgbd ? " (colour and depth of two frames: 3 + 1 + 3 + 1)"
+                                 : " (3 per image of --image-order, default L0,R0,L1,R1)"));
+    }
+    return rgbd ? InputKind::kRgbd : InputKind::kImages;
   }
   for (const char* flag : {"--image-order", "--color-order", "--scale", "--mean", "--std"}) {
     if (Given(args, flag)) {
       return Status::Error(std::string(flag) + " describes image inputs, but the input is a " +
                            std::to_string(channels) + "-channel plain tensor (--input-kind " +
-                           args.input_kind + "); give --input-kind images for images");
+                           args.input_kind + "); give --input-kind images or rgbd for images");
     }
   }
-  return false;
+  return InputKind::kTensor;
 }
 
 // The report's description of the input: the images and their preprocessing, or a plain tensor.
@@ -139,11 +179,16 @@ std::string InputLine(const InputDesc& input) {
   if (input.image_order.empty()) return channels + "a plain tensor, fed as given";
   std::string order;
   for (const std::string& slot : input.image_order) order += (order.empty() ? "" : ",") + slot;
-  return channels + order + ", " + input.color_order + ", value = (pixel * " +
-         FormatFloat(input.scale) + " - mean) / std, mean " + FormatFloat(input.mean[0]) + "," +
-         FormatFloat(input.mean[1]) + "," + FormatFloat(input.mean[2]) + ", std " +
-         FormatFloat(input.std[0]) + "," + FormatFloat(input.std[1]) + "," +
-         FormatFloat(input.std[2]);
+  std::string line = channels + order + ", " + input.color_order + ", value = (pixel * " +
+                     FormatFloat(input.scale) + " - mean) / std, mean " +
+                     FormatFloat(input.mean[0]) + "," + FormatFloat(input.mean[1]) + "," +
+                     FormatFloat(input.mean[2]) + ", std " + FormatFloat(input.std[0]) + "," +
+                     FormatFloat(input.std[1]) + "," + FormatFloat(input.std[2]);
+  if (input.is_rgbd()) {
+    line += "; depth value = (metres - " + FormatFloat(input.depth_mean) + ") / " +
+            FormatFloat(input.depth_std) + ", missing depth " + FormatFloat(input.depth_invalid);
+  }
+  return line;
 }
 
 // Empty when `units` can be stored: 1..64 printable ASCII characters.
@@ -191,9 +236,19 @@ bool ParseTriple(const std::string& text, std::array<float, 3>* out) {
   return true;
 }
 
-// "L0,R0,L1,R1" (or left0,right0,...; any case) -> a permutation of the four image slots.
+// "L0,R0,L1,R1" (or left0,right0,...; any case) -> a permutation of the four stereo image slots;
+// "C0,D0,C1,D1" (color0,depth0,...) -> one of the two RGB-D frames' slots.
 bool ParseImageOrder(const std::string& text, std::vector<exporter::ImageSlot>* out,
                      std::string* error) {
+  using exporter::ImageSlot;
+  static constexpr struct {
+    const char* short_name;
+    const char* long_name;
+    ImageSlot slot;
+  } kTokens[] = {{"L0", "LEFT0", ImageSlot::kLeft0},   {"R0", "RIGHT0", ImageSlot::kRight0},
+                 {"L1", "LEFT1", ImageSlot::kLeft1},   {"R1", "RIGHT1", ImageSlot::kRight1},
+                 {"C0", "COLOR0", ImageSlot::kColor0}, {"D0", "DEPTH0", ImageSlot::kDepth0},
+                 {"C1", "COLOR1", ImageSlot::kColor1}, {"D1", "DEPTH1", ImageSlot::kDepth1}};
   out->clear();
   size_t start = 0;
   while (true) {
@@ -201,32 +256,33 @@ bool ParseImageOrder(const std::string& text, std::vector<exporter::ImageSlot>* 
     std::string token = Upper(text.substr(start, comma - start));
     while (!token.empty() && token.front() == ' ') token.erase(token.begin());
     while (!token.empty() && token.back() == ' ') token.pop_back();
-    exporter::ImageSlot slot;
-    if (token == "L0" || token == "LEFT0") {
-      slot = exporter::ImageSlot::kLeft0;
-    } else if (token == "R0" || token == "RIGHT0") {
-      slot = exporter::ImageSlot::kRight0;
-    } else if (token == "L1" || token == "LEFT1") {
-      slot = exporter::ImageSlot::kLeft1;
-    } else if (token == "R1" || token == "RIGHT1") {
-      slot = exporter::ImageSlot::kRight1;
-    } else {
-      *error = "--image-order: unknown image '" + token + "' (use L0, R0, L1, R1)";
+    const auto* match = std::find_if(std::begin(kTokens), std::end(kTokens), [&](const auto& t) {
+      return token == t.short_name || token == t.long_name;
+    });
+    if (match == std::end(kTokens)) {
+      *error = "--image-order: unknown image '" + token +
+               "' (use L0, R0, L1, R1 for stereo pairs, C0, D0, C1, D1 for RGB-D frames)";
       return false;
     }
-    for (exporter::ImageSlot seen : *out) {
-      if (seen == slot) {
+    for (ImageSlot seen : *out) {
+      if (seen == match->slot) {
         *error = "--image-order: image '" + token + "' appears twice";
         return false;
       }
+      if (vocabulary::IsRgbdSlot(seen) != vocabulary::IsRgbdSlot(match->slot)) {
+        *error = "--image-order: '" + text + "' mixes stereo images and RGB-D frames";
+        return false;
+      }
     }
-    out->push_back(slot);
+    out->push_back(match->slot);
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
   if (out->size() != 4) {
     *error =
-        "--image-order: expected the four images L0,R0,L1,R1 in some order, got '" + text + "'";
+        "--image-order: expected the four images L0,R0,L1,R1 or C0,D0,C1,D1 in some order, "
+        "got '" +
+        text + "'";
     return false;
   }
   return true;
@@ -635,7 +691,7 @@ int RunExport(const ExportArgs& args) {
       }
     }
   }
-  std::vector<exporter::ImageSlot> image_order = defaults.input.image_order;
+  std::vector<exporter::ImageSlot> image_order;  // --image-order's; empty when not given
   if (!args.image_order.empty()) {
     std::string error;
     if (!ParseImageOrder(args.image_order, &image_order, &error)) {
@@ -656,6 +712,12 @@ int RunExport(const ExportArgs& args) {
   }
   if (!std::isfinite(args.scale) || args.scale == 0) {
     return ReportError(kName, "--scale: must be a finite non-zero number", kExitUsage);
+  }
+  if (!std::isfinite(args.depth_mean) || !std::isfinite(args.depth_invalid)) {
+    return ReportError(kName, "--depth-mean, --depth-invalid: must be finite numbers", kExitUsage);
+  }
+  if (!std::isfinite(args.depth_std) || args.depth_std == 0) {
+    return ReportError(kName, "--depth-std: must be a finite non-zero number", kExitUsage);
   }
   if (!(args.focal > 0) || !std::isfinite(args.focal)) {
     return ReportError(kName, "--focal: must be a positive number of pixels", kExitUsage);
@@ -912,14 +974,23 @@ int RunExport(const ExportArgs& args) {
 
   // Apply the flags (a .sfrt source keeps its own value of each flag not given).
   auto apply = [&](std::string_view flag) { return !sfrt_source || Given(args, flag); };
-  Result<bool> images = InputIsImages(args, spec, image_order, sfrt_source);
-  if (!images.ok()) return ReportError(kName, images.message(), kExitFailure);
-  if (*images) {
+  Result<InputKind> kind = ChooseInputKind(args, spec, image_order, sfrt_source);
+  if (!kind.ok()) return ReportError(kName, kind.message(), kExitFailure);
+  if (*kind != InputKind::kTensor) {
+    const bool rgbd = *kind == InputKind::kRgbd;
+    if (image_order.empty()) {
+      image_order = rgbd ? std::vector<exporter::ImageSlot>(vocabulary::kDefaultRgbdOrder.begin(),
+                                                            vocabulary::kDefaultRgbdOrder.end())
+                         : defaults.input.image_order;
+    }
     if (apply("--image-order") || apply("--input-kind")) spec.input.image_order = image_order;
     if (apply("--color-order")) spec.input.color_order = color_order;
     if (apply("--scale")) spec.input.scale = args.scale;
     if (apply("--mean")) spec.input.mean = mean;
     if (apply("--std")) spec.input.std = stddev;
+    if (apply("--depth-mean")) spec.input.depth_mean = rgbd ? args.depth_mean : 0.0f;
+    if (apply("--depth-std")) spec.input.depth_std = rgbd ? args.depth_std : 1.0f;
+    if (apply("--depth-invalid")) spec.input.depth_invalid = rgbd ? args.depth_invalid : 0.0f;
   } else {
     // A plain tensor is fed as given: no image order, and the pixel transform is the identity.
     const exporter::InputSpec plain;
@@ -929,6 +1000,9 @@ int RunExport(const ExportArgs& args) {
     spec.input.scale = plain.scale;
     spec.input.mean = plain.mean;
     spec.input.std = plain.std;
+    spec.input.depth_mean = plain.depth_mean;
+    spec.input.depth_std = plain.depth_std;
+    spec.input.depth_invalid = plain.depth_invalid;
   }
   if (!args.name.empty()) spec.name = args.name;
   if (apply("--focal")) spec.camera.focal_px = args.focal;
@@ -1095,14 +1169,27 @@ Command AddExportCommand(CLI::App& parent) {
                   "Channel order the network was trained on: BGR or RGB (default: BGR, as "
                   "OpenCV reads images)");
   cmd->add_option("--image-order", args->image_order,
-                  "Order of the four images along the input channels, e.g. L0,R0,L1,R1 "
-                  "(default; L = left, R = right, 0 = time t, 1 = t+1)");
+                  "Order of the images along the input channels: stereo pairs L0,R0,L1,R1 "
+                  "(default; L = left, R = right, 0 = time t, 1 = t+1) or RGB-D frames "
+                  "C0,D0,C1,D1 (default with --input-kind rgbd; C = colour, 3 channels, D = "
+                  "depth, 1 channel)");
   cmd->add_option("--input-kind", args->input_kind,
-                  "What the network's input holds: images (3 channels per image of "
-                  "--image-order, preprocessed by the metadata), tensor (any channel count, fed "
-                  "as given: sfrt infer --input-npy), or auto: images when the channel count is 3 "
-                  "per image of --image-order, else tensor")
-      ->check(CLI::IsMember({"auto", "images", "tensor"}))
+                  "What the network's input holds: images (two stereo pairs, 12 channels, "
+                  "preprocessed by the metadata), rgbd (two RGB-D frames, 8 channels: colour as "
+                  "images, depth in metres by --depth-mean/--depth-std), tensor (any channel "
+                  "count, fed as given: sfrt infer --input-npy), or auto: the kind of "
+                  "--image-order (default stereo pairs) when the channel count fits it, else "
+                  "tensor")
+      ->check(CLI::IsMember({"auto", "images", "rgbd", "tensor"}))
+      ->capture_default_str();
+  cmd->add_option("--depth-mean", args->depth_mean,
+                  "RGB-D frames: fed depth = (metres - depth-mean) / depth-std")
+      ->capture_default_str();
+  cmd->add_option("--depth-std", args->depth_std, "RGB-D frames: the divisor above (non-zero)")
+      ->capture_default_str();
+  cmd->add_option("--depth-invalid", args->depth_invalid,
+                  "RGB-D frames: the value fed where a depth map has no depth (0, negative or "
+                  "not finite)")
       ->capture_default_str();
   cmd->add_option("--scale", args->scale,
                   "Pixel scale: fed value = (pixel * scale - mean[c]) / std[c]")

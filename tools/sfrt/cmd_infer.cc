@@ -38,6 +38,11 @@ struct InferArgs {
   std::string right0;
   std::string left1;
   std::string right1;
+  std::string color0;
+  std::string depth0;
+  std::string color1;
+  std::string depth1;
+  float depth_units = 1000.0f;
   std::string input_npy;
   std::string output;
   std::string size;
@@ -142,6 +147,126 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   return input;
 }
 
+// A depth map: a .npy of float32 (H, W) in metres, or an image file holding one channel of
+// 16-bit integers (depth * --depth-units) or 32-bit floats (metres, e.g. a TIFF).
+Result<cv::Mat> ReadDepthMap(const std::string& flag, const std::string& path) {
+  if (std::string problem = CheckInputFile(path, flag + " depth map"); !problem.empty()) {
+    return Status::Error(problem);
+  }
+  if (LowerExtension(path) == ".npy") {
+    Result<io::NpyArray> array = io::ReadNpy(path);
+    if (!array.ok()) return Status::Error(flag + ": " + array.message());
+    std::vector<int64_t> shape = array->shape;
+    if (shape.size() == 3 && shape[2] == 1) shape.pop_back();
+    if (shape.size() != 2 ||
+        config::CheckSize(config::kInputSide, "", shape[0], shape[1]).size() > 0) {
+      return Status::Error(flag + " depth map '" + path + "': shape " + array->ShapeString() +
+                           " is not (H, W) or (H, W, 1) within the input size limits");
+    }
+    cv::Mat depth(static_cast<int>(shape[0]), static_cast<int>(shape[1]), CV_32FC1);
+    std::copy(array->data.begin(), array->data.end(), depth.ptr<float>(0));
+    return depth;
+  }
+  cv::Mat depth;
+  if (std::string why = camera::ReadImageFile(path, cv::IMREAD_UNCHANGED, &depth); !why.empty()) {
+    return Status::Error(flag + " depth map '" + path + "' " + why);
+  }
+  if (depth.type() != CV_16UC1 && depth.type() != CV_32FC1) {
+    return Status::Error(
+        flag + " depth map '" + path + "' decoded to " + std::to_string(depth.channels()) +
+        " channel(s) of " +
+        (depth.depth() == CV_8U ? "8-bit" : "type " + std::to_string(depth.depth())) +
+        " values; a depth map is one channel of 16-bit integers (depth * "
+        "--depth-units) or 32-bit floats in metres");
+  }
+  return depth;
+}
+
+// Reads two RGB-D frames (colour images and depth maps) and builds the network input as the
+// model's metadata prescribes (camera::RgbdPreprocessor).
+Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, int resize_h,
+                                  int resize_w) {
+  camera::RgbdPreprocessParams params;
+  auto order = camera::ParseImageOrder(desc.image_order);
+  if (!order.ok()) return Status::Error("the model's image order: " + order.message());
+  auto color = camera::ParseColorOrder(desc.color_order);
+  if (!color.ok()) return Status::Error("the model's color order: " + color.message());
+  params.order = *order;
+  params.color_order = *color;
+  params.scale = desc.scale;
+  std::copy(desc.mean, desc.mean + 3, params.mean);
+  std::copy(desc.std, desc.std + 3, params.std);
+  params.depth_mean = desc.depth_mean;
+  params.depth_std = desc.depth_std;
+  params.depth_invalid = desc.depth_invalid;
+  params.depth_units_per_metre = args.depth_units;
+
+  struct Source {
+    const char* flag;
+    const std::string* path;
+    bool depth;
+    cv::Mat image;
+  };
+  Source sources[4] = {{"--color0", &args.color0, false, {}},
+                       {"--depth0", &args.depth0, true, {}},
+                       {"--color1", &args.color1, false, {}},
+                       {"--depth1", &args.depth1, true, {}}};
+  for (Source& s : sources) {
+    if (s.depth) {
+      Result<cv::Mat> depth = ReadDepthMap(s.flag, *s.path);
+      if (!depth.ok()) return depth.status();
+      s.image = *depth;
+      continue;
+    }
+    if (std::string problem = CheckInputFile(*s.path, std::string(s.flag) + " image");
+        !problem.empty()) {
+      return Status::Error(problem);
+    }
+    if (std::string why = camera::ReadImageFile(*s.path, cv::IMREAD_COLOR, &s.image);
+        !why.empty()) {
+      return Status::Error(std::string(s.flag) + " image '" + *s.path + "' " + why);
+    }
+  }
+  for (size_t i = 1; i < 4; ++i) {
+    if (sources[i].image.size() != sources[0].image.size()) {
+      return Status::Error(std::string(sources[i].flag) + " '" + *sources[i].path + "' is " +
+                           SizeString(sources[i].image.rows, sources[i].image.cols) + " but " +
+                           sources[0].flag + " '" + *sources[0].path + "' is " +
+                           SizeString(sources[0].image.rows, sources[0].image.cols) +
+                           " (both frames' colour and depth must have the same size)");
+    }
+  }
+  std::string resized;
+  if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
+    resized = ", resized from " + SizeString(sources[0].image.rows, sources[0].image.cols);
+    const bool shrink = resize_h < sources[0].image.rows || resize_w < sources[0].image.cols;
+    for (Source& s : sources) {
+      cv::Mat out;
+      // Depth by the nearest sample: averaging would invent depths between surfaces (and mix
+      // in the missing ones).
+      cv::resize(s.image, out, cv::Size(resize_w, resize_h), 0, 0,
+                 s.depth ? cv::INTER_NEAREST : (shrink ? cv::INTER_AREA : cv::INTER_LINEAR));
+      s.image = out;
+    }
+  }
+  InputTensor input;
+  input.height = sources[0].image.rows;
+  input.width = sources[0].image.cols;
+  auto pre = camera::RgbdPreprocessor::Create(params, input.height, input.width);
+  if (!pre.ok()) return Status::Error(pre.message());
+  input.data.resize(pre->output_floats());
+  camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
+                                sources[3].image, input.data.data(), input.data.size());
+  if (!ran.ok()) return Status::Error(ran.message());
+  std::string order_text;
+  for (const std::string& slot : desc.image_order) {
+    order_text += (order_text.empty() ? "" : ",") + slot;
+  }
+  input.description = "2 RGB-D frames as " + order_text + ", " + desc.color_order +
+                      ", 16-bit depth at " + FormatFloat(args.depth_units) + " per metre" + resized;
+  return input;
+}
+
 // Reads an (H, W, C) or (1, H, W, C) float32 array already in the model's channel order.
 Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc) {
   if (std::string problem = CheckInputFile(path, "--input-npy file"); !problem.empty()) {
@@ -198,10 +323,27 @@ int RunInfer(const InferArgs& args) {
   // Usage checks: decided from the command line alone, before any file is read.
   const bool any_image =
       !args.left0.empty() || !args.right0.empty() || !args.left1.empty() || !args.right1.empty();
-  if (!args.input_npy.empty() && any_image) {
-    return ReportError(kName, "give either --input-npy or the four images, not both", kExitUsage);
+  const bool any_rgbd =
+      !args.color0.empty() || !args.depth0.empty() || !args.color1.empty() || !args.depth1.empty();
+  if (int(any_image) + int(any_rgbd) + int(!args.input_npy.empty()) > 1) {
+    return ReportError(kName,
+                       "give one input: the four stereo images, the two RGB-D frames or "
+                       "--input-npy",
+                       kExitUsage);
   }
-  if (args.input_npy.empty()) {
+  if (any_rgbd) {
+    std::string missing;
+    if (args.color0.empty()) missing += " --color0";
+    if (args.depth0.empty()) missing += " --depth0";
+    if (args.color1.empty()) missing += " --color1";
+    if (args.depth1.empty()) missing += " --depth1";
+    if (!missing.empty()) {
+      return ReportError(kName,
+                         "missing RGB-D option(s):" + missing +
+                             " (all four of --color0 --depth0 --color1 --depth1 are needed)",
+                         kExitUsage);
+    }
+  } else if (args.input_npy.empty()) {
     std::string missing;
     if (args.left0.empty()) missing += " --left0";
     if (args.right0.empty()) missing += " --right0";
@@ -212,10 +354,14 @@ int RunInfer(const InferArgs& args) {
                          any_image ? "missing image option(s):" + missing +
                                          " (all four of --left0 --right0 --left1 --right1 are "
                                          "needed)"
-                                   : "no input: give --left0 --right0 --left1 --right1, or "
-                                     "--input-npy",
+                                   : "no input: give --left0 --right0 --left1 --right1, "
+                                     "--color0 --depth0 --color1 --depth1, or --input-npy",
                          kExitUsage);
     }
+  }
+  if (!(args.depth_units > 0) || !std::isfinite(args.depth_units)) {
+    return ReportError(
+        kName, "--depth-units: must be positive, got " + FormatFloat(args.depth_units), kExitUsage);
   }
   int resize_h = 0;
   int resize_w = 0;
@@ -261,9 +407,21 @@ int RunInfer(const InferArgs& args) {
   }
 
   // Input.
-  Result<InputTensor> input = args.input_npy.empty()
-                                  ? InputFromImages(args, meta.input, resize_h, resize_w)
-                                  : InputFromNpy(args.input_npy, meta.input);
+  if (any_rgbd != meta.input.is_rgbd() && args.input_npy.empty()) {
+    return ReportError(kName,
+                       meta.input.is_rgbd()
+                           ? args.model +
+                                 " reads two RGB-D frames: give --color0 --depth0 "
+                                 "--color1 --depth1 (or --input-npy)"
+                           : args.model + " does not read RGB-D frames (its input: " +
+                                 (meta.input.is_tensor() ? std::string("a plain tensor")
+                                                         : std::string("stereo pairs")) +
+                                 "); give --left0 --right0 --left1 --right1 or --input-npy",
+                       kExitUsage);
+  }
+  Result<InputTensor> input = !args.input_npy.empty() ? InputFromNpy(args.input_npy, meta.input)
+                              : any_rgbd ? InputFromRgbd(args, meta.input, resize_h, resize_w)
+                                         : InputFromImages(args, meta.input, resize_h, resize_w);
   if (!input.ok()) return ReportError(kName, input.message(), kExitFailure);
   const int height = input->height;
   const int width = input->width;
@@ -374,6 +532,16 @@ Command AddInferCommand(CLI::App& parent) {
   cmd->add_option("--right0", args->right0, "Right image at time t");
   cmd->add_option("--left1", args->left1, "Left image at time t+1");
   cmd->add_option("--right1", args->right1, "Right image at time t+1");
+  cmd->add_option("--color0", args->color0, "RGB-D models: colour image at time t");
+  cmd->add_option("--depth0", args->depth0,
+                  "RGB-D models: depth map at time t (16-bit PNG or TIFF in --depth-units, 32-bit "
+                  "float TIFF or float32 (H,W) .npy in metres; 0 = no depth)");
+  cmd->add_option("--color1", args->color1, "RGB-D models: colour image at time t+1");
+  cmd->add_option("--depth1", args->depth1, "RGB-D models: depth map at time t+1");
+  cmd->add_option("--depth-units", args->depth_units,
+                  "Units per metre of 16-bit depth maps (1000: millimetres, most RGB-D cameras; "
+                  "5000: the TUM RGB-D benchmark)")
+      ->capture_default_str();
   cmd->add_option("--input-npy", args->input_npy,
                   "Network input as float32 .npy, shape (H,W,C) or (1,H,W,C), C = the model's "
                   "input channels, already ordered and normalised (instead of the images)");
@@ -381,8 +549,8 @@ Command AddInferCommand(CLI::App& parent) {
                   "Output file: .pfm (3-channel PFM) or .npy (float32, shape (H,W,3))")
       ->required();
   cmd->add_option("--size", args->size,
-                  "Resize the four images to HxW before inference (images only; default: their "
-                  "own size)");
+                  "Resize the four images (or RGB-D frames, depth by the nearest sample) to HxW "
+                  "before inference (not --input-npy; default: their own size)");
   cmd->footer(
       "Input: four images of the same size, read with OpenCV (BGR), arranged in the model's\n"
       "image order, converted to RGB if the model says so and normalised as its metadata\n"
@@ -391,6 +559,9 @@ Command AddInferCommand(CLI::App& parent) {
       "training camera's units. Prints the input size, the time Session::Run took, the units\n"
       "the model file states (unknown for files before schema 1.2), per-channel min/max/mean\n"
       "of the output and whether every value is finite.\n"
+      "A model of two RGB-D frames (sfrt export --input-kind rgbd) reads --color0 --depth0\n"
+      "--color1 --depth1 instead: colour as the images above, depth in metres fed as its\n"
+      "metadata prescribes, a depth of 0 (or negative, or not finite) as missing.\n"
       "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
   return Command{cmd, [args] { return RunInfer(*args); }};
 }

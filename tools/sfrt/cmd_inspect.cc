@@ -39,13 +39,21 @@ std::string Triple(const float v[3]) {
   return FormatFloat(v[0]) + "," + FormatFloat(v[1]) + "," + FormatFloat(v[2]);
 }
 
-// The input's kind: images with their order and preprocessing, or a plain tensor.
+// The input's kind: stereo images or RGB-D frames with their order and preprocessing, or a plain
+// tensor.
 std::string InputKindLines(const InputDesc& input) {
-  if (input.image_order.empty()) return "  kind            plain tensor, fed as given\n";
-  return "  kind            images\n  image order     " + Join(input.image_order, ",") +
-         "\n  color order     " + input.color_order + "\n  value           (pixel * " +
-         FormatFloat(input.scale) + " - mean[c]) / std[c], mean " + Triple(input.mean) + ", std " +
-         Triple(input.std) + "\n";
+  if (input.is_tensor()) return "  kind            plain tensor, fed as given\n";
+  std::string lines =
+      std::string("  kind            ") + (input.is_rgbd() ? "RGB-D frames" : "images") +
+      "\n  image order     " + Join(input.image_order, ",") + "\n  color order     " +
+      input.color_order + "\n  value           (pixel * " + FormatFloat(input.scale) +
+      " - mean[c]) / std[c], mean " + Triple(input.mean) + ", std " + Triple(input.std) + "\n";
+  if (input.is_rgbd()) {
+    lines += "  depth value     (metres - " + FormatFloat(input.depth_mean) + ") / " +
+             FormatFloat(input.depth_std) + ", missing depth (0) as " +
+             FormatFloat(input.depth_invalid) + "\n";
+  }
+  return lines;
 }
 
 std::string PadsString(const Padding& p) {

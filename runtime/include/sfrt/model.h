@@ -30,7 +30,7 @@ namespace sfrt {
 
 // The schema version this runtime writes and reads (docs/model-format.md, "Versioning").
 inline constexpr int kSchemaVersionMajor = 1;
-inline constexpr int kSchemaVersionMinor = 10;
+inline constexpr int kSchemaVersionMinor = 11;
 
 // kConcat and kAdd (schema 1.5) make the model a graph rather than a chain; they run in float32,
 // as do kConvTranspose2D and kPool2D (schema 1.6).
@@ -281,16 +281,28 @@ struct LayerDesc {
   ChannelAffineParams affine;  // valid when kind == kChannelAffine
 };
 
+// The network's input: images in `image_order` (the vocabulary's slot names, each filling the
+// next 3 channels, or 1 for a depth map), or, with no image order, a plain tensor fed as given.
+// The slots are four stereo images ("left0", "right0", "left1", "right1") or, since schema 1.11,
+// two RGB-D frames ("color0", "depth0", "color1", "depth1"), never a mix.
 struct InputDesc {
   std::string name;
   int channels = 0;
-  std::vector<std::string> image_order;  // "left0", "right0", "left1", "right1"
-  std::string color_order;               // "BGR" or "RGB"
-  float scale = 1.0f;                    // fed value = (pixel * scale - mean[c]) / std[c]
+  std::vector<std::string> image_order;
+  std::string color_order;  // "BGR" or "RGB"
+  float scale = 1.0f;       // fed value = (pixel * scale - mean[c]) / std[c]
   float mean[3] = {0, 0, 0};
   float std[3] = {1, 1, 1};
   int traced_height = 0;  // 0 when unknown
   int traced_width = 0;
+  // RGB-D frames: depth d in metres is fed as (d - depth_mean) / depth_std, a pixel without
+  // depth (d 0, negative or not finite) as depth_invalid.
+  float depth_mean = 0.0f;
+  float depth_std = 1.0f;
+  float depth_invalid = 0.0f;
+
+  bool is_tensor() const { return image_order.empty(); }
+  bool is_rgbd() const;  // the slots are RGB-D frames
 };
 
 struct OutputDesc {

@@ -1,10 +1,14 @@
-// Preprocessing into the H x W x 12 network input: image order, colour order, scale, mean and std
-// checked value by value against the model file's formula evaluated directly.
+// Preprocessing into the H x W x 12 network input (two stereo pairs) and the H x W x 8 one (two
+// RGB-D frames): image order, colour order, scale, mean and std, and depth in 16-bit units or
+// float metres with its missing values, checked value by value against the model file's formula
+// evaluated directly.
 #include "sfrt/camera/preprocess.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -133,6 +137,125 @@ TEST(Preprocessor, RejectsBadParametersAndBuffers) {
   ASSERT_FALSE(short_dst.ok());
   EXPECT_NE(short_dst.message().find("71 floats, expected 72"), std::string::npos)
       << short_dst.message();
+}
+
+// The RGB-D form: colour as above, depth d metres fed as (d - depth_mean) / depth_std and a
+// missing depth (0, negative, NaN or infinite) as depth_invalid; 16-bit maps hold d * units.
+TEST(RgbdPreprocessor, OrderColourAndDepthInUnitsOrMetresExactly) {
+  std::mt19937 rng(99);
+  const cv::Mat color0 = RandomImage(&rng);
+  const cv::Mat color1 = RandomImage(&rng);
+  cv::Mat depth16(kH, kW, CV_16UC1);
+  cv::Mat depth32(kH, kW, CV_32FC1);
+  std::uniform_int_distribution<int> mm(0, 65535);
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      depth16.at<uint16_t>(y, x) = static_cast<uint16_t>((x + y) % 5 == 0 ? 0 : mm(rng));
+      depth32.at<float>(y, x) = static_cast<float>(mm(rng)) / 700.0f;
+    }
+  }
+  depth32.at<float>(0, 1) = 0.0f;
+  depth32.at<float>(1, 2) = -1.0f;
+  depth32.at<float>(2, 3) = std::numeric_limits<float>::quiet_NaN();
+  depth32.at<float>(3, 4) = std::numeric_limits<float>::infinity();
+
+  Result<std::array<ImageSlot, 4>> order =
+      ParseImageOrder({"depth1", "color0", "depth0", "color1"});
+  ASSERT_TRUE(order.ok()) << order.message();
+  RgbdPreprocessParams params;
+  params.order = *order;
+  params.color_order = ColorOrder::kRGB;
+  params.scale = 1.0f / 255.0f;
+  params.mean[0] = 0.5f;
+  params.std[2] = 0.25f;
+  params.depth_mean = 3.0f;
+  params.depth_std = 2.0f;
+  params.depth_invalid = -7.5f;
+  params.depth_units_per_metre = 5000.0f;
+  Result<RgbdPreprocessor> p = RgbdPreprocessor::Create(params, kH, kW);
+  ASSERT_TRUE(p.ok()) << p.message();
+  std::vector<float> out(p->output_floats(), -999.0f);
+  ASSERT_EQ(out.size(), static_cast<size_t>(kH * kW * 8));
+  // depth0 as 16-bit units, depth1 as float metres.
+  Status s = p->Run(color0, depth16, color1, depth32, out.data(), out.size());
+  ASSERT_TRUE(s.ok()) << s.message();
+
+  auto depth_value = [&](float metres, bool missing) {
+    return missing ? params.depth_invalid : (metres - params.depth_mean) / params.depth_std;
+  };
+  int missing_seen = 0;
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      const float* px = out.data() + (static_cast<size_t>(y) * kW + x) * 8;
+      // Channel 0: depth1 (float metres).
+      const float d1 = depth32.at<float>(y, x);
+      const bool d1_missing = !(std::isfinite(d1) && d1 > 0);
+      missing_seen += d1_missing;
+      ASSERT_EQ(px[0], depth_value(d1, d1_missing)) << y << "," << x;
+      // Channels 1-3: color0 (RGB order); 4: depth0 (16-bit); 5-7: color1.
+      for (int c = 0; c < 3; ++c) {
+        const float want0 = (static_cast<float>(color0.at<cv::Vec3b>(y, x)[2 - c]) * params.scale -
+                             params.mean[c]) /
+                            params.std[c];
+        const float want1 = (static_cast<float>(color1.at<cv::Vec3b>(y, x)[2 - c]) * params.scale -
+                             params.mean[c]) /
+                            params.std[c];
+        ASSERT_EQ(px[1 + c], want0) << y << "," << x << " c " << c;
+        ASSERT_EQ(px[5 + c], want1) << y << "," << x << " c " << c;
+      }
+      const uint16_t d0 = depth16.at<uint16_t>(y, x);
+      missing_seen += d0 == 0;
+      ASSERT_EQ(px[4], depth_value(static_cast<float>(d0) / 5000.0f, d0 == 0)) << y << "," << x;
+    }
+  }
+  EXPECT_GE(missing_seen, 4 + 5);  // every kind of missing depth was exercised
+}
+
+TEST(RgbdPreprocessor, RejectsStereoSlotsBadDepthParametersAndMapsOfTheWrongType) {
+  Result<std::array<ImageSlot, 4>> mixed = ParseImageOrder({"color0", "depth0", "left1", "depth1"});
+  ASSERT_FALSE(mixed.ok());
+  EXPECT_NE(mixed.message().find("mixes stereo images and RGB-D frames"), std::string::npos)
+      << mixed.message();
+
+  RgbdPreprocessParams params;
+  params.order = vocabulary::kDefaultImageOrder;
+  Result<RgbdPreprocessor> stereo = RgbdPreprocessor::Create(params, 2, 2);
+  ASSERT_FALSE(stereo.ok());
+  EXPECT_NE(stereo.message().find("not color0, depth0, color1 or depth1"), std::string::npos)
+      << stereo.message();
+  PreprocessParams stereo_params;
+  stereo_params.image_order = vocabulary::kDefaultRgbdOrder;
+  Result<Preprocessor> rgbd_as_stereo = Preprocessor::Create(stereo_params, 2, 2);
+  ASSERT_FALSE(rgbd_as_stereo.ok());
+  EXPECT_NE(rgbd_as_stereo.message().find("RGB-D frames go through RgbdPreprocessor"),
+            std::string::npos)
+      << rgbd_as_stereo.message();
+
+  params = RgbdPreprocessParams();
+  params.depth_std = 0;
+  ASSERT_FALSE(RgbdPreprocessor::Create(params, 2, 2).ok());
+  params = RgbdPreprocessParams();
+  params.depth_units_per_metre = 0;
+  ASSERT_FALSE(RgbdPreprocessor::Create(params, 2, 2).ok());
+
+  Result<RgbdPreprocessor> p = RgbdPreprocessor::Create(RgbdPreprocessParams(), 2, 3);
+  ASSERT_TRUE(p.ok()) << p.message();
+  const cv::Mat colour(2, 3, CV_8UC3, cv::Scalar::all(1));
+  const cv::Mat depth(2, 3, CV_16UC1, cv::Scalar::all(1000));
+  const cv::Mat depth8(2, 3, CV_8UC1, cv::Scalar::all(1));
+  std::vector<float> out(p->output_floats());
+  Status eight_bit = p->Run(colour, depth, colour, depth8, out.data(), out.size());
+  ASSERT_FALSE(eight_bit.ok());
+  EXPECT_NE(eight_bit.message().find("depth1 is 2x3 with 1 channels of depth 0; expected 16-bit "
+                                     "or float32 single-channel"),
+            std::string::npos)
+      << eight_bit.message();
+  Status short_dst = p->Run(colour, depth, colour, depth, out.data(), out.size() - 1);
+  ASSERT_FALSE(short_dst.ok());
+  EXPECT_NE(short_dst.message().find("47 floats, expected 48"), std::string::npos)
+      << short_dst.message();
+  ASSERT_TRUE(p->Run(colour, depth, colour, depth, out.data(), out.size()).ok());
+  EXPECT_EQ(out[3], 1.0f);  // 1000 mm at the default 1000 units per metre, mean 0, std 1
 }
 
 }  // namespace

@@ -166,6 +166,11 @@ struct InputSpec {
   std::array<float, 3> std = {1.0f, 1.0f, 1.0f};
   int traced_height = 0;  // 0 when unknown
   int traced_width = 0;
+  // RGB-D frames (image slots color0, depth0, color1, depth1; schema 1.11): depth d in metres is
+  // fed as (d - depth_mean) / depth_std, a pixel without depth as depth_invalid.
+  float depth_mean = 0.0f;
+  float depth_std = 1.0f;
+  float depth_invalid = 0.0f;
 };
 
 struct OutputSpec {

@@ -1,9 +1,11 @@
-// The words for a scene-flow model's stereo input, declared once for every module: the runtime
+// The words for a scene-flow model's image input, declared once for every module: the runtime
 // (model metadata), the exporter (model specs), camera/ (preprocessing) and the tools. Header-only,
 // standard C++ only, so a module that may use nothing else of ours may still use it.
-//   ImageSlot   which image of the window (t, t+1) a group of three input channels holds, as the
-//               model file spells it: "left0", "right0", "left1", "right1".
-//   ColorOrder  the channel order within each image: "BGR" (OpenCV's) or "RGB".
+//   ImageSlot   which image of the window (t, t+1) a group of input channels holds, as the model
+//               file spells it: two stereo pairs, "left0", "right0", "left1", "right1" (3
+//               channels each), or two RGB-D frames, "color0", "depth0", "color1", "depth1"
+//               (colour 3 channels, depth 1; schema 1.11).
+//   ColorOrder  the channel order within each colour image: "BGR" (OpenCV's) or "RGB".
 #pragma once
 
 #include <array>
@@ -12,13 +14,33 @@
 
 namespace sfrt::vocabulary {
 
-enum class ImageSlot { kLeft0 = 0, kRight0 = 1, kLeft1 = 2, kRight1 = 3 };
-inline constexpr int kImageSlots = 4;
-inline constexpr std::array<std::string_view, kImageSlots> kImageSlotNames = {"left0", "right0",
-                                                                              "left1", "right1"};
+enum class ImageSlot {
+  kLeft0 = 0,
+  kRight0 = 1,
+  kLeft1 = 2,
+  kRight1 = 3,
+  kColor0 = 4,
+  kDepth0 = 5,
+  kColor1 = 6,
+  kDepth1 = 7,
+};
+inline constexpr int kImageSlots = 8;
+inline constexpr std::array<std::string_view, kImageSlots> kImageSlotNames = {
+    "left0", "right0", "left1", "right1", "color0", "depth0", "color1", "depth1"};
 // The order the slots are written in when a model says nothing else (the paper's).
-inline constexpr std::array<ImageSlot, kImageSlots> kDefaultImageOrder = {
+inline constexpr std::array<ImageSlot, 4> kDefaultImageOrder = {
     ImageSlot::kLeft0, ImageSlot::kRight0, ImageSlot::kLeft1, ImageSlot::kRight1};
+// The same for two RGB-D frames: 8 channels, colour then depth of t, then of t+1.
+inline constexpr std::array<ImageSlot, 4> kDefaultRgbdOrder = {
+    ImageSlot::kColor0, ImageSlot::kDepth0, ImageSlot::kColor1, ImageSlot::kDepth1};
+
+// Whether a slot belongs to the RGB-D frames (else to the stereo pairs).
+constexpr bool IsRgbdSlot(ImageSlot s) { return static_cast<int>(s) >= 4; }
+constexpr bool IsDepthSlot(ImageSlot s) {
+  return s == ImageSlot::kDepth0 || s == ImageSlot::kDepth1;
+}
+// Input channels a slot fills: 1 for a depth map, 3 for a colour image.
+constexpr int SlotChannels(ImageSlot s) { return IsDepthSlot(s) ? 1 : 3; }
 
 constexpr std::string_view ImageSlotName(ImageSlot s) {
   const int i = static_cast<int>(s);

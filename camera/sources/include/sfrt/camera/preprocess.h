@@ -35,9 +35,10 @@ struct PreprocessParams {
   float std[3] = {1, 1, 1};
 };
 
-// "left0" "right0" "left1" "right1" (the model file's spelling); the errors say what was given.
+// "left0" ... "right1", "color0" ... "depth1" (the model file's spelling); the errors say what
+// was given.
 Result<ImageSlot> ParseImageSlot(const std::string& name);
-// Exactly four names forming a permutation of the four slots.
+// Exactly four names: a permutation of the four stereo slots or of the four RGB-D slots.
 Result<std::array<ImageSlot, 4>> ParseImageOrder(const std::vector<std::string>& names);
 // "BGR" or "RGB".
 Result<ColorOrder> ParseColorOrder(const std::string& name);
@@ -67,6 +68,51 @@ class Preprocessor {
   // lut_[c][v]: value fed on channel c (model order) for 8-bit pixel value v.
   std::array<std::array<float, 256>, 3> lut_{};
   std::array<int, 3> source_channel_{};  // BGR index read for fed channel c
+};
+
+// Network input from two RGB-D frames (schema 1.11): H x W x 8 float32, NHWC, the colour image
+// and depth map of t and t+1 in the model's order (colour 3 channels, as Preprocessor feeds an
+// image; depth 1 channel). A depth map is CV_16UC1, holding depth * depth_units_per_metre (1000:
+// millimetres, as most RGB-D cameras give it; 5000: the TUM RGB-D benchmark), or CV_32FC1 in
+// metres. Depth d in metres is fed as (d - depth_mean) / depth_std; a pixel without depth (0,
+// negative or not finite) as depth_invalid. Create() validates and tabulates (every 16-bit value
+// too); Run() allocates nothing. Thread-safety as Preprocessor.
+struct RgbdPreprocessParams {
+  std::array<ImageSlot, 4> order = vocabulary::kDefaultRgbdOrder;
+  ColorOrder color_order = ColorOrder::kBGR;
+  float scale = 1.0f;
+  float mean[3] = {0, 0, 0};
+  float std[3] = {1, 1, 1};
+  float depth_mean = 0.0f;
+  float depth_std = 1.0f;
+  float depth_invalid = 0.0f;
+  float depth_units_per_metre = 1000.0f;  // 16-bit depth maps only
+};
+
+class RgbdPreprocessor {
+ public:
+  static constexpr int kChannels = 8;
+
+  static Result<RgbdPreprocessor> Create(const RgbdPreprocessParams& params, int height, int width);
+
+  // Colour images: CV_8UC3 BGR; depth maps: CV_16UC1 or CV_32FC1; all height x width (any row
+  // stride). dst: height*width*8 floats, owned by the caller; dst_floats is checked against it.
+  Status Run(const cv::Mat& color0, const cv::Mat& depth0, const cv::Mat& color1,
+             const cv::Mat& depth1, float* dst, size_t dst_floats) const;
+
+  size_t output_floats() const { return static_cast<size_t>(height_) * width_ * kChannels; }
+  int height() const { return height_; }
+  int width() const { return width_; }
+
+ private:
+  RgbdPreprocessor() = default;
+
+  RgbdPreprocessParams params_;
+  int height_ = 0;
+  int width_ = 0;
+  std::array<std::array<float, 256>, 3> lut_{};  // as Preprocessor's
+  std::array<int, 3> source_channel_{};
+  std::vector<float> depth_lut_;  // fed value of each 16-bit depth
 };
 
 }  // namespace sfrt::camera
