@@ -89,7 +89,7 @@ if ! (valgrind --tool=none --log-file="$probe" "$sfrt" --version >/dev/null 2>&1
     "through the fuzz replay binaries instead"
   bin=$(dirname "$sfrt")
   check model_session "$bin/sfrt_fuzz_model_session_replay" "$model" \
-    "$root/models/sceneednet-default-int8.sfrt" "$root/models/sceneednet-u.sfrt"
+    "$root/models/sceneednet-default-int8.sfrt" "$root/models/sceneednet-default.sfrt"
   check image "$bin/sfrt_fuzz_image_replay" "$frames/left0.png" "$frames/right0.png"
   [[ $status -eq 0 ]] && rm -rf "$out" || echo "logs kept in $out"
   exit $status

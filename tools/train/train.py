@@ -293,7 +293,7 @@ def parse_args(argv):
                         "images again at t+1, zero flow (default 0)")
     p.add_argument("--init", default="",
                    help="start from these weights (a best.pt or checkpoint.pt, or a float32 "
-                        ".sfrt file such as models/sceneednet-u.sfrt: its batch norm is folded, "
+                        ".sfrt file such as models/sceneednet-default.sfrt: its batch norm is folded, "
                         "so train it without --batch-norm), not from random ones; the "
                         "optimiser and iteration count start fresh")
     p.add_argument("--cache-dir", default="",

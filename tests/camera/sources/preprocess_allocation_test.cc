@@ -1,0 +1,50 @@
+// Preprocessor::Run and RgbdPreprocessor::Run allocate nothing (their headers promise it): the
+// program links the counting allocator (tests/common/counting_allocator.h).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <new>
+#include <vector>
+
+#include "common/counting_allocator.h"
+#include "sfrt/camera/preprocess.h"
+
+namespace sfrt::camera {
+namespace {
+
+TEST(PreprocessAllocation, CountingHooksSeeAnAllocation) {
+  // Through a volatile pointer, so that the compiler cannot pair and drop the calls.
+  static void* volatile sink = nullptr;
+  const long before = sfrt::testing::AllocationCount();
+  sink = std::malloc(64);
+  std::free(sink);
+  sink = ::operator new(64);
+  ::operator delete(sink);
+  EXPECT_EQ(sfrt::testing::AllocationCount() - before, 2);
+}
+
+TEST(PreprocessAllocation, StereoAndRgbdRunsAllocateNothing) {
+  constexpr int kH = 24;
+  constexpr int kW = 40;
+  const cv::Mat colour(kH, kW, CV_8UC3, cv::Scalar(10, 20, 30));
+  const cv::Mat depth16(kH, kW, CV_16UC1, cv::Scalar::all(1500));
+  const cv::Mat depth32(kH, kW, CV_32FC1, cv::Scalar::all(2.5));
+  Result<Preprocessor> stereo = Preprocessor::Create(PreprocessParams(), kH, kW);
+  ASSERT_TRUE(stereo.ok()) << stereo.message();
+  Result<RgbdPreprocessor> rgbd = RgbdPreprocessor::Create(RgbdPreprocessParams(), kH, kW);
+  ASSERT_TRUE(rgbd.ok()) << rgbd.message();
+  std::vector<float> out12(stereo->output_floats());
+  std::vector<float> out8(rgbd->output_floats());
+  for (int round = 0; round < 3; ++round) {
+    const long before = sfrt::testing::AllocationCount();
+    const bool ok_stereo =
+        stereo->Run(colour, colour, colour, colour, out12.data(), out12.size()).ok();
+    const bool ok_rgbd = rgbd->Run(colour, depth16, colour, depth32, out8.data(), out8.size()).ok();
+    const long allocated = sfrt::testing::AllocationCount() - before;
+    ASSERT_TRUE(ok_stereo && ok_rgbd);
+    EXPECT_EQ(allocated, 0) << "round " << round;
+  }
+}
+
+}  // namespace
+}  // namespace sfrt::camera
