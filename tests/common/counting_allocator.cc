@@ -57,3 +57,13 @@ void operator delete(void* p, size_t) noexcept { free(p); }
 void operator delete[](void* p, size_t) noexcept { free(p); }
 
 long sfrt::testing::AllocationCount() { return g_allocations.load(); }
+
+bool sfrt::testing::CountingHooksAreLive() {
+  static void* volatile sink = nullptr;
+  const long before = AllocationCount();
+  sink = std::malloc(64);
+  std::free(sink);
+  sink = ::operator new(64);
+  ::operator delete(sink);
+  return AllocationCount() - before == 2;
+}

@@ -9,4 +9,9 @@ namespace sfrt::testing {
 // Allocations so far (malloc, calloc, realloc, aligned_alloc, posix_memalign, operator new).
 long AllocationCount();
 
+// Whether the counting functions are the ones in use: one malloc and one operator new, made
+// where the compiler cannot pair and drop them, must count 2. A test of "allocates nothing"
+// proves nothing without it.
+bool CountingHooksAreLive();
+
 }  // namespace sfrt::testing

@@ -167,14 +167,14 @@ TEST(ModelWriter, APlainTensorInputWithAnyChannelCountRoundTrips) {
   EXPECT_EQ((*model)->metadata().output.channel_names.size(), 3u);
 }
 
-// SceneEDNet at 1/16 width reading two RGB-D frames (8 channels) in `order`.
-ModelSpec RgbdSpec(std::vector<ImageSlot> order) {
+// SceneEDNet at 1/16 width reading `channels` input channels (8 for two RGB-D frames) in `order`.
+ModelSpec RgbdSpec(std::vector<ImageSlot> order, int channels = 8) {
   ModelSpec spec = testing::SceneEdNetSpec(16);
   ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
-  first.in_channels = 8;
-  first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * 8 *
+  first.in_channels = channels;
+  first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * channels *
                             first.out_channels);
-  spec.input.channels = 8;
+  spec.input.channels = channels;
   spec.input.image_order = std::move(order);
   return spec;
 }
@@ -241,12 +241,7 @@ TEST(ModelWriter, LoaderRefusesAnRgbdOrderThatMixesKindsRepeatsOrMissesASlot) {
        "input.image_order names 4 images (8 channels) but input.channels is 12"},
   };
   for (const auto& c : cases) {
-    ModelSpec spec = RgbdSpec(c.order);
-    spec.input.channels = c.channels;
-    ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
-    first.in_channels = c.channels;
-    first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * c.channels *
-                              first.out_channels);
+    const ModelSpec spec = RgbdSpec(c.order, c.channels);
     auto bytes = SerializeModel(spec);
     ASSERT_TRUE(bytes.ok()) << bytes.message();
     auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);

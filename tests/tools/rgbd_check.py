@@ -4,7 +4,8 @@ ONNX goes through `sfrt export --input-kind rgbd` (colour order, pixel normalisa
 normalisation stated), `sfrt inspect` reports the frames, and `sfrt infer --color0 --depth0
 --color1 --depth1` on PNG colour images, a 16-bit PNG depth map in millimetres and a float32 .npy
 depth map in metres (both with missing depths) matches PyTorch on the input built here from the
-model file's formulas, within 1e-4 of the output's largest magnitude. A stereo-pair command line
+model file's formulas, within 1e-4 of the output's largest magnitude. A depth map of another size
+is refused, naming both files. A stereo-pair command line
 for the RGB-D model is refused, naming the flags it needs, and `sfrt run` and `sfrt eval` (which
 read stereo pairs) refuse the model, saying what reads it.
 
@@ -147,6 +148,17 @@ def main():
             want_exit=2)
     if "reads two RGB-D frames: give --color0 --depth0 --color1 --depth1" not in p.stderr:
         failed.append("the stereo command line was not refused as expected:\n" + p.stderr)
+    # A depth map of another size than the colour images: refused, naming both files.
+    small = os.path.join(a.work, "small-depth.npy")
+    np.save(small, depth_m[:-1])
+    p = run([a.sfrt, "infer", "--model", model, "--color0", files["color0"], "--depth0",
+             files["depth0"], "--color1", files["color1"], "--depth1", small, "-o", out],
+            want_exit=1)
+    if not re.search(r"--depth1 '.*small-depth\.npy' is %dx%d but --color0 '.*color0\.png' is "
+                     r"%dx%d \(both frames' colour and depth must have the same size\)"
+                     % (H - 1, W, H, W), p.stderr):
+        failed.append("a depth map of another size was not refused as expected:\n" + p.stderr)
+
     # sfrt run and sfrt eval read stereo pairs: they refuse the model, saying what reads it.
     stereo = os.path.join(a.work, "stereo")
     run([a.sfrt, "synth", "--out", stereo, "--frames", "2", "--size", "32x48"])

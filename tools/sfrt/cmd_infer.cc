@@ -59,20 +59,59 @@ std::string SizeString(int height, int width) {
   return std::to_string(height) + "x" + std::to_string(width);
 }
 
+// One input file of a window: the flag naming it, its path and, once read, its pixels.
+struct InputFile {
+  const char* flag;
+  const std::string* path;
+  cv::Mat image;
+};
+
+// Reads `file` as 8-bit BGR.
+Status ReadColourImage(InputFile& file) {
+  if (std::string problem = CheckInputFile(*file.path, std::string(file.flag) + " image");
+      !problem.empty()) {
+    return Status::Error(problem);
+  }
+  if (std::string why = camera::ReadImageFile(*file.path, cv::IMREAD_COLOR, &file.image);
+      !why.empty()) {
+    return Status::Error(std::string(file.flag) + " image '" + *file.path + "' " + why);
+  }
+  if (file.image.type() != CV_8UC3) {
+    return Status::Error(std::string(file.flag) + " image '" + *file.path +
+                         "' did not decode to 8-bit BGR");
+  }
+  return Status::Ok();
+}
+
+// Every file of the window has the first one's size; the error names them "<flag><noun> 'path'"
+// and says `rule`.
+Status CheckSameSize(const InputFile (&files)[4], const std::string& noun, const char* rule) {
+  for (size_t i = 1; i < 4; ++i) {
+    if (files[i].image.size() != files[0].image.size()) {
+      return Status::Error(std::string(files[i].flag) + noun + " '" + *files[i].path + "' is " +
+                           SizeString(files[i].image.rows, files[i].image.cols) + " but " +
+                           files[0].flag + noun + " '" + *files[0].path + "' is " +
+                           SizeString(files[0].image.rows, files[0].image.cols) + " (" + rule +
+                           ")");
+    }
+  }
+  return Status::Ok();
+}
+
+std::string JoinSlots(const std::vector<std::string>& slots) {
+  std::string text;
+  for (const std::string& slot : slots) text += (text.empty() ? "" : ",") + slot;
+  return text;
+}
+
 // Reads the four images and builds the network input as the model's metadata prescribes:
 // image order, color order, then value = (pixel * scale - mean[c]) / std[c].
 Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc, int resize_h,
                                     int resize_w) {
-  struct Source {
-    const char* slot;
-    const char* flag;
-    const std::string* path;
-    cv::Mat image;
-  };
-  Source sources[4] = {{"left0", "--left0", &args.left0, {}},
-                       {"right0", "--right0", &args.right0, {}},
-                       {"left1", "--left1", &args.left1, {}},
-                       {"right1", "--right1", &args.right1, {}}};
+  InputFile sources[4] = {{"--left0", &args.left0, {}},
+                          {"--right0", &args.right0, {}},
+                          {"--left1", &args.left1, {}},
+                          {"--right1", &args.right1, {}}};
 
   // Check the metadata before reading anything big: the same preprocessing as `sfrt run`
   // (camera/sources Preprocessor, parameters from the model's metadata).
@@ -81,23 +120,11 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
     return Status::Error(params.message() + "; give --input-npy instead");
   }
 
-  for (Source& s : sources) {
-    if (std::string problem = CheckInputFile(*s.path, std::string(s.flag) + " image");
-        !problem.empty()) {
-      return Status::Error(problem);
-    }
-    // 8-bit, BGR
-    if (std::string why = camera::ReadImageFile(*s.path, cv::IMREAD_COLOR, &s.image);
-        !why.empty()) {
-      return Status::Error(std::string(s.flag) + " image '" + *s.path + "' " + why);
-    }
-    if (s.image.type() != CV_8UC3) {
-      return Status::Error(std::string(s.flag) + " image '" + *s.path +
-                           "' did not decode to 8-bit BGR");
-    }
+  for (InputFile& s : sources) {
+    if (Status read = ReadColourImage(s); !read.ok()) return read;
   }
   // One note for the run when an image is not 8-bit colour (read as 8-bit BGR all the same).
-  for (const Source& s : sources) {
+  for (const InputFile& s : sources) {
     camera::Result<camera::ImageHeader> header = camera::ReadImageHeader(*s.path);
     const std::string what = header.ok() ? camera::NotEightBitColour(*header) : "";
     if (what.empty()) continue;
@@ -107,14 +134,9 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
               << std::endl;
     break;
   }
-  for (size_t i = 1; i < 4; ++i) {
-    if (sources[i].image.size() != sources[0].image.size()) {
-      return Status::Error(std::string(sources[i].flag) + " image '" + *sources[i].path + "' is " +
-                           SizeString(sources[i].image.rows, sources[i].image.cols) + " but " +
-                           sources[0].flag + " image '" + *sources[0].path + "' is " +
-                           SizeString(sources[0].image.rows, sources[0].image.cols) +
-                           " (all four images must have the same size)");
-    }
+  if (Status same = CheckSameSize(sources, " image", "all four images must have the same size");
+      !same.ok()) {
+    return same;
   }
   std::string resized;
   if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
@@ -141,9 +163,8 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
                                 sources[3].image, input.data.data(), input.data.size());
   if (!ran.ok()) return Status::Error(ran.message());
-  std::string order;
-  for (const std::string& slot : desc.image_order) order += (order.empty() ? "" : ",") + slot;
-  input.description = "4 images as " + order + ", " + desc.color_order + resized;
+  input.description =
+      "4 images as " + JoinSlots(desc.image_order) + ", " + desc.color_order + resized;
   return input;
 }
 
@@ -201,52 +222,38 @@ Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, 
   params.depth_invalid = desc.depth_invalid;
   params.depth_units_per_metre = args.depth_units;
 
-  struct Source {
-    const char* flag;
-    const std::string* path;
-    bool depth;
-    cv::Mat image;
-  };
-  Source sources[4] = {{"--color0", &args.color0, false, {}},
-                       {"--depth0", &args.depth0, true, {}},
-                       {"--color1", &args.color1, false, {}},
-                       {"--depth1", &args.depth1, true, {}}};
-  for (Source& s : sources) {
-    if (s.depth) {
-      Result<cv::Mat> depth = ReadDepthMap(s.flag, *s.path);
-      if (!depth.ok()) return depth.status();
-      s.image = *depth;
+  // Colour, depth, colour, depth: the depth maps are the odd entries.
+  InputFile sources[4] = {{"--color0", &args.color0, {}},
+                          {"--depth0", &args.depth0, {}},
+                          {"--color1", &args.color1, {}},
+                          {"--depth1", &args.depth1, {}}};
+  for (size_t i = 0; i < 4; ++i) {
+    InputFile& s = sources[i];
+    if (i % 2 == 0) {
+      if (Status read = ReadColourImage(s); !read.ok()) return read;
       continue;
     }
-    if (std::string problem = CheckInputFile(*s.path, std::string(s.flag) + " image");
-        !problem.empty()) {
-      return Status::Error(problem);
-    }
-    if (std::string why = camera::ReadImageFile(*s.path, cv::IMREAD_COLOR, &s.image);
-        !why.empty()) {
-      return Status::Error(std::string(s.flag) + " image '" + *s.path + "' " + why);
-    }
+    Result<cv::Mat> depth = ReadDepthMap(s.flag, *s.path);
+    if (!depth.ok()) return depth.status();
+    s.image = *depth;
   }
-  for (size_t i = 1; i < 4; ++i) {
-    if (sources[i].image.size() != sources[0].image.size()) {
-      return Status::Error(std::string(sources[i].flag) + " '" + *sources[i].path + "' is " +
-                           SizeString(sources[i].image.rows, sources[i].image.cols) + " but " +
-                           sources[0].flag + " '" + *sources[0].path + "' is " +
-                           SizeString(sources[0].image.rows, sources[0].image.cols) +
-                           " (both frames' colour and depth must have the same size)");
-    }
+  if (Status same =
+          CheckSameSize(sources, "", "both frames' colour and depth must have the same size");
+      !same.ok()) {
+    return same;
   }
   std::string resized;
   if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
     resized = ", resized from " + SizeString(sources[0].image.rows, sources[0].image.cols);
     const bool shrink = resize_h < sources[0].image.rows || resize_w < sources[0].image.cols;
-    for (Source& s : sources) {
+    for (size_t i = 0; i < 4; ++i) {
       cv::Mat out;
       // Depth by the nearest sample: averaging would invent depths between surfaces (and mix
       // in the missing ones).
-      cv::resize(s.image, out, cv::Size(resize_w, resize_h), 0, 0,
-                 s.depth ? cv::INTER_NEAREST : (shrink ? cv::INTER_AREA : cv::INTER_LINEAR));
-      s.image = out;
+      const bool depth = i % 2 == 1;
+      cv::resize(sources[i].image, out, cv::Size(resize_w, resize_h), 0, 0,
+                 depth ? cv::INTER_NEAREST : (shrink ? cv::INTER_AREA : cv::INTER_LINEAR));
+      sources[i].image = out;
     }
   }
   InputTensor input;
@@ -258,11 +265,7 @@ Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, 
   camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
                                 sources[3].image, input.data.data(), input.data.size());
   if (!ran.ok()) return Status::Error(ran.message());
-  std::string order_text;
-  for (const std::string& slot : desc.image_order) {
-    order_text += (order_text.empty() ? "" : ",") + slot;
-  }
-  input.description = "2 RGB-D frames as " + order_text + ", " + desc.color_order +
+  input.description = "2 RGB-D frames as " + JoinSlots(desc.image_order) + ", " + desc.color_order +
                       ", 16-bit depth at " + FormatFloat(args.depth_units) + " per metre" + resized;
   return input;
 }
