@@ -1311,7 +1311,7 @@ Status Importer::ReadInput() {
 Status Importer::ChooseOutput() {
   std::string names;
   for (int k = 0; k < graph().output_size(); ++k) {
-    if (graph().output(k).name() == options_.output) {
+    if (!options_.output.empty() && graph().output(k).name() == options_.output) {
       output_index_ = k;
       return Status::Ok();
     }

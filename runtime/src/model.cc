@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -767,6 +768,7 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
   if (in->image_order() != nullptr) {
     int image_channels = 0;
     int rgbd_slots = 0;
+    std::array<bool, vocabulary::kImageSlots> seen{};
     for (auto slot : *in->image_order()) {
       const char* name = ImageSlotName(static_cast<fb::ImageSlot>(slot));
       if (name == nullptr) {
@@ -774,9 +776,10 @@ Status Model::Parse(const LoadOptions& options, const std::string& label) {
                           std::to_string(static_cast<int>(slot)));
       }
       const vocabulary::ImageSlot word = *vocabulary::ImageSlotFromName(name);
-      for (const std::string& earlier : input.image_order) {
-        if (earlier == name) return check.Fail("input.image_order names " + earlier + " twice");
+      if (seen[static_cast<size_t>(word)]) {
+        return check.Fail(std::string("input.image_order names ") + name + " twice");
       }
+      seen[static_cast<size_t>(word)] = true;
       input.image_order.push_back(name);
       image_channels += vocabulary::SlotChannels(word);
       rgbd_slots += vocabulary::IsRgbdSlot(word) ? 1 : 0;
