@@ -177,10 +177,8 @@ Result<InputKind> ChooseInputKind(const ExportArgs& args, const exporter::ModelS
 std::string InputLine(const InputDesc& input) {
   const std::string channels = std::to_string(input.channels) + " channels: ";
   if (input.image_order.empty()) return channels + "a plain tensor, fed as given";
-  std::string order;
-  for (const std::string& slot : input.image_order) order += (order.empty() ? "" : ",") + slot;
-  std::string line = channels + order + ", " + input.color_order + ", value = (pixel * " +
-                     FormatFloat(input.scale) + " - mean) / std, mean " +
+  std::string line = channels + Join(input.image_order, ",") + ", " + input.color_order +
+                     ", value = (pixel * " + FormatFloat(input.scale) + " - mean) / std, mean " +
                      FormatFloat(input.mean[0]) + "," + FormatFloat(input.mean[1]) + "," +
                      FormatFloat(input.mean[2]) + ", std " + FormatFloat(input.std[0]) + "," +
                      FormatFloat(input.std[1]) + "," + FormatFloat(input.std[2]);

@@ -98,12 +98,6 @@ Status CheckSameSize(const InputFile (&files)[4], const std::string& noun, const
   return Status::Ok();
 }
 
-std::string JoinSlots(const std::vector<std::string>& slots) {
-  std::string text;
-  for (const std::string& slot : slots) text += (text.empty() ? "" : ",") + slot;
-  return text;
-}
-
 // Reads the four images and builds the network input as the model's metadata prescribes:
 // image order, color order, then value = (pixel * scale - mean[c]) / std[c].
 Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc, int resize_h,
@@ -164,7 +158,7 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
                                 sources[3].image, input.data.data(), input.data.size());
   if (!ran.ok()) return Status::Error(ran.message());
   input.description =
-      "4 images as " + JoinSlots(desc.image_order) + ", " + desc.color_order + resized;
+      "4 images as " + Join(desc.image_order, ",") + ", " + desc.color_order + resized;
   return input;
 }
 
@@ -265,7 +259,7 @@ Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, 
   camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
                                 sources[3].image, input.data.data(), input.data.size());
   if (!ran.ok()) return Status::Error(ran.message());
-  input.description = "2 RGB-D frames as " + JoinSlots(desc.image_order) + ", " + desc.color_order +
+  input.description = "2 RGB-D frames as " + Join(desc.image_order, ",") + ", " + desc.color_order +
                       ", 16-bit depth at " + FormatFloat(args.depth_units) + " per metre" + resized;
   return input;
 }

@@ -26,15 +26,6 @@ struct InspectArgs {
   bool print_plan = false;
 };
 
-std::string Join(const std::vector<std::string>& items, const char* sep) {
-  std::string out;
-  for (const std::string& item : items) {
-    if (!out.empty()) out += sep;
-    out += item;
-  }
-  return out;
-}
-
 std::string Triple(const float v[3]) {
   return FormatFloat(v[0]) + "," + FormatFloat(v[1]) + "," + FormatFloat(v[2]);
 }

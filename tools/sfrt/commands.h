@@ -9,6 +9,7 @@
 #include <functional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -78,5 +79,8 @@ std::string GroupDigits(unsigned long long value);
 
 // Shortest natural form of a number, as printf's %g: 1050, 479.5, 0.3, 1e-05.
 std::string FormatFloat(double value);
+
+// The items with `sep` between them: {"left0", "right0"}, "," -> "left0,right0".
+std::string Join(const std::vector<std::string>& items, const char* sep);
 
 }  // namespace sfrt::tools

@@ -110,6 +110,12 @@ std::string FormatFloat(double value) {
   return buf;
 }
 
+std::string Join(const std::vector<std::string>& items, const char* sep) {
+  std::string out;
+  for (const std::string& item : items) out += (out.empty() ? "" : sep) + item;
+  return out;
+}
+
 std::string GroupDigits(unsigned long long value) {
   std::string digits = std::to_string(value);
   std::string out;

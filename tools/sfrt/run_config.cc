@@ -38,12 +38,6 @@ const char* Fourcc(config::PixelFormat f) {
   return "YUYV";
 }
 
-std::string Join(const std::vector<std::string>& items, const char* sep) {
-  std::string out;
-  for (const std::string& s : items) out += (out.empty() ? "" : sep) + s;
-  return out;
-}
-
 // The capability snapshot; SFRT_TEST_CAPABILITIES=none drops every privilege from it (the
 // test seam: a root test run then sees what an unprivileged deployment sees).
 config::ProcessCapabilities Capabilities() {
