@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <utility>
 
 #include "sfrt/exporter/model_writer.h"
@@ -231,10 +232,18 @@ class Calibrator {
     return Status::Ok();
   }
 
-  // The quantisation of what convolution j reads (ValuesRead), and of what it writes.
-  QuantParams InputQuant(size_t j, double percentile) const {
-    return TensorQuant(ValuesRead(fp32_.layers(), static_cast<size_t>(conv_layers_[j])),
-                       percentile);
+  // The quantisation of what the convolutions `members` read (ValuesRead), over the union of
+  // their ranges, and of what convolution j writes.
+  QuantParams InputQuant(std::span<const size_t> members, double percentile) const {
+    double lo = 0, hi = 0;
+    for (size_t j : members) {
+      const int t = ValuesRead(fp32_.layers(), static_cast<size_t>(conv_layers_[j]));
+      const int k = t == kModelInput ? 0 : stats_of_layer_[static_cast<size_t>(t)];
+      const auto [l, h] = stats_[static_cast<size_t>(k)].Range(percentile);
+      lo = std::min(lo, l);
+      hi = std::max(hi, h);
+    }
+    return ActivationQuantParams(lo, hi);
   }
   QuantParams OutputQuant(size_t j, double percentile) const {
     return TensorQuant(conv_layers_[j], percentile);
@@ -481,6 +490,48 @@ void QuantizePhaseWeights(std::span<const float> hwio3x3, int in_channels, int o
   }
 }
 
+std::vector<int> SharedScaleGroups(std::span<const LayerDesc> layers,
+                                   std::span<const int> conv_layers) {
+  // The convolution outputs the values convolution j reads come from.
+  auto sources = [&](int conv) {
+    std::vector<int> found;
+    std::vector<int> pending = {layers[static_cast<size_t>(conv)].inputs[0]};
+    while (!pending.empty()) {
+      const int t = pending.back();
+      pending.pop_back();
+      if (t == kModelInput) continue;
+      const LayerDesc& l = layers[static_cast<size_t>(t)];
+      if (l.kind == LayerKind::kUpsample || l.kind == LayerKind::kCrop) {
+        pending.push_back(l.inputs[0]);
+      } else if (l.kind == LayerKind::kConcat) {
+        pending.insert(pending.end(), l.inputs.begin(), l.inputs.end());
+      } else if (l.kind == LayerKind::kConv2D) {
+        found.push_back(t);
+      }
+    }
+    return found;
+  };
+  std::vector<int> group(conv_layers.size());
+  std::iota(group.begin(), group.end(), 0);
+  std::vector<int> first_reader(layers.size(), -1);  // per source: a convolution reading it
+  for (size_t j = 0; j < conv_layers.size(); ++j) {
+    for (int source : sources(conv_layers[j])) {
+      int& reader = first_reader[static_cast<size_t>(source)];
+      if (reader < 0) {
+        reader = static_cast<int>(j);
+        continue;
+      }
+      // Merge j's group into the reader's: renumber to the smaller number.
+      const int from = std::max(group[j], group[static_cast<size_t>(reader)]);
+      const int to = std::min(group[j], group[static_cast<size_t>(reader)]);
+      for (int& g : group) {
+        if (g == from) g = to;
+      }
+    }
+  }
+  return group;
+}
+
 std::string CalibrationDataSha256(const CalibrationSet& data) {
   Sha256 sha;
   sha.Update(data.values.data(), data.values.size() * sizeof(float));
@@ -527,9 +578,19 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   if (Status s = calibrator.Prepare(); !s.ok()) return s;
   if (Status s = calibrator.Observe(); !s.ok()) return s;
 
+  std::vector<int> group(conv_layers.size());
+  if (options.shared_scales) {
+    group = SharedScaleGroups((*fp32)->layers(), conv_layers);
+  } else {
+    std::iota(group.begin(), group.end(), 0);
+  }
   std::vector<QuantParams> input_quant, output_quant;
   for (size_t j = 0; j < conv_layers.size(); ++j) {
-    input_quant.push_back(calibrator.InputQuant(j, method->percentile));
+    std::vector<size_t> members;
+    for (size_t k = 0; k < conv_layers.size(); ++k) {
+      if (group[k] == group[j]) members.push_back(k);
+    }
+    input_quant.push_back(calibrator.InputQuant(members, method->percentile));
     output_quant.push_back(calibrator.OutputQuant(j, method->percentile));
   }
   std::vector<QuantizedWeights> weights(conv_layers.size());
@@ -578,7 +639,12 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   }
 
   CalibrationDesc& cal = result.calibration;
-  cal.method = method->text;
+  // Where a group has more than one member, the ranges are shared, and the record says so.
+  std::vector<int> sorted_groups = group;
+  std::sort(sorted_groups.begin(), sorted_groups.end());
+  const bool shared =
+      std::adjacent_find(sorted_groups.begin(), sorted_groups.end()) != sorted_groups.end();
+  cal.method = method->text + (shared ? ", shared scales" : "");
   cal.data_sha256 = CalibrationDataSha256(data);
   cal.frames = data.frames;
   cal.height = data.height;

@@ -75,7 +75,8 @@ size_t PackedInt8Bytes(const ConvParams& params, int nr) {
   return 2 * s.per_channel + s.weights + s.tap_sums + s.few_weights + phases;
 }
 
-PackedInt8Conv PackInt8Conv(const ConvParams& p, int nr, bool out_float, void* dst) {
+PackedInt8Conv PackInt8Conv(const ConvParams& p, int nr, const QuantParams* out_quant, void* dst) {
+  const bool out_float = out_quant == nullptr;
   const Int8Sizes s = SizesOf(p, nr);
   uint8_t* base = static_cast<uint8_t*>(dst);
   std::memset(base, 0, PackedInt8Bytes(p, nr));
@@ -97,8 +98,8 @@ PackedInt8Conv PackInt8Conv(const ConvParams& p, int nr, bool out_float, void* d
   out.leaky_slope = p.leaky_slope;
   out.in_zero_point = p.input_quant.zero_point;
   out.out_float = out_float;
-  out.out_inv_scale = out_float ? 1.0f : 1.0f / p.output_quant.scale;
-  out.out_zero_point = out_float ? 0 : p.output_quant.zero_point;
+  out.out_inv_scale = out_float ? 1.0f : 1.0f / out_quant->scale;
+  out.out_zero_point = out_float ? 0 : out_quant->zero_point;
   out.multiplier = multiplier;
   out.bias = bias;
   out.weights_hwio = p.weights_q;

@@ -15,8 +15,10 @@ namespace sfrt {
 size_t PackedInt8Bytes(const ConvParams& params, int nr);
 
 // Writes the packing into `dst` (PackedInt8Bytes bytes, 64-byte aligned) and returns the
-// descriptor pointing into it and at params.weights_q. The output is float32 when `out_float`,
-// else uint8 quantised with params.output_quant.
-PackedInt8Conv PackInt8Conv(const ConvParams& params, int nr, bool out_float, void* dst);
+// descriptor pointing into it and at params.weights_q. The output is uint8 quantised with
+// `out_quant` (a chain's params.output_quant, or what a graph's readers share), or float32 when
+// `out_quant` is null.
+PackedInt8Conv PackInt8Conv(const ConvParams& params, int nr, const QuantParams* out_quant,
+                            void* dst);
 
 }  // namespace sfrt

@@ -150,7 +150,7 @@ void ReducedGraphConv(const ConvParams& p, const LayerGeometry& g, ConstTensorVi
   if (p.precision == Precision::kInt8) {
     const Tensor q = Quantized(t, p.input_quant);
     const PackedInt8Conv packed =
-        PackInt8Conv(p, 0, true, AlignedScratch(packing, PackedInt8Bytes(p, 0)));
+        PackInt8Conv(p, 0, nullptr, AlignedScratch(packing, PackedInt8Bytes(p, 0)));
     Int8ConvArgs args;
     args.conv = &packed;
     args.in = q.qview();
@@ -342,8 +342,8 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       const bool out_float =
           consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kInt8;
       std::vector<uint8_t> packing;
-      const PackedInt8Conv packed =
-          PackInt8Conv(p, 0, out_float, AlignedScratch(packing, PackedInt8Bytes(p, 0)));
+      const PackedInt8Conv packed = PackInt8Conv(p, 0, out_float ? nullptr : &p.output_quant,
+                                                 AlignedScratch(packing, PackedInt8Bytes(p, 0)));
       Int8ConvArgs args;
       args.conv = &packed;
       args.in = cur.qview();

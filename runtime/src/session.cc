@@ -48,6 +48,7 @@ struct Session::Step {
                      // (kernels/bf16_job.h)
     kUpsampleBf16,   // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
     kConcat,         // ref::ConcatRows
+    kConcatU8,       // ref::ConcatRows on uint8 tensors (a graph's, PlanUint8Tensors)
     kAdd,            // ref::AddRows
     kConvTranspose,  // ref::ConvTranspose2dRows
     kPool,           // ref::PoolRows
@@ -79,7 +80,8 @@ struct Session::Step {
   // kBf16Conv:
   Bf16ConvRowsFn fn16 = nullptr;
   PackedBf16Conv packed16;
-  // kQuantize:
+  // kQuantize: what it quantises with; kInt8Conv writing uint8: what its output is quantised
+  // with (a chain's output_quant, or a graph's PlanUint8Tensors quantisation).
   QuantParams quant;
   QuantizeRowsFn quantize = nullptr;
   // kToBf16:
@@ -93,6 +95,7 @@ struct Session::Views {
   std::vector<ConstByteView> u8;
   std::vector<ConstBf16View> bf16;
   std::vector<ConstTensorView> gather;
+  std::vector<ConstByteView> gather8;
 };
 
 class Session::Pool : public ThreadPool {
@@ -279,6 +282,94 @@ void ConvTransposeTrampoline(void* ctx, int begin, int end) {
   ref::ConvTranspose2dRows(job->in, *job->params, job->out, begin, end);
 }
 
+struct ConcatU8Job {
+  const ConstByteView* inputs;
+  int count;
+  ByteView out;
+};
+
+void ConcatU8Trampoline(void* ctx, int begin, int end) {
+  const ConcatU8Job* job = static_cast<const ConcatU8Job*>(ctx);
+  ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
+}
+
+// The layer outputs of a graph that a session keeps as uint8 rather than float32, and their
+// quantisation. A layer's output qualifies when
+//   - an int8 convolution writes it, or a nearest upsampling, a crop or a Concat of qualifying
+//     tensors (which move bytes without arithmetic), and
+//   - every layer that reads it is an int8 convolution whose input_quant is one and the same, or
+//     a qualifying layer with that quantisation (the model's output never qualifies).
+// Quantising once where the tensor is written then gives the bytes that quantising the float32
+// tensor at each reader gives (the same Int8Quantize of the same float), so keeping them changes
+// no result; it saves the converting steps and moves a quarter of the bytes. The exporter gives
+// the tensors that meet at a Concat one quantisation so that this applies.
+struct Uint8Tensors {
+  std::vector<char> is_u8;         // per layer output
+  std::vector<QuantParams> quant;  // where is_u8
+};
+
+Uint8Tensors PlanUint8Tensors(std::span<const LayerDesc> layers) {
+  const int n = static_cast<int>(layers.size());
+  // The tensors whose values layer i reads (a crop's second input gives only its size).
+  auto data_inputs = [&](int i) {
+    const LayerDesc& l = layers[static_cast<size_t>(i)];
+    return std::span<const int>(l.inputs).first(l.kind == LayerKind::kCrop ? 1 : l.inputs.size());
+  };
+  std::vector<std::vector<int>> readers(static_cast<size_t>(n));
+  for (int r = 0; r < n; ++r) {
+    for (int t : data_inputs(r)) {
+      if (t != kModelInput) readers[static_cast<size_t>(t)].push_back(r);
+    }
+  }
+  auto int8_conv = [&](int i) {
+    const LayerDesc& l = layers[static_cast<size_t>(i)];
+    return l.kind == LayerKind::kConv2D && l.conv.precision == Precision::kInt8;
+  };
+  auto moves_bytes = [&](int i) {
+    const LayerKind k = layers[static_cast<size_t>(i)].kind;
+    return k == LayerKind::kUpsample || k == LayerKind::kCrop || k == LayerKind::kConcat;
+  };
+  Uint8Tensors out;
+  out.is_u8.assign(static_cast<size_t>(n), 0);
+  out.quant.resize(static_cast<size_t>(n));
+  for (int i = 0; i + 1 < n; ++i)
+    out.is_u8[static_cast<size_t>(i)] = int8_conv(i) || moves_bytes(i);
+  // Every pass only removes candidates, so this ends; readers come after what they read.
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (int i = n - 1; i >= 0; --i) {
+      char& keep = out.is_u8[static_cast<size_t>(i)];
+      if (!keep) continue;
+      const std::vector<int>& rs = readers[static_cast<size_t>(i)];
+      bool ok = !rs.empty();
+      for (size_t k = 0; ok && k < rs.size(); ++k) {
+        const int r = rs[k];
+        QuantParams want;
+        if (int8_conv(r)) {
+          want = layers[static_cast<size_t>(r)].conv.input_quant;
+        } else if (out.is_u8[static_cast<size_t>(r)]) {
+          want = out.quant[static_cast<size_t>(r)];
+        } else {
+          ok = false;
+          break;
+        }
+        if (k > 0 && !(want == out.quant[static_cast<size_t>(i)])) ok = false;
+        out.quant[static_cast<size_t>(i)] = want;
+      }
+      if (ok && moves_bytes(i)) {
+        for (int t : data_inputs(i)) {
+          if (t == kModelInput || !out.is_u8[static_cast<size_t>(t)]) ok = false;
+        }
+      }
+      if (!ok) {
+        keep = 0;
+        changed = true;
+      }
+    }
+  }
+  return out;
+}
+
 Status CheckTuning(const KernelTuning& tuning) {
   if (tuning.winograd_tile != 0 && tuning.winograd_tile != 2 && tuning.winograd_tile != 4) {
     return Status::Error("Session::Create: KernelTuning::winograd_tile is " +
@@ -385,6 +476,7 @@ Status Session::Plan() {
     step.precision = p.precision;
     const Precision consumer = precision_of(next_conv(conv + 1));
     set_out(step, consumer == p.precision ? p.precision : Precision::kFloat32);
+    step.quant = p.output_quant;
     if (p.precision == Precision::kInt8) {
       step.kind = Step::Kind::kInt8Conv;
       if (kernels8 != nullptr && simd_fits(p, upsampled, kMaxInt8Taps)) {
@@ -437,6 +529,22 @@ Status Session::Plan() {
   // and writes float32, so that Concat, Add and the other ops read float32. A chain keeps int8
   // and bf16 tensors between convolutions of the same precision (`cur`).
   const bool graph = model_->float32_between_layers();
+  // Except the tensors of a graph that stay uint8 between int8 convolutions (PlanUint8Tensors).
+  const Uint8Tensors u8_tensors = graph
+                                      ? PlanUint8Tensors(layers)
+                                      : Uint8Tensors{std::vector<char>(static_cast<size_t>(n)), {}};
+  auto u8_tensor = [&](int t) {
+    return t != kModelInput && u8_tensors.is_u8[static_cast<size_t>(t)];
+  };
+  // A graph's int8 convolution `conv`: writes uint8 when its output stays uint8.
+  auto graph_out = [&](Step& step, int conv) {
+    if (u8_tensor(conv)) {
+      set_out(step, Precision::kInt8);
+      step.quant = u8_tensors.quant[static_cast<size_t>(conv)];
+    } else {
+      set_out(step, Precision::kFloat32);
+    }
+  };
   // Per tensor slot (layer i's output at i, the model input at n), the converting step already
   // planned for it in a graph: reused by a later reader of the same precision and quantisation.
   std::vector<int> converted(static_cast<size_t>(n) + 1, -1);
@@ -467,13 +575,13 @@ Status Session::Plan() {
     }
     Step step;
     step.first_layer = step.last_layer = i;
-    set_out(step, cur);
+    set_out(step, u8_tensor(i) ? Precision::kInt8 : cur);
     if (layer.kind == LayerKind::kCrop) {
       step.kind = Step::Kind::kCrop;
       step.kernel = i + 1 == n ? "ref::Copy" : "view";
-    } else if (layer.kind == LayerKind::kConcat) {  // float32: only chains hold int8 or bf16
-      step.kind = Step::Kind::kConcat;
-      step.kernel = "ref::ConcatRows";
+    } else if (layer.kind == LayerKind::kConcat) {  // float32, or uint8 (PlanUint8Tensors)
+      step.kind = step.out_u8 ? Step::Kind::kConcatU8 : Step::Kind::kConcat;
+      step.kernel = step.out_u8 ? "ref::ConcatRowsU8" : "ref::ConcatRows";
       gather = std::max(gather, layer.inputs.size());
     } else if (layer.kind == LayerKind::kAdd) {
       step.kind = Step::Kind::kAdd;
@@ -500,10 +608,10 @@ Status Session::Plan() {
       const bool fusable = kernels != nullptr && factor2 && conv_next &&
                            cur == Precision::kFloat32 && simd_fits(layers[conv].conv, true, 0);
       if (graph && factor2 && conv_next && precision_of(conv) != Precision::kFloat32) {
-        convert_in_graph(i, conv);
+        if (!u8_tensor(layer.inputs[0])) convert_in_graph(i, conv);
         step = reduced_step(conv, true, crop);
         step.first_layer = i;
-        set_out(step, Precision::kFloat32);
+        graph_out(step, conv);
         i = conv;
       } else if (cur != Precision::kFloat32 && factor2 && conv_next) {
         step = reduced_step(conv, true, crop);
@@ -512,12 +620,12 @@ Status Session::Plan() {
               : step.out_bf16 ? Precision::kBFloat16
                               : Precision::kFloat32;
         i = conv;
-      } else if (cur == Precision::kInt8) {
+      } else if (cur == Precision::kInt8 || step.out_u8) {
         step.kind = Step::Kind::kUpsampleU8;
-        step.kernel = "ref::UpsampleNearestPlane";
+        step.kernel = "ref::UpsampleNearestU8";
       } else if (cur == Precision::kBFloat16) {
         step.kind = Step::Kind::kUpsampleBf16;
-        step.kernel = "ref::UpsampleNearestPlane";
+        step.kernel = "ref::UpsampleNearestBf16";
       } else if (fusable) {
         step.kind = Step::Kind::kUpConv;
         step.last_layer = conv;
@@ -531,10 +639,10 @@ Status Session::Plan() {
         step.kernel = "ref::UpsampleNearest";
       }
     } else if (graph && layer.conv.precision != Precision::kFloat32) {
-      convert_in_graph(i, i);
+      if (!u8_tensor(layer.inputs[0])) convert_in_graph(i, i);
       step = reduced_step(i, false, -1);
       step.first_layer = i;
-      set_out(step, Precision::kFloat32);
+      graph_out(step, i);
     } else if (layer.conv.precision != Precision::kFloat32) {
       step = reduced_step(i, false, -1);
       step.first_layer = i;
@@ -652,7 +760,7 @@ Status Session::Plan() {
   for (Step& step : steps_) {
     const ConvParams& p = layers[step.last_layer].conv;
     if (step.kind == Step::Kind::kInt8Conv) {
-      step.packed8 = PackInt8Conv(p, nr8(step), !step.out_u8, cursor8);
+      step.packed8 = PackInt8Conv(p, nr8(step), step.out_u8 ? &step.quant : nullptr, cursor8);
     } else if (step.kind == Step::Kind::kBf16Conv) {
       step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
     }
@@ -670,6 +778,7 @@ Status Session::Plan() {
   // kInt8TensorSlack or kBf16TensorSlack spare bytes that kernels may read.
   views_ = std::make_unique<Views>();
   views_->gather.resize(gather);
+  views_->gather8.resize(gather);
   views_->f32.resize(layers.size() + 1);
   views_->u8.resize(layers.size() + 1);
   views_->bf16.resize(layers.size() + 1);
@@ -702,6 +811,9 @@ Status Session::Plan() {
       case Step::Kind::kConcat:
       case Step::Kind::kAdd:
         for (int t : first.inputs) read(holder_f[slot_of(t)], time);
+        break;
+      case Step::Kind::kConcatU8:
+        for (int t : first.inputs) read(holder_u8[slot_of(t)], time);
         break;
       case Step::Kind::kInt8Conv:
       case Step::Kind::kUpsampleU8:
@@ -947,7 +1059,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       continue;
     }
     if (step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kUpsampleU8 ||
-        (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
+        step.kind == Step::Kind::kConcatU8 || (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
       uint8_t* dst8 = reinterpret_cast<uint8_t*>(arena_) +
                       plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset;
       if (step.kind == Step::Kind::kQuantize) {
@@ -962,6 +1074,13 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
         views.u8[dst_slot] = out8;
+      } else if (step.kind == Step::Kind::kConcatU8) {
+        for (size_t k = 0; k < first.inputs.size(); ++k)
+          views.gather8[k] = views.u8[slot_of(first.inputs[k])];
+        ConcatU8Job job{views.gather8.data(), static_cast<int>(first.inputs.size()),
+                        DenseByteView(dst8, g.output.height, g.output.width, g.output.channels)};
+        parallel_rows(g.output.height, ConcatU8Trampoline, &job);
+        views.u8[dst_slot] = job.out;
       } else {
         Int8ConvArgs args = int8_args(step, cur8);
         args.out_u8 = DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
@@ -1083,6 +1202,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kCrop:
       case Step::Kind::kQuantize:
       case Step::Kind::kUpsampleU8:
+      case Step::Kind::kConcatU8:
       case Step::Kind::kToBf16:
       case Step::Kind::kUpsampleBf16:
         break;

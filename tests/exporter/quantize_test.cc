@@ -14,6 +14,7 @@
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
 #include "sfrt/reference.h"
+#include "sfrt/session.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::exporter {
@@ -383,13 +384,15 @@ double RelativeRms(const std::vector<float>& b, const std::vector<float>& a) {
 }
 
 // A graph (SceneEDNet-U's skips: Concats of upsampled and cropped decoder tensors with encoder
-// ones): each convolution is calibrated on the tensor whose values it reads, a Concat's when it
-// reads one, through upsamplings and crops otherwise; conv9, which reads a crop of an
-// upsampling, gets phase kernels; the int8 model stays close to float32 on a frame the
+// ones), with a range per tensor: each convolution is calibrated on the tensor whose values it
+// reads, a Concat's when it reads one, through upsamplings and crops otherwise; conv9, which reads
+// a crop of an upsampling, gets phase kernels; the int8 model stays close to float32 on a frame the
 // calibration never saw.
 TEST(Quantize, Int8GraphIsCalibratedOnWhatEachConvolutionReads) {
   const ModelSpec spec = testing::SceneEdNetUSpec(16, 5);
-  auto result = Quantize(spec, RandomFrames(4, 21), {});
+  QuantizeOptions per_tensor;
+  per_tensor.shared_scales = false;
+  auto result = Quantize(spec, RandomFrames(4, 21), per_tensor);
   ASSERT_TRUE(result.ok()) << result.message();
   const std::vector<const ConvSpec*> convs = Convs(result->spec);
   ASSERT_EQ(convs.size(), 11u);
@@ -413,6 +416,77 @@ TEST(Quantize, Int8GraphIsCalibratedOnWhatEachConvolutionReads) {
   ASSERT_TRUE(RunReferenceForward(*fp32, held_out.values, kHeight, kWidth, a).ok());
   ASSERT_TRUE(RunReferenceForward(*int8, held_out.values, kHeight, kWidth, b).ok());
   EXPECT_LT(RelativeRms(b, a), 0.05);
+}
+
+// In SceneEDNet-U, conv1 and conv8 read conv0's output (conv8 through cat3), conv2 and conv7
+// conv1's (through cat2), and conv3, conv4 and conv6 read conv2's and conv3's (conv6 through
+// cat1, whose upsampled half comes from cat4 = conv5 ++ conv3). conv0 reads the model input,
+// conv5 conv4's output, conv9 conv8's through up4, the output conv9's: groups of one. In a chain
+// every convolution is a group of its own.
+TEST(SharedScaleGroups, GroupsTheConvolutionsThatReadOneTensorThroughCopies) {
+  for (const auto& [spec, want] : {std::pair{testing::SceneEdNetUSpec(16, 5),
+                                             std::vector<int>{0, 1, 2, 3, 3, 5, 3, 2, 1, 9, 10}},
+                                   std::pair{testing::SceneEdNetSpec(16, 5),
+                                             std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10}}}) {
+    SCOPED_TRACE(spec.name);
+    auto model = LoadSpec(spec);
+    ASSERT_NE(model, nullptr);
+    std::vector<int> convs;
+    for (size_t i = 0; i < model->layers().size(); ++i) {
+      if (model->layers()[i].kind == LayerKind::kConv2D) convs.push_back(static_cast<int>(i));
+    }
+    EXPECT_EQ(SharedScaleGroups(model->layers(), convs), want);
+  }
+}
+
+// With shared scales (the default) the convolutions of a group read one quantisation, whose range
+// covers each member's own, and a session keeps every tensor between them uint8: it quantises
+// only the model input, where with a range per tensor it converts float32 before most
+// convolutions. The output stays as close to float32.
+TEST(Quantize, SharedScalesLetASessionKeepSceneEdNetUTensorsUint8) {
+  const ModelSpec spec = testing::SceneEdNetUSpec(16, 5);
+  const CalibrationSet frames = RandomFrames(4, 21);
+  QuantizeOptions per_tensor;
+  per_tensor.shared_scales = false;
+  auto own = Quantize(spec, frames, per_tensor);
+  auto shared = Quantize(spec, frames, {});
+  ASSERT_TRUE(own.ok()) << own.message();
+  ASSERT_TRUE(shared.ok()) << shared.message();
+  const std::vector<const ConvSpec*> a = Convs(own->spec);
+  const std::vector<const ConvSpec*> b = Convs(shared->spec);
+  ASSERT_EQ(b.size(), 11u);
+  for (int j : {4, 6}) EXPECT_EQ(b[static_cast<size_t>(j)]->input_quant, b[3]->input_quant);
+  EXPECT_EQ(b[7]->input_quant, b[2]->input_quant);
+  EXPECT_EQ(b[8]->input_quant, b[1]->input_quant);
+  for (size_t j = 0; j < b.size(); ++j) {
+    // The shared range [lo, hi] holds each member's own.
+    const QuantParams& mine = a[j]->input_quant;
+    const QuantParams& group = b[j]->input_quant;
+    const double lo = -mine.scale * mine.zero_point, hi = mine.scale * (255 - mine.zero_point);
+    const double glo = -group.scale * group.zero_point;
+    const double ghi = group.scale * (255 - group.zero_point);
+    EXPECT_LE(glo, lo + group.scale) << b[j]->name;
+    EXPECT_GE(ghi, hi - group.scale) << b[j]->name;
+  }
+  EXPECT_LT(shared->calibration.output_rms_rel, 0.05f);
+  EXPECT_EQ(shared->calibration.method, "percentile:99.99, shared scales");
+  EXPECT_EQ(own->calibration.method, "percentile:99.99");
+
+  auto converting_steps = [](const ModelSpec& quantised) {
+    auto model = LoadSpec(quantised);
+    SessionOptions options;
+    options.max_height = kHeight;
+    options.max_width = kWidth;
+    auto session = Session::Create(model, options);
+    EXPECT_TRUE(session.ok()) << session.message();
+    int n = 0;
+    if (session.ok()) {
+      for (const PlannedStep& step : (*session)->steps()) n += step.quantize ? 1 : 0;
+    }
+    return n;
+  };
+  EXPECT_EQ(converting_steps(shared->spec), 1);
+  EXPECT_GT(converting_steps(own->spec), 4);
 }
 
 // A dilated convolution has no int8 form: it stays float32 while the others become int8.

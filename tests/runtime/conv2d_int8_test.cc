@@ -183,6 +183,12 @@ Int8Problem MakeProblem(const Int8Shape& s, const Int8Quant& q, uint32_t seed) {
   return pr;
 }
 
+// What PackInt8Conv quantises the problem's output with: nothing (float32 output) or its
+// output_quant.
+const QuantParams* OutQuant(const Int8Problem& pr) {
+  return pr.quant.out_float ? nullptr : &pr.params.output_quant;
+}
+
 // An output tensor with kGuard spare elements after every row (which no kernel may write), all
 // filled with a sentinel.
 constexpr int kGuard = 5;
@@ -232,7 +238,7 @@ Int8ConvArgs ArgsFor(const Int8Problem& pr, const PackedInt8Conv* conv, Output* 
 // The reference's output, all rows at once.
 Output RunReference(const Int8Problem& pr) {
   AlignedBytes packed(PackedInt8Bytes(pr.params, 0));
-  const PackedInt8Conv conv = PackInt8Conv(pr.params, 0, pr.quant.out_float, packed.data);
+  const PackedInt8Conv conv = PackInt8Conv(pr.params, 0, OutQuant(pr), packed.data);
   Output out(pr);
   ref::Conv2dInt8Rows(ArgsFor(pr, &conv, &out), 0, pr.out_h, 0, 1);
   return out;
@@ -389,8 +395,7 @@ class Int8Kernels : public ::testing::Test {
     for (const IsaInt8Kernels* kernels : tables_) {
       SCOPED_TRACE(pr.shape.up ? kernels->upconv_name : kernels->conv_name);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv =
-          PackInt8Conv(pr.params, kernels->nr, pr.quant.out_float, packed.data);
+      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, OutQuant(pr), packed.data);
       Output got(pr);
       const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
       const Int8ConvRowsFn fn = pr.shape.up ? kernels->upconv : kernels->conv;
@@ -700,7 +705,8 @@ void Int8Kernels::CheckRowAndBlockRanges() {
       SCOPED_TRACE(Describe(pr.shape));
       const Output want = RunReference(pr);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, false, packed.data);
+      const PackedInt8Conv conv =
+          PackInt8Conv(pr.params, kernels->nr, &pr.params.output_quant, packed.data);
       ASSERT_EQ(conv.blocks, 3);
       Output got(pr);
       const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
@@ -802,8 +808,7 @@ void Int8Kernels::CheckColumnRanges() {
       SCOPED_TRACE(Describe(pr.shape));
       const Output want = RunReference(pr);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv =
-          PackInt8Conv(pr.params, kernels->nr, pr.quant.out_float, packed.data);
+      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, OutQuant(pr), packed.data);
       const Int8ConvRowsFn fn = shape.up ? kernels->upconv : kernels->conv;
       Output got(pr);
       Int8ConvArgs args = ArgsFor(pr, &conv, &got);

@@ -423,6 +423,7 @@ QuantParams ActivationRange(const Model& model, const std::vector<float>& input,
 // What a session planned for `model` at h x w runs: the number of steps of each kernel kind.
 struct PlanCounts {
   int quantize = 0, to_bf16 = 0, int8_convs = 0, bf16_convs = 0, fused_upsampling = 0;
+  int u8_concats = 0, u8_upsamplings = 0;
 };
 PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, int w) {
   SessionOptions options;
@@ -447,13 +448,18 @@ PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, 
         layers[static_cast<size_t>(step.first_layer)].kind == LayerKind::kUpsample) {
       ++counts.fused_upsampling;
     }
+    const std::string kernel = step.kernel;
+    if (kernel == "ref::ConcatRowsU8") ++counts.u8_concats;
+    if (kernel == "ref::UpsampleNearestU8") ++counts.u8_upsamplings;
   }
   return counts;
 }
 
-// Int8 convolutions in a graph read a converted copy of the float32 tensor they read (before the
-// upsampling they fuse) and write float32 for the Concats. The session on every ISA computes what
-// the reference forward computes, and the int8 model stays near the float32 one.
+// With one quantisation for every tensor, every tensor of SceneEDNet-U but the model input and
+// output stays uint8: the int8 convolutions write bytes, the Concats and upsamplings move bytes,
+// and only the model input is quantised. The session on every ISA computes what the reference
+// forward (which quantises the float32 tensor each convolution reads) computes, and the int8
+// model stays near the float32 one.
 TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
   const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
   auto fp32 = testing::LoadOrDie(fp32_spec);
@@ -464,11 +470,17 @@ TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
   auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
   ASSERT_NE(model, nullptr);
   EXPECT_TRUE(model->float32_between_layers());
-  // 11 convolutions, each reading its own tensor; conv9 fuses up4 and its crop.
-  const PlanCounts counts = CountPlan(model, BestIsa(), h, w);
-  EXPECT_EQ(counts.int8_convs, 11);
-  EXPECT_EQ(counts.quantize, 11);
-  EXPECT_EQ(counts.fused_upsampling, 1);
+  // 11 convolutions; conv9 fuses up4 and its crop; the other three upsamplings and the four
+  // Concats move uint8.
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    const PlanCounts counts = CountPlan(model, isa, h, w);
+    EXPECT_EQ(counts.int8_convs, 11);
+    EXPECT_EQ(counts.quantize, 1);
+    EXPECT_EQ(counts.fused_upsampling, 1);
+    EXPECT_EQ(counts.u8_concats, 4);
+    EXPECT_EQ(counts.u8_upsamplings, 3);
+  }
   // Float32 epilogues in SIMD registers may round the last bit otherwise than the scalar one.
   testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 11);
   // Against the float32 model: one activation range for every tensor, so a coarse bound (the
@@ -476,6 +488,38 @@ TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
   const auto want = ReferenceOutput(*fp32, input, h, w);
   const auto got = ReferenceOutput(*model, input, h, w);
   EXPECT_LE(testing::RelativeMaxError(got, want), 0.15);
+}
+
+// A tensor stays uint8 only where everything that reads it, directly or through upsamplings,
+// crops and Concats, reads one quantisation. Here conv6 reads cat1 with its own, so conv3's
+// output (read by conv4 with the common quantisation and, through cat4, up1, crop1 and cat1, by
+// conv6) is float32, and so are cat4, up1, crop1, cat1 and conv2's and conv5's outputs: the
+// converting steps are the model input's, conv3's and conv4's inputs and cat1; cat2 and cat3 and
+// their upsamplings stay uint8. Every ISA still computes what the reference forward computes.
+TEST(GraphSession, Int8GraphTensorsStayUint8OnlyWhereTheirReadersShareAQuantisation) {
+  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
+  auto fp32 = testing::LoadOrDie(fp32_spec);
+  ASSERT_NE(fp32, nullptr);
+  const auto input = testing::RandomImage(67, 121, 12, 11);
+  const QuantParams range = ActivationRange(*fp32, input, 67, 121);
+  exporter::ModelSpec spec = testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point);
+  for (exporter::LayerSpec& layer : spec.layers) {
+    auto* c = std::get_if<exporter::ConvSpec>(&layer);
+    if (c != nullptr && c->name == "conv6") {
+      c->input_quant = {range.scale * 1.25f, range.zero_point / 2};
+    }
+  }
+  auto model = testing::LoadOrDie(spec);
+  ASSERT_NE(model, nullptr);
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    const PlanCounts counts = CountPlan(model, isa, 67, 121);
+    EXPECT_EQ(counts.int8_convs, 11);
+    EXPECT_EQ(counts.quantize, 4);
+    EXPECT_EQ(counts.u8_concats, 2);
+    EXPECT_EQ(counts.u8_upsamplings, 2);
+  }
+  testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 11);
 }
 
 // The same for bf16: within the bf16 bar (2e-2) of the float32 model, and on every ISA within

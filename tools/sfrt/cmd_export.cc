@@ -87,6 +87,7 @@ struct ExportArgs {
   std::string calibration_size;
   int calibration_frames = 64;
   std::string calibration_method = "percentile:99.99";
+  std::string calibration_scales = "shared";
   // The metadata flags given on the command line: a .sfrt source keeps its own value of the rest.
   std::vector<std::string> given;
 };
@@ -100,7 +101,7 @@ constexpr const char* kDepthFlags[] = {"--depth-mean", "--depth-std", "--depth-i
 constexpr size_t kMaxUnitsLength = 64;
 // Flags that only apply with --calibration.
 constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibration-frames",
-                                             "--calibration-method"};
+                                             "--calibration-method", "--calibration-scales"};
 
 bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
@@ -620,6 +621,7 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
   options.accuracy_budget = args.accuracy_budget;
   options.auto_bf16 = !args.no_auto_bf16;
   options.method = args.calibration_method;
+  options.shared_scales = args.calibration_scales == "shared";
   options.progress = [](const char* pass, int frame, int frames) {
     const int step = std::max(1, frames / 4);
     if (frame % step == 0 || frame == frames) {
@@ -1273,6 +1275,14 @@ Command AddExportCommand(CLI::App& parent) {
                   "How activation ranges are chosen: percentile:P (the central P percent of the "
                   "values, 50 <= P <= 100) or minmax")
       ->capture_default_str();
+  cmd->add_option("--calibration-scales", args->calibration_scales,
+                  "Graphs: shared (convolutions that read values of one tensor, through "
+                  "upsamplings, crops and Concats, share one range, the union of theirs, so that "
+                  "a session keeps those tensors uint8) or per-tensor (a range per tensor read: "
+                  "tighter, but each convolution then converts a float32 copy); chains are the "
+                  "same either way")
+      ->check(CLI::IsMember({"shared", "per-tensor"}))
+      ->capture_default_str();
   args->tolerance_opt =
       cmd->add_option("--tolerance", args->tolerance,
                       "Parity tolerance: largest allowed |error| relative to the reference's "
@@ -1302,7 +1312,9 @@ Command AddExportCommand(CLI::App& parent) {
       "between the layers of a chain; measure its accuracy with sfrt eval.\n"
       "Graphs (Concat, Add, named inputs) and models with a pooling, resize, transposed\n"
       "convolution or channel affine layer keep float32 tensors between layers: each int8\n"
-      "or bf16 convolution converts what it reads and writes float32.\n"
+      "or bf16 convolution converts what it reads and writes float32, except that int8\n"
+      "tensors stay uint8 where every reader (through upsamplings, crops and Concats) is an\n"
+      "int8 convolution of one quantisation, which --calibration-scales shared arranges.\n"
       "Parity check: prints max abs error, max error relative to the reference's largest\n"
       "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
       "written (an existing file at -o is left unchanged) and the exit code is 1.\n"

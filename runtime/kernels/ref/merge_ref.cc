@@ -7,19 +7,34 @@
 
 namespace sfrt::ref {
 
-void ConcatRows(const ConstTensorView* inputs, int count, const TensorView& out, int row_begin,
-                int row_end) {
+namespace {
+
+// Either element type: the views' pixel() gives typed pointers.
+template <typename InView, typename OutView>
+void ConcatViews(const InView* inputs, int count, const OutView& out, int row_begin, int row_end) {
   for (int y = row_begin; y < row_end; ++y) {
     for (int x = 0; x < out.width; ++x) {
-      float* dst = out.pixel(y, x);
+      auto* dst = out.pixel(y, x);
       for (int k = 0; k < count; ++k) {
-        const ConstTensorView& in = inputs[k];
+        const InView& in = inputs[k];
         assert(in.height == out.height && in.width == out.width);
-        std::memcpy(dst, in.pixel(y, x), sizeof(float) * static_cast<size_t>(in.channels));
+        std::memcpy(dst, in.pixel(y, x), sizeof(*dst) * static_cast<size_t>(in.channels));
         dst += in.channels;
       }
     }
   }
+}
+
+}  // namespace
+
+void ConcatRows(const ConstTensorView* inputs, int count, const TensorView& out, int row_begin,
+                int row_end) {
+  ConcatViews(inputs, count, out, row_begin, row_end);
+}
+
+void ConcatRows(const ConstByteView* inputs, int count, const ByteView& out, int row_begin,
+                int row_end) {
+  ConcatViews(inputs, count, out, row_begin, row_end);
 }
 
 void AddRows(const ConstTensorView& a, const ConstTensorView& b, const AddParams& params,

@@ -1,5 +1,6 @@
 // Reference kernels for the layers that read more than one tensor (schema 1.5): channel
-// concatenation and element-wise addition, float32, on output rows [row_begin, row_end) so that
+// concatenation (float32, and uint8 for int8 graphs) and element-wise addition (float32), on
+// output rows [row_begin, row_end) so that
 // a session can split them over threads. Every input has the output's height and width.
 #pragma once
 
@@ -11,6 +12,9 @@ namespace sfrt::ref {
 // out[y][x] = inputs[0][y][x] ++ inputs[1][y][x] ++ ... (channels in input order);
 // out.channels is the sum of the inputs' channels.
 void ConcatRows(const ConstTensorView* inputs, int count, const TensorView& out, int row_begin,
+                int row_end);
+// The same for uint8 tensors of one quantisation.
+void ConcatRows(const ConstByteView* inputs, int count, const ByteView& out, int row_begin,
                 int row_end);
 
 // out[y][x][c] = act(a[y][x][c] + b[y][x][c]); a, b and out have the same shape.

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "sfrt/exporter/model_spec.h"
+#include "sfrt/model.h"
 #include "sfrt/status.h"
 
 namespace sfrt::exporter {
@@ -60,6 +61,12 @@ struct QuantizeOptions {
   // where the CPU has bf16 kernels, and slower where it has not).
   bool auto_bf16 = true;
   std::string method = "percentile:99.99";
+  // Graphs: convolutions whose inputs come from one tensor (through nearest upsamplings, crops
+  // and Concats; SharedScaleGroups) read one quantisation, from the union of their ranges, so
+  // that a session keeps those tensors uint8 instead of converting float32 at each reader.
+  // false: each convolution's input gets its own range. Chains are the same either way. The
+  // record's method then ends in ", shared scales" (where some group has two members).
+  bool shared_scales = true;
   // Called after each frame of each pass: pass is "range", "histogram" or "measure".
   std::function<void(const char* pass, int frame, int frames)> progress;
 };
@@ -94,6 +101,13 @@ Result<CalibrationMethod> ParseCalibrationMethod(const std::string& method);
 // The uint8 quantisation of a tensor with values in [lo, hi] (lo and hi first widened to include
 // 0), as defined above.
 QuantParams ActivationQuantParams(double lo, double hi);
+
+// For the convolutions at `conv_layers` (indices into `layers`), a group number each: two are in
+// one group when the values they read come, through nearest upsamplings, crops (their first
+// input) and Concats, from one convolution's output, directly or through other members. Groups
+// are numbered by their first member; in a chain each convolution is a group of its own.
+std::vector<int> SharedScaleGroups(std::span<const LayerDesc> layers,
+                                   std::span<const int> conv_layers);
 
 // Symmetric per-output-channel int8 weights of an HWIO tensor with `out_channels` outputs.
 void QuantizeWeights(std::span<const float> hwio, int out_channels, std::vector<int8_t>* q,
