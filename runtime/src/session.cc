@@ -48,7 +48,8 @@ struct Session::Step {
                      // (kernels/bf16_job.h)
     kUpsampleBf16,   // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
     kConcat,         // ref::ConcatRows
-    kConcatU8,       // ref::ConcatRows on uint8 tensors (a graph's, PlanUint8Tensors)
+    kConcatU8,       // ref::ConcatRows on uint8 tensors (a graph's, PlanReducedTensors)
+    kConcatBf16,     // ref::ConcatRows on bf16 tensors (likewise)
     kAdd,            // ref::AddRows
     kConvTranspose,  // ref::ConvTranspose2dRows
     kPool,           // ref::PoolRows
@@ -81,7 +82,7 @@ struct Session::Step {
   Bf16ConvRowsFn fn16 = nullptr;
   PackedBf16Conv packed16;
   // kQuantize: what it quantises with; kInt8Conv writing uint8: what its output is quantised
-  // with (a chain's output_quant, or a graph's PlanUint8Tensors quantisation).
+  // with (a chain's output_quant, or a graph's PlanReducedTensors quantisation).
   QuantParams quant;
   QuantizeRowsFn quantize = nullptr;
   // kToBf16:
@@ -96,6 +97,7 @@ struct Session::Views {
   std::vector<ConstBf16View> bf16;
   std::vector<ConstTensorView> gather;
   std::vector<ConstByteView> gather8;
+  std::vector<ConstBf16View> gather16;
 };
 
 class Session::Pool : public ThreadPool {
@@ -293,22 +295,35 @@ void ConcatU8Trampoline(void* ctx, int begin, int end) {
   ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
 }
 
-// The layer outputs of a graph that a session keeps as uint8 rather than float32, and their
-// quantisation. A layer's output qualifies when
-//   - an int8 convolution writes it, or a nearest upsampling, a crop or a Concat of qualifying
-//     tensors (which move bytes without arithmetic), and
-//   - every layer that reads it is an int8 convolution whose input_quant is one and the same, or
-//     a qualifying layer with that quantisation (the model's output never qualifies).
-// Quantising once where the tensor is written then gives the bytes that quantising the float32
-// tensor at each reader gives (the same Int8Quantize of the same float), so keeping them changes
-// no result; it saves the converting steps and moves a quarter of the bytes. The exporter gives
-// the tensors that meet at a Concat one quantisation so that this applies.
-struct Uint8Tensors {
-  std::vector<char> is_u8;         // per layer output
-  std::vector<QuantParams> quant;  // where is_u8
+struct ConcatBf16Job {
+  const ConstBf16View* inputs;
+  int count;
+  Bf16View out;
 };
 
-Uint8Tensors PlanUint8Tensors(std::span<const LayerDesc> layers) {
+void ConcatBf16Trampoline(void* ctx, int begin, int end) {
+  const ConcatBf16Job* job = static_cast<const ConcatBf16Job*>(ctx);
+  ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
+}
+
+// The layer outputs of a graph that a session keeps in a reduced type (uint8 with a
+// quantisation, or bf16) rather than float32. A layer's output qualifies when
+//   - an int8 or bf16 convolution writes it, or a nearest upsampling, a crop or a Concat of
+//     qualifying tensors of one type (which move values without arithmetic), and
+//   - every layer that reads it is a convolution of that precision (for int8, all with one and
+//     the same input_quant) or a qualifying layer of the same type and quantisation (the
+//     model's output never qualifies).
+// Converting once where the tensor is written then gives the values that converting the float32
+// tensor at each reader gives (the same Int8Quantize, or the same rounding to bf16, of the same
+// float), so keeping them changes no result; it saves the converting steps and moves a quarter
+// (uint8) or half (bf16) of the bytes. The exporter gives the int8 convolutions that read one
+// tensor one quantisation so that this applies.
+struct ReducedTensors {
+  std::vector<Precision> type;     // per layer output: kFloat32, kInt8 (uint8) or kBFloat16
+  std::vector<QuantParams> quant;  // where kInt8
+};
+
+ReducedTensors PlanReducedTensors(std::span<const LayerDesc> layers) {
   const int n = static_cast<int>(layers.size());
   // The tensors whose values layer i reads (a crop's second input gives only its size).
   auto data_inputs = [&](int i) {
@@ -321,48 +336,63 @@ Uint8Tensors PlanUint8Tensors(std::span<const LayerDesc> layers) {
       if (t != kModelInput) readers[static_cast<size_t>(t)].push_back(r);
     }
   }
-  auto int8_conv = [&](int i) {
+  auto reduced_conv = [&](int i) {
     const LayerDesc& l = layers[static_cast<size_t>(i)];
-    return l.kind == LayerKind::kConv2D && l.conv.precision == Precision::kInt8;
+    return l.kind == LayerKind::kConv2D && l.conv.precision != Precision::kFloat32;
   };
-  auto moves_bytes = [&](int i) {
+  auto moves_values = [&](int i) {
     const LayerKind k = layers[static_cast<size_t>(i)].kind;
     return k == LayerKind::kUpsample || k == LayerKind::kCrop || k == LayerKind::kConcat;
   };
-  Uint8Tensors out;
-  out.is_u8.assign(static_cast<size_t>(n), 0);
-  out.quant.resize(static_cast<size_t>(n));
+  // Candidates start reduced (a byte mover's type comes from its readers) and are dropped until
+  // every rule holds; every pass only drops, so this ends. Readers come after what they read.
+  std::vector<char> candidate(static_cast<size_t>(n), 0);
   for (int i = 0; i + 1 < n; ++i)
-    out.is_u8[static_cast<size_t>(i)] = int8_conv(i) || moves_bytes(i);
-  // Every pass only removes candidates, so this ends; readers come after what they read.
+    candidate[static_cast<size_t>(i)] = reduced_conv(i) || moves_values(i);
+  ReducedTensors out;
+  out.type.assign(static_cast<size_t>(n), Precision::kFloat32);
+  out.quant.resize(static_cast<size_t>(n));
   for (bool changed = true; changed;) {
     changed = false;
     for (int i = n - 1; i >= 0; --i) {
-      char& keep = out.is_u8[static_cast<size_t>(i)];
-      if (!keep) continue;
+      if (!candidate[static_cast<size_t>(i)]) continue;
       const std::vector<int>& rs = readers[static_cast<size_t>(i)];
       bool ok = !rs.empty();
+      Precision type = Precision::kFloat32;
+      QuantParams quant;
       for (size_t k = 0; ok && k < rs.size(); ++k) {
         const int r = rs[k];
-        QuantParams want;
-        if (int8_conv(r)) {
-          want = layers[static_cast<size_t>(r)].conv.input_quant;
-        } else if (out.is_u8[static_cast<size_t>(r)]) {
-          want = out.quant[static_cast<size_t>(r)];
+        Precision want = Precision::kFloat32;
+        QuantParams want_quant;
+        if (reduced_conv(r)) {
+          want = layers[static_cast<size_t>(r)].conv.precision;
+          if (want == Precision::kInt8)
+            want_quant = layers[static_cast<size_t>(r)].conv.input_quant;
+        } else if (candidate[static_cast<size_t>(r)]) {
+          want = out.type[static_cast<size_t>(r)];
+          want_quant = out.quant[static_cast<size_t>(r)];
         } else {
           ok = false;
           break;
         }
-        if (k > 0 && !(want == out.quant[static_cast<size_t>(i)])) ok = false;
-        out.quant[static_cast<size_t>(i)] = want;
+        if (k > 0 && (want != type || (want == Precision::kInt8 && !(want_quant == quant)))) {
+          ok = false;
+        }
+        type = want;
+        quant = want_quant;
       }
-      if (ok && moves_bytes(i)) {
+      if (ok && reduced_conv(i)) ok = layers[static_cast<size_t>(i)].conv.precision == type;
+      if (ok && moves_values(i)) {
         for (int t : data_inputs(i)) {
-          if (t == kModelInput || !out.is_u8[static_cast<size_t>(t)]) ok = false;
+          if (t == kModelInput || !candidate[static_cast<size_t>(t)]) ok = false;
         }
       }
-      if (!ok) {
-        keep = 0;
+      if (ok) {
+        out.type[static_cast<size_t>(i)] = type;
+        out.quant[static_cast<size_t>(i)] = type == Precision::kInt8 ? quant : QuantParams{};
+      } else {
+        candidate[static_cast<size_t>(i)] = 0;
+        out.type[static_cast<size_t>(i)] = Precision::kFloat32;
         changed = true;
       }
     }
@@ -529,21 +559,19 @@ Status Session::Plan() {
   // and writes float32, so that Concat, Add and the other ops read float32. A chain keeps int8
   // and bf16 tensors between convolutions of the same precision (`cur`).
   const bool graph = model_->float32_between_layers();
-  // Except the tensors of a graph that stay uint8 between int8 convolutions (PlanUint8Tensors).
-  const Uint8Tensors u8_tensors = graph
-                                      ? PlanUint8Tensors(layers)
-                                      : Uint8Tensors{std::vector<char>(static_cast<size_t>(n)), {}};
-  auto u8_tensor = [&](int t) {
-    return t != kModelInput && u8_tensors.is_u8[static_cast<size_t>(t)];
+  // Except the tensors of a graph that stay uint8 or bf16 between convolutions of that
+  // precision (PlanReducedTensors).
+  const ReducedTensors reduced_tensors =
+      graph ? PlanReducedTensors(layers)
+            : ReducedTensors{std::vector<Precision>(static_cast<size_t>(n), Precision::kFloat32),
+                             std::vector<QuantParams>(static_cast<size_t>(n))};
+  auto tensor_type = [&](int t) {
+    return t == kModelInput ? Precision::kFloat32 : reduced_tensors.type[static_cast<size_t>(t)];
   };
-  // A graph's int8 convolution `conv`: writes uint8 when its output stays uint8.
+  // A graph's int8 or bf16 convolution `conv`: writes its output's type.
   auto graph_out = [&](Step& step, int conv) {
-    if (u8_tensor(conv)) {
-      set_out(step, Precision::kInt8);
-      step.quant = u8_tensors.quant[static_cast<size_t>(conv)];
-    } else {
-      set_out(step, Precision::kFloat32);
-    }
+    set_out(step, tensor_type(conv));
+    step.quant = reduced_tensors.quant[static_cast<size_t>(conv)];
   };
   // Per tensor slot (layer i's output at i, the model input at n), the converting step already
   // planned for it in a graph: reused by a later reader of the same precision and quantisation.
@@ -575,13 +603,17 @@ Status Session::Plan() {
     }
     Step step;
     step.first_layer = step.last_layer = i;
-    set_out(step, u8_tensor(i) ? Precision::kInt8 : cur);
+    set_out(step, graph ? tensor_type(i) : cur);
     if (layer.kind == LayerKind::kCrop) {
       step.kind = Step::Kind::kCrop;
       step.kernel = i + 1 == n ? "ref::Copy" : "view";
-    } else if (layer.kind == LayerKind::kConcat) {  // float32, or uint8 (PlanUint8Tensors)
-      step.kind = step.out_u8 ? Step::Kind::kConcatU8 : Step::Kind::kConcat;
-      step.kernel = step.out_u8 ? "ref::ConcatRowsU8" : "ref::ConcatRows";
+    } else if (layer.kind == LayerKind::kConcat) {  // float32, or reduced (PlanReducedTensors)
+      step.kind = step.out_u8     ? Step::Kind::kConcatU8
+                  : step.out_bf16 ? Step::Kind::kConcatBf16
+                                  : Step::Kind::kConcat;
+      step.kernel = step.out_u8     ? "ref::ConcatRowsU8"
+                    : step.out_bf16 ? "ref::ConcatRowsBf16"
+                                    : "ref::ConcatRows";
       gather = std::max(gather, layer.inputs.size());
     } else if (layer.kind == LayerKind::kAdd) {
       step.kind = Step::Kind::kAdd;
@@ -608,7 +640,7 @@ Status Session::Plan() {
       const bool fusable = kernels != nullptr && factor2 && conv_next &&
                            cur == Precision::kFloat32 && simd_fits(layers[conv].conv, true, 0);
       if (graph && factor2 && conv_next && precision_of(conv) != Precision::kFloat32) {
-        if (!u8_tensor(layer.inputs[0])) convert_in_graph(i, conv);
+        if (tensor_type(layer.inputs[0]) != precision_of(conv)) convert_in_graph(i, conv);
         step = reduced_step(conv, true, crop);
         step.first_layer = i;
         graph_out(step, conv);
@@ -623,7 +655,7 @@ Status Session::Plan() {
       } else if (cur == Precision::kInt8 || step.out_u8) {
         step.kind = Step::Kind::kUpsampleU8;
         step.kernel = "ref::UpsampleNearestU8";
-      } else if (cur == Precision::kBFloat16) {
+      } else if (cur == Precision::kBFloat16 || step.out_bf16) {
         step.kind = Step::Kind::kUpsampleBf16;
         step.kernel = "ref::UpsampleNearestBf16";
       } else if (fusable) {
@@ -639,7 +671,7 @@ Status Session::Plan() {
         step.kernel = "ref::UpsampleNearest";
       }
     } else if (graph && layer.conv.precision != Precision::kFloat32) {
-      if (!u8_tensor(layer.inputs[0])) convert_in_graph(i, i);
+      if (tensor_type(layer.inputs[0]) != layer.conv.precision) convert_in_graph(i, i);
       step = reduced_step(i, false, -1);
       step.first_layer = i;
       graph_out(step, i);
@@ -779,6 +811,7 @@ Status Session::Plan() {
   views_ = std::make_unique<Views>();
   views_->gather.resize(gather);
   views_->gather8.resize(gather);
+  views_->gather16.resize(gather);
   views_->f32.resize(layers.size() + 1);
   views_->u8.resize(layers.size() + 1);
   views_->bf16.resize(layers.size() + 1);
@@ -814,6 +847,9 @@ Status Session::Plan() {
         break;
       case Step::Kind::kConcatU8:
         for (int t : first.inputs) read(holder_u8[slot_of(t)], time);
+        break;
+      case Step::Kind::kConcatBf16:
+        for (int t : first.inputs) read(holder_bf16[slot_of(t)], time);
         break;
       case Step::Kind::kInt8Conv:
       case Step::Kind::kUpsampleU8:
@@ -1030,6 +1066,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       continue;
     }
     if (step.kind == Step::Kind::kToBf16 || step.kind == Step::Kind::kUpsampleBf16 ||
+        step.kind == Step::Kind::kConcatBf16 ||
         (step.kind == Step::Kind::kBf16Conv && step.out_bf16)) {
       uint16_t* dst16 = reinterpret_cast<uint16_t*>(
           reinterpret_cast<uint8_t*>(arena_) +
@@ -1044,6 +1081,14 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         written = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
         const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, written);
+        views.bf16[dst_slot] = written;
+      } else if (step.kind == Step::Kind::kConcatBf16) {
+        for (size_t k = 0; k < first.inputs.size(); ++k)
+          views.gather16[k] = views.bf16[slot_of(first.inputs[k])];
+        ConcatBf16Job job{views.gather16.data(), static_cast<int>(first.inputs.size()),
+                          DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels)};
+        parallel_rows(g.output.height, ConcatBf16Trampoline, &job);
+        written = job.out;
         views.bf16[dst_slot] = written;
       } else {
         Bf16ConvArgs args = bf16_args(step, cur16);
@@ -1203,6 +1248,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kQuantize:
       case Step::Kind::kUpsampleU8:
       case Step::Kind::kConcatU8:
+      case Step::Kind::kConcatBf16:
       case Step::Kind::kToBf16:
       case Step::Kind::kUpsampleBf16:
         break;

@@ -37,6 +37,11 @@ void ConcatRows(const ConstByteView* inputs, int count, const ByteView& out, int
   ConcatViews(inputs, count, out, row_begin, row_end);
 }
 
+void ConcatRows(const ConstBf16View* inputs, int count, const Bf16View& out, int row_begin,
+                int row_end) {
+  ConcatViews(inputs, count, out, row_begin, row_end);
+}
+
 void AddRows(const ConstTensorView& a, const ConstTensorView& b, const AddParams& params,
              const TensorView& out, int row_begin, int row_end) {
   assert(a.channels == out.channels && b.channels == out.channels);
