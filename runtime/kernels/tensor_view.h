@@ -1,6 +1,6 @@
-// Views of NHWC activations (one image) shared by every kernel tier. Pixels are dense (channel
-// stride 1, pixel stride = channels); rows may be further apart than width * channels, which is
-// how a crop becomes a view instead of a copy.
+// Views of NHWC activations (one image) shared by every kernel tier. Float32 pixels are dense
+// (channel stride 1, pixel stride = channels); rows may be further apart than width * channels,
+// which is how a crop becomes a view instead of a copy.
 #pragma once
 
 #include <cstddef>
@@ -38,7 +38,10 @@ inline TensorView DenseView(float* data, int height, int width, int channels) {
 }
 
 // The same for the reduced-precision tensors: uint8 (int8 convolutions) and bf16 bits (bf16
-// convolutions). row_stride is in elements.
+// convolutions). row_stride is in elements. Their pixels may also lie further apart than
+// `channels` (pixel_stride, in elements; 0 means dense): a uint8 tensor that a session places in
+// its slice of a Concat's tensor is a view with the Concat's pixel and row strides, which its
+// producer writes and its other readers read in place.
 template <typename T>
 struct ConstPlaneView {
   const T* data = nullptr;
@@ -46,10 +49,10 @@ struct ConstPlaneView {
   int width = 0;
   int channels = 0;
   ptrdiff_t row_stride = 0;
+  ptrdiff_t pixel_stride = 0;
 
-  const T* pixel(int y, int x) const {
-    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
-  }
+  ptrdiff_t stride() const { return pixel_stride != 0 ? pixel_stride : channels; }
+  const T* pixel(int y, int x) const { return data + y * row_stride + x * stride(); }
 };
 
 template <typename T>
@@ -59,11 +62,13 @@ struct PlaneView {
   int width = 0;
   int channels = 0;
   ptrdiff_t row_stride = 0;
+  ptrdiff_t pixel_stride = 0;
 
-  T* pixel(int y, int x) const {
-    return data + y * row_stride + static_cast<ptrdiff_t>(x) * channels;
+  ptrdiff_t stride() const { return pixel_stride != 0 ? pixel_stride : channels; }
+  T* pixel(int y, int x) const { return data + y * row_stride + x * stride(); }
+  operator ConstPlaneView<T>() const {
+    return {data, height, width, channels, row_stride, pixel_stride};
   }
-  operator ConstPlaneView<T>() const { return {data, height, width, channels, row_stride}; }
 };
 
 template <typename T>

@@ -87,6 +87,14 @@ struct Session::Step {
   QuantizeRowsFn quantize = nullptr;
   // kToBf16:
   ToBf16RowsFn to_bf16 = nullptr;
+  // A uint8 Concat in place (Plan, 1b): the Concat step does nothing (in_place), and each step
+  // that writes one of its inputs writes it into its slice of the Concat's tensor: slice_of is
+  // the Concat step's index, slice_channel the slice's first channel; an upsampling whose crop
+  // (slice_crop, keeping the top-left corner) is the input writes only the crop's extent.
+  bool in_place = false;
+  int slice_of = -1;
+  int slice_channel = 0;
+  int slice_crop = -1;
 };
 
 // Where each tensor is at the size being run: per layer output and element type (the model input
@@ -695,6 +703,8 @@ Status Session::Plan() {
     steps_.push_back(step);
   }
 
+  if (options_.tuning.concat_in_place) PlaceConcatInputs();
+
   // 2. Packed weights for the SIMD steps, in one 64-byte-aligned allocation.
   auto variant_for = [&](const ConvParams& p) -> const ConvKernelVariant& {
     return PickConvVariant(*kernels, p.out_channels);
@@ -825,6 +835,7 @@ Status Session::Plan() {
   std::vector<int> holder_f(layers.size() + 1, -1);
   std::vector<int> holder_u8(layers.size() + 1, -1);
   std::vector<int> holder_bf16(layers.size() + 1, -1);
+  std::vector<int> concat_request(steps_.size(), -1);  // per in-place Concat step
   auto holders = [&](const Step& step) -> std::vector<int>& {
     return step.out_u8 ? holder_u8 : step.out_bf16 ? holder_bf16 : holder_f;
   };
@@ -869,6 +880,20 @@ Status Session::Plan() {
     }
     if (step.kind == Step::Kind::kCrop || k + 1 == m) continue;  // the last writes the output
     const int born = convert ? step.first_layer - 1 : step.last_layer;
+    if (step.in_place || step.slice_of >= 0) {
+      // The Concat's tensor, born with the first step that writes a slice of it.
+      const size_t cat = step.in_place ? k : static_cast<size_t>(step.slice_of);
+      int& request = concat_request[cat];
+      if (request < 0) {
+        request = static_cast<int>(requests.size());
+        const size_t bytes = geometry_[steps_[cat].last_layer].output.elements() + kInt8TensorSlack;
+        requests.push_back({bytes, born, born});
+        producers.push_back(born);
+      }
+      tensor_of_step_[k] = request;
+      holder_u8[static_cast<size_t>(step.last_layer)] = request;
+      continue;
+    }
     const TensorShape shape = !convert               ? geometry_[step.last_layer].output
                               : src == layers.size() ? geometry_[0].input
                                                      : geometry_[src].output;
@@ -929,6 +954,77 @@ Status Session::Plan() {
     }
   }
   return Status::Ok();
+}
+
+// 1b. Concats in place. A uint8 Concat whose every input is written by an int8 convolution or a
+// nearest upsampling (directly, or through a crop that keeps the upsampling's top-left corner
+// and is its only reader), none of them the model input, another Concat's slice or repeated, and
+// whose channel counts are multiples of 4 (kernels read input channels in groups of 4, so no
+// kernel reads a neighbouring slice), needs no copy: each producer writes its slice of the
+// Concat's tensor, every other reader reads the slice in place (ByteView::pixel_stride), and
+// the Concat step does nothing.
+void Session::PlaceConcatInputs() {
+  const auto layers = model_->layers();
+  std::vector<int> step_of_layer(layers.size(), -1);  // the step that writes a layer's output
+  for (size_t k = 0; k < steps_.size(); ++k) {
+    const Step& step = steps_[k];
+    if (step.kind != Step::Kind::kQuantize && step.kind != Step::Kind::kToBf16) {
+      step_of_layer[static_cast<size_t>(step.last_layer)] = static_cast<int>(k);
+    }
+  }
+  auto keeps_corner = [](const CropParams& c) {
+    return c.rule == CropRule::kExplicit ? c.amounts.top == 0 && c.amounts.left == 0
+                                         : !c.excess_rows_from_top && !c.excess_cols_from_left;
+  };
+  std::vector<char> placed(layers.size(), 0);  // layer outputs already in a slice
+  for (size_t c = 0; c < steps_.size(); ++c) {
+    if (steps_[c].kind != Step::Kind::kConcatU8) continue;
+    struct Slice {
+      int layer, producer, crop, channel;
+    };
+    std::vector<Slice> slices;
+    int channel = 0;
+    bool ok = true;
+    for (int t : layers[static_cast<size_t>(steps_[c].last_layer)].inputs) {
+      if (t == kModelInput || placed[static_cast<size_t>(t)] ||
+          geometry_[static_cast<size_t>(t)].output.channels % 4 != 0) {
+        ok = false;
+        break;
+      }
+      int producer = step_of_layer[static_cast<size_t>(t)];
+      int crop = -1;
+      if (producer >= 0 && steps_[static_cast<size_t>(producer)].kind == Step::Kind::kCrop) {
+        const LayerDesc& cut = layers[static_cast<size_t>(t)];
+        const int up = cut.inputs[0];
+        crop = t;
+        producer = up == kModelInput ? -1 : step_of_layer[static_cast<size_t>(up)];
+        ok = keeps_corner(cut.crop) && producer >= 0 &&
+             steps_[static_cast<size_t>(producer)].kind == Step::Kind::kUpsampleU8 &&
+             model_->consumer_count(static_cast<size_t>(up)) == 1 &&
+             !placed[static_cast<size_t>(up)];
+      } else {
+        ok = producer >= 0 &&
+             ((steps_[static_cast<size_t>(producer)].kind == Step::Kind::kInt8Conv &&
+               steps_[static_cast<size_t>(producer)].out_u8) ||
+              steps_[static_cast<size_t>(producer)].kind == Step::Kind::kUpsampleU8);
+      }
+      for (const Slice& other : slices) ok = ok && other.layer != t && other.producer != producer;
+      if (!ok) break;
+      slices.push_back({t, producer, crop, channel});
+      channel += geometry_[static_cast<size_t>(t)].output.channels;
+    }
+    if (!ok) continue;
+    steps_[c].in_place = true;
+    steps_[c].kernel = "in place";
+    for (const Slice& slice : slices) {
+      Step& producer = steps_[static_cast<size_t>(slice.producer)];
+      producer.slice_of = static_cast<int>(c);
+      producer.slice_channel = slice.channel;
+      producer.slice_crop = slice.crop;
+      placed[static_cast<size_t>(slice.layer)] = 1;
+      placed[static_cast<size_t>(producer.last_layer)] = 1;
+    }
+  }
 }
 
 Result<TensorShape> Session::OutputShape(int height, int width) const {
@@ -1107,6 +1203,18 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         step.kind == Step::Kind::kConcatU8 || (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
       uint8_t* dst8 = reinterpret_cast<uint8_t*>(arena_) +
                       plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset;
+      // Where the step writes an h x w x c tensor: its own, or its slice of a Concat's.
+      auto out_view = [&](int h, int w, int c) {
+        if (step.slice_of < 0) return DenseByteView(dst8, h, w, c);
+        const TensorShape& whole =
+            geometry_[steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
+        return ByteView{dst8 + step.slice_channel,
+                        h,
+                        w,
+                        c,
+                        static_cast<ptrdiff_t>(whole.width) * whole.channels,
+                        whole.channels};
+      };
       if (step.kind == Step::Kind::kQuantize) {
         QuantizeJob job{step.quantize, cur,
                         DenseByteView(dst8, cur.height, cur.width, cur.channels),
@@ -1114,11 +1222,16 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         parallel_rows(cur.height, QuantizeTrampoline, &job);
         views.u8[src] = job.out;
       } else if (step.kind == Step::Kind::kUpsampleU8) {
-        const ByteView out8 =
-            DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
+        const TensorShape& extent = step.slice_crop >= 0
+                                        ? geometry_[static_cast<size_t>(step.slice_crop)].output
+                                        : g.output;
+        const ByteView out8 = out_view(extent.height, extent.width, extent.channels);
         const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
         views.u8[dst_slot] = out8;
+      } else if (step.in_place) {  // the producers wrote the slices
+        views.u8[dst_slot] =
+            DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
       } else if (step.kind == Step::Kind::kConcatU8) {
         for (size_t k = 0; k < first.inputs.size(); ++k)
           views.gather8[k] = views.u8[slot_of(first.inputs[k])];
@@ -1128,7 +1241,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         views.u8[dst_slot] = job.out;
       } else {
         Int8ConvArgs args = int8_args(step, cur8);
-        args.out_u8 = DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
+        args.out_u8 = out_view(g.output.height, g.output.width, g.output.channels);
         run_blocked(step.fn8, args, g.output.height);
         views.u8[dst_slot] = args.out_u8;
       }

@@ -123,6 +123,7 @@ struct Int8Problem {
   ConstByteView in;
   int c_h = 0, c_w = 0;  // the map the convolution reads (C, or the input)
   int out_h = 0, out_w = 0;
+  int out_pixel_extra = 0;  // uint8 output pixels this many bytes further apart (a slice)
 };
 
 // Input bytes uniform in 0..255 from `seed` (the slack too: it must not matter), int8 weights
@@ -193,22 +194,24 @@ const QuantParams* OutQuant(const Int8Problem& pr) {
 // filled with a sentinel.
 constexpr int kGuard = 5;
 struct Output {
-  Output(const Int8Problem& pr) : h(pr.out_h), w(pr.out_w), c(pr.shape.cout) {
+  Output(const Int8Problem& pr)
+      : h(pr.out_h), w(pr.out_w), c(pr.shape.cout), stride(pr.shape.cout + pr.out_pixel_extra) {
     if (pr.quant.out_float) {
       f32.assign(static_cast<size_t>(h) * RowElements(), -12345.0f);
     } else {
       u8.assign(static_cast<size_t>(h) * RowElements(), 0xA5);
     }
   }
-  ptrdiff_t RowElements() const { return static_cast<ptrdiff_t>(w) * c + kGuard; }
+  ptrdiff_t RowElements() const { return static_cast<ptrdiff_t>(w) * stride + kGuard; }
   void Bind(Int8ConvArgs* args) {
     if (!f32.empty()) {
       args->out_f32 = TensorView{f32.data(), h, w, c, RowElements()};
     } else {
-      args->out_u8 = ByteView{u8.data(), h, w, c, RowElements()};
+      args->out_u8 = ByteView{u8.data(), h, w, c, RowElements(), stride};
     }
   }
   int h, w, c;
+  ptrdiff_t stride;  // elements between pixels
   std::vector<uint8_t> u8;
   std::vector<float> f32;
 };
@@ -422,12 +425,12 @@ class Int8Kernels : public ::testing::Test {
       size_t i = 0;
       while (std::memcmp(g + i, w + i, elem) == 0) i += elem;
       const ptrdiff_t e = static_cast<ptrdiff_t>(i / elem), row = got.RowElements();
-      const int oy = static_cast<int>(e / row), ox = static_cast<int>(e % row) / pr.shape.cout;
-      const int o = static_cast<int>(e % row) % pr.shape.cout;
+      const int oy = static_cast<int>(e / row), ox = static_cast<int>((e % row) / got.stride);
+      const int o = static_cast<int>((e % row) % got.stride);
       ADD_FAILURE() << "first difference at (" << oy << "," << ox << "," << o << ")"
-                    << (e % row >= static_cast<ptrdiff_t>(pr.out_w) * pr.shape.cout
-                            ? " (a row guard)"
-                            : "")
+                    << (e % row >= static_cast<ptrdiff_t>(pr.out_w) * got.stride ? " (a row guard)"
+                        : o >= pr.shape.cout ? " (between pixels)"
+                                             : "")
                     << ": got " << Value(got, e) << ", reference " << Value(want, e);
     }
   }
@@ -438,6 +441,7 @@ class Int8Kernels : public ::testing::Test {
   void CheckRowAndBlockRanges();
   void CheckAmxBlocking();
   void CheckColumnRanges();
+  void CheckSlices();
 
   // The tables under test (set by the ISA's fixture; the reference runs once for all of them).
   std::vector<const IsaInt8Kernels*> tables_;
@@ -850,6 +854,67 @@ void Int8Kernels::CheckColumnRanges() {
 TEST_F(Int8Vnni, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
 TEST_F(Int8NeonDot, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
 TEST_F(Int8AmxEmulated, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
+
+// The problem with its input copied into a slice of wider pixels (`in_extra` bytes of 0x5A after
+// each pixel's channels) and its uint8 output written as a slice (`out_extra` sentinel bytes
+// after each pixel's channels), as a session lays out tensors that live in a Concat's.
+Int8Problem AsSlices(const Int8Problem& dense, int in_extra, int out_extra) {
+  Int8Problem pr = dense;
+  const ConstByteView& d = dense.in;
+  const ptrdiff_t stride = d.channels + in_extra;
+  const ptrdiff_t row = d.width * stride + dense.shape.extra_row_bytes;
+  pr.input.assign(static_cast<size_t>(d.height * row) + kInt8TensorSlack, 0x5A);
+  for (int y = 0; y < d.height; ++y) {
+    for (int x = 0; x < d.width; ++x) {
+      std::memcpy(pr.input.data() + y * row + x * stride, d.pixel(y, x),
+                  static_cast<size_t>(d.channels));
+    }
+  }
+  pr.in = ConstByteView{pr.input.data(), d.height, d.width, d.channels, row, stride};
+  pr.out_pixel_extra = out_extra;
+  return pr;
+}
+
+// Convolutions that read their input from a slice of wider pixels and write their uint8 output
+// into one (a Concat's tensor): every kernel gives the reference's bytes, the bytes between the
+// slices untouched, and the reference gives on slices what it gives on dense tensors. Channel
+// counts that are multiples of 4 (what a session puts in slices), plain, strided and fused
+// upsampling convolutions, partial blocks.
+void Int8Kernels::CheckSlices() {
+  // Wide enough, with 64 input channels, for the AMX tiles too (the second and the last).
+  std::vector<Int8Shape> shapes = {Conv(7, 19, 16, 24, 1),     Conv(5, 37, 64, 70, 1),
+                                   Conv(9, 11, 12, 8, 2),      UpConv(4, 9, 32, 16, 1, 1),
+                                   UpConv(5, 6, 8, 100, 0, 0), UpConv(3, 20, 64, 64, 1, 0)};
+  shapes[3].phases = shapes[5].phases = true;
+  size_t values = 0;
+  uint32_t seed = 4100;
+  for (const Int8Shape& shape : shapes) {
+    for (auto [in_extra, out_extra] : {std::pair{4, 12}, {64, 4}}) {
+      const Int8Problem dense = MakeProblem(shape, Int8Quant{}, seed++);
+      const Int8Problem sliced = AsSlices(dense, in_extra, out_extra);
+      SCOPED_TRACE(Describe(shape) + " extra " + std::to_string(in_extra) + "/" +
+                   std::to_string(out_extra));
+      const Output want = RunReference(dense);
+      const Output got = RunReference(sliced);
+      for (int y = 0; y < dense.out_h; ++y) {
+        for (int x = 0; x < dense.out_w; ++x) {
+          const uint8_t* a = want.u8.data() + y * want.RowElements() + x * want.stride;
+          const uint8_t* b = got.u8.data() + y * got.RowElements() + x * got.stride;
+          ASSERT_EQ(std::memcmp(a, b, static_cast<size_t>(shape.cout)), 0) << y << "," << x;
+          for (int e = 0; e < out_extra; ++e) ASSERT_EQ(b[shape.cout + e], 0xA5);
+        }
+      }
+      values += ExpectBitExact(sliced);
+    }
+  }
+  std::printf("[          ] %zu output values bit for bit in slices, %zu kernel table(s)\n", values,
+              tables_.size());
+}
+
+TEST_F(Int8Vnni, ReadsAndWritesSlicesOfWiderPixels) { CheckSlices(); }
+TEST_F(Int8NeonDot, ReadsAndWritesSlicesOfWiderPixels) { CheckSlices(); }
+TEST_F(Int8AmxEmulated, ReadsAndWritesSlicesOfWiderPixels) { CheckSlices(); }
+TEST_F(Int8Amx, ReadsAndWritesSlicesOfWiderPixels) { CheckSlices(); }
 
 TEST(AmxTiles, ConfigurationFitsPalette1ForEveryChannelCount) {
   for (int groups = 1; groups <= 256; ++groups) {

@@ -424,6 +424,7 @@ QuantParams ActivationRange(const Model& model, const std::vector<float>& input,
 struct PlanCounts {
   int quantize = 0, to_bf16 = 0, int8_convs = 0, bf16_convs = 0, fused_upsampling = 0;
   int u8_concats = 0, u8_upsamplings = 0, bf16_concats = 0, bf16_upsamplings = 0;
+  int concats_in_place = 0;
 };
 PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, int w) {
   SessionOptions options;
@@ -450,6 +451,7 @@ PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, 
     }
     const std::string kernel = step.kernel;
     if (kernel == "ref::ConcatRowsU8") ++counts.u8_concats;
+    if (kernel == "in place") ++counts.concats_in_place;
     if (kernel == "ref::UpsampleNearestU8") ++counts.u8_upsamplings;
     if (kernel == "ref::ConcatRowsBf16") ++counts.bf16_concats;
     if (kernel == "ref::UpsampleNearestBf16") ++counts.bf16_upsamplings;
@@ -458,10 +460,11 @@ PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, 
 }
 
 // With one quantisation for every tensor, every tensor of SceneEDNet-U but the model input and
-// output stays uint8: the int8 convolutions write bytes, the Concats and upsamplings move bytes,
-// and only the model input is quantised. The session on every ISA computes what the reference
-// forward (which quantises the float32 tensor each convolution reads) computes, and the int8
-// model stays near the float32 one.
+// output stays uint8: the int8 convolutions write bytes, the upsamplings move bytes, only the
+// model input is quantised, and every Concat is in place (its inputs' producers write their
+// slices of its tensor; conv0..conv3 read theirs in place). The session on every ISA computes what
+// the reference forward (which quantises the float32 tensor each convolution reads) computes, and
+// the int8 model stays near the float32 one.
 TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
   const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
   auto fp32 = testing::LoadOrDie(fp32_spec);
@@ -472,15 +475,16 @@ TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
   auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
   ASSERT_NE(model, nullptr);
   EXPECT_TRUE(model->float32_between_layers());
-  // 11 convolutions; conv9 fuses up4 and its crop; the other three upsamplings and the four
-  // Concats move uint8.
+  // 11 convolutions; conv9 fuses up4 and its crop; the other three upsamplings move uint8 (into
+  // their Concats' tensors), and the four Concats cost nothing.
   for (Isa isa : SupportedIsas()) {
     SCOPED_TRACE(IsaName(isa));
     const PlanCounts counts = CountPlan(model, isa, h, w);
     EXPECT_EQ(counts.int8_convs, 11);
     EXPECT_EQ(counts.quantize, 1);
     EXPECT_EQ(counts.fused_upsampling, 1);
-    EXPECT_EQ(counts.u8_concats, 4);
+    EXPECT_EQ(counts.u8_concats, 0);
+    EXPECT_EQ(counts.concats_in_place, 4);
     EXPECT_EQ(counts.u8_upsamplings, 3);
   }
   // Float32 epilogues in SIMD registers may round the last bit otherwise than the scalar one.
@@ -497,7 +501,8 @@ TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
 // output (read by conv4 with the common quantisation and, through cat4, up1, crop1 and cat1, by
 // conv6) is float32, and so are cat4, up1, crop1, cat1 and conv2's and conv5's outputs: the
 // converting steps are the model input's, conv3's and conv4's inputs and cat1; cat2 and cat3 and
-// their upsamplings stay uint8. Every ISA still computes what the reference forward computes.
+// their upsamplings stay uint8 (cat2 and cat3 in place). Every ISA still computes what the
+// reference forward computes.
 TEST(GraphSession, Int8GraphTensorsStayUint8OnlyWhereTheirReadersShareAQuantisation) {
   const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
   auto fp32 = testing::LoadOrDie(fp32_spec);
@@ -518,7 +523,7 @@ TEST(GraphSession, Int8GraphTensorsStayUint8OnlyWhereTheirReadersShareAQuantisat
     const PlanCounts counts = CountPlan(model, isa, 67, 121);
     EXPECT_EQ(counts.int8_convs, 11);
     EXPECT_EQ(counts.quantize, 4);
-    EXPECT_EQ(counts.u8_concats, 2);
+    EXPECT_EQ(counts.concats_in_place, 2);
     EXPECT_EQ(counts.u8_upsamplings, 2);
   }
   testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 11);
@@ -556,6 +561,66 @@ TEST(GraphSession, Bf16SceneEdNetURunsOnEveryIsaNearTheReferenceForward) {
       }
     }
   }
+}
+
+// KernelTuning::concat_in_place off: every uint8 Concat copies, the arena holds each Concat's
+// tensor only from the Concat on (so it is no larger), and the output is the same, bit for bit.
+TEST(GraphSession, Int8ConcatsCopyWhenInPlaceIsOffWithTheSameOutput) {
+  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
+  auto fp32 = testing::LoadOrDie(fp32_spec);
+  ASSERT_NE(fp32, nullptr);
+  const int h = 67, w = 121;
+  const auto input = testing::RandomImage(h, w, 12, 11);
+  const QuantParams range = ActivationRange(*fp32, input, h, w);
+  auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
+  ASSERT_NE(model, nullptr);
+  auto output = [&](bool in_place, size_t* arena) {
+    SessionOptions options;
+    options.max_height = h;
+    options.max_width = w;
+    options.threads = 2;
+    options.tuning.concat_in_place = in_place;
+    auto session = Session::Create(model, options);
+    EXPECT_TRUE(session.ok()) << session.message();
+    std::vector<float> out(static_cast<size_t>(h) * w * 3);
+    if (!session.ok()) return out;
+    *arena = (*session)->arena_bytes();
+    int copies = 0, in_place_steps = 0;
+    for (const PlannedStep& step : (*session)->steps()) {
+      copies += std::string(step.kernel) == "ref::ConcatRowsU8" ? 1 : 0;
+      in_place_steps += std::string(step.kernel) == "in place" ? 1 : 0;
+    }
+    EXPECT_EQ(copies, in_place ? 0 : 4);
+    EXPECT_EQ(in_place_steps, in_place ? 4 : 0);
+    EXPECT_TRUE((*session)->Run(input, h, w, out).ok());
+    return out;
+  };
+  size_t arena_in_place = 0, arena_copying = 0;
+  EXPECT_EQ(output(true, &arena_in_place), output(false, &arena_copying));
+  EXPECT_LE(arena_copying, arena_in_place);
+}
+
+// A Concat is in place only where every input's channel count is a multiple of 4 (kernels read
+// input channels in groups of 4, which must not reach into a neighbouring slice). At 1/64 width
+// conv0 and conv1 have 1 and 2 channels, so cat3 and cat2 copy their uint8 inputs, while cat4
+// (conv5 and conv3: 16 and 8 channels) and cat1 (24 and 4) are in place. Every ISA computes what
+// the reference forward computes, whichever way each Concat goes.
+TEST(GraphSession, Int8ConcatsOfChannelCountsNotMultiplesOf4CopyTheirInputs) {
+  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(64);
+  auto fp32 = testing::LoadOrDie(fp32_spec);
+  ASSERT_NE(fp32, nullptr);
+  const auto input = testing::RandomImage(67, 121, 12, 4);
+  const QuantParams range = ActivationRange(*fp32, input, 67, 121);
+  auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
+  ASSERT_NE(model, nullptr);
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    const PlanCounts counts = CountPlan(model, isa, 67, 121);
+    EXPECT_EQ(counts.quantize, 1);
+    EXPECT_EQ(counts.u8_concats, 2);
+    EXPECT_EQ(counts.concats_in_place, 2);
+  }
+  testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 4);
 }
 
 // An Add is float32 arithmetic: with the residual bottleneck (res5 = conv4 + conv5), conv4's and

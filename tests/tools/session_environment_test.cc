@@ -1,5 +1,6 @@
-// The `sfrt` tool's mapping of SFRT_ISA, SFRT_WINOGRAD, SFRT_WINOGRAD_UPCONV and SFRT_FEWOUT onto
-// SessionOptions (tools/sfrt/session_environment.h); the runtime itself reads none of them.
+// The `sfrt` tool's mapping of SFRT_ISA, SFRT_WINOGRAD, SFRT_WINOGRAD_UPCONV, SFRT_FEWOUT and
+// SFRT_CONCAT_IN_PLACE onto SessionOptions (tools/sfrt/session_environment.h); the runtime itself
+// reads none of them.
 #include "sfrt/session_environment.h"
 
 #include <gtest/gtest.h>
@@ -18,13 +19,14 @@ using testing::ScopedEnv;
 
 TEST(SessionEnvironment, NoVariablesLeaveTheDefaults) {
   ScopedEnv a("SFRT_ISA", nullptr), b("SFRT_WINOGRAD", nullptr), c("SFRT_WINOGRAD_UPCONV", nullptr),
-      d("SFRT_FEWOUT", nullptr);
+      d("SFRT_FEWOUT", nullptr), e("SFRT_CONCAT_IN_PLACE", nullptr);
   SessionOptions options;
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
   EXPECT_EQ(options.isa, Isa::kAuto);
   EXPECT_EQ(options.tuning.winograd_tile, KernelTuning{}.winograd_tile);
   EXPECT_TRUE(options.tuning.winograd_upconv);
   EXPECT_TRUE(options.tuning.few_out);
+  EXPECT_TRUE(options.tuning.concat_in_place);
 }
 
 TEST(SessionEnvironment, SfrtIsaChoosesThePathWhenOptionsSayAutoAndAFlagWins) {
@@ -39,12 +41,14 @@ TEST(SessionEnvironment, SfrtIsaChoosesThePathWhenOptionsSayAutoAndAFlagWins) {
 }
 
 TEST(SessionEnvironment, KernelSwitchesMapOntoTheTuningFields) {
-  ScopedEnv a("SFRT_WINOGRAD", "f4"), b("SFRT_WINOGRAD_UPCONV", "off"), c("SFRT_FEWOUT", "off");
+  ScopedEnv a("SFRT_WINOGRAD", "f4"), b("SFRT_WINOGRAD_UPCONV", "off"), c("SFRT_FEWOUT", "off"),
+      d("SFRT_CONCAT_IN_PLACE", "off");
   SessionOptions options;
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
   EXPECT_EQ(options.tuning.winograd_tile, 4);
   EXPECT_FALSE(options.tuning.winograd_upconv);
   EXPECT_FALSE(options.tuning.few_out);
+  EXPECT_FALSE(options.tuning.concat_in_place);
   ScopedEnv off("SFRT_WINOGRAD", "off");
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
   EXPECT_EQ(options.tuning.winograd_tile, 0);
@@ -58,7 +62,8 @@ TEST(SessionEnvironment, AnUnknownValueIsAnErrorNamingTheVariableAndTheAcceptedV
   } cases[] = {{"SFRT_ISA", "mmx", "auto, ref, avx2, avx512, avx512amx, neon"},
                {"SFRT_WINOGRAD", "f3", "off, f2, f4"},
                {"SFRT_WINOGRAD_UPCONV", "no", "off, on"},
-               {"SFRT_FEWOUT", "0", "off, on"}};
+               {"SFRT_FEWOUT", "0", "off, on"},
+               {"SFRT_CONCAT_IN_PLACE", "yes", "off, on"}};
   for (const auto& c : cases) {
     ScopedEnv env(c.name, c.value);
     SessionOptions options;

@@ -56,7 +56,8 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
   if (Status s = ApplySwitch("SFRT_WINOGRAD_UPCONV", tuning.winograd_upconv); !s.ok()) {
     return s;
   }
-  return ApplySwitch("SFRT_FEWOUT", tuning.few_out);
+  if (Status s = ApplySwitch("SFRT_FEWOUT", tuning.few_out); !s.ok()) return s;
+  return ApplySwitch("SFRT_CONCAT_IN_PLACE", tuning.concat_in_place);
 }
 
 }  // namespace sfrt::tools

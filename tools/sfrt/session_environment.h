@@ -3,6 +3,7 @@
 //   kAuto) SFRT_WINOGRAD=off|f2|f4              KernelTuning::winograd_tile (0, 2, 4)
 //   SFRT_WINOGRAD_UPCONV=off|on          KernelTuning::winograd_upconv
 //   SFRT_FEWOUT=off|on                   KernelTuning::few_out
+//   SFRT_CONCAT_IN_PLACE=off|on          KernelTuning::concat_in_place
 // The runtime library reads no environment (libraries take options); the `sfrt` tool and the
 // kernel benchmarks call ApplySessionEnvironment wherever they build SessionOptions.
 #pragma once

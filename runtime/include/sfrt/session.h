@@ -56,6 +56,10 @@ struct KernelTuning {
   bool winograd_upconv = true;
   // The dedicated kernel for convolutions with few outputs (the 64->3 output layer).
   bool few_out = true;
+  // uint8 Concats in place (docs/model-format.md, "The graph"): no copy, but each Concat's whole
+  // tensor lives from its first input's producer on, so the arena can grow (SceneEDNet-U's
+  // decoder halves are reserved through the encoder). false: every Concat copies.
+  bool concat_in_place = true;
 };
 
 struct SessionOptions {
@@ -92,7 +96,8 @@ struct PlannedStep {
 // Where each planned tensor lives in the arena (for `--print-plan` and tests).
 struct PlannedTensor {
   int producer = -1;       // index of the layer that writes it (quantised tensors: the layer
-                           // whose output they quantise; -1 for the model input)
+                           // whose output they quantise; -1 for the model input; a Concat in
+                           // place: the first layer that writes a slice of it)
   int last_consumer = -1;  // index of the last layer that reads it
   size_t offset = 0;       // bytes from the arena start
   size_t bytes = 0;        // at the maximum input size
@@ -143,6 +148,7 @@ class Session {
   class Pool;
   Session() = default;
   Status Plan();
+  void PlaceConcatInputs();  // Plan, step 1b
   std::shared_ptr<const Model> model_;
   SessionOptions options_;
   std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops

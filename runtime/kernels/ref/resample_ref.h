@@ -28,8 +28,14 @@ void UpsampleNearestPlane(const ConstPlaneView<T>& in, int factor_h, int factor_
 template <typename T>
 void CopyPlane(const ConstPlaneView<T>& in, const PlaneView<T>& out) {
   for (int y = 0; y < out.height; ++y) {
-    std::memcpy(out.pixel(y, 0), in.pixel(y, 0),
-                static_cast<size_t>(in.width) * in.channels * sizeof(T));
+    if (in.stride() == in.channels && out.stride() == out.channels) {
+      std::memcpy(out.pixel(y, 0), in.pixel(y, 0),
+                  static_cast<size_t>(in.width) * in.channels * sizeof(T));
+      continue;
+    }
+    for (int x = 0; x < out.width; ++x) {
+      std::memcpy(out.pixel(y, x), in.pixel(y, x), static_cast<size_t>(in.channels) * sizeof(T));
+    }
   }
 }
 

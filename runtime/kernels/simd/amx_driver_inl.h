@@ -278,8 +278,8 @@ void AmxConvRows(const typename DotTraits<Conv>::Args& a, int row_begin, int row
   j.tail = groups - j.chunks * j.full;
   j.tap_bytes = static_cast<ptrdiff_t>(groups) * 4 * 64;
   j.out_pixel = p.out_float ? static_cast<ptrdiff_t>(a.out_f32.channels) * sizeof(float)
-                            : static_cast<ptrdiff_t>(Traits::LowOut(a).channels) * sizeof(Elem);
-  const ptrdiff_t in_pixel = static_cast<ptrdiff_t>(a.in.channels) * sizeof(Elem);
+                            : Traits::LowOut(a).stride() * static_cast<ptrdiff_t>(sizeof(Elem));
+  const ptrdiff_t in_pixel = a.in.stride() * static_cast<ptrdiff_t>(sizeof(Elem));
   // The map the convolution reads (C when upsampled) and its interior columns.
   const int src_h = a.upsampled ? a.c_height : a.in.height;
   const int src_w = a.upsampled ? a.c_width : a.in.width;

@@ -350,7 +350,7 @@ void DotRows(const typename DotTraits<typename V::Conv>::Args& a, bool up, int r
   j.tap_elems = static_cast<ptrdiff_t>(j.groups) * T::kGroup * V::kNr;
   j.out_pixel = p.out_float
                     ? static_cast<ptrdiff_t>(a.out_f32.channels) * sizeof(float)
-                    : static_cast<ptrdiff_t>(T::LowOut(a).channels) * sizeof(typename T::Elem);
+                    : T::LowOut(a).stride() * static_cast<ptrdiff_t>(sizeof(typename T::Elem));
   const ColumnRange inside = InsideColumns(j.out_w, j.src_w, j.kw, j.sw, j.pl);
   j.x_lo = inside.lo;
   j.x_hi = inside.hi;
