@@ -886,12 +886,14 @@ Status Session::Plan() {
       int& request = concat_request[cat];
       if (request < 0) {
         request = static_cast<int>(requests.size());
-        const size_t bytes = geometry_[steps_[cat].last_layer].output.elements() + kInt8TensorSlack;
+        const size_t elements = geometry_[steps_[cat].last_layer].output.elements();
+        const size_t bytes = step.out_u8 ? elements + kInt8TensorSlack
+                                         : elements * sizeof(uint16_t) + kBf16TensorSlack;
         requests.push_back({bytes, born, born});
         producers.push_back(born);
       }
       tensor_of_step_[k] = request;
-      holder_u8[static_cast<size_t>(step.last_layer)] = request;
+      holders(step)[static_cast<size_t>(step.last_layer)] = request;
       continue;
     }
     const TensorShape shape = !convert               ? geometry_[step.last_layer].output
@@ -956,12 +958,12 @@ Status Session::Plan() {
   return Status::Ok();
 }
 
-// 1b. Concats in place. A uint8 Concat whose every input is written by an int8 convolution or a
-// nearest upsampling (directly, or through a crop that keeps the upsampling's top-left corner
-// and is its only reader), none of them the model input, another Concat's slice or repeated, and
-// whose channel counts are multiples of 4 (kernels read input channels in groups of 4, so no
-// kernel reads a neighbouring slice), needs no copy: each producer writes its slice of the
-// Concat's tensor, every other reader reads the slice in place (ByteView::pixel_stride), and
+// 1b. Concats in place. A uint8 (bf16) Concat whose every input is written by an int8 (bf16)
+// convolution or a nearest upsampling (directly, or through a crop that keeps the upsampling's
+// top-left corner and is its only reader), none of them the model input, another Concat's slice or
+// repeated, and whose channel counts are multiples of 4 (kernels read input channels in groups of 4
+// or 2, so no kernel reads a neighbouring slice), needs no copy: each producer writes its slice of
+// the Concat's tensor, every other reader reads the slice in place (ByteView::pixel_stride), and
 // the Concat step does nothing.
 void Session::PlaceConcatInputs() {
   const auto layers = model_->layers();
@@ -978,7 +980,10 @@ void Session::PlaceConcatInputs() {
   };
   std::vector<char> placed(layers.size(), 0);  // layer outputs already in a slice
   for (size_t c = 0; c < steps_.size(); ++c) {
-    if (steps_[c].kind != Step::Kind::kConcatU8) continue;
+    const bool u8 = steps_[c].kind == Step::Kind::kConcatU8;
+    if (!u8 && steps_[c].kind != Step::Kind::kConcatBf16) continue;
+    const Step::Kind upsampling = u8 ? Step::Kind::kUpsampleU8 : Step::Kind::kUpsampleBf16;
+    const Step::Kind convolution = u8 ? Step::Kind::kInt8Conv : Step::Kind::kBf16Conv;
     struct Slice {
       int layer, producer, crop, channel;
     };
@@ -999,14 +1004,13 @@ void Session::PlaceConcatInputs() {
         crop = t;
         producer = up == kModelInput ? -1 : step_of_layer[static_cast<size_t>(up)];
         ok = keeps_corner(cut.crop) && producer >= 0 &&
-             steps_[static_cast<size_t>(producer)].kind == Step::Kind::kUpsampleU8 &&
+             steps_[static_cast<size_t>(producer)].kind == upsampling &&
              model_->consumer_count(static_cast<size_t>(up)) == 1 &&
              !placed[static_cast<size_t>(up)];
       } else {
-        ok = producer >= 0 &&
-             ((steps_[static_cast<size_t>(producer)].kind == Step::Kind::kInt8Conv &&
-               steps_[static_cast<size_t>(producer)].out_u8) ||
-              steps_[static_cast<size_t>(producer)].kind == Step::Kind::kUpsampleU8);
+        const Step* p = producer >= 0 ? &steps_[static_cast<size_t>(producer)] : nullptr;
+        ok = p != nullptr &&
+             ((p->kind == convolution && (p->out_u8 || p->out_bf16)) || p->kind == upsampling);
       }
       for (const Slice& other : slices) ok = ok && other.layer != t && other.producer != producer;
       if (!ok) break;
@@ -1168,15 +1172,33 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
           reinterpret_cast<uint8_t*>(arena_) +
           plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset);
       Bf16View written;
+      // Where the step writes an h x w x c tensor: its own, or its slice of a Concat's.
+      auto out_view = [&](int h, int w, int c) {
+        if (step.slice_of < 0) return DenseBf16View(dst16, h, w, c);
+        const TensorShape& whole =
+            geometry_[steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
+        return Bf16View{dst16 + step.slice_channel,
+                        h,
+                        w,
+                        c,
+                        static_cast<ptrdiff_t>(whole.width) * whole.channels,
+                        whole.channels};
+      };
       if (step.kind == Step::Kind::kToBf16) {
         ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
         parallel_rows(cur.height, ToBf16Trampoline, &job);
         written = job.out;
         views.bf16[src] = written;
       } else if (step.kind == Step::Kind::kUpsampleBf16) {
-        written = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
+        const TensorShape& extent = step.slice_crop >= 0
+                                        ? geometry_[static_cast<size_t>(step.slice_crop)].output
+                                        : g.output;
+        written = out_view(extent.height, extent.width, extent.channels);
         const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, written);
+        views.bf16[dst_slot] = written;
+      } else if (step.in_place) {  // the producers wrote the slices
+        written = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
         views.bf16[dst_slot] = written;
       } else if (step.kind == Step::Kind::kConcatBf16) {
         for (size_t k = 0; k < first.inputs.size(); ++k)
@@ -1188,14 +1210,18 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         views.bf16[dst_slot] = written;
       } else {
         Bf16ConvArgs args = bf16_args(step, cur16);
-        args.out_bf16 = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
+        args.out_bf16 = out_view(g.output.height, g.output.width, g.output.channels);
         run_blocked(step.fn16, args, g.output.height);
         written = args.out_bf16;
         views.bf16[dst_slot] = written;
       }
-      // The slack a kernel may read past the tensor: finite (bf16_job.h).
-      std::memset(dst16 + static_cast<size_t>(written.height) * written.width * written.channels, 0,
-                  kBf16TensorSlack);
+      // The slack a kernel may read past the tensor: finite (bf16_job.h). A slice of a Concat's
+      // tensor has none of its own (its channels are even: no kernel reads past its pixels); the
+      // Concat's is zeroed by its step.
+      if (step.slice_of < 0) {
+        std::memset(dst16 + static_cast<size_t>(written.height) * written.width * written.channels,
+                    0, kBf16TensorSlack);
+      }
       if (timed) stamp(step_index);
       continue;
     }

@@ -56,8 +56,8 @@ struct KernelTuning {
   bool winograd_upconv = true;
   // The dedicated kernel for convolutions with few outputs (the 64->3 output layer).
   bool few_out = true;
-  // uint8 Concats in place (docs/model-format.md, "The graph"): no copy, but each Concat's whole
-  // tensor lives from its first input's producer on, so the arena can grow (SceneEDNet-U's
+  // uint8 and bf16 Concats in place (docs/model-format.md, "The graph"): no copy, but each Concat's
+  // whole tensor lives from its first input's producer on, so the arena can grow (SceneEDNet-U's
   // decoder halves are reserved through the encoder). false: every Concat copies.
   bool concat_in_place = true;
 };
