@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -420,12 +421,32 @@ QuantParams ActivationRange(const Model& model, const std::vector<float>& input,
   return {scale, static_cast<int>(std::lround(-lo / scale))};
 }
 
+// SceneEDNet-U at 1/width_divisor width in int8 with one quantisation for every activation: the
+// range float32 gives on a 67x121 random image (seed `seed`).
+exporter::ModelSpec OneRangeInt8SceneEdNetU(int width_divisor, uint32_t seed) {
+  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(width_divisor);
+  auto fp32 = testing::LoadOrDie(fp32_spec);
+  EXPECT_NE(fp32, nullptr);
+  if (fp32 == nullptr) return {};
+  const QuantParams range =
+      ActivationRange(*fp32, testing::RandomImage(67, 121, 12, seed), 67, 121);
+  return testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point);
+}
+
 // What a session planned for `model` at h x w runs: the number of steps of each kernel kind.
 struct PlanCounts {
   int quantize = 0, to_bf16 = 0, int8_convs = 0, bf16_convs = 0, fused_upsampling = 0;
   int u8_concats = 0, u8_upsamplings = 0, bf16_concats = 0, bf16_upsamplings = 0;
   int concats_in_place = 0;
+  friend bool operator==(const PlanCounts&, const PlanCounts&) = default;
 };
+void PrintTo(const PlanCounts& c, std::ostream* os) {
+  *os << "{quantize " << c.quantize << ", to_bf16 " << c.to_bf16 << ", int8_convs " << c.int8_convs
+      << ", bf16_convs " << c.bf16_convs << ", fused_upsampling " << c.fused_upsampling
+      << ", u8_concats " << c.u8_concats << ", u8_upsamplings " << c.u8_upsamplings
+      << ", bf16_concats " << c.bf16_concats << ", bf16_upsamplings " << c.bf16_upsamplings
+      << ", concats_in_place " << c.concats_in_place << "}";
+}
 PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, int w) {
   SessionOptions options;
   options.max_height = h;
@@ -459,6 +480,14 @@ PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, 
   return counts;
 }
 
+void ExpectPlanOnEveryIsa(const std::shared_ptr<const Model>& model, int h, int w,
+                          const PlanCounts& want) {
+  for (Isa isa : SupportedIsas()) {
+    SCOPED_TRACE(IsaName(isa));
+    EXPECT_EQ(CountPlan(model, isa, h, w), want);
+  }
+}
+
 // With one quantisation for every tensor, every tensor of SceneEDNet-U but the model input and
 // output stays uint8: the int8 convolutions write bytes, the upsamplings move bytes, only the
 // model input is quantised, and every Concat is in place (its inputs' producers write their
@@ -466,27 +495,21 @@ PlanCounts CountPlan(const std::shared_ptr<const Model>& model, Isa isa, int h, 
 // the reference forward (which quantises the float32 tensor each convolution reads) computes, and
 // the int8 model stays near the float32 one.
 TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
-  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
-  auto fp32 = testing::LoadOrDie(fp32_spec);
+  auto fp32 = testing::LoadOrDie(testing::SceneEdNetUSpec(16));
+  auto model = testing::LoadOrDie(OneRangeInt8SceneEdNetU(16, 11));
   ASSERT_NE(fp32, nullptr);
-  const int h = 67, w = 121;
-  const auto input = testing::RandomImage(h, w, 12, 11);
-  const QuantParams range = ActivationRange(*fp32, input, h, w);
-  auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
   ASSERT_NE(model, nullptr);
   EXPECT_TRUE(model->float32_between_layers());
+  const int h = 67, w = 121;
+  const auto input = testing::RandomImage(h, w, 12, 11);
   // 11 convolutions; conv9 fuses up4 and its crop; the other three upsamplings move uint8 (into
   // their Concats' tensors), and the four Concats cost nothing.
-  for (Isa isa : SupportedIsas()) {
-    SCOPED_TRACE(IsaName(isa));
-    const PlanCounts counts = CountPlan(model, isa, h, w);
-    EXPECT_EQ(counts.int8_convs, 11);
-    EXPECT_EQ(counts.quantize, 1);
-    EXPECT_EQ(counts.fused_upsampling, 1);
-    EXPECT_EQ(counts.u8_concats, 0);
-    EXPECT_EQ(counts.concats_in_place, 4);
-    EXPECT_EQ(counts.u8_upsamplings, 3);
-  }
+  ExpectPlanOnEveryIsa(model, h, w,
+                       {.quantize = 1,
+                        .int8_convs = 11,
+                        .fused_upsampling = 1,
+                        .u8_upsamplings = 3,
+                        .concats_in_place = 4});
   // Float32 epilogues in SIMD registers may round the last bit otherwise than the scalar one.
   testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 11);
   // Against the float32 model: one activation range for every tensor, so a coarse bound (the
@@ -504,28 +527,21 @@ TEST(GraphSession, Int8SceneEdNetURunsOnEveryIsaAsTheReferenceForwardDoes) {
 // their upsamplings stay uint8 (cat2 and cat3 in place). Every ISA still computes what the
 // reference forward computes.
 TEST(GraphSession, Int8GraphTensorsStayUint8OnlyWhereTheirReadersShareAQuantisation) {
-  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
-  auto fp32 = testing::LoadOrDie(fp32_spec);
-  ASSERT_NE(fp32, nullptr);
-  const auto input = testing::RandomImage(67, 121, 12, 11);
-  const QuantParams range = ActivationRange(*fp32, input, 67, 121);
-  exporter::ModelSpec spec = testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point);
+  exporter::ModelSpec spec = OneRangeInt8SceneEdNetU(16, 11);
   for (exporter::LayerSpec& layer : spec.layers) {
     auto* c = std::get_if<exporter::ConvSpec>(&layer);
     if (c != nullptr && c->name == "conv6") {
-      c->input_quant = {range.scale * 1.25f, range.zero_point / 2};
+      c->input_quant = {c->input_quant.scale * 1.25f, c->input_quant.zero_point / 2};
     }
   }
   auto model = testing::LoadOrDie(spec);
   ASSERT_NE(model, nullptr);
-  for (Isa isa : SupportedIsas()) {
-    SCOPED_TRACE(IsaName(isa));
-    const PlanCounts counts = CountPlan(model, isa, 67, 121);
-    EXPECT_EQ(counts.int8_convs, 11);
-    EXPECT_EQ(counts.quantize, 4);
-    EXPECT_EQ(counts.concats_in_place, 2);
-    EXPECT_EQ(counts.u8_upsamplings, 2);
-  }
+  ExpectPlanOnEveryIsa(model, 67, 121,
+                       {.quantize = 4,
+                        .int8_convs = 11,
+                        .fused_upsampling = 1,
+                        .u8_upsamplings = 2,
+                        .concats_in_place = 2});
   testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 11);
 }
 
@@ -539,16 +555,12 @@ TEST(GraphSession, Bf16SceneEdNetURunsOnEveryIsaNearTheReferenceForward) {
   auto model = testing::LoadOrDie(testing::Bf16Spec(fp32_spec));
   ASSERT_NE(fp32, nullptr);
   ASSERT_NE(model, nullptr);
-  for (Isa isa : SupportedIsas()) {
-    SCOPED_TRACE(IsaName(isa));
-    const PlanCounts counts = CountPlan(model, isa, 37, 53);
-    EXPECT_EQ(counts.bf16_convs, 11);
-    EXPECT_EQ(counts.to_bf16, 1);
-    EXPECT_EQ(counts.fused_upsampling, 1);
-    EXPECT_EQ(counts.bf16_concats, 0);
-    EXPECT_EQ(counts.concats_in_place, 4);
-    EXPECT_EQ(counts.bf16_upsamplings, 3);
-  }
+  ExpectPlanOnEveryIsa(model, 37, 53,
+                       {.to_bf16 = 1,
+                        .bf16_convs = 11,
+                        .fused_upsampling = 1,
+                        .bf16_upsamplings = 3,
+                        .concats_in_place = 4});
   for (auto [h, w] : {std::pair{67, 121}, {37, 53}}) {
     const auto input = testing::RandomImage(h, w, 12, 5);
     const auto want = ReferenceOutput(*model, input, h, w);
@@ -568,14 +580,10 @@ TEST(GraphSession, Bf16SceneEdNetURunsOnEveryIsaNearTheReferenceForward) {
 // KernelTuning::concat_in_place off: every uint8 Concat copies, the arena holds each Concat's
 // tensor only from the Concat on (so it is no larger), and the output is the same, bit for bit.
 TEST(GraphSession, Int8ConcatsCopyWhenInPlaceIsOffWithTheSameOutput) {
-  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(16);
-  auto fp32 = testing::LoadOrDie(fp32_spec);
-  ASSERT_NE(fp32, nullptr);
+  auto model = testing::LoadOrDie(OneRangeInt8SceneEdNetU(16, 11));
+  ASSERT_NE(model, nullptr);
   const int h = 67, w = 121;
   const auto input = testing::RandomImage(h, w, 12, 11);
-  const QuantParams range = ActivationRange(*fp32, input, h, w);
-  auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
-  ASSERT_NE(model, nullptr);
   auto output = [&](bool in_place, size_t* arena) {
     SessionOptions options;
     options.max_height = h;
@@ -608,20 +616,15 @@ TEST(GraphSession, Int8ConcatsCopyWhenInPlaceIsOffWithTheSameOutput) {
 // (conv5 and conv3: 16 and 8 channels) and cat1 (24 and 4) are in place. Every ISA computes what
 // the reference forward computes, whichever way each Concat goes.
 TEST(GraphSession, Int8ConcatsOfChannelCountsNotMultiplesOf4CopyTheirInputs) {
-  const exporter::ModelSpec fp32_spec = testing::SceneEdNetUSpec(64);
-  auto fp32 = testing::LoadOrDie(fp32_spec);
-  ASSERT_NE(fp32, nullptr);
-  const auto input = testing::RandomImage(67, 121, 12, 4);
-  const QuantParams range = ActivationRange(*fp32, input, 67, 121);
-  auto model = testing::LoadOrDie(testing::Int8Spec(fp32_spec, {}, range.scale, range.zero_point));
+  auto model = testing::LoadOrDie(OneRangeInt8SceneEdNetU(64, 4));
   ASSERT_NE(model, nullptr);
-  for (Isa isa : SupportedIsas()) {
-    SCOPED_TRACE(IsaName(isa));
-    const PlanCounts counts = CountPlan(model, isa, 67, 121);
-    EXPECT_EQ(counts.quantize, 1);
-    EXPECT_EQ(counts.u8_concats, 2);
-    EXPECT_EQ(counts.concats_in_place, 2);
-  }
+  ExpectPlanOnEveryIsa(model, 67, 121,
+                       {.quantize = 1,
+                        .int8_convs = 11,
+                        .fused_upsampling = 1,
+                        .u8_concats = 2,
+                        .u8_upsamplings = 3,
+                        .concats_in_place = 2});
   testing::ExpectEveryIsaMatchesTheReferenceForward(model, {{67, 121}, {37, 53}}, 12, 1e-5, 4);
 }
 
@@ -633,14 +636,12 @@ TEST(GraphSession, Int8ConcatsOfChannelCountsNotMultiplesOf4CopyTheirInputs) {
 TEST(GraphSession, Bf16TensorsStayFloat32WhereAnAddReadsThem) {
   auto model = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetUSpec(16, 3, true)));
   ASSERT_NE(model, nullptr);
-  for (Isa isa : SupportedIsas()) {
-    SCOPED_TRACE(IsaName(isa));
-    const PlanCounts counts = CountPlan(model, isa, 37, 53);
-    EXPECT_EQ(counts.bf16_convs, 11);
-    EXPECT_EQ(counts.to_bf16, 5);
-    EXPECT_EQ(counts.concats_in_place, 2);
-    EXPECT_EQ(counts.bf16_upsamplings, 2);
-  }
+  ExpectPlanOnEveryIsa(model, 37, 53,
+                       {.to_bf16 = 5,
+                        .bf16_convs = 11,
+                        .fused_upsampling = 1,
+                        .bf16_upsamplings = 2,
+                        .concats_in_place = 2});
   const auto input = testing::RandomImage(37, 53, 12, 8);
   const auto want = ReferenceOutput(*model, input, 37, 53);
   for (Isa isa : SupportedIsas()) {
