@@ -224,14 +224,17 @@ void RefConvTrampoline(void* ctx, int begin, int end) {
   ref::Conv2d(job->in, *job->params, pads, rows);
 }
 
+// A Concat of float32, uint8 or bf16 views (ref::ConcatRows has an overload for each).
+template <typename In, typename Out>
 struct ConcatJob {
-  const ConstTensorView* inputs;
+  const In* inputs;
   int count;
-  TensorView out;
+  Out out;
 };
 
+template <typename Job>
 void ConcatTrampoline(void* ctx, int begin, int end) {
-  const ConcatJob* job = static_cast<const ConcatJob*>(ctx);
+  const Job* job = static_cast<const Job*>(ctx);
   ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
 }
 
@@ -292,26 +295,13 @@ void ConvTransposeTrampoline(void* ctx, int begin, int end) {
   ref::ConvTranspose2dRows(job->in, *job->params, job->out, begin, end);
 }
 
-struct ConcatU8Job {
-  const ConstByteView* inputs;
-  int count;
-  ByteView out;
-};
-
-void ConcatU8Trampoline(void* ctx, int begin, int end) {
-  const ConcatU8Job* job = static_cast<const ConcatU8Job*>(ctx);
-  ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
-}
-
-struct ConcatBf16Job {
-  const ConstBf16View* inputs;
-  int count;
-  Bf16View out;
-};
-
-void ConcatBf16Trampoline(void* ctx, int begin, int end) {
-  const ConcatBf16Job* job = static_cast<const ConcatBf16Job*>(ctx);
-  ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
+// Where a step writes an h x w x c uint8 or bf16 tensor at `data`: densely, or as its slice of a
+// Concat's tensor shaped `whole` (Session::PlaceConcatInputs), `data` pointing at its first
+// channel.
+template <typename T>
+PlaneView<T> OutputPlane(T* data, int h, int w, int c, const TensorShape* whole) {
+  if (whole == nullptr) return DensePlaneView(data, h, w, c);
+  return {data, h, w, c, static_cast<ptrdiff_t>(whole->width) * whole->channels, whole->channels};
 }
 
 // The layer outputs of a graph that a session keeps in a reduced type (uint8 with a
@@ -1165,6 +1155,14 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       if (timed) stamp(step_index);
       continue;
     }
+    // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
+    // and the extent a step writes (an upsampling into a slice: only its crop's).
+    const TensorShape* whole =
+        step.slice_of < 0
+            ? nullptr
+            : &geometry_[steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
+    const TensorShape& extent =
+        step.slice_crop >= 0 ? geometry_[static_cast<size_t>(step.slice_crop)].output : g.output;
     if (step.kind == Step::Kind::kToBf16 || step.kind == Step::Kind::kUpsampleBf16 ||
         step.kind == Step::Kind::kConcatBf16 ||
         (step.kind == Step::Kind::kBf16Conv && step.out_bf16)) {
@@ -1172,45 +1170,32 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
           reinterpret_cast<uint8_t*>(arena_) +
           plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset);
       Bf16View written;
-      // Where the step writes an h x w x c tensor: its own, or its slice of a Concat's.
-      auto out_view = [&](int h, int w, int c) {
-        if (step.slice_of < 0) return DenseBf16View(dst16, h, w, c);
-        const TensorShape& whole =
-            geometry_[steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
-        return Bf16View{dst16 + step.slice_channel,
-                        h,
-                        w,
-                        c,
-                        static_cast<ptrdiff_t>(whole.width) * whole.channels,
-                        whole.channels};
-      };
+      const Bf16View out16 = OutputPlane(dst16 + step.slice_channel, extent.height, extent.width,
+                                         extent.channels, whole);
       if (step.kind == Step::Kind::kToBf16) {
         ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
         parallel_rows(cur.height, ToBf16Trampoline, &job);
         written = job.out;
         views.bf16[src] = written;
       } else if (step.kind == Step::Kind::kUpsampleBf16) {
-        const TensorShape& extent = step.slice_crop >= 0
-                                        ? geometry_[static_cast<size_t>(step.slice_crop)].output
-                                        : g.output;
-        written = out_view(extent.height, extent.width, extent.channels);
+        written = out16;
         const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, written);
         views.bf16[dst_slot] = written;
       } else if (step.in_place) {  // the producers wrote the slices
-        written = DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels);
+        written = out16;
         views.bf16[dst_slot] = written;
       } else if (step.kind == Step::Kind::kConcatBf16) {
         for (size_t k = 0; k < first.inputs.size(); ++k)
           views.gather16[k] = views.bf16[slot_of(first.inputs[k])];
-        ConcatBf16Job job{views.gather16.data(), static_cast<int>(first.inputs.size()),
-                          DenseBf16View(dst16, g.output.height, g.output.width, g.output.channels)};
-        parallel_rows(g.output.height, ConcatBf16Trampoline, &job);
+        using Job = ConcatJob<ConstBf16View, Bf16View>;
+        Job job{views.gather16.data(), static_cast<int>(first.inputs.size()), out16};
+        parallel_rows(g.output.height, ConcatTrampoline<Job>, &job);
         written = job.out;
         views.bf16[dst_slot] = written;
       } else {
         Bf16ConvArgs args = bf16_args(step, cur16);
-        args.out_bf16 = out_view(g.output.height, g.output.width, g.output.channels);
+        args.out_bf16 = out16;
         run_blocked(step.fn16, args, g.output.height);
         written = args.out_bf16;
         views.bf16[dst_slot] = written;
@@ -1229,18 +1214,8 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         step.kind == Step::Kind::kConcatU8 || (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
       uint8_t* dst8 = reinterpret_cast<uint8_t*>(arena_) +
                       plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset;
-      // Where the step writes an h x w x c tensor: its own, or its slice of a Concat's.
-      auto out_view = [&](int h, int w, int c) {
-        if (step.slice_of < 0) return DenseByteView(dst8, h, w, c);
-        const TensorShape& whole =
-            geometry_[steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
-        return ByteView{dst8 + step.slice_channel,
-                        h,
-                        w,
-                        c,
-                        static_cast<ptrdiff_t>(whole.width) * whole.channels,
-                        whole.channels};
-      };
+      const ByteView out8 = OutputPlane(dst8 + step.slice_channel, extent.height, extent.width,
+                                        extent.channels, whole);
       if (step.kind == Step::Kind::kQuantize) {
         QuantizeJob job{step.quantize, cur,
                         DenseByteView(dst8, cur.height, cur.width, cur.channels),
@@ -1248,26 +1223,21 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         parallel_rows(cur.height, QuantizeTrampoline, &job);
         views.u8[src] = job.out;
       } else if (step.kind == Step::Kind::kUpsampleU8) {
-        const TensorShape& extent = step.slice_crop >= 0
-                                        ? geometry_[static_cast<size_t>(step.slice_crop)].output
-                                        : g.output;
-        const ByteView out8 = out_view(extent.height, extent.width, extent.channels);
         const UpsampleParams& u = layers[step.last_layer].upsample;
         ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
         views.u8[dst_slot] = out8;
       } else if (step.in_place) {  // the producers wrote the slices
-        views.u8[dst_slot] =
-            DenseByteView(dst8, g.output.height, g.output.width, g.output.channels);
+        views.u8[dst_slot] = out8;
       } else if (step.kind == Step::Kind::kConcatU8) {
         for (size_t k = 0; k < first.inputs.size(); ++k)
           views.gather8[k] = views.u8[slot_of(first.inputs[k])];
-        ConcatU8Job job{views.gather8.data(), static_cast<int>(first.inputs.size()),
-                        DenseByteView(dst8, g.output.height, g.output.width, g.output.channels)};
-        parallel_rows(g.output.height, ConcatU8Trampoline, &job);
+        using Job = ConcatJob<ConstByteView, ByteView>;
+        Job job{views.gather8.data(), static_cast<int>(first.inputs.size()), out8};
+        parallel_rows(g.output.height, ConcatTrampoline<Job>, &job);
         views.u8[dst_slot] = job.out;
       } else {
         Int8ConvArgs args = int8_args(step, cur8);
-        args.out_u8 = out_view(g.output.height, g.output.width, g.output.channels);
+        args.out_u8 = out8;
         run_blocked(step.fn8, args, g.output.height);
         views.u8[dst_slot] = args.out_u8;
       }
@@ -1354,8 +1324,9 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       case Step::Kind::kConcat: {
         for (size_t k = 0; k < first.inputs.size(); ++k)
           views.gather[k] = views.f32[slot_of(first.inputs[k])];
-        ConcatJob job{views.gather.data(), static_cast<int>(first.inputs.size()), out};
-        parallel_rows(out.height, ConcatTrampoline, &job);
+        using Job = ConcatJob<ConstTensorView, TensorView>;
+        Job job{views.gather.data(), static_cast<int>(first.inputs.size()), out};
+        parallel_rows(out.height, ConcatTrampoline<Job>, &job);
         break;
       }
       case Step::Kind::kAdd: {
