@@ -154,6 +154,9 @@ struct IsaInt8Kernels {
   Int8ConvRowsFn upconv = nullptr;  // fused nearest-2x upsample (+ crop) -> 3x3 stride 1
   const char* conv_name = "";
   const char* upconv_name = "";
+  // Non-empty when `conv` computes the few-output layers (PackedInt8Conv::few_weights) with a
+  // kernel of their own: its name.
+  const char* few_out_name = "";
 };
 inline constexpr int kMaxInt8Taps = 64;
 

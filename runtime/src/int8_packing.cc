@@ -33,7 +33,7 @@ Int8Sizes SizesOf(const ConvParams& p, int nr) {
     s.weights = RoundUp64(static_cast<size_t>(s.blocks) * taps * s.cin4 * nr);
     s.tap_sums = RoundUp64(static_cast<size_t>(s.blocks) * taps * nr * sizeof(int32_t));
   }
-  if (nr > 0 && p.out_channels <= kInt8FewOutChannels && p.in_channels >= kInt8FewOutMinInputs) {
+  if (nr > 0 && Int8FewOutputs(p)) {
     s.few_ci_stride = (p.in_channels + 63) / 64 * 64;
     s.few_weights =
         RoundUp64(static_cast<size_t>(p.kernel_h) * p.kernel_w * p.out_channels * s.few_ci_stride);

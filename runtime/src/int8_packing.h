@@ -10,6 +10,12 @@
 
 namespace sfrt {
 
+// Whether PackInt8Conv with nr > 0 adds the few-output layout (PackedInt8Conv::few_weights):
+// at most kInt8FewOutChannels outputs, at least kInt8FewOutMinInputs inputs.
+inline bool Int8FewOutputs(const ConvParams& params) {
+  return params.out_channels <= kInt8FewOutChannels && params.in_channels >= kInt8FewOutMinInputs;
+}
+
 // Bytes PackInt8Conv writes for `params` with blocks of `nr` output channels (0: the reference
 // layout, per-channel arrays only). A multiple of 64.
 size_t PackedInt8Bytes(const ConvParams& params, int nr);

@@ -510,6 +510,9 @@ Status Session::Plan() {
       if (kernels8 != nullptr && simd_fits(p, upsampled, kMaxInt8Taps)) {
         step.fn8 = upsampled ? kernels8->upconv : kernels8->conv;
         step.kernel = upsampled ? kernels8->upconv_name : kernels8->conv_name;
+        if (!upsampled && kernels8->few_out_name[0] != '\0' && Int8FewOutputs(p)) {
+          step.kernel = kernels8->few_out_name;
+        }
       } else {
         step.fn8 = ref::Conv2dInt8Rows;
         step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";

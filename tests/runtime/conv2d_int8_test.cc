@@ -536,6 +536,8 @@ TEST_F(Int8Vnni, KernelNamesCarryIsaAndTile) {
     EXPECT_NE(name.find("u8s8__avx512vnni_"), std::string::npos) << name;
     EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;
   }
+  // Four pixels x four output channels.
+  EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_u8s8__avx512vnni_4x4");
 }
 
 TEST_F(Int8NeonDot, KernelNamesCarryIsaAndTileAndTheSessionGetsTheBest) {
@@ -621,7 +623,15 @@ void Int8Kernels::CheckEdgeShapes() {
       {6, 11, 28, 44, 3, 2, {1, 1, 1, 1}},  // cin 28: one 16-channel load and three groups
       {5, 12, 42, 13, 3, 1, {1, 1, 1, 1}},  // cin 42: two 16-channel loads, 3 groups, 2 junk
       {4, 23, 16, 12, 3, 1, {1, 1, 1, 1}},  // NEON 8x3 on long rows
-      UpConv(5, 8, 12, 35, 1, 1),           // odd crop: phases swap
+      // Few outputs (at most 4, at least 16 inputs): quads of pixels where the window is inside
+      // the input, single pixels elsewhere.
+      {6, 37, 64, 3, 3, 1, {1, 1, 1, 1}},   // the output layer's channels; a partial quad
+      {5, 30, 70, 4, 3, 2, {1, 1, 1, 1}},   // cin 70 (a masked tail), stride 2
+      {7, 22, 16, 1, 5, 1, {2, 2, 2, 2}},   // 5x5, one output
+      {4, 41, 130, 2, 3, 1, {0, 0, 2, 2}},  // three loads per tap, pads at the bottom and right
+      {5, 11, 20, 3, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 40},  // input view, row stride
+      {3, 9, 24, 3, 7, 1, {3, 3, 3, 3}},                          // no window inside the input
+      UpConv(5, 8, 12, 35, 1, 1),                                 // odd crop: phases swap
       UpConv(5, 8, 6, 70, 3, 5),
       UpConv(6, 9, 7, 17),
       UpConv(1, 1, 5, 6),     // 2x2 upsampled: no interior pixel
@@ -884,7 +894,8 @@ void Int8Kernels::CheckSlices() {
   // Wide enough, with 64 input channels, for the AMX tiles too (the second and the last).
   std::vector<Int8Shape> shapes = {Conv(7, 19, 16, 24, 1),     Conv(5, 37, 64, 70, 1),
                                    Conv(9, 11, 12, 8, 2),      UpConv(4, 9, 32, 16, 1, 1),
-                                   UpConv(5, 6, 8, 100, 0, 0), UpConv(3, 20, 64, 64, 1, 0)};
+                                   UpConv(5, 6, 8, 100, 0, 0), UpConv(3, 20, 64, 64, 1, 0),
+                                   Conv(5, 23, 64, 4, 1)};  // few outputs
   shapes[3].phases = shapes[5].phases = true;
   size_t values = 0;
   uint32_t seed = 4100;

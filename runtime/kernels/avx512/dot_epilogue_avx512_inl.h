@@ -49,6 +49,23 @@ inline __m512 BiasActivation(__m512 y, const simd::DotEpilogue& e, int v) {
   return y;
 }
 
+// Int8Dequantize of 16 int32 sums with lanes [v * 16, v * 16 + 16) of e.multiplier and e.bias.
+inline __m512 DequantizeLanes(__m512i acc, const simd::DotEpilogue& e, int v) {
+  const __m512 y = _mm512_mul_ps(ToFloat(acc), _mm512_loadu_ps(e.multiplier + v * kEpilogueLanes));
+  return BiasActivation(y, e, v);
+}
+
+// Int8Quantize of 16 float32 lanes (as int32 0..255).
+inline __m512i QuantizeLanes(__m512 y, const simd::DotEpilogue& e) {
+  __m512 t = _mm512_mul_ps(y, _mm512_set1_ps(e.inv_scale));
+  t = Max(t, _mm512_set1_ps(-512.0f));
+  t = Min(t, _mm512_set1_ps(512.0f));
+  __m512i q = ToIntNearest(t);  // cvtps2dq: to nearest even under the default MXCSR
+  q = _mm512_add_epi32(q, _mm512_set1_epi32(e.zero_point));
+  q = Max(q, _mm512_setzero_si512());
+  return Min(q, _mm512_set1_epi32(255));
+}
+
 // Int8Dequantize / Int8Quantize of one pixel's NV vectors of int32 sums into `out` (the pixel's
 // first channel of the block: float or uint8).
 template <int NV>
@@ -56,19 +73,12 @@ inline void FinishU8s8(const __m512i* acc, const simd::DotEpilogue& e, void* out
 #pragma GCC unroll 4
   for (int v = 0; v < NV; ++v) {
     const __mmask16 mask = ValidLanes(e, v);
-    __m512 y = _mm512_mul_ps(ToFloat(acc[v]), _mm512_loadu_ps(e.multiplier + v * kEpilogueLanes));
-    y = BiasActivation(y, e, v);
+    const __m512 y = DequantizeLanes(acc[v], e, v);
     if (e.out_float) {
       _mm512_mask_storeu_ps(static_cast<float*>(out) + v * kEpilogueLanes, mask, y);
     } else {
-      __m512 t = _mm512_mul_ps(y, _mm512_set1_ps(e.inv_scale));
-      t = Max(t, _mm512_set1_ps(-512.0f));
-      t = Min(t, _mm512_set1_ps(512.0f));
-      __m512i q = ToIntNearest(t);  // cvtps2dq: to nearest even under the default MXCSR
-      q = _mm512_add_epi32(q, _mm512_set1_epi32(e.zero_point));
-      q = Max(q, _mm512_setzero_si512());
-      q = Min(q, _mm512_set1_epi32(255));
-      _mm512_mask_cvtepi32_storeu_epi8(static_cast<uint8_t*>(out) + v * kEpilogueLanes, mask, q);
+      _mm512_mask_cvtepi32_storeu_epi8(static_cast<uint8_t*>(out) + v * kEpilogueLanes, mask,
+                                       QuantizeLanes(y, e));
     }
   }
 }
