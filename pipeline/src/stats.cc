@@ -173,10 +173,10 @@ std::vector<StepLabel> LabelSteps(const Session& session) {
     label.kernel = step.kernel;
     label.precision = PrecisionName(step.precision);
     if (step.quantize) {
-      // Computes no layer: it quantises the float32 tensor the next (int8) layer reads.
+      // Computes no layer: it converts the float32 tensor the next (int8 or bf16) layer reads.
       const size_t next = static_cast<size_t>(step.first_layer);
       label.name = "quantize>" + (next < layers.size() ? layers[next].name : std::string("?"));
-      label.op = "quantize uint8";
+      label.op = step.precision == Precision::kBFloat16 ? "round to bf16" : "quantize uint8";
       labels.push_back(std::move(label));
       continue;
     }
@@ -190,7 +190,7 @@ std::vector<StepLabel> LabelSteps(const Session& session) {
       label.op += LayerOp(layers[static_cast<size_t>(i)]);
     }
     if (step.last_layer > step.first_layer) label.op += " (fused)";
-    if (step.precision == Precision::kInt8) label.op = "int8 " + label.op;
+    if (step.precision != Precision::kFloat32) label.op = label.precision + " " + label.op;
     labels.push_back(std::move(label));
   }
   return labels;

@@ -9,6 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "common/bf16_spec.h"
+#include "common/int8_spec.h"
+#include "common/model_builders.h"
+#include "common/sceneednet_spec.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 
@@ -210,6 +214,37 @@ TEST(LabelSteps, DemoModelStepsAreNamedAndAddUp) {
     share += r.share;
   }
   EXPECT_NEAR(share, 1.0, 1e-9);
+}
+
+// The step converting the input says what it converts to, and each reduced-precision
+// convolution's op starts with its precision (1/16-width SceneEDNet in int8 and in bf16).
+TEST(LabelSteps, ConversionsAndConvolutionsNameTheirPrecision) {
+  struct Case {
+    std::shared_ptr<const Model> model;
+    std::string conversion;
+    std::string prefix;
+  };
+  const std::vector<Case> cases = {
+      {testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16))), "quantize uint8",
+       "int8 "},
+      {testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(16))), "round to bf16",
+       "bf16 "},
+  };
+  for (const Case& c : cases) {
+    ASSERT_NE(c.model, nullptr);
+    SessionOptions options;
+    options.max_height = 35;
+    options.max_width = 61;
+    auto session = Session::Create(c.model, options);
+    ASSERT_TRUE(session.ok()) << session.message();
+    const std::vector<StepLabel> labels = LabelSteps(**session);
+    ASSERT_GE(labels.size(), 2u);
+    EXPECT_EQ(labels.front().op, c.conversion);
+    EXPECT_EQ(labels.front().name, "quantize>conv0");
+    for (size_t i = 1; i < labels.size(); ++i) {
+      EXPECT_TRUE(labels[i].op.starts_with(c.prefix)) << labels[i].op;
+    }
+  }
 }
 
 }  // namespace
