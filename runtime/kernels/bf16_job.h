@@ -90,7 +90,15 @@ struct PackedBf16Conv {
   // the SIMD layout, phase p's part starting at p * blocks * 4 * cin2 * nr elements.
   const uint16_t* phase_weights_hwio = nullptr;
   const uint16_t* phase_weights = nullptr;
+  // Convolutions with few outputs (at most kBf16FewOutChannels, at least kBf16FewOutMinInputs
+  // inputs, nr > 0), for kernels vectorised over input channels: few_weights[tap][o][ci], each
+  // (tap, o) row few_ci_stride values (in_channels rounded up to 32, zero-filled); null
+  // otherwise.
+  const uint16_t* few_weights = nullptr;
+  int few_ci_stride = 0;
 };
+inline constexpr int kBf16FewOutChannels = 4;
+inline constexpr int kBf16FewOutMinInputs = 16;
 
 // One kernel call; the upsample fields are Int8ConvArgs's (int8_job.h).
 struct Bf16ConvArgs {
@@ -122,6 +130,9 @@ struct IsaBf16Kernels {
   Bf16ConvRowsFn upconv = nullptr;  // fused nearest-2x upsample (+ crop) -> 3x3 stride 1
   const char* conv_name = "";
   const char* upconv_name = "";
+  // Non-empty when `conv` computes the few-output layers (PackedBf16Conv::few_weights) with a
+  // kernel of their own: its name.
+  const char* few_out_name = "";
 };
 inline constexpr int kMaxBf16Taps = 64;
 

@@ -17,6 +17,8 @@ struct Bf16Sizes {
   size_t weights = 0;     // bytes of the SIMD layout
   size_t phase_hwio = 0;  // bytes, all four phases
   size_t phase_simd = 0;  // bytes of one phase's SIMD layout
+  int few_ci_stride = 0;  // > 0: the few-output layout (bf16_job.h)
+  size_t few = 0;         // bytes
 };
 
 Bf16Sizes SizesOf(const ConvParams& p, int nr, bool with_phases) {
@@ -28,6 +30,10 @@ Bf16Sizes SizesOf(const ConvParams& p, int nr, bool with_phases) {
   s.bias = RoundUp64(static_cast<size_t>(lanes) * sizeof(float));
   s.hwio = RoundUp64(taps * p.in_channels * p.out_channels * sizeof(uint16_t));
   if (nr > 0) s.weights = RoundUp64(s.blocks * taps * s.cin2 * nr * sizeof(uint16_t));
+  if (nr > 0 && Bf16FewOutputs(p)) {
+    s.few_ci_stride = (p.in_channels + 31) / 32 * 32;
+    s.few = RoundUp64(taps * p.out_channels * s.few_ci_stride * sizeof(uint16_t));
+  }
   if (with_phases) {
     s.phase_hwio =
         RoundUp64(16 * static_cast<size_t>(p.in_channels) * p.out_channels * sizeof(uint16_t));
@@ -58,7 +64,7 @@ void BlockWeights(const uint16_t* hwio, int taps, int cin, int cout, int nr, int
 
 size_t PackedBf16Bytes(const ConvParams& params, int nr, bool with_phases) {
   const Bf16Sizes s = SizesOf(params, nr, with_phases);
-  return s.bias + s.hwio + s.weights + s.phase_hwio + 4 * s.phase_simd;
+  return s.bias + s.hwio + s.weights + s.few + s.phase_hwio + 4 * s.phase_simd;
 }
 
 PackedBf16Conv PackBf16Conv(const ConvParams& p, int nr, bool with_phases, bool out_float,
@@ -95,6 +101,20 @@ PackedBf16Conv PackBf16Conv(const ConvParams& p, int nr, bool with_phases, bool 
     BlockWeights(hwio, taps, p.in_channels, p.out_channels, nr, s.blocks, s.cin2, w);
     out.weights = w;
     cursor += s.weights;
+  }
+  if (s.few_ci_stride > 0) {
+    uint16_t* few = reinterpret_cast<uint16_t*>(cursor);
+    for (int t = 0; t < taps; ++t) {
+      for (int o = 0; o < p.out_channels; ++o) {
+        for (int ci = 0; ci < p.in_channels; ++ci) {
+          few[(static_cast<size_t>(t) * p.out_channels + o) * s.few_ci_stride + ci] =
+              hwio[(static_cast<size_t>(t) * p.in_channels + ci) * p.out_channels + o];
+        }
+      }
+    }
+    out.few_weights = few;
+    out.few_ci_stride = s.few_ci_stride;
+    cursor += s.few;
   }
   if (!with_phases) return out;
 

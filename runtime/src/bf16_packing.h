@@ -10,6 +10,12 @@
 
 namespace sfrt {
 
+// Whether PackBf16Conv with nr > 0 adds the few-output layout (PackedBf16Conv::few_weights):
+// at most kBf16FewOutChannels outputs, at least kBf16FewOutMinInputs inputs.
+inline bool Bf16FewOutputs(const ConvParams& params) {
+  return params.out_channels <= kBf16FewOutChannels && params.in_channels >= kBf16FewOutMinInputs;
+}
+
 // Bytes PackBf16Conv writes for `params` with blocks of `nr` output channels (0: the reference
 // layout only), with the phase kernels of a 3x3 convolution that reads a nearest-2x upsampling
 // when `with_phases`. A multiple of 64.

@@ -522,6 +522,9 @@ Status Session::Plan() {
       if (kernels16 != nullptr && simd_fits(p, upsampled, kMaxBf16Taps)) {
         step.fn16 = upsampled ? kernels16->upconv : kernels16->conv;
         step.kernel = upsampled ? kernels16->upconv_name : kernels16->conv_name;
+        if (!upsampled && kernels16->few_out_name[0] != '\0' && Bf16FewOutputs(p)) {
+          step.kernel = kernels16->few_out_name;
+        }
       } else {
         step.fn16 = ref::Conv2dBf16Rows;
         step.kernel = upsampled ? "ref::UpConv2dBf16" : "ref::Conv2dBf16";

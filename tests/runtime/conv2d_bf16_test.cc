@@ -372,6 +372,8 @@ TEST_F(Bf16Avx512, KernelNamesCarryIsaAndTile) {
     EXPECT_NE(name.find("bf16__avx512bf16_"), std::string::npos) << name;
     EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;
   }
+  // Four pixels x four output channels.
+  EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_bf16__avx512bf16_4x4");
 }
 
 TEST_F(Bf16Neon, KernelNamesCarryIsaAndTile) {
@@ -444,6 +446,17 @@ void Bf16Kernels::CheckEdgeShapes() {
       UpConv(2, 40, 32, 130, 0, 1),  //
   };
   for (size_t i = 5; i < shapes.size(); i += 2) shapes[i].phases = true;
+  // Few outputs (at most 4, at least 16 inputs): quads of pixels where the window is inside the
+  // input, single pixels elsewhere.
+  for (const Bf16Shape& few : {
+           Conv(6, 37, 64, 3, 1),     // the output layer's channels; a partial quad
+           Conv(5, 30, 35, 4, 2),     // odd cin past one load (a masked tail), stride 2
+           Conv(7, 22, 16, 1, 1, 5),  // 5x5, one output
+           Conv(4, 41, 130, 2, 1),    // five loads per tap
+           Conv(3, 9, 24, 3, 1, 7),   // 7x7 on 3 rows: no window inside the input
+       }) {
+    shapes.push_back(few);
+  }
   Bf16Shape s = UpConv(4, 7, 9, 20, 0, 1);
   s.phases = true;
   s.pads = {0, 0, 2, 2};

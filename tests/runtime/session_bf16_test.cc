@@ -15,6 +15,7 @@
 #include "common/model_builders.h"
 #include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
+#include "kernels/bf16_job.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
 
@@ -82,6 +83,33 @@ TEST(SessionBf16, PublishedWidthsMatchTheReferenceOnTheBestIsa) {
   const std::vector<float> want = Reference(*model, input, h, w);
   const std::vector<float> got = testing::RunSession(model, BestIsa(), 2, input, h, w);
   EXPECT_LT(testing::RelativeMaxError(got, want), 1e-2) << IsaName(BestIsa());
+}
+
+TEST(SessionBf16, TheOutputLayerRunsOnItsIsasFewOutputKernelAndMatchesTheReference) {
+  // 1/4 width: the output convolution reads 16 channels, enough for the few-output kernels;
+  // 45x61 has quads of pixels inside the input and single pixels at the borders.
+  auto model = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(4)));
+  ASSERT_NE(model, nullptr);
+  const int h = 45, w = 61;
+  const std::vector<float> input = Input(h, w, 13);
+  const std::vector<float> want = Reference(*model, input, h, w);
+  for (Isa isa : SupportedIsas()) {
+    auto session = Session::Create(model, {h, w, isa});
+    ASSERT_TRUE(session.ok()) << session.message();
+    const IsaBf16Kernels* kernels = Bf16KernelsFor(isa);
+    if (kernels != nullptr && kernels->few_out_name[0] != '\0') {
+      EXPECT_STREQ((*session)->steps().back().kernel, kernels->few_out_name) << IsaName(isa);
+    }
+    for (int threads : {1, 2}) {
+      const std::vector<float> got = testing::RunSession(model, isa, threads, input, h, w);
+      ASSERT_EQ(got.size(), want.size());
+      if (kernels == nullptr) {
+        EXPECT_EQ(FirstDifference(got, want), want.size()) << IsaName(isa) << " x" << threads;
+      } else {
+        EXPECT_LT(testing::RelativeMaxError(got, want), 1e-2) << IsaName(isa) << " x" << threads;
+      }
+    }
+  }
 }
 
 TEST(SessionBf16, StaysWithinTwoPercentOfTheFloat32Model) {

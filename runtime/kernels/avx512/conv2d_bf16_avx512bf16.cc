@@ -14,6 +14,7 @@
 #include <cstring>
 
 #include "kernels/avx512/dot_epilogue_avx512_inl.h"
+#include "kernels/avx512/few_out_avx512_inl.h"
 #include "kernels/bf16_job.h"
 #include "kernels/simd/dot_driver_inl.h"
 #include "src/cpu_features.h"
@@ -96,6 +97,88 @@ inline __m256i ToBf16x16(__m512 v) {
   return _mm512_maskz_cvtepi32_epi16(kAll, _mm512_maskz_srli_epi32(kAll, rounded, 16));
 }
 
+// The bf16 precision of kernels/avx512/few_out_avx512_inl.h: pairs of bf16 products by
+// vdpbf16ps into float32 sums, then bias, activation and (bf16 output) the rounding.
+struct FewOutBf16 {
+  using Conv = PackedBf16Conv;
+  using Args = Bf16ConvArgs;
+  using Elem = uint16_t;
+  using Weight = uint16_t;
+  using Acc = __m512;
+  using In = __m512bh;
+  static constexpr int kPerLoad = 32;
+  static int OutWidth(const Args& a) {
+    return a.conv->out_float ? a.out_f32.width : a.out_bf16.width;
+  }
+  static Acc Zero() { return _mm512_setzero_ps(); }
+  static In LoadX(const uint16_t* x, int left) {
+    const __mmask32 m = left >= 32 ? ~__mmask32{0} : (__mmask32{1} << left) - 1;
+    return reinterpret_cast<__m512bh>(_mm512_maskz_loadu_epi16(m, x));
+  }
+  static In LoadW(const uint16_t* w) { return reinterpret_cast<__m512bh>(_mm512_loadu_si512(w)); }
+  static Acc Dot(Acc acc, In x, In w) { return _mm512_dpbf16_ps(acc, x, w); }
+  static Acc SumEachVector(const Acc* v) {
+    __m512i bits[16];
+#pragma GCC unroll 16
+    for (int i = 0; i < 16; ++i) bits[i] = _mm512_castps_si512(v[i]);
+    return _mm512_castsi512_ps(SumEachVectorBits(bits, [](__m512i x, __m512i y) {
+      return _mm512_castps_si512(_mm512_add_ps(_mm512_castsi512_ps(x), _mm512_castsi512_ps(y)));
+    }));
+  }
+
+  // One pixel: the scalar epilogue (Bf16Epilogue, FloatToBf16).
+  static void FinishPixel(const Args& a, int oy, int ox, const Acc* acc, const InsideTaps&) {
+    const Conv& p = *a.conv;
+    for (int o = 0; o < p.out_channels; ++o) {
+      alignas(64) float lanes[V::kLanes];
+      _mm512_store_ps(lanes, acc[o]);
+      float sum = 0.0f;
+      for (int l = 0; l < V::kLanes; ++l) sum += lanes[l];
+      const float y = Bf16Epilogue(sum, p.bias[o], p.activation, p.leaky_slope);
+      if (p.out_float) {
+        a.out_f32.pixel(oy, ox)[o] = y;
+      } else {
+        a.out_bf16.pixel(oy, ox)[o] = FloatToBf16(y);
+      }
+    }
+  }
+
+  // Four pixels: lane 4 * j + o is pixel j's output channel o.
+  struct Quad {
+    alignas(64) float bias[16] = {};
+    simd::DotEpilogue e{};
+  };
+  static void Prepare(const Conv& p, Quad& q) {
+    for (int i = 0; i < 16; ++i) {
+      if (i % 4 < p.out_channels) q.bias[i] = p.bias[i % 4];
+    }
+    q.e = {nullptr, q.bias, p.activation, p.leaky_slope, p.out_float, 0.0f, 0, 16};
+  }
+  template <int CO>
+  static void FinishQuad(const Args& a, int oy, int ox, Acc sums, const Quad& q) {
+    const __m512 y = BiasActivation(sums, q.e, 0);
+    if (a.conv->out_float) {
+      StoreQuadFloat<CO>(a.out_f32, oy, ox, y);
+      return;
+    }
+    constexpr __mmask16 kOutputs = (1u << CO) - 1u;
+#pragma GCC unroll 4
+    for (int j = 0; j < 4; ++j) {
+      const __m512 pixel = _mm512_maskz_compress_ps(static_cast<__mmask16>(0xFu << (4 * j)), y);
+      _mm256_mask_storeu_epi16(a.out_bf16.pixel(oy, ox + j), kOutputs, ToBf16x16(pixel));
+    }
+  }
+};
+static_assert(kBf16FewOutChannels <= kFewOutMaxChannels);
+
+void ConvRows(const Bf16ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
+  if (a.conv->few_weights != nullptr) {
+    if (blk_begin == 0 && blk_end > 0) FewOutRows<FewOutBf16>(a, row_begin, row_end);
+    return;
+  }
+  simd::DotConvRows<V, 8, 8, 8, 6>(a, row_begin, row_end, blk_begin, blk_end);
+}
+
 }  // namespace
 
 void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, int row_end) {
@@ -115,9 +198,12 @@ void ToBf16Rows(const ConstTensorView& in, const Bf16View& out, int row_begin, i
 }
 
 const IsaBf16Kernels* Bf16Kernels() {
-  static constexpr IsaBf16Kernels kKernels = {
-      V::kNr, simd::DotConvRows<V, 8, 8, 8, 6>, simd::DotUpConvRows<V, 8, 8, 8, 6>,
-      "conv2d_bf16__avx512bf16_6x64", "upconv2d_bf16__avx512bf16_6x64"};
+  static constexpr IsaBf16Kernels kKernels = {V::kNr,
+                                              ConvRows,
+                                              simd::DotUpConvRows<V, 8, 8, 8, 6>,
+                                              "conv2d_bf16__avx512bf16_6x64",
+                                              "upconv2d_bf16__avx512bf16_6x64",
+                                              "conv2d_fewout_bf16__avx512bf16_4x4"};
   const CpuFeatures& f = HostCpuFeatures();
   return f.avx512 && f.avx512_bf16 ? &kKernels : nullptr;
 }

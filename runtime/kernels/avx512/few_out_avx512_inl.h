@@ -1,0 +1,194 @@
+// The few-output convolutions of the AVX-512 dot-product kernels (the 64->3 output layer):
+// written once over a precision F that the VNNI (int8) and AVX512_BF16 translation units each
+// define and compile with their own flags, in their own anonymous namespace (as
+// dot_epilogue_avx512_inl.h). A 64-output-channel tile would leave 61 of its 64 lanes empty, so
+// these vectorise over input channels instead: one 64-byte load of a pixel's channels per dot
+// product, one accumulator per (pixel, output channel), reduced across lanes at the end.
+//
+// Where a pixel's window lies inside the input, four pixels at a time (FewOutQuad): 16
+// accumulators (4 pixels x up to 4 channels), one reduction for all of them (SumEachVector),
+// lane 4 * j + o being pixel j's channel o, and a vector epilogue. Elsewhere one pixel at a
+// time (FewOutPixel) over the taps inside the input.
+//
+// F provides: Conv and Args (the packed convolution and a kernel call), Elem and Weight (what
+// the input and few_weights hold), Acc (the accumulator vector), In (what a dot product takes),
+// kPerLoad (channels per 64-byte load), Zero(), LoadX(x, left) (min(left, kPerLoad) channels,
+// the rest zero), LoadW(w), Dot(acc, x, w), SumEachVector(const Acc[16]),
+// FinishPixel(a, oy, ox, acc, ky0, ky1, kx0, kx1) (the taps [ky0, ky1) x [kx0, kx1) were inside
+// the input), a Quad epilogue prepared once per call by Prepare(conv, quad), and
+// FinishQuad<CO>(a, oy, ox, sums, quad).
+#pragma once
+
+#include <immintrin.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "kernels/avx512/dot_epilogue_avx512_inl.h"
+#include "kernels/simd/dot_driver_inl.h"
+
+namespace sfrt::avx512 {
+namespace {
+
+inline constexpr int kFewOutMaxChannels = 4;  // lanes 4 * pixel + channel of one vector
+// How far ahead of a quad's first pixel its input rows are prefetched.
+inline constexpr int kFewOutPrefetchBytes = 1024;
+
+// Lane i of the result: the sum of v[i]'s 16 lanes, `add` being the lane-wise sum on the bits
+// (int32 or float32). The zero-masked shuffles for GCC 12, as in dot_epilogue_avx512_inl.h.
+template <typename AddFn>
+inline __m512i SumEachVectorBits(const __m512i* v, AddFn add) {
+  constexpr __mmask8 kAll8 = 0xFF;
+  __m512i pairs[8];  // per 128-bit lane: v[2i] and v[2i+1], two partial sums each
+#pragma GCC unroll 8
+  for (int i = 0; i < 8; ++i) {
+    pairs[i] = add(_mm512_maskz_unpacklo_epi32(kAll, v[2 * i], v[2 * i + 1]),
+                   _mm512_maskz_unpackhi_epi32(kAll, v[2 * i], v[2 * i + 1]));
+  }
+  __m512i quads[4];  // per 128-bit lane: v[4i] .. v[4i + 3], one partial sum each
+#pragma GCC unroll 4
+  for (int i = 0; i < 4; ++i) {
+    quads[i] = add(_mm512_maskz_unpacklo_epi64(kAll8, pairs[2 * i], pairs[2 * i + 1]),
+                   _mm512_maskz_unpackhi_epi64(kAll8, pairs[2 * i], pairs[2 * i + 1]));
+  }
+  // Then across the 128-bit lanes: even lanes plus odd lanes, twice.
+  constexpr int kEven = 0x88, kOdd = 0xDD;
+  const __m512i low = add(_mm512_maskz_shuffle_i32x4(kAll, quads[0], quads[1], kEven),
+                          _mm512_maskz_shuffle_i32x4(kAll, quads[0], quads[1], kOdd));
+  const __m512i high = add(_mm512_maskz_shuffle_i32x4(kAll, quads[2], quads[3], kEven),
+                           _mm512_maskz_shuffle_i32x4(kAll, quads[2], quads[3], kOdd));
+  return add(_mm512_maskz_shuffle_i32x4(kAll, low, high, kEven),
+             _mm512_maskz_shuffle_i32x4(kAll, low, high, kOdd));
+}
+
+// The taps of one pixel's window that lie inside the input: [ky0, ky1) x [kx0, kx1).
+struct InsideTaps {
+  int ky0, ky1, kx0, kx1;
+};
+
+template <typename F>
+void FewOutPixel(const typename F::Args& a, int oy, int ox) {
+  const typename F::Conv& p = *a.conv;
+  const int cin = p.in_channels, cout = p.out_channels;
+  const ptrdiff_t row = static_cast<ptrdiff_t>(cout) * p.few_ci_stride;
+  const int iy0 = oy * p.stride_h - a.pads.top;
+  const int ix0 = ox * p.stride_w - a.pads.left;
+  const InsideTaps in{simd::MaxOf(0, -iy0), simd::MinOf(p.kernel_h, a.in.height - iy0),
+                      simd::MaxOf(0, -ix0), simd::MinOf(p.kernel_w, a.in.width - ix0)};
+  typename F::Acc acc[kFewOutMaxChannels];
+  for (int o = 0; o < cout; ++o) acc[o] = F::Zero();
+  for (int ky = in.ky0; ky < in.ky1; ++ky) {
+    for (int kx = in.kx0; kx < in.kx1; ++kx) {
+      const typename F::Elem* x = a.in.pixel(iy0 + ky, ix0 + kx);
+      const typename F::Weight* w = p.few_weights + (ky * p.kernel_w + kx) * row;
+      for (int c = 0; c < cin; c += F::kPerLoad) {
+        const typename F::In xv = F::LoadX(x + c, cin - c);
+        for (int o = 0; o < cout; ++o) {
+          acc[o] = F::Dot(acc[o], xv, F::LoadW(w + o * p.few_ci_stride + c));
+        }
+      }
+    }
+  }
+  F::FinishPixel(a, oy, ox, acc, in);
+}
+
+// Pixels ox .. ox + 3 of row oy, every tap inside the input; CO output channels.
+template <typename F, int CO>
+void FewOutQuad(const typename F::Args& a, int oy, int ox, const typename F::Quad& quad) {
+  const typename F::Conv& p = *a.conv;
+  const int cin = p.in_channels;
+  const ptrdiff_t row = static_cast<ptrdiff_t>(CO) * p.few_ci_stride;
+  const int iy0 = oy * p.stride_h - a.pads.top;
+  const int ix0 = ox * p.stride_w - a.pads.left;
+  const int ahead_bytes = 4 * p.stride_w * cin * static_cast<int>(sizeof(typename F::Elem));
+  typename F::Acc acc[16];  // [pixel * 4 + output]
+#pragma GCC unroll 16
+  for (int i = 0; i < 16; ++i) acc[i] = F::Zero();
+  for (int ky = 0; ky < p.kernel_h; ++ky) {
+    for (int kx = 0; kx < p.kernel_w; ++kx) {
+      const typename F::Elem* x[4];
+#pragma GCC unroll 4
+      for (int j = 0; j < 4; ++j) x[j] = a.in.pixel(iy0 + ky, ix0 + kx + j * p.stride_w);
+      const typename F::Weight* w = p.few_weights + (ky * p.kernel_w + kx) * row;
+      if (kx == 0) {
+        const char* ahead = reinterpret_cast<const char*>(x[0]) + kFewOutPrefetchBytes;
+        for (int b = 0; b < ahead_bytes; b += 64) _mm_prefetch(ahead + b, _MM_HINT_T0);
+      }
+      for (int c = 0; c < cin; c += F::kPerLoad) {
+        typename F::In wv[CO];
+#pragma GCC unroll 4
+        for (int o = 0; o < CO; ++o) wv[o] = F::LoadW(w + o * p.few_ci_stride + c);
+#pragma GCC unroll 4
+        for (int j = 0; j < 4; ++j) {
+          const typename F::In xv = F::LoadX(x[j] + c, cin - c);
+#pragma GCC unroll 4
+          for (int o = 0; o < CO; ++o) acc[j * 4 + o] = F::Dot(acc[j * 4 + o], xv, wv[o]);
+        }
+      }
+    }
+  }
+  F::template FinishQuad<CO>(a, oy, ox, F::SumEachVector(acc), quad);
+}
+
+template <typename F, int CO>
+void FewOutRowsOf(const typename F::Args& a, int row_begin, int row_end) {
+  const typename F::Conv& p = *a.conv;
+  const int out_w = F::OutWidth(a);
+  const int x_begin = simd::MaxOf(0, a.col_begin), x_end = simd::MinOf(out_w, a.col_end);
+  // Columns whose window is inside the input: [inside_lo, inside_hi).
+  const int inside_lo = (a.pads.left + p.stride_w - 1) / p.stride_w;
+  const int last = a.in.width - p.kernel_w + a.pads.left;  // the last window's first column
+  const int inside_hi = last < 0 ? inside_lo : simd::MaxOf(inside_lo, last / p.stride_w + 1);
+  const int quad_end = simd::MinOf(inside_hi, x_end);
+  typename F::Quad quad;
+  F::Prepare(p, quad);
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    const int iy0 = oy * p.stride_h - a.pads.top;
+    const bool rows_inside = iy0 >= 0 && iy0 + p.kernel_h <= a.in.height;
+    int ox = x_begin;
+    while (ox < x_end) {
+      if (rows_inside && ox >= inside_lo && ox + 4 <= quad_end) {
+        FewOutQuad<F, CO>(a, oy, ox, quad);
+        ox += 4;
+      } else {
+        FewOutPixel<F>(a, oy, ox);
+        ++ox;
+      }
+    }
+  }
+}
+
+// Rows [row_begin, row_end) of a convolution with 1..kFewOutMaxChannels outputs and
+// few_weights (its one block: callers pass only block 0's calls).
+template <typename F>
+void FewOutRows(const typename F::Args& a, int row_begin, int row_end) {
+  switch (a.conv->out_channels) {
+    case 1:
+      FewOutRowsOf<F, 1>(a, row_begin, row_end);
+      break;
+    case 2:
+      FewOutRowsOf<F, 2>(a, row_begin, row_end);
+      break;
+    case 3:
+      FewOutRowsOf<F, 3>(a, row_begin, row_end);
+      break;
+    default:
+      FewOutRowsOf<F, 4>(a, row_begin, row_end);
+      break;
+  }
+}
+
+// Stores lanes 4 * j .. 4 * j + CO - 1 of y as pixel j's channels, for the 4 float32 pixels
+// from (oy, ox) of `out`.
+template <int CO, typename View>
+inline void StoreQuadFloat(const View& out, int oy, int ox, __m512 y) {
+  constexpr __mmask16 kOutputs = (1u << CO) - 1u;
+#pragma GCC unroll 4
+  for (int j = 0; j < 4; ++j) {
+    _mm512_mask_storeu_ps(out.pixel(oy, ox + j), kOutputs,
+                          _mm512_maskz_compress_ps(static_cast<__mmask16>(0xFu << (4 * j)), y));
+  }
+}
+
+}  // namespace
+}  // namespace sfrt::avx512
