@@ -510,7 +510,8 @@ Status Session::Plan() {
       if (kernels8 != nullptr && simd_fits(p, upsampled, kMaxInt8Taps)) {
         step.fn8 = upsampled ? kernels8->upconv : kernels8->conv;
         step.kernel = upsampled ? kernels8->upconv_name : kernels8->conv_name;
-        if (!upsampled && kernels8->few_out_name[0] != '\0' && Int8FewOutputs(p)) {
+        if (!upsampled && tuning.few_out && kernels8->few_out_name[0] != '\0' &&
+            Int8FewOutputs(p)) {
           step.kernel = kernels8->few_out_name;
         }
       } else {
@@ -522,7 +523,8 @@ Status Session::Plan() {
       if (kernels16 != nullptr && simd_fits(p, upsampled, kMaxBf16Taps)) {
         step.fn16 = upsampled ? kernels16->upconv : kernels16->conv;
         step.kernel = upsampled ? kernels16->upconv_name : kernels16->conv_name;
-        if (!upsampled && kernels16->few_out_name[0] != '\0' && Bf16FewOutputs(p)) {
+        if (!upsampled && tuning.few_out && kernels16->few_out_name[0] != '\0' &&
+            Bf16FewOutputs(p)) {
           step.kernel = kernels16->few_out_name;
         }
       } else {
@@ -799,8 +801,10 @@ Status Session::Plan() {
     const ConvParams& p = layers[step.last_layer].conv;
     if (step.kind == Step::Kind::kInt8Conv) {
       step.packed8 = PackInt8Conv(p, nr8(step), step.out_u8 ? &step.quant : nullptr, cursor8);
+      if (!tuning.few_out) step.packed8.few_weights = nullptr;  // the tiles compute it
     } else if (step.kind == Step::Kind::kBf16Conv) {
       step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
+      if (!tuning.few_out) step.packed16.few_weights = nullptr;
     }
     cursor8 += reduced_bytes(step);
   }

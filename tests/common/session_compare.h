@@ -27,20 +27,17 @@ inline std::vector<float> RandomImage(int height, int width, int channels, uint3
   return v;
 }
 
-// One Run() of `model` on `input` with a session planned for exactly height x width; the output
-// starts as NaN so anything not written fails the comparison. Empty on failure (with a test
-// failure recorded).
-inline std::vector<float> RunSession(std::shared_ptr<const Model> model, Isa isa, int threads,
+// One Run() of `model` on `input` with a session made with `options` (its maximum size set to
+// exactly height x width); the output starts as NaN so anything not written fails the
+// comparison. Empty on failure (with a test failure recorded).
+inline std::vector<float> RunSession(std::shared_ptr<const Model> model, SessionOptions options,
                                      const std::vector<float>& input, int height, int width) {
-  SessionOptions options;
   options.max_height = height;
   options.max_width = width;
-  options.isa = isa;
-  options.threads = threads;
   auto session = Session::Create(std::move(model), options);
   EXPECT_TRUE(session.ok()) << session.message();
   if (!session.ok()) return {};
-  EXPECT_EQ((*session)->isa(), isa);
+  EXPECT_EQ((*session)->isa(), options.isa);
   auto shape = (*session)->OutputShape(height, width);
   EXPECT_TRUE(shape.ok()) << shape.message();
   if (!shape.ok()) return {};
@@ -48,6 +45,15 @@ inline std::vector<float> RunSession(std::shared_ptr<const Model> model, Isa isa
   const Status s = (*session)->Run(input, height, width, out);
   EXPECT_TRUE(s.ok()) << s.message();
   return s.ok() ? out : std::vector<float>{};
+}
+
+// The same with default options but `isa` and `threads`.
+inline std::vector<float> RunSession(std::shared_ptr<const Model> model, Isa isa, int threads,
+                                     const std::vector<float>& input, int height, int width) {
+  SessionOptions options;
+  options.isa = isa;
+  options.threads = threads;
+  return RunSession(std::move(model), options, input, height, width);
 }
 
 // Runs `model` at each size on every ISA this CPU runs, with 1 and 2 threads, on seeded input

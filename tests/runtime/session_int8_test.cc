@@ -92,6 +92,17 @@ TEST(SessionInt8, TheOutputLayerRunsOnItsIsasFewOutputKernelAndMatchesTheReferen
       ASSERT_EQ(got.size(), want.size());
       EXPECT_EQ(FirstDifference(got, want), want.size()) << IsaName(isa) << " x" << threads;
     }
+    // KernelTuning::few_out off: the tiles compute the layer, to the same bytes.
+    SessionOptions off;
+    off.max_height = h;
+    off.max_width = w;
+    off.isa = isa;
+    off.tuning.few_out = false;
+    auto tiles = Session::Create(model, off);
+    ASSERT_TRUE(tiles.ok()) << tiles.message();
+    EXPECT_STRNE((*tiles)->steps().back().kernel, "conv2d_fewout_u8s8__avx512vnni_4x4");
+    const std::vector<float> got = testing::RunSession(model, off, input, h, w);
+    EXPECT_EQ(FirstDifference(got, want), want.size()) << IsaName(isa) << " few_out off";
   }
 }
 

@@ -54,7 +54,8 @@ struct KernelTuning {
   int winograd_tile = 2;
   // The fused upsample->conv phase convolutions through Winograd F(2x2,2x2) (needs a tile > 0).
   bool winograd_upconv = true;
-  // The dedicated kernel for convolutions with few outputs (the 64->3 output layer).
+  // The dedicated kernels for convolutions with few outputs (the 64->3 output layer), in every
+  // precision that has them (float32; int8 and bf16 on AVX-512). false: the tiles compute them.
   bool few_out = true;
   // uint8 and bf16 Concats in place (docs/model-format.md, "The graph"): no copy, but each Concat's
   // whole tensor lives from its first input's producer on, so the arena can grow (SceneEDNet-U's
