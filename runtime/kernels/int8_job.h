@@ -119,9 +119,17 @@ struct PackedInt8Conv {
   // otherwise. tap_sums are there as well.
   const int8_t* few_weights = nullptr;
   int few_ci_stride = 0;
+  // Set by the session where a kernel table has a kernel for narrow convolutions (at most 4
+  // inputs and 4 outputs, Int8NarrowConv; nr > 0) and KernelTuning::few_out allows it.
+  bool narrow = false;
 };
 inline constexpr int kInt8FewOutChannels = 4;
 inline constexpr int kInt8FewOutMinInputs = 16;
+// A convolution that one group of 4 input channels feeds (the 1/16-width model's 4->3 output
+// layer; the 1/64-width layers), with at most 4 outputs.
+inline bool Int8NarrowConv(int in_channels, int out_channels) {
+  return in_channels <= 4 && out_channels <= 4;
+}
 
 // One kernel call; see the fused upsample above for the `upsampled` fields.
 struct Int8ConvArgs {
@@ -157,6 +165,9 @@ struct IsaInt8Kernels {
   // Non-empty when `conv` computes the few-output layers (PackedInt8Conv::few_weights) with a
   // kernel of their own: its name.
   const char* few_out_name = "";
+  // Non-empty when `conv` computes the narrow convolutions (PackedInt8Conv::narrow) with a
+  // kernel of their own: its name.
+  const char* narrow_name = "";
 };
 inline constexpr int kMaxInt8Taps = 64;
 

@@ -514,6 +514,10 @@ Status Session::Plan() {
             Int8FewOutputs(p)) {
           step.kernel = kernels8->few_out_name;
         }
+        if (!upsampled && tuning.few_out && kernels8->narrow_name[0] != '\0' &&
+            Int8NarrowConv(p.in_channels, p.out_channels)) {
+          step.kernel = kernels8->narrow_name;
+        }
       } else {
         step.fn8 = ref::Conv2dInt8Rows;
         step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";
@@ -802,6 +806,8 @@ Status Session::Plan() {
     if (step.kind == Step::Kind::kInt8Conv) {
       step.packed8 = PackInt8Conv(p, nr8(step), step.out_u8 ? &step.quant : nullptr, cursor8);
       if (!tuning.few_out) step.packed8.few_weights = nullptr;  // the tiles compute it
+      step.packed8.narrow = kernels8 != nullptr && kernels8->narrow_name[0] != '\0' &&
+                            step.kernel == kernels8->narrow_name;
     } else if (step.kind == Step::Kind::kBf16Conv) {
       step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
       if (!tuning.few_out) step.packed16.few_weights = nullptr;

@@ -238,6 +238,15 @@ Int8ConvArgs ArgsFor(const Int8Problem& pr, const PackedInt8Conv* conv, Output* 
   return args;
 }
 
+// The packing a session gives `kernels`: their narrow kernel where they have one and the
+// convolution is narrow (plain, at most 4 inputs and outputs).
+PackedInt8Conv PackFor(const Int8Problem& pr, const IsaInt8Kernels* kernels, void* dst) {
+  PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, OutQuant(pr), dst);
+  conv.narrow = kernels->narrow_name[0] != '\0' && !pr.shape.up &&
+                Int8NarrowConv(pr.params.in_channels, pr.params.out_channels);
+  return conv;
+}
+
 // The reference's output, all rows at once.
 Output RunReference(const Int8Problem& pr) {
   AlignedBytes packed(PackedInt8Bytes(pr.params, 0));
@@ -398,7 +407,7 @@ class Int8Kernels : public ::testing::Test {
     for (const IsaInt8Kernels* kernels : tables_) {
       SCOPED_TRACE(pr.shape.up ? kernels->upconv_name : kernels->conv_name);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, OutQuant(pr), packed.data);
+      const PackedInt8Conv conv = PackFor(pr, kernels, packed.data);
       Output got(pr);
       const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
       const Int8ConvRowsFn fn = pr.shape.up ? kernels->upconv : kernels->conv;
@@ -536,8 +545,9 @@ TEST_F(Int8Vnni, KernelNamesCarryIsaAndTile) {
     EXPECT_NE(name.find("u8s8__avx512vnni_"), std::string::npos) << name;
     EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;
   }
-  // Four pixels x four output channels.
+  // Four pixels x four output channels; 16 pixels x four output channels.
   EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_u8s8__avx512vnni_4x4");
+  EXPECT_EQ(std::string(kernels_->narrow_name), "conv2d_narrow_u8s8__avx512vnni_16x4");
 }
 
 TEST_F(Int8NeonDot, KernelNamesCarryIsaAndTileAndTheSessionGetsTheBest) {
@@ -631,7 +641,15 @@ void Int8Kernels::CheckEdgeShapes() {
       {4, 41, 130, 2, 3, 1, {0, 0, 2, 2}},  // three loads per tap, pads at the bottom and right
       {5, 11, 20, 3, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 40},  // input view, row stride
       {3, 9, 24, 3, 7, 1, {3, 3, 3, 3}},                          // no window inside the input
-      UpConv(5, 8, 12, 35, 1, 1),                                 // odd crop: phases swap
+      // Narrow (at most 4 inputs and 4 outputs): blocks of 16 pixels where the window is inside
+      // the input, the tiles elsewhere.
+      {6, 40, 4, 3, 3, 1, {1, 1, 1, 1}},  // the 1/16-width output layer; a partial block
+      {5, 37, 3, 4, 3, 1, {1, 1, 1, 1}},  // cin 3: pixels 3 bytes apart (a gather)
+      {7, 41, 1, 2, 3, 2, {1, 1, 1, 1}},  // cin 1, stride 2 (a gather)
+      {6, 35, 4, 1, 5, 1, {2, 2, 2, 2}},  // 5x5, one output
+      {4, 20, 2, 3, 3, 1, {0, 0, 2, 2}},  // pads at the bottom and right
+      {5, 38, 4, 3, 3, 1, {1, 1, 1, 1}, false, 0, 0, 0, 0, 20},  // input view, row stride
+      UpConv(5, 8, 12, 35, 1, 1),                                // odd crop: phases swap
       UpConv(5, 8, 6, 70, 3, 5),
       UpConv(6, 9, 7, 17),
       UpConv(1, 1, 5, 6),     // 2x2 upsampled: no interior pixel
@@ -807,22 +825,23 @@ void Int8Kernels::CheckAmxBlocking() {
 
 // Each row computed as three column ranges (Int8ConvArgs::col_begin/col_end, as the AMX kernels
 // hand their borders over), splits inside the border and inside the interior, gives the whole
-// row's bytes, for the plain convolution, the fused upsample and the few-output layer (float
-// output, as the model's); and a call for columns [9, 12) alone writes nothing outside them.
+// row's bytes, for the plain convolution, the fused upsample, the few-output layer and the
+// narrow one (float output, as the model's); and a call for columns [9, 12) alone writes nothing
+// outside them.
 void Int8Kernels::CheckColumnRanges() {
   for (const IsaInt8Kernels* kernels : tables_) {
     SCOPED_TRACE(kernels->conv_name);
     Int8Shape up = UpConv(4, 19, 20, 70, 1, 1);  // the fused upsample, phase kernels
     up.phases = true;
-    for (const Int8Shape& shape :
-         {Conv(5, 37, 20, 70, 1), Conv(6, 41, 9, 33, 2), up, Conv(4, 37, 64, 3, 1)}) {
+    for (const Int8Shape& shape : {Conv(5, 37, 20, 70, 1), Conv(6, 41, 9, 33, 2), up,
+                                   Conv(4, 37, 64, 3, 1), Conv(4, 40, 4, 3, 1)}) {
       Int8Quant quant;
       quant.out_float = shape.cout == 3;
       const Int8Problem pr = MakeProblem(shape, quant, 91);
       SCOPED_TRACE(Describe(pr.shape));
       const Output want = RunReference(pr);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, OutQuant(pr), packed.data);
+      const PackedInt8Conv conv = PackFor(pr, kernels, packed.data);
       const Int8ConvRowsFn fn = shape.up ? kernels->upconv : kernels->conv;
       Output got(pr);
       Int8ConvArgs args = ArgsFor(pr, &conv, &got);
@@ -895,7 +914,8 @@ void Int8Kernels::CheckSlices() {
   std::vector<Int8Shape> shapes = {Conv(7, 19, 16, 24, 1),     Conv(5, 37, 64, 70, 1),
                                    Conv(9, 11, 12, 8, 2),      UpConv(4, 9, 32, 16, 1, 1),
                                    UpConv(5, 6, 8, 100, 0, 0), UpConv(3, 20, 64, 64, 1, 0),
-                                   Conv(5, 23, 64, 4, 1)};  // few outputs
+                                   Conv(5, 23, 64, 4, 1),  // few outputs
+                                   Conv(5, 37, 4, 4, 1)};  // narrow
   shapes[3].phases = shapes[5].phases = true;
   size_t values = 0;
   uint32_t seed = 4100;

@@ -72,38 +72,50 @@ TEST(SessionInt8, PublishedWidthsMatchTheReferenceOnTheBestIsa) {
   EXPECT_EQ(FirstDifference(got, want), want.size()) << IsaName(BestIsa());
 }
 
-TEST(SessionInt8, TheOutputLayerRunsOnItsIsasFewOutputKernelAndMatchesTheReference) {
-  // 1/4 width: the output convolution reads 16 channels, enough for the few-output kernels;
-  // 45x61 has quads of pixels inside the input and single pixels at the borders.
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(4)));
+// The output layer of SceneEDNet at 1/`width_divisor` width, at 45x61 (blocks of pixels
+// inside the input, single pixels or the tiles at the borders), on every ISA: where the ISA's
+// table names a kernel for it (`name` of IsaInt8Kernels), the session plans that kernel, and the
+// output is the reference's bytes, and the same with KernelTuning::few_out off (the tiles).
+void ExpectOutputLayerKernel(int width_divisor, const char* IsaInt8Kernels::*name) {
+  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(width_divisor)));
   ASSERT_NE(model, nullptr);
   const int h = 45, w = 61;
   const std::vector<float> input = testing::RandomImage(h, w, 12, 13);
   const std::vector<float> want = Reference(*model, input, h, w);
   for (Isa isa : SupportedIsas()) {
-    auto session = Session::Create(model, {h, w, isa});
-    ASSERT_TRUE(session.ok()) << session.message();
     const IsaInt8Kernels* kernels = Int8KernelsFor(isa);
-    if (kernels != nullptr && kernels->few_out_name[0] != '\0') {
-      EXPECT_STREQ((*session)->steps().back().kernel, kernels->few_out_name) << IsaName(isa);
+    const bool named = kernels != nullptr && (kernels->*name)[0] != '\0';
+    for (bool few_out : {true, false}) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + (few_out ? "" : ", few_out off"));
+      SessionOptions options;
+      options.max_height = h;
+      options.max_width = w;
+      options.isa = isa;
+      options.tuning.few_out = few_out;
+      auto session = Session::Create(model, options);
+      ASSERT_TRUE(session.ok()) << session.message();
+      const std::string kernel = (*session)->steps().back().kernel;
+      if (named) {
+        EXPECT_EQ(kernel == kernels->*name, few_out) << kernel;
+      }
+      for (int threads : {1, 2}) {
+        options.threads = threads;
+        const std::vector<float> got = testing::RunSession(model, options, input, h, w);
+        ASSERT_EQ(got.size(), want.size());
+        EXPECT_EQ(FirstDifference(got, want), want.size()) << " x" << threads;
+      }
     }
-    for (int threads : {1, 2}) {
-      const std::vector<float> got = testing::RunSession(model, isa, threads, input, h, w);
-      ASSERT_EQ(got.size(), want.size());
-      EXPECT_EQ(FirstDifference(got, want), want.size()) << IsaName(isa) << " x" << threads;
-    }
-    // KernelTuning::few_out off: the tiles compute the layer, to the same bytes.
-    SessionOptions off;
-    off.max_height = h;
-    off.max_width = w;
-    off.isa = isa;
-    off.tuning.few_out = false;
-    auto tiles = Session::Create(model, off);
-    ASSERT_TRUE(tiles.ok()) << tiles.message();
-    EXPECT_STRNE((*tiles)->steps().back().kernel, "conv2d_fewout_u8s8__avx512vnni_4x4");
-    const std::vector<float> got = testing::RunSession(model, off, input, h, w);
-    EXPECT_EQ(FirstDifference(got, want), want.size()) << IsaName(isa) << " few_out off";
   }
+}
+
+TEST(SessionInt8, TheOutputLayerRunsOnItsIsasFewOutputKernelAndMatchesTheReference) {
+  // 1/4 width: the output convolution reads 16 channels, enough for the few-output kernels.
+  ExpectOutputLayerKernel(4, &IsaInt8Kernels::few_out_name);
+}
+
+TEST(SessionInt8, TheNarrowOutputLayerRunsOnItsIsasNarrowKernelAndMatchesTheReference) {
+  // 1/16 width, the default model's: the output convolution reads 4 channels.
+  ExpectOutputLayerKernel(16, &IsaInt8Kernels::narrow_name);
 }
 
 TEST(SessionInt8, OutputIsTheSameBytesOnEveryMachine) {

@@ -176,12 +176,154 @@ struct FewOutU8s8 {
 static_assert(kInt8FewOutChannels <= kFewOutMaxChannels);
 
 // The tiles' pixels for 1, 2, 3 and 4 valid vectors: 8x1, 8x2, 8x3, 6x4.
+void TileRows(const Int8ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
+  simd::DotConvRows<V, 8, 8, 8, 6>(a, row_begin, row_end, blk_begin, blk_end);
+}
+
+// Narrow convolutions (PackedInt8Conv::narrow: at most 4 inputs, so one group of 4 bytes per
+// pixel, and at most 4 outputs): a tile would use 4 of its 64 lanes, so these are vectorised
+// over 16 output pixels instead: per tap and output channel, one vpdpbusd of the 16 pixels' 4
+// bytes (one load where they are adjacent, else a gather) with the channel's 4 weights
+// broadcast. Where a row's windows lie inside the input, 16 pixels at a time; the rest through
+// the tiles on column ranges.
+struct NarrowPlan {
+  int32_t weights[kMaxInt8Taps][4] = {};  // [tap][output]: its 4 int8 weights
+  int32_t init[4] = {};                   // -z * the sum of every tap's tap_sums
+  alignas(64) float multiplier[4][16] = {};
+  alignas(64) float bias[4][16] = {};
+  simd::DotEpilogue e[4] = {};
+};
+
+void PrepareNarrow(const PackedInt8Conv& p, NarrowPlan& plan) {
+  const int taps = p.kernel_h * p.kernel_w;
+  for (int o = 0; o < p.out_channels; ++o) {
+    int32_t zsum = 0;
+    for (int t = 0; t < taps; ++t) {
+      // weights[block 0][tap][group 0][nr][4]
+      std::memcpy(&plan.weights[t][o], p.weights + (static_cast<size_t>(t) * p.nr + o) * 4, 4);
+      zsum += p.tap_sums[t * p.nr + o];
+    }
+    plan.init[o] = -p.in_zero_point * zsum;
+    for (int l = 0; l < 16; ++l) {
+      plan.multiplier[o][l] = p.multiplier[o];
+      plan.bias[o][l] = p.bias[o];
+    }
+    plan.e[o] = {plan.multiplier[o], plan.bias[o],    p.activation,     p.leaky_slope,
+                 p.out_float,        p.out_inv_scale, p.out_zero_point, 16};
+  }
+}
+
+// Pixels ox .. ox + 15 of row oy, every tap inside the input; CO output channels.
+template <int CO>
+void NarrowBlock(const Int8ConvArgs& a, int oy, int ox, const NarrowPlan& plan, __m512i offsets) {
+  const PackedInt8Conv& p = *a.conv;
+  const bool adjacent = p.stride_w == 1 && a.in.stride() == 4;
+  const int iy0 = oy * p.stride_h - a.pads.top;
+  const int ix0 = ox * p.stride_w - a.pads.left;
+  __m512i acc[CO];
+#pragma GCC unroll 4
+  for (int o = 0; o < CO; ++o) acc[o] = _mm512_set1_epi32(plan.init[o]);
+  for (int ky = 0; ky < p.kernel_h; ++ky) {
+    for (int kx = 0; kx < p.kernel_w; ++kx) {
+      const uint8_t* x = a.in.pixel(iy0 + ky, ix0 + kx);
+      const __m512i xv =
+          adjacent ? _mm512_loadu_si512(x)
+                   : _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), kAll, offsets, x, 1);
+      const int32_t* w = plan.weights[ky * p.kernel_w + kx];
+#pragma GCC unroll 4
+      for (int o = 0; o < CO; ++o)
+        acc[o] = _mm512_dpbusd_epi32(acc[o], xv, _mm512_set1_epi32(w[o]));
+    }
+  }
+  alignas(64) float y[CO][16];
+  alignas(64) int32_t q[CO][16];
+#pragma GCC unroll 4
+  for (int o = 0; o < CO; ++o) {
+    const __m512 v = DequantizeLanes(acc[o], plan.e[o], 0);
+    if (p.out_float) {
+      _mm512_store_ps(y[o], v);
+    } else {
+      _mm512_store_si512(q[o], QuantizeLanes(v, plan.e[o]));
+    }
+  }
+  for (int j = 0; j < 16; ++j) {
+    if (p.out_float) {
+      float* out = a.out_f32.pixel(oy, ox + j);
+      for (int o = 0; o < CO; ++o) out[o] = y[o][j];
+    } else {
+      uint8_t* out = a.out_u8.pixel(oy, ox + j);
+      for (int o = 0; o < CO; ++o) out[o] = static_cast<uint8_t>(q[o][j]);
+    }
+  }
+}
+
+// Columns [x_begin, x_end) of row oy through the tiles.
+void NarrowByTiles(const Int8ConvArgs& a, int oy, int x_begin, int x_end) {
+  if (x_begin >= x_end) return;
+  Int8ConvArgs part = a;
+  part.col_begin = x_begin;
+  part.col_end = x_end;
+  TileRows(part, oy, oy + 1, 0, 1);
+}
+
+template <int CO>
+void NarrowRowsOf(const Int8ConvArgs& a, int row_begin, int row_end) {
+  const PackedInt8Conv& p = *a.conv;
+  const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
+  const int x_begin = simd::MaxOf(0, a.col_begin), x_end = simd::MinOf(out_w, a.col_end);
+  // Columns whose window is inside the input: [inside_lo, inside_hi).
+  const int inside_lo = (a.pads.left + p.stride_w - 1) / p.stride_w;
+  const int last = a.in.width - p.kernel_w + a.pads.left;  // the last window's first column
+  const int inside_hi = last < 0 ? inside_lo : simd::MaxOf(inside_lo, last / p.stride_w + 1);
+  const int start = simd::MinOf(simd::MaxOf(x_begin, inside_lo), x_end);
+  const int block_end = simd::MinOf(inside_hi, x_end);
+  NarrowPlan plan;
+  PrepareNarrow(p, plan);
+  const __m512i offsets =
+      _mm512_mullo_epi32(_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+                         _mm512_set1_epi32(static_cast<int32_t>(p.stride_w * a.in.stride())));
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    const int iy0 = oy * p.stride_h - a.pads.top;
+    if (iy0 < 0 || iy0 + p.kernel_h > a.in.height) {
+      NarrowByTiles(a, oy, x_begin, x_end);
+      continue;
+    }
+    NarrowByTiles(a, oy, x_begin, start);
+    int ox = start;
+    for (; ox + 16 <= block_end; ox += 16) NarrowBlock<CO>(a, oy, ox, plan, offsets);
+    NarrowByTiles(a, oy, ox, x_end);
+  }
+}
+
+void NarrowRows(const Int8ConvArgs& a, int row_begin, int row_end) {
+  switch (a.conv->out_channels) {
+    case 1:
+      NarrowRowsOf<1>(a, row_begin, row_end);
+      break;
+    case 2:
+      NarrowRowsOf<2>(a, row_begin, row_end);
+      break;
+    case 3:
+      NarrowRowsOf<3>(a, row_begin, row_end);
+      break;
+    default:
+      NarrowRowsOf<4>(a, row_begin, row_end);
+      break;
+  }
+}
+
 void ConvRows(const Int8ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
-  if (a.conv->few_weights != nullptr) {
-    if (blk_begin == 0 && blk_end > 0) FewOutRows<FewOutU8s8>(a, row_begin, row_end);
+  const PackedInt8Conv& p = *a.conv;
+  if (p.few_weights != nullptr || p.narrow) {
+    if (blk_begin > 0 || blk_end <= 0) return;  // one block
+    if (p.few_weights != nullptr) {
+      FewOutRows<FewOutU8s8>(a, row_begin, row_end);
+    } else {
+      NarrowRows(a, row_begin, row_end);
+    }
     return;
   }
-  simd::DotConvRows<V, 8, 8, 8, 6>(a, row_begin, row_end, blk_begin, blk_end);
+  TileRows(a, row_begin, row_end, blk_begin, blk_end);
 }
 
 }  // namespace
@@ -192,7 +334,8 @@ const IsaInt8Kernels* Int8Kernels() {
                                               simd::DotUpConvRows<V, 8, 8, 8, 6>,
                                               "conv2d_u8s8__avx512vnni_6x64",
                                               "upconv2d_u8s8__avx512vnni_6x64",
-                                              "conv2d_fewout_u8s8__avx512vnni_4x4"};
+                                              "conv2d_fewout_u8s8__avx512vnni_4x4",
+                                              "conv2d_narrow_u8s8__avx512vnni_16x4"};
   const CpuFeatures& f = HostCpuFeatures();
   return f.avx512 && f.avx512_vnni ? &kKernels : nullptr;
 }
