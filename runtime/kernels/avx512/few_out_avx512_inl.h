@@ -12,11 +12,11 @@
 //
 // F provides: Conv and Args (the packed convolution and a kernel call), Elem and Weight (what
 // the input and few_weights hold), Acc (the accumulator vector), In (what a dot product takes),
-// kPerLoad (channels per 64-byte load), Zero(), LoadX(x, left) (min(left, kPerLoad) channels,
-// the rest zero), LoadW(w), Dot(acc, x, w), SumEachVector(const Acc[16]),
-// FinishPixel(a, oy, ox, acc, ky0, ky1, kx0, kx1) (the taps [ky0, ky1) x [kx0, kx1) were inside
-// the input), a Quad epilogue prepared once per call by Prepare(conv, quad), and
-// FinishQuad<CO>(a, oy, ox, sums, quad).
+// kPerLoad (channels per 64-byte load), OutWidth(a), Zero(), LoadX(x, left) (min(left,
+// kPerLoad) channels, the rest zero), LoadW(w), Dot(acc, x, w), SumEachVector(const Acc[16]),
+// FinishPixel(a, oy, ox, acc, inside) (the InsideTaps were the taps inside the input), a Quad
+// epilogue prepared once per call by Prepare(conv, quad), and FinishQuad<CO>(a, oy, ox, sums,
+// quad).
 #pragma once
 
 #include <immintrin.h>
