@@ -154,8 +154,15 @@ const IsaInt8Kernels* Int8KernelsAmx() {
     if (vnni == nullptr || vnni->nr != 64 || !HostCpuFeatures().amx_int8) return nullptr;
     g_vnni_conv = vnni->conv;
     g_vnni_upconv = vnni->upconv;
-    static const IsaInt8Kernels table = {64, ConvRows, ConvRows, "conv2d_u8s8__avx512amx_16x64",
-                                         "upconv2d_u8s8__avx512amx_16x64"};
+    // Narrow convolutions (one group of input channels) go to the VNNI kernels whole, and
+    // there to their narrow kernel.
+    static const IsaInt8Kernels table = {64,
+                                         ConvRows,
+                                         ConvRows,
+                                         "conv2d_u8s8__avx512amx_16x64",
+                                         "upconv2d_u8s8__avx512amx_16x64",
+                                         "",
+                                         vnni->narrow_name};
     return &table;
   }();
   return kernels;
