@@ -156,6 +156,11 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
   }
 }
 
+size_t TopicSource::queued() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return count_;
+}
+
 std::string TopicSource::Describe() const {
   return "ROS topics " + options_.left_topic + ", " + options_.right_topic;
 }

@@ -68,6 +68,8 @@ class TopicSource final : public pipeline::FrameSource {
   const std::string& frame_id() const { return frame_id_; }
   uint64_t pairs() const { return pairs_.load(); }
   uint64_t bad_pairs() const { return bad_.load(); }
+  // Pairs waiting in the input queue for Next().
+  size_t queued() const;
 
  private:
   struct Pair {

@@ -92,8 +92,12 @@ TEST(TopicSource, AFullInputQueueDropsTheOldestPairAndCountsIt) {
   std::atomic<bool> stop{false};
   pipeline::WindowItem item;
   std::atomic<bool> done{false};
-  // Pair 3 becomes pair t; pair 4 completes the window.
+  // Pair 3 becomes pair t; pair 4 completes the window. The feeder waits until Next() has
+  // taken pair 3, which pair 4 would otherwise replace in the one-pair queue.
   std::thread feeder([&] {
+    while (source.queued() != 0 && !done) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     while (!done) {
       Hand(&source, 4, 1004);
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
