@@ -120,16 +120,12 @@ struct PackedInt8Conv {
   const int8_t* few_weights = nullptr;
   int few_ci_stride = 0;
   // Set by the session where a kernel table has a kernel for narrow convolutions (at most 4
-  // inputs and 4 outputs, Int8NarrowConv; nr > 0) and KernelTuning::few_out allows it.
+  // inputs and 4 outputs, int8_packing.h's Int8NarrowConv; nr > 0) and KernelTuning::few_out
+  // allows it.
   bool narrow = false;
 };
 inline constexpr int kInt8FewOutChannels = 4;
 inline constexpr int kInt8FewOutMinInputs = 16;
-// A convolution that one group of 4 input channels feeds (the 1/16-width model's 4->3 output
-// layer; the 1/64-width layers), with at most 4 outputs.
-inline bool Int8NarrowConv(int in_channels, int out_channels) {
-  return in_channels <= 4 && out_channels <= 4;
-}
 
 // One kernel call; see the fused upsample above for the `upsampled` fields.
 struct Int8ConvArgs {

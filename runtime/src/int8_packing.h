@@ -16,6 +16,13 @@ inline bool Int8FewOutputs(const ConvParams& params) {
   return params.out_channels <= kInt8FewOutChannels && params.in_channels >= kInt8FewOutMinInputs;
 }
 
+// A convolution that one group of 4 input channels feeds, with at most 4 outputs (the
+// 1/16-width model's 4->3 output layer; the 1/64-width layers): PackedInt8Conv::narrow where the
+// kernel table has a narrow kernel.
+inline bool Int8NarrowConv(const ConvParams& params) {
+  return params.in_channels <= 4 && params.out_channels <= 4;
+}
+
 // Bytes PackInt8Conv writes for `params` with blocks of `nr` output channels (0: the reference
 // layout, per-channel arrays only). A multiple of 64.
 size_t PackedInt8Bytes(const ConvParams& params, int nr);

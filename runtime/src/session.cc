@@ -494,6 +494,11 @@ Status Session::Plan() {
     return upsampled ? p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1
                      : p.kernel_h * p.kernel_w <= max_taps;
   };
+  // Whether the int8 SIMD step of `p` runs on the kernel table's narrow kernel.
+  auto int8_narrow = [&](const ConvParams& p, bool upsampled) {
+    return !upsampled && tuning.few_out && kernels8 != nullptr &&
+           kernels8->narrow_name[0] != '\0' && Int8NarrowConv(p);
+  };
   // The int8 or bf16 convolution `conv`, reading the upsampling before it when `upsampled`.
   auto reduced_step = [&](int conv, bool upsampled, int crop) {
     Step step;
@@ -514,10 +519,7 @@ Status Session::Plan() {
             Int8FewOutputs(p)) {
           step.kernel = kernels8->few_out_name;
         }
-        if (!upsampled && tuning.few_out && kernels8->narrow_name[0] != '\0' &&
-            Int8NarrowConv(p.in_channels, p.out_channels)) {
-          step.kernel = kernels8->narrow_name;
-        }
+        if (int8_narrow(p, upsampled)) step.kernel = kernels8->narrow_name;
       } else {
         step.fn8 = ref::Conv2dInt8Rows;
         step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";
@@ -806,8 +808,7 @@ Status Session::Plan() {
     if (step.kind == Step::Kind::kInt8Conv) {
       step.packed8 = PackInt8Conv(p, nr8(step), step.out_u8 ? &step.quant : nullptr, cursor8);
       if (!tuning.few_out) step.packed8.few_weights = nullptr;  // the tiles compute it
-      step.packed8.narrow = kernels8 != nullptr && kernels8->narrow_name[0] != '\0' &&
-                            step.kernel == kernels8->narrow_name;
+      step.packed8.narrow = nr8(step) > 0 && int8_narrow(p, step.upsampled);
     } else if (step.kind == Step::Kind::kBf16Conv) {
       step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
       if (!tuning.few_out) step.packed16.few_weights = nullptr;

@@ -242,8 +242,7 @@ Int8ConvArgs ArgsFor(const Int8Problem& pr, const PackedInt8Conv* conv, Output* 
 // convolution is narrow (plain, at most 4 inputs and outputs).
 PackedInt8Conv PackFor(const Int8Problem& pr, const IsaInt8Kernels* kernels, void* dst) {
   PackedInt8Conv conv = PackInt8Conv(pr.params, kernels->nr, OutQuant(pr), dst);
-  conv.narrow = kernels->narrow_name[0] != '\0' && !pr.shape.up &&
-                Int8NarrowConv(pr.params.in_channels, pr.params.out_channels);
+  conv.narrow = kernels->narrow_name[0] != '\0' && !pr.shape.up && Int8NarrowConv(pr.params);
   return conv;
 }
 
