@@ -15,6 +15,12 @@ const internal::PeakKernel* KernelFor(DotType type) {
 #else
       return nullptr;
 #endif
+    case DotType::kInt16:
+#if SFRT_PEAK_AVX512_VNNI
+      return internal::PeakKernelAvx512VnniInt16();
+#else
+      return nullptr;
+#endif
     case DotType::kBf16:
 #if SFRT_PEAK_AVX512_BF16
       return internal::PeakKernelAvx512Bf16();
@@ -43,6 +49,8 @@ const char* DotTypeName(DotType type) {
   switch (type) {
     case DotType::kInt8:
       return "int8";
+    case DotType::kInt16:
+      return "int16";
     case DotType::kBf16:
       return "bf16";
     case DotType::kAmxInt8:
@@ -53,18 +61,21 @@ const char* DotTypeName(DotType type) {
   return "?";
 }
 
-bool DotTypeIsInt8(DotType type) { return type == DotType::kInt8 || type == DotType::kAmxInt8; }
+bool DotTypeIsInteger(DotType type) {
+  return type == DotType::kInt8 || type == DotType::kInt16 || type == DotType::kAmxInt8;
+}
 
 std::string PeakDotUnavailable(DotType type) {
-  const char* loop = type == DotType::kInt8   ? "AVX-512 VNNI"
-                     : type == DotType::kBf16 ? "AVX512_BF16"
-                                              : "AMX";
+  const char* loop = type == DotType::kInt8 || type == DotType::kInt16 ? "AVX-512 VNNI"
+                     : type == DotType::kBf16                          ? "AVX512_BF16"
+                                                                       : "AMX";
   if (KernelFor(type) == nullptr) {
     return std::string("this build has no ") + loop +
            " loop (x86-64 with AVX-512 kernels only, and a compiler that knows it)";
   }
   switch (type) {
     case DotType::kInt8:
+    case DotType::kInt16:
       return internal::Avx512VnniMissing();
     case DotType::kBf16:
       return internal::Avx512Bf16Missing();

@@ -21,10 +21,11 @@ const PeakKernel* PeakKernelRef();
 const PeakKernel* PeakKernelAvx2();
 const PeakKernel* PeakKernelAvx512();
 const PeakKernel* PeakKernelNeon();
-const PeakKernel* PeakKernelAvx512Vnni();  // int8: vpdpbusd
-const PeakKernel* PeakKernelAvx512Bf16();  // bf16: vdpbf16ps
-const PeakKernel* PeakKernelAmxInt8();     // int8: tdpbusd
-const PeakKernel* PeakKernelAmxBf16();     // bf16: tdpbf16ps
+const PeakKernel* PeakKernelAvx512Vnni();       // int8: vpdpbusd
+const PeakKernel* PeakKernelAvx512VnniInt16();  // int16: vpdpwssd
+const PeakKernel* PeakKernelAvx512Bf16();       // bf16: vdpbf16ps
+const PeakKernel* PeakKernelAmxInt8();          // int8: tdpbusd
+const PeakKernel* PeakKernelAmxBf16();          // bf16: tdpbf16ps
 
 // G ops/s of `kernel` on `threads` threads (>= 1): a calibration, then the fastest of 20 windows
 // over about `seconds` in all (each at least 1 ms).

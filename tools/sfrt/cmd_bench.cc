@@ -7,7 +7,8 @@
 // run the page faults, context switches and CPU migrations that explain spikes; with
 // --budget-ms, whether a percentile meets a latency budget (exit 3 when it does not).
 // `sfrt bench --peak` runs only the peak microbenchmarks: fp32 FMA per ISA, int8 (AVX-512 VNNI,
-// AMX) and bf16 (AVX512_BF16, AMX) dot products, and reports whether AMX could run. Statistics and
+// AMX), int16 (AVX-512 VNNI) and bf16 (AVX512_BF16, AMX) dot products, and reports whether AMX
+// could run. Statistics and
 // counters live in tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -183,16 +184,16 @@ bool WriteJson(const std::string& path, const Json& json) {
   return static_cast<bool>(out);
 }
 
-// `sfrt bench --peak`, int8 and bf16: a table per type whose loop this CPU runs, else the reason,
-// once per thread count (whatever --isa); then whether AMX could run. Adds the rows and reasons
-// to `json`; false after printing the error of a failed measurement.
+// `sfrt bench --peak`, int8, int16 and bf16: a table per type whose loop this CPU runs, else the
+// reason, once per thread count (whatever --isa); then whether AMX could run. Adds the rows and
+// reasons to `json`; false after printing the error of a failed measurement.
 bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Json* json) {
   Json unavailable = Json::object();
-  for (prof::DotType type : {prof::DotType::kInt8, prof::DotType::kBf16, prof::DotType::kAmxInt8,
-                             prof::DotType::kAmxBf16}) {
-    const bool int8 = prof::DotTypeIsInt8(type);
+  for (prof::DotType type : {prof::DotType::kInt8, prof::DotType::kInt16, prof::DotType::kBf16,
+                             prof::DotType::kAmxInt8, prof::DotType::kAmxBf16}) {
+    const bool integer = prof::DotTypeIsInteger(type);
     const char* name = prof::DotTypeName(type);
-    const char* unit = int8 ? "GOP/s" : "GFLOP/s";
+    const char* unit = integer ? "GOP/s" : "GFLOP/s";
     const std::string key = std::string("peak_") + name;
     (*json)[key] = Json::array();
     if (std::string why = prof::PeakDotUnavailable(type); !why.empty()) {
@@ -203,7 +204,7 @@ bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Js
     std::printf(
         "\npeak %s dot-product throughput: %s counts 2 %s per multiply-accumulate; "
         "fastest of 20 windows over about %.2f s each\n",
-        name, unit, int8 ? "integer ops" : "flops", args.peak_seconds);
+        name, unit, integer ? "integer ops" : "flops", args.peak_seconds);
     std::printf("%-7s %7s %10s %10s %11s  %s\n", "type", "threads", unit, "GMAC/s", "per thread",
                 "loop");
     for (int threads : thread_counts) {
@@ -215,7 +216,7 @@ bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Js
       std::printf("%-7s %7d %10s %10s %11s  %s\n", name, threads, Fixed(peak->gops, 1).c_str(),
                   Fixed(peak->gmacs, 1).c_str(), Fixed(peak->gops / threads, 1).c_str(),
                   peak->kernel.c_str());
-      const std::string ops = int8 ? "gops" : "gflops";
+      const std::string ops = integer ? "gops" : "gflops";
       (*json)[key].push_back(Json{{"threads", threads},
                                   {ops, peak->gops},
                                   {"gmacs", peak->gmacs},
@@ -699,8 +700,8 @@ Command AddBenchCommand(CLI::App& parent) {
                   "Percentile checked against --budget-ms: p50, p90, p99 (default), p99.9, max, or "
                   "a number in (0, 100]");
   cmd->add_flag("--peak", args->peak,
-                "Run only the peak microbenchmarks: fp32 FMA for --isa and --threads, int8 and "
-                "bf16 dot products for --threads");
+                "Run only the peak microbenchmarks: fp32 FMA for --isa and --threads, int8, "
+                "int16 and bf16 dot products for --threads");
   cmd->add_option("--peak-seconds", args->peak_seconds,
                   "Time per peak measurement (default 0.2; 0 skips the FMA peak in a model run)");
   cmd->add_option("--json", args->json,

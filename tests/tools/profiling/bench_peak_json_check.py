@@ -3,8 +3,9 @@
 
 usage: bench_peak_json_check.py --sfrt BIN --work DIR
 
-Checks: one fp32 row per ISA and thread count; peak_int8 and peak_bf16 have one row per thread
-count with positive rates and GMAC/s = half the ops, or none and a reason in peak_unavailable;
+Checks: one fp32 row per ISA and thread count; peak_int8, peak_int16, peak_bf16 and the AMX types
+have one row per thread count with positive rates, GMAC/s = half the ops and the instruction
+named, or none and a reason in peak_unavailable;
 peak_unavailable names amx with a reason unless AMX could run; build and cpu metadata.
 """
 import argparse
@@ -41,7 +42,7 @@ def main():
         print("FAIL: no JSON")
         return 1
     j = json.load(open(out))
-    for key in ("peak", "peak_int8", "peak_bf16", "peak_amx_int8", "peak_amx_bf16",
+    for key in ("peak", "peak_int8", "peak_int16", "peak_bf16", "peak_amx_int8", "peak_amx_bf16",
                 "peak_unavailable", "build", "cpu"):
         check(key in j, f"top-level key {key}")
     if failures:
@@ -50,7 +51,8 @@ def main():
     check([(r["isa"], r["threads"]) for r in j["peak"]] == [("ref", 1), ("ref", 2)],
           "peak: one ref row per thread count")
     unavailable = j["peak_unavailable"]
-    for name, ops, instruction in (("int8", "gops", "vpdpbusd"), ("bf16", "gflops", "vdpbf16ps"),
+    for name, ops, instruction in (("int8", "gops", "vpdpbusd"), ("int16", "gops", "vpdpwssd"),
+                                   ("bf16", "gflops", "vdpbf16ps"),
                                    ("amx_int8", "gops", "tdpbusd"),
                                    ("amx_bf16", "gflops", "tdpbf16ps")):
         rows = j["peak_" + name]

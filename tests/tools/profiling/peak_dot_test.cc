@@ -1,7 +1,7 @@
-// tools/profiling/peak_dot.h: the int8 (vpdpbusd, tdpbusd) and bf16 (vdpbf16ps, tdpbf16ps) peak
-// loops give a positive, finite throughput on 1 and 2 threads where this CPU has them (skipped,
-// saying why, where not); elsewhere they fail with the reason. AMX detection answers with a reason
-// or "".
+// tools/profiling/peak_dot.h: the int8 (vpdpbusd, tdpbusd), int16 (vpdpwssd) and bf16 (vdpbf16ps,
+// tdpbf16ps) peak loops give a positive, finite throughput on 1 and 2 threads where this CPU has
+// them (skipped, saying why, where not); elsewhere they fail with the reason. AMX detection
+// answers with a reason or "".
 #include "profiling/peak_dot.h"
 
 #include <gtest/gtest.h>
@@ -26,6 +26,7 @@ TEST_P(PeakDotTest, GivesAPositiveFiniteThroughputNamingTheInstruction) {
     const char* instruction;
   };
   const Names names = type == DotType::kInt8      ? Names{"avx512_vnni", "vpdpbusd"}
+                      : type == DotType::kInt16   ? Names{"avx512_vnni", "vpdpwssd"}
                       : type == DotType::kBf16    ? Names{"avx512_bf16", "vdpbf16ps"}
                       : type == DotType::kAmxInt8 ? Names{"amx_int8", "tdpbusd"}
                                                   : Names{"amx_bf16", "tdpbf16ps"};
@@ -57,8 +58,8 @@ TEST_P(PeakDotTest, FailsWithTheReasonWhereUnavailableAndOnZeroThreads) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Types, PeakDotTest,
-                         ::testing::Values(DotType::kInt8, DotType::kBf16, DotType::kAmxInt8,
-                                           DotType::kAmxBf16),
+                         ::testing::Values(DotType::kInt8, DotType::kInt16, DotType::kBf16,
+                                           DotType::kAmxInt8, DotType::kAmxBf16),
                          [](const ::testing::TestParamInfo<DotType>& param) {
                            return std::string(DotTypeName(param.param));
                          });
