@@ -613,7 +613,9 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     Result<Errors> measured = calibrator.Measure(**quantised);
     if (!measured.ok()) return measured.status();
     errors = std::move(measured).value();
-    if (options.mode == QuantizeMode::kInt8 || errors.output_rms_rel <= options.accuracy_budget ||
+    const bool max = options.accuracy_metric == AccuracyMetric::kMax;
+    const double error = max ? errors.output_max_rel : errors.output_rms_rel;
+    if (options.mode == QuantizeMode::kInt8 || error <= options.accuracy_budget ||
         std::none_of(precision.begin(), precision.end(), reduced)) {
       break;
     }
@@ -632,7 +634,7 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     const bool to_bf16 = precision[worst] == Precision::kInt8 && options.auto_bf16;
     precision[worst] = to_bf16 ? Precision::kBFloat16 : Precision::kFloat32;
     result.auto_steps.push_back(names[worst] + (to_bf16 ? " to bf16" : " back to fp32") +
-                                ": output rms " + Sci(errors.output_rms_rel) + " > budget " +
+                                ": output " + (max ? "max " : "rms ") + Sci(error) + " > budget " +
                                 Sci(options.accuracy_budget) + "; its relative rms " +
                                 Sci(errors.relative_rms[worst]) + " rose " + Sci(worst_rise) +
                                 " over its input's");

@@ -333,6 +333,31 @@ TEST(Quantize, AutoWithoutBf16AndAMiddleBudgetMeetsItWithSomeConvolutionsInt8) {
   EXPECT_NE(LoadSpec(result->spec), nullptr);  // mixed precision: the quant params still chain
 }
 
+TEST(Quantize, AutoWithTheMaxMetricHoldsTheLargestErrorWithinTheBudget) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(2, 81);
+  auto all = Quantize(spec, data, {});
+  ASSERT_TRUE(all.ok()) << all.message();
+  QuantizeOptions options;
+  options.mode = QuantizeMode::kAuto;
+  options.accuracy_metric = AccuracyMetric::kMax;
+  // Between the int8 model's rms and largest errors: only the max metric has work to do.
+  options.accuracy_budget = (all->calibration.output_rms_rel + all->calibration.output_max_rel) / 2;
+  ASSERT_GT(options.accuracy_budget, all->calibration.output_rms_rel);
+  ASSERT_LT(options.accuracy_budget, all->calibration.output_max_rel);
+  auto result = Quantize(spec, data, options);
+  ASSERT_TRUE(result.ok()) << result.message();
+  EXPECT_LE(result->calibration.output_max_rel, options.accuracy_budget);
+  ASSERT_FALSE(result->auto_steps.empty());
+  EXPECT_NE(result->auto_steps.front().find(": output max "), std::string::npos)
+      << result->auto_steps.front();
+
+  options.accuracy_metric = AccuracyMetric::kRms;
+  auto rms = Quantize(spec, data, options);
+  ASSERT_TRUE(rms.ok()) << rms.message();
+  EXPECT_TRUE(rms->auto_steps.empty()) << "the rms error is within the budget already";
+}
+
 TEST(Quantize, RefusesAllConstantFrames) {
   CalibrationSet data = RandomFrames(2, 1);
   for (size_t i = 0; i < data.values.size(); ++i)

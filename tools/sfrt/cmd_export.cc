@@ -83,6 +83,7 @@ struct ExportArgs {
   std::string precision = "fp32";
   std::string calibration;
   double accuracy_budget = 0.02;
+  std::string accuracy_metric = "rms";
   bool no_auto_bf16 = false;
   std::string calibration_size;
   int calibration_frames = 64;
@@ -620,6 +621,8 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
       args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
   options.accuracy_budget = args.accuracy_budget;
   options.auto_bf16 = !args.no_auto_bf16;
+  options.accuracy_metric = args.accuracy_metric == "max" ? exporter::AccuracyMetric::kMax
+                                                          : exporter::AccuracyMetric::kRms;
   options.method = args.calibration_method;
   options.shared_scales = args.calibration_scales == "shared";
   options.progress = [](const char* pass, int frame, int frames) {
@@ -648,7 +651,8 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
                                     std::to_string(convs - int8 - bf16) + " fp32";
   if (args.precision == "auto") {
     precision += " (--precision auto, accuracy budget " + ErrorText(args.accuracy_budget) +
-                 " on the output's rms error)";
+                 " on the output's " + (args.accuracy_metric == "max" ? "largest" : "rms") +
+                 " error)";
     if (int8 + bf16 == 0) precision += "; no int8 or bf16 convolution fits: the file is float32";
   }
   lines->push_back("  precision   " + precision);
@@ -841,6 +845,9 @@ int RunExport(const ExportArgs& args) {
   }
   if (args.no_auto_bf16 && args.precision != "auto") {
     return ReportError(kName, "--no-auto-bf16 applies to --precision auto", kExitUsage);
+  }
+  if (Given(args, "--accuracy-metric") && args.precision != "auto") {
+    return ReportError(kName, "--accuracy-metric applies to --precision auto", kExitUsage);
   }
   if (Given(args, "--accuracy-budget")) {
     if (args.precision != "auto") {
@@ -1262,8 +1269,14 @@ Command AddExportCommand(CLI::App& parent) {
                 "trying bf16 first (for CPUs without bf16 kernels, where bf16 runs on the "
                 "reference kernel)");
   cmd->add_option("--accuracy-budget", args->accuracy_budget,
-                  "--precision auto: largest output error accepted, RMS(int8 output - float32 "
-                  "output) / RMS(float32 output) over the calibration frames")
+                  "--precision auto: largest output error accepted over the calibration frames, "
+                  "as --accuracy-metric measures it")
+      ->capture_default_str();
+  cmd->add_option("--accuracy-metric", args->accuracy_metric,
+                  "--precision auto: the output error the budget holds: rms, RMS(output - "
+                  "float32 output) / RMS(float32 output); max, max |output - float32 output| / "
+                  "max |float32 output|")
+      ->check(CLI::IsMember({"rms", "max"}))
       ->capture_default_str();
   cmd->add_option("--calibration-size", args->calibration_size,
                   "Directory calibration: the size HxW frames are resized to (default: the "
@@ -1305,7 +1318,7 @@ Command AddExportCommand(CLI::App& parent) {
       "file (sfrt inspect shows them) and printed. auto starts from every convolution int8\n"
       "and moves up, one step at a time, the layer whose error rose most over its input's\n"
       "(int8 to bf16, bf16 to float32; int8 straight to float32 with --no-auto-bf16), until\n"
-      "the output's rms error is within --accuracy-budget. A .sfrt source\n"
+      "the output's error (--accuracy-metric) is within --accuracy-budget. A .sfrt source\n"
       "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
       "bf16 (--precision bf16) marks every convolution bf16 (dilated and grouped ones stay\n"
       "fp32): a session rounds the weights to bf16 at load and keeps bf16 activations\n"
@@ -1329,8 +1342,8 @@ Command AddExportCommand(CLI::App& parent) {
                    for (const char* flag : kCalibrationFlags) {
                      if (cmd->count(flag) > 0) args->given.push_back(flag);
                    }
-                   if (cmd->count("--accuracy-budget") > 0) {
-                     args->given.push_back("--accuracy-budget");
+                   for (const char* flag : {"--accuracy-budget", "--accuracy-metric"}) {
+                     if (cmd->count(flag) > 0) args->given.push_back(flag);
                    }
                    return RunExport(*args);
                  }};
