@@ -151,6 +151,7 @@ Result<std::shared_ptr<const Model>> Load(const ModelSpec& spec, const std::stri
 // The errors of one quantised model against float32 over the calibration set.
 struct Errors {
   std::vector<double> relative_rms;  // per convolution
+  std::vector<double> relative_max;  // per convolution: max |difference| / max |float32|
   double output_max_rel = 0;
   double output_rms_rel = 0;
 };
@@ -251,7 +252,8 @@ class Calibrator {
 
   Result<Errors> Measure(const Model& quantised) {
     const size_t convs = conv_layers_.size();
-    std::vector<double> diff2(convs, 0.0), ref2(convs, 0.0);
+    std::vector<double> diff2(convs, 0.0), ref2(convs, 0.0), max_diff(convs, 0.0),
+        max_ref(convs, 0.0);
     double out_diff2 = 0, out_ref2 = 0, out_max_diff = 0, out_max_ref = 0;
     for (int f = 0; f < data_.frames; ++f) {
       const std::span<const float> input = FrameValues(data_, f);
@@ -278,14 +280,19 @@ class Calibrator {
         const int j = conv_of_layer_[static_cast<size_t>(layer)];
         if (j < 0) return;
         const std::vector<float>& r = ref.convs[static_cast<size_t>(j)];
-        double d2 = 0, r2 = 0;
+        double d2 = 0, r2 = 0, dmax = 0, rmax = 0;
         for (size_t k = 0; k < values.size() && k < r.size(); ++k) {
           const double d = static_cast<double>(values[k]) - r[k];
           d2 += d * d;
           r2 += static_cast<double>(r[k]) * r[k];
+          dmax = std::max(dmax, std::fabs(d));
+          rmax = std::max(rmax, std::fabs(static_cast<double>(r[k])));
         }
-        diff2[static_cast<size_t>(j)] += d2;
-        ref2[static_cast<size_t>(j)] += r2;
+        const auto jj = static_cast<size_t>(j);
+        diff2[jj] += d2;
+        ref2[jj] += r2;
+        max_diff[jj] = std::max(max_diff[jj], dmax);
+        max_ref[jj] = std::max(max_ref[jj], rmax);
       };
       if (Status s =
               RunReferenceForward(quantised, input, data_.height, data_.width, output, compare);
@@ -305,6 +312,7 @@ class Calibrator {
     Errors e;
     for (size_t j = 0; j < convs; ++j) {
       e.relative_rms.push_back(Relative(std::sqrt(diff2[j]), std::sqrt(ref2[j])));
+      e.relative_max.push_back(Relative(max_diff[j], max_ref[j]));
     }
     e.output_max_rel = Relative(out_max_diff, out_max_ref);
     e.output_rms_rel = Relative(std::sqrt(out_diff2), std::sqrt(out_ref2));
@@ -619,12 +627,14 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
         std::none_of(precision.begin(), precision.end(), reduced)) {
       break;
     }
-    // The int8 or bf16 convolution whose error rose most over its input's.
+    // The int8 or bf16 convolution whose error, in the budget's metric, rose most over its
+    // input's (with max: a range that clips a few values shows in the largest error only).
+    const std::vector<double>& layer_error = max ? errors.relative_max : errors.relative_rms;
     size_t worst = 0;
     double worst_rise = -kInf;
     for (size_t j = 0; j < precision.size(); ++j) {
       if (!reduced(precision[j])) continue;
-      const double rise = errors.relative_rms[j] - (j == 0 ? 0.0 : errors.relative_rms[j - 1]);
+      const double rise = layer_error[j] - (j == 0 ? 0.0 : layer_error[j - 1]);
       if (rise > worst_rise) {
         worst = j;
         worst_rise = rise;
@@ -635,9 +645,9 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     precision[worst] = to_bf16 ? Precision::kBFloat16 : Precision::kFloat32;
     result.auto_steps.push_back(names[worst] + (to_bf16 ? " to bf16" : " back to fp32") +
                                 ": output " + (max ? "max " : "rms ") + Sci(error) + " > budget " +
-                                Sci(options.accuracy_budget) + "; its relative rms " +
-                                Sci(errors.relative_rms[worst]) + " rose " + Sci(worst_rise) +
-                                " over its input's");
+                                Sci(options.accuracy_budget) + "; its relative " +
+                                (max ? "max " : "rms ") + Sci(layer_error[worst]) + " rose " +
+                                Sci(worst_rise) + " over its input's");
   }
 
   CalibrationDesc& cal = result.calibration;

@@ -48,9 +48,10 @@ enum class QuantizeMode {
   kInt8,  // every convolution int8
   // Start from every convolution int8; while the output's error (accuracy_metric) exceeds
   // accuracy_budget, move one step up (int8 -> bf16 with QuantizeOptions::auto_bf16, else
-  // int8 -> float32; bf16 -> float32) the convolution whose relative_rms rose most over that of
-  // the tensor it reads (the previous convolution's relative_rms; 0 for the model input), the
-  // earliest on a tie, and measure again. Ends with every convolution float32 at worst.
+  // int8 -> float32; bf16 -> float32) the convolution whose error in the same metric (its
+  // output's relative rms, or its largest error relative to its largest |float32 value|) rose
+  // most over that of the tensor it reads (the previous convolution's; 0 for the model input),
+  // the earliest on a tie, and measure again. Ends with every convolution float32 at worst.
   kAuto,
 };
 
