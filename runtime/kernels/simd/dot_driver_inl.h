@@ -244,6 +244,48 @@ inline DotEpilogue BlockEpilogue(const typename V::Conv& p, int blk) {
   return e;
 }
 
+// The border columns (windows that leave the map on the left or right) of the rows in
+// [row_begin, row_end) whose windows lie inside the map vertically: those pixels share their taps
+// down a column, so each column goes in tiles of MR rows (the same sums as one pixel at a time).
+template <typename V, int MR, int NV>
+void DotBorderColumns(const DotJob<V>& j, int blk, const DotEpilogue& e, int row_begin,
+                      int row_end) {
+  const typename V::Conv& p = *j.a->conv;
+  const WeightOf<V>* wblk = p.weights + static_cast<ptrdiff_t>(blk) * j.kh * j.kw * j.tap_elems;
+  // Rows whose window rows lie inside: iy0 = oy * sh - pt >= 0 and iy0 + kh <= src_h.
+  const int first = MaxOf(row_begin, (j.pt + j.sh - 1) / j.sh);
+  const int last = j.src_h - j.kh + j.pt;  // the largest oy * sh
+  const int end = last < 0 ? first : MinOf(row_end, last / j.sh + 1);
+  const ElemOf<V>* xs[kMaxInt8Taps * MR];
+  const WeightOf<V>* ws[kMaxInt8Taps];
+  const int32_t* ss[kMaxInt8Taps];
+  typename V::Acc init[NV];
+  auto column = [&](int ox) {
+    const int ix0 = ox * j.sw - j.pl;
+    for (int oy = first; oy < end; oy += MR) {
+      const int r = MinOf(MR, end - oy);
+      int n = 0;
+      for (int ky = 0; ky < j.kh; ++ky) {
+        for (int kx = 0; kx < j.kw; ++kx) {
+          const int ix = ix0 + kx;
+          if (ix < 0 || ix >= j.src_w) continue;
+          for (int m = 0; m < r; ++m) xs[n * r + m] = j.Source((oy + m) * j.sh - j.pt + ky, ix);
+          ws[n] = wblk + (ky * j.kw + kx) * j.tap_elems;
+          ss[n] = TapSums<V>(p, false, 0, blk, ky * j.kw + kx);
+          ++n;
+        }
+      }
+      DotInit<V, NV>(ss, n, j.coefficient, init);
+      void* out = j.Out(oy, ox, blk);
+      const ptrdiff_t row_step =
+          r > 1 ? static_cast<char*>(j.Out(oy + 1, ox, blk)) - static_cast<char*>(out) : 0;
+      DotTileUpTo<V, MR, NV>(r, xs, ws, n, j.groups, init, e, out, row_step);
+    }
+  };
+  for (int ox = j.cb; ox < MinOf(j.x_lo, j.ce); ++ox) column(ox);
+  for (int ox = MaxOf(j.x_hi, j.cb); ox < j.ce; ++ox) column(ox);
+}
+
 // Output rows [row_begin, row_end) of block `blk` with the MR x NV tile.
 template <typename V, int MR, int NV>
 void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
@@ -292,7 +334,10 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
       DotTileUpTo<V, MR, NV>(r, xs, ws, t, j.groups, init, e, j.Out(oy, ox, blk), j.out_pixel);
     };
 
-    for (int ox = j.cb; ox < MinOf(j.x_lo, j.ce); ++ox) single(ox);
+    const bool full = ky_lo == 0 && ky_hi == j.kh;  // its border columns: BorderColumns
+    if (!full) {
+      for (int ox = j.cb; ox < MinOf(j.x_lo, j.ce); ++ox) single(ox);
+    }
     const int t_lo = MaxOf(j.x_lo, j.cb), t_hi = MinOf(j.x_hi, j.ce);
     if (t_lo < t_hi && j.phases && iy0 >= 0 && iy0 + 3 <= j.src_h) {
       DotPhaseRow<V, MR, NV>(j, blk, e, oy, iy0, t_lo, t_hi);
@@ -310,8 +355,11 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
       for (; ox + MR <= t_hi; ox += MR) tiles(ox, MR);
       if (ox < t_hi) tiles(ox, t_hi - ox);
     }
-    for (int ox = MaxOf(j.x_hi, j.cb); ox < j.ce; ++ox) single(ox);
+    if (!full) {
+      for (int ox = MaxOf(j.x_hi, j.cb); ox < j.ce; ++ox) single(ox);
+    }
   }
+  DotBorderColumns<V, MR, NV>(j, blk, e, row_begin, row_end);
 }
 
 // DotBlockRows for nv valid vectors, MR0, Mr... being the tiles' pixels for NV, NV + 1, ...
