@@ -25,9 +25,11 @@
 //
 // The register tile: MR output pixels x NV vectors, NV = the block's valid channels / kLanes
 // rounded up, so a layer with few output channels computes no empty vectors; each ISA names MR
-// for every NV. Pixels whose window leaves the input go through a one-pixel tile with only the
-// taps inside. The fused upsample's interior rows use the phase kernels where the convolution
-// has them, on the same tiles. MinOf, MaxOf and InsideColumns are conv_driver_inl.h's.
+// for every NV. Pixels whose window leaves the input use only the taps inside: the top and bottom
+// rows in tiles along the row, the left and right columns in tiles of MR rows down the column,
+// the corners one pixel at a time. The fused upsample's interior rows use the phase kernels where
+// the convolution has them, on the same tiles. MinOf, MaxOf and InsideColumns are
+// conv_driver_inl.h's.
 #pragma once
 
 #include <cstddef>
@@ -334,7 +336,7 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
       DotTileUpTo<V, MR, NV>(r, xs, ws, t, j.groups, init, e, j.Out(oy, ox, blk), j.out_pixel);
     };
 
-    const bool full = ky_lo == 0 && ky_hi == j.kh;  // its border columns: BorderColumns
+    const bool full = ky_lo == 0 && ky_hi == j.kh;  // its border columns: DotBorderColumns
     if (!full) {
       for (int ox = j.cb; ox < MinOf(j.x_lo, j.ce); ++ox) single(ox);
     }
