@@ -1,12 +1,16 @@
 #include "sfrt/exporter/quantize.h"
 
 #include <algorithm>
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numeric>
+#include <thread>
 #include <utility>
 
 #include "sfrt/exporter/model_writer.h"
@@ -98,6 +102,19 @@ class TensorStats {
     return {lo, hi};
   }
 
+  // Another worker's pass 1 (its range) or pass 2 (its histogram over this range) joined to
+  // this one's: a minimum, a maximum and integer counts, so the order of the joins is no matter.
+  void MergeRange(const TensorStats& other) {
+    min_ = std::min(min_, other.min_);
+    max_ = std::max(max_, other.max_);
+  }
+  void MergeHistogram(const TensorStats& other) {
+    if (other.bins_.empty()) return;
+    if (bins_.empty()) bins_.assign(kBins, 0);
+    for (size_t b = 0; b < bins_.size(); ++b) bins_[b] += other.bins_[b];
+    count_ += other.count_;
+  }
+
  private:
   double min_ = kInf;
   double max_ = -kInf;
@@ -140,6 +157,37 @@ int ValuesRead(std::span<const LayerDesc> layers, size_t conv) {
     t = layers[static_cast<size_t>(t)].inputs[0];
   }
   return t;
+}
+
+// Runs fn(frame, worker) for every frame in [0, frames) on `workers` threads (the caller's the
+// first), each taking the next frame in order; done() after each frame, one call at a time.
+// After a failure no further frame starts. Returns the status of the lowest frame that failed:
+// every frame below it had started, so it is the one a single thread would have reported.
+Status ForEachFrame(int frames, int workers, const std::function<Status(int, int)>& fn,
+                    const std::function<void()>& done) {
+  std::vector<Status> status(static_cast<size_t>(frames), Status::Ok());
+  std::atomic<int> next{0};
+  std::atomic<bool> failed{false};
+  std::mutex done_mutex;
+  auto work = [&](int worker) {
+    while (!failed.load()) {
+      const int f = next.fetch_add(1);
+      if (f >= frames) return;
+      Status s = fn(f, worker);
+      if (!s.ok()) failed.store(true);
+      status[static_cast<size_t>(f)] = std::move(s);
+      const std::lock_guard<std::mutex> lock(done_mutex);
+      done();
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int w = 1; w < workers; ++w) threads.emplace_back(work, w);
+  work(0);
+  for (std::thread& t : threads) t.join();
+  for (Status& s : status) {
+    if (!s.ok()) return std::move(s);
+  }
+  return Status::Ok();
 }
 
 Result<std::shared_ptr<const Model>> Load(const ModelSpec& spec, const std::string& label) {
@@ -195,12 +243,21 @@ class Calibrator {
     return Status::Ok();
   }
 
-  // Passes 1 (range) and 2 (histogram) over the float32 model.
+  // Passes 1 (range) and 2 (histogram) over the float32 model, frames on Workers() threads, each
+  // with its own statistics, joined after the pass.
   Status Observe() {
+    const int workers = Workers();
     for (int pass = 0; pass < 2; ++pass) {
-      for (int f = 0; f < data_.frames; ++f) {
+      std::vector<std::vector<TensorStats>> local(
+          static_cast<size_t>(workers),
+          pass == 0 ? std::vector<TensorStats>(stats_.size()) : stats_);
+      std::vector<std::vector<float>> outputs(static_cast<size_t>(workers),
+                                              std::vector<float>(output_elements_));
+      int frames_done = 0;
+      const auto frame = [&](int f, int worker) -> Status {
+        std::vector<TensorStats>& stats = local[static_cast<size_t>(worker)];
         const std::span<const float> input = FrameValues(data_, f);
-        pass == 0 ? stats_[0].AddRange(input) : stats_[0].AddHistogram(input);
+        pass == 0 ? stats[0].AddRange(input) : stats[0].AddHistogram(input);
         Status bad = Status::Ok();
         const LayerObserver observer = [&](int layer, const TensorShape&,
                                            std::span<const float> values) {
@@ -215,19 +272,28 @@ class Calibrator {
                                   std::to_string(f) + "; its range cannot be quantised");
               return;
             }
-            stats_[static_cast<size_t>(j)].AddRange(values);
+            stats[static_cast<size_t>(j)].AddRange(values);
           } else {
-            stats_[static_cast<size_t>(j)].AddHistogram(values);
+            stats[static_cast<size_t>(j)].AddHistogram(values);
           }
         };
-        std::vector<float> output(output_elements_);
-        if (Status s =
-                RunReferenceForward(fp32_, input, data_.height, data_.width, output, observer);
+        if (Status s = RunReferenceForward(fp32_, input, data_.height, data_.width,
+                                           outputs[static_cast<size_t>(worker)], observer);
             !s.ok()) {
           return s;
         }
-        if (!bad.ok()) return bad;
-        Progress(pass == 0 ? "range" : "histogram", f);
+        return bad;
+      };
+      if (Status s =
+              ForEachFrame(data_.frames, workers, frame,
+                           [&] { Progress(pass == 0 ? "range" : "histogram", frames_done++); });
+          !s.ok()) {
+        return s;
+      }
+      for (const std::vector<TensorStats>& stats : local) {
+        for (size_t k = 0; k < stats_.size(); ++k) {
+          pass == 0 ? stats_[k].MergeRange(stats[k]) : stats_[k].MergeHistogram(stats[k]);
+        }
       }
     }
     return Status::Ok();
@@ -250,50 +316,59 @@ class Calibrator {
     return TensorQuant(conv_layers_[j], percentile);
   }
 
+  // The errors of `quantised` over the calibration set, frames on Workers() threads; each
+  // frame's sums are added in frame order, so the thread count does not change a bit.
   Result<Errors> Measure(const Model& quantised) {
     const size_t convs = conv_layers_.size();
-    std::vector<double> diff2(convs, 0.0), ref2(convs, 0.0), max_diff(convs, 0.0),
-        max_ref(convs, 0.0);
-    double out_diff2 = 0, out_ref2 = 0, out_max_diff = 0, out_max_ref = 0;
-    for (int f = 0; f < data_.frames; ++f) {
+    struct FrameSums {
+      std::vector<double> diff2, ref2, max_diff, max_ref;  // per convolution
+      double out_diff2 = 0, out_ref2 = 0, out_max_diff = 0, out_max_ref = 0;
+    };
+    std::vector<FrameSums> sums(static_cast<size_t>(data_.frames));
+    if (cache_ && references_.empty()) references_.resize(static_cast<size_t>(data_.frames));
+    const int workers = Workers();
+    std::vector<std::vector<float>> outputs(static_cast<size_t>(workers),
+                                            std::vector<float>(output_elements_));
+    int frames_done = 0;
+    const auto frame = [&](int f, int worker) -> Status {
       const std::span<const float> input = FrameValues(data_, f);
       Reference computed;
-      if (references_.size() <= static_cast<size_t>(f)) {
-        Reference& r = computed;
-        r.convs.resize(convs);
-        r.output.resize(output_elements_);
+      Reference& ref = cache_ ? references_[static_cast<size_t>(f)] : computed;
+      if (ref.output.empty()) {
+        ref.convs.resize(convs);
+        ref.output.resize(output_elements_);
         const LayerObserver keep = [&](int layer, const TensorShape&,
                                        std::span<const float> values) {
           const int j = conv_of_layer_[static_cast<size_t>(layer)];
-          if (j >= 0) r.convs[static_cast<size_t>(j)].assign(values.begin(), values.end());
+          if (j >= 0) ref.convs[static_cast<size_t>(j)].assign(values.begin(), values.end());
         };
-        if (Status s = RunReferenceForward(fp32_, input, data_.height, data_.width, r.output, keep);
+        if (Status s =
+                RunReferenceForward(fp32_, input, data_.height, data_.width, ref.output, keep);
             !s.ok()) {
+          ref.output.clear();
           return s;
         }
-        if (cache_) references_.push_back(std::move(computed));
       }
-      const Reference& ref = cache_ ? references_[static_cast<size_t>(f)] : computed;
-      std::vector<float> output(output_elements_);
+      FrameSums& e = sums[static_cast<size_t>(f)];
+      e.diff2.assign(convs, 0.0);
+      e.ref2.assign(convs, 0.0);
+      e.max_diff.assign(convs, 0.0);
+      e.max_ref.assign(convs, 0.0);
       const LayerObserver compare = [&](int layer, const TensorShape&,
                                         std::span<const float> values) {
         const int j = conv_of_layer_[static_cast<size_t>(layer)];
         if (j < 0) return;
         const std::vector<float>& r = ref.convs[static_cast<size_t>(j)];
-        double d2 = 0, r2 = 0, dmax = 0, rmax = 0;
+        const auto jj = static_cast<size_t>(j);
         for (size_t k = 0; k < values.size() && k < r.size(); ++k) {
           const double d = static_cast<double>(values[k]) - r[k];
-          d2 += d * d;
-          r2 += static_cast<double>(r[k]) * r[k];
-          dmax = std::max(dmax, std::fabs(d));
-          rmax = std::max(rmax, std::fabs(static_cast<double>(r[k])));
+          e.diff2[jj] += d * d;
+          e.ref2[jj] += static_cast<double>(r[k]) * r[k];
+          e.max_diff[jj] = std::max(e.max_diff[jj], std::fabs(d));
+          e.max_ref[jj] = std::max(e.max_ref[jj], std::fabs(static_cast<double>(r[k])));
         }
-        const auto jj = static_cast<size_t>(j);
-        diff2[jj] += d2;
-        ref2[jj] += r2;
-        max_diff[jj] = std::max(max_diff[jj], dmax);
-        max_ref[jj] = std::max(max_ref[jj], rmax);
       };
+      std::vector<float>& output = outputs[static_cast<size_t>(worker)];
       if (Status s =
               RunReferenceForward(quantised, input, data_.height, data_.width, output, compare);
           !s.ok()) {
@@ -302,21 +377,43 @@ class Calibrator {
       for (size_t k = 0; k < output.size(); ++k) {
         const double r = ref.output[k];
         const double d = static_cast<double>(output[k]) - r;
-        out_diff2 += d * d;
-        out_ref2 += r * r;
-        out_max_diff = std::max(out_max_diff, std::fabs(d));
-        out_max_ref = std::max(out_max_ref, std::fabs(r));
+        e.out_diff2 += d * d;
+        e.out_ref2 += r * r;
+        e.out_max_diff = std::max(e.out_max_diff, std::fabs(d));
+        e.out_max_ref = std::max(e.out_max_ref, std::fabs(r));
       }
-      Progress("measure", f);
+      return Status::Ok();
+    };
+    if (Status s =
+            ForEachFrame(data_.frames, workers, frame, [&] { Progress("measure", frames_done++); });
+        !s.ok()) {
+      return s;
     }
-    Errors e;
+    FrameSums total;
+    total.diff2.assign(convs, 0.0);
+    total.ref2.assign(convs, 0.0);
+    total.max_diff.assign(convs, 0.0);
+    total.max_ref.assign(convs, 0.0);
+    for (const FrameSums& e : sums) {
+      for (size_t j = 0; j < convs; ++j) {
+        total.diff2[j] += e.diff2[j];
+        total.ref2[j] += e.ref2[j];
+        total.max_diff[j] = std::max(total.max_diff[j], e.max_diff[j]);
+        total.max_ref[j] = std::max(total.max_ref[j], e.max_ref[j]);
+      }
+      total.out_diff2 += e.out_diff2;
+      total.out_ref2 += e.out_ref2;
+      total.out_max_diff = std::max(total.out_max_diff, e.out_max_diff);
+      total.out_max_ref = std::max(total.out_max_ref, e.out_max_ref);
+    }
+    Errors errors;
     for (size_t j = 0; j < convs; ++j) {
-      e.relative_rms.push_back(Relative(std::sqrt(diff2[j]), std::sqrt(ref2[j])));
-      e.relative_max.push_back(Relative(max_diff[j], max_ref[j]));
+      errors.relative_rms.push_back(Relative(std::sqrt(total.diff2[j]), std::sqrt(total.ref2[j])));
+      errors.relative_max.push_back(Relative(total.max_diff[j], total.max_ref[j]));
     }
-    e.output_max_rel = Relative(out_max_diff, out_max_ref);
-    e.output_rms_rel = Relative(std::sqrt(out_diff2), std::sqrt(out_ref2));
-    return e;
+    errors.output_max_rel = Relative(total.out_max_diff, total.out_max_ref);
+    errors.output_rms_rel = Relative(std::sqrt(total.out_diff2), std::sqrt(total.out_ref2));
+    return errors;
   }
 
  private:
@@ -335,6 +432,9 @@ class Calibrator {
   void Progress(const char* pass, int frame) const {
     if (options_.progress) options_.progress(pass, frame + 1, data_.frames);
   }
+
+  // Threads that run frames at once: QuantizeOptions::threads, at most one per frame.
+  int Workers() const { return std::max(1, std::min(options_.threads, data_.frames)); }
 
   const CalibrationSet& data_;
   const QuantizeOptions& options_;
@@ -550,6 +650,10 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
                                 const QuantizeOptions& options) {
   Result<CalibrationMethod> method = ParseCalibrationMethod(options.method);
   if (!method.ok()) return method.status();
+  if (options.threads < 1) {
+    return Status::Error("calibration threads " + std::to_string(options.threads) +
+                         ": must be at least 1");
+  }
   if (options.mode == QuantizeMode::kAuto &&
       !(options.accuracy_budget >= 0 && std::isfinite(options.accuracy_budget))) {
     return Status::Error("accuracy budget " + Sci(options.accuracy_budget) +

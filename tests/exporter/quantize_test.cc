@@ -254,6 +254,51 @@ TEST(Quantize, ReportsProgressForEveryFrameOfEveryPass) {
                                              "histogram 2/2", "measure 1/2", "measure 2/2"}));
 }
 
+TEST(Quantize, TheThreadCountChangesNoByteOfTheResult) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(5, 53);
+  for (QuantizeMode mode : {QuantizeMode::kInt8, QuantizeMode::kAuto}) {
+    SCOPED_TRACE(mode == QuantizeMode::kInt8 ? "int8" : "auto");
+    QuantizeOptions options;
+    options.mode = mode;
+    options.accuracy_budget = 1e-2;  // auto: some steps
+    auto one = Quantize(spec, data, options);
+    ASSERT_TRUE(one.ok()) << one.message();
+    for (int threads : {2, 3, 8}) {
+      SCOPED_TRACE(threads);
+      options.threads = threads;
+      auto many = Quantize(spec, data, options);
+      ASSERT_TRUE(many.ok()) << many.message();
+      EXPECT_EQ(Bytes(many->spec), Bytes(one->spec));
+      EXPECT_EQ(many->auto_steps, one->auto_steps);
+      EXPECT_EQ(many->calibration.output_max_rel, one->calibration.output_max_rel);
+      EXPECT_EQ(many->calibration.output_rms_rel, one->calibration.output_rms_rel);
+    }
+    if (mode == QuantizeMode::kAuto) {
+      EXPECT_FALSE(one->auto_steps.empty());
+    }
+  }
+}
+
+TEST(Quantize, ThreadsReportEveryFrameOnceInOrderAndZeroThreadsIsAnError) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  QuantizeOptions options;
+  options.threads = 2;
+  std::vector<std::string> calls;
+  options.progress = [&](const char* pass, int frame, int frames) {
+    calls.push_back(std::string(pass) + " " + std::to_string(frame) + "/" + std::to_string(frames));
+  };
+  ASSERT_TRUE(Quantize(spec, RandomFrames(3, 57), options).ok());
+  EXPECT_EQ(calls, (std::vector<std::string>{"range 1/3", "range 2/3", "range 3/3", "histogram 1/3",
+                                             "histogram 2/3", "histogram 3/3", "measure 1/3",
+                                             "measure 2/3", "measure 3/3"}));
+  options.threads = 0;
+  auto none = Quantize(spec, RandomFrames(3, 57), options);
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.message().find("calibration threads 0: must be at least 1"), std::string::npos)
+      << none.message();
+}
+
 TEST(Quantize, AutoWithAHugeBudgetKeepsEveryConvolutionInt8) {
   const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
   QuantizeOptions options;

@@ -87,6 +87,7 @@ struct ExportArgs {
   bool no_auto_bf16 = false;
   std::string calibration_size;
   int calibration_frames = 64;
+  int calibration_threads = 1;
   std::string calibration_method = "percentile:99.99";
   std::string calibration_scales = "shared";
   // The metadata flags given on the command line: a .sfrt source keeps its own value of the rest.
@@ -102,7 +103,8 @@ constexpr const char* kDepthFlags[] = {"--depth-mean", "--depth-std", "--depth-i
 constexpr size_t kMaxUnitsLength = 64;
 // Flags that only apply with --calibration.
 constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibration-frames",
-                                             "--calibration-method", "--calibration-scales"};
+                                             "--calibration-method", "--calibration-scales",
+                                             "--calibration-threads"};
 
 bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
@@ -621,6 +623,7 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
       args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
   options.accuracy_budget = args.accuracy_budget;
   options.auto_bf16 = !args.no_auto_bf16;
+  options.threads = args.calibration_threads;
   options.accuracy_metric = args.accuracy_metric == "max" ? exporter::AccuracyMetric::kMax
                                                           : exporter::AccuracyMetric::kRms;
   options.method = args.calibration_method;
@@ -865,6 +868,12 @@ int RunExport(const ExportArgs& args) {
         kName,
         "--calibration-frames: must be at least 1, got " + std::to_string(args.calibration_frames),
         kExitUsage);
+  }
+  if (args.calibration_threads < 1) {
+    return ReportError(kName,
+                       "--calibration-threads: must be at least 1, got " +
+                           std::to_string(args.calibration_threads),
+                       kExitUsage);
   }
   if (Result<exporter::CalibrationMethod> method =
           exporter::ParseCalibrationMethod(args.calibration_method);
@@ -1283,6 +1292,12 @@ Command AddExportCommand(CLI::App& parent) {
                   "model's traced size); a .npy gives its own size");
   cmd->add_option("--calibration-frames", args->calibration_frames,
                   "Use at most the first N frames (windows) of --calibration")
+      ->capture_default_str();
+  cmd->add_option("--calibration-threads", args->calibration_threads,
+                  "Run N calibration frames at once (the passes run the scalar reference "
+                  "kernels: about 20 s per float32 frame of the full-width model at 540x960); "
+                  "each holds one forward pass's tensors in memory. The file is the same for "
+                  "every N")
       ->capture_default_str();
   cmd->add_option("--calibration-method", args->calibration_method,
                   "How activation ranges are chosen: percentile:P (the central P percent of the "

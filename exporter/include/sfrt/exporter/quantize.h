@@ -21,7 +21,8 @@
 // sums over all frames): per convolution relative_rms = RMS(out - fp32 out) / RMS(fp32 out)
 // (0 when both are 0, infinity when only the reference is); the model output's
 // output_max_rel = max |diff| / max |fp32| and output_rms_rel likewise.
-// Everything is deterministic: the same spec, data and options give the same bytes.
+// Everything is deterministic: the same spec, data and options give the same bytes, whatever
+// QuantizeOptions::threads.
 #pragma once
 
 #include <functional>
@@ -74,7 +75,13 @@ struct QuantizeOptions {
   // false: each convolution's input gets its own range. Chains are the same either way. The
   // record's method then ends in ", shared scales" (where some group has two members).
   bool shared_scales = true;
-  // Called after each frame of each pass: pass is "range", "histogram" or "measure".
+  // Calibration frames run on this many threads at once (at most one per frame). Each holds one
+  // reference forward pass's tensors, so memory grows with it; the result does not change by a
+  // bit (ranges are minima and maxima, histograms integer counts, and the error sums are added
+  // in frame order).
+  int threads = 1;
+  // Called after each frame of each pass, one call at a time, `frame` counting the frames done:
+  // pass is "range", "histogram" or "measure".
   std::function<void(const char* pass, int frame, int frames)> progress;
 };
 
