@@ -321,10 +321,12 @@ class Calibrator {
   Result<Errors> Measure(const Model& quantised) {
     const size_t convs = conv_layers_.size();
     struct FrameSums {
+      explicit FrameSums(size_t convs)
+          : diff2(convs, 0.0), ref2(convs, 0.0), max_diff(convs, 0.0), max_ref(convs, 0.0) {}
       std::vector<double> diff2, ref2, max_diff, max_ref;  // per convolution
       double out_diff2 = 0, out_ref2 = 0, out_max_diff = 0, out_max_ref = 0;
     };
-    std::vector<FrameSums> sums(static_cast<size_t>(data_.frames));
+    std::vector<FrameSums> sums(static_cast<size_t>(data_.frames), FrameSums(convs));
     if (cache_ && references_.empty()) references_.resize(static_cast<size_t>(data_.frames));
     const int workers = Workers();
     std::vector<std::vector<float>> outputs(static_cast<size_t>(workers),
@@ -350,10 +352,6 @@ class Calibrator {
         }
       }
       FrameSums& e = sums[static_cast<size_t>(f)];
-      e.diff2.assign(convs, 0.0);
-      e.ref2.assign(convs, 0.0);
-      e.max_diff.assign(convs, 0.0);
-      e.max_ref.assign(convs, 0.0);
       const LayerObserver compare = [&](int layer, const TensorShape&,
                                         std::span<const float> values) {
         const int j = conv_of_layer_[static_cast<size_t>(layer)];
@@ -389,11 +387,7 @@ class Calibrator {
         !s.ok()) {
       return s;
     }
-    FrameSums total;
-    total.diff2.assign(convs, 0.0);
-    total.ref2.assign(convs, 0.0);
-    total.max_diff.assign(convs, 0.0);
-    total.max_ref.assign(convs, 0.0);
+    FrameSums total(convs);
     for (const FrameSums& e : sums) {
       for (size_t j = 0; j < convs; ++j) {
         total.diff2[j] += e.diff2[j];

@@ -271,12 +271,10 @@ void NarrowRowsOf(const Int8ConvArgs& a, int row_begin, int row_end) {
   const PackedInt8Conv& p = *a.conv;
   const int out_w = p.out_float ? a.out_f32.width : a.out_u8.width;
   const int x_begin = simd::MaxOf(0, a.col_begin), x_end = simd::MinOf(out_w, a.col_end);
-  // Columns whose window is inside the input: [inside_lo, inside_hi).
-  const int inside_lo = (a.pads.left + p.stride_w - 1) / p.stride_w;
-  const int last = a.in.width - p.kernel_w + a.pads.left;  // the last window's first column
-  const int inside_hi = last < 0 ? inside_lo : simd::MaxOf(inside_lo, last / p.stride_w + 1);
-  const int start = simd::MinOf(simd::MaxOf(x_begin, inside_lo), x_end);
-  const int block_end = simd::MinOf(inside_hi, x_end);
+  const simd::ColumnRange inside =
+      simd::InsideColumns(out_w, a.in.width, p.kernel_w, p.stride_w, a.pads.left);
+  const int start = simd::MinOf(simd::MaxOf(x_begin, inside.lo), x_end);
+  const int block_end = simd::MinOf(inside.hi, x_end);
   NarrowPlan plan;
   PrepareNarrow(p, plan);
   const __m512i offsets =

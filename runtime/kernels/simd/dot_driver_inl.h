@@ -254,10 +254,9 @@ void DotBorderColumns(const DotJob<V>& j, int blk, const DotEpilogue& e, int row
                       int row_end) {
   const typename V::Conv& p = *j.a->conv;
   const WeightOf<V>* wblk = p.weights + static_cast<ptrdiff_t>(blk) * j.kh * j.kw * j.tap_elems;
-  // Rows whose window rows lie inside: iy0 = oy * sh - pt >= 0 and iy0 + kh <= src_h.
-  const int first = MaxOf(row_begin, (j.pt + j.sh - 1) / j.sh);
-  const int last = j.src_h - j.kh + j.pt;  // the largest oy * sh
-  const int end = last < 0 ? first : MinOf(row_end, last / j.sh + 1);
+  // Rows whose window rows lie inside (InsideColumns' rule, along the rows).
+  const ColumnRange rows = InsideColumns(row_end, j.src_h, j.kh, j.sh, j.pt);
+  const int first = MaxOf(row_begin, rows.lo), end = rows.hi;
   const ElemOf<V>* xs[kMaxInt8Taps * MR];
   const WeightOf<V>* ws[kMaxInt8Taps];
   const int32_t* ss[kMaxInt8Taps];
