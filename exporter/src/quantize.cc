@@ -17,6 +17,7 @@
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
 #include "sfrt/reference.h"
+#include "sfrt/session.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::exporter {
@@ -71,6 +72,9 @@ class TensorStats {
       ++bins_[static_cast<size_t>(bin)];
     }
   }
+
+  // Whether pass 1 saw any value.
+  bool Observed() const { return min_ <= max_; }
 
   // The bin edges around the central `percentile` percent of the values (quantize.h).
   std::pair<double, double> Range(double percentile) const {
@@ -205,13 +209,16 @@ struct Errors {
 };
 
 // Runs the float32 model over the calibration set: the activation statistics, and the reference
-// outputs the quantised models are measured against.
+// outputs the quantised models are measured against. Forward passes on QuantizeOptions::engine.
 class Calibrator {
  public:
-  Calibrator(const CalibrationSet& data, const QuantizeOptions& options, const Model& fp32,
-             std::vector<int> conv_layers)
-      : data_(data), options_(options), fp32_(fp32), conv_layers_(std::move(conv_layers)) {
-    const auto layers = fp32_.layers();
+  Calibrator(const CalibrationSet& data, const QuantizeOptions& options,
+             std::shared_ptr<const Model> fp32, std::vector<int> conv_layers)
+      : data_(data),
+        options_(options),
+        fp32_(std::move(fp32)),
+        conv_layers_(std::move(conv_layers)) {
+    const auto layers = fp32_->layers();
     conv_of_layer_.assign(layers.size(), -1);
     stats_of_layer_.assign(layers.size(), -1);
     stats_.resize(1);  // the model input
@@ -229,7 +236,7 @@ class Calibrator {
   }
 
   Status Prepare() {
-    Result<std::vector<LayerGeometry>> geometry = InferGeometry(fp32_, data_.height, data_.width);
+    Result<std::vector<LayerGeometry>> geometry = InferGeometry(*fp32_, data_.height, data_.width);
     if (!geometry.ok()) {
       return Status::Error("the model cannot run at the calibration frames' size " +
                            std::to_string(data_.height) + "x" + std::to_string(data_.width) + ": " +
@@ -240,6 +247,8 @@ class Calibrator {
     for (int layer : conv_layers_)
       per_frame += (*geometry)[static_cast<size_t>(layer)].output.elements();
     cache_ = per_frame * sizeof(float) * static_cast<size_t>(data_.frames) <= kMaxCachedBytes;
+    fp32_sessions_.resize(static_cast<size_t>(Workers()));
+    sessions_.resize(static_cast<size_t>(Workers()));
     return Status::Ok();
   }
 
@@ -267,7 +276,7 @@ class Calibrator {
             for (float v : values) {
               if (std::isfinite(v)) continue;
               bad = Status::Error("layer " + std::to_string(layer) + " '" +
-                                  fp32_.layers()[static_cast<size_t>(layer)].name +
+                                  fp32_->layers()[static_cast<size_t>(layer)].name +
                                   "' gives a non-finite value on calibration frame " +
                                   std::to_string(f) + "; its range cannot be quantised");
               return;
@@ -277,8 +286,8 @@ class Calibrator {
             stats[static_cast<size_t>(j)].AddHistogram(values);
           }
         };
-        if (Status s = RunReferenceForward(fp32_, input, data_.height, data_.width,
-                                           outputs[static_cast<size_t>(worker)], observer);
+        if (Status s =
+                Forward(fp32_, worker, input, outputs[static_cast<size_t>(worker)], observer);
             !s.ok()) {
           return s;
         }
@@ -296,6 +305,15 @@ class Calibrator {
         }
       }
     }
+    // Every tensor a quantisation comes from was shown (a session shows each convolution and
+    // Concat; Session::RunObserved).
+    for (size_t t = 0; t < stats_of_layer_.size(); ++t) {
+      const int k = stats_of_layer_[t];
+      if (k >= 0 && !stats_[static_cast<size_t>(k)].Observed()) {
+        return Status::Error("calibration saw no value of layer " + std::to_string(t) + " '" +
+                             fp32_->layers()[t].name + "' (internal error)");
+      }
+    }
     return Status::Ok();
   }
 
@@ -304,7 +322,7 @@ class Calibrator {
   QuantParams InputQuant(std::span<const size_t> members, double percentile) const {
     double lo = 0, hi = 0;
     for (size_t j : members) {
-      const int t = ValuesRead(fp32_.layers(), static_cast<size_t>(conv_layers_[j]));
+      const int t = ValuesRead(fp32_->layers(), static_cast<size_t>(conv_layers_[j]));
       const int k = t == kModelInput ? 0 : stats_of_layer_[static_cast<size_t>(t)];
       const auto [l, h] = stats_[static_cast<size_t>(k)].Range(percentile);
       lo = std::min(lo, l);
@@ -318,7 +336,7 @@ class Calibrator {
 
   // The errors of `quantised` over the calibration set, frames on Workers() threads; each
   // frame's sums are added in frame order, so the thread count does not change a bit.
-  Result<Errors> Measure(const Model& quantised) {
+  Result<Errors> Measure(const std::shared_ptr<const Model>& quantised) {
     const size_t convs = conv_layers_.size();
     struct FrameSums {
       explicit FrameSums(size_t convs)
@@ -331,12 +349,14 @@ class Calibrator {
     const int workers = Workers();
     std::vector<std::vector<float>> outputs(static_cast<size_t>(workers),
                                             std::vector<float>(output_elements_));
+    // Uncached, each worker's float32 tensors of the frame it runs, reused frame after frame.
+    std::vector<Reference> computed(cache_ ? 0 : static_cast<size_t>(workers));
     int frames_done = 0;
     const auto frame = [&](int f, int worker) -> Status {
       const std::span<const float> input = FrameValues(data_, f);
-      Reference computed;
-      Reference& ref = cache_ ? references_[static_cast<size_t>(f)] : computed;
-      if (ref.output.empty()) {
+      Reference& ref =
+          cache_ ? references_[static_cast<size_t>(f)] : computed[static_cast<size_t>(worker)];
+      if (!cache_ || ref.output.empty()) {
         ref.convs.resize(convs);
         ref.output.resize(output_elements_);
         const LayerObserver keep = [&](int layer, const TensorShape&,
@@ -344,9 +364,7 @@ class Calibrator {
           const int j = conv_of_layer_[static_cast<size_t>(layer)];
           if (j >= 0) ref.convs[static_cast<size_t>(j)].assign(values.begin(), values.end());
         };
-        if (Status s =
-                RunReferenceForward(fp32_, input, data_.height, data_.width, ref.output, keep);
-            !s.ok()) {
+        if (Status s = Forward(fp32_, worker, input, ref.output, keep); !s.ok()) {
           ref.output.clear();
           return s;
         }
@@ -367,9 +385,7 @@ class Calibrator {
         }
       };
       std::vector<float>& output = outputs[static_cast<size_t>(worker)];
-      if (Status s =
-              RunReferenceForward(quantised, input, data_.height, data_.width, output, compare);
-          !s.ok()) {
+      if (Status s = Forward(quantised, worker, input, output, compare); !s.ok()) {
         return s;
       }
       for (size_t k = 0; k < output.size(); ++k) {
@@ -423,6 +439,31 @@ class Calibrator {
     return ActivationQuantParams(lo, hi);
   }
 
+  // One forward pass of `model` on `input` (a calibration frame) for worker `worker`, showing
+  // `observer` its layers: on the reference kernels, or on the worker's Session for the model
+  // (for the float32 model, or the quantised one being measured; made on first use).
+  Status Forward(const std::shared_ptr<const Model>& model, int worker,
+                 std::span<const float> input, std::span<float> output,
+                 const LayerObserver& observer) {
+    if (options_.engine == CalibrationEngine::kReference) {
+      return RunReferenceForward(*model, input, data_.height, data_.width, output, observer);
+    }
+    std::unique_ptr<Session>& session =
+        (model == fp32_ ? fp32_sessions_ : sessions_)[static_cast<size_t>(worker)];
+    // A session keeps its model alive, so another model cannot have its address.
+    if (session == nullptr || &session->model() != model.get()) {
+      session.reset();  // its arena goes before the next one is allocated
+      SessionOptions session_options;
+      session_options.max_height = data_.height;
+      session_options.max_width = data_.width;
+      session_options.threads = std::max(1, options_.threads / Workers());
+      Result<std::unique_ptr<Session>> created = Session::Create(model, session_options);
+      if (!created.ok()) return Status::Error("calibration session: " + created.message());
+      session = std::move(created).value();
+    }
+    return session->RunObserved(input, data_.height, data_.width, output, observer);
+  }
+
   void Progress(const char* pass, int frame) const {
     if (options_.progress) options_.progress(pass, frame + 1, data_.frames);
   }
@@ -432,7 +473,7 @@ class Calibrator {
 
   const CalibrationSet& data_;
   const QuantizeOptions& options_;
-  const Model& fp32_;
+  std::shared_ptr<const Model> fp32_;
   std::vector<int> conv_layers_;
   std::vector<int> conv_of_layer_;
   std::vector<int> stats_of_layer_;  // index into stats_ (0: the model input), -1 when unobserved
@@ -440,6 +481,10 @@ class Calibrator {
   size_t output_elements_ = 0;
   bool cache_ = false;
   std::vector<Reference> references_;  // per frame, when cache_
+  // CalibrationEngine::kSession: per worker, a session of the float32 model and one of the
+  // quantised model being measured.
+  std::vector<std::unique_ptr<Session>> fp32_sessions_;
+  std::vector<std::unique_ptr<Session>> sessions_;
 };
 
 // `fp32` with each convolution in its precision: int8 quantised, bf16 marked.
@@ -680,7 +725,7 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   fp32_spec.calibration.reset();
   Result<std::shared_ptr<const Model>> fp32 = Load(fp32_spec, "the float32 model");
   if (!fp32.ok()) return fp32.status();
-  Calibrator calibrator(data, options, **fp32, conv_layers);
+  Calibrator calibrator(data, options, *fp32, conv_layers);
   if (Status s = calibrator.Prepare(); !s.ok()) return s;
   if (Status s = calibrator.Observe(); !s.ok()) return s;
 
@@ -716,7 +761,7 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     result.spec = BuildSpec(fp32_spec, precision, input_quant, output_quant, weights);
     Result<std::shared_ptr<const Model>> quantised = Load(result.spec, "the quantised model");
     if (!quantised.ok()) return quantised.status();
-    Result<Errors> measured = calibrator.Measure(**quantised);
+    Result<Errors> measured = calibrator.Measure(*quantised);
     if (!measured.ok()) return measured.status();
     errors = std::move(measured).value();
     const bool max = options.accuracy_metric == AccuracyMetric::kMax;

@@ -108,6 +108,15 @@ struct Session::Views {
   std::vector<ConstBf16View> gather16;
 };
 
+// RunObserved()'s state, made by its first call: the observer, the quantisation each uint8 tensor
+// slot was written with (indexed as Views), and the dense float32 copy the observer is shown
+// (grown to the largest tensor copied, then reused).
+struct Session::Observation {
+  const LayerObserver* observer = nullptr;
+  std::vector<QuantParams> quant;
+  std::vector<float> values;
+};
+
 class Session::Pool : public ThreadPool {
  public:
   using ThreadPool::ThreadPool;
@@ -1050,11 +1059,82 @@ Result<TensorShape> Session::OutputShape(int height, int width) const {
 }
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output) {
-  return Run(input, height, width, output, {});
+  return Execute(input, height, width, output, {}, nullptr);
 }
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output,
                     std::span<int64_t> step_end_ns) {
+  return Execute(input, height, width, output, step_end_ns, nullptr);
+}
+
+Status Session::RunObserved(std::span<const float> input, int height, int width,
+                            std::span<float> output, const LayerObserver& observer) {
+  if (!observer) return Execute(input, height, width, output, {}, nullptr);
+  if (observation_ == nullptr) {
+    observation_ = std::make_unique<Observation>();
+    observation_->quant.resize(model_->layers().size() + 1);
+  }
+  observation_->observer = &observer;
+  const Status s = Execute(input, height, width, output, {}, observation_.get());
+  observation_->observer = nullptr;
+  return s;
+}
+
+void Session::Observe(const Step& step, size_t src_slot, Observation& observation) const {
+  if (step.kind == Step::Kind::kQuantize) {  // computes no layer; its tensor's quantisation
+    observation.quant[src_slot] = step.quant;
+    return;
+  }
+  if (step.kind == Step::Kind::kToBf16) return;
+  const auto slot = static_cast<size_t>(step.last_layer);
+  // A uint8 tensor: an int8 convolution's own output quantisation; a copy (upsampling, crop,
+  // Concat) keeps its input's.
+  QuantParams q;
+  if (step.out_u8) {
+    q = step.kind == Step::Kind::kInt8Conv ? step.quant : observation.quant[src_slot];
+    observation.quant[slot] = q;
+  }
+  // An upsampling that writes only the crop a Concat takes of it (PlaceConcatInputs): its whole
+  // output never exists; the crop's step shows what does.
+  if (step.slice_crop >= 0) return;
+  const TensorShape& shape = geometry_[slot].output;
+  const Views& views = *views_;
+  const auto row = static_cast<size_t>(shape.width) * static_cast<size_t>(shape.channels);
+  if (!step.out_u8 && !step.out_bf16 &&
+      views.f32[slot].row_stride == static_cast<ptrdiff_t>(row)) {  // dense float32: as it is
+    (*observation.observer)(step.last_layer, shape, {views.f32[slot].data, shape.elements()});
+    return;
+  }
+  observation.values.resize(shape.elements());
+  float* out = observation.values.data();
+  if (step.out_u8) {
+    const ConstByteView& v = views.u8[slot];
+    for (int y = 0; y < shape.height; ++y) {
+      for (int x = 0; x < shape.width; ++x) {
+        const uint8_t* p = v.pixel(y, x);
+        for (int c = 0; c < shape.channels; ++c)
+          *out++ = q.scale * static_cast<float>(static_cast<int>(p[c]) - q.zero_point);
+      }
+    }
+  } else if (step.out_bf16) {
+    const ConstBf16View& v = views.bf16[slot];
+    for (int y = 0; y < shape.height; ++y) {
+      for (int x = 0; x < shape.width; ++x) {
+        const uint16_t* p = v.pixel(y, x);
+        for (int c = 0; c < shape.channels; ++c) *out++ = Bf16ToFloat(p[c]);
+      }
+    }
+  } else {
+    const ConstTensorView& v = views.f32[slot];
+    for (int y = 0; y < shape.height; ++y, out += row)
+      std::memcpy(out, v.pixel(y, 0), row * sizeof(float));
+  }
+  (*observation.observer)(step.last_layer, shape, observation.values);
+}
+
+Status Session::Execute(std::span<const float> input, int height, int width,
+                        std::span<float> output, std::span<int64_t> step_end_ns,
+                        Observation* observation) {
   if (!step_end_ns.empty() && step_end_ns.size() < steps_.size() + 1) {
     return Status::Error("step timestamp buffer holds " + std::to_string(step_end_ns.size()) +
                          " values; this plan needs " + std::to_string(steps_.size() + 1));
@@ -1152,6 +1232,11 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
     const ConstTensorView cur = views.f32[src];
     const ConstByteView cur8 = views.u8[src];
     const ConstBf16View cur16 = views.bf16[src];
+    // After the step: its timestamp, and what RunObserved shows.
+    auto finish = [&] {
+      if (timed) stamp(step_index);
+      if (observation != nullptr) Observe(step, src, *observation);
+    };
     if (step.kind == Step::Kind::kCrop && step.out_u8) {
       // A uint8 tensor is never the model's output: an int8 convolution whose output no int8
       // convolution reads writes float32.
@@ -1160,7 +1245,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       view.height = g.output.height;
       view.width = g.output.width;
       views.u8[dst_slot] = view;
-      if (timed) stamp(step_index);
+      finish();
       continue;
     }
     if (step.kind == Step::Kind::kCrop && step.out_bf16) {
@@ -1169,7 +1254,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
       view.height = g.output.height;
       view.width = g.output.width;
       views.bf16[dst_slot] = view;
-      if (timed) stamp(step_index);
+      finish();
       continue;
     }
     // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
@@ -1224,7 +1309,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         std::memset(dst16 + static_cast<size_t>(written.height) * written.width * written.channels,
                     0, kBf16TensorSlack);
       }
-      if (timed) stamp(step_index);
+      finish();
       continue;
     }
     if (step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kUpsampleU8 ||
@@ -1258,7 +1343,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         run_blocked(step.fn8, args, g.output.height);
         views.u8[dst_slot] = args.out_u8;
       }
-      if (timed) stamp(step_index);
+      finish();
       continue;
     }
     if (step.kind == Step::Kind::kCrop) {
@@ -1271,7 +1356,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
                   DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
       }
       views.f32[dst_slot] = view;
-      if (timed) stamp(step_index);
+      finish();
       continue;
     }
     float* dst = last
@@ -1381,7 +1466,7 @@ Status Session::Run(std::span<const float> input, int height, int width, std::sp
         break;
     }
     views.f32[dst_slot] = out;
-    if (timed) stamp(step_index);
+    finish();
   }
   return Status::Ok();
 }

@@ -6,6 +6,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "common/sceneednet_spec.h"
@@ -254,12 +255,21 @@ TEST(Quantize, ReportsProgressForEveryFrameOfEveryPass) {
                                              "histogram 2/2", "measure 1/2", "measure 2/2"}));
 }
 
+// With either engine, frames on several threads, and (session) threads left over going to each
+// frame's session: 5 frames on 2, 3 and 8 threads, 1 frame on 2.
 TEST(Quantize, TheThreadCountChangesNoByteOfTheResult) {
   const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
-  const CalibrationSet data = RandomFrames(5, 53);
-  for (QuantizeMode mode : {QuantizeMode::kInt8, QuantizeMode::kAuto}) {
-    SCOPED_TRACE(mode == QuantizeMode::kInt8 ? "int8" : "auto");
+  for (auto [engine, mode, frames] :
+       {std::tuple{CalibrationEngine::kSession, QuantizeMode::kInt8, 5},
+        std::tuple{CalibrationEngine::kSession, QuantizeMode::kAuto, 5},
+        std::tuple{CalibrationEngine::kSession, QuantizeMode::kAuto, 1},
+        std::tuple{CalibrationEngine::kReference, QuantizeMode::kInt8, 5},
+        std::tuple{CalibrationEngine::kReference, QuantizeMode::kAuto, 5}}) {
+    SCOPED_TRACE(std::string(engine == CalibrationEngine::kSession ? "session " : "reference ") +
+                 (mode == QuantizeMode::kInt8 ? "int8 " : "auto ") + std::to_string(frames));
+    const CalibrationSet data = RandomFrames(frames, 53);
     QuantizeOptions options;
+    options.engine = engine;
     options.mode = mode;
     options.accuracy_budget = 1e-2;  // auto: some steps
     auto one = Quantize(spec, data, options);
@@ -278,6 +288,40 @@ TEST(Quantize, TheThreadCountChangesNoByteOfTheResult) {
       EXPECT_FALSE(one->auto_steps.empty());
     }
   }
+}
+
+// The session engine computes the float32 layers on other kernels (Winograd, SIMD sums): the
+// same weights, ranges within a histogram bin or two of the reference engine's, and the same
+// errors to a few percent.
+TEST(Quantize, TheSessionEngineFindsTheReferenceEnginesRangesAndErrors) {
+  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const CalibrationSet data = RandomFrames(3, 61);
+  QuantizeOptions options;
+  options.engine = CalibrationEngine::kReference;
+  auto reference = Quantize(spec, data, options);
+  ASSERT_TRUE(reference.ok()) << reference.message();
+  options.engine = CalibrationEngine::kSession;
+  auto session = Quantize(spec, data, options);
+  ASSERT_TRUE(session.ok()) << session.message();
+  const std::vector<const ConvSpec*> want = Convs(reference->spec);
+  const std::vector<const ConvSpec*> got = Convs(session->spec);
+  ASSERT_EQ(got.size(), want.size());
+  for (size_t j = 0; j < got.size(); ++j) {
+    SCOPED_TRACE(want[j]->name);
+    EXPECT_EQ(got[j]->weights_q, want[j]->weights_q);
+    for (auto [g, w] : {std::pair{got[j]->input_quant, want[j]->input_quant},
+                        std::pair{got[j]->output_quant, want[j]->output_quant}}) {
+      EXPECT_NEAR(g.scale, w.scale, 2e-3 * w.scale);
+      EXPECT_NEAR(g.zero_point, w.zero_point, 1);
+    }
+    EXPECT_NEAR(session->calibration.layers[j].relative_rms,
+                reference->calibration.layers[j].relative_rms,
+                0.05 * reference->calibration.layers[j].relative_rms);
+  }
+  EXPECT_NEAR(session->calibration.output_rms_rel, reference->calibration.output_rms_rel,
+              0.05 * reference->calibration.output_rms_rel);
+  EXPECT_NEAR(session->calibration.output_max_rel, reference->calibration.output_max_rel,
+              0.05 * reference->calibration.output_max_rel);
 }
 
 TEST(Quantize, ThreadsReportEveryFrameOnceInOrderAndZeroThreadsIsAnError) {

@@ -88,6 +88,7 @@ struct ExportArgs {
   std::string calibration_size;
   int calibration_frames = 64;
   int calibration_threads = 1;
+  std::string calibration_engine = "session";
   std::string calibration_method = "percentile:99.99";
   std::string calibration_scales = "shared";
   // The metadata flags given on the command line: a .sfrt source keeps its own value of the rest.
@@ -102,9 +103,9 @@ constexpr const char* kMetadataFlags[] = {
 constexpr const char* kDepthFlags[] = {"--depth-mean", "--depth-std", "--depth-invalid"};
 constexpr size_t kMaxUnitsLength = 64;
 // Flags that only apply with --calibration.
-constexpr const char* kCalibrationFlags[] = {"--calibration-size", "--calibration-frames",
-                                             "--calibration-method", "--calibration-scales",
-                                             "--calibration-threads"};
+constexpr const char* kCalibrationFlags[] = {"--calibration-size",    "--calibration-frames",
+                                             "--calibration-method",  "--calibration-scales",
+                                             "--calibration-threads", "--calibration-engine"};
 
 bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
@@ -624,6 +625,8 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
   options.accuracy_budget = args.accuracy_budget;
   options.auto_bf16 = !args.no_auto_bf16;
   options.threads = args.calibration_threads;
+  options.engine = args.calibration_engine == "reference" ? exporter::CalibrationEngine::kReference
+                                                          : exporter::CalibrationEngine::kSession;
   options.accuracy_metric = args.accuracy_metric == "max" ? exporter::AccuracyMetric::kMax
                                                           : exporter::AccuracyMetric::kRms;
   options.method = args.calibration_method;
@@ -665,7 +668,10 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
   lines->push_back("  frames      " + described);
   lines->push_back("  error       output max " + ErrorText(cal.output_max_rel) + ", rms " +
                    ErrorText(cal.output_rms_rel) +
-                   " relative to float32 over the calibration frames");
+                   " relative to float32 over the calibration frames, on " +
+                   (options.engine == exporter::CalibrationEngine::kReference
+                        ? std::string("the reference kernels")
+                        : std::string("this CPU's ") + IsaName(BestIsa()) + " kernels"));
   for (const LayerErrorDesc& e : cal.layers) {
     lines->push_back("  layer       " + e.layer + std::string(name_width - e.layer.size(), ' ') +
                      "  " + PrecisionName(e.precision) + "  relative rms " +
@@ -1294,10 +1300,17 @@ Command AddExportCommand(CLI::App& parent) {
                   "Use at most the first N frames (windows) of --calibration")
       ->capture_default_str();
   cmd->add_option("--calibration-threads", args->calibration_threads,
-                  "Run N calibration frames at once (the passes run the scalar reference "
-                  "kernels: about 20 s per float32 frame of the full-width model at 540x960); "
-                  "each holds one forward pass's tensors in memory. The file is the same for "
-                  "every N")
+                  "Run N calibration frames at once (threads beyond the frame count go to each "
+                  "frame's session); each holds one forward pass's tensors in memory. The file "
+                  "is the same for every N")
+      ->capture_default_str();
+  cmd->add_option("--calibration-engine", args->calibration_engine,
+                  "What runs the calibration passes: session (this CPU's fastest kernels; the "
+                  "last bits of float32 sums, so the ranges and errors, can differ on a CPU "
+                  "with other kernels) or reference (the scalar reference kernels: the same "
+                  "file on every CPU, but tens of times slower, about 20 s per float32 pass "
+                  "of a full-width 540x960 frame)")
+      ->check(CLI::IsMember({"session", "reference"}))
       ->capture_default_str();
   cmd->add_option("--calibration-method", args->calibration_method,
                   "How activation ranges are chosen: percentile:P (the central P percent of the "

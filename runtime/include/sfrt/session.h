@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "sfrt/isa.h"
+#include "sfrt/layer_observer.h"
 #include "sfrt/model.h"
 #include "sfrt/shapes.h"
 #include "sfrt/status.h"
@@ -132,6 +133,18 @@ class Session {
   Status Run(std::span<const float> input, int height, int width, std::span<float> output,
              std::span<int64_t> step_end_ns);
 
+  // As Run(), and shows `observer` the output of each step's last layer after the step, in
+  // step order, on the calling thread (sfrt/layer_observer.h): the tensor as this session holds
+  // it (a uint8 tensor dequantised with the quantisation it was written with, a bf16 one
+  // widened, a strided view copied dense). Layers a step fuses before its last (a nearest
+  // upsampling and crop that a convolution reads through) have no tensor and are not shown; nor
+  // are the steps that convert a float32 tensor for an int8 or bf16 convolution, nor an
+  // upsampling that writes only the crop a Concat in place takes of it (the crop is shown). A
+  // Concat is shown once all its inputs are written. For calibration and debugging: this call
+  // allocates (the dequantised copies, kept for the next call), unlike Run().
+  Status RunObserved(std::span<const float> input, int height, int width, std::span<float> output,
+                     const LayerObserver& observer);
+
   const Model& model() const { return *model_; }
   const SessionOptions& options() const { return options_; }
   size_t arena_bytes() const { return arena_bytes_; }
@@ -146,6 +159,10 @@ class Session {
  private:
   struct Step;
   struct Views;
+  struct Observation;
+  Status Execute(std::span<const float> input, int height, int width, std::span<float> output,
+                 std::span<int64_t> step_end_ns, Observation* observation);
+  void Observe(const Step& step, size_t src_slot, Observation& observation) const;
   class Pool;
   Session() = default;
   Status Plan();
@@ -168,6 +185,7 @@ class Session {
   size_t packed8_bytes_ = 0;
   void* packed8_ = nullptr;  // 64-byte aligned int8 and bf16 packings (int8_, bf16_packing.h)
   std::unique_ptr<Pool> pool_;
+  std::unique_ptr<Observation> observation_;  // RunObserved's, from its first call
 };
 
 }  // namespace sfrt

@@ -4,25 +4,26 @@
 // Method "percentile:P" (docs/model-format.md, "Calibration"):
 // - Activations: every tensor an int8 convolution reads or writes (the model input, and each
 //   convolution's output) is observed on the float32 model over all calibration frames
-//   (RunReferenceForward). Pass 1 finds its [min, max]; pass 2 counts its values into 4096
-//   equal bins over [min, max]. hi = the upper edge of the bin holding the value of rank
-//   ceil(P/100 * count) from the bottom, lo = the lower edge of the bin holding the value of
-//   the same rank from the top (P = 100: min and max exactly). Then lo = min(lo, 0) and
-//   hi = max(hi, 0), so that real zero is exactly representable: scale = (hi - lo) / 255,
-//   zero_point = round(-lo / scale) clamped to 0..255; a tensor that is 0 everywhere gets
-//   scale 1, zero point 0. "minmax" is percentile:100.
+//   (QuantizeOptions::engine: a Session's RunObserved, or RunReferenceForward). Pass 1 finds its
+//   [min, max]; pass 2 counts its values into 4096 equal bins over [min, max]. hi = the upper edge
+//   of the bin holding the value of rank ceil(P/100 * count) from the bottom, lo = the lower edge
+//   of the bin holding the value of the same rank from the top (P = 100: min and max exactly). Then
+//   lo = min(lo, 0) and hi = max(hi, 0), so that real zero is exactly representable: scale = (hi -
+//   lo) / 255, zero_point = round(-lo / scale) clamped to 0..255; a tensor that is 0 everywhere
+//   gets scale 1, zero point 0. "minmax" is percentile:100.
 // - Weights: symmetric per output channel, scale = max |w| / 127 (1 for a channel of zeros),
 //   q = round-half-even(w / scale) clamped to -127..127. Biases stay float.
 // - A convolution's input_quant is the quantisation of the tensor it reads (the previous
 //   convolution's output, through any upsampling and crop, or the model input), its
 //   output_quant that of its own output: so an int8 convolution feeding an int8 convolution
 //   always hands over exactly the parameters the reader expects.
-// Errors (the quantised model on the reference kernels vs float32, over the calibration set,
-// sums over all frames): per convolution relative_rms = RMS(out - fp32 out) / RMS(fp32 out)
-// (0 when both are 0, infinity when only the reference is); the model output's
+// Errors (the quantised model vs float32, both on the engine's kernels, over the calibration
+// set, sums over all frames; a tensor a session keeps uint8 between int8 convolutions is
+// measured as it holds it, dequantised): per convolution relative_rms = RMS(out - fp32 out) /
+// RMS(fp32 out) (0 when both are 0, infinity when only the reference is); the model output's
 // output_max_rel = max |diff| / max |fp32| and output_rms_rel likewise.
 // Everything is deterministic: the same spec, data and options give the same bytes, whatever
-// QuantizeOptions::threads.
+// QuantizeOptions::threads, on one CPU (and on every CPU with CalibrationEngine::kReference).
 #pragma once
 
 #include <functional>
@@ -61,6 +62,17 @@ enum class QuantizeMode {
 // (output_max_rel, the measure of issue 12's fixture bars).
 enum class AccuracyMetric { kRms, kMax };
 
+// What runs the forward passes of calibration and measurement.
+enum class CalibrationEngine {
+  // A Session per worker thread (sfrt/session.h, RunObserved) on this CPU's fastest kernels,
+  // tens of times faster than the reference. Its float32 layers (Winograd, SIMD sums) round
+  // their last bits by the ISA, so a CPU with other kernels may give other ranges and errors.
+  kSession,
+  // The scalar reference forward pass (sfrt/reference.h): the same file on every CPU; slow (a
+  // full-width SceneEDNet frame takes about 20 s per pass).
+  kReference,
+};
+
 struct QuantizeOptions {
   QuantizeMode mode = QuantizeMode::kInt8;
   double accuracy_budget = 0.02;  // kAuto: the largest output error accepted
@@ -75,10 +87,13 @@ struct QuantizeOptions {
   // false: each convolution's input gets its own range. Chains are the same either way. The
   // record's method then ends in ", shared scales" (where some group has two members).
   bool shared_scales = true;
-  // Calibration frames run on this many threads at once (at most one per frame). Each holds one
-  // reference forward pass's tensors, so memory grows with it; the result does not change by a
-  // bit (ranges are minima and maxima, histograms integer counts, and the error sums are added
-  // in frame order).
+  CalibrationEngine engine = CalibrationEngine::kSession;
+  // Calibration frames run on this many threads at once (at most one per frame; with kSession,
+  // threads left over go to each frame's session). Each worker holds one forward pass's tensors
+  // (kSession: a session of the float32 model and one of the quantised model), so memory grows
+  // with it; the result does not change by a bit (ranges are minima and maxima, histograms
+  // integer counts, the error sums are added in frame order, and a session's output does not
+  // depend on its thread count).
   int threads = 1;
   // Called after each frame of each pass, one call at a time, `frame` counting the frames done:
   // pass is "range", "histogram" or "measure".
