@@ -4,13 +4,14 @@
 // Method "percentile:P" (docs/model-format.md, "Calibration"):
 // - Activations: every tensor an int8 convolution reads or writes (the model input, and each
 //   convolution's output) is observed on the float32 model over all calibration frames
-//   (QuantizeOptions::engine: a Session's RunObserved, or RunReferenceForward). Pass 1 finds its
-//   [min, max]; pass 2 counts its values into 4096 equal bins over [min, max]. hi = the upper edge
-//   of the bin holding the value of rank ceil(P/100 * count) from the bottom, lo = the lower edge
-//   of the bin holding the value of the same rank from the top (P = 100: min and max exactly). Then
-//   lo = min(lo, 0) and hi = max(hi, 0), so that real zero is exactly representable: scale = (hi -
-//   lo) / 255, zero_point = round(-lo / scale) clamped to 0..255; a tensor that is 0 everywhere
-//   gets scale 1, zero point 0. "minmax" is percentile:100.
+//   (QuantizeOptions::engine: a Session's RunObserved, or RunReferenceForward). Pass 1 finds
+//   its [min, max]; pass 2 counts its values into 4096 equal bins over [min, max].
+//   hi = the upper edge of the bin holding the value of rank ceil(P/100 * count) from the
+//   bottom, lo = the lower edge of the bin holding the value of the same rank from the top
+//   (P = 100: min and max exactly). Then lo = min(lo, 0) and hi = max(hi, 0), so that real zero
+//   is exactly representable: scale = (hi - lo) / 255, zero_point = round(-lo / scale) clamped
+//   to 0..255; a tensor that is 0 everywhere gets scale 1, zero point 0. "minmax" is
+//   percentile:100.
 // - Weights: symmetric per output channel, scale = max |w| / 127 (1 for a channel of zeros),
 //   q = round-half-even(w / scale) clamped to -127..127. Biases stay float.
 // - A convolution's input_quant is the quantisation of the tensor it reads (the previous
