@@ -1107,27 +1107,23 @@ void Session::Observe(const Step& step, size_t src_slot, Observation& observatio
   }
   observation.values.resize(shape.elements());
   float* out = observation.values.data();
+  // Copies a view of any element type dense, each element as `real` makes it a float.
+  auto copy_dense = [&](const auto& v, auto real) {
+    for (int y = 0; y < shape.height; ++y) {
+      for (int x = 0; x < shape.width; ++x) {
+        const auto* p = v.pixel(y, x);
+        for (int c = 0; c < shape.channels; ++c) *out++ = real(p[c]);
+      }
+    }
+  };
   if (step.out_u8) {
-    const ConstByteView& v = views.u8[slot];
-    for (int y = 0; y < shape.height; ++y) {
-      for (int x = 0; x < shape.width; ++x) {
-        const uint8_t* p = v.pixel(y, x);
-        for (int c = 0; c < shape.channels; ++c)
-          *out++ = q.scale * static_cast<float>(static_cast<int>(p[c]) - q.zero_point);
-      }
-    }
+    copy_dense(views.u8[slot], [q](uint8_t v) {
+      return q.scale * static_cast<float>(static_cast<int>(v) - q.zero_point);
+    });
   } else if (step.out_bf16) {
-    const ConstBf16View& v = views.bf16[slot];
-    for (int y = 0; y < shape.height; ++y) {
-      for (int x = 0; x < shape.width; ++x) {
-        const uint16_t* p = v.pixel(y, x);
-        for (int c = 0; c < shape.channels; ++c) *out++ = Bf16ToFloat(p[c]);
-      }
-    }
+    copy_dense(views.bf16[slot], Bf16ToFloat);
   } else {
-    const ConstTensorView& v = views.f32[slot];
-    for (int y = 0; y < shape.height; ++y, out += row)
-      std::memcpy(out, v.pixel(y, 0), row * sizeof(float));
+    copy_dense(views.f32[slot], [](float v) { return v; });
   }
   (*observation.observer)(step.last_layer, shape, observation.values);
 }
