@@ -7,6 +7,10 @@ network and input that tests/fixtures/gen_sceneednet.py makes (seed 0), with flo
 convolutions, so that the error of the storage formats themselves can be told from any
 implementation's:
   bf16        weights and each convolution's input rounded to bfloat16
+  bf16-phases bf16, and the four upsample->conv layers by sfrt's exact phase shortcut as its bf16
+              kernels run it: each phase's 2x2 kernel summed from the float32 3x3 weights, then
+              rounded to bfloat16 (issue 12: phase weights summed before quantisation); border
+              pixels direct
   int8        weights symmetric per output channel, each convolution's input quantised to uint8
               with one range per tensor (its min and max on this input)
   int8-chan   the same with one range per input channel (an ideal: integer kernels cannot
@@ -14,6 +18,14 @@ implementation's:
   int8-chan-folded  one range per input channel as integer kernels would have to do it: each
               channel's scale folded into the weights, which are then quantised per output
               channel (so a wide channel coarsens the weights of all the others)
+  bf16-biascorr, int8-biascorr
+              bf16, int8 with each convolution's bias corrected by the mean over this input of its
+              output's error against float32 (per channel, the layers before it already
+              corrected): empirical bias correction, calibrated in-sample as the fixture sweep's
+              int8 is
+  bf16-ends, int8-ends
+              bf16, int8 with the first and the output convolution kept float32 (what issue 12
+              allows --precision auto to keep)
   int8-wino   int8, and the Winograd algorithm on the stride-1 convolutions as reduced-precision
               kernels would run it: conv4 and conv5 by F(2x2,3x3), the four upsample->conv
               layers by F(2x2,2x2) on each phase's 2x2 kernel (sfrt's exact phase shortcut);
@@ -161,9 +173,18 @@ WINOGRAD_VARIANTS = {  # name: (F(m,3) for conv4 and conv5, in_domain, w_domain)
     "bf16-wino23": (2, lambda v: to_bf16(v).double(), lambda u: to_bf16(u).double()),
 }
 
+PHASE_VARIANTS = {  # name: how the phases' 2x2 kernels (summed in float64) are rounded
+    "bf16-phases": to_bf16,
+}
+
 VARIANTS = {
     "bf16": (to_bf16, to_bf16),
+    "bf16-phases": (to_bf16, to_bf16),
+    "bf16-ends": (to_bf16, to_bf16),
+    "bf16-biascorr": (to_bf16, to_bf16),
     "int8": (int8_weights, lambda t: uint8_activations(t, False)),
+    "int8-ends": (int8_weights, lambda t: uint8_activations(t, False)),
+    "int8-biascorr": (int8_weights, lambda t: uint8_activations(t, False)),
     "int8-chan": (int8_weights, lambda t: uint8_activations(t, True)),
     "int8-chan-folded": (None, None),  # folded_conv
     "int8-wino": (int8_weights, lambda t: uint8_activations(t, False)),
@@ -192,25 +213,40 @@ def main():
     up_layers = [model.conv6, model.conv7, model.conv8, model.conv9]  # each after an upsampling
     lows = []  # the inputs of the upsamplings so far
 
-    def run(weights=None, activations=None, folded=False, winograd=None):
+    float_outputs = []  # each convolution's float32 output, in call order (for the bias correction)
+
+    def run(weights=None, activations=None, folded=False, winograd=None, phases=None,
+            keep_ends=False, bias_correct=False, record=None):
+        seen = [] if record is None else record  # this run's convolution outputs so far
+
         def conv(self, c, t):
             top, bottom = sceneednet._same_pad_amounts(t.shape[2], c.stride[0])
             left, right = sceneednet._same_pad_amounts(t.shape[3], c.stride[1])
             t = F.pad(t, [left, right, top, bottom])
             if folded:
                 t, w = folded_conv(t.double(), c.weight.double())
+            elif keep_ends and c in (model.conv0, model.output):
+                w = c.weight
             else:
                 w = weights(c.weight) if weights else c.weight
                 t = activations(t) if activations else t
             y = F.conv2d(t.double(), w.double(), c.bias.double(), c.stride)
-            if winograd is None or c.stride[0] != 1 or (c not in up_layers and
-                                                        c not in (model.conv4, model.conv5)):
-                return y.float()
-            m, in_domain, w_domain = winograd
             bias = c.bias.double().view(1, -1, 1, 1)
-            if c not in up_layers:
+            if phases is not None and c in up_layers:
+                conv2x2 = lambda d, k: F.conv2d(d, phases(k).double())  # noqa: E731
+            elif winograd is None or c.stride[0] != 1 or (c not in up_layers and
+                                                          c not in (model.conv4, model.conv5)):
+                if bias_correct:
+                    y = y - (y - float_outputs[len(seen)]).mean(dim=(0, 2, 3), keepdim=True)
+                seen.append(y)
+                return y.float()
+            elif c not in up_layers:
+                m, in_domain, w_domain = winograd
                 return (winograd_conv(t.double(), c.weight.double(), m, in_domain, w_domain) +
                         bias).float()
+            else:
+                _, in_domain, w_domain = winograd
+                conv2x2 = lambda d, k: winograd_conv(d, k, 2, in_domain, w_domain)  # noqa: E731
             # The rounded upsampled map's low-resolution pixels (the crop drops the top rows and
             # left columns: low row i is upsampled row 2i - crop, row 0 for i = 0).
             low = lows[-1]
@@ -218,9 +254,8 @@ def main():
             iy = [max(2 * i - crop[0], 0) + 1 for i in range(low.shape[2])]  # + 1: the pad
             ix = [max(2 * i - crop[1], 0) + 1 for i in range(low.shape[3])]
             low_rounded = t.double()[:, :, iy][:, :, :, ix]
-            return (upsampled_conv_by_phases(
-                low_rounded, crop, c.weight.double(), y - bias,
-                lambda d, k: winograd_conv(d, k, 2, in_domain, w_domain)) + bias).float()
+            return (upsampled_conv_by_phases(low_rounded, crop, c.weight.double(), y - bias,
+                                             conv2x2) + bias).float()
 
         def upsample(t):
             lows.append(t)
@@ -254,13 +289,15 @@ def main():
 
     with torch.no_grad():
         check_transforms()
-        ref = run()
+        ref = run(record=float_outputs)
         largest = ref.abs().max().item()
         rms = ref.pow(2).mean().sqrt().item()
         print(f"SceneEDNet 1/{args.width_div} width at {args.height}x{args.width}, seed 0: "
               f"largest |output| {largest:.4g}")
         outputs = {name: run(*fns, folded=name == "int8-chan-folded",
-                             winograd=WINOGRAD_VARIANTS.get(name))
+                             winograd=WINOGRAD_VARIANTS.get(name), phases=PHASE_VARIANTS.get(name),
+                             keep_ends=name.endswith("-ends"),
+                             bias_correct=name.endswith("-biascorr"))
                    for name, fns in VARIANTS.items()}
         for m in (2, 4):
             exact = run(winograd=(m, None, None))  # the algorithm alone, float64
