@@ -208,6 +208,20 @@ struct Errors {
   double output_rms_rel = 0;
 };
 
+// How the bias correction turns a convolution's output back into the value before its
+// activation: y >= 0 ? y : y / leaky_slope (no activation: slope 1), or not at all.
+struct PreActivation {
+  bool invertible = false;
+  float leaky_slope = 1.0f;
+  double operator()(float y) const { return y >= 0.0f ? y : static_cast<double>(y) / leaky_slope; }
+};
+
+PreActivation PreActivationOf(const ConvSpec& c) {
+  if (c.activation == Activation::kNone) return {true, 1.0f};
+  if (c.activation == Activation::kLeakyRelu && c.leaky_slope > 0.0f) return {true, c.leaky_slope};
+  return {};
+}
+
 // Runs the float32 model over the calibration set: the activation statistics, and the reference
 // outputs the quantised models are measured against. Forward passes on QuantizeOptions::engine.
 class Calibrator {
@@ -426,6 +440,64 @@ class Calibrator {
     return errors;
   }
 
+  // For each convolution j that inverse[j] can invert, the mean over the calibration frames and
+  // pixels of each output channel's value before its activation, inverse[j] of what `model`'s
+  // forward pass shows of it; an empty vector for the others. Frames on Workers() threads; each
+  // frame's sums are added in frame order, so the thread count does not change a bit.
+  Result<std::vector<std::vector<double>>> PreActivationMeans(
+      const std::shared_ptr<const Model>& model, std::span<const PreActivation> inverse,
+      const char* pass) {
+    const size_t convs = conv_layers_.size();
+    struct FrameSums {
+      std::vector<std::vector<double>> sums;  // per convolution, per channel
+      std::vector<size_t> pixels;             // per convolution
+    };
+    std::vector<FrameSums> frames(static_cast<size_t>(data_.frames));
+    const int workers = Workers();
+    std::vector<std::vector<float>> outputs(static_cast<size_t>(workers),
+                                            std::vector<float>(output_elements_));
+    int frames_done = 0;
+    const auto frame = [&](int f, int worker) -> Status {
+      FrameSums& e = frames[static_cast<size_t>(f)];
+      e.sums.assign(convs, {});
+      e.pixels.assign(convs, 0);
+      const LayerObserver add = [&](int layer, const TensorShape& shape,
+                                    std::span<const float> values) {
+        const int j = conv_of_layer_[static_cast<size_t>(layer)];
+        if (j < 0 || !inverse[static_cast<size_t>(j)].invertible) return;
+        const PreActivation& pre = inverse[static_cast<size_t>(j)];
+        std::vector<double>& sums = e.sums[static_cast<size_t>(j)];
+        const auto channels = static_cast<size_t>(shape.channels);
+        sums.assign(channels, 0.0);
+        for (size_t k = 0; k < values.size(); ++k) sums[k % channels] += pre(values[k]);
+        e.pixels[static_cast<size_t>(j)] = values.size() / channels;
+      };
+      return Forward(model, worker, FrameValues(data_, f), outputs[static_cast<size_t>(worker)],
+                     add);
+    };
+    if (Status s =
+            ForEachFrame(data_.frames, workers, frame, [&] { Progress(pass, frames_done++); });
+        !s.ok()) {
+      return s;
+    }
+    std::vector<std::vector<double>> means(convs);
+    for (size_t j = 0; j < convs; ++j) {
+      if (!inverse[j].invertible) continue;
+      size_t pixels = 0;
+      for (const FrameSums& e : frames) {
+        if (e.sums[j].empty()) {
+          return Status::Error("calibration saw no value of convolution " + std::to_string(j) +
+                               " (internal error)");
+        }
+        means[j].resize(e.sums[j].size(), 0.0);
+        for (size_t c = 0; c < e.sums[j].size(); ++c) means[j][c] += e.sums[j][c];
+        pixels += e.pixels[j];
+      }
+      for (double& m : means[j]) m /= static_cast<double>(pixels);
+    }
+    return means;
+  }
+
  private:
   struct Reference {
     std::vector<std::vector<float>> convs;
@@ -512,6 +584,46 @@ ModelSpec BuildSpec(const ModelSpec& fp32, const std::vector<Precision>& precisi
     ++j;
   }
   return out;
+}
+
+// Empirical bias correction (QuantizeOptions::bias_correction): each int8 convolution whose
+// activation PreActivationOf inverts, in order, has its bias moved per output channel by the
+// mean of its pre-activation error against float32 over the calibration frames, measured on the
+// quantised model with the corrections before it made. The biases are written into `spec` (the
+// float32 model the quantised one is built from).
+Status CorrectBiases(Calibrator& calibrator, const std::shared_ptr<const Model>& fp32,
+                     std::span<const int> conv_layers, const std::vector<Precision>& precision,
+                     const std::vector<QuantParams>& input_quant,
+                     const std::vector<QuantParams>& output_quant,
+                     const std::vector<QuantizedWeights>& weights, ModelSpec* spec) {
+  const size_t convs = conv_layers.size();
+  auto conv = [&](size_t j) -> ConvSpec& {
+    return std::get<ConvSpec>(spec->layers[static_cast<size_t>(conv_layers[j])]);
+  };
+  std::vector<PreActivation> inverse(convs);
+  for (size_t j = 0; j < convs; ++j) {
+    if (precision[j] == Precision::kInt8) inverse[j] = PreActivationOf(conv(j));
+  }
+  Result<std::vector<std::vector<double>>> reference =
+      calibrator.PreActivationMeans(fp32, inverse, "bias correction: float32");
+  if (!reference.ok()) return reference.status();
+  for (size_t j = 0; j < convs; ++j) {
+    if (!inverse[j].invertible) continue;
+    std::vector<PreActivation> only(convs);
+    only[j] = inverse[j];
+    Result<std::shared_ptr<const Model>> quantised = Load(
+        BuildSpec(*spec, precision, input_quant, output_quant, weights), "the quantised model");
+    if (!quantised.ok()) return quantised.status();
+    const std::string pass = "bias correction: " + conv(j).name;
+    Result<std::vector<std::vector<double>>> means =
+        calibrator.PreActivationMeans(*quantised, only, pass.c_str());
+    if (!means.ok()) return means.status();
+    std::vector<float>& bias = conv(j).bias;
+    for (size_t o = 0; o < bias.size(); ++o) {
+      bias[o] -= static_cast<float>((*means)[j][o] - (*reference)[j][o]);
+    }
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -698,6 +810,11 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     return Status::Error("accuracy budget " + Sci(options.accuracy_budget) +
                          ": must be a finite number >= 0");
   }
+  if (options.bias_correction && options.mode != QuantizeMode::kInt8) {
+    return Status::Error(
+        "bias correction is for int8 quantisation (every convolution int8), "
+        "not the auto mode");
+  }
   std::vector<int> conv_layers;
   std::vector<std::string> names;
   std::vector<Precision> precision;  // int8 where it can be, float32 otherwise (ReducibleConv)
@@ -755,10 +872,19 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     }
   }
 
+  // The float32 model the quantised ones are built from: its biases corrected, or as given.
+  ModelSpec base = fp32_spec;
+  if (options.bias_correction) {
+    if (Status s = CorrectBiases(calibrator, *fp32, conv_layers, precision, input_quant,
+                                 output_quant, weights, &base);
+        !s.ok()) {
+      return s;
+    }
+  }
   QuantizeResult result;
   Errors errors;
   while (true) {
-    result.spec = BuildSpec(fp32_spec, precision, input_quant, output_quant, weights);
+    result.spec = BuildSpec(base, precision, input_quant, output_quant, weights);
     Result<std::shared_ptr<const Model>> quantised = Load(result.spec, "the quantised model");
     if (!quantised.ok()) return quantised.status();
     Result<Errors> measured = calibrator.Measure(*quantised);
@@ -799,7 +925,8 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   std::sort(sorted_groups.begin(), sorted_groups.end());
   const bool shared =
       std::adjacent_find(sorted_groups.begin(), sorted_groups.end()) != sorted_groups.end();
-  cal.method = method->text + (shared ? ", shared scales" : "");
+  cal.method = method->text + (shared ? ", shared scales" : "") +
+               (options.bias_correction ? ", bias correction" : "");
   cal.data_sha256 = CalibrationDataSha256(data);
   cal.frames = data.frames;
   cal.height = data.height;

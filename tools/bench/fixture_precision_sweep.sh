@@ -6,11 +6,13 @@
 # each precision's largest error against PyTorch's float32 output, relative to that output's
 # largest |value| (the bars: bf16 2e-2, int8 5e-2), and whether it is within its bar.
 #
-# Usage: bash tools/bench/fixture_precision_sweep.sh [--method M] [--engine E] [--auto] [--cases REGEX] FIXTURE_DIR
+# Usage: bash tools/bench/fixture_precision_sweep.sh [--method M] [--engine E] [--bias-correction]
+#          [--auto] [--cases REGEX] FIXTURE_DIR
 #   FIXTURE_DIR: where the suite was generated (build/release/fixtures after ctest has run, or
 #   `/usr/bin/python3 tests/fixtures/gen_sceneednet.py --suite --out-dir DIR`).
 #   --method: sfrt export's --calibration-method for int8 (default percentile:99.99, its default).
 #   --engine: sfrt export's --calibration-engine, session (its default) or reference.
+#   --bias-correction: int8 exported with sfrt export --bias-correction.
 #   --auto: also --precision auto with the int8 bar as its budget on the largest error
 #     (--accuracy-metric max --accuracy-budget 5e-2), and how many convolutions stayed int8.
 #   --cases: only the cases whose name matches this extended regular expression.
@@ -22,19 +24,21 @@ method="percentile:99.99"
 engine="session"
 cases_re="."
 auto=0
+int8_flags=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --method) method="$2"; shift 2 ;;
     --engine) engine="$2"; shift 2 ;;
     --auto) auto=1; shift ;;
+    --bias-correction) int8_flags+=(--bias-correction); shift ;;
     --cases) cases_re="$2"; shift 2 ;;
-    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "fixture_precision_sweep.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) break ;;
   esac
 done
 if [[ $# -ne 1 ]]; then
-  echo "usage: bash tools/bench/fixture_precision_sweep.sh [--method M] [--engine E] [--auto] [--cases REGEX] FIXTURE_DIR" >&2
+  echo "usage: bash tools/bench/fixture_precision_sweep.sh [--method M] [--engine E] [--bias-correction] [--auto] [--cases REGEX] FIXTURE_DIR" >&2
   exit 2
 fi
 fixtures="$1"
@@ -51,7 +55,7 @@ fi
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-echo "fixtures $fixtures, int8 calibration method $method on the $engine engine (on each fixture's own input)"
+echo "fixtures $fixtures, int8 calibration method $method${int8_flags[*]:+ with ${int8_flags[*]}} on the $engine engine (on each fixture's own input)"
 precisions=(bf16 int8)
 header="$(printf '%-32s %13s %13s' "case" "bf16 max" "int8 max")"
 if [[ $auto == 1 ]]; then
@@ -69,7 +73,8 @@ while read -r name _h _w; do
   "$sfrt" export "$work/$name.sfrt" -o "$work/$name-bf16.sfrt" --precision bf16 > "$work/log" 2>&1 ||
     { echo "$name: bf16 export failed:"; cat "$work/log"; exit 1; }
   "$sfrt" export "$work/$name.sfrt" -o "$work/$name-int8.sfrt" --precision int8 \
-    --calibration "$in" --calibration-method "$method" --calibration-engine "$engine" > "$work/log" 2>&1 ||
+    --calibration "$in" --calibration-method "$method" --calibration-engine "$engine" \
+    "${int8_flags[@]}" > "$work/log" 2>&1 ||
     { echo "$name: int8 export failed:"; cat "$work/log"; exit 1; }
   mix=""
   if [[ $auto == 1 ]]; then

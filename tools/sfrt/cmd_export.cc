@@ -85,6 +85,7 @@ struct ExportArgs {
   double accuracy_budget = 0.02;
   std::string accuracy_metric = "rms";
   bool no_auto_bf16 = false;
+  bool bias_correction = false;
   std::string calibration_size;
   int calibration_frames = 64;
   int calibration_threads = 1;
@@ -624,6 +625,7 @@ Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
       args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
   options.accuracy_budget = args.accuracy_budget;
   options.auto_bf16 = !args.no_auto_bf16;
+  options.bias_correction = args.bias_correction;
   options.threads = args.calibration_threads;
   options.engine = args.calibration_engine == "reference" ? exporter::CalibrationEngine::kReference
                                                           : exporter::CalibrationEngine::kSession;
@@ -854,6 +856,9 @@ int RunExport(const ExportArgs& args) {
   }
   if (args.no_auto_bf16 && args.precision != "auto") {
     return ReportError(kName, "--no-auto-bf16 applies to --precision auto", kExitUsage);
+  }
+  if (args.bias_correction && args.precision != "int8") {
+    return ReportError(kName, "--bias-correction applies to --precision int8", kExitUsage);
   }
   if (Given(args, "--accuracy-metric") && args.precision != "auto") {
     return ReportError(kName, "--accuracy-metric applies to --precision auto", kExitUsage);
@@ -1324,6 +1329,11 @@ Command AddExportCommand(CLI::App& parent) {
                   "same either way")
       ->check(CLI::IsMember({"shared", "per-tensor"}))
       ->capture_default_str();
+  cmd->add_flag("--bias-correction", args->bias_correction,
+                "--precision int8: move each int8 convolution's bias by the mean error (before "
+                "its activation) each output channel shows against float32 on the calibration "
+                "frames, one convolution after the other (one more pass over the frames per "
+                "convolution); recorded in the file's calibration method");
   args->tolerance_opt =
       cmd->add_option("--tolerance", args->tolerance,
                       "Parity tolerance: largest allowed |error| relative to the reference's "

@@ -13,7 +13,8 @@
 //   to 0..255; a tensor that is 0 everywhere gets scale 1, zero point 0. "minmax" is
 //   percentile:100.
 // - Weights: symmetric per output channel, scale = max |w| / 127 (1 for a channel of zeros),
-//   q = round-half-even(w / scale) clamped to -127..127. Biases stay float.
+//   q = round-half-even(w / scale) clamped to -127..127. Biases stay float (with
+//   QuantizeOptions::bias_correction, moved by the mean error each channel shows).
 // - A convolution's input_quant is the quantisation of the tensor it reads (the previous
 //   convolution's output, through any upsampling and crop, or the model input), its
 //   output_quant that of its own output: so an int8 convolution feeding an int8 convolution
@@ -88,6 +89,16 @@ struct QuantizeOptions {
   // false: each convolution's input gets its own range. Chains are the same either way. The
   // record's method then ends in ", shared scales" (where some group has two members).
   bool shared_scales = true;
+  // kInt8 only: empirical bias correction. After the ranges and weights are chosen, each int8
+  // convolution in turn has its (float) bias moved, per output channel, by the mean over the
+  // calibration frames and pixels of its error before the activation against float32, measured
+  // on the quantised model with the corrections before it made: one pass over the frames per
+  // convolution, and one of the float32 model. The value before the activation is its output
+  // with leaky ReLU inverted (no activation: as it is); a convolution with another activation
+  // keeps its bias. The record's method then ends in ", bias correction". It removes the part
+  // of the error that is the same at every pixel of a channel (rounding of weights and inputs
+  // that does not average out over a sum).
+  bool bias_correction = false;
   CalibrationEngine engine = CalibrationEngine::kSession;
   // Calibration frames run on this many threads at once (at most one per frame; with kSession,
   // threads left over go to each frame's session). Each worker holds one forward pass's tensors
@@ -97,7 +108,8 @@ struct QuantizeOptions {
   // depend on its thread count).
   int threads = 1;
   // Called after each frame of each pass, one call at a time, `frame` counting the frames done:
-  // pass is "range", "histogram" or "measure".
+  // pass is "range", "histogram" or "measure", and with bias_correction "bias correction:
+  // float32" and "bias correction: LAYER" for each corrected convolution.
   std::function<void(const char* pass, int frame, int frames)> progress;
 };
 
