@@ -10,8 +10,8 @@
 # `sfrt bench` its own seeded input (no kernel's time depends on the values).
 #
 # Usage: bash tools/bench/compare_peers.sh [--peers LIST] [--sfrt-precision fp32,bf16,int8]
-#          [--calibration CAL.npy] [--opencv-model FILE.onnx] MODEL.onnx HxW [THREADS=1,2]
-#          [ROUNDS=3] [RUNS=2]
+#          [--calibration CAL.npy] [--opencv-model FILE.onnx] [--json FILE] MODEL.onnx HxW
+#          [THREADS=1,2] [ROUNDS=3] [RUNS=2]
 # --peers: any of ort, ort-int8, opencv, torch-bf16, torch-fp32 (default ort,opencv). The
 #   strongest on x86: --peers ort,ort-int8,torch-bf16. At full width 540x960, 2 threads, one
 #   run takes seconds: about 2 s (ort), 1-2 s (ort-int8, torch-bf16), 3 s (opencv).
@@ -28,6 +28,9 @@
 #   --calibration CAL.npy` (its error is printed).
 # --calibration: float32 .npy (N,H,W,12) network inputs for sfrt int8 and ort-int8 alike
 #   (default: 2 seeded frames of integers 0..255 at 96x128; percentile:99.99 for both).
+# --json: also write the summary to FILE: per thread count, each configuration's median_ms,
+#   gflops and peak_rss_mib, and each sfrt precision's ratio to each peer (the ratio of medians
+#   and its per-round lowest and highest).
 # --opencv-model: the ONNX file OpenCV DNN runs instead of MODEL. OpenCV DNN 4.6 cannot parse
 #   the tf-padding exports (their Pad amounts come from a Clip with min/max inputs); give it the
 #   torch-padding export of the same network (gen_sceneednet.py --padding torch: same shapes
@@ -47,21 +50,24 @@ peers="ort,opencv"
 precisions="fp32"
 calibration=""
 opencv_model=""
+json_out=""
 while [[ $# -gt 0 ]]; do
   case "$1" in
-    --peers | --sfrt-precision | --calibration | --opencv-model)
+    --peers | --sfrt-precision | --calibration | --opencv-model | --json)
       [[ $# -ge 2 ]] || { echo "${me}: $1 needs a value" >&2; exit 2; }
       case "$1" in
         --peers) peers="$2" ;;
         --sfrt-precision) precisions="$2" ;;
         --calibration) calibration="$2" ;;
         --opencv-model) opencv_model="$2" ;;
+        --json) json_out="$2" ;;
       esac
       shift 2 ;;
     --peers=*) peers="${1#--peers=}"; shift ;;
     --sfrt-precision=*) precisions="${1#--sfrt-precision=}"; shift ;;
     --calibration=*) calibration="${1#--calibration=}"; shift ;;
     --opencv-model=*) opencv_model="${1#--opencv-model=}"; shift ;;
+    --json=*) json_out="${1#--json=}"; shift ;;
     *) break ;;
   esac
 done
@@ -259,11 +265,13 @@ for round in $(seq 1 "${rounds}"); do
   done
 done
 
-"${python}" - "${work}" "${threads_list}" "${precisions}" "${peers}" <<'PY'
-import glob, json, statistics, sys
+"${python}" - "${work}" "${threads_list}" "${precisions}" "${peers}" "${json_out}" <<'PY'
+import glob, json, os, statistics, sys
 work, threads = sys.argv[1], [int(t) for t in sys.argv[2].split(',')]
 sfrts = ["sfrt-" + q for q in sys.argv[3].split(',')]
 peers = sys.argv[4].split(',')
+json_out = sys.argv[5]
+summary = {"threads": {}}
 
 def last_json(path):
     return json.loads(open(path).read().strip().splitlines()[-1])
@@ -288,8 +296,11 @@ for t in threads:
         mib[p] = max(j["peak_rss_mib"] for j in o)
     print(f"threads {t}")
     print(f"  {'':<{w}} {'median ms':>10} {'GF/s':>8} {'peak MiB':>9}")
+    entry = summary["threads"][str(t)] = {"configurations": {}, "ratios": {}}
     for c in sfrts + peers:
         print(f"  {c:<{w}} {median[c]:>10.1f} {2 * macs / median[c] / 1e6:>8.1f} {mib[c]:>9.1f}")
+        entry["configurations"][c] = {"median_ms": median[c], "gflops": 2 * macs / median[c] / 1e6,
+                                      "peak_rss_mib": mib[c]}
     print((f"  {'sfrt/peer':<{w}}" + "".join(f" {p:<21}" for p in peers)).rstrip())
     for c in sfrts:
         cells = ""
@@ -297,9 +308,16 @@ for t in threads:
             # Per-round ratios show how noisy the machine was.
             ratios = [a / b for a, b in zip(per_round[c], per_round[p])]
             cell = f"{median[c] / median[p]:.3f} ({min(ratios):.3f}-{max(ratios):.3f})"
+            entry["ratios"].setdefault(c, {})[p] = {
+                "ratio": median[c] / median[p], "lowest": min(ratios), "highest": max(ratios)}
             cells += f" {cell:<21}"
         print(f"  {c:<{w}}{cells}".rstrip())
 print("median ms: median over all rounds' runs; GF/s: effective GFLOP/s (2 x the model's MACs /"
       " median, whatever the arithmetic); peak MiB: peak resident memory of one process (one"
       " session); sfrt/peer: ratio of medians (per-round lowest-highest).")
+if json_out:
+    tmp = json_out + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(summary, f, indent=1)
+    os.replace(tmp, json_out)
 PY
