@@ -32,7 +32,7 @@ while [[ $# -gt 0 ]]; do
     --auto) auto=1; shift ;;
     --bias-correction) int8_flags+=(--bias-correction); shift ;;
     --cases) cases_re="$2"; shift 2 ;;
-    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     -*) echo "fixture_precision_sweep.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) break ;;
   esac
