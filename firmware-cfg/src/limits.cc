@@ -1,5 +1,8 @@
 #include "sfrt/config/limits.h"
 
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
 #include <thread>
 
 namespace sfrt::config {
@@ -9,6 +12,17 @@ std::string RangeText(const IntRange& range) {
   if (range.unit[0] != '\0') text += std::string(" ") + range.unit;
   if (range.note[0] != '\0') text += std::string(" (") + range.note + ")";
   return text;
+}
+
+bool ParseFiniteNumber(const std::string& text, double* value) {
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || errno != 0 || !std::isfinite(v)) {
+    return false;
+  }
+  *value = v;
+  return true;
 }
 
 bool InRange(const IntRange& range, long long value) {

@@ -348,10 +348,8 @@ std::optional<double> ReadNumber(Checker& c, const Field& f, const Range& range)
     return std::nullopt;
   }
   const std::string& text = f.node.Scalar();
-  errno = 0;
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || errno != 0 || !std::isfinite(v)) {
+  double v = 0;
+  if (!ParseFiniteNumber(text, &v)) {
     c.Error(f.pos, f.path, "expected a number, got " + Describe(f.node), allowed);
     return std::nullopt;
   }

@@ -187,6 +187,58 @@ Status LatencyLogSink::Stop() {
   return Status::Ok();
 }
 
+// ------------------------------------------------------------------------------- window index
+
+namespace {
+
+// A CSV field: quoted (with quotes doubled) when it holds a comma, a quote or a line break.
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+}  // namespace
+
+WindowIndexSink::WindowIndexSink(std::string dir)
+    : path_((std::filesystem::path(dir) / "windows.csv").string()) {}
+
+// Opened at the first window, so a run that writes none leaves no index behind.
+Status WindowIndexSink::Open() {
+  Result<io::StreamedFile> file = io::StreamedFile::Open(path_);
+  if (!file.ok()) return Status::Error("the window index: " + file.message());
+  file_ = std::move(file).value();
+  Status header = file_.Write("file,sequence,frame_t,frame_t1,stamp_t_ns,stamp_t1_ns,source_t\n");
+  if (!header.ok()) return Status::Error("the window index: " + header.message());
+  return Status::Ok();
+}
+
+Status WindowIndexSink::Completed(const WindowRecord& record) {
+  if (!opened_) {
+    opened_ = true;
+    if (Status s = Open(); !s.ok()) return s;
+  }
+  const FrameMeta& m = *record.meta;
+  const std::string line = CsvField(OutputStem(m)) + "," + CsvField(m.sequence) + "," +
+                           std::to_string(m.frame0) + "," + std::to_string(m.frame1) + "," +
+                           std::to_string(m.stamp_ns[0]) + "," + std::to_string(m.stamp_ns[1]) +
+                           "," + CsvField(m.left0_path) + "\n";
+  if (Status s = file_.Write(line); !s.ok()) {
+    (void)file_.Close();  // a partial line would make the rest unreadable: no more lines
+    return Status::Error("the window index: " + s.message());
+  }
+  return Status::Ok();
+}
+
+Status WindowIndexSink::Stop() {
+  if (!file_.is_open()) return Status::Ok();
+  if (Status s = file_.Close(); !s.ok()) return Status::Error("the window index: " + s.message());
+  return Status::Ok();
+}
+
+// ------------------------------------------------------------------------------------- summary
+
 SummaryFileSink::SummaryFileSink(std::string dir)
     : path_((std::filesystem::path(dir) / "summary.json").string()) {}
 

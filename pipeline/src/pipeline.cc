@@ -122,6 +122,9 @@ class Runner {
   cv::Size source_size_;
   int height_ = 0;
   int width_ = 0;
+  std::string size_reason_;   // why the input size is height_ x width_ (ChooseInputSize)
+  std::string size_note_;     // the console's note when it is not the frames' size
+  bool usage_error_ = false;  // setup refused an option against the source
   int out_channels_ = 0;
   std::unique_ptr<Session> session_;
   std::optional<camera::Preprocessor> preprocessor_;
@@ -226,8 +229,20 @@ Status Runner::Setup() {
   Result<cv::Size> size = source_->Open();
   if (!size.ok()) return size.status();
   source_size_ = *size;
-  height_ = options_.height > 0 ? options_.height : source_size_.height;
-  width_ = options_.width > 0 ? options_.width : source_size_.width;
+  Result<InputSizeChoice> chosen =
+      ChooseInputSize(options_, model_->metadata(), source_size_.height, source_size_.width);
+  if (!chosen.ok()) {
+    usage_error_ = true;
+    return chosen.status();
+  }
+  height_ = chosen->height;
+  width_ = chosen->width;
+  size_reason_ = chosen->reason;
+  if (height_ != source_size_.height || width_ != source_size_.width) {  // said once set up
+    size_note_ = "input size " + std::to_string(height_) + "x" + std::to_string(width_) +
+                 " (HxW): " + chosen->reason;
+  }
+  if (!chosen->aspect_note.empty()) warnings_.push_back(chosen->aspect_note);
 
   Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
   if (!params.ok()) return params.status();
@@ -586,6 +601,10 @@ Status Runner::StartSinks() {
   if (!options_.latency_log.empty()) {
     own_sinks_.push_back(std::make_unique<LatencyLogSink>(options_.latency_log));
   }
+  // Beside per-window files, which source frames each came from (their names are the source's).
+  if (options_.write_flow || options_.write_png) {
+    own_sinks_.push_back(std::make_unique<WindowIndexSink>(dir));
+  }
   if (options_.profiler) own_sinks_.push_back(std::make_unique<ProfilerSink>(options_.profiler));
   for (const std::unique_ptr<FlowSink>& sink : own_sinks_) sinks_.push_back(sink.get());
   for (FlowSink* sink : options_.sinks) {
@@ -747,6 +766,7 @@ Status Runner::FinishSinks(PipelineResult* result) {
   j["model"] = {{"path", options_.model_path},
                 {"name", meta.name},
                 {"input_size", {height_, width_}},
+                {"input_size_from", size_reason_},
                 {"output_channels", out_channels_}};
   j["isa"] = session_ ? IsaName(session_->isa()) : "";
   j["threads"] = session_ ? session_->threads() : options_.threads;
@@ -777,6 +797,12 @@ Status Runner::FinishSinks(PipelineResult* result) {
     bad.push_back({{"path", b.path}, {"reason", b.reason}});
   }
   j["bad_frames"] = bad;
+  // The window rule (sfrt/camera/window_chain.h): pairs that opened no window, and why.
+  const camera::ChainCounts chain = source_->chain_counts();
+  j["windows"] = {{"formed", chain.windows},
+                  {"broken_by_lost_frame", chain.broken_by_loss},
+                  {"skipped_for_gap", chain.skipped_for_gap},
+                  {"stream_restarts", chain.stream_restarts}};
   json skipped = json::array();
   for (const FrameSource::BadFrame& b : skipped_outputs_) {
     skipped.push_back({{"window", b.path}, {"error", b.reason}});
@@ -857,6 +883,7 @@ PipelineResult Runner::Run() {
   if (!setup.ok()) {
     (void)StopSinks();  // the setup's error is the one to report
     result.status = setup;
+    result.usage_error = usage_error_;
     result.stopped_by = "error";
     error_ = setup;
     end_ns_ = NowNs();
@@ -866,6 +893,7 @@ PipelineResult Runner::Run() {
     return result;
   }
   result.started = true;
+  if (!size_note_.empty()) log_.Write(LogLevel::kInfo, "note", size_note_);
   start_ns_ = NowNs();
   std::thread threads[4] = {
       std::thread([this] { SourceStage(); }), std::thread([this] { PreprocessStage(); }),
@@ -914,6 +942,7 @@ PipelineResult Runner::Run() {
     result.pictures_ms = queued_pictures_->write_ms();
     result.pictures_dropped = queued_pictures_->dropped();
   }
+  result.chain = source_->chain_counts();
   result.frames_at_fallback_size = frames_at_fallback_;
   result.fallback_entries = fallback_entries_;
   result.warnings = warnings_;
@@ -1017,6 +1046,50 @@ void SplitLatency(const FrameMeta& m, double out_ms[kLatencyParts]) {
 }
 
 LogSink& FrameSource::log() const { return log_ != nullptr ? *log_ : DefaultLog(); }
+
+Result<InputSizeChoice> ChooseInputSize(const PipelineOptions& options, const ModelMetadata& model,
+                                        int source_height, int source_width) {
+  const InputDesc& input = model.input;
+  const std::string source = std::to_string(source_height) + "x" + std::to_string(source_width);
+  InputSizeChoice c;
+  const bool asked_for = options.height > 0 && options.width > 0;
+  if (asked_for) {
+    c.height = options.height;
+    c.width = options.width;
+    c.reason = "as asked";
+  } else if (input.traced_height > 0 && input.traced_width > 0 &&
+             model.training != TrainingState::kUntrained) {
+    c.height = input.traced_height;
+    c.width = input.traced_width;
+    c.reason =
+        "the size the model records (traced and trained at; its camera's focal length is "
+        "for this size); the frames are " +
+        source + ", --size sets another";
+  } else {
+    c.height = source_height;
+    c.width = source_width;
+    c.reason = model.training == TrainingState::kUntrained
+                   ? "the frames' size (the model is untrained: it has no camera to match)"
+                   : "the frames' size (the model records none)";
+    return c;
+  }
+  // Aspect ratios as width / height; a size that swaps the source's is most likely WxH for HxW.
+  const double frames = static_cast<double>(source_width) / source_height;
+  const double asked = static_cast<double>(c.width) / c.height;
+  auto off = [](double a, double b) { return std::fabs(a / b - 1.0); };
+  if (off(asked, frames) <= kAspectTolerance) return c;
+  const std::string size = std::to_string(c.height) + "x" + std::to_string(c.width);
+  if (asked_for && off(1.0 / asked, frames) <= kAspectTolerance && !options.allow_aspect_change) {
+    return Status::Error("--size " + size + " squeezes the " + source +
+                         " (HxW) frames to the inverse aspect; did you mean " +
+                         std::to_string(c.width) + "x" + std::to_string(c.height) +
+                         " (HxW)? (--allow-aspect-change if it is meant)");
+  }
+  c.aspect_note = "the input size " + size + " has another aspect than the " + source +
+                  " (HxW) frames: the images are stretched " + Fixed(100 * off(asked, frames), 0) +
+                  "% to fit";
+  return c;
+}
 
 std::string OutputStem(const FrameMeta& meta) {
   char num[32];

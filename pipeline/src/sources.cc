@@ -1,6 +1,7 @@
 #include "sfrt/pipeline/sources.h"
 
 #include <chrono>
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <utility>
@@ -11,6 +12,13 @@
 
 namespace sfrt::pipeline {
 namespace {
+
+void Add(const camera::ChainCounts& from, camera::ChainCounts* to) {
+  to->windows += from.windows;
+  to->broken_by_loss += from.broken_by_loss;
+  to->skipped_for_gap += from.skipped_for_gap;
+  to->stream_restarts += from.stream_restarts;
+}
 
 int64_t NowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -112,6 +120,11 @@ class ReplaySource : public FrameSource {
     for (const camera::BadFrame& b : bad_) out.push_back({b.path, b.reason});
     return out;
   }
+  camera::ChainCounts chain_counts() const override {
+    camera::ChainCounts c = chain_before_;
+    if (window_) Add(window_->counts(), &c);
+    return c;
+  }
 
  private:
   // A note, once per run, when the first frame is not 8-bit colour: grayscale is used as BGR with
@@ -136,6 +149,7 @@ class ReplaySource : public FrameSource {
     base.on_bad_frame = camera::BadFramePolicy::kSkip;
     base.on_bad_frame_callback = [this](const camera::BadFrame& bad) { bad_.push_back(bad); };
     if (source_) decoded_before_ += source_->images_decoded();  // the previous pass's
+    if (window_) Add(window_->counts(), &chain_before_);
     switch (spec_.kind) {
       case ReplaySpec::Kind::kDataset: {
         camera::DatasetOptions options;
@@ -203,8 +217,9 @@ class ReplaySource : public FrameSource {
 
   ReplaySpec spec_;
   std::unique_ptr<camera::StereoSource> source_;
-  uint64_t decoded_before_ = 0;  // images decoded by earlier passes' sources
-  int64_t images_listed_ = 0;    // images of the passes opened so far
+  uint64_t decoded_before_ = 0;       // images decoded by earlier passes' sources
+  camera::ChainCounts chain_before_;  // earlier passes' chains
+  int64_t images_listed_ = 0;         // images of the passes opened so far
   std::unique_ptr<camera::PairWindow> window_;
   std::vector<camera::BadFrame> bad_;
   std::optional<int64_t> total_;
@@ -232,6 +247,8 @@ class CameraSource : public FrameSource {
     camera::Status s = cap_.Open();
     if (!s.ok()) return Status::Error(s.message());
     const v4l2::NegotiatedFormat& left = cap_.left().format();
+    // The driver's rate is the interval a gap is judged against; without one, the stream's own.
+    chain_ = camera::WindowChain(left.fps > 0 ? std::llround(1e9 / left.fps) : 0);
     if (sbs()) {
       if (left.width % 2 != 0) {
         return Status::Error(config_.left.device + ": side-by-side frame width " +
@@ -274,7 +291,7 @@ class CameraSource : public FrameSource {
         switch (s.kind()) {
           case camera::ErrorKind::kDisconnected:
             ++(Unplugs() > unplugs_before ? disconnects_ : reopen_failures_);
-            have_prev_ = false;
+            chain_.Lose();
             Log(s.message());
             continue;
           case camera::ErrorKind::kTimeout:
@@ -291,7 +308,7 @@ class CameraSource : public FrameSource {
             if (policy_ == camera::BadFramePolicy::kStop) {
               return Status::Error("bad frame: " + s.message() + " (--on-bad-frame stop)");
             }
-            have_prev_ = false;  // the window would skip a frame
+            chain_.Lose();  // the window would skip a frame
             continue;
           default:
             if (lost) {  // reopening after an unplug: keep trying with the back-off
@@ -313,8 +330,17 @@ class CameraSource : public FrameSource {
       const cv::Mat lm(l.height, l.width, CV_8UC3, const_cast<uint8_t*>(l.bgr.data()));
       const cv::Mat rm(r.height, r.width, CV_8UC3, const_cast<uint8_t*>(r.bgr.data()));
       const int64_t ts = std::max(l.timestamp_ns, r.timestamp_ns);
-      // A pair t of another size (a device reopened with a new format) starts a new window.
-      const bool emit = have_prev_ && prev_size_[0] == lm.size() && prev_size_[1] == rm.size();
+      // A sequence number that skips is a frame the driver dropped, one this process passed over
+      // for a newer one, or one left without its partner: the window would span it.
+      if (have_prev_ &&
+          (l.sequence != prev_seq_[0] + 1 || (!sbs() && r.sequence != prev_seq_[1] + 1))) {
+        chain_.Lose();
+      }
+      // A pair t of another size (a device reopened with a new format) starts a new stream.
+      if (have_prev_ && (prev_size_[0] != lm.size() || prev_size_[1] != rm.size())) {
+        chain_.Restart();
+      }
+      const bool emit = chain_.Offer(ts) == camera::ChainLink::kWindow;
       if (emit) {
         const cv::Mat pl(prev_size_[0], CV_8UC3, prev_bgr_[0].data());
         const cv::Mat pr(prev_size_[1], CV_8UC3, prev_bgr_[1].data());
@@ -324,7 +350,7 @@ class CameraSource : public FrameSource {
         rm.copyTo(item->right1);
         FrameMeta& m = item->meta;
         m.sequence.clear();
-        m.frame0 = prev_seq_;
+        m.frame0 = prev_seq_[0];
         m.frame1 = l.sequence;
         m.left0_path.clear();
         m.capture_ns[0] = prev_ts_;
@@ -342,7 +368,8 @@ class CameraSource : public FrameSource {
       std::swap(prev_bgr_[1], pair_.right.bgr);
       prev_size_[0] = lm.size();
       prev_size_[1] = rm.size();
-      prev_seq_ = l.sequence;
+      prev_seq_[0] = l.sequence;
+      prev_seq_[1] = r.sequence;
       prev_ts_ = ts;
       have_prev_ = true;
       if (emit) return Fetch::kWindow;
@@ -422,6 +449,7 @@ class CameraSource : public FrameSource {
   }
 
   std::vector<BadFrame> bad_frames() const override { return bad_; }
+  camera::ChainCounts chain_counts() const override { return chain_.counts(); }
 
  private:
   bool sbs() const { return config_.mode == v4l2::StereoConfig::Mode::kSideBySide; }
@@ -442,8 +470,9 @@ class CameraSource : public FrameSource {
   cv::Size prev_size_[2];
   bool prev_was_emitted_ = false;  // the previous pair was pair t+1 of the last window
   bool have_prev_ = false;
-  int64_t prev_seq_ = 0;
+  uint32_t prev_seq_[2] = {0, 0};  // the V4L2 sequence numbers of the previous pair
   int64_t prev_ts_ = 0;
+  camera::WindowChain chain_;
   bool have_seq_ = false;
   uint32_t first_seq_[2] = {0, 0};
   uint32_t last_seq_[2] = {0, 0};

@@ -8,6 +8,7 @@
 #include "bag_reader.h"
 #include "clock.h"
 #include "image_convert.h"
+#include "sfrt/camera/window_chain.h"
 #include "sfrt/pipeline/log.h"
 
 namespace sfrt::ros {
@@ -53,6 +54,7 @@ class BagSource final : public pipeline::FrameSource {
                            std::to_string(spec_.pair_tolerance_ms) + " ms on '" + topics_[0] +
                            "' and '" + topics_[1] + "'");
     }
+    (void)chain_.Offer(pair_stamp_);
     KeepAsPrevious();
     return size_;
   }
@@ -64,8 +66,11 @@ class BagSource final : public pipeline::FrameSource {
       Result<bool> pair = NextPair();
       if (!pair.ok()) return pair.status();
       if (!*pair) return pipeline::Fetch::kEnd;
-      if (!have_prev_) {  // after a skipped bad frame: this pair starts the next window
+      // A lost frame (unpaired, bad), a stamp gap or a stamp going back: this pair starts the
+      // next window.
+      if (chain_.Offer(pair_stamp_) != camera::ChainLink::kWindow) {
         KeepAsPrevious();
+        continues_ = false;
         continue;
       }
       prev_[0].copyTo(item->left0);
@@ -74,8 +79,10 @@ class BagSource final : public pipeline::FrameSource {
       pair_[1].copyTo(item->right1);
       pipeline::FrameMeta& m = item->meta;
       m.sequence.clear();
-      m.frame0 = prev_number_;
-      m.frame1 = pairs_ - 1;
+      // The left images' message numbers on their topic: the bag's own index, never a count of
+      // the windows written.
+      m.frame0 = prev_index_;
+      m.frame1 = pair_index_;
       m.left0_path = spec_.path + ":" + topics_[0] + ":" + std::to_string(prev_index_);
       m.continues = continues_;
       m.capture_ns[0] = m.capture_ns[1] = detail::MonotonicNs();
@@ -95,6 +102,7 @@ class BagSource final : public pipeline::FrameSource {
   bool live() const override { return false; }
   uint64_t drops() const override { return unpaired_[0] + unpaired_[1]; }
   std::vector<BadFrame> bad_frames() const override { return bad_; }
+  camera::ChainCounts chain_counts() const override { return chain_.counts(); }
 
   void ToJson(nlohmann::json* out) const override {
     (*out)["bag"] = spec_.path;
@@ -128,6 +136,7 @@ class BagSource final : public pipeline::FrameSource {
         const int older = skew < 0 ? 0 : 1;  // it can never find a partner
         has_[older] = false;
         ++unpaired_[older];
+        chain_.Lose();
       }
       std::string error;
       if (!reader_.Next(&message_, &error)) {
@@ -154,12 +163,14 @@ class BagSource final : public pipeline::FrameSource {
         log().Write(pipeline::LogLevel::kWarn, "warning",
                     "bad frame skipped: '" + spec_.path + "', " + where + ": " + bad);
         has_[side] = false;
-        have_prev_ = false;  // the window would skip a frame
-        continues_ = false;
+        chain_.Lose();  // the window would skip a frame
         continue;
       }
       if (size_.area() == 0) size_ = pending_[side].size();
-      if (has_[side]) ++unpaired_[side];  // the one waiting is overtaken without a partner
+      if (has_[side]) {  // the one waiting is overtaken without a partner
+        ++unpaired_[side];
+        chain_.Lose();
+      }
       has_[side] = true;
       pending_stamp_[side] = stamp;
       pending_index_[side] = index;
@@ -170,10 +181,8 @@ class BagSource final : public pipeline::FrameSource {
   void KeepAsPrevious() {
     std::swap(prev_[0], pair_[0]);
     std::swap(prev_[1], pair_[1]);
-    prev_number_ = pairs_ - 1;
     prev_index_ = pair_index_;
     prev_stamp_ = pair_stamp_;
-    have_prev_ = true;
   }
 
   BagReplaySpec spec_;
@@ -190,12 +199,11 @@ class BagSource final : public pipeline::FrameSource {
   int64_t pair_index_ = 0;  // the left image's message number
   int64_t pair_stamp_ = 0;  // the left image's header stamp
   cv::Mat prev_[2];         // pair t of the next window
-  bool have_prev_ = false;
   bool continues_ = false;
-  int64_t prev_number_ = 0;
   int64_t prev_index_ = 0;
   int64_t prev_stamp_ = 0;
   int64_t pairs_ = 0;
+  camera::WindowChain chain_;  // stamps: the left images' header stamps
   int64_t read_[2] = {0, 0};
   uint64_t unpaired_[2] = {0, 0};
   std::vector<BadFrame> bad_;

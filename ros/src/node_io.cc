@@ -14,6 +14,7 @@
 #include <std_msgs/Header.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <optional>
 #include <type_traits>
@@ -122,7 +123,13 @@ std::string NodeIo::GetParam(const std::string& name, std::string* value) const 
   return Get(*impl_->private_, name, value, "a string");
 }
 std::string NodeIo::GetParam(const std::string& name, double* value) const {
-  return Get(*impl_->private_, name, value, "a number");
+  std::string e = Get(*impl_->private_, name, value, "a number");
+  // As every sfrt number (config::ParseFiniteNumber): NaN or an infinity is no setting.
+  if (e.empty() && !std::isfinite(*value)) {
+    e = "parameter '" + impl_->private_->resolveName(name) + "' must be a finite number, got " +
+        std::to_string(*value);
+  }
+  return e;
 }
 std::string NodeIo::GetParam(const std::string& name, int* value) const {
   return Get(*impl_->private_, name, value, "an integer");

@@ -12,6 +12,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -26,6 +27,7 @@
 #include "sfrt/config/profile.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
+#include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "topic_sink.h"
@@ -68,7 +70,9 @@ Parameters (private, e.g. _model:=m.sfrt):
   ~budget_ms    end-to-end deadline, ms (default: none)
   ~on_miss      count-only|drop-next|smaller-input (default count-only)
   ~fallback_size  HxW, with smaller-input                ~recover_after  windows (default 30)
-  ~size         model input size HxW (default: the images' size)
+  ~size         model input size HxW (default: the size the model records, else the images')
+  ~allow_aspect_change  take a ~size of the images' inverse aspect (default false: refused as
+                a likely WxH)
   ~transport    raw|compressed (default raw)
   ~slop_ms      most a pair's stamps may differ (default 8)
   ~queue_size   subscriber and ApproximateTime queue (default 5)
@@ -80,7 +84,8 @@ Parameters (private, e.g. _model:=m.sfrt):
   ~publish_vis  publish flow_vis (default false)        ~frame_id  override the flow's frame_id
   ~camera_info  check camera_info against the model (default true)
   ~diagnostics_period  seconds (default 1)
-  ~out          a directory for summary.json when the node stops (default: none)
+  ~out          a directory for summary.json when the node stops (default: none); made and
+                checked before the first frame
 Exit: 0 after SIGINT or a shutdown request, 1 on a failure (a bad model, a failed stage),
 2 on a bad parameter or profile.
 )";
@@ -109,6 +114,7 @@ struct NodeSettings {
   std::string fallback_size;
   int recover_after = 30;
   std::string size;
+  bool allow_aspect_change = false;
   std::string transport = "raw";
   double slop_ms = 8;
   int queue_size = 5;
@@ -142,6 +148,7 @@ std::string ReadParams(const NodeIo& io, NodeSettings* s) {
   get("fallback_size", &s->fallback_size);
   get("recover_after", &s->recover_after);
   get("size", &s->size);
+  get("allow_aspect_change", &s->allow_aspect_change);
   get("transport", &s->transport);
   get("slop_ms", &s->slop_ms);
   get("queue_size", &s->queue_size);
@@ -314,6 +321,7 @@ int Run(int argc, char** argv) {
       return Fail(kExitUsage, e);
     }
   }
+  opts.allow_aspect_change = s.allow_aspect_change;
   if (s.budget_ms < 0) {
     return Fail(kExitUsage, "~budget_ms must be >= 0, got " + Fixed(s.budget_ms, 3));
   }
@@ -379,7 +387,9 @@ int Run(int argc, char** argv) {
                      {"precision", PrecisionText(md)},
                      {"threads", std::to_string(opts.threads)},
                      {"model", s.model},
-                     {"input size", s.size.empty() ? "the images' size" : s.size},
+                     {"input size", s.size.empty() ? "the size the model records, else the "
+                                                     "images'"
+                                                   : s.size},
                      {"on_miss", s.on_miss}};
   sink_opts.budget_ms = s.budget_ms;
   sink_opts.received = [&io](int side) { return io.received(side); };
@@ -399,6 +409,18 @@ int Run(int argc, char** argv) {
     return Fail(kExitUsage, e);
   }
 
+  // The summary's directory is made and checked now, not found unwritable at shutdown.
+  if (!s.out.empty()) {
+    if (std::string e = io::CheckWritableDirectory(s.out, "~out"); !e.empty()) {
+      return Fail(kExitUsage, e);
+    }
+    std::error_code ec;
+    std::filesystem::create_directories(s.out, ec);
+    if (!std::filesystem::is_directory(s.out, ec)) {
+      return Fail(kExitUsage, "~out '" + s.out + "': cannot create the directory" +
+                                  (ec ? " (" + ec.message() + ")" : std::string()));
+    }
+  }
   opts.out_dir = s.out;
   opts.write_flow = false;
   opts.write_png = false;
@@ -437,6 +459,8 @@ int Run(int argc, char** argv) {
   int code = kExitOk;
   if (!result.started && stop_signal.load() != 0) {
     NodeIo::Log(NodeLogLevel::kInfo, "sfrt_ros: stopped before the first stereo pair arrived");
+  } else if (result.usage_error) {
+    code = Fail(kExitUsage, result.status.message());
   } else if (!result.status.ok()) {
     code = Fail(kExitFailure, result.status.message());
   } else {

@@ -26,6 +26,7 @@ TopicSource::TopicSource(TopicSourceOptions options) : options_(std::move(option
 void TopicSource::Skip(const std::string& reason) {
   ++bad_;
   ++skipped_since_warn_;
+  loss_pending_ = true;  // the next pair must not form a window with the one before this
   {
     std::lock_guard<std::mutex> lock(mu_);
     last_bad_ = reason;
@@ -83,10 +84,14 @@ void TopicSource::OnPair(const detail::ImageView& left, const detail::ImageView&
   {
     std::lock_guard<std::mutex> lock(mu_);
     p.number = static_cast<int64_t>(pairs_.load());
+    p.after_loss = loss_pending_;
+    loss_pending_ = false;
     if (count_ == ring_.size()) {  // full: the oldest waiting pair gives way
       head_ = (head_ + 1) % ring_.size();
       --count_;
       ++dropped_;
+      // The pair after it, the oldest left (or this one), follows a lost pair.
+      (count_ > 0 ? ring_[head_] : p).after_loss = true;
     }
     std::swap(ring_[(head_ + count_) % ring_.size()], p);
     ++count_;
@@ -124,9 +129,11 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
       --count_;
     }
     const int64_t taken = detail::MonotonicNs();
-    if (!have_prev_) {
+    // Header stamps: a gap or a bag played again (stamps going back) breaks the chain too.
+    if (cur_.after_loss) chain_.Lose();
+    if (chain_.Offer(cur_.stamp_ns) != camera::ChainLink::kWindow) {
       std::swap(prev_, cur_);
-      have_prev_ = true;
+      continued_ = false;
       continue;
     }
     pipeline::FrameMeta& m = item->meta;
@@ -134,7 +141,7 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
     m.sequence.clear();
     m.frame0 = prev_.number;
     m.frame1 = cur_.number;
-    m.continues = windows_ > 0;
+    m.continues = continued_;
     m.left0_path.clear();
     m.capture_ns[0] = prev_.capture_ns;
     m.capture_ns[1] = cur_.capture_ns;
@@ -152,6 +159,7 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
     cur_.image[1].copyTo(item->right1);
     std::swap(prev_, cur_);
     ++windows_;
+    continued_ = true;
     return pipeline::Fetch::kWindow;
   }
 }

@@ -8,8 +8,12 @@
 // slot the source stage always gets the newest pair. After the first pairs every buffer has the
 // frame size and circulates by swapping: no allocation per pair.
 //
-// Windows: pair k and pair k+1 as delivered form a window, so each pair is rectified once
-// (FrameMeta::continues after the first window).
+// Windows: pair k and pair k+1 as delivered form a window by the rule of
+// sfrt/camera/window_chain.h, on the left images' header stamps: a pair dropped from the input
+// queue or skipped as bad, a stamp gap beyond 1.5x the median interval, or a stamp that is not
+// after the last one (`rosbag play` again, or `-l`) breaks the chain, and the pair after it opens
+// no window, so a published flow's t+1 is always after its t. Each pair is rectified once
+// (FrameMeta::continues while the chain holds).
 //
 // Times: FrameMeta::stamp_ns are the left images' header stamps. capture_ns is the image's
 // header stamp moved to CLOCK_MONOTONIC when the stamp is a plausible capture time (at most
@@ -63,6 +67,8 @@ class TopicSource final : public pipeline::FrameSource {
   bool live() const override { return true; }
   void ToJson(nlohmann::json* out) const override;
   uint64_t drops() const override { return dropped_.load(); }
+  // Read once the source stage has ended (RunPipeline makes its summary after joining it).
+  camera::ChainCounts chain_counts() const override { return chain_.counts(); }
 
   // The left images' frame_id, known once Open() has returned.
   const std::string& frame_id() const { return frame_id_; }
@@ -79,6 +85,7 @@ class TopicSource final : public pipeline::FrameSource {
     int64_t capture_ns = 0;  // CLOCK_MONOTONIC (see above)
     int64_t arrival_ns = 0;  // OnPair() entered
     int64_t converted_ns = 0;
+    bool after_loss = false;  // a pair before this one was dropped or skipped
   };
   void Skip(const std::string& reason);
 
@@ -87,6 +94,7 @@ class TopicSource final : public pipeline::FrameSource {
   Pair scratch_;
   int64_t last_warn_ns_ = 0;
   uint64_t skipped_since_warn_ = 0;
+  bool loss_pending_ = false;  // a pair was skipped since the last one pushed
   // Shared, under mu_.
   mutable std::mutex mu_;
   std::condition_variable ready_;
@@ -98,7 +106,8 @@ class TopicSource final : public pipeline::FrameSource {
   std::string last_bad_;  // the last reason a pair was skipped
   // The source stage's thread only.
   Pair prev_, cur_;
-  bool have_prev_ = false;
+  camera::WindowChain chain_;
+  bool continued_ = false;  // the last pair taken was pair t+1 of the last window
   int64_t windows_ = 0;
   // Counters, read from any thread.
   std::atomic<uint64_t> pairs_{0}, dropped_{0}, bad_{0};

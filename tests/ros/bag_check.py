@@ -9,9 +9,11 @@ Scenarios (each one ctest test named after the behaviour it checks):
       a bag of raw bgr8 frames and one of rgb8, and one of PNG CompressedImages (lossless): every
       window's flow file equals, byte for byte, the one `sfrt run --replay-left/--replay-right`
       writes from the directory the bag was made from; each pair rectified once.
-  missing_right_frame_is_counted_as_unpaired
+  missing_right_frame_breaks_the_window_chain
       a bag without right frame 3: the left frame 3 is counted unpaired (summary.json
-      source.unpaired_left, drops.source), one window fewer, the others written.
+      source.unpaired_left, drops.source), no window spans the gap (windows 0-1, 1-2, 4-5; the
+      pair 4 opens none: windows.broken_by_lost_frame 1), and the flow files and windows.csv
+      name each window by the bag's message numbers, so the files after the gap keep theirs.
   record_bag_holds_each_windows_flow_with_the_input_stamps
       --record-bag (with --record-bag-vis) on a bag replay: /flow has one 32FC3 message per window
       equal to that window's .npy flow file, stamped with the left stamp of pair t, seq = window,
@@ -127,7 +129,24 @@ def scenario_missing_right(a):
           "unpaired left/right %s/%s, expected 1/0" % (src["unpaired_left"], src["unpaired_right"]))
     check(src["messages_read"] == {"left": 6, "right": 5}, "messages read %s" % src["messages_read"])
     check(s["drops"]["source"] == 1, "drops.source %s" % s["drops"]["source"])
-    check(s["frames"]["written"] == 4, "written %d, expected 4" % s["frames"]["written"])
+    check(s["frames"]["written"] == 3, "written %d, expected 3" % s["frames"]["written"])
+    check(s["windows"] == {"formed": 3, "broken_by_lost_frame": 1, "skipped_for_gap": 0,
+                           "stream_restarts": 0}, "summary windows %s" % s["windows"])
+    got = flows(out)
+    want = ["frame_000000.pfm", "frame_000001.pfm", "frame_000004.pfm"]
+    check(got == want, "flow files %s, expected %s" % (got, want))
+    with open(os.path.join(out, "windows.csv")) as f:
+        rows = [line.rstrip("\n").split(",") for line in f]
+    check(rows[0][:4] == ["file", "sequence", "frame_t", "frame_t1"], "windows.csv header %s"
+          % rows[0])
+    check([r[2:4] for r in rows[1:]] == [["0", "1"], ["1", "2"], ["4", "5"]],
+          "windows.csv frames %s" % rows[1:])
+    stamps = [(int(r[4]), int(r[5])) for r in rows[1:]]
+    steps = [t1 - t0 for t0, t1 in stamps]  # 30 fps in whole ns: 33333333 or 33333334
+    check(min(steps) > 0 and max(steps) - min(steps) <= 1,
+          "windows.csv stamps %s: one time step expected" % stamps)
+    check("pair(s) opened no window (lost frame 1" in p.stdout,
+          "the console does not count the broken chain: %r" % p.stdout)
 
 
 def scenario_bad(a):
@@ -229,7 +248,7 @@ print(json.dumps(res))
 SCENARIOS = {
     "record_bag_holds_each_windows_flow_with_the_input_stamps": scenario_record,
     "bag_replay_gives_the_flow_files_of_the_directory_replay": scenario_same_flow,
-    "missing_right_frame_is_counted_as_unpaired": scenario_missing_right,
+    "missing_right_frame_breaks_the_window_chain": scenario_missing_right,
     "bad_bags_and_topics_are_refused_naming_them": scenario_bad,
 }
 

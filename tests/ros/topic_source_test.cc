@@ -9,6 +9,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace sfrt::ros {
@@ -98,9 +99,12 @@ TEST(TopicSource, AFullInputQueueDropsTheOldestPairAndCountsIt) {
     while (source.queued() != 0 && !done) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-    while (!done) {
-      Hand(&source, 4, 1004);
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    // One pair at a time, each after the last was taken (none dropped), stamps increasing.
+    for (int64_t stamp = 1004; !done; ++stamp) {
+      Hand(&source, 4, stamp);
+      while (source.queued() != 0 && !done) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
     }
   });
   Result<pipeline::Fetch> f = source.Next(&item, stop);
@@ -110,6 +114,55 @@ TEST(TopicSource, AFullInputQueueDropsTheOldestPairAndCountsIt) {
   EXPECT_EQ(item.meta.stamp_ns[0], 1003);
   EXPECT_EQ(item.meta.stamp_ns[1], 1004);
   EXPECT_EQ(item.left0.at<cv::Vec3b>(0, 0)[0], 3);
+}
+
+// Takes every window the queued pairs form (with stop set, Next() takes the queued pairs and
+// returns kEnd once the queue is empty).
+std::vector<std::pair<int64_t, int64_t>> WindowStamps(TopicSource* source) {
+  std::vector<std::pair<int64_t, int64_t>> out;
+  const std::atomic<bool> stop{true};
+  pipeline::WindowItem item;
+  while (true) {
+    Result<pipeline::Fetch> f = source->Next(&item, stop);
+    EXPECT_TRUE(f.ok());
+    if (!f.ok() || *f == pipeline::Fetch::kEnd) return out;
+    out.emplace_back(item.meta.stamp_ns[0], item.meta.stamp_ns[1]);
+  }
+}
+
+TEST(TopicSource, StampsThatGoBackStartANewChainSoNoWindowRunsBackwards) {
+  TopicSourceOptions o;
+  o.input_queue = 8;
+  TopicSource source(o);
+  // A bag played twice (`rosbag play` again, or -l): the stamps start over.
+  for (int64_t stamp : {1000, 1033, 1066, 0, 33}) Hand(&source, 1, stamp);
+  ASSERT_TRUE(source.Open().ok());
+  EXPECT_EQ(WindowStamps(&source),
+            (std::vector<std::pair<int64_t, int64_t>>{{1000, 1033}, {1033, 1066}, {0, 33}}));
+  EXPECT_EQ(source.chain_counts().stream_restarts, 1);
+  EXPECT_EQ(source.chain_counts().windows, 3);
+}
+
+TEST(TopicSource, ASkippedPairOrAStampGapBreaksTheChain) {
+  TopicSourceOptions o;
+  o.input_queue = 8;
+  o.warn_period_s = 60;
+  RecordingLog log;
+  o.log = &log;
+  TopicSource source(o);
+  Hand(&source, 1, 1000);
+  Hand(&source, 1, 1033);
+  Frame l(8, 12, 0, 1066, "yuv422", 2), r(8, 12, 0, 1066, "yuv422", 2);
+  source.OnPair(l.view, r.view, "left_cam");  // skipped: the chain breaks
+  Hand(&source, 1, 1100);
+  Hand(&source, 1, 1133);
+  Hand(&source, 1, 1233);  // two frames missing upstream (ApproximateTime found no partner)
+  Hand(&source, 1, 1266);
+  ASSERT_TRUE(source.Open().ok());
+  EXPECT_EQ(WindowStamps(&source),
+            (std::vector<std::pair<int64_t, int64_t>>{{1000, 1033}, {1100, 1133}, {1233, 1266}}));
+  EXPECT_EQ(source.chain_counts().broken_by_loss, 1);
+  EXPECT_EQ(source.chain_counts().skipped_for_gap, 1);
 }
 
 TEST(TopicSource, PairsItCannotConvertAreSkippedWithOneWarningNamingTheEncoding) {

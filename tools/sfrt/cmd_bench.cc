@@ -16,11 +16,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <span>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -34,6 +34,7 @@
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
+#include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/stats.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
@@ -41,6 +42,9 @@
 
 namespace sfrt::tools {
 namespace {
+
+// At most this many timed (or warm-up) runs per configuration: each keeps its step times.
+constexpr int kMaxRuns = 100000;
 
 namespace prof = sfrt::profiling;
 using Json = nlohmann::ordered_json;
@@ -178,10 +182,11 @@ void PrintBuildAndCpu() {
               prof::CpuModel().c_str(), prof::AvailableCpus(), SupportedIsaList().c_str());
 }
 
-bool WriteJson(const std::string& path, const Json& json) {
-  std::ofstream out(path);
-  out << json.dump(2) << "\n";
-  return static_cast<bool>(out);
+// Through the one atomic writer: a failed write (a full disk) leaves the previous file whole.
+Status WriteJson(const std::string& path, const Json& json) {
+  const std::string text = json.dump(2) + "\n";
+  return io::WriteFileAtomically(
+      path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
 
 // `sfrt bench --peak`, int8, int16 and bf16: a table per type whose loop this CPU runs, else the
@@ -260,8 +265,8 @@ int RunPeak(const BenchArgs& args, const std::vector<Isa>& isas,
   if (!args.json.empty()) {
     json["build"] = BuildJson();
     json["cpu"] = CpuJson();
-    if (!WriteJson(args.json, json)) {
-      return ReportError(kName, "cannot write --json " + args.json, kExitFailure);
+    if (Status written = WriteJson(args.json, json); !written.ok()) {
+      return ReportError(kName, "--json: " + written.message(), kExitFailure);
     }
   }
   return kExitOk;
@@ -304,6 +309,12 @@ int RunBench(const BenchArgs& args) {
   if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
     return ReportError(kName, problem, kExitUsage);
   }
+  // Found out now, not after the measurements: where --json goes must take a file.
+  if (!args.json.empty()) {
+    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
   if (args.peak_seconds < 0 || (args.peak && args.peak_seconds <= 0)) {
     return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
   }
@@ -331,9 +342,14 @@ int RunBench(const BenchArgs& args) {
       return ReportError(kName, problem, kExitUsage);
     }
   }
-  if (args.runs < 1 || args.warmup < 0 || args.min_seconds < 0 || args.top < 0) {
-    return ReportError(kName, "--runs must be >= 1, --warmup, --min-seconds and --top >= 0",
-                       kExitUsage);
+  // Each bound names its option; the upper ones keep the timing buffers small (a run is kept).
+  for (const std::string& problem :
+       {CheckAtLeast("--runs", args.runs, 1), CheckAtMost("--runs", args.runs, kMaxRuns),
+        CheckAtLeast("--warmup", args.warmup, 0), CheckAtMost("--warmup", args.warmup, kMaxRuns),
+        CheckAtLeast("--min-seconds", args.min_seconds, 0),
+        CheckAtMost("--min-seconds", args.min_seconds, 86400),
+        CheckAtLeast("--top", args.top, 0)}) {
+    if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
   double budget_percent = 99;
   if (args.budget_given) {
@@ -659,8 +675,8 @@ int RunBench(const BenchArgs& args) {
                                       {"reason", migrations.unavailable_reason()}}},
               {"results", results}};
     if (args.budget_given) json["budget"] = budget_json;
-    if (!WriteJson(args.json, json)) {
-      return ReportError(kName, "cannot write --json " + args.json, kExitFailure);
+    if (Status written = WriteJson(args.json, json); !written.ok()) {
+      return ReportError(kName, "--json: " + written.message(), kExitFailure);
     }
   }
   if (!budget_met) {
@@ -688,8 +704,10 @@ Command AddBenchCommand(CLI::App& parent) {
       "Comma-separated ISAs to time: ref, avx2, avx512, avx512amx, neon, best (default), all");
   cmd->add_option("--threads", args->threads,
                   "Comma-separated thread counts, each 0..256 (0: one per CPU; default 1)");
-  cmd->add_option("--warmup", args->warmup, "Untimed runs per configuration first (default 1)");
-  cmd->add_option("--runs", args->runs, "Timed runs per configuration, at least (default 5)");
+  cmd->add_option("--warmup", args->warmup,
+                  "Untimed runs per configuration first, 0..100000 (default 1)");
+  cmd->add_option("--runs", args->runs,
+                  "Timed runs per configuration, at least; 1..100000 (default 5)");
   cmd->add_option("--min-seconds", args->min_seconds,
                   "Keep running rounds until this much time has passed (default 0)");
   cmd->add_option("--top", args->top, "Rows in the top-N table of steps by median (default 10)");

@@ -63,7 +63,7 @@ int RunEval(const EvalArgs& args) {
         kExitUsage);
   }
   if (!args.json.empty()) {
-    if (std::string problem = CheckOutputDirectory(args.json); !problem.empty()) {
+    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
       return ReportError(kName, problem, kExitFailure);
     }
   }

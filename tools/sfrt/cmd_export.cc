@@ -916,7 +916,7 @@ int RunExport(const ExportArgs& args) {
   if (std::string problem = CheckInputFile(args.input, "input file"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
-  if (std::string problem = CheckOutputDirectory(args.output); !problem.empty()) {
+  if (std::string problem = CheckOutputFile(args.output, "-o"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
   for (const std::string* file : {&args.architecture, &args.check_input, &args.check_output}) {

@@ -46,6 +46,7 @@ struct InferArgs {
   std::string input_npy;
   std::string output;
   std::string size;
+  bool allow_aspect_change = false;
 };
 
 struct InputTensor {
@@ -100,8 +101,9 @@ Status CheckSameSize(const InputFile (&files)[4], const std::string& noun, const
 
 // Reads the four images and builds the network input as the model's metadata prescribes:
 // image order, color order, then value = (pixel * scale - mean[c]) / std[c].
-Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc, int resize_h,
-                                    int resize_w) {
+Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& meta,
+                                    int resize_h, int resize_w) {
+  const InputDesc& desc = meta.input;
   InputFile sources[4] = {{"--left0", &args.left0, {}},
                           {"--right0", &args.right0, {}},
                           {"--left1", &args.left1, {}},
@@ -131,6 +133,23 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const InputDesc& desc
   if (Status same = CheckSameSize(sources, " image", "all four images must have the same size");
       !same.ok()) {
     return same;
+  }
+  // The size as `sfrt run` chooses it: --size, else the size the model records, else the images'.
+  pipeline::PipelineOptions asked;
+  asked.height = resize_h;
+  asked.width = resize_w;
+  asked.allow_aspect_change = args.allow_aspect_change;
+  Result<pipeline::InputSizeChoice> chosen = pipeline::ChooseInputSize(
+      asked, meta, sources[0].image.rows, sources[0].image.cols);
+  if (!chosen.ok()) return chosen.status();
+  resize_h = chosen->height;
+  resize_w = chosen->width;
+  if (resize_h != sources[0].image.rows || resize_w != sources[0].image.cols) {
+    std::cerr << "sfrt infer: note: input size " << SizeString(resize_h, resize_w)
+              << " (HxW): " << chosen->reason << std::endl;
+  }
+  if (!chosen->aspect_note.empty()) {
+    std::cerr << "sfrt infer: warning: " << chosen->aspect_note << std::endl;
   }
   std::string resized;
   if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
@@ -387,7 +406,7 @@ int RunInfer(const InferArgs& args) {
                        kExitUsage);
   }
 
-  if (std::string problem = CheckOutputDirectory(args.output); !problem.empty()) {
+  if (std::string problem = CheckOutputFile(args.output, "-o"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
 
@@ -418,7 +437,7 @@ int RunInfer(const InferArgs& args) {
   }
   Result<InputTensor> input = !args.input_npy.empty() ? InputFromNpy(args.input_npy, meta.input)
                               : any_rgbd ? InputFromRgbd(args, meta.input, resize_h, resize_w)
-                                         : InputFromImages(args, meta.input, resize_h, resize_w);
+                                         : InputFromImages(args, meta, resize_h, resize_w);
   if (!input.ok()) return ReportError(kName, input.message(), kExitFailure);
   const int height = input->height;
   const int width = input->width;
@@ -547,7 +566,11 @@ Command AddInferCommand(CLI::App& parent) {
       ->required();
   cmd->add_option("--size", args->size,
                   "Resize the four images (or RGB-D frames, depth by the nearest sample) to HxW "
-                  "before inference (not --input-npy; default: their own size)");
+                  "before inference (not --input-npy; default for images: the size the model "
+                  "records, as sfrt run chooses it, else their own; RGB-D frames: their own)");
+  cmd->add_flag("--allow-aspect-change", args->allow_aspect_change,
+                "Take a --size of the inverse aspect of the images (refused otherwise, as a "
+                "likely WxH given for HxW)");
   cmd->footer(
       "Input: four images of the same size, read with OpenCV (BGR), arranged in the model's\n"
       "image order, converted to RGB if the model says so and normalised as its metadata\n"

@@ -44,16 +44,6 @@ constexpr char kNoRosBagSupport[] =
     "then configure again)";
 #endif
 
-// Set by the SIGINT/SIGTERM handler; read by the pipeline's watcher thread.
-std::atomic<bool> g_stop{false};
-std::atomic<int> g_signal{0};
-static_assert(std::atomic<bool>::is_always_lock_free && std::atomic<int>::is_always_lock_free);
-
-extern "C" void OnStopSignal(int sig) {
-  g_signal.store(sig);
-  g_stop.store(true);
-}
-
 struct RunArgs {
   std::string model;
   std::string camera;
@@ -92,6 +82,7 @@ struct RunArgs {
   int64_t max_frames = 0;
   double replay_fps = 0;
   std::string size;
+  bool allow_aspect_change = false;
   std::string isa = "auto";
   int threads = 1;
   std::string queue;
@@ -121,11 +112,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   // Installed first and kept until the process exits: a signal while the model loads or the
   // camera opens stops the run before its first frame, and one that lands after the pipeline
   // has finished only sets a flag nobody reads any more; either way the summary is printed.
-  struct sigaction action = {};
-  action.sa_handler = OnStopSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  const StopSignals stop_signals = CatchStopSignals();
 
   // ---- usage checks, before any file or device is touched
   if (args.model.empty() || args.out.empty()) {
@@ -246,14 +233,16 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
         live ? config::CheckRange(config::kCameraBuffers, "--buffers", args.buffers) : ""}) {
     if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
-  if (args.queue_depth < 1 || args.max_frames < 0 || args.budget_ms < 0 || args.buffers < 2 ||
-      !(args.fps >= 0) || args.pair_tolerance_ms < 0 || args.camera_timeout_ms <= 0 ||
-      !(args.video_fps > 0)) {
-    return ReportError(kName,
-                       "--max-frames, --budget-ms, --pair-tolerance-ms must be >= 0; "
-                       "--queue-depth >= 1; --buffers >= 2; --camera-timeout-ms and --video-fps "
-                       "> 0",
-                       kExitUsage);
+  // Each bound names its option (the values may come from a profile as well).
+  for (const std::string& problem :
+       {CheckAtLeast("--max-frames", static_cast<double>(args.max_frames), 0),
+        CheckAtLeast("--budget-ms", args.budget_ms, 0),
+        CheckAtLeast("--pair-tolerance-ms", args.pair_tolerance_ms, 0),
+        CheckAtLeast("--queue-depth", static_cast<double>(args.queue_depth), 1),
+        CheckAtLeast("--fps", args.fps, 0),
+        CheckAbove("--camera-timeout-ms", static_cast<double>(args.camera_timeout_ms), 0),
+        CheckAbove("--video-fps", args.video_fps, 0)}) {
+    if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
 
   {
@@ -407,6 +396,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
 
   options.out_dir = args.out;
+  options.allow_aspect_change = args.allow_aspect_change;
   options.on_output_error = args.on_output_error == "skip" ? pipeline::OutputErrorPolicy::kSkip
                                                            : pipeline::OutputErrorPolicy::kStop;
   options.write_png = !args.no_png;
@@ -422,7 +412,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.progress_every = args.progress_every;
   options.model_path = args.model;
   options.latency_log = args.latency_log;
-  options.stop = &g_stop;
+  options.stop = stop_signals.stop;
   pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
   options.log = &log;
 #if SFRT_HAVE_ROS
@@ -441,7 +431,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     return ReportError(kName, std::string("--record-bag: ") + kNoRosBagSupport, kExitUsage);
   }
 #endif
-  options.stop_signal = &g_signal;
+  options.stop_signal = stop_signals.signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
   // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
   if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
@@ -479,12 +469,18 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   pipeline::PipelineResult result =
       RunConfiguredPipeline(rc, *loaded, source.get(), options, again);
   if (!result.started) {  // nothing ran: no statistics to show
-    return ReportError(kName, result.status.message(), kExitFailure);
+    return ReportError(kName, result.status.message(),
+                       result.usage_error ? kExitUsage : kExitFailure);
   }
 
   std::cout << "source      " << source->Describe() << "\n"
-            << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n"
-            << "throughput  " << Fixed(result.fps, 2) << " fps\n";
+            << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n";
+  if (result.chain.breaks() > 0) {
+    std::cout << "windows     " << result.chain.breaks() << " pair(s) opened no window (lost frame "
+              << result.chain.broken_by_loss << ", stamp gap " << result.chain.skipped_for_gap
+              << ", stamps going back " << result.chain.stream_restarts << ")\n";
+  }
+  std::cout << "throughput  " << Fixed(result.fps, 2) << " fps\n";
   for (int st = 0; st < config::kStageCount; ++st) {
     const std::string name = config::kStageNames[st];
     std::cout << "p50 " << name << std::string(11 - name.size(), ' ')
@@ -512,6 +508,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
   PrintRunConfigReport(*rc, result, std::cout);
   if (!result.status.ok()) return ReportError(kName, result.status.message(), kExitFailure);
+  if (rc->profile_write_failed) {  // asked for and measured, but lost: not a success
+    return ReportError(kName, "--profile: " + rc->profile_error, kExitFailure);
+  }
   return kExitOk;
 }
 
@@ -592,11 +591,11 @@ Command AddRunCommand(CLI::App& parent) {
                   "partial file is left")
       ->capture_default_str()
       ->check(CLI::IsMember({"stop", "skip"}));
-  cmd->add_option("--loop", args->loop,
-                  "Replays: pass over the files this many times (soak runs; later passes "
-                  "overwrite the same output files)")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+  RequireAtLeast(cmd->add_option("--loop", args->loop,
+                                 "Replays: pass over the files this many times (soak runs; "
+                                 "later passes overwrite the same output files)")
+                     ->capture_default_str(),
+                 1);
   cmd->add_option(
       "--latency-log", args->latency_log,
       "Also write a CSV line per written window: window, source/preprocess/infer/"
@@ -627,15 +626,19 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--budget-ms", args->budget_ms,
                   "Deadline per frame, capture to written output; misses are counted (0: none)")
       ->capture_default_str();
-  cmd->add_option("--replay-fps", args->replay_fps,
-                  "Read replayed windows at this rate, like a camera (0: as fast as the pipeline "
-                  "takes them)")
-      ->check(CLI::NonNegativeNumber);
+  RequireAtLeast(cmd->add_option("--replay-fps", args->replay_fps,
+                                 "Read replayed windows at this rate, like a camera (0: as fast "
+                                 "as the pipeline takes them)"),
+                 0);
   cmd->add_option("--max-frames", args->max_frames, "Stop after this many frames (0: no limit)")
       ->capture_default_str();
   cmd->add_option("--size", args->size,
-                  "Model input size HxW (frames are rectified/resized to it; default: the "
-                  "source's frame size)");
+                  "Model input size HxW (frames are rectified/resized to it; default: the size "
+                  "the model records, as sfrt inspect prints it, else the source's frame size; "
+                  "the run prints which)");
+  cmd->add_flag("--allow-aspect-change", args->allow_aspect_change,
+                "Take a --size of the inverse aspect of the frames (refused otherwise, as a "
+                "likely WxH given for HxW)");
   cmd->add_option(
          "--isa", args->isa,
          "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, avx512amx, neon")
@@ -653,7 +656,14 @@ Command AddRunCommand(CLI::App& parent) {
                   "printed apart, and with --queue newest-wins a picture that cannot keep up is "
                   "dropped and counted), or 0: on the output stage, each window's files complete "
                   "together. Default: 2 for cameras, 0 for replays")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            int n = -1;
+            return CLI::detail::lexical_cast(text, n) && n >= 0
+                       ? std::string()
+                       : text + " is not a whole number >= 0";
+          },
+          "", "count"));
   cmd->add_option("--progress", args->progress,
                   "Progress on stderr: auto (one updating line on a terminal, else lines), tty, "
                   "lines, off")

@@ -133,6 +133,8 @@ int RunSynth(const SynthArgs& args) {
   options.noise_sigma = args.noise;
   options.blur_sigma = args.blur;
   options.threads = threads;
+  // Ctrl-C or SIGTERM: the writer stops between frames and removes its partial tree.
+  options.stop = CatchStopSignals().stop;
 
   std::cout << "camera    f " << FormatFloat(focal) << " px, baseline "
             << FormatFloat(args.baseline) << ", cx " << FormatFloat(cx) << ", cy "
@@ -230,7 +232,8 @@ Command AddSynthCommand(CLI::App& parent) {
       "Writing: the data set is written under <out>.partial-<pid> and renamed to --out only\n"
       "when every file is written and flushed; camera.json, with \"complete\": true, comes\n"
       "last (sfrt eval refuses an sfrt synth data set without it). On a failure (e.g. a full\n"
-      "disk) the partial tree is removed and --out is left as it was.\n"
+      "disk) or on SIGINT/SIGTERM (Ctrl-C: exit 1 once the current frame is written) the\n"
+      "partial tree is removed and --out is left as it was.\n"
       "Output (Scene Flow datasets' layout, <seq> and NNNN from 0000):\n"
       "  camera.json, camera_data/<seq>/camera_data.txt\n"
       "  frames_cleanpass/<seq>/{left,right}/NNNN.png\n"

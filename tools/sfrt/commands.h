@@ -6,6 +6,7 @@
 // before any file is read). Errors go to stderr as one line: "sfrt <command>: <message>".
 #pragma once
 
+#include <atomic>
 #include <functional>
 #include <string>
 #include <string_view>
@@ -13,6 +14,7 @@
 
 namespace CLI {
 class App;
+class Option;
 }  // namespace CLI
 
 namespace sfrt {
@@ -62,14 +64,34 @@ const char* DefaultInputSize(const ModelMetadata& meta, int* height, int* width)
 // such as "model file 'x.sfrt' does not exist". `what` names the role ("model file").
 std::string CheckInputFile(const std::string& path, std::string_view what);
 
-// Empty when the directory `path` would be written into exists; otherwise a message such as
-// "output directory 'out' does not exist (for -o out/flow.pfm)".
-std::string CheckOutputDirectory(const std::string& path);
+// Empty when an output file could be written at `path` (by io::WriteFileAtomically's rule): its
+// directory exists and takes a new file, or it is a device or FIFO; otherwise a message naming
+// `flag` and the reason, e.g. "output directory 'out' does not exist (for -o out/flow.pfm)".
+// Commands call it before they compute, so a result is never lost to an unwritable path.
+std::string CheckOutputFile(const std::string& path, std::string_view flag);
 
 // Empty when files can be created in the directory `path`, or, if it does not exist yet, in its
 // nearest existing ancestor (so creating it would work); otherwise a message naming `flag`, the
 // path and the reason. Tests by creating and removing a file: nothing is left behind.
 std::string CheckWritableDirectory(const std::string& path, std::string_view flag);
+
+// Numeric bounds, each problem naming its option and value ("--budget-ms: -5 is not >= 0"), read
+// with the shared number parser; "" when the value is within them. For values that may come from
+// a profile too, checked once the command line and the profile are merged.
+std::string CheckAtLeast(std::string_view flag, double value, double lo);
+std::string CheckAbove(std::string_view flag, double value, double lo);
+std::string CheckAtMost(std::string_view flag, double value, double hi);
+// The same rule as a CLI11 check on `option`, at parse time: "--loop: 0 is not >= 1".
+CLI::Option* RequireAtLeast(CLI::Option* option, double lo);
+
+// SIGINT and SIGTERM, caught for the rest of the process: `stop` is set and `signal` says which
+// (0: none yet). Commands that run long (run, synth) poll them, finish or remove what they were
+// writing, and exit; a second call returns the same flags.
+struct StopSignals {
+  const std::atomic<bool>* stop;
+  const std::atomic<int>* signal;
+};
+StopSignals CatchStopSignals();
 
 // Lower-cased extension of `path` including the dot (".onnx"), or "" if it has none.
 std::string LowerExtension(const std::string& path);

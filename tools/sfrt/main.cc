@@ -3,10 +3,12 @@
 //                                           (built with the exporter only)
 //   sfrt inspect model.sfrt                 metadata, per-layer shapes and costs, arena size
 //   sfrt infer   --model model.sfrt ...     run one frame pair and write the scene flow
+#include <signal.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -20,8 +22,10 @@
 #include <vector>
 
 #include "sfrt/commands.h"
+#include "sfrt/config/limits.h"
 #include "sfrt/config/profile.h"
 #include "sfrt/model.h"
+#include "sfrt/pipeline/io/atomic_write.h"
 
 #ifndef SFRT_WITH_EXPORTER
 #define SFRT_WITH_EXPORTER 0
@@ -68,34 +72,77 @@ std::string CheckInputFile(const std::string& path, std::string_view what) {
   return "";
 }
 
-std::string CheckOutputDirectory(const std::string& path) {
-  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+std::string CheckOutputFile(const std::string& path, std::string_view flag) {
+  Result<io::OutputTarget> target = io::ResolveOutputTarget(path);
+  if (!target.ok()) return std::string(flag) + ": " + target.message();
+  if (target->kind == io::OutputTarget::Kind::kInPlace) return "";  // a device or FIFO
+  const std::filesystem::path parent = std::filesystem::path(target->path).parent_path();
   std::error_code ec;
-  if (parent.empty() || std::filesystem::is_directory(parent, ec)) return "";
-  return "output directory '" + parent.string() + "' does not exist (for -o " + path + ")";
+  if (!parent.empty() && !std::filesystem::is_directory(parent, ec)) {
+    return "output directory '" + parent.string() + "' does not exist (for " + std::string(flag) +
+           " " + path + ")";
+  }
+  // The file is written to a temporary name beside it and renamed: the directory must take one.
+  return io::CheckWritableDirectory(parent.empty() ? "." : parent.string(),
+                                    std::string(flag) + " " + path + ": its directory");
 }
 
 std::string CheckWritableDirectory(const std::string& path, std::string_view flag) {
-  namespace fs = std::filesystem;
-  const std::string head = std::string(flag) + " '" + path + "': ";
-  fs::path dir = fs::path(path).lexically_normal();
-  if (!dir.empty() && dir.filename().empty()) dir = dir.parent_path();  // "out/" -> "out"
-  std::error_code ec;
-  while (!dir.empty() && !fs::exists(fs::symlink_status(dir, ec)) && !fs::exists(dir, ec)) {
-    dir = dir.parent_path();
-  }
-  if (dir.empty()) dir = ".";
-  if (!fs::is_directory(dir, ec)) {
-    return head + "'" + dir.string() + "' exists and is not a directory";
-  }
-  std::string probe = (dir / ".sfrt-write-test-XXXXXX").string();
-  const int fd = ::mkstemp(probe.data());
-  if (fd < 0) {
-    return head + "cannot create files in '" + dir.string() + "' (" + std::strerror(errno) + ")";
-  }
-  ::close(fd);
-  ::unlink(probe.c_str());
-  return "";
+  return io::CheckWritableDirectory(path, flag);
+}
+
+namespace {
+
+std::string BoundProblem(std::string_view flag, double value, const char* rule, double bound) {
+  return std::string(flag) + ": " + FormatFloat(value) + " is not " + rule + " " +
+         FormatFloat(bound);
+}
+
+}  // namespace
+
+std::string CheckAtLeast(std::string_view flag, double value, double lo) {
+  return value >= lo ? std::string() : BoundProblem(flag, value, ">=", lo);
+}
+
+std::string CheckAbove(std::string_view flag, double value, double lo) {
+  return value > lo ? std::string() : BoundProblem(flag, value, ">", lo);
+}
+
+std::string CheckAtMost(std::string_view flag, double value, double hi) {
+  return value <= hi ? std::string() : BoundProblem(flag, value, "<=", hi);
+}
+
+CLI::Option* RequireAtLeast(CLI::Option* option, double lo) {
+  return option->check(CLI::Validator(
+      [lo](std::string& text) {
+        double value = 0;
+        if (!config::ParseFiniteNumber(text, &value)) return "'" + text + "' is not a number";
+        return value >= lo ? std::string() : text + " is not >= " + FormatFloat(lo);
+      },
+      "", "at least"));
+}
+
+namespace {
+
+// Set by the SIGINT/SIGTERM handler; read by the pipeline's watcher thread or synth's writer.
+std::atomic<bool> g_stop{false};
+std::atomic<int> g_signal{0};
+static_assert(std::atomic<bool>::is_always_lock_free && std::atomic<int>::is_always_lock_free);
+
+extern "C" void OnStopSignal(int sig) {
+  g_signal.store(sig);
+  g_stop.store(true);
+}
+
+}  // namespace
+
+StopSignals CatchStopSignals() {
+  struct sigaction action = {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  return {&g_stop, &g_signal};
 }
 
 std::string LowerExtension(const std::string& path) {
@@ -189,6 +236,26 @@ std::string UnknownOption(const CLI::App& app, int argc, char** argv) {
   return "";
 }
 
+// Every real-valued option of every command (CLI11 types them FLOAT) is read by the one shared
+// parser (config::ParseFiniteNumber): "nan" and "inf" are refused naming the option, so no NaN
+// can mean "no budget" or slip past a range check. Walks the commands once, after they are added.
+void RequireFiniteNumbers(CLI::App* app) {
+  const CLI::Validator finite(
+      [](std::string& text) {
+        double value = 0;
+        return sfrt::config::ParseFiniteNumber(text, &value)
+                   ? std::string()
+                   : "'" + text + "' is not a finite number";
+      },
+      "", "finite");
+  for (CLI::Option* option : app->get_options()) {
+    if (option->get_type_name().rfind("FLOAT", 0) == 0) option->check(finite);
+  }
+  for (CLI::App* sub : app->get_subcommands([](CLI::App*) { return true; })) {
+    RequireFiniteNumbers(sub);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -219,6 +286,7 @@ int main(int argc, char** argv) {
   commands.push_back(sfrt::tools::AddEvalCommand(app));
   commands.push_back(sfrt::tools::AddConfigCommand(app));
   commands.push_back(sfrt::tools::AddReportCommand(app));
+  RequireFiniteNumbers(&app);
 
   try {
     app.parse(argc, argv);

@@ -414,6 +414,7 @@ pipeline::PipelineResult RunConfiguredPipeline(
       state->report_files = *files;
     } else {
       state->profile_error = files.message();
+      state->profile_write_failed = true;
     }
   } else if (state->profiler) {
     state->profile_error = "no frame was written, so no profile was recorded";

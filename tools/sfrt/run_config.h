@@ -59,6 +59,7 @@ struct RunConfigState {
   std::optional<pipeline::ProfileReportFiles> report_files;
   std::string profile_table;
   std::string profile_error;
+  bool profile_write_failed = false;  // the reports could not be written (the run exits 1)
 };
 
 void AddRunConfigOptions(CLI::App* cmd, RunConfigState* state);

@@ -204,6 +204,10 @@ Status WriteTree(const DatasetOptions& options, const fs::path& root,
     }
     const RenderOptions render = MakeRenderOptions(options, s);
     for (int f = 0; f < options.scene.frames; ++f) {
+      if (options.stop != nullptr && options.stop->load()) {
+        return Status::Error("stopped by a signal after " + std::to_string(p.frames_done) + " of " +
+                             std::to_string(p.frames_total) + " frames");
+      }
       RenderedFrame fr = RenderFrame(*scene, f, render);
       const std::string name = FrameName(f);
       Status st = WritePng(images / "left" / (name + ".png"), fr.left, h, w);

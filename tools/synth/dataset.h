@@ -19,6 +19,7 @@
 // also depend on the zlib build.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -37,6 +38,9 @@ struct DatasetOptions {
   double noise_sigma = 0;   // 8-bit grey levels
   double blur_sigma = 0;    // pixels
   int threads = 1;
+  // Set (by a signal handler) to stop between frames: WriteDataset then removes the partial
+  // tree, leaves the destination as it was and returns an error saying it was stopped.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 struct DatasetProgress {
@@ -61,7 +65,8 @@ Destination ClassifyDestination(const std::string& out_dir);
 // a temporary sibling, "<out_dir>.partial-<pid>", and flushed file by file; camera.json, with
 // "complete": true, is written last; only then is the tree renamed to `out_dir` (an existing
 // data set there is replaced only at this point). On any failure the temporary tree is removed
-// and `out_dir` is left as it was: a full disk leaves no partial data set behind.
+// and `out_dir` is left as it was: a full disk, or a stop (DatasetOptions::stop: SIGINT,
+// SIGTERM), leaves no partial data set behind.
 // `progress` (optional) is called after each frame.
 Status WriteDataset(const DatasetOptions& options, const std::string& out_dir, bool replace = false,
                     const std::function<void(const DatasetProgress&)>& progress = {});

@@ -454,11 +454,17 @@ Result<Fetched> PairWindow::Next() {
     Result<Fetched> got = source_->Next(&slots_[free_slot]);
     if (!got.ok() || *got == Fetched::kEnd) return got;
     const FramePair& fresh = slots_[free_slot];
-    const bool consecutive =
-        have_current_ && fresh.sequence == current().sequence && fresh.index == current().index + 1;
+    if (!have_current_ || fresh.sequence != current().sequence) {
+      chain_.Restart();
+    } else if (fresh.index != current().index + 1) {
+      chain_.Lose();  // the pairs between were skipped (bad frames)
+    }
+    // Frame numbers, not video timestamps (some backends report none or zeros); a name without
+    // digits has none, and its place in the listing stands in.
+    const int64_t stamp = fresh.frame_number >= 0 ? fresh.frame_number : fresh.index;
     current_slot_ = free_slot;
     have_current_ = true;
-    if (consecutive) return Fetched::kPair;
+    if (chain_.Offer(stamp) == ChainLink::kWindow) return Fetched::kPair;
   }
 }
 

@@ -191,4 +191,26 @@ Result<std::string> ReadWholeFile(const std::string& path) {
   return data;
 }
 
+std::string CheckWritableDirectory(const std::string& path, std::string_view what) {
+  namespace fs = std::filesystem;
+  const std::string head = std::string(what) + " '" + path + "': ";
+  fs::path dir = fs::path(path).lexically_normal();
+  if (!dir.empty() && dir.filename().empty()) dir = dir.parent_path();  // "out/" -> "out"
+  std::error_code ec;
+  while (!dir.empty() && !fs::exists(fs::symlink_status(dir, ec)) && !fs::exists(dir, ec)) {
+    dir = dir.parent_path();
+  }
+  if (dir.empty()) dir = ".";
+  if (!fs::is_directory(dir, ec)) {
+    return head + "'" + dir.string() + "' exists and is not a directory";
+  }
+  std::string probe = (dir / ".sfrt-write-test-XXXXXX").string();
+  const int fd = ::mkstemp(probe.data());
+  if (fd < 0)
+    return head + "cannot create files in '" + dir.string() + "' (" + ErrnoText(errno) + ")";
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return "";
+}
+
 }  // namespace sfrt::io

@@ -685,11 +685,12 @@ TEST_F(PipelineTest, QueuedPicturesAreAllWrittenAndMeasuredApart) {
   EXPECT_EQ(r.pictures_ms.count, 5u);
   EXPECT_EQ(r.pictures_dropped, 0u);
   const nlohmann::json sinks = Summary()["sinks"];
-  ASSERT_EQ(sinks.size(), 2u);
+  ASSERT_EQ(sinks.size(), 3u);
   EXPECT_EQ(sinks[0]["name"], "flow files");
   EXPECT_EQ(sinks[1]["name"], "pictures");
   EXPECT_EQ(sinks[1]["inner"], nlohmann::json::array({"png"}));
   EXPECT_EQ(sinks[1]["windows"], 5);
+  EXPECT_EQ(sinks[2]["name"], "window index");
 }
 
 // A source that says its windows continue one another: each pair is rectified once (pair t of
@@ -932,6 +933,77 @@ TEST(Visualizer, ColoursDirectionByHueAndZByADivergingMap) {
   EXPECT_GT(warm[2], warm[0]);  // red end
   EXPECT_DOUBLE_EQ(vis.last_xy_scale(), 2.0);
   EXPECT_DOUBLE_EQ(vis.last_z_scale(), 1.0);
+}
+
+}  // namespace
+}  // namespace sfrt::pipeline
+
+namespace sfrt::pipeline {
+namespace {
+
+ModelMetadata TracedAt(int height, int width, TrainingState training) {
+  ModelMetadata m;
+  m.input.traced_height = height;
+  m.input.traced_width = width;
+  m.training = training;
+  return m;
+}
+
+TEST(ChooseInputSize, WithoutSizeATrainedModelRunsAtTheSizeItRecords) {
+  PipelineOptions o;
+  Result<InputSizeChoice> c =
+      ChooseInputSize(o, TracedAt(96, 128, TrainingState::kTrained), 540, 720);
+  ASSERT_TRUE(c.ok()) << c.message();
+  EXPECT_EQ(c->height, 96);
+  EXPECT_EQ(c->width, 128);
+  EXPECT_NE(c->reason.find("the size the model records"), std::string::npos) << c->reason;
+  EXPECT_TRUE(c->aspect_note.empty());  // 720/540 is 128/96
+}
+
+TEST(ChooseInputSize, WithoutSizeAnUntrainedOrUntracedModelRunsAtTheFramesSize) {
+  PipelineOptions o;
+  Result<InputSizeChoice> untrained =
+      ChooseInputSize(o, TracedAt(128, 224, TrainingState::kUntrained), 120, 160);
+  ASSERT_TRUE(untrained.ok());
+  EXPECT_EQ(untrained->height, 120);
+  EXPECT_EQ(untrained->width, 160);
+  Result<InputSizeChoice> untraced =
+      ChooseInputSize(o, TracedAt(0, 0, TrainingState::kTrained), 120, 160);
+  ASSERT_TRUE(untraced.ok());
+  EXPECT_EQ(untraced->height, 120);
+  EXPECT_NE(untraced->reason.find("records none"), std::string::npos) << untraced->reason;
+}
+
+TEST(ChooseInputSize, ASizeOfTheInverseAspectIsRefusedWithTheSwapUnlessAllowed) {
+  PipelineOptions o;
+  o.height = 128;  // WxH for 96x128 on 192x256 frames
+  o.width = 96;
+  const ModelMetadata m = TracedAt(96, 128, TrainingState::kTrained);
+  Result<InputSizeChoice> refused = ChooseInputSize(o, m, 192, 256);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("did you mean 96x128 (HxW)?"), std::string::npos)
+      << refused.message();
+  o.allow_aspect_change = true;
+  Result<InputSizeChoice> allowed = ChooseInputSize(o, m, 192, 256);
+  ASSERT_TRUE(allowed.ok());
+  EXPECT_EQ(allowed->height, 128);
+  EXPECT_FALSE(allowed->aspect_note.empty());
+}
+
+TEST(ChooseInputSize, AnotherAspectThatIsNotTheSwapRunsWithANote) {
+  PipelineOptions o;
+  o.height = 96;
+  o.width = 128;  // 4:3 on 16:9 frames: a stretch, not a swapped order
+  Result<InputSizeChoice> c =
+      ChooseInputSize(o, TracedAt(96, 128, TrainingState::kTrained), 540, 960);
+  ASSERT_TRUE(c.ok()) << c.message();
+  EXPECT_EQ(c->reason, "as asked");
+  EXPECT_NE(c->aspect_note.find("stretched"), std::string::npos) << c->aspect_note;
+  o.height = 540;  // within 10% of the frames' aspect: no note
+  o.width = 950;
+  Result<InputSizeChoice> same = ChooseInputSize(o, ModelMetadata{}, 540, 960);
+  ASSERT_TRUE(same.ok());
+  EXPECT_TRUE(same->aspect_note.empty());
 }
 
 }  // namespace

@@ -156,6 +156,17 @@ def scenario_camera(a):
     check(s["deadline"]["budget_ms"] == 1000, "budget recorded")
     for st in ("source", "preprocess", "infer", "output", "end_to_end"):
         check(s["latency_ms"][st]["count"] == frames, "latency count for %s" % st)
+    # A dropped right frame leaves its left frame unpaired, and no window spans the gap it makes:
+    # every window is two consecutive left sequence numbers, one frame interval apart.
+    w = s["windows"]
+    check(w["broken_by_lost_frame"] >= 1 and w["formed"] >= frames,
+          "summary windows %s: the right camera's drops should break the chain" % w)
+    with open(os.path.join(out, "windows.csv")) as f:
+        rows = [line.rstrip("\n").split(",") for line in f][1:]
+    check(len(rows) == frames, "windows.csv has %d windows, expected %d" % (len(rows), frames))
+    for r in rows:
+        check(int(r[3]) == int(r[2]) + 1,
+              "window %s spans left sequence numbers %s..%s" % (r[0], r[2], r[3]))
 
 
 def scenario_replay(a):

@@ -55,6 +55,11 @@ std::string CheckRange(const IntRange& range, const std::string& flag, long long
 std::string CheckSize(const IntRange& range, const std::string& flag, long long height,
                       long long width);
 
+// A real number as sfrt reads one wherever a user writes it (command-line options, profile
+// fields, node parameters): the whole text in strtod's syntax, and finite: "nan", "inf" and
+// values beyond double's range are refused, so no NaN can pass a range check or mean "none".
+bool ParseFiniteNumber(const std::string& text, double* value);
+
 // 0 -> the number of CPUs (at least 1); anything else unchanged.
 int ResolveThreads(int threads);
 

@@ -122,6 +122,29 @@ class LatencyLogSink final : public FlowSink {
   io::StreamedFile file_;
 };
 
+// <dir>/windows.csv: which source frames each written window came from, one line per window once
+// every sink has written it: the file stem of its outputs (OutputStem), the sequence, the frame
+// numbers of pair t and t+1 (file numbers, camera sequence numbers, a bag's message numbers) and
+// their stamps in ns (0 where the source has none), and where pair t's left image came from.
+// Windows are named by their source, never by a count, so a gap in the source shows here as a
+// gap in frame_t. Streamed as the run goes (made at the first window), flushed at Stop().
+class WindowIndexSink final : public FlowSink {
+ public:
+  explicit WindowIndexSink(std::string dir);
+  std::string name() const override { return "window index"; }
+  Status Write(const FlowFrame&) override { return Status::Ok(); }
+  Status Completed(const WindowRecord& record) override;
+  Status Stop() override;
+  const std::string& path() const { return path_; }
+
+ private:
+  Status Open();
+
+  std::string path_;
+  bool opened_ = false;
+  io::StreamedFile file_;
+};
+
 // <dir>/summary.json: the run's summary (FlowSink::Finished), written atomically (a temporary name
 // renamed), pretty-printed. PipelineOptions::write_summary makes one.
 class SummaryFileSink final : public FlowSink {

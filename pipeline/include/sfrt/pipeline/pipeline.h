@@ -42,6 +42,7 @@
 
 #include "sfrt/camera/calibration.h"
 #include "sfrt/camera/preprocess.h"
+#include "sfrt/camera/window_chain.h"
 #include "sfrt/config/vocabulary.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
@@ -150,6 +151,10 @@ class FrameSource {
     std::string reason;
   };
   virtual std::vector<BadFrame> bad_frames() const { return {}; }
+  // How the source chained its pairs into windows (sfrt/camera/window_chain.h, the one rule for
+  // every source): windows formed, and pairs that opened none because a frame was lost, the
+  // stamps jumped a gap or went backwards. For summary.json's "windows" and the console.
+  virtual camera::ChainCounts chain_counts() const { return {}; }
 
   // Where the source's warnings and events go (log.h); RunPipeline sets its own log before
   // Open(). Null: DefaultLog().
@@ -185,8 +190,11 @@ struct PipelineOptions {
   // > 0: the source reads at most this many windows a second, on a fixed schedule (never in a
   // burst to catch up), as a camera would deliver them; 0 = as fast as the pipeline takes them.
   double source_fps = 0;
-  int height = 0;  // model input size; 0 = the source's frame size
-  int width = 0;
+  int height = 0;  // model input size; 0 = the size the model records, else the source's
+  int width = 0;   // (ChooseInputSize)
+  // A height x width of the inverse aspect of the source's frames (beyond kAspectTolerance) is
+  // refused as a likely WxH given for HxW, unless this says it is meant.
+  bool allow_aspect_change = false;
   Isa isa = Isa::kAuto;
   int threads = 1;
   KernelTuning tuning{};  // the session's optimised-path switches (defaults: the fastest)
@@ -249,6 +257,7 @@ struct PipelineOptions {
 struct PipelineResult {
   Status status;              // ok, or the error that ended the run
   bool started = false;       // false: setup failed (source open, session), no stage ran
+  bool usage_error = false;   // setup refused an option against the source (a tool's exit 2)
   int64_t frames = 0;         // windows whose outputs were written
   int64_t output_errors = 0;  // windows whose outputs could not be written (skipped or the stop)
   std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
@@ -261,6 +270,7 @@ struct PipelineResult {
   bool pictures_queued = false;             // PipelineOptions::picture_queue > 0 and pictures
   profiling::Summary pictures_ms;           // then: the encoders' time per window
   uint64_t pictures_dropped = 0;            // and the pictures dropped to keep up
+  camera::ChainCounts chain;                // FrameSource::chain_counts() at the end
   int64_t frames_at_fallback_size = 0;      // written windows that ran at smaller_input_on_miss
   int64_t fallback_entries = 0;             // switches from the model input size to the fallback
   std::vector<std::string> warnings;
@@ -276,6 +286,23 @@ PipelineResult RunPipeline(std::shared_ptr<const Model> model, FrameSource* sour
 // at the end). The MJPG/AVI writer seeks back to finish the file, so it needs a regular file or
 // a new path; a character device or FIFO is refused with a message saying so, naming the path.
 Result<std::string> ResolveVideoPath(const std::string& path);
+
+// The network input size of a run, and why, as RunPipeline chooses it once the source's frame
+// size is known: PipelineOptions::height x width when set; else the size the model records
+// (InputDesc::traced_height x traced_width: the size it was traced and trained at, which its
+// training camera's focal length is for), unless the model is marked untrained (no camera to
+// match); else the frames' size. An asked size whose aspect is
+// the inverse of the frames' (within kAspectTolerance) is an error suggesting the swap unless
+// allow_aspect_change; any other aspect change is taken with a note (aspect_note).
+inline constexpr double kAspectTolerance = 0.10;
+struct InputSizeChoice {
+  int height = 0;
+  int width = 0;
+  std::string reason;       // "as asked", "the size the model records ...", "the frames' size ..."
+  std::string aspect_note;  // "" or a warning that the frames are stretched
+};
+Result<InputSizeChoice> ChooseInputSize(const PipelineOptions& options, const ModelMetadata& model,
+                                        int source_height, int source_width);
 
 // Output file stem of a window: "<sequence with '/' as '_'>_<frame0, 6 digits>", or
 // "frame_<frame0>" when the sequence is empty.

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "sfrt/camera/status.h"
+#include "sfrt/camera/window_chain.h"
 
 namespace sfrt::camera {
 
@@ -173,9 +174,13 @@ Result<std::unique_ptr<StereoSource>> OpenSbsVideoSource(const std::string& path
 
 // ---- Consecutive pairs ----
 
-// Turns a source into windows (pair_t, pair_t+1) of consecutive pairs from the same sequence.
-// Each pair appears in at most two windows (as `current` and then as `previous`); a sequence
-// change or a skipped frame restarts the window, so the first pair after it opens no window.
+// Turns a source into windows (pair_t, pair_t+1) of consecutive pairs from the same sequence,
+// by the rule of window_chain.h. Each pair appears in at most two windows (as `current` and then
+// as `previous`); a sequence change restarts the chain, and a skipped frame (an index gap), a
+// stamp gap or a stamp that goes backwards breaks it, so the first pair after it opens no window.
+// The stamps are the frame numbers (file names' digits, video frame numbers; the place in the
+// listing for a name without digits): a file missing from a numbered sequence is a gap, and a
+// number that goes backwards (names that do not sort by number) restarts the chain.
 // Reuses two FramePair slots (no per-window copies). Not thread-safe. The source must outlive it.
 class PairWindow {
  public:
@@ -186,9 +191,12 @@ class PairWindow {
   Result<Fetched> Next();
   const FramePair& previous() const { return slots_[1 - current_slot_]; }
   const FramePair& current() const { return slots_[current_slot_]; }
+  // The chain's counts so far (windows formed and why pairs opened none).
+  const ChainCounts& counts() const { return chain_.counts(); }
 
  private:
   StereoSource* source_;
+  WindowChain chain_;
   FramePair slots_[2];
   int current_slot_ = 0;
   bool have_current_ = false;

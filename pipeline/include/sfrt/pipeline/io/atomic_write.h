@@ -83,4 +83,10 @@ class StreamedFile {
 // Reads a whole file. Errors name the file.
 Result<std::string> ReadWholeFile(const std::string& path);
 
+// Empty when files can be created in the directory `path`, or, if it does not exist yet, in its
+// nearest existing ancestor (so creating it would work); otherwise a message naming `what` (an
+// option, e.g. "--out"), the path and the reason. Tests by creating and removing a file: nothing
+// is left behind. For checking every output location before the first frame.
+std::string CheckWritableDirectory(const std::string& path, std::string_view what);
+
 }  // namespace sfrt::io
