@@ -12,6 +12,7 @@
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
+#include "png_encoder.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -94,10 +95,9 @@ const cv::Mat& FlowRenderer::Render(const FlowFrame& frame) {
 Status PngSink::Write(const FlowFrame& frame) {
   last_path_.clear();
   const cv::Mat& canvas = renderer_->Render(frame);
-  static const std::vector<int> kParams = {cv::IMWRITE_PNG_COMPRESSION, 1};
-  if (!cv::imencode(".png", canvas, png_, kParams)) {
+  if (Status encoded = EncodePng(canvas, &png_); !encoded.ok()) {
     return Status::Error("cannot encode the visualisation of " + OutputStem(*frame.meta) +
-                         " as PNG");
+                         " as PNG: " + encoded.message());
   }
   std::string path = PathIn(dir_, *frame.meta, ".png");
   if (Status s = io::WriteFileAtomically(path, png_); !s.ok()) return s;

@@ -585,14 +585,19 @@ Status Runner::StartSinks() {
     video_sink_ = video.get();
     pictures.push_back(std::move(video));
   }
-  const size_t depth = options_.picture_queue.value_or(source_->live() ? 2 : 0);
+  // Where time matters (a camera, a paced replay) pictures never hold back the flow: they go
+  // behind a queue that drops (and counts) the ones the encoder cannot keep up with. An unpaced
+  // replay is a throughput job: every picture is written, with its window's flow by default.
+  const bool timed = source_->live() || options_.source_fps > 0;
+  const size_t depth = options_.picture_queue.value_or(timed ? 2 : 0);
   if (depth > 0 && !pictures.empty()) {
     std::vector<FlowSink*> inner;
     for (std::unique_ptr<FlowSink>& p : pictures) {
       inner.push_back(p.get());
       picture_sinks_.push_back(std::move(p));
     }
-    auto queued = std::make_unique<QueuedSink>("pictures", std::move(inner), depth, policy_);
+    const QueuePolicy picture_policy = timed ? QueuePolicy::kNewestWins : policy_;
+    auto queued = std::make_unique<QueuedSink>("pictures", std::move(inner), depth, picture_policy);
     queued_pictures_ = queued.get();
     own_sinks_.push_back(std::move(queued));
   } else {
@@ -840,6 +845,17 @@ Status Runner::FinishSinks(PipelineResult* result) {
   }
   j["latency_attribution_ms"] = {
       {"parts", parts}, {"sum_of_p50", p50_sum}, {"end_to_end_p50", result->end_to_end.p50}};
+  // An unpaced replay reads windows as fast as the pipeline takes them, so they wait in the
+  // queues: its end to end includes that wait and measures throughput, not latency.
+  const bool paced = source_->live() || options_.source_fps > 0;
+  j["timing"] = {
+      {"paced", paced},
+      {"end_to_end_is_latency", paced},
+      {"note", paced
+                   ? "windows arrive at the source's rate: end to end is capture-to-output latency"
+                   : "unpaced replay: windows queue for the pipeline, so end to end includes "
+                     "that wait and measures throughput (fps); pace it (--replay-fps) to "
+                     "measure latency"}};
   j["wall_s"] = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   j["fps"] = result->fps;
   j["clock"] = "CLOCK_MONOTONIC";
@@ -936,6 +952,7 @@ PipelineResult Runner::Run() {
     result.parts[p] = profiling::Summarize(part_ms_[p].Values());
   }
   result.end_to_end = profiling::Summarize(e2e_ms_.Values());
+  result.paced = source_->live() || options_.source_fps > 0;
   result.misses = misses_;
   if (queued_pictures_ != nullptr) {
     result.pictures_queued = true;

@@ -40,6 +40,16 @@ int RunConfigCheck(const ConfigCheckArgs& args) {
                 << std::endl;
       continue;
     }
+    // The checks `sfrt run` makes of its output directory before a run, so a profile that
+    // passes here does not fail there.
+    if (!profile->output_dir.empty()) {
+      if (std::string problem = CheckWritableDirectory(profile->output_dir, "outputs.dir");
+          !problem.empty()) {
+        ++failed;
+        std::cerr << "sfrt config check: " << file << ": " << problem << std::endl;
+        continue;
+      }
+    }
     std::cout << file << ": OK\n";
     if (!args.quiet) std::cout << config::FormatProfileSummary(*profile);
     for (const config::Diagnostic& d : report.warnings) std::cout << WarningLine(d) << "\n";

@@ -101,8 +101,8 @@ Status CheckSameSize(const InputFile (&files)[4], const std::string& noun, const
 
 // Reads the four images and builds the network input as the model's metadata prescribes:
 // image order, color order, then value = (pixel * scale - mean[c]) / std[c].
-Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& meta,
-                                    int resize_h, int resize_w) {
+Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& meta, int resize_h,
+                                    int resize_w) {
   const InputDesc& desc = meta.input;
   InputFile sources[4] = {{"--left0", &args.left0, {}},
                           {"--right0", &args.right0, {}},
@@ -139,8 +139,8 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& 
   asked.height = resize_h;
   asked.width = resize_w;
   asked.allow_aspect_change = args.allow_aspect_change;
-  Result<pipeline::InputSizeChoice> chosen = pipeline::ChooseInputSize(
-      asked, meta, sources[0].image.rows, sources[0].image.cols);
+  Result<pipeline::InputSizeChoice> chosen =
+      pipeline::ChooseInputSize(asked, meta, sources[0].image.rows, sources[0].image.cols);
   if (!chosen.ok()) return chosen.status();
   resize_h = chosen->height;
   resize_w = chosen->width;

@@ -480,7 +480,8 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
               << result.chain.broken_by_loss << ", stamp gap " << result.chain.skipped_for_gap
               << ", stamps going back " << result.chain.stream_restarts << ")\n";
   }
-  std::cout << "throughput  " << Fixed(result.fps, 2) << " fps\n";
+  std::cout << "throughput  " << Fixed(result.fps, 2) << " fps"
+            << (result.paced ? "" : " (unpaced replay: this is its measure)") << "\n";
   for (int st = 0; st < config::kStageCount; ++st) {
     const std::string name = config::kStageNames[st];
     std::cout << "p50 " << name << std::string(11 - name.size(), ' ')
@@ -488,7 +489,10 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
   std::cout << "end to end  p50 " << Fixed(result.end_to_end.p50, 2) << " ms, p99 "
             << Fixed(result.end_to_end.p99, 2) << " ms, max " << Fixed(result.end_to_end.max, 2)
-            << " ms\n";
+            << " ms"
+            << (result.paced ? " (capture to output: the latency)\n"
+                             : " (not a latency: windows of an unpaced replay wait in the queues; "
+                               "--replay-fps N paces it like a camera)\n");
   // Where the end to end went: consecutive parts of each window's latency (they add up to it).
   std::cout << "end to end, by part (p50 / p99 ms):\n";
   double p50_sum = 0;
@@ -653,9 +657,10 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--picture-queue", args->picture_queue,
                   "Encode the PNGs and --video on a thread of their own behind a queue of N "
                   "windows, off the output stage (end to end then ends before them; their time is "
-                  "printed apart, and with --queue newest-wins a picture that cannot keep up is "
-                  "dropped and counted), or 0: on the output stage, each window's files complete "
-                  "together. Default: 2 for cameras, 0 for replays")
+                  "printed apart, and for cameras and paced replays (--replay-fps) a picture that "
+                  "cannot keep up is dropped and counted, never holding back the flow), or 0: on "
+                  "the output stage, each window's files complete together. Default: 2 for "
+                  "cameras and paced replays, 0 for unpaced replays")
       ->check(CLI::Validator(
           [](std::string& text) {
             int n = -1;

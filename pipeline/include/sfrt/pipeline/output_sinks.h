@@ -61,8 +61,8 @@ class FlowRenderer {
   std::vector<float> upscaled_;
 };
 
-// <dir>/<stem>.png: the renderer's canvas, zlib level 1 (several times faster than OpenCV's
-// default for a slightly larger file).
+// <dir>/<stem>.png: the renderer's canvas, encoded for speed (src/png_encoder.h: libpng, the Up
+// filter, zlib level 1 with run-length matching; lossless).
 class PngSink final : public FlowSink {
  public:
   PngSink(std::string dir, FlowRenderer* renderer) : dir_(std::move(dir)), renderer_(renderer) {}

@@ -234,8 +234,10 @@ struct PipelineOptions {
   bool write_summary = true;
   // The visualisation encoders (PNG, video) on a thread of their own behind a queue of this many
   // windows (queued_sink.h: the end to end ends before them; their time is measured apart, and
-  // under kNewestWins a picture that cannot keep up is dropped and counted), or 0: on the output
-  // stage, all or nothing with the window's flow file. Default: 2 for live sources, 0 for replays.
+  // for a live or paced source (source_fps > 0) a picture that cannot keep up is dropped and
+  // counted, so it never holds back the flow; otherwise the queue blocks), or 0: on the output
+  // stage, all or nothing with the window's flow file. Default: 2 for live and paced sources, 0
+  // for unpaced replays (a throughput job that keeps every picture).
   std::optional<size_t> picture_queue;
   // Test seams (null in the product). `miss_verdict` decides whether a written window counts as
   // a deadline miss, given the budget's verdict (end to end > budget_ms), so a test need not
@@ -263,7 +265,10 @@ struct PipelineResult {
   std::string stopped_by;     // "end of source", "max-frames", "SIGINT", "SIGTERM", "error"
   std::string summary_path;   // "" if even the summary could not be written
   double fps = 0;             // frames / wall time
-  profiling::Summary end_to_end;            // milliseconds
+  // Milliseconds. A latency only when `paced` (a live source, or source_fps > 0); an unpaced
+  // replay's windows wait in the queues, so its end to end measures throughput instead.
+  profiling::Summary end_to_end;
+  bool paced = false;
   profiling::Summary stage[4];              // source, preprocess, infer, output
   profiling::Summary parts[kLatencyParts];  // the end to end split (LatencyPart order)
   int64_t misses = 0;                       // windows over the budget (or miss_verdict)
