@@ -9,10 +9,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "png_encoder.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
-#include "png_encoder.h"
 
 namespace sfrt::pipeline {
 namespace {

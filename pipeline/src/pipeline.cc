@@ -1075,18 +1075,18 @@ Result<InputSizeChoice> ChooseInputSize(const PipelineOptions& options, const Mo
     c.width = options.width;
     c.reason = "as asked";
   } else if (input.traced_height > 0 && input.traced_width > 0 &&
-             model.training != TrainingState::kUntrained) {
+             model.training == TrainingState::kTrained) {
     c.height = input.traced_height;
     c.width = input.traced_width;
     c.reason =
-        "the size the model records (traced and trained at; its camera's focal length is "
+        "the size the trained model records (traced at; its training camera's focal length is "
         "for this size); the frames are " +
         source + ", --size sets another";
   } else {
     c.height = source_height;
     c.width = source_width;
-    c.reason = model.training == TrainingState::kUntrained
-                   ? "the frames' size (the model is untrained: it has no camera to match)"
+    c.reason = model.training != TrainingState::kTrained
+                   ? "the frames' size (the model is not marked trained: no training size to match)"
                    : "the frames' size (the model records none)";
     return c;
   }

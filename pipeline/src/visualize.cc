@@ -89,6 +89,10 @@ std::string FormatVisScaleValue(double value) { return Short(value); }
 Result<VisScale> ParseVisScale(const std::string& text) {
   VisScale scale;
   if (text == "auto") return scale;
+  if (text == "first") {
+    scale.mode = VisScale::Mode::kFirst;
+    return scale;
+  }
   const std::string prefix = "fixed:";
   if (text.rfind(prefix, 0) == 0 && text.size() > prefix.size()) {
     const std::string number = text.substr(prefix.size());
@@ -101,18 +105,18 @@ Result<VisScale> ParseVisScale(const std::string& text) {
     }
   }
   return Status::Error("--vis-scale '" + text +
-                       "': expected 'auto' or 'fixed:VALUE' with VALUE a number > 0 in the "
-                       "model's units (e.g. fixed:" +
-                       Short(kDefaultFixedVisScale) + ")");
+                       "': expected 'auto', 'first' or 'fixed:VALUE' with VALUE a number > 0 in "
+                       "the model's units (e.g. fixed:0.05)");
 }
 
 LegendText MakeLegendText(const VisScale& scale, const std::string& units, double xy, double z) {
   LegendText t;
-  const bool fixed = scale.mode == VisScale::Mode::kFixed;
-  t.xy_lines = {"X/Y: hue = direction",
-                fixed ? "full colour at |d| " + Short(xy) : "|d| max " + Short(xy) + " (auto)"};
+  const bool fixed = scale.mode != VisScale::Mode::kAuto;
+  const std::string from = scale.mode == VisScale::Mode::kFirst ? " (1st frame)" : "";
+  t.xy_lines = {"X/Y: hue = direction", fixed ? "full colour at |d| " + Short(xy) + from
+                                              : "|d| max " + Short(xy) + " (auto)"};
   t.z_lines = {"Z: red = +Z = away from camera", "blue = -Z = towards camera",
-               fixed ? "full colour at |Z| " + Short(z) : "|Z| max " + Short(z) + " (auto)",
+               fixed ? "full colour at |Z| " + Short(z) + from : "|Z| max " + Short(z) + " (auto)",
                "flow in " + UnitsText(units) + ", t to t+1"};
   return t;
 }
@@ -181,6 +185,23 @@ cv::Vec3b DivergingColor(double t) {
   return {mix(255, 38, t), mix(255, 4, t), mix(255, 180, t)};
 }
 
+double Visualizer::FirstFrameScale(const float* flow, size_t pixels, int channels, bool z,
+                                   double largest) {
+  std::vector<double>& m = magnitudes_;  // made once: kFirst runs this on one frame only
+  m.clear();
+  const size_t c = static_cast<size_t>(channels);
+  for (size_t i = 0; i < pixels; ++i) {
+    const float* p = flow + i * c;
+    const double v = z ? std::fabs(double{p[2]}) : std::hypot(p[0], channels > 1 ? p[1] : 0.0f);
+    if (std::isfinite(v)) m.push_back(v);
+  }
+  if (m.empty()) return 1.0;
+  const size_t k = std::min(m.size() - 1, static_cast<size_t>(kFirstFramePercentile * m.size()));
+  std::nth_element(m.begin(), m.begin() + static_cast<std::ptrdiff_t>(k), m.end());
+  const double scale = m[k] > 0 ? m[k] : largest;
+  return scale > 0 ? scale : 1.0;
+}
+
 void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
                         const std::string& label, cv::Mat* canvas) {
   const int h = left.rows;
@@ -199,13 +220,20 @@ void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
   }
   if (options_.scale.mode == VisScale::Mode::kFixed) {
     xy_scale_ = z_scale_ = options_.scale.value;
+  } else if (options_.scale.mode == VisScale::Mode::kFirst) {
+    if (!first_scales_set_) {  // once, from the first frame; kept for the run
+      xy_scale_ = FirstFrameScale(flow, pixels, channels, false, xy_max);
+      z_scale_ = channels > 2 ? FirstFrameScale(flow, pixels, channels, true, z_max) : 1.0;
+      first_scales_set_ = true;
+    }
   } else {
     xy_scale_ = xy_max > 0 ? xy_max : 1.0;
     z_scale_ = z_max > 0 ? z_max : 1.0;
   }
-  const bool fixed = options_.scale.mode == VisScale::Mode::kFixed;
+  const bool fixed = options_.scale.mode != VisScale::Mode::kAuto;
   if (layout_.left.height != h || layout_.left.width != w) {  // once per size
-    const double widest = fixed ? options_.scale.value : std::strtod(kWidestNumber, nullptr);
+    const bool given = options_.scale.mode == VisScale::Mode::kFixed;
+    const double widest = given ? options_.scale.value : std::strtod(kWidestNumber, nullptr);
     layout_ = ComputeLegendLayout(h, w, label,
                                   MakeLegendText(options_.scale, options_.units, widest, widest));
     wheel_.release();

@@ -70,7 +70,8 @@ Parameters (private, e.g. _model:=m.sfrt):
   ~budget_ms    end-to-end deadline, ms (default: none)
   ~on_miss      count-only|drop-next|smaller-input (default count-only)
   ~fallback_size  HxW, with smaller-input                ~recover_after  windows (default 30)
-  ~size         model input size HxW (default: the size the model records, else the images')
+  ~size         model input size HxW (default: the size a trained model records, else the
+                images')
   ~allow_aspect_change  take a ~size of the images' inverse aspect (default false: refused as
                 a likely WxH)
   ~transport    raw|compressed (default raw)
@@ -387,7 +388,7 @@ int Run(int argc, char** argv) {
                      {"precision", PrecisionText(md)},
                      {"threads", std::to_string(opts.threads)},
                      {"model", s.model},
-                     {"input size", s.size.empty() ? "the size the model records, else the "
+                     {"input size", s.size.empty() ? "the size a trained model records, else the "
                                                      "images'"
                                                    : s.size},
                      {"on_miss", s.on_miss}};

@@ -15,7 +15,8 @@ Scenarios (each one ctest test named after the behaviour it checks):
       SIGINT ends the node with exit 0 and its summary.json.
   node_reports_bad_model_bad_profile_wrong_encoding_and_camera_mismatch
       a model file that is not one: exit 1 with the message `sfrt inspect` gives for it; an
-      invalid ~config: exit 2 with the lines `sfrt config check` prints; yuv422 images: skipped,
+      invalid ~config: exit 2 with the lines `sfrt config check` prints; an ~out it cannot write
+      and ~budget_ms:=nan: exit 2 before the first frame, naming them; yuv422 images: skipped,
       one warning naming the encoding (rate-limited), counted in /diagnostics; camera_info with
       another focal length and baseline than the model's: one warning naming both values.
 """
@@ -332,6 +333,17 @@ def scenario_errors(a):
         err = node.stderr()
         check(code == 2 and want and all(line in err for line in want),
               "bad profile: exit %s, stderr %r, expected the lines %r" % (code, err, want))
+
+        # An ~out it could never write summary.json into: refused before the first frame
+        # (exit 2 naming it), not found out at shutdown. NaN is no budget: refused too.
+        node = Node(a, a.work, "bad_out", {"model": a.model, "out": "/proc/sfrt-nonexistent/dir"})
+        code = node.wait(60)
+        check(code == 2 and "~out '/proc/sfrt-nonexistent/dir'" in node.stderr(),
+              "unwritable ~out: exit %s, stderr %r" % (code, node.stderr()))
+        node = Node(a, a.work, "nan_budget", {"model": a.model, "budget_ms": "nan"})
+        code = node.wait(60)
+        check(code == 2 and "must be a finite number" in node.stderr(),
+              "~budget_ms nan: exit %s, stderr %r" % (code, node.stderr()))
 
         # Images it cannot convert and a camera that is not the model's.
         rospy.init_node("sfrt_node_check", disable_signals=True)

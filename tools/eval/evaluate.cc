@@ -332,6 +332,8 @@ std::string CompareCameras(const CameraDesc& model, double focal, double baselin
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress) {
   EvalReport report;
+  report.thresholds = options.thresholds;
+  for (MetricsAccumulator& m : report.overall) m = MetricsAccumulator(options.thresholds);
   report.dataset = options.dataset;
   report.model_path = options.model_path;
   report.has_model = !options.model_path.empty();
@@ -414,6 +416,9 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
     }
     if (report.sequences.empty() || report.sequences.back().name != f.sequence) {
       report.sequences.push_back(SequenceResult{f.sequence, 0, {}});
+      for (MetricsAccumulator& m : report.sequences.back().methods) {
+        m = MetricsAccumulator(options.thresholds);
+      }
     }
     SequenceResult& seq = report.sequences.back();
     const size_t pixels = static_cast<size_t>(h) * w;
@@ -488,9 +493,11 @@ std::string FormatJson(const EvalReport& r) {
     << ")\",\n";
   o << "  \"definitions\": {\"epe3d\": \"mean |pred - gt|\", \"epe_x\": \"mean |pred_x - gt_x|\"";
   for (const ShareRule& rule : kShareRules) {
-    o << ", " << JsonString(rule.key) << ": " << JsonString(rule.Definition());
+    o << ", " << JsonString(rule.key) << ": " << JsonString(rule.Definition(r.thresholds));
   }
-  o << "}";
+  o << "},\n";
+  o << "  \"thresholds\": " << JsonString(ThresholdsName(r.thresholds)) << ",\n";
+  o << "  \"gt_median_motion\": " << JsonNumber(r.overall[1].Metrics().gt_median);
   for (int m = 0; m < kMethodCount; ++m) {
     if (!MethodShown(r, m)) continue;
     o << ",\n  \"" << kMethodNames[m]

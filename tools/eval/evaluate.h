@@ -49,6 +49,8 @@ struct EvalOptions {
   // A dataset camera more than kCameraTolerance from the model's training camera: false fails
   // (naming both cameras), true evaluates anyway with EvalReport::camera_note saying so.
   bool allow_camera_mismatch = false;
+  // The share metrics' conditions (metrics.h): FlowNet3D's (absolute or relative) or relative only.
+  Thresholds thresholds = Thresholds::kAbsolute;
 };
 
 struct FrameRef {
@@ -76,6 +78,7 @@ struct EvalReport {
   bool has_model = false;
   bool has_classical = false;
   std::vector<SequenceResult> sequences;
+  Thresholds thresholds = Thresholds::kAbsolute;
   MetricsAccumulator overall[kMethodCount];
 };
 
@@ -103,7 +106,8 @@ std::string FormatTable(const EvalReport& report);
 // The report as JSON: top-level keys "sfrt" (only with a model), "zero_flow", "classical"
 // (unless disabled), each {"epe3d", "epe_x", "epe_y", "epe_z", "acc05", "acc10", "outliers",
 // "valid_pixels", "frames", "sequences": {"<seq>": {the same metrics}}}, plus "dataset",
-// "model", "camera", "image_size", "model_size", "frames", "units" and "definitions".
+// "model", "camera", "image_size", "model_size", "frames", "units", "definitions", "thresholds"
+// ("absolute" or "relative") and "gt_median_motion" (the ground truth's median |g|).
 std::string FormatJson(const EvalReport& report);
 
 }  // namespace sfrt::eval

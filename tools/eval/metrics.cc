@@ -1,16 +1,25 @@
 #include "eval/metrics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
 namespace sfrt::eval {
 
-std::string ShareRule::Definition() const {
+const char* ThresholdsName(Thresholds thresholds) {
+  return thresholds == Thresholds::kAbsolute ? "absolute" : "relative";
+}
+
+std::string ShareRule::Definition(Thresholds thresholds) const {
   const char* op = above ? ">" : "<";
   char text[96];
-  std::snprintf(text, sizeof(text), "share with EPE %s %g or EPE/|gt| %s %g%%", op, epe_threshold,
-                op, relative_threshold * 100);
+  if (thresholds == Thresholds::kRelative) {
+    std::snprintf(text, sizeof(text), "share with EPE/|gt| %s %g%%", op, relative_threshold * 100);
+  } else {
+    std::snprintf(text, sizeof(text), "share with EPE %s %g or EPE/|gt| %s %g%%", op, epe_threshold,
+                  op, relative_threshold * 100);
+  }
   return text;
 }
 
@@ -42,9 +51,11 @@ void MetricsAccumulator::Add(const float* pred, const float* truth, size_t pixel
         std::sqrt(static_cast<double>(g[0]) * g[0] + static_cast<double>(g[1]) * g[1] +
                   static_cast<double>(g[2]) * g[2]);
     const double rel = norm > 0 ? epe / norm : (epe > 0 ? kInf : 0.0);
-    if (kAcc05.Counts(epe, rel)) ++acc05_;
-    if (kAcc10.Counts(epe, rel)) ++acc10_;
-    if (kOutliers.Counts(epe, rel)) ++outliers_;
+    if (kAcc05.Counts(epe, rel, thresholds_)) ++acc05_;
+    if (kAcc10.Counts(epe, rel, thresholds_)) ++acc10_;
+    if (kOutliers.Counts(epe, rel, thresholds_)) ++outliers_;
+    const double position = norm > 0 ? (std::log10(norm) - kLowestDecade) * kBinsPerDecade : -1;
+    ++gt_bins_[static_cast<size_t>(std::clamp(std::floor(position) + 1, 0.0, double{kBins - 1}))];
   }
 }
 
@@ -56,6 +67,7 @@ void MetricsAccumulator::Merge(const MetricsAccumulator& other) {
   outliers_ += other.outliers_;
   valid_ += other.valid_;
   skipped_ += other.skipped_;
+  for (size_t b = 0; b < gt_bins_.size(); ++b) gt_bins_[b] += other.gt_bins_[b];
 }
 
 FlowMetrics MetricsAccumulator::Metrics() const {
@@ -71,6 +83,16 @@ FlowMetrics MetricsAccumulator::Metrics() const {
   m.acc05 = static_cast<double>(acc05_) / n;
   m.acc10 = static_cast<double>(acc10_) / n;
   m.outliers = static_cast<double>(outliers_) / n;
+  // The bin holding the middle pixel, read at its geometric centre (0 for the zero bin).
+  uint64_t seen = 0;
+  for (size_t b = 0; b < gt_bins_.size(); ++b) {
+    seen += gt_bins_[b];
+    if (2 * seen < valid_) continue;
+    m.gt_median =
+        b == 0 ? 0.0
+               : std::pow(10.0, kLowestDecade + (static_cast<double>(b) - 0.5) / kBinsPerDecade);
+    break;
+  }
   return m;
 }
 

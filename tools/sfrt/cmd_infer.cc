@@ -134,7 +134,8 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& 
       !same.ok()) {
     return same;
   }
-  // The size as `sfrt run` chooses it: --size, else the size the model records, else the images'.
+  // The size as `sfrt run` chooses it: --size, else the size a trained model records, else the
+  // images'.
   pipeline::PipelineOptions asked;
   asked.height = resize_h;
   asked.width = resize_w;
@@ -564,10 +565,11 @@ Command AddInferCommand(CLI::App& parent) {
   cmd->add_option("-o,--output", args->output,
                   "Output file: .pfm (3-channel PFM) or .npy (float32, shape (H,W,3))")
       ->required();
-  cmd->add_option("--size", args->size,
-                  "Resize the four images (or RGB-D frames, depth by the nearest sample) to HxW "
-                  "before inference (not --input-npy; default for images: the size the model "
-                  "records, as sfrt run chooses it, else their own; RGB-D frames: their own)");
+  cmd->add_option(
+      "--size", args->size,
+      "Resize the four images (or RGB-D frames, depth by the nearest sample) to HxW "
+      "before inference (not --input-npy; default for images: the size a trained "
+      "model records, as sfrt run chooses it, else their own; RGB-D frames: their own)");
   cmd->add_flag("--allow-aspect-change", args->allow_aspect_change,
                 "Take a --size of the inverse aspect of the images (refused otherwise, as a "
                 "likely WxH given for HxW)");

@@ -77,7 +77,7 @@ struct RunArgs {
   bool no_summary = false;
   std::string video;
   double video_fps = 10;
-  std::string vis_scale;  // "" = fixed:<default> with --video, auto without
+  std::string vis_scale;  // "" = first with --video, auto without
   double budget_ms = 0;
   int64_t max_frames = 0;
   double replay_fps = 0;
@@ -246,11 +246,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   }
 
   {
-    const std::string vis_scale =
-        !args.vis_scale.empty() ? args.vis_scale
-        : args.video.empty()
-            ? std::string("auto")
-            : "fixed:" + pipeline::FormatVisScaleValue(pipeline::kDefaultFixedVisScale);
+    const std::string vis_scale = !args.vis_scale.empty() ? args.vis_scale
+                                  : args.video.empty()    ? std::string("auto")
+                                                          : std::string("first");
     Result<pipeline::VisScale> scale = pipeline::ParseVisScale(vis_scale);
     if (!scale.ok()) return ReportError(kName, scale.message(), kExitUsage);
     options.vis_scale = *scale;
@@ -622,11 +620,10 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--video-fps", args->video_fps, "Frame rate written into --video")
       ->capture_default_str();
   cmd->add_option("--vis-scale", args->vis_scale,
-                  "Colour scale of the PNGs and --video: 'fixed:VALUE' (the same flow, in the "
-                  "model's units, gets the same colour in every frame; full colour at |d| = "
-                  "VALUE) or 'auto' (each frame's largest |d|). Default: fixed:" +
-                      pipeline::FormatVisScaleValue(pipeline::kDefaultFixedVisScale) +
-                      " with --video, auto without");
+                  "Colour scale of the PNGs and --video: 'first' (set from the first frame, the "
+                  "99th percentile of its |d|, then the same flow gets the same colour in every "
+                  "frame), 'fixed:VALUE' (full colour at |d| = VALUE, in the model's units) or "
+                  "'auto' (each frame's largest |d|). Default: first with --video, auto without");
   cmd->add_option("--budget-ms", args->budget_ms,
                   "Deadline per frame, capture to written output; misses are counted (0: none)")
       ->capture_default_str();
@@ -638,7 +635,8 @@ Command AddRunCommand(CLI::App& parent) {
       ->capture_default_str();
   cmd->add_option("--size", args->size,
                   "Model input size HxW (frames are rectified/resized to it; default: the size "
-                  "the model records, as sfrt inspect prints it, else the source's frame size; "
+                  "a trained model records (its traced size, as sfrt inspect prints it), else the "
+                  "source's frame size; "
                   "the run prints which)");
   cmd->add_flag("--allow-aspect-change", args->allow_aspect_change,
                 "Take a --size of the inverse aspect of the frames (refused otherwise, as a "

@@ -83,6 +83,39 @@ TEST(Metrics, OutlierIsEpeOverPoint3OrRelativeOver10Percent) {
   EXPECT_DOUBLE_EQ(m.acc05, 0.5);
 }
 
+// Robot-scale motion (0.02 per frame): zero flow is "accurate" by the absolute rules, not by the
+// relative ones, which keep only EPE/|gt|.
+TEST(Metrics, RelativeThresholdsDropTheAbsoluteConditionsThatFlatterSmallMotion) {
+  std::vector<float> truth(300, 0.0f);
+  for (int i = 0; i < 100; ++i) truth[3 * i + 2] = 0.02f;  // 2 cm towards +Z everywhere
+  MetricsAccumulator absolute;
+  MetricsAccumulator relative(Thresholds::kRelative);
+  absolute.Add(nullptr, truth.data(), 100);
+  relative.Add(nullptr, truth.data(), 100);
+  EXPECT_DOUBLE_EQ(absolute.Metrics().acc05, 1.0);  // EPE 0.02 < 0.05
+  EXPECT_DOUBLE_EQ(relative.Metrics().acc05, 0.0);  // EPE/|gt| = 100%
+  EXPECT_DOUBLE_EQ(relative.Metrics().outliers, 1.0);
+  EXPECT_EQ(kAcc05.Definition(Thresholds::kRelative), "share with EPE/|gt| < 5%");
+  EXPECT_FALSE(kAcc05.Counts(0.01, 0.5, Thresholds::kRelative));
+  EXPECT_TRUE(kAcc05.Counts(0.9, 0.04, Thresholds::kRelative));
+}
+
+TEST(Metrics, GroundTruthMedianMotionIsWithinItsBinWidth) {
+  // |g| = 0.001 * (i + 1) for 201 pixels: the median is 0.101; one pixel at rest, one NaN.
+  std::vector<float> truth;
+  for (int i = 0; i < 201; ++i) truth.insert(truth.end(), {0.0f, 0.001f * (i + 1), 0.0f});
+  truth.insert(truth.end(), {0.0f, 0.0f, 0.0f, NAN, 0.0f, 0.0f});
+  MetricsAccumulator a, b;
+  a.Add(nullptr, truth.data(), 100);  // split, then merged: the histogram adds up
+  b.Add(nullptr, truth.data() + 300, 103);
+  a.Merge(b);
+  EXPECT_NEAR(a.Metrics().gt_median, 0.101, 0.101 * 0.012);
+  MetricsAccumulator still;
+  const std::vector<float> zero(30, 0.0f);
+  still.Add(nullptr, zero.data(), 10);
+  EXPECT_EQ(still.Metrics().gt_median, 0.0);
+}
+
 // The text `sfrt eval --help` and the JSON print is generated from the rule the metric applies.
 TEST(Metrics, ShareRuleDefinitionsDescribeTheRuleTheMetricApplies) {
   EXPECT_EQ(kAcc05.Definition(), "share with EPE < 0.05 or EPE/|gt| < 5%");

@@ -956,11 +956,11 @@ TEST(ChooseInputSize, WithoutSizeATrainedModelRunsAtTheSizeItRecords) {
   ASSERT_TRUE(c.ok()) << c.message();
   EXPECT_EQ(c->height, 96);
   EXPECT_EQ(c->width, 128);
-  EXPECT_NE(c->reason.find("the size the model records"), std::string::npos) << c->reason;
+  EXPECT_NE(c->reason.find("the size the trained model records"), std::string::npos) << c->reason;
   EXPECT_TRUE(c->aspect_note.empty());  // 720/540 is 128/96
 }
 
-TEST(ChooseInputSize, WithoutSizeAnUntrainedOrUntracedModelRunsAtTheFramesSize) {
+TEST(ChooseInputSize, WithoutSizeAModelNotMarkedTrainedOrUntracedRunsAtTheFramesSize) {
   PipelineOptions o;
   Result<InputSizeChoice> untrained =
       ChooseInputSize(o, TracedAt(128, 224, TrainingState::kUntrained), 120, 160);
@@ -972,6 +972,10 @@ TEST(ChooseInputSize, WithoutSizeAnUntrainedOrUntracedModelRunsAtTheFramesSize) 
   ASSERT_TRUE(untraced.ok());
   EXPECT_EQ(untraced->height, 120);
   EXPECT_NE(untraced->reason.find("records none"), std::string::npos) << untraced->reason;
+  Result<InputSizeChoice> unknown =  // exported without --training-state: origin unknown
+      ChooseInputSize(o, TracedAt(128, 224, TrainingState::kUnknown), 120, 160);
+  ASSERT_TRUE(unknown.ok());
+  EXPECT_EQ(unknown->width, 160);
 }
 
 TEST(ChooseInputSize, ASizeOfTheInverseAspectIsRefusedWithTheSwapUnlessAllowed) {

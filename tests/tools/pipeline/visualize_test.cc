@@ -144,8 +144,40 @@ TEST(Visualizer, VisScaleParsesAutoAndFixedValueAndRejectsTheRest) {
     ASSERT_FALSE(r.ok()) << bad;
     EXPECT_NE(r.message().find("--vis-scale '" + std::string(bad) + "'"), std::string::npos)
         << r.message();
-    EXPECT_NE(r.message().find("'auto' or 'fixed:VALUE'"), std::string::npos) << r.message();
+    EXPECT_NE(r.message().find("'auto', 'first' or 'fixed:VALUE'"), std::string::npos)
+        << r.message();
   }
+  auto first = ParseVisScale("first");
+  ASSERT_TRUE(first.ok()) << first.message();
+  EXPECT_EQ(first->mode, VisScale::Mode::kFirst);
+}
+
+// kFirst: the scales come from the first frame (its 99th percentile, so one fast pixel among
+// slow ones does not set them) and stay for the run: the slow flow keeps its colour when the
+// next frame moves faster, and is drawn well above black.
+TEST(Visualizer, VisScaleFirstTakesTheFirstFramesScaleAndKeepsIt) {
+  const int h = 10, w = 20;
+  cv::Mat left(h, w, CV_8UC3, cv::Scalar(0, 0, 0));
+  std::vector<float> slow(h * w * 3, 0.0f), fast(h * w * 3, 0.0f);
+  for (int i = 0; i < h * w; ++i) {
+    slow[3 * i] = 0.02f;  // about the default model's motion per frame, in metres
+    slow[3 * i + 2] = 0.02f;
+    fast[3 * i] = 0.2f;
+    fast[3 * i + 2] = 0.2f;
+  }
+  slow[0] = 5.0f;  // one outlier in the first frame
+  Visualizer vis({VisScale{VisScale::Mode::kFirst, 0}, "metres"});
+  cv::Mat a, b;
+  vis.Render(left, slow.data(), 3, "1", &a);
+  EXPECT_NEAR(vis.last_xy_scale(), 0.02, 1e-6);
+  EXPECT_NEAR(vis.last_z_scale(), 0.02, 1e-6);
+  const cv::Vec3b slow_xy = a.at<cv::Vec3b>(5, w + 5);
+  EXPECT_GT(std::max({slow_xy[0], slow_xy[1], slow_xy[2]}), 200);  // full colour, not black
+  EXPECT_EQ(a.at<cv::Vec3b>(5, 2 * w + 5), DivergingColor(1.0));
+  vis.Render(left, fast.data(), 3, "2", &b);
+  EXPECT_NEAR(vis.last_xy_scale(), 0.02, 1e-6);  // kept, not the second frame's
+  vis.Render(left, slow.data(), 3, "3", &b);
+  EXPECT_EQ(b.at<cv::Vec3b>(5, w + 5), slow_xy);
 }
 
 }  // namespace

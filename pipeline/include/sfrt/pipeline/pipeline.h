@@ -190,7 +190,7 @@ struct PipelineOptions {
   // > 0: the source reads at most this many windows a second, on a fixed schedule (never in a
   // burst to catch up), as a camera would deliver them; 0 = as fast as the pipeline takes them.
   double source_fps = 0;
-  int height = 0;  // model input size; 0 = the size the model records, else the source's
+  int height = 0;  // model input size; 0 = the size a trained model records, else the source's
   int width = 0;   // (ChooseInputSize)
   // A height x width of the inverse aspect of the source's frames (beyond kAspectTolerance) is
   // refused as a likely WxH given for HxW, unless this says it is meant.
@@ -295,10 +295,10 @@ Result<std::string> ResolveVideoPath(const std::string& path);
 // The network input size of a run, and why, as RunPipeline chooses it once the source's frame
 // size is known: PipelineOptions::height x width when set; else the size the model records
 // (InputDesc::traced_height x traced_width: the size it was traced and trained at, which its
-// training camera's focal length is for), unless the model is marked untrained (no camera to
-// match); else the frames' size. An asked size whose aspect is
-// the inverse of the frames' (within kAspectTolerance) is an error suggesting the swap unless
-// allow_aspect_change; any other aspect change is taken with a note (aspect_note).
+// training camera's focal length is for) when the model is marked trained (an untrained one or
+// one of unknown origin has no training size to match); else the frames' size. An asked size whose
+// aspect is the inverse of the frames' (within kAspectTolerance) is an error suggesting the swap
+// unless allow_aspect_change; any other aspect change is taken with a note (aspect_note).
 inline constexpr double kAspectTolerance = 0.10;
 struct InputSizeChoice {
   int height = 0;

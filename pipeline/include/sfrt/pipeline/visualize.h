@@ -15,9 +15,12 @@
 // the widest number the scale can print, so every frame of a run has the same size (a video
 // needs that); a longer label later is clipped to its box.
 //
-// Scales (VisScale): kFixed maps the same flow to the same colour in every frame (the default
-// for videos); kAuto uses the frame's largest finite |(X,Y)| and |Z| (1 when all zero), so
-// colours are comparable within a frame only. Flow beyond the scale saturates.
+// Scales (VisScale): kFixed maps the same flow to the same colour in every frame; kFirst does
+// too, with the scales taken from the first frame drawn (the 99th percentile of its finite
+// |(X,Y)| and of its |Z|, so a few outliers do not wash the rest out) and kept for the run: the
+// default for videos, as it fits any model's units and motion; kAuto uses each frame's largest
+// finite |(X,Y)| and |Z| (1 when all zero), so colours are comparable within a frame only. Flow
+// beyond the scale saturates.
 // Direction: hue 0 (red) points along +X (image right), going round through +Y (image down).
 // Axes are the left camera's: x right, y down, z forward (away from the camera).
 //
@@ -35,19 +38,19 @@
 namespace sfrt::pipeline {
 
 struct VisScale {
-  enum class Mode { kAuto, kFixed };
+  enum class Mode { kAuto, kFixed, kFirst };
   Mode mode = Mode::kAuto;
   double value = 0;  // kFixed: the |(X,Y)| and |Z| shown at full colour, in the model's units
 };
 
-// The fixed scale `sfrt run` uses for videos unless told otherwise: 0.15 model units per frame
-// (for the default model, metres: above the 0.1 m per frame its training scenes move at most).
-inline constexpr double kDefaultFixedVisScale = 0.15;
+// The percentile of the first frame's magnitudes that kFirst shows at full colour.
+inline constexpr double kFirstFramePercentile = 0.99;
 
 // VALUE as the legend and --help print it ("%.3g").
 std::string FormatVisScaleValue(double value);
 
-// "auto" or "fixed:VALUE" (VALUE finite and > 0). The error names the text and the forms.
+// "auto", "first" or "fixed:VALUE" (VALUE finite and > 0). The error names the text and the
+// forms.
 Result<VisScale> ParseVisScale(const std::string& text);
 
 struct VisualizerOptions {
@@ -98,7 +101,13 @@ class Visualizer {
   const LegendLayout& layout() const { return layout_; }
 
  private:
+  // kFirst: the kFirstFramePercentile of the frame's finite |(X,Y)| (or |Z|); `largest` when
+  // that is 0, and 1 when both are.
+  double FirstFrameScale(const float* flow, size_t pixels, int channels, bool z, double largest);
+
   VisualizerOptions options_;
+  bool first_scales_set_ = false;
+  std::vector<double> magnitudes_;
   LegendLayout layout_;
   cv::Mat hsv_;
   cv::Mat wheel_;
