@@ -202,6 +202,42 @@ double Visualizer::FirstFrameScale(const float* flow, size_t pixels, int channel
   return scale > 0 ? scale : 1.0;
 }
 
+void Visualizer::DrawLegend(cv::Mat* canvas, double xy, double z) {
+  if (wheel_.empty()) {
+    const int radius = layout_.wheel.width / 2;
+    const int side = 2 * radius + 1;
+    cv::Mat hsv(side, side, CV_8UC3, cv::Scalar(0, 0, 0));
+    for (int dy = -radius; dy <= radius; ++dy) {
+      for (int dx = -radius; dx <= radius; ++dx) {
+        const double m = std::hypot(dx, dy) / radius;
+        if (m <= 1.0) {
+          hsv.at<cv::Vec3b>(dy + radius, dx + radius) = {
+              Hue(dx, dy), 255, static_cast<uint8_t>(std::lround(m * 255.0))};
+        }
+      }
+    }
+    cv::cvtColor(hsv, wheel_, cv::COLOR_HSV2BGR);
+  }
+  wheel_.copyTo((*canvas)(cv::Rect(layout_.wheel.tl(), wheel_.size())));
+  const cv::Rect& bar = layout_.bar;
+  for (int i = 0; i < bar.width; ++i) {
+    const cv::Vec3b colour = DivergingColor(2.0 * i / std::max(1, bar.width - 1) - 1.0);
+    for (int r = bar.y; r < bar.y + bar.height; ++r) canvas->at<cv::Vec3b>(r, bar.x + i) = colour;
+  }
+  const LegendText now = MakeLegendText(options_.scale, options_.units, xy, z);
+  std::vector<std::string> strings = {"+X", "+Y"};  // the label (texts[0]) is drawn by Render
+  strings.insert(strings.end(), now.xy_lines.begin(), now.xy_lines.end());
+  strings.push_back("-");
+  strings.push_back("+");
+  strings.insert(strings.end(), now.z_lines.begin(), now.z_lines.end());
+  for (size_t i = 1; i < layout_.texts.size() && i - 1 < strings.size(); ++i) {
+    const LegendLayout::TextBox& t = layout_.texts[i];
+    cv::Mat box = (*canvas)(t.box);  // drawing into the box clips to it
+    cv::putText(box, strings[i - 1], {0, t.baseline - t.box.y}, kFont, kFontScale,
+                cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  }
+}
+
 void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
                         const std::string& label, cv::Mat* canvas) {
   const int h = left.rows;
@@ -214,7 +250,7 @@ void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
     const float* p = flow + i * c;
     const double x = p[0];
     const double y = channels > 1 ? p[1] : 0.0;
-    const double m = std::hypot(x, y);
+    const double m = std::sqrt(x * x + y * y);  // floats squared in double: hypot not needed
     if (std::isfinite(m)) xy_max = std::max(xy_max, m);
     if (channels > 2 && std::isfinite(p[2])) z_max = std::max(z_max, std::fabs(double{p[2]}));
   }
@@ -237,6 +273,7 @@ void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
     layout_ = ComputeLegendLayout(h, w, label,
                                   MakeLegendText(options_.scale, options_.units, widest, widest));
     wheel_.release();
+    strip_cache_.release();
   }
   canvas->create(layout_.canvas, CV_8UC3);
   canvas->setTo(cv::Scalar(0, 0, 0));
@@ -250,7 +287,7 @@ void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
     for (int col = 0; col < w; ++col, p += c) {
       const double x = p[0];
       const double y = channels > 1 ? p[1] : 0.0;
-      const double m = std::hypot(x, y);
+      const double m = std::sqrt(x * x + y * y);  // floats squared in double: hypot not needed
       if (!std::isfinite(m)) {
         dst[col] = {0, 0, 0};
         continue;
@@ -272,39 +309,20 @@ void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
   }
 
   // Legend: the colour wheel (made once), the colour bar, then each text clipped to its box.
-  if (wheel_.empty()) {
-    const int radius = layout_.wheel.width / 2;
-    const int side = 2 * radius + 1;
-    cv::Mat hsv(side, side, CV_8UC3, cv::Scalar(0, 0, 0));
-    for (int dy = -radius; dy <= radius; ++dy) {
-      for (int dx = -radius; dx <= radius; ++dx) {
-        const double m = std::hypot(dx, dy) / radius;
-        if (m <= 1.0) {
-          hsv.at<cv::Vec3b>(dy + radius, dx + radius) = {
-              Hue(dx, dy), 255, static_cast<uint8_t>(std::lround(m * 255.0))};
-        }
-      }
-    }
-    cv::cvtColor(hsv, wheel_, cv::COLOR_HSV2BGR);
+  // With a scale that does not change (fixed, first) only the frame's label differs from frame
+  // to frame: the rest of the strip is drawn once, kept, and copied.
+  cv::Mat strip = (*canvas)(layout_.strip);
+  if (fixed && !strip_cache_.empty() && strip_cache_.size() == strip.size()) {
+    strip_cache_.copyTo(strip);
+  } else {
+    DrawLegend(canvas, fixed ? xy_scale_ : xy_max, fixed ? z_scale_ : z_max);
+    if (fixed) strip.copyTo(strip_cache_);
   }
-  wheel_.copyTo((*canvas)(cv::Rect(layout_.wheel.tl(), wheel_.size())));
-  const cv::Rect& bar = layout_.bar;
-  for (int i = 0; i < bar.width; ++i) {
-    const cv::Vec3b colour = DivergingColor(2.0 * i / std::max(1, bar.width - 1) - 1.0);
-    for (int r = bar.y; r < bar.y + bar.height; ++r) canvas->at<cv::Vec3b>(r, bar.x + i) = colour;
-  }
-  const LegendText now = MakeLegendText(options_.scale, options_.units, fixed ? xy_scale_ : xy_max,
-                                        fixed ? z_scale_ : z_max);
-  std::vector<std::string> strings = {label, "+X", "+Y"};
-  strings.insert(strings.end(), now.xy_lines.begin(), now.xy_lines.end());
-  strings.push_back("-");
-  strings.push_back("+");
-  strings.insert(strings.end(), now.z_lines.begin(), now.z_lines.end());
-  for (size_t i = 0; i < layout_.texts.size() && i < strings.size(); ++i) {
-    const LegendLayout::TextBox& t = layout_.texts[i];
-    cv::Mat box = (*canvas)(t.box);  // drawing into the box clips to it
-    cv::putText(box, strings[i], {0, t.baseline - t.box.y}, kFont, kFontScale,
-                cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  if (!layout_.texts.empty()) {
+    const LegendLayout::TextBox& t = layout_.texts.front();  // the label
+    cv::Mat box = (*canvas)(t.box);                          // drawing into the box clips to it
+    cv::putText(box, label, {0, t.baseline - t.box.y}, kFont, kFontScale, cv::Scalar(255, 255, 255),
+                1, cv::LINE_AA);
   }
 }
 

@@ -11,17 +11,19 @@
 #   paced     --replay-fps 30, like a camera (pictures behind a dropping queue by default)
 # and prints each run's figures, then the medians over the rounds per binary and mode.
 #
-# Usage: tools/bench/output_stage.sh [--rounds N] [--frames N] SFRT [OTHER_SFRT ...]
-#   e.g. tools/bench/output_stage.sh --rounds 5 old/bin/sfrt build/release/bin/sfrt
-#   --rounds default 5; --frames default 60 (windows per run: frames - 1).
+# Usage: tools/bench/output_stage.sh [--rounds N] [--frames N] [--size HxW] SFRT [OTHER_SFRT ...]
+#   e.g. tools/bench/output_stage.sh --rounds 5 --size 96x128 old/bin/sfrt build/release/bin/sfrt
+#   --rounds default 5; --frames default 60 (windows per run: frames - 1); --size: passed to
+#   sfrt run (default: none, each binary's own default input size).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-rounds=5 frames=60
+rounds=5 frames=60 size=""
 bins=()
 while [[ $# -gt 0 ]]; do
   case $1 in
     --rounds) rounds=$2; shift 2 ;;
     --frames) frames=$2; shift 2 ;;
+    --size) size=$2; shift 2 ;;
     -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
     *) bins+=("$1"); shift ;;
   esac
@@ -43,13 +45,14 @@ trap 'rm -rf "$work"' EXIT
 run() {  # run BIN_INDEX MODE ROUND: one replay, its summary kept as $work/<i>_<mode>_<round>.json
   local i=$1 mode=$2 r=$3 extra=()
   [[ $mode == paced ]] && extra=(--replay-fps 30)
+  [[ -n $size ]] && extra+=(--size "$size")
   rm -rf "$work/out"
   "${bins[$i]}" run --model "$model" --replay "$work/data" --out "$work/out" --progress off \
     "${extra[@]}" >/dev/null 2>&1
   cp "$work/out/summary.json" "$work/${i}_${mode}_${r}.json"
 }
 
-echo "binaries: ${bins[*]}"
+echo "binaries: ${bins[*]}; input size: ${size:-the default of each binary}"
 echo "round  binary  mode      output_p50_ms  pictures_p50_ms  pictures_dropped  windows"
 for ((r = 1; r <= rounds; r++)); do
   order=()

@@ -104,6 +104,8 @@ class Visualizer {
   // kFirst: the kFirstFramePercentile of the frame's finite |(X,Y)| (or |Z|); `largest` when
   // that is 0, and 1 when both are.
   double FirstFrameScale(const float* flow, size_t pixels, int channels, bool z, double largest);
+  // The legend strip but the frame's label: the wheel, the bar and their texts at these scales.
+  void DrawLegend(cv::Mat* canvas, double xy, double z);
 
   VisualizerOptions options_;
   bool first_scales_set_ = false;
@@ -111,6 +113,7 @@ class Visualizer {
   LegendLayout layout_;
   cv::Mat hsv_;
   cv::Mat wheel_;
+  cv::Mat strip_cache_;  // fixed and first scales: the legend strip without the label
   double xy_scale_ = 1;
   double z_scale_ = 1;
 };
