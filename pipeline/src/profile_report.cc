@@ -602,10 +602,19 @@ Result<std::string> CompareProfileFiles(const std::string& a_path, const std::st
     if (!xb) return false;
     return std::fabs(*x.b - *x.a) > std::fabs(*y.b - *y.a);
   });
-  std::string out = "A  " + a_path + " (" + (*a).value("isa", "") + ", " +
-                    std::to_string((*a)["frames"].value("retained", 0)) + " frames)\n" + "B  " +
-                    b_path + " (" + (*b).value("isa", "") + ", " +
-                    std::to_string((*b)["frames"].value("retained", 0)) + " frames)\n";
+  auto describe = [](const json& j) {
+    return j.value("isa", "") + ", " + std::to_string(j.value("threads", 0)) + " thread(s), " +
+           std::to_string(j["frames"].value("retained", 0)) + " frames";
+  };
+  std::string out =
+      "A  " + a_path + " (" + describe(*a) + ")\n" + "B  " + b_path + " (" + describe(*b) + ")\n";
+  // Runs that differ in what they ran on: their change is not the code's alone.
+  for (const char* key : {"threads", "isa"}) {
+    if ((*a).contains(key) && (*b).contains(key) && (*a)[key] != (*b)[key]) {
+      out += "note: A and B differ in " + std::string(key) + " (" + (*a)[key].dump() + " and " +
+             (*b)[key].dump() + "): the changes below are not the code's alone\n";
+    }
+  }
   size_t name_w = 10;
   for (const Row& r : rows) name_w = std::max(name_w, r.name.size() + 2);
   out += Pad("kind", 7) + Pad("name", name_w) + Pad("A p50 ms", 11, true) +

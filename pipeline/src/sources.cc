@@ -189,8 +189,13 @@ class ReplaySource : public FrameSource {
     Result<Fetch> first = Advance();
     if (!first.ok()) return first.status();
     if (*first == Fetch::kEnd) {
+      std::string why;  // the bad frames that left no window, e.g. left and right sizes differ
+      if (!bad_.empty()) {
+        why = "; " + std::to_string(bad_.size()) + " bad frame(s), the first '" + bad_[0].path +
+              "': " + bad_[0].reason;
+      }
       return Status::Error(source_->Describe() +
-                           ": no two consecutive stereo pairs to form a (t, t+1) window");
+                           ": no two consecutive stereo pairs to form a (t, t+1) window" + why);
     }
     primed_ = true;
     return window_->current().left.size();

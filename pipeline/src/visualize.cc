@@ -109,7 +109,8 @@ Result<VisScale> ParseVisScale(const std::string& text) {
                        "the model's units (e.g. fixed:0.05)");
 }
 
-LegendText MakeLegendText(const VisScale& scale, const std::string& units, double xy, double z) {
+LegendText MakeLegendText(const VisScale& scale, const std::string& units, double xy, double z,
+                          int channels) {
   LegendText t;
   const bool fixed = scale.mode != VisScale::Mode::kAuto;
   const std::string from = scale.mode == VisScale::Mode::kFirst ? " (1st frame)" : "";
@@ -118,6 +119,10 @@ LegendText MakeLegendText(const VisScale& scale, const std::string& units, doubl
   t.z_lines = {"Z: red = +Z = away from camera", "blue = -Z = towards camera",
                fixed ? "full colour at |Z| " + Short(z) + from : "|Z| max " + Short(z) + " (auto)",
                "flow in " + UnitsText(units) + ", t to t+1"};
+  if (channels != 3) {  // not a 3-D flow: say what is drawn instead of calling it one
+    t.z_lines.back() = "channels 0-" + std::to_string(std::min(channels, 3) - 1) + " of " +
+                       std::to_string(channels) + " drawn: not 3-D flow";
+  }
   return t;
 }
 
@@ -202,7 +207,7 @@ double Visualizer::FirstFrameScale(const float* flow, size_t pixels, int channel
   return scale > 0 ? scale : 1.0;
 }
 
-void Visualizer::DrawLegend(cv::Mat* canvas, double xy, double z) {
+void Visualizer::DrawLegend(cv::Mat* canvas, double xy, double z, int channels) {
   if (wheel_.empty()) {
     const int radius = layout_.wheel.width / 2;
     const int side = 2 * radius + 1;
@@ -224,7 +229,7 @@ void Visualizer::DrawLegend(cv::Mat* canvas, double xy, double z) {
     const cv::Vec3b colour = DivergingColor(2.0 * i / std::max(1, bar.width - 1) - 1.0);
     for (int r = bar.y; r < bar.y + bar.height; ++r) canvas->at<cv::Vec3b>(r, bar.x + i) = colour;
   }
-  const LegendText now = MakeLegendText(options_.scale, options_.units, xy, z);
+  const LegendText now = MakeLegendText(options_.scale, options_.units, xy, z, channels);
   std::vector<std::string> strings = {"+X", "+Y"};  // the label (texts[0]) is drawn by Render
   strings.insert(strings.end(), now.xy_lines.begin(), now.xy_lines.end());
   strings.push_back("-");
@@ -315,7 +320,7 @@ void Visualizer::Render(const cv::Mat& left, const float* flow, int channels,
   if (fixed && !strip_cache_.empty() && strip_cache_.size() == strip.size()) {
     strip_cache_.copyTo(strip);
   } else {
-    DrawLegend(canvas, fixed ? xy_scale_ : xy_max, fixed ? z_scale_ : z_max);
+    DrawLegend(canvas, fixed ? xy_scale_ : xy_max, fixed ? z_scale_ : z_max, channels);
     if (fixed) strip.copyTo(strip_cache_);
   }
   if (!layout_.texts.empty()) {

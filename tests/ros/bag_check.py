@@ -18,7 +18,8 @@ Scenarios (each one ctest test named after the behaviour it checks):
       --record-bag (with --record-bag-vis) on a bag replay: /flow has one 32FC3 message per window
       equal to that window's .npy flow file, stamped with the left stamp of pair t, seq = window,
       frame_id as given; /flow_t1 carries pair t+1's stamp; /flow_vis one bgr8 picture each; no
-      temporary file is left. A --record-bag that is a character device is refused before the
+      temporary file is left. A --record-bag that is a character device or a FIFO is refused
+      (exit 2, no summary.json) before the
       first frame, naming it.
   bad_bags_and_topics_are_refused_naming_them
       a topic not in the bag (the error lists the bag's topics), a file that is not a bag, a
@@ -239,9 +240,18 @@ print(json.dumps(res))
         check(data_ok, "/flow %d: differs from frame_%06d.npy" % (i, i))
     check(res["t1"] == [True] * 5, "/flow_t1 stamps %s" % res["t1"])
     check(res["vis"] == ["bgr8"] * 5, "/flow_vis %s" % res["vis"])
-    p = sfrt_run(a, ["--replay-bag", bag], fresh(out), ["--record-bag", "/dev/null"])
-    check(p.returncode != 0 and "--record-bag '/dev/null'" in p.stderr,
-          "--record-bag /dev/null: exit %d, stderr %r" % (p.returncode, p.stderr))
+    # A device or a FIFO: a usage error before anything is written (no summary.json either).
+    fifo = os.path.join(a.work, "bag.fifo")
+    if not os.path.exists(fifo):
+        os.mkfifo(fifo)
+    for target in ("/dev/null", fifo):
+        refused = os.path.join(a.work, "refused_out")
+        shutil.rmtree(refused, ignore_errors=True)
+        p = sfrt_run(a, ["--replay-bag", bag], refused, ["--record-bag", target])
+        check(p.returncode == 2 and ("--record-bag '%s'" % target) in p.stderr,
+              "--record-bag %s: exit %d, stderr %r" % (target, p.returncode, p.stderr))
+        check(not os.path.exists(os.path.join(refused, "summary.json")),
+              "--record-bag %s: a summary.json was written" % target)
     check(not os.path.exists("/dev/null.tmp.bag"), "a temporary bag beside /dev/null")
 
 

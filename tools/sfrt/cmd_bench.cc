@@ -428,7 +428,8 @@ int RunBench(const BenchArgs& args) {
   for (float& v : input) v = dist(rng);
   std::vector<float> output(geometry->back().output.elements());
 
-  std::printf("model  %s at %dx%d (%s): %.2f GMAC (%.1f GFLOP) per run\n", args.model.c_str(),
+  // Three significant digits: a small model's 0.0217 GMAC is not "0.02 GMAC (0.0 GFLOP)".
+  std::printf("model  %s at %dx%d (%s): %.3g GMAC (%.3g GFLOP) per run\n", args.model.c_str(),
               height, width, size_source.c_str(), static_cast<double>(macs) / 1e9,
               2.0 * static_cast<double>(macs) / 1e9);
   PrintBuildAndCpu();

@@ -769,6 +769,13 @@ int RunExport(const ExportArgs& args) {
   if (!args.check_size.empty() && (!args.check || !args.check_input.empty())) {
     return ReportError(kName, "--check-size applies to --check without --check-input", kExitUsage);
   }
+  if (!args.check_size.empty()) {  // the limits every --size has (a 5000x5000 check: 3.9 GB)
+    if (std::string problem =
+            config::CheckSize(config::kInputSide, "--check-size", check_height, check_width);
+        !problem.empty()) {
+      return ReportError(kName, problem, kExitUsage);
+    }
+  }
   exporter::OnnxImportOptions import_options;
   import_options.output = args.onnx_output;
   if (args.padding == "auto") {

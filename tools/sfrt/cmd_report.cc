@@ -1,6 +1,7 @@
 // sfrt report compare A.json B.json: the change per stage and per layer between two
 // `sfrt run --profile` reports (sfrt/pipeline/profile_report.h).
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -17,12 +18,17 @@ struct ReportArgs {
 };
 
 int RunCompare(const ReportArgs& args) {
-  for (const std::string* path : {&args.a, &args.b}) {
-    if (std::string problem = CheckInputFile(*path, "profile report"); !problem.empty()) {
+  std::string paths[2] = {args.a, args.b};
+  for (std::string& path : paths) {
+    // A --profile directory stands for the profile.json sfrt run wrote into it.
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+      path = (std::filesystem::path(path) / "profile.json").string();
+    if (std::string problem = CheckInputFile(path, "profile report"); !problem.empty()) {
       return ReportError("report compare", problem, kExitFailure);
     }
   }
-  Result<std::string> table = pipeline::CompareProfileFiles(args.a, args.b);
+  Result<std::string> table = pipeline::CompareProfileFiles(paths[0], paths[1]);
   if (!table.ok()) return ReportError("report compare", table.message(), kExitFailure);
   std::cout << *table;
   return kExitOk;
@@ -36,7 +42,8 @@ Command AddReportCommand(CLI::App& parent) {
   auto args = std::make_shared<ReportArgs>();
   CLI::App* compare = cmd->add_subcommand(
       "compare", "Change per stage and per layer between two profile.json files");
-  compare->add_option("a", args->a, "Profile A (the reference): DIR/profile.json")->required();
+  compare->add_option("a", args->a, "Profile A (the reference): DIR/profile.json, or DIR")
+      ->required();
   compare->add_option("b", args->b, "Profile B (the candidate)")->required();
   compare->footer(
       "For every stage (capture, preprocess, infer, output, end_to_end) and every layer step,\n"

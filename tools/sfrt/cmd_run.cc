@@ -302,6 +302,27 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
       return ReportError(kName, "--size " + args.size + ": " + geometry.message(), kExitUsage);
     }
   }
+  // Options that cannot work with this model or path are usage errors, found before the output
+  // directory is made or a frame read (the pipeline would only find them at its setup).
+  const int channels = (*loaded)->metadata().output.channels;
+  if (options.write_flow && options.flow_format == pipeline::FlowFormat::kPfm && channels > 0 &&
+      channels != 1 && channels != 3) {
+    return ReportError(kName,
+                       args.model + " outputs " + std::to_string(channels) +
+                           " channels; PFM holds 1 or 3 (use --flow-format npy)",
+                       kExitUsage);
+  }
+  if (!args.record_bag.empty()) {
+    Result<io::OutputTarget> bag = io::ResolveOutputTarget(args.record_bag);
+    if (!bag.ok()) return ReportError(kName, "--record-bag: " + bag.message(), kExitUsage);
+    if (bag->kind != io::OutputTarget::Kind::kReplace) {
+      return ReportError(kName,
+                         "--record-bag '" + args.record_bag + "' is " + bag->what +
+                             ": a bag is finished by seeking back to its header, so it is "
+                             "written only as a regular file; give a file path",
+                         kExitUsage);
+    }
+  }
 
   std::error_code ec;
   std::unique_ptr<pipeline::FrameSource> source;

@@ -205,6 +205,30 @@ std::string CommandName(const CLI::App& app, int argc, char** argv) {
 // "unknown option --modle (did you mean --model?)" for the first long option on the command
 // line that the (sub)command it follows does not have; "" when every option is known. CLI11
 // would report a missing required option first, which hides the typo.
+// When an option is followed by several existing files, the shell most likely expanded an
+// unquoted glob into them (CLI11 then calls all but the first "not expected"): a message that
+// says so and how to quote it, or "" when the command line does not look like that.
+std::string ExpandedGlobHint(int argc, char** argv) {
+  for (int i = 1; i + 2 < argc; ++i) {
+    const std::string option = argv[i];
+    if (option.rfind("--", 0) != 0 || option.find('=') != std::string::npos) continue;
+    int files = 0;
+    std::error_code ec;
+    while (i + 1 + files < argc && argv[i + 1 + files][0] != '-' &&
+           std::filesystem::exists(argv[i + 1 + files], ec)) {
+      ++files;
+    }
+    if (files < 2) continue;
+    const std::filesystem::path first(argv[i + 1]);
+    const std::string dir = first.parent_path().empty() ? "." : first.parent_path().string();
+    return option + " was given " + std::to_string(files) + " files ('" + argv[i + 1] + "', '" +
+           argv[i + 2] + "', ...): the shell expanded an unquoted glob; quote the " +
+           "pattern so sfrt expands it, e.g. " + option + " '" + dir + "/*" +
+           first.extension().string() + "'";
+  }
+  return "";
+}
+
 std::string UnknownOption(const CLI::App& app, int argc, char** argv) {
   const CLI::App* cmd = &app;
   for (int i = 1; i < argc; ++i) {
@@ -296,8 +320,11 @@ int main(int argc, char** argv) {
     std::string name = CommandName(app, argc, argv);
     std::string hint = name.empty() ? "run 'sfrt --help'" : "run 'sfrt " + name + " --help'";
     const std::string unknown = UnknownOption(app, argc, argv);
-    return ReportError(
-        name, (unknown.empty() ? std::string(e.what()) : unknown) + " (" + hint + ")", kExitUsage);
+    std::string message = unknown.empty() ? std::string(e.what()) : unknown;
+    if (dynamic_cast<const CLI::ExtrasError*>(&e) != nullptr) {
+      if (std::string glob = ExpandedGlobHint(argc, argv); !glob.empty()) message = glob;
+    }
+    return ReportError(name, message + " (" + hint + ")", kExitUsage);
   }
 
   for (const sfrt::tools::Command& command : commands) {

@@ -482,6 +482,15 @@ TEST(RunConfigCli, ReplayProfileWithProfilingWritesEveryReport) {
       "report compare " + json_path.string() + " " + (dir / "out" / "summary.json").string(), dir);
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.err.find("is not a profile report"), std::string::npos) << bad.err;
+  // A profile directory stands for its profile.json; runs on other thread counts are flagged.
+  nlohmann::json other = nlohmann::json::parse(std::ifstream(json_path));
+  other["threads"] = other.value("threads", 1) + 1;
+  fs::create_directories(dir / "other");
+  std::ofstream(dir / "other" / "profile.json") << other.dump();
+  const CliRun dirs = RunSfrt(
+      "report compare " + (dir / "out" / "profile").string() + " " + (dir / "other").string(), dir);
+  EXPECT_EQ(dirs.exit_code, 0) << dirs.err;
+  EXPECT_NE(dirs.out.find("note: A and B differ in threads"), std::string::npos) << dirs.out;
   fs::remove_all(dir);
 }
 

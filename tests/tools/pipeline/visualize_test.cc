@@ -152,6 +152,14 @@ TEST(Visualizer, VisScaleParsesAutoAndFixedValueAndRejectsTheRest) {
   EXPECT_EQ(first->mode, VisScale::Mode::kFirst);
 }
 
+// An output that is not 3-D flow (5 channels) is not labelled as flow in the legend.
+TEST(Visualizer, ALegendOfAnOutputOtherThanThreeChannelsDoesNotCallItFlow) {
+  const LegendText five = MakeLegendText(VisScale{}, "unknown", 1.0, 1.0, 5);
+  EXPECT_EQ(five.z_lines.back(), "channels 0-2 of 5 drawn: not 3-D flow");
+  const LegendText three = MakeLegendText(VisScale{}, "metres", 1.0, 1.0, 3);
+  EXPECT_EQ(three.z_lines.back(), "flow in metres, t to t+1");
+}
+
 // kFirst: the scales come from the first frame (its 99th percentile, so one fast pixel among
 // slow ones does not set them) and stay for the run: the slow flow keeps its colour when the
 // next frame moves faster, and is drawn well above black.

@@ -80,7 +80,10 @@ struct LegendText {
   std::vector<std::string> xy_lines;
   std::vector<std::string> z_lines;
 };
-LegendText MakeLegendText(const VisScale& scale, const std::string& units, double xy, double z);
+// `channels`: the output's channel count; other than 3, the last line says what is drawn
+// (channels 0-2) instead of calling it flow.
+LegendText MakeLegendText(const VisScale& scale, const std::string& units, double xy, double z,
+                          int channels = 3);
 
 // The layout for panels of `height` x `width` and the given label and legend lines.
 LegendLayout ComputeLegendLayout(int height, int width, const std::string& label,
@@ -105,7 +108,7 @@ class Visualizer {
   // that is 0, and 1 when both are.
   double FirstFrameScale(const float* flow, size_t pixels, int channels, bool z, double largest);
   // The legend strip but the frame's label: the wheel, the bar and their texts at these scales.
-  void DrawLegend(cv::Mat* canvas, double xy, double z);
+  void DrawLegend(cv::Mat* canvas, double xy, double z, int channels);
 
   VisualizerOptions options_;
   bool first_scales_set_ = false;
