@@ -42,6 +42,42 @@ Status CheckVideoComplete(const std::string& path, int64_t frames) {
                        "VideoWriter does not report those)");
 }
 
+// A CSV field: quoted (with quotes doubled) when it holds a comma, a quote or a line break.
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+// The CSV files streamed as the run goes (latency log, window index), `what` naming them in
+// errors: opened with their header line, a line per window, flushed and closed at the end.
+Status OpenCsv(const std::string& path, std::string_view header, const char* what,
+               io::StreamedFile* file) {
+  Result<io::StreamedFile> opened = io::StreamedFile::Open(path);
+  if (!opened.ok()) return Status::Error(std::string(what) + ": " + opened.message());
+  *file = std::move(opened).value();
+  if (Status s = file->Write(header); !s.ok()) {
+    return Status::Error(std::string(what) + ": " + s.message());
+  }
+  return Status::Ok();
+}
+
+Status WriteCsvLine(io::StreamedFile* file, std::string_view line, const char* what) {
+  if (Status s = file->Write(line); !s.ok()) {
+    (void)file->Close();  // a partial line would make the rest unreadable: no more lines
+    return Status::Error(std::string(what) + ": " + s.message());
+  }
+  return Status::Ok();
+}
+
+Status CloseCsv(io::StreamedFile* file, const char* what) {
+  if (!file->is_open()) return Status::Ok();
+  if (Status s = file->Close(); !s.ok())
+    return Status::Error(std::string(what) + ": " + s.message());
+  return Status::Ok();
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------- flow files
@@ -153,14 +189,10 @@ Status VideoSink::Stop() {
 // --------------------------------------------------------------------------------- latency log
 
 Status LatencyLogSink::Start() {
-  Result<io::StreamedFile> log = io::StreamedFile::Open(path_);
-  if (!log.ok()) return Status::Error("the latency log: " + log.message());
-  file_ = std::move(log).value();
-  Status header = file_.Write(
-      "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
-      "input_width,done_monotonic_ms\n");
-  if (!header.ok()) return Status::Error("the latency log: " + header.message());
-  return Status::Ok();
+  return OpenCsv(path_,
+                 "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
+                 "input_width,done_monotonic_ms\n",
+                 "the latency log", &file_);
 }
 
 Status LatencyLogSink::Completed(const WindowRecord& record) {
@@ -172,46 +204,22 @@ Status LatencyLogSink::Completed(const WindowRecord& record) {
       Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
       Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), record.end_to_end_ms, m.input_height, m.input_width,
       Ms(m.stage_ns[3][1]));
-  Status s = file_.Write(
-      std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))));
-  if (!s.ok()) {
-    (void)file_.Close();  // a partial line would make the rest unreadable: no more lines
-    return Status::Error("the latency log: " + s.message());
-  }
-  return Status::Ok();
+  return WriteCsvLine(
+      &file_, std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))),
+      "the latency log");
 }
 
-Status LatencyLogSink::Stop() {
-  if (!file_.is_open()) return Status::Ok();
-  if (Status s = file_.Close(); !s.ok()) return Status::Error("the latency log: " + s.message());
-  return Status::Ok();
-}
+Status LatencyLogSink::Stop() { return CloseCsv(&file_, "the latency log"); }
 
 // ------------------------------------------------------------------------------- window index
-
-namespace {
-
-// A CSV field: quoted (with quotes doubled) when it holds a comma, a quote or a line break.
-std::string CsvField(const std::string& text) {
-  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
-  std::string quoted = "\"";
-  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return quoted + "\"";
-}
-
-}  // namespace
 
 WindowIndexSink::WindowIndexSink(std::string dir)
     : path_((std::filesystem::path(dir) / "windows.csv").string()) {}
 
 // Opened at the first window, so a run that writes none leaves no index behind.
 Status WindowIndexSink::Open() {
-  Result<io::StreamedFile> file = io::StreamedFile::Open(path_);
-  if (!file.ok()) return Status::Error("the window index: " + file.message());
-  file_ = std::move(file).value();
-  Status header = file_.Write("file,sequence,frame_t,frame_t1,stamp_t_ns,stamp_t1_ns,source_t\n");
-  if (!header.ok()) return Status::Error("the window index: " + header.message());
-  return Status::Ok();
+  return OpenCsv(path_, "file,sequence,frame_t,frame_t1,stamp_t_ns,stamp_t1_ns,source_t\n",
+                 "the window index", &file_);
 }
 
 Status WindowIndexSink::Completed(const WindowRecord& record) {
@@ -224,18 +232,10 @@ Status WindowIndexSink::Completed(const WindowRecord& record) {
                            std::to_string(m.frame0) + "," + std::to_string(m.frame1) + "," +
                            std::to_string(m.stamp_ns[0]) + "," + std::to_string(m.stamp_ns[1]) +
                            "," + CsvField(m.left0_path) + "\n";
-  if (Status s = file_.Write(line); !s.ok()) {
-    (void)file_.Close();  // a partial line would make the rest unreadable: no more lines
-    return Status::Error("the window index: " + s.message());
-  }
-  return Status::Ok();
+  return WriteCsvLine(&file_, line, "the window index");
 }
 
-Status WindowIndexSink::Stop() {
-  if (!file_.is_open()) return Status::Ok();
-  if (Status s = file_.Close(); !s.ok()) return Status::Error("the window index: " + s.message());
-  return Status::Ok();
-}
+Status WindowIndexSink::Stop() { return CloseCsv(&file_, "the window index"); }
 
 // ------------------------------------------------------------------------------------- summary
 
