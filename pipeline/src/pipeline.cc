@@ -106,6 +106,9 @@ class Runner {
   bool CompleteSinks(const WindowRecord& record, const std::string& stem);
   Status StopSinks();
   Status SetupFallback();
+  // Windows arrive at the source's own rate (a live source, or a replay at source_fps): its end
+  // to end is a latency, and pictures must not hold back the flow.
+  bool Paced() const { return source_->live() || options_.source_fps > 0; }
   void UpdateFallback(const FrameMeta& m, bool miss);
   void Progress(bool final);
   // Builds the summary and hands it to every sink's Finished() (the caller's, then the file's).
@@ -588,7 +591,7 @@ Status Runner::StartSinks() {
   // Where time matters (a camera, a paced replay) pictures never hold back the flow: they go
   // behind a queue that drops (and counts) the ones the encoder cannot keep up with. An unpaced
   // replay is a throughput job: every picture is written, with its window's flow by default.
-  const bool timed = source_->live() || options_.source_fps > 0;
+  const bool timed = Paced();
   const size_t depth = options_.picture_queue.value_or(timed ? 2 : 0);
   if (depth > 0 && !pictures.empty()) {
     std::vector<FlowSink*> inner;
@@ -847,7 +850,7 @@ Status Runner::FinishSinks(PipelineResult* result) {
       {"parts", parts}, {"sum_of_p50", p50_sum}, {"end_to_end_p50", result->end_to_end.p50}};
   // An unpaced replay reads windows as fast as the pipeline takes them, so they wait in the
   // queues: its end to end includes that wait and measures throughput, not latency.
-  const bool paced = source_->live() || options_.source_fps > 0;
+  const bool paced = Paced();
   j["timing"] = {
       {"paced", paced},
       {"end_to_end_is_latency", paced},
@@ -952,7 +955,7 @@ PipelineResult Runner::Run() {
     result.parts[p] = profiling::Summarize(part_ms_[p].Values());
   }
   result.end_to_end = profiling::Summarize(e2e_ms_.Values());
-  result.paced = source_->live() || options_.source_fps > 0;
+  result.paced = Paced();
   result.misses = misses_;
   if (queued_pictures_ != nullptr) {
     result.pictures_queued = true;

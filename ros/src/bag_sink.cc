@@ -19,15 +19,21 @@ FlowBagSink::~FlowBagSink() {
   }
 }
 
-Status FlowBagSink::Start() {
-  Result<io::OutputTarget> target = io::ResolveOutputTarget(options_.path);
+Result<std::string> ResolveBagPath(const std::string& path) {
+  Result<io::OutputTarget> target = io::ResolveOutputTarget(path);
   if (!target.ok()) return Status::Error("--record-bag: " + target.message());
   if (target->kind != io::OutputTarget::Kind::kReplace) {
-    return Status::Error("--record-bag '" + options_.path + "' is " + target->what +
+    return Status::Error("--record-bag '" + path + "' is " + target->what +
                          ": a bag is finished by seeking back to its header, so it is written "
                          "only as a regular file; give a file path");
   }
-  final_ = target->path;
+  return target->path;
+}
+
+Status FlowBagSink::Start() {
+  Result<std::string> resolved = ResolveBagPath(options_.path);
+  if (!resolved.ok()) return resolved.status();
+  final_ = *resolved;
   tmp_ = final_ + ".tmp.bag";
   writer_ = std::make_unique<detail::BagWriter>();
   if (std::string e = writer_->Open(tmp_); !e.empty()) {

@@ -312,17 +312,13 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
                            " channels; PFM holds 1 or 3 (use --flow-format npy)",
                        kExitUsage);
   }
+#if SFRT_HAVE_ROS
   if (!args.record_bag.empty()) {
-    Result<io::OutputTarget> bag = io::ResolveOutputTarget(args.record_bag);
-    if (!bag.ok()) return ReportError(kName, "--record-bag: " + bag.message(), kExitUsage);
-    if (bag->kind != io::OutputTarget::Kind::kReplace) {
-      return ReportError(kName,
-                         "--record-bag '" + args.record_bag + "' is " + bag->what +
-                             ": a bag is finished by seeking back to its header, so it is "
-                             "written only as a regular file; give a file path",
-                         kExitUsage);
+    if (Result<std::string> bag = ros::ResolveBagPath(args.record_bag); !bag.ok()) {
+      return ReportError(kName, bag.message(), kExitUsage);
     }
   }
+#endif
 
   std::error_code ec;
   std::unique_ptr<pipeline::FrameSource> source;

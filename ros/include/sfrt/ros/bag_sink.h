@@ -28,6 +28,11 @@
 
 namespace sfrt::ros {
 
+// Where a bag can be recorded: the path a regular file (or a new one) would be written at after
+// following links (a bag is finished by seeking back to its header, so a device or FIFO is
+// refused, naming the path). FlowBagSink::Start() checks it; a tool checks it before a run.
+Result<std::string> ResolveBagPath(const std::string& path);
+
 namespace detail {
 class BagWriter;
 }
