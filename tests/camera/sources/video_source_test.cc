@@ -107,6 +107,9 @@ TEST(SbsVideoSource, WindowsOverVideoAreConsecutiveFrames) {
     ++windows;
   }
   EXPECT_EQ(windows, kFrames - 1);
+  // The window rule (window_chain.h) on the video's frame numbers: one chain, no break.
+  EXPECT_EQ(window.counts().windows, kFrames - 1);
+  EXPECT_EQ(window.counts().breaks(), 0);
 }
 
 TEST(SbsVideoSource, MissingOrUndecodableFileIsAnError) {
