@@ -80,7 +80,8 @@ struct NodeIo::Impl {
   std::string flow_name, t1_name, vis_name;
   std::optional<::ros::AsyncSpinner> spinner;
   // Reused messages: their buffers keep their capacity from window to window.
-  sensor_msgs::Image image;
+  sensor_msgs::Image image;      // flow: the output stage's thread
+  sensor_msgs::Image vis_image;  // flow_vis: the picture queue's thread
 
   void OnRawPair(const sensor_msgs::ImageConstPtr& l, const sensor_msgs::ImageConstPtr& r) {
     on_pair(View(*l), View(*r), l->header.frame_id);
@@ -227,8 +228,9 @@ std::string NodeIo::WriteImage(const std::string& topic, int64_t stamp_ns, uint3
   ::ros::Publisher* pub = topic == s.flow_name ? &s.flow : topic == s.vis_name ? &s.vis : nullptr;
   if (pub == nullptr || !*pub) return "topic '" + topic + "' is not advertised";
   if (pub->getNumSubscribers() == 0) return "";  // nobody listens: skip the copy
-  FillImage(&s.image, stamp_ns, seq, frame_id, encoding, height, width, step, data);
-  pub->publish(s.image);
+  sensor_msgs::Image& message = pub == &s.vis ? s.vis_image : s.image;  // one per thread
+  FillImage(&message, stamp_ns, seq, frame_id, encoding, height, width, step, data);
+  pub->publish(message);
   return "";
 }
 

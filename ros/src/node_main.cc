@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -30,6 +31,7 @@
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/queued_sink.h"
 #include "topic_sink.h"
 #include "topic_source.h"
 
@@ -378,8 +380,6 @@ int Run(int argc, char** argv) {
 
   TopicSinkOptions sink_opts;
   sink_opts.topics = {io.Resolve("flow"), io.Resolve("flow_t1"), io.Resolve("flow_vis")};
-  sink_opts.vis = s.publish_vis;
-  sink_opts.vis_options = pipeline::VisualizerOptions{{}, md.output.units};
   sink_opts.frame_id = s.frame_id;
   sink_opts.diagnostics_period_s = s.diagnostics_period;
   sink_opts.hardware_id = md.name;
@@ -431,6 +431,20 @@ int Run(int argc, char** argv) {
   opts.stop = &stop;
   opts.stop_signal = &stop_signal;
   opts.sinks = {&sink};
+  // flow_vis behind its own queue: a picture that cannot keep up is dropped (counted in the
+  // summary's sinks), never delaying a flow message. Its colour scale is set by the first
+  // window's flow and kept, so colours mean the same in every picture.
+  std::optional<VisTopicSink> vis_sink;
+  std::optional<pipeline::QueuedSink> vis_queue;
+  if (s.publish_vis) {
+    vis_sink.emplace(
+        sink_opts.topics.vis,
+        pipeline::VisualizerOptions{{pipeline::VisScale::Mode::kFirst, 0}, md.output.units},
+        s.frame_id, &io, &source);
+    vis_queue.emplace("ros flow_vis queue", std::vector<pipeline::FlowSink*>{&*vis_sink}, 2,
+                      pipeline::QueuePolicy::kNewestWins);
+    opts.sinks.push_back(&*vis_queue);
+  }
   opts.log = &log;
 
   std::signal(SIGTERM, OnSigterm);

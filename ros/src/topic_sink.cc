@@ -34,7 +34,6 @@ FlowTopicSink::FlowTopicSink(TopicSinkOptions options, detail::MessageWriter* wr
       publish_(std::move(publish_diagnostics)) {}
 
 Status FlowTopicSink::Start() {
-  if (options_.vis) renderer_.emplace(options_.vis_options);
   recent_.assign(kSeries, profiling::LatestValues(options_.window_values));
   all_.assign(kSeries, profiling::LatestValues());
   last_publish_ns_ = detail::MonotonicNs();
@@ -44,15 +43,24 @@ Status FlowTopicSink::Start() {
 Status FlowTopicSink::Write(const pipeline::FlowFrame& frame) {
   const pipeline::FrameMeta& m = *frame.meta;
   const std::string& frame_id = options_.frame_id.empty() ? source_->frame_id() : options_.frame_id;
-  const std::string e =
-      detail::WriteFlowMessages(frame, m.stamp_ns[0], m.stamp_ns[1], frame_id, options_.topics,
-                                renderer_ ? &*renderer_ : nullptr, writer_);
+  const std::string e = detail::WriteFlowMessages(frame, m.stamp_ns[0], m.stamp_ns[1], frame_id,
+                                                  options_.topics, nullptr, writer_);
   if (!e.empty()) return Status::Error(e);
   // From the header stamp of the newest image the flow needs to its publication, on ROS time;
   // counted when it is a plausible latency (a bag's old stamps are not).
   const double ms = static_cast<double>(ros_now_() - m.stamp_ns[1]) / 1e6;
   last_stamp_to_publish_ms_ = ms >= 0 && ms < 2000 ? ms : -1;
   return Status::Ok();
+}
+
+Status VisTopicSink::Write(const pipeline::FlowFrame& frame) {
+  const cv::Mat& canvas = renderer_.Render(frame);
+  const std::string& frame_id = frame_id_.empty() ? source_->frame_id() : frame_id_;
+  const std::string e = writer_->WriteImage(
+      topic_, frame.meta->stamp_ns[0], static_cast<uint32_t>(frame.meta->window), frame_id, "bgr8",
+      static_cast<uint32_t>(canvas.rows), static_cast<uint32_t>(canvas.cols),
+      static_cast<uint32_t>(canvas.step[0]), canvas.data);
+  return e.empty() ? Status::Ok() : Status::Error(e);
 }
 
 Status FlowTopicSink::Completed(const pipeline::WindowRecord& record) {

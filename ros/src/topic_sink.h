@@ -1,5 +1,5 @@
 // The sfrt_ros node's outputs: each window's flow published as ROS messages (flow_messages.h:
-// `flow` 32FC3 stamped with pair t, `flow_t1` with pair t+1, optionally `flow_vis`), and
+// `flow` 32FC3 stamped with pair t, `flow_t1` with pair t+1; `flow_vis` by VisTopicSink), and
 // /diagnostics (diagnostic_msgs/DiagnosticArray) every `diagnostics_period_s`: latency p50/p99
 // per stage over the latest windows, drops, deadline misses, the ISA and precision in use.
 // Plain C++20 over a MessageWriter and a diagnostics callback, so a ROS 2 node reuses it. Not
@@ -20,6 +20,7 @@
 #include "flow_messages.h"
 #include "message_io.h"
 #include "node_io.h"
+#include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/stats.h"
 
@@ -28,10 +29,8 @@ namespace sfrt::ros {
 class TopicSource;
 
 struct TopicSinkOptions {
-  detail::FlowTopics topics;  // resolved names; topics.vis is published when `vis`
-  bool vis = false;
-  pipeline::VisualizerOptions vis_options;
-  std::string frame_id;  // "" = the left images' frame_id (TopicSource::frame_id())
+  detail::FlowTopics topics;  // resolved names; topics.vis is VisTopicSink's
+  std::string frame_id;       // "" = the left images' frame_id (TopicSource::frame_id())
   double diagnostics_period_s = 1;
   std::string diagnostics_name = "sfrt_ros: scene flow";
   std::string hardware_id;  // the model's name
@@ -73,7 +72,6 @@ class FlowTopicSink final : public pipeline::FlowSink {
   const TopicSource* source_;
   Clock ros_now_;
   Publish publish_;
-  std::optional<pipeline::FlowRenderer> renderer_;
   // The output stage's thread only.
   static constexpr int kSeries = 6;              // the four stages, end to end, stamp to publish
   std::vector<profiling::LatestValues> recent_;  // the latest windows
@@ -86,6 +84,29 @@ class FlowTopicSink final : public pipeline::FlowSink {
   int64_t last_idle_publish_ns_ = 0;      // PublishIfIdle()'s thread only
   // Read by PublishIfIdle().
   std::atomic<int64_t> windows_{0}, misses_{0}, gaps_{0}, last_done_ns_{0};
+};
+
+// `flow_vis`: the picture `sfrt run` writes as PNG, as a bgr8 image stamped with pair t. Apart
+// from FlowTopicSink so that the node puts it behind a pipeline::QueuedSink that drops (and
+// counts) the pictures it cannot keep up with: drawing never delays a flow message.
+class VisTopicSink final : public pipeline::FlowSink {
+ public:
+  VisTopicSink(std::string topic, pipeline::VisualizerOptions vis_options, std::string frame_id,
+               detail::MessageWriter* writer, const TopicSource* source)
+      : topic_(std::move(topic)),
+        renderer_(std::move(vis_options)),
+        frame_id_(std::move(frame_id)),
+        writer_(writer),
+        source_(source) {}
+  std::string name() const override { return "ros flow_vis"; }
+  Status Write(const pipeline::FlowFrame& frame) override;
+
+ private:
+  std::string topic_;
+  pipeline::FlowRenderer renderer_;
+  std::string frame_id_;  // "" = the left images' (TopicSource::frame_id())
+  detail::MessageWriter* writer_;
+  const TopicSource* source_;
 };
 
 }  // namespace sfrt::ros
