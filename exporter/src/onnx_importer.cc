@@ -91,8 +91,17 @@ constexpr int64_t kMaxOpset = 17;
 // Upper bound on the elements of one evaluated constant: shape arithmetic is tiny, and this keeps
 // a hostile file from making the importer allocate without limit.
 constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
+// What an import may allocate for constants (ConstantBudget): this slack for shape arithmetic,
+// plus this many bytes per byte of the file, room for every weight to be decoded, evaluated and
+// copied a few times (a Const takes 8 bytes a value, twice a float32 weight's 4).
+constexpr int64_t kConstantSlackBytes = int64_t{32} << 20;
+constexpr int64_t kConstantBytesPerFileByte = 16;
+// A Const holds every value as a double or an int64.
+constexpr size_t kConstValueBytes = 8;
 // Unsupported nodes named in one message; the rest are counted (a screenful at most).
 constexpr size_t kMaxListedNodes = 20;
+// Values of a list (a shape, scales, pads) written in one message; the rest are counted.
+constexpr size_t kMaxListedValues = 16;
 
 // Ops that may carry the network input. Concat (of channels) and Add read several such tensors.
 // Sub, Mul and Div (and Add) by a per-channel constant become a scale and shift.
@@ -141,12 +150,15 @@ std::string FormatFloat(float v) {
   return buf;
 }
 
+// "[1, 2, 3]"; past kMaxListedValues, the first of them and the count, so that a message stays
+// one readable line whatever length the file gives a list.
 std::string JoinInts(const std::vector<int64_t>& values) {
   std::string s = "[";
-  for (size_t i = 0; i < values.size(); ++i) {
+  for (size_t i = 0; i < values.size() && i < kMaxListedValues; ++i) {
     if (i > 0) s += ", ";
     s += std::to_string(values[i]);
   }
+  if (values.size() > kMaxListedValues) s += ", ... (" + std::to_string(values.size()) + " values)";
   return s + "]";
 }
 
@@ -156,12 +168,14 @@ std::string FormatDouble(double v) {
   return buf;
 }
 
+// As JoinInts.
 std::string JoinReals(const std::vector<double>& values) {
   std::string s = "[";
-  for (size_t i = 0; i < values.size(); ++i) {
+  for (size_t i = 0; i < values.size() && i < kMaxListedValues; ++i) {
     if (i > 0) s += ", ";
     s += FormatDouble(values[i]);
   }
+  if (values.size() > kMaxListedValues) s += ", ... (" + std::to_string(values.size()) + " values)";
   return s + "]";
 }
 
@@ -267,11 +281,50 @@ Result<int64_t> NumElements(const Dims& dims) {
   return n;
 }
 
-Result<Const> MakeConst(int type, Dims dims) {
+// The bytes an import may still allocate for constants. A file's shapes and counts are only
+// declarations: a 257-byte file declared a 2 GB weight (issue 38), and a few bytes of nodes can
+// repeat, broadcast or expand a tensor without limit. So every constant the importer decodes,
+// copies or evaluates, and every weight it reads, is charged here before it is allocated, which
+// keeps an import within kConstantSlackBytes plus kConstantBytesPerFileByte times the file,
+// whatever the file declares.
+class ConstantBudget {
+ public:
+  explicit ConstantBudget(size_t file_bytes)
+      : file_bytes_(file_bytes),
+        limit_(kConstantSlackBytes + kConstantBytesPerFileByte * static_cast<int64_t>(file_bytes)),
+        left_(limit_) {}
+
+  // Charges `values` values of `value_bytes` bytes each. The error starts with `what` (a tensor
+  // and its shape) and says what it needed against what was left.
+  Status Take(size_t values, size_t value_bytes, const std::string& what) {
+    // values <= 2^30 (NumElements) or a field the parsed file holds; value_bytes <= 8.
+    const auto bytes = static_cast<int64_t>(values * value_bytes);
+    if (bytes > left_) {
+      return Status::Error(what + " needs " + std::to_string(bytes) +
+                           " bytes, more than this import may still allocate for constants (" +
+                           std::to_string(left_) + " of " + std::to_string(limit_) +
+                           " bytes: " + std::to_string(kConstantSlackBytes >> 20) + " MiB plus " +
+                           std::to_string(kConstantBytesPerFileByte) + " per byte of the " +
+                           std::to_string(file_bytes_) + "-byte file)");
+    }
+    left_ -= bytes;
+    return Status::Ok();
+  }
+
+ private:
+  size_t file_bytes_;
+  int64_t limit_;
+  int64_t left_;
+};
+
+// A zero constant of `dims`, charged to `budget`.
+Result<Const> MakeConst(ConstantBudget& budget, int type, Dims dims) {
   SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t n, NumElements(dims));
   if (n > kMaxFoldedElements) {
     return Status::Error("a constant of shape " + JoinInts(dims) + " is too large to evaluate");
   }
+  SFRT_ONNX_RETURN_IF_ERROR(budget.Take(static_cast<size_t>(n), kConstValueBytes,
+                                        "a constant of shape " + JoinInts(dims)));
   Const c;
   c.type = type;
   c.dims = std::move(dims);
@@ -302,8 +355,42 @@ T LoadLittleEndian(const char* p) {
   return std::bit_cast<T>(u);
 }
 
-// Decodes an initialiser or a Constant node's tensor. `what` names it in errors.
-Result<Const> DecodeTensor(const TensorProto& t, const std::string& what) {
+// The bytes one value of a supported `type` takes in raw_data.
+size_t RawWidth(int type) {
+  switch (type) {
+    case TensorProto::DOUBLE:
+    case TensorProto::INT64:
+      return 8;
+    case TensorProto::FLOAT:
+    case TensorProto::INT32:
+      return 4;
+    case TensorProto::INT16:
+    case TensorProto::UINT16:
+      return 2;
+    default:  // INT8, UINT8, BOOL
+      return 1;
+  }
+}
+
+// The values a tensor of a supported type holds: whole values in raw_data, or the length of the
+// typed field its type uses (int32_data for the integer types narrower than 64 bits and BOOL).
+size_t HeldValues(const TensorProto& t) {
+  if (t.has_raw_data()) return t.raw_data().size() / RawWidth(t.data_type());
+  switch (t.data_type()) {
+    case TensorProto::FLOAT:
+      return static_cast<size_t>(t.float_data_size());
+    case TensorProto::DOUBLE:
+      return static_cast<size_t>(t.double_data_size());
+    case TensorProto::INT64:
+      return static_cast<size_t>(t.int64_data_size());
+    default:
+      return static_cast<size_t>(t.int32_data_size());
+  }
+}
+
+// Decodes an initialiser or a Constant node's tensor, charged to `budget`. `what` names it in
+// errors.
+Result<Const> DecodeTensor(const TensorProto& t, const std::string& what, ConstantBudget& budget) {
   if (t.data_location() == TensorProto::EXTERNAL) {
     return Status::Error(what +
                          " uses external data, which is not supported (re-export with the "
@@ -318,54 +405,47 @@ Result<Const> DecodeTensor(const TensorProto& t, const std::string& what) {
   auto count = NumElements(dims);
   if (!count.ok()) return Status::Error(what + ": " + count.message());
   const auto n = static_cast<size_t>(*count);
+  // The declared shape against the values the file holds, before anything is sized from it.
+  const size_t width = RawWidth(t.data_type());
+  if (const size_t held = HeldValues(t);
+      held != n || (t.has_raw_data() && t.raw_data().size() != n * width)) {
+    return Status::Error(what + " holds " + std::to_string(held) + " values of " +
+                         TypeName(t.data_type()) + ", its shape " + JoinInts(dims) + " needs " +
+                         std::to_string(n));
+  }
+  SFRT_ONNX_RETURN_IF_ERROR(budget.Take(n, kConstValueBytes, what + " of shape " + JoinInts(dims)));
   Const c;
   c.type = t.data_type();
   c.dims = std::move(dims);
-  const std::string& raw = t.raw_data();
-  auto mismatch = [&](size_t have) {
-    return Status::Error(what + " holds " + std::to_string(have) + " values of " +
-                         TypeName(t.data_type()) + ", its shape " + JoinInts(c.dims) + " needs " +
-                         std::to_string(n));
-  };
+  const char* raw = t.raw_data().data();
+  if (c.is_real()) {
+    c.reals.resize(n);
+  } else {
+    c.ints.resize(n);
+  }
   switch (t.data_type()) {
     case TensorProto::FLOAT:
-      c.reals.resize(n);
-      if (t.has_raw_data()) {
-        if (raw.size() != n * 4) return mismatch(raw.size() / 4);
-        for (size_t i = 0; i < n; ++i) c.reals[i] = LoadLittleEndian<float>(raw.data() + 4 * i);
-      } else {
-        if (static_cast<size_t>(t.float_data_size()) != n) return mismatch(t.float_data_size());
-        for (size_t i = 0; i < n; ++i) c.reals[i] = t.float_data(static_cast<int>(i));
+      for (size_t i = 0; i < n; ++i) {
+        c.reals[i] = t.has_raw_data() ? LoadLittleEndian<float>(raw + 4 * i)
+                                      : t.float_data(static_cast<int>(i));
       }
       break;
     case TensorProto::DOUBLE:
-      c.reals.resize(n);
-      if (t.has_raw_data()) {
-        if (raw.size() != n * 8) return mismatch(raw.size() / 8);
-        for (size_t i = 0; i < n; ++i) c.reals[i] = LoadLittleEndian<double>(raw.data() + 8 * i);
-      } else {
-        if (static_cast<size_t>(t.double_data_size()) != n) return mismatch(t.double_data_size());
-        for (size_t i = 0; i < n; ++i) c.reals[i] = t.double_data(static_cast<int>(i));
+      for (size_t i = 0; i < n; ++i) {
+        c.reals[i] = t.has_raw_data() ? LoadLittleEndian<double>(raw + 8 * i)
+                                      : t.double_data(static_cast<int>(i));
       }
       break;
     case TensorProto::INT64:
-      c.ints.resize(n);
-      if (t.has_raw_data()) {
-        if (raw.size() != n * 8) return mismatch(raw.size() / 8);
-        for (size_t i = 0; i < n; ++i) c.ints[i] = LoadLittleEndian<int64_t>(raw.data() + 8 * i);
-      } else {
-        if (static_cast<size_t>(t.int64_data_size()) != n) return mismatch(t.int64_data_size());
-        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int64_data(static_cast<int>(i));
+      for (size_t i = 0; i < n; ++i) {
+        c.ints[i] = t.has_raw_data() ? LoadLittleEndian<int64_t>(raw + 8 * i)
+                                     : t.int64_data(static_cast<int>(i));
       }
       break;
     case TensorProto::INT32:
-      c.ints.resize(n);
-      if (t.has_raw_data()) {
-        if (raw.size() != n * 4) return mismatch(raw.size() / 4);
-        for (size_t i = 0; i < n; ++i) c.ints[i] = LoadLittleEndian<int32_t>(raw.data() + 4 * i);
-      } else {
-        if (static_cast<size_t>(t.int32_data_size()) != n) return mismatch(t.int32_data_size());
-        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i));
+      for (size_t i = 0; i < n; ++i) {
+        c.ints[i] = t.has_raw_data() ? LoadLittleEndian<int32_t>(raw + 4 * i)
+                                     : t.int32_data(static_cast<int>(i));
       }
       break;
     case TensorProto::INT8:
@@ -374,33 +454,23 @@ Result<Const> DecodeTensor(const TensorProto& t, const std::string& what) {
     case TensorProto::UINT16: {
       const bool is_signed =
           t.data_type() == TensorProto::INT8 || t.data_type() == TensorProto::INT16;
-      const size_t width =
-          t.data_type() == TensorProto::INT8 || t.data_type() == TensorProto::UINT8 ? 1 : 2;
-      c.ints.resize(n);
-      if (t.has_raw_data()) {
-        if (raw.size() != n * width) return mismatch(raw.size() / width);
-        for (size_t i = 0; i < n; ++i) {
-          uint32_t u = static_cast<unsigned char>(raw[width * i]);
-          if (width == 2)
-            u |= static_cast<uint32_t>(static_cast<unsigned char>(raw[2 * i + 1])) << 8;
-          const uint32_t sign_bit = width == 1 ? 0x80u : 0x8000u;
-          c.ints[i] = is_signed && (u & sign_bit) != 0 ? static_cast<int64_t>(u) - 2 * sign_bit
-                                                       : static_cast<int64_t>(u);
+      const uint32_t sign_bit = width == 1 ? 0x80u : 0x8000u;
+      for (size_t i = 0; i < n; ++i) {
+        if (!t.has_raw_data()) {  // int32_data holds one value per element
+          c.ints[i] = t.int32_data(static_cast<int>(i));
+          continue;
         }
-      } else {  // int32_data holds one value per element
-        if (static_cast<size_t>(t.int32_data_size()) != n) return mismatch(t.int32_data_size());
-        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i));
+        uint32_t u = static_cast<unsigned char>(raw[width * i]);
+        if (width == 2) u |= static_cast<uint32_t>(static_cast<unsigned char>(raw[2 * i + 1])) << 8;
+        c.ints[i] = is_signed && (u & sign_bit) != 0 ? static_cast<int64_t>(u) - 2 * sign_bit
+                                                     : static_cast<int64_t>(u);
       }
       break;
     }
     default:  // BOOL
-      c.ints.resize(n);
-      if (t.has_raw_data()) {
-        if (raw.size() != n) return mismatch(raw.size());
-        for (size_t i = 0; i < n; ++i) c.ints[i] = raw[i] != 0 ? 1 : 0;
-      } else {
-        if (static_cast<size_t>(t.int32_data_size()) != n) return mismatch(t.int32_data_size());
-        for (size_t i = 0; i < n; ++i) c.ints[i] = t.int32_data(static_cast<int>(i)) != 0;
+      for (size_t i = 0; i < n; ++i) {
+        const bool set = t.has_raw_data() ? raw[i] != 0 : t.int32_data(static_cast<int>(i)) != 0;
+        c.ints[i] = set ? 1 : 0;
       }
       break;
   }
@@ -459,10 +529,10 @@ int PromoteTypes(int a, int b) {
 // computation type is real, `int_fn(int64, int64) -> Result<int64>` otherwise. The output has
 // `out_type` (which may differ from the computation type, e.g. BOOL for comparisons).
 template <typename RealFn, typename IntFn>
-Result<Const> Elementwise(const Const& a, const Const& b, int out_type, RealFn real_fn,
-                          IntFn int_fn) {
+Result<Const> Elementwise(ConstantBudget& budget, const Const& a, const Const& b, int out_type,
+                          RealFn real_fn, IntFn int_fn) {
   SFRT_ONNX_ASSIGN_OR_RETURN(Dims dims, BroadcastDims({&a.dims, &b.dims}));
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(out_type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, out_type, dims));
   const bool real = a.is_real() || b.is_real();
   for (size_t i = 0; i < out.size(); ++i) {
     const size_t ia = SourceIndex(i, dims, a.dims);
@@ -485,12 +555,12 @@ int64_t FloorDiv(int64_t n, int64_t d) {
   return q;
 }
 
-Result<Const> Cast(const Const& in, int to) {
+Result<Const> Cast(ConstantBudget& budget, const Const& in, int to) {
   if (!IsSupportedType(to)) {
     return Status::Error("attribute 'to' = " + TypeName(to) +
                          " is not supported (FLOAT, DOUBLE, INT64, INT32, BOOL)");
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(to, in.dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, to, in.dims));
   for (size_t i = 0; i < in.size(); ++i) {
     if (in.is_real() && !out.is_real()) {
       const double v = in.reals[i];
@@ -524,7 +594,8 @@ Dims Strides(const Dims& dims) {
   return strides;
 }
 
-Result<Const> Concat(const std::vector<const Const*>& ins, int64_t axis_attr) {
+Result<Const> Concat(ConstantBudget& budget, const std::vector<const Const*>& ins,
+                     int64_t axis_attr) {
   if (ins.empty()) return Status::Error("no inputs");
   const Const& first = *ins[0];
   const auto rank = static_cast<int64_t>(first.dims.size());
@@ -545,7 +616,7 @@ Result<Const> Concat(const std::vector<const Const*>& ins, int64_t axis_attr) {
     dims[axis] += in->dims[axis];
     type = PromoteTypes(type, in->type);
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, type, dims));
   int64_t outer = 1;
   for (int64_t k = 0; k < axis; ++k) outer *= dims[k];
   size_t di = 0;
@@ -560,14 +631,15 @@ Result<Const> Concat(const std::vector<const Const*>& ins, int64_t axis_attr) {
   return out;
 }
 
-Result<Const> Gather(const Const& data, const Const& indices, int64_t axis_attr) {
+Result<Const> Gather(ConstantBudget& budget, const Const& data, const Const& indices,
+                     int64_t axis_attr) {
   if (indices.is_real()) return Status::Error("indices must be integers");
   const auto rank = static_cast<int64_t>(data.dims.size());
   SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(axis_attr, rank, "axis"));
   Dims dims(data.dims.begin(), data.dims.begin() + axis);
   dims.insert(dims.end(), indices.dims.begin(), indices.dims.end());
   dims.insert(dims.end(), data.dims.begin() + axis + 1, data.dims.end());
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(data.type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, data.type, dims));
   int64_t outer = 1;
   int64_t inner = 1;
   for (int64_t k = 0; k < axis; ++k) outer *= data.dims[k];
@@ -590,17 +662,17 @@ Result<Const> Gather(const Const& data, const Const& indices, int64_t axis_attr)
   return out;
 }
 
-Result<Const> Reshaped(const Const& in, Dims dims) {
+// `in` with shape `dims`; it takes `in`'s values (no copy, so nothing to charge).
+Result<Const> Reshaped(Const in, Dims dims) {
   SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t n, NumElements(dims));
   if (static_cast<size_t>(n) != in.size()) {
     return Status::Error("cannot reshape " + JoinInts(in.dims) + " to " + JoinInts(dims));
   }
-  Const out = in;
-  out.dims = std::move(dims);
-  return out;
+  in.dims = std::move(dims);
+  return in;
 }
 
-Result<Const> Reshape(const Const& in, const Const& shape, bool allow_zero) {
+Result<Const> Reshape(Const in, const Const& shape, bool allow_zero) {
   if (shape.is_real() || shape.dims.size() != 1) {
     return Status::Error("input 'shape' must be a 1-D integer tensor");
   }
@@ -633,10 +705,10 @@ Result<Const> Reshape(const Const& in, const Const& shape, bool allow_zero) {
     }
     dims[infer] = total / known;
   }
-  return Reshaped(in, std::move(dims));
+  return Reshaped(std::move(in), std::move(dims));
 }
 
-Result<Const> Unsqueeze(const Const& in, const std::vector<int64_t>& axes_in) {
+Result<Const> Unsqueeze(Const in, const std::vector<int64_t>& axes_in) {
   const auto out_rank = static_cast<int64_t>(in.dims.size() + axes_in.size());
   std::vector<int64_t> axes;
   for (int64_t a : axes_in) {
@@ -655,10 +727,10 @@ Result<Const> Unsqueeze(const Const& in, const std::vector<int64_t>& axes_in) {
       dims.push_back(in.dims[next++]);
     }
   }
-  return Reshaped(in, std::move(dims));
+  return Reshaped(std::move(in), std::move(dims));
 }
 
-Result<Const> Squeeze(const Const& in, const std::vector<int64_t>& axes_in, bool have_axes) {
+Result<Const> Squeeze(Const in, const std::vector<int64_t>& axes_in, bool have_axes) {
   const auto rank = static_cast<int64_t>(in.dims.size());
   std::vector<bool> drop(in.dims.size(), false);
   if (!have_axes) {
@@ -676,10 +748,10 @@ Result<Const> Squeeze(const Const& in, const std::vector<int64_t>& axes_in, bool
   for (int64_t k = 0; k < rank; ++k) {
     if (!drop[k]) dims.push_back(in.dims[k]);
   }
-  return Reshaped(in, std::move(dims));
+  return Reshaped(std::move(in), std::move(dims));
 }
 
-Result<Const> Transpose(const Const& in, std::vector<int64_t> perm) {
+Result<Const> Transpose(ConstantBudget& budget, const Const& in, std::vector<int64_t> perm) {
   const size_t rank = in.dims.size();
   if (perm.empty()) {
     for (size_t k = rank; k-- > 0;) perm.push_back(static_cast<int64_t>(k));
@@ -695,7 +767,7 @@ Result<Const> Transpose(const Const& in, std::vector<int64_t> perm) {
   }
   Dims dims(rank);
   for (size_t k = 0; k < rank; ++k) dims[k] = in.dims[perm[k]];
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
   const Dims in_strides = Strides(in.dims);
   for (size_t i = 0; i < out.size(); ++i) {
     size_t flat = i;
@@ -710,18 +782,18 @@ Result<Const> Transpose(const Const& in, std::vector<int64_t> perm) {
   return out;
 }
 
-Result<Const> Expand(const Const& in, const Const& shape) {
+Result<Const> Expand(ConstantBudget& budget, const Const& in, const Const& shape) {
   if (shape.is_real() || shape.dims.size() != 1) {
     return Status::Error("input 'shape' must be a 1-D integer tensor");
   }
   const Dims target(shape.ints.begin(), shape.ints.end());
   SFRT_ONNX_ASSIGN_OR_RETURN(const Dims dims, BroadcastDims({&in.dims, &target}));
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
   for (size_t i = 0; i < out.size(); ++i) CopyElement(in, SourceIndex(i, dims, in.dims), out, i);
   return out;
 }
 
-Result<Const> Tile(const Const& in, const Const& repeats) {
+Result<Const> Tile(ConstantBudget& budget, const Const& in, const Const& repeats) {
   if (repeats.is_real() || repeats.size() != in.dims.size()) {
     return Status::Error("input 'repeats' must hold one integer per input dimension");
   }
@@ -732,7 +804,7 @@ Result<Const> Tile(const Const& in, const Const& repeats) {
     }
     dims[k] *= repeats.ints[k];  // both factors <= 2^24: no overflow
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
   const Dims in_strides = Strides(in.dims);
   for (size_t i = 0; i < out.size(); ++i) {
     size_t flat = i;
@@ -821,7 +893,7 @@ Result<SliceArgs> ReadSliceArgs(const Const* starts, const Const* ends, const Co
   return a;
 }
 
-Result<Const> SliceConst(const Const& in, const SliceArgs& args) {
+Result<Const> SliceConst(ConstantBudget& budget, const Const& in, const SliceArgs& args) {
   const size_t rank = in.dims.size();
   std::vector<SliceAxis> axes(rank);
   for (size_t k = 0; k < rank; ++k) axes[k] = SliceAxis{0, 1, in.dims[k]};
@@ -831,7 +903,7 @@ Result<Const> SliceConst(const Const& in, const SliceArgs& args) {
   }
   Dims dims(rank);
   for (size_t k = 0; k < rank; ++k) dims[k] = axes[k].count;
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(in.type, dims));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
   const Dims in_strides = Strides(in.dims);
   for (size_t i = 0; i < out.size(); ++i) {
     size_t flat = i;
@@ -847,7 +919,8 @@ Result<Const> SliceConst(const Const& in, const SliceArgs& args) {
   return out;
 }
 
-Result<Const> Range(const Const& start, const Const& limit, const Const& delta) {
+Result<Const> Range(ConstantBudget& budget, const Const& start, const Const& limit,
+                    const Const& delta) {
   if (start.size() != 1 || limit.size() != 1 || delta.size() != 1) {
     return Status::Error("inputs must be scalars");
   }
@@ -860,7 +933,7 @@ Result<Const> Range(const Const& start, const Const& limit, const Const& delta) 
     return Status::Error("range of " + FormatDouble(count_d) + " elements is too large");
   }
   const auto count = static_cast<int64_t>(count_d);
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(type, {count}));
+  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, type, {count}));
   for (int64_t i = 0; i < count; ++i) {
     if (IsReal(type)) {
       out.Set(static_cast<size_t>(i), start.Real(0) + static_cast<double>(i) * delta.Real(0));
@@ -989,7 +1062,7 @@ class Importer {
  public:
   // `bytes` must outlive the importer; `path` labels messages and names the source file.
   Importer(std::string_view bytes, const std::string& path, const OnnxImportOptions& options)
-      : bytes_(bytes), path_(path), options_(options) {}
+      : bytes_(bytes), path_(path), options_(options), budget_(bytes.size()) {}
 
   Result<ModelSpec> Run();
 
@@ -1051,12 +1124,15 @@ class Importer {
   bool IsConst(const std::string& name) const {
     return consts_.count(name) > 0 || initializers_.count(name) > 0;
   }
-  // The constant named `name` (a copy). Errors name the node and its input slot.
-  Result<Const> GetConst(int idx, int slot) const;
+  // The constant input `slot` of node `idx` (a copy, charged to budget_). Errors name the node
+  // and its input slot.
+  Result<Const> GetConst(int idx, int slot);
   // The optional constant input `slot` of node `idx`: absent (empty name or beyond the inputs)
   // gives an empty optional.
-  Result<std::optional<Const>> GetOptionalConst(int idx, int slot) const;
-  Result<std::vector<float>> GetFloats(int idx, int slot, Dims* dims) const;
+  Result<std::optional<Const>> GetOptionalConst(int idx, int slot);
+  // The FLOAT constant input `slot` of node `idx` as float32 values (charged to budget_), and
+  // its shape in `dims`.
+  Result<std::vector<float>> GetFloats(int idx, int slot, Dims* dims);
 
   // Attribute access; errors name the node and the attribute.
   const onnx::AttributeProto* FindAttr(int idx, std::string_view name) const;
@@ -1070,6 +1146,7 @@ class Importer {
   std::string_view bytes_;
   std::string path_;
   OnnxImportOptions options_;
+  ConstantBudget budget_;
   int output_index_ = 0;  // the graph output the model computes (ChooseOutput)
   onnx::ModelProto model_;
   int64_t opset_ = 0;
@@ -1140,11 +1217,20 @@ Result<std::string> Importer::StringAttr(int idx, std::string_view name,
   return a->s();
 }
 
-Result<Const> Importer::GetConst(int idx, int slot) const {
+Result<Const> Importer::GetConst(int idx, int slot) {
   const std::string& name = graph().node(idx).input(slot);
-  if (auto it = consts_.find(name); it != consts_.end()) return it->second;
+  if (auto it = consts_.find(name); it != consts_.end()) {
+    const Const& c = it->second;
+    if (Status s = budget_.Take(
+            c.size(), kConstValueBytes,
+            "input " + std::to_string(slot) + " " + Quote(name) + " of shape " + JoinInts(c.dims));
+        !s.ok()) {
+      return NodeError(idx, s.message());
+    }
+    return c;
+  }
   if (auto it = initializers_.find(name); it != initializers_.end()) {
-    auto decoded = DecodeTensor(*it->second, "initializer " + Quote(name));
+    auto decoded = DecodeTensor(*it->second, "initializer " + Quote(name), budget_);
     if (!decoded.ok()) return FileError(decoded.message());
     return decoded;
   }
@@ -1153,14 +1239,14 @@ Result<Const> Importer::GetConst(int idx, int slot) const {
                             "subgraph), but it depends on the network input");
 }
 
-Result<std::optional<Const>> Importer::GetOptionalConst(int idx, int slot) const {
+Result<std::optional<Const>> Importer::GetOptionalConst(int idx, int slot) {
   const onnx::NodeProto& n = graph().node(idx);
   if (slot >= n.input_size() || n.input(slot).empty()) return std::optional<Const>();
   SFRT_ONNX_ASSIGN_OR_RETURN(Const c, GetConst(idx, slot));
   return std::optional<Const>(std::move(c));
 }
 
-Result<std::vector<float>> Importer::GetFloats(int idx, int slot, Dims* dims) const {
+Result<std::vector<float>> Importer::GetFloats(int idx, int slot, Dims* dims) {
   const std::string& name = graph().node(idx).input(slot);
   const std::string what = "input " + std::to_string(slot) + " " + Quote(name);
   // Fast path for float32 initialisers (the weights): no detour through doubles.
@@ -1171,21 +1257,27 @@ Result<std::vector<float>> Importer::GetFloats(int idx, int slot, Dims* dims) co
       auto count = NumElements(*dims);
       if (!count.ok()) return NodeError(idx, what + ": " + count.message());
       const auto n = static_cast<size_t>(*count);
+      // The declared shape against the bytes the file holds, before the vector is sized from it
+      // (a 257-byte file declared [1, 536870890]: 2 GB).
+      if (t.has_raw_data() && t.raw_data().size() != 4 * n) {
+        return NodeError(idx, what + " holds " + std::to_string(t.raw_data().size()) +
+                                  " bytes, its shape " + JoinInts(*dims) + " needs " +
+                                  std::to_string(4 * n));
+      }
+      if (!t.has_raw_data() && static_cast<size_t>(t.float_data_size()) != n) {
+        return NodeError(idx, what + " holds " + std::to_string(t.float_data_size()) +
+                                  " floats, its shape " + JoinInts(*dims) + " needs " +
+                                  std::to_string(n));
+      }
+      if (Status s = budget_.Take(n, sizeof(float), what + " of shape " + JoinInts(*dims));
+          !s.ok()) {
+        return NodeError(idx, s.message());
+      }
       std::vector<float> values(n);
       if (t.has_raw_data()) {
-        if (t.raw_data().size() != 4 * n) {
-          return NodeError(idx, what + " holds " + std::to_string(t.raw_data().size()) +
-                                    " bytes, its shape " + JoinInts(*dims) + " needs " +
-                                    std::to_string(4 * n));
-        }
         for (size_t i = 0; i < n; ++i)
           values[i] = LoadLittleEndian<float>(t.raw_data().data() + 4 * i);
       } else {
-        if (static_cast<size_t>(t.float_data_size()) != n) {
-          return NodeError(idx, what + " holds " + std::to_string(t.float_data_size()) +
-                                    " floats, its shape " + JoinInts(*dims) + " needs " +
-                                    std::to_string(n));
-        }
         std::copy(t.float_data().begin(), t.float_data().end(), values.begin());
       }
       return values;
@@ -1196,6 +1288,10 @@ Result<std::vector<float>> Importer::GetFloats(int idx, int slot, Dims* dims) co
     return NodeError(idx, what + " has element type " + TypeName(c.type) + ", expected FLOAT");
   }
   *dims = c.dims;
+  if (Status s = budget_.Take(c.size(), sizeof(float), what + " of shape " + JoinInts(c.dims));
+      !s.ok()) {
+    return NodeError(idx, s.message());
+  }
   return std::vector<float>(c.reals.begin(), c.reals.end());
 }
 
@@ -1387,13 +1483,19 @@ Status Importer::ProcessConstant(int idx) {
   const onnx::AttributeProto& a = n.attribute(0);
   Const c;
   if (a.name() == "value" && a.type() == onnx::AttributeProto::TENSOR) {
-    auto decoded = DecodeTensor(a.t(), "attribute 'value'");
+    auto decoded = DecodeTensor(a.t(), "attribute 'value'", budget_);
     if (!decoded.ok()) return NodeError(idx, decoded.message());
     c = std::move(decoded).value();
   } else if (a.name() == "value_float" && a.type() == onnx::AttributeProto::FLOAT) {
     c.type = TensorProto::FLOAT;
     c.reals = {a.f()};
   } else if (a.name() == "value_floats" && a.type() == onnx::AttributeProto::FLOATS) {
+    if (Status s = budget_.Take(
+            static_cast<size_t>(a.floats_size()), kConstValueBytes,
+            "attribute 'value_floats' of " + std::to_string(a.floats_size()) + " values");
+        !s.ok()) {
+      return NodeError(idx, s.message());
+    }
     c.type = TensorProto::FLOAT;
     c.dims = {a.floats_size()};
     c.reals.assign(a.floats().begin(), a.floats().end());
@@ -1401,6 +1503,12 @@ Status Importer::ProcessConstant(int idx) {
     c.type = TensorProto::INT64;
     c.ints = {a.i()};
   } else if (a.name() == "value_ints" && a.type() == onnx::AttributeProto::INTS) {
+    if (Status s =
+            budget_.Take(static_cast<size_t>(a.ints_size()), kConstValueBytes,
+                         "attribute 'value_ints' of " + std::to_string(a.ints_size()) + " values");
+        !s.ok()) {
+      return NodeError(idx, s.message());
+    }
     c.type = TensorProto::INT64;
     c.dims = {a.ints_size()};
     c.ints.assign(a.ints().begin(), a.ints().end());
@@ -1456,6 +1564,9 @@ Status Importer::FoldNode(int idx) {
   auto input = [&](size_t k) -> const Const* {
     return k < in.size() && in[k].has_value() ? &*in[k] : nullptr;
   };
+  // Input k itself, moved out of `in` (call need() first): for ops whose result keeps its
+  // input's values, so that they cost no copy.
+  auto take = [&](size_t k) -> Const { return std::move(*in[k]); };
   auto need = [&](size_t count) -> Status {
     for (size_t k = 0; k < count; ++k) {
       if (input(k) == nullptr) {
@@ -1476,13 +1587,13 @@ Status Importer::FoldNode(int idx) {
 
   auto binary = [&](auto real_fn, auto int_fn) -> Result<Const> {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    return Elementwise(*input(0), *input(1), PromoteTypes(input(0)->type, input(1)->type), real_fn,
-                       int_fn);
+    return Elementwise(budget_, *input(0), *input(1), PromoteTypes(input(0)->type, input(1)->type),
+                       real_fn, int_fn);
   };
   auto compare = [&](auto real_fn) -> Result<Const> {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
     return Elementwise(
-        *input(0), *input(1), TensorProto::BOOL,
+        budget_, *input(0), *input(1), TensorProto::BOOL,
         [&](double x, double y) { return real_fn(x, y) ? 1.0 : 0.0; },
         [&](int64_t x, int64_t y) -> Result<int64_t> {
           return real_fn(static_cast<double>(x), static_cast<double>(y)) ? 1 : 0;
@@ -1491,13 +1602,13 @@ Status Importer::FoldNode(int idx) {
   auto integer_compare = [&](auto fn) -> Result<Const> {  // exact for int64 values
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
     return Elementwise(
-        *input(0), *input(1), TensorProto::BOOL,
+        budget_, *input(0), *input(1), TensorProto::BOOL,
         [&](double x, double y) { return fn(x, y) ? 1.0 : 0.0; },
         [&](int64_t x, int64_t y) -> Result<int64_t> { return fn(x, y) ? 1 : 0; });
   };
   auto unary = [&](auto real_fn, auto int_fn) -> Result<Const> {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    Const out = *input(0);
+    Const out = take(0);
     for (size_t i = 0; i < out.size(); ++i) {
       if (out.is_real()) {
         out.Set(i, real_fn(out.reals[i]));
@@ -1510,14 +1621,14 @@ Status Importer::FoldNode(int idx) {
 
   if (op == "Identity") {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    result = *input(0);
+    result = take(0);
   } else if (op == "Cast") {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
     SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t to, IntAttr(idx, "to", -1));
-    result = Cast(*input(0), static_cast<int>(to));
+    result = Cast(budget_, *input(0), static_cast<int>(to));
   } else if (op == "CastLike") {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Cast(*input(0), input(1)->type);
+    result = Cast(budget_, *input(0), input(1)->type);
   } else if (op == "Concat") {
     std::vector<const Const*> parts;
     for (size_t k = 0; k < in.size(); ++k) {
@@ -1525,11 +1636,11 @@ Status Importer::FoldNode(int idx) {
     }
     if (FindAttr(idx, "axis") == nullptr) return NodeError(idx, "attribute 'axis' is missing");
     SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, IntAttr(idx, "axis", 0));
-    result = Concat(parts, axis);
+    result = Concat(budget_, parts, axis);
   } else if (op == "Gather") {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
     SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, IntAttr(idx, "axis", 0));
-    result = Gather(*input(0), *input(1), axis);
+    result = Gather(budget_, *input(0), *input(1), axis);
   } else if (op == "Unsqueeze" || op == "Squeeze") {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
     std::vector<int64_t> axes;
@@ -1545,33 +1656,33 @@ Status Importer::FoldNode(int idx) {
     }
     if (op == "Unsqueeze") {
       if (!have_axes) return NodeError(idx, "axes are missing");
-      result = Unsqueeze(*input(0), axes);
+      result = Unsqueeze(take(0), axes);
     } else {
-      result = Squeeze(*input(0), axes, have_axes);
+      result = Squeeze(take(0), axes, have_axes);
     }
   } else if (op == "Reshape") {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
     SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t allow_zero, IntAttr(idx, "allowzero", 0));
-    result = Reshape(*input(0), *input(1), allow_zero != 0);
+    result = Reshape(take(0), *input(1), allow_zero != 0);
   } else if (op == "Expand") {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Expand(*input(0), *input(1));
+    result = Expand(budget_, *input(0), *input(1));
   } else if (op == "Tile") {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Tile(*input(0), *input(1));
+    result = Tile(budget_, *input(0), *input(1));
   } else if (op == "Transpose") {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
     SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> perm, IntsAttr(idx, "perm"));
-    result = Transpose(*input(0), std::move(perm));
+    result = Transpose(budget_, *input(0), std::move(perm));
   } else if (op == "Slice") {
     SFRT_ONNX_RETURN_IF_ERROR(need(3));
     auto args = ReadSliceArgs(input(1), input(2), input(3), input(4),
                               static_cast<int64_t>(input(0)->dims.size()));
     if (!args.ok()) return NodeError(idx, args.message());
-    result = SliceConst(*input(0), *args);
+    result = SliceConst(budget_, *input(0), *args);
   } else if (op == "Range") {
     SFRT_ONNX_RETURN_IF_ERROR(need(3));
-    result = Range(*input(0), *input(1), *input(2));
+    result = Range(budget_, *input(0), *input(1), *input(2));
   } else if (op == "ConstantOfShape") {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
     SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> shape, int_list(0, "input"));
@@ -1582,12 +1693,12 @@ Status Importer::FoldNode(int idx) {
       if (a->type() != onnx::AttributeProto::TENSOR) {
         return NodeError(idx, "attribute 'value' is not a tensor");
       }
-      auto decoded = DecodeTensor(a->t(), "attribute 'value'");
+      auto decoded = DecodeTensor(a->t(), "attribute 'value'", budget_);
       if (!decoded.ok()) return NodeError(idx, decoded.message());
       value = std::move(decoded).value();
       if (value.size() != 1) return NodeError(idx, "attribute 'value' must hold one element");
     }
-    auto made = MakeConst(value.type, shape);
+    auto made = MakeConst(budget_, value.type, shape);
     if (made.ok()) {
       for (size_t i = 0; i < made->size(); ++i) CopyElement(value, 0, *made, i);
     }
@@ -1623,7 +1734,8 @@ Status Importer::FoldNode(int idx) {
   } else if (op == "Pow") {
     SFRT_ONNX_RETURN_IF_ERROR(need(2));
     result = Elementwise(
-        *input(0), *input(1), input(0)->type, [](double x, double y) { return std::pow(x, y); },
+        budget_, *input(0), *input(1), input(0)->type,
+        [](double x, double y) { return std::pow(x, y); },
         [](int64_t x, int64_t y) -> Result<int64_t> {
           return ToInt64(std::round(std::pow(static_cast<double>(x), static_cast<double>(y))));
         });
@@ -1633,11 +1745,11 @@ Status Importer::FoldNode(int idx) {
     for (size_t k = 0; k < in.size(); ++k) {
       if (input(k) == nullptr) continue;
       if (!acc.has_value()) {
-        acc = *input(k);
+        acc = take(k);
         continue;
       }
       auto next = Elementwise(
-          *acc, *input(k), PromoteTypes(acc->type, input(k)->type),
+          budget_, *acc, *input(k), PromoteTypes(acc->type, input(k)->type),
           [is_min](double x, double y) { return is_min ? std::min(x, y) : std::max(x, y); },
           [is_min](int64_t x, int64_t y) {
             return IntOk(is_min ? std::min(x, y) : std::max(x, y));
@@ -1649,7 +1761,7 @@ Status Importer::FoldNode(int idx) {
     result = std::move(*acc);
   } else if (op == "Clip") {
     SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    Const out = *input(0);
+    Const out = take(0);
     const Const* lo = input(1);
     const Const* hi = input(2);
     if ((lo != nullptr && lo->size() != 1) || (hi != nullptr && hi->size() != 1)) {
@@ -1715,7 +1827,7 @@ Status Importer::FoldNode(int idx) {
     const Const& y = *input(2);
     auto dims = BroadcastDims({&cond.dims, &x.dims, &y.dims});
     if (!dims.ok()) return NodeError(idx, dims.message());
-    auto out = MakeConst(PromoteTypes(x.type, y.type), *dims);
+    auto out = MakeConst(budget_, PromoteTypes(x.type, y.type), *dims);
     if (out.ok()) {
       for (size_t i = 0; i < out->size(); ++i) {
         const bool pick_x = cond.Real(SourceIndex(i, *dims, cond.dims)) != 0.0;

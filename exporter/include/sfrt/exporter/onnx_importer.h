@@ -49,6 +49,12 @@
 //
 // Errors are one line naming the file and, where there is one, the node ("node '<name>' (op
 // <Type>)"), the attribute or input and the offending value.
+//
+// Memory: a tensor's declared shape is compared with the values the file holds for it before
+// anything is sized from it, and the constants and weights an import decodes, evaluates and copies
+// take at most 32 MiB plus 16 bytes per byte of the file in all; past that the import fails naming
+// the tensor. A file cannot make an import allocate more than that plus the parsed file, whatever
+// it declares (tests/fuzz/importer_allocation_test.cc).
 #pragma once
 
 #include <string>
