@@ -75,9 +75,9 @@ std::string CheckOutputFile(const std::string& path, std::string_view flag);
 // path and the reason. Tests by creating and removing a file: nothing is left behind.
 std::string CheckWritableDirectory(const std::string& path, std::string_view flag);
 
-// Numeric bounds, each problem naming its option and value ("--budget-ms: -5 is not >= 0"), read
-// with the shared number parser; "" when the value is within them. For values that may come from
-// a profile too, checked once the command line and the profile are merged.
+// Numeric bounds on values already parsed, each problem naming its option and value
+// ("--budget-ms: -5 is not >= 0"); "" when the value is within them. For values that may come
+// from a profile too, checked once the command line and the profile are merged.
 std::string CheckAtLeast(std::string_view flag, double value, double lo);
 std::string CheckAbove(std::string_view flag, double value, double lo);
 std::string CheckAtMost(std::string_view flag, double value, double hi);

@@ -202,9 +202,6 @@ std::string CommandName(const CLI::App& app, int argc, char** argv) {
   return "";
 }
 
-// "unknown option --modle (did you mean --model?)" for the first long option on the command
-// line that the (sub)command it follows does not have; "" when every option is known. CLI11
-// would report a missing required option first, which hides the typo.
 // When an option is followed by several existing files, the shell most likely expanded an
 // unquoted glob into them (CLI11 then calls all but the first "not expected"): a message that
 // says so and how to quote it, or "" when the command line does not look like that.
@@ -229,6 +226,9 @@ std::string ExpandedGlobHint(int argc, char** argv) {
   return "";
 }
 
+// "unknown option --modle (did you mean --model?)" for the first long option on the command
+// line that the (sub)command it follows does not have; "" when every option is known. CLI11
+// would report a missing required option first, which hides the typo.
 std::string UnknownOption(const CLI::App& app, int argc, char** argv) {
   const CLI::App* cmd = &app;
   for (int i = 1; i < argc; ++i) {

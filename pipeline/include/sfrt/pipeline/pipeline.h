@@ -303,7 +303,7 @@ inline constexpr double kAspectTolerance = 0.10;
 struct InputSizeChoice {
   int height = 0;
   int width = 0;
-  std::string reason;       // "as asked", "the size the model records ...", "the frames' size ..."
+  std::string reason;  // "as asked", "the size the trained model records ...", "the frames' ..."
   std::string aspect_note;  // "" or a warning that the frames are stretched
 };
 Result<InputSizeChoice> ChooseInputSize(const PipelineOptions& options, const ModelMetadata& model,
