@@ -13,13 +13,6 @@
 namespace sfrt::pipeline {
 namespace {
 
-void Add(const camera::ChainCounts& from, camera::ChainCounts* to) {
-  to->windows += from.windows;
-  to->broken_by_loss += from.broken_by_loss;
-  to->skipped_for_gap += from.skipped_for_gap;
-  to->stream_restarts += from.stream_restarts;
-}
-
 int64_t NowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch())
@@ -122,7 +115,7 @@ class ReplaySource : public FrameSource {
   }
   camera::ChainCounts chain_counts() const override {
     camera::ChainCounts c = chain_before_;
-    if (window_) Add(window_->counts(), &c);
+    if (window_) c += window_->counts();
     return c;
   }
 
@@ -149,7 +142,7 @@ class ReplaySource : public FrameSource {
     base.on_bad_frame = camera::BadFramePolicy::kSkip;
     base.on_bad_frame_callback = [this](const camera::BadFrame& bad) { bad_.push_back(bad); };
     if (source_) decoded_before_ += source_->images_decoded();  // the previous pass's
-    if (window_) Add(window_->counts(), &chain_before_);
+    if (window_) chain_before_ += window_->counts();
     switch (spec_.kind) {
       case ReplaySpec::Kind::kDataset: {
         camera::DatasetOptions options;

@@ -13,12 +13,19 @@ std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0
       static_cast<uint32_t>(frame.width), row, reinterpret_cast<const uint8_t*>(frame.flow.data()));
   if (e.empty()) e = writer->WriteHeader(topics.t1, stamp_t1, seq, frame_id);
   if (e.empty() && renderer != nullptr) {
-    const cv::Mat& canvas = renderer->Render(frame);
-    e = writer->WriteImage(topics.vis, stamp_t0, seq, frame_id, "bgr8",
-                           static_cast<uint32_t>(canvas.rows), static_cast<uint32_t>(canvas.cols),
-                           static_cast<uint32_t>(canvas.step[0]), canvas.data);
+    e = WriteVisMessage(frame, stamp_t0, frame_id, topics.vis, renderer, writer);
   }
   return e;
+}
+
+std::string WriteVisMessage(const pipeline::FlowFrame& frame, int64_t stamp_t0,
+                            const std::string& frame_id, const std::string& topic,
+                            pipeline::FlowRenderer* renderer, MessageWriter* writer) {
+  const cv::Mat& canvas = renderer->Render(frame);
+  return writer->WriteImage(topic, stamp_t0, static_cast<uint32_t>(frame.meta->window), frame_id,
+                            "bgr8", static_cast<uint32_t>(canvas.rows),
+                            static_cast<uint32_t>(canvas.cols),
+                            static_cast<uint32_t>(canvas.step[0]), canvas.data);
 }
 
 }  // namespace sfrt::ros::detail

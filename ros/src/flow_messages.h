@@ -26,4 +26,10 @@ std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0
                               const std::string& frame_id, const FlowTopics& topics,
                               pipeline::FlowRenderer* renderer, MessageWriter* writer);
 
+// The `vis` message alone: the renderer's canvas of `frame`, bgr8, stamped stamp_t0, seq = the
+// window number (the node publishes it from a queue of its own, VisTopicSink).
+std::string WriteVisMessage(const pipeline::FlowFrame& frame, int64_t stamp_t0,
+                            const std::string& frame_id, const std::string& topic,
+                            pipeline::FlowRenderer* renderer, MessageWriter* writer);
+
 }  // namespace sfrt::ros::detail

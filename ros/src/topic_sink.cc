@@ -54,12 +54,9 @@ Status FlowTopicSink::Write(const pipeline::FlowFrame& frame) {
 }
 
 Status VisTopicSink::Write(const pipeline::FlowFrame& frame) {
-  const cv::Mat& canvas = renderer_.Render(frame);
   const std::string& frame_id = frame_id_.empty() ? source_->frame_id() : frame_id_;
-  const std::string e = writer_->WriteImage(
-      topic_, frame.meta->stamp_ns[0], static_cast<uint32_t>(frame.meta->window), frame_id, "bgr8",
-      static_cast<uint32_t>(canvas.rows), static_cast<uint32_t>(canvas.cols),
-      static_cast<uint32_t>(canvas.step[0]), canvas.data);
+  const std::string e = detail::WriteVisMessage(frame, frame.meta->stamp_ns[0], frame_id, topic_,
+                                                &renderer_, writer_);
   return e.empty() ? Status::Ok() : Status::Error(e);
 }
 

@@ -45,6 +45,13 @@ struct ChainCounts {
   int64_t skipped_for_gap = 0;  // pairs that opened no window because of a stamp gap
   int64_t stream_restarts = 0;  // pairs whose stamp went backwards
   int64_t breaks() const { return broken_by_loss + skipped_for_gap + stream_restarts; }
+  ChainCounts& operator+=(const ChainCounts& other) {  // several passes or streams of a source
+    windows += other.windows;
+    broken_by_loss += other.broken_by_loss;
+    skipped_for_gap += other.skipped_for_gap;
+    stream_restarts += other.stream_restarts;
+    return *this;
+  }
 };
 
 class WindowChain {
