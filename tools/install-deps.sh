@@ -11,7 +11,7 @@ packages=(
   # exporter: ONNX, Keras HDF5 (+ JSON for its model_config)
   libonnx-dev libprotobuf-dev protobuf-compiler libhdf5-dev
   # command-line tool, cameras, image I/O, deployment profiles
-  libopencv-dev libcli11-dev nlohmann-json3-dev libturbojpeg0-dev libyaml-cpp-dev libpng-dev
+  libopencv-dev libcli11-dev nlohmann-json3-dev libturbojpeg0-dev libyaml-cpp-dev libdeflate-dev
   # aarch64 cross build of the runtime, tested under qemu
   g++-aarch64-linux-gnu qemu-user
   # tests, benchmarks, fuzzing (libFuzzer comes with clang's runtime) and memcheck

@@ -87,21 +87,23 @@ FlowFileSink::FlowFileSink(std::string dir, config::FlowFormat format)
 
 Status FlowFileSink::Write(const FlowFrame& frame) {
   last_path_.clear();
-  std::string path;
-  Status s = Status::Ok();
-  if (format_ == config::FlowFormat::kPfm) {
-    path = PathIn(dir_, *frame.meta, ".pfm");
-    s = io::WritePfm(path, frame.flow, frame.height, frame.width, frame.channels);
-  } else {
-    path = PathIn(dir_, *frame.meta, ".npy");
-    const int64_t shape[3] = {frame.height, frame.width, frame.channels};
-    s = io::WriteNpy(path, shape, frame.flow);
-  }
-  if (s.ok()) last_path_ = std::move(path);
-  return s;
+  const bool pfm = format_ == config::FlowFormat::kPfm;
+  std::string path = PathIn(dir_, *frame.meta, pfm ? ".pfm" : ".npy");
+  const int64_t shape[3] = {frame.height, frame.width, frame.channels};
+  Result<std::vector<uint8_t>> bytes =
+      pfm ? io::SerializePfm(frame.flow, frame.height, frame.width, frame.channels)
+          : io::SerializeNpy(shape, frame.flow);
+  if (!bytes.ok()) return Status::Error(path + ": " + bytes.message());
+  // A file a frame: flushed to disk once, at Stop(), not one fsync a frame (atomic_write.h).
+  if (Status s = io::WriteFileAtomically(path, *bytes, io::Flush::kLater); !s.ok()) return s;
+  wrote_ = true;
+  last_path_ = std::move(path);
+  return Status::Ok();
 }
 
 void FlowFileSink::Retract() { RemoveLastFile(&last_path_); }
+
+Status FlowFileSink::Stop() { return wrote_ ? io::FlushFileSystemOf(dir_) : Status::Ok(); }
 
 // ------------------------------------------------------------------------------------ renderer
 
@@ -128,20 +130,28 @@ const cv::Mat& FlowRenderer::Render(const FlowFrame& frame) {
 
 // ----------------------------------------------------------------------------------------- PNG
 
+PngSink::PngSink(std::string dir, FlowRenderer* renderer)
+    : dir_(std::move(dir)), renderer_(renderer), encoder_(std::make_unique<PngEncoder>()) {}
+
+PngSink::~PngSink() = default;
+
 Status PngSink::Write(const FlowFrame& frame) {
   last_path_.clear();
   const cv::Mat& canvas = renderer_->Render(frame);
-  if (Status encoded = EncodePng(canvas, &png_); !encoded.ok()) {
+  if (Status encoded = encoder_->Encode(canvas, &png_); !encoded.ok()) {
     return Status::Error("cannot encode the visualisation of " + OutputStem(*frame.meta) +
                          " as PNG: " + encoded.message());
   }
   std::string path = PathIn(dir_, *frame.meta, ".png");
-  if (Status s = io::WriteFileAtomically(path, png_); !s.ok()) return s;
+  if (Status s = io::WriteFileAtomically(path, png_, io::Flush::kLater); !s.ok()) return s;
+  wrote_ = true;
   last_path_ = std::move(path);
   return Status::Ok();
 }
 
 void PngSink::Retract() { RemoveLastFile(&last_path_); }
+
+Status PngSink::Stop() { return wrote_ ? io::FlushFileSystemOf(dir_) : Status::Ok(); }
 
 // --------------------------------------------------------------------------------------- video
 

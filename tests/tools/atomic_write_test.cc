@@ -8,9 +8,12 @@
 #include <sys/sysmacros.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 namespace sfrt::io {
 namespace {
@@ -74,6 +77,63 @@ TEST_F(AtomicWriteTest, AtomicWriteReplacesARegularFile) {
   EXPECT_EQ(Slurp(p), "new contents");
   EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(p)));
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+}
+
+TEST_F(AtomicWriteTest, ANewFileGetsTheUsualPermissionsUnderTheUmask) {
+  const mode_t old = ::umask(027);
+  const fs::path p = dir_ / "new.bin";
+  const Status s = WriteFileAtomically(p.string(), Bytes("x"));
+  ::umask(old);
+  ASSERT_TRUE(s.ok()) << s.message();
+  struct stat st;
+  ASSERT_EQ(::stat(p.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0640u);  // 0666 less the umask, as open(O_CREAT) makes a file
+}
+
+TEST_F(AtomicWriteTest, WritersOnSeveralThreadsEachLandWholeWithNoTemporaryLeft) {
+  constexpr int kThreads = 4;
+  constexpr int kFiles = 50;
+  std::vector<std::thread> threads;
+  std::atomic<int> failures{0};
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      for (int i = 0; i < kFiles; ++i) {
+        // Every thread also rewrites one shared file: each version must land whole.
+        const std::string own = "thread " + std::to_string(t) + " file " + std::to_string(i);
+        if (!WriteFileAtomically((dir_ / (own + ".txt")).string(), Bytes(own)).ok()) ++failures;
+        if (!WriteFileAtomically((dir_ / "shared.txt").string(), Bytes(own)).ok()) ++failures;
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(failures.load(), 0);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()),
+            kThreads * kFiles + 1);
+  for (int t = 0; t < kThreads; ++t) {
+    for (int i = 0; i < kFiles; ++i) {
+      const std::string own = "thread " + std::to_string(t) + " file " + std::to_string(i);
+      EXPECT_EQ(Slurp(dir_ / (own + ".txt")), own);
+    }
+  }
+  EXPECT_EQ(Slurp(dir_ / "shared.txt").rfind("thread ", 0), 0u);
+}
+
+TEST_F(AtomicWriteTest, AWriteWithItsFlushDeferredStillReplacesTheFileWhole) {
+  const fs::path p = dir_ / "frame.pfm";
+  std::ofstream(p) << "old";
+  ASSERT_TRUE(WriteFileAtomically(p.string(), Bytes("new contents"), Flush::kLater).ok());
+  EXPECT_EQ(Slurp(p), "new contents");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+  const Status flushed = FlushFileSystemOf(dir_.string());
+  EXPECT_TRUE(flushed.ok()) << flushed.message();
+}
+
+TEST_F(AtomicWriteTest, FlushingAMissingDirectoryFailsNamingIt) {
+  const std::string missing = (dir_ / "missing").string();
+  const Status s = FlushFileSystemOf(missing);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("'" + missing + "'"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("No such file or directory"), std::string::npos) << s.message();
 }
 
 TEST_F(AtomicWriteTest, ExportToACharacterDeviceWritesInPlaceAndReportsENOSPC) {

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -50,10 +51,27 @@ Status WriteInPlace(const OutputTarget& target, std::span<const uint8_t> bytes) 
   return Status::Ok();
 }
 
-Status ReplaceAtomically(const std::string& path, std::span<const uint8_t> bytes) {
-  // mkstemp needs a writable template in the destination directory so rename() stays atomic.
-  std::string tmpl = path + ".tmp.XXXXXX";
-  int fd = ::mkstemp(tmpl.data());
+// Creates a new file beside `path` for writing, named "<path>.tmp.<pid>.<n>", and returns its
+// descriptor (or -1 with errno set). open() applies the process's umask to 0666 as it does for
+// any new file, so the final file gets the usual permissions without reading the umask (which
+// only umask() can, by changing it for every thread a moment). O_EXCL: a name another writer
+// holds is never reused; the counter moves on.
+int CreateTemporaryBeside(const std::string& path, std::string* tmp) {
+  static std::atomic<uint64_t> counter{0};
+  constexpr int kAttempts = 100;
+  for (int i = 0; i < kAttempts; ++i) {
+    *tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+    const int fd = ::open(tmp->c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOCTTY, 0666);
+    if (fd >= 0 || errno != EEXIST) return fd;
+  }
+  errno = EEXIST;
+  return -1;
+}
+
+Status ReplaceAtomically(const std::string& path, std::span<const uint8_t> bytes, Flush flush) {
+  // The temporary file is in the destination directory so that rename() stays atomic.
+  std::string tmpl;
+  const int fd = CreateTemporaryBeside(path, &tmpl);
   if (fd < 0) {
     return Status::Error("cannot create a temporary file beside '" + path +
                          "': " + ErrnoText(errno));
@@ -63,12 +81,8 @@ Status ReplaceAtomically(const std::string& path, std::span<const uint8_t> bytes
     ::unlink(tmpl.c_str());
     return WriteError(path, step, err);
   };
-  // mkstemp creates the file 0600; give it the usual permissions, as open(O_CREAT) would.
-  mode_t mask = ::umask(0);
-  ::umask(mask);
-  if (::fchmod(fd, 0666 & ~mask) != 0) return fail("chmod", errno);
   if (int err = WriteAll(fd, bytes.data(), bytes.size()); err != 0) return fail("write", err);
-  if (::fsync(fd) != 0) return fail("fsync", errno);
+  if (flush == Flush::kBeforeRename && ::fsync(fd) != 0) return fail("fsync", errno);
   if (::close(fd) != 0) {
     int err = errno;
     ::unlink(tmpl.c_str());
@@ -124,11 +138,23 @@ Result<OutputTarget> ResolveOutputTarget(const std::string& path) {
   }
 }
 
-Status WriteFileAtomically(const std::string& path, std::span<const uint8_t> bytes) {
+Status WriteFileAtomically(const std::string& path, std::span<const uint8_t> bytes, Flush flush) {
   Result<OutputTarget> target = ResolveOutputTarget(path);
   if (!target.ok()) return target.status();
   if (target->kind == OutputTarget::Kind::kInPlace) return WriteInPlace(*target, bytes);
-  return ReplaceAtomically(target->path, bytes);
+  return ReplaceAtomically(target->path, bytes, flush);
+}
+
+Status FlushFileSystemOf(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return WriteError(dir, "open the directory to flush it", errno);
+  if (::syncfs(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    return WriteError(dir, "syncfs", err);
+  }
+  ::close(fd);
+  return Status::Ok();
 }
 
 StreamedFile::StreamedFile(StreamedFile&& other) noexcept

@@ -8,16 +8,18 @@
 //   SFRT_FAULT_OP      write (default): write() to an affected file fails once
 //                      SFRT_FAULT_AFTER_BYTES bytes have gone to affected files in total (the
 //                      write that crosses the limit is cut short, as on a real full disk);
-//                      create: creating an affected file with mkstemp() fails (as in a read-only
-//                      directory).
+//                      create: creating an affected file (open() with O_CREAT, or mkstemp())
+//                      fails (as in a read-only directory).
 //   SFRT_FAULT_AFTER_BYTES  see above (default 0).
 #include <dlfcn.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -71,6 +73,7 @@ bool AffectedFd(int fd) {
 
 using WriteFn = ssize_t (*)(int, const void*, size_t);
 using MkstempFn = int (*)(char*);
+using OpenFn = int (*)(const char*, int, ...);
 
 template <typename Fn>
 Fn Next(const char* name) {
@@ -85,6 +88,21 @@ int Mkstemp(const char* name, char* tmpl) {
     return -1;
   }
   return real(tmpl);
+}
+
+int Open(const char* name, const char* path, int flags, mode_t mode) {
+  static OpenFn real = Next<OpenFn>(name);
+  const Config& c = GetConfig();
+  if (c.on_create && (flags & O_CREAT) != 0 && Matches(path)) {
+    errno = c.err;
+    return -1;
+  }
+  return real(path, flags, mode);
+}
+
+// open()'s mode argument is there only when the flags create a file.
+mode_t ModeArgument(int flags, va_list args) {
+  return (flags & (O_CREAT | O_TMPFILE)) != 0 ? static_cast<mode_t>(va_arg(args, int)) : 0;
 }
 
 }  // namespace
@@ -111,4 +129,20 @@ extern "C" __attribute__((visibility("default"))) int mkstemp(char* tmpl) {
 
 extern "C" __attribute__((visibility("default"))) int mkstemp64(char* tmpl) {
   return Mkstemp("mkstemp64", tmpl);
+}
+
+extern "C" __attribute__((visibility("default"))) int open(const char* path, int flags, ...) {
+  va_list args;
+  va_start(args, flags);
+  const mode_t mode = ModeArgument(flags, args);
+  va_end(args);
+  return Open("open", path, flags, mode);
+}
+
+extern "C" __attribute__((visibility("default"))) int open64(const char* path, int flags, ...) {
+  va_list args;
+  va_start(args, flags);
+  const mode_t mode = ModeArgument(flags, args);
+  va_end(args);
+  return Open("open64", path, flags, mode);
 }

@@ -16,7 +16,8 @@ namespace {
 
 void ExpectDecodesToTheSamePixels(const cv::Mat& image) {
   std::vector<uint8_t> png;
-  Status s = EncodePng(image, &png);
+  PngEncoder encoder;
+  Status s = encoder.Encode(image, &png);
   ASSERT_TRUE(s.ok()) << s.message();
   ASSERT_GT(png.size(), 8u);
   const cv::Mat back = cv::imdecode(png, cv::IMREAD_UNCHANGED);
@@ -47,8 +48,9 @@ TEST(PngEncoder, NoiseAndPaddedRowsDecodeToTheSamePixels) {
 
 TEST(PngEncoder, RefusesWhatIsNotEightBitColour) {
   std::vector<uint8_t> png;
-  EXPECT_FALSE(EncodePng(cv::Mat(4, 4, CV_8UC1), &png).ok());
-  EXPECT_FALSE(EncodePng(cv::Mat(), &png).ok());
+  PngEncoder encoder;
+  EXPECT_FALSE(encoder.Encode(cv::Mat(4, 4, CV_8UC1), &png).ok());
+  EXPECT_FALSE(encoder.Encode(cv::Mat(), &png).ok());
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 #include <string>
@@ -34,11 +35,13 @@ class FlowFileSink final : public FlowSink {
   std::string name() const override { return "flow files"; }
   Status Write(const FlowFrame& frame) override;
   void Retract() override;  // removes the file of the last window
+  Status Stop() override;   // flushes the files to disk (written with io::Flush::kLater)
 
  private:
   std::string dir_;
   config::FlowFormat format_;
   std::string last_path_;
+  bool wrote_ = false;
 };
 
 // Draws each window's visualisation (visualize.h: the left image, the flow's X/Y and Z colour
@@ -61,20 +64,26 @@ class FlowRenderer {
   std::vector<float> upscaled_;
 };
 
-// <dir>/<stem>.png: the renderer's canvas, encoded for speed (src/png_encoder.h: libpng, the Up
-// filter, zlib level 1 with run-length matching; lossless).
+class PngEncoder;
+
+// <dir>/<stem>.png: the renderer's canvas, encoded for speed (src/png_encoder.h: the Up filter,
+// libdeflate level 1; lossless).
 class PngSink final : public FlowSink {
  public:
-  PngSink(std::string dir, FlowRenderer* renderer) : dir_(std::move(dir)), renderer_(renderer) {}
+  PngSink(std::string dir, FlowRenderer* renderer);
+  ~PngSink() override;
   std::string name() const override { return "png"; }
   Status Write(const FlowFrame& frame) override;
   void Retract() override;
+  Status Stop() override;  // flushes the files to disk (written with io::Flush::kLater)
 
  private:
   std::string dir_;
   FlowRenderer* renderer_;
+  std::unique_ptr<PngEncoder> encoder_;  // its compressor and rows kept between pictures
   std::vector<uint8_t> png_;
   std::string last_path_;
+  bool wrote_ = false;
 };
 
 // One MJPG AVI of the renderer's canvases at `fps`. Start() refuses a path the AVI writer cannot

@@ -5,7 +5,10 @@
 //   - A path that does not exist yet, or names a regular file, is replaced atomically: the data
 //     goes to a temporary file in the same directory, which is flushed to disk (fsync) and then
 //     renamed over the path. On any failure the temporary file is removed and the path is left
-//     as it was.
+//     as it was. A writer of files at frame rate may defer the flush (Flush::kLater): the file
+//     is still renamed into place whole, so no reader and no crash of the program ever sees part
+//     of it, but a power cut before the kernel writes it back can leave it missing or empty; such a
+//     writer calls FlushFileSystemOf() when it stops.
 //   - A symbolic link is followed, through any chain of links (at most 40), and the rule applies
 //     to the path it finally names: a regular file there is replaced atomically at that path, so
 //     the link survives and points at the new file. A dangling link creates the file it names;
@@ -45,9 +48,21 @@ struct OutputTarget {
 // Refused (error naming the path): a directory, a socket, a block device, a loop of links.
 Result<OutputTarget> ResolveOutputTarget(const std::string& path);
 
+// When a replaced file's data is flushed to disk.
+enum class Flush {
+  kBeforeRename,  // fsync before the rename: on disk when the call returns (the default)
+  kLater,         // left to the kernel's writeback, or to FlushFileSystemOf() (per-frame files:
+                  // an fsync a frame costs 0.2-0.5 ms on this VM and far more on a robot's eMMC)
+};
+
 // Writes `bytes` to `path` by the rule above: atomically for regular files and new paths, in
 // place for character devices and FIFOs.
-Status WriteFileAtomically(const std::string& path, std::span<const uint8_t> bytes);
+Status WriteFileAtomically(const std::string& path, std::span<const uint8_t> bytes,
+                           Flush flush = Flush::kBeforeRename);
+
+// Flushes to disk everything written to the file system that holds directory `dir` (syncfs), so
+// the files written there with Flush::kLater are on disk when it returns. Errors name `dir`.
+Status FlushFileSystemOf(const std::string& dir);
 
 // A file written piece by piece while the program runs (sfrt run --latency-log). A regular file
 // (or new path) is created or truncated and written directly, not via a temporary file, so a
