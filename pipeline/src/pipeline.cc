@@ -17,6 +17,7 @@
 #include <thread>
 #include <utility>
 
+#include "clock.h"
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/log.h"
@@ -34,11 +35,7 @@ using nlohmann::json;
 
 using config::kStageNames;  // "source", "preprocess", "infer", "output"
 
-int64_t NowNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
+using detail::NowNs;
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 

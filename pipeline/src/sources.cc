@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <utility>
 
+#include "clock.h"
 #include "sfrt/camera/image_file.h"
 #include "sfrt/camera/v4l2/pixel_format.h"
 #include "sfrt/pipeline/log.h"
@@ -13,11 +14,7 @@
 namespace sfrt::pipeline {
 namespace {
 
-int64_t NowNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
+using detail::NowNs;
 
 // ------------------------------------------------------------------------------------ replay
 

@@ -26,7 +26,16 @@ struct BagImage {
   std::vector<uint8_t> data;
 
   ImageView view() const {
-    return {stamp_ns, compressed, encoding, height, width, step, data.data(), data.size()};
+    ImageView v;
+    v.stamp_ns = stamp_ns;
+    v.compressed = compressed;
+    v.encoding = encoding;
+    v.height = height;
+    v.width = width;
+    v.step = step;
+    v.data = data.data();
+    v.size = data.size();
+    return v;
   }
 };
 

@@ -1,28 +1,20 @@
 // The plain vocabulary between ros/'s C++20 adapters and its C++17 files, the only ones that
 // include ROS 1 headers (their generated message headers use std::allocator<void>::rebind, gone
-// in C++20): image messages as views, and a writer of the messages the flow is published as, which
-// a bag (BagWriter) and the node's publishers (NodeIo) both are. Nothing here is ROS-specific
-// C++, so it compiles at either standard. Not installed.
+// in C++20): image messages as views (the pipeline's ImageMessage), and a writer of the messages
+// the flow is published as, which a bag (BagWriter) and the node's publishers (NodeIo) both are.
+// Nothing here is ROS-specific C++, so it compiles at either standard. Not installed.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <string>
 
+#include "sfrt/pipeline/image_message.h"
+
 namespace sfrt::ros::detail {
 
-// One image message as it arrived or was stored: raw pixels (sensor_msgs/Image) or an encoded
-// file (sensor_msgs/CompressedImage). A view: `data` belongs to the message.
-struct ImageView {
-  int64_t stamp_ns = 0;  // header.stamp, ns since the epoch (or of ROS time under use_sim_time)
-  bool compressed = false;
-  std::string encoding;  // Image.encoding ("bgr8", ...) or CompressedImage.format ("jpeg", ...)
-  uint32_t height = 0;   // raw only
-  uint32_t width = 0;
-  uint32_t step = 0;
-  const uint8_t* data = nullptr;
-  size_t size = 0;
-};
+// One image message as it arrived or was stored (pipeline/image_message.h).
+using ImageView = pipeline::ImageMessage;
 
 // Where the flow of a window goes as ROS messages. Errors are returned as strings ("" = done).
 class MessageWriter {

@@ -6,7 +6,7 @@
 #include <utility>
 
 #include "clock.h"
-#include "image_convert.h"
+#include "sfrt/pipeline/image_message.h"
 #include "sfrt/pipeline/log.h"
 
 namespace sfrt::ros {
@@ -52,7 +52,7 @@ void TopicSource::OnPair(const detail::ImageView& left, const detail::ImageView&
   const detail::ImageView* views[2] = {&left, &right};
   const std::string* topics[2] = {&options_.left_topic, &options_.right_topic};
   for (int side = 0; side < 2; ++side) {
-    if (std::string why = detail::ImageToBgr(*views[side], &p.image[side]); !why.empty()) {
+    if (std::string why = pipeline::ImageMessageToBgr(*views[side], &p.image[side]); !why.empty()) {
       Skip(*topics[side] + ": " + why);
       return;
     }

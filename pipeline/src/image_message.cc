@@ -1,12 +1,12 @@
-#include "image_convert.h"
+#include "sfrt/pipeline/image_message.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-namespace sfrt::ros::detail {
+namespace sfrt::pipeline {
 namespace {
 
-std::string RawToBgr(const ImageView& im, cv::Mat* out) {
+std::string RawToBgr(const ImageMessage& im, cv::Mat* out) {
   struct Kind {
     const char* encoding;
     int type;
@@ -42,7 +42,7 @@ std::string RawToBgr(const ImageView& im, cv::Mat* out) {
   return "";
 }
 
-std::string CompressedToBgr(const ImageView& im, cv::Mat* out) {
+std::string CompressedToBgr(const ImageMessage& im, cv::Mat* out) {
   if (im.size == 0) return "an empty '" + im.encoding + "' image";
   const cv::Mat bytes(1, static_cast<int>(im.size), CV_8UC1, const_cast<uint8_t*>(im.data));
   cv::Mat decoded = cv::imdecode(bytes, cv::IMREAD_COLOR);
@@ -53,8 +53,8 @@ std::string CompressedToBgr(const ImageView& im, cv::Mat* out) {
 
 }  // namespace
 
-std::string ImageToBgr(const ImageView& image, cv::Mat* out) {
+std::string ImageMessageToBgr(const ImageMessage& image, cv::Mat* out) {
   return image.compressed ? CompressedToBgr(image, out) : RawToBgr(image, out);
 }
 
-}  // namespace sfrt::ros::detail
+}  // namespace sfrt::pipeline
