@@ -6,6 +6,7 @@
 #
 # Usage: tools/fuzz.sh [SECONDS] [TARGET...]
 #   Targets: model_load model_session onnx_import keras_import pfm npy calibration image profile
+#            cdr_decoder mcap_reader
 #   (default all).
 # Environment:
 #   SFRT_FUZZ_BUILD_DIR  build directory (default build/fuzz, the preset's)
@@ -20,7 +21,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 if [[ $# -gt 0 ]]; then shift; fi
 targets=("$@")
-all=(model_load model_session onnx_import keras_import pfm npy calibration image profile)
+all=(model_load model_session onnx_import keras_import pfm npy calibration image profile cdr_decoder mcap_reader)
 if [[ ${#targets[@]} -eq 0 ]]; then targets=("${all[@]}"); fi
 jobs=${SFRT_FUZZ_JOBS:-1}
 if ! [[ $seconds =~ ^[0-9]+$ ]] || [[ $seconds -lt 1 ]] || ! [[ $jobs =~ ^[1-9][0-9]*$ ]]; then

@@ -23,7 +23,14 @@ packages=(
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs
   libroscpp-dev libimage-transport-dev libmessage-filters-dev libcv-bridge-dev
   libdiagnostic-msgs-dev ros-core python3-rospy python3-diagnostic-msgs
+  # ROS 2 without rclcpp (ros2/): rosbag2's storages (MCAP chunks in zstd or lz4, sqlite3)
+  libzstd-dev liblz4-dev libsqlite3-dev python3-yaml
 )
+
+# Node.js runs the tests' independent implementations (tests/npm: the MCAP and ROS 2 CDR
+# oracles). Any node >= 18 with npm will do (Debian's nodejs and npm, or NodeSource's nodejs,
+# which brings npm).
+command -v node >/dev/null && command -v npm >/dev/null || packages+=(nodejs npm)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "message_io.h"
+#include "sfrt/pipeline/message_io.h"
 
 namespace sfrt::ros::detail {
 
@@ -25,8 +25,8 @@ struct BagImage {
   uint32_t step = 0;
   std::vector<uint8_t> data;
 
-  ImageView view() const {
-    ImageView v;
+  pipeline::ImageMessage view() const {
+    pipeline::ImageMessage v;
     v.stamp_ns = stamp_ns;
     v.compressed = compressed;
     v.encoding = encoding;
@@ -62,7 +62,7 @@ class BagReader {
 };
 
 // Writes the flow's messages into a bag; each message's record time is its header stamp.
-class BagWriter final : public MessageWriter {
+class BagWriter final : public pipeline::MessageWriter {
  public:
   BagWriter();
   ~BagWriter() override;  // closes the bag if Close() was not called (errors are lost)

@@ -7,7 +7,7 @@
 
 #include "bag_reader.h"
 #include "clock.h"
-#include "flow_messages.h"
+#include "sfrt/pipeline/flow_messages.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 
 namespace sfrt::ros {
@@ -54,10 +54,10 @@ int64_t FlowBagSink::WallStamp(const pipeline::FrameMeta& m, int pair) const {
 Status FlowBagSink::Write(const pipeline::FlowFrame& frame) {
   if (failed_) return Status::Error("the bag '" + options_.path + "' failed earlier");
   const pipeline::FrameMeta& m = *frame.meta;
-  const detail::FlowTopics topics{options_.flow_topic, options_.t1_topic, options_.vis_topic};
+  const pipeline::FlowTopics topics{options_.flow_topic, options_.t1_topic, options_.vis_topic};
   const std::string e =
-      detail::WriteFlowMessages(frame, WallStamp(m, 0), WallStamp(m, 1), options_.frame_id, topics,
-                                renderer_ ? &*renderer_ : nullptr, writer_.get());
+      pipeline::WriteFlowMessages(frame, WallStamp(m, 0), WallStamp(m, 1), options_.frame_id,
+                                  topics, renderer_ ? &*renderer_ : nullptr, writer_.get());
   if (!e.empty()) {
     failed_ = true;
     return Status::Error(e);

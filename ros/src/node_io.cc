@@ -24,8 +24,8 @@
 namespace sfrt::ros::detail {
 namespace {
 
-ImageView View(const sensor_msgs::Image& m) {
-  ImageView v;
+pipeline::ImageMessage View(const sensor_msgs::Image& m) {
+  pipeline::ImageMessage v;
   v.stamp_ns = static_cast<int64_t>(m.header.stamp.toNSec());
   v.compressed = false;
   v.encoding = m.encoding;
@@ -37,8 +37,8 @@ ImageView View(const sensor_msgs::Image& m) {
   return v;
 }
 
-ImageView View(const sensor_msgs::CompressedImage& m) {
-  ImageView v;
+pipeline::ImageMessage View(const sensor_msgs::CompressedImage& m) {
+  pipeline::ImageMessage v;
   v.stamp_ns = static_cast<int64_t>(m.header.stamp.toNSec());
   v.compressed = true;
   v.encoding = m.format;

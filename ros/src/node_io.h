@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "message_io.h"
+#include "sfrt/pipeline/message_io.h"
 
 namespace sfrt::ros::detail {
 
@@ -53,7 +53,7 @@ struct DiagnosticReport {
 
 enum class NodeLogLevel { kDebug, kInfo, kWarn, kError, kFatal };
 
-class NodeIo final : public MessageWriter {
+class NodeIo final : public pipeline::MessageWriter {
  public:
   // ros::init (takes the remapping and __name arguments out of argc/argv) with roscpp's SIGINT
   // handler, which makes Ok() false. Call once, before anything else.
@@ -73,8 +73,9 @@ class NodeIo final : public MessageWriter {
   // A private parameter's full name ("model" -> "/sfrt_ros/model"), for messages.
   std::string ResolvePrivate(const std::string& name) const;
 
-  using PairCallback = std::function<void(const ImageView& left, const ImageView& right,
-                                          const std::string& left_frame_id)>;
+  using PairCallback =
+      std::function<void(const pipeline::ImageMessage& left, const pipeline::ImageMessage& right,
+                         const std::string& left_frame_id)>;
   using InfoCallback = std::function<void(int side, const CameraInfoView& info)>;
   // Subscribes and pairs left and right with message_filters' ApproximateTime. The callbacks run
   // on the spinner's thread (StartSpinner), one at a time. Returns "" or the error.

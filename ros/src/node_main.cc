@@ -401,7 +401,7 @@ int Run(int argc, char** argv) {
   io.Advertise(sink_opts.topics.flow, sink_opts.topics.t1, sink_opts.topics.vis, s.publish_vis);
   if (std::string e = io.Subscribe(
           sub,
-          [&source](const detail::ImageView& l, const detail::ImageView& r,
+          [&source](const pipeline::ImageMessage& l, const pipeline::ImageMessage& r,
                     const std::string& frame_id) { source.OnPair(l, r, frame_id); },
           [&info_check](int side, const detail::CameraInfoView& info) {
             info_check.OnInfo(side, info);

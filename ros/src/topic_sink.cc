@@ -25,7 +25,7 @@ std::string Ms(double v) {
 
 }  // namespace
 
-FlowTopicSink::FlowTopicSink(TopicSinkOptions options, detail::MessageWriter* writer,
+FlowTopicSink::FlowTopicSink(TopicSinkOptions options, pipeline::MessageWriter* writer,
                              const TopicSource* source, Clock ros_now, Publish publish_diagnostics)
     : options_(std::move(options)),
       writer_(writer),
@@ -43,8 +43,8 @@ Status FlowTopicSink::Start() {
 Status FlowTopicSink::Write(const pipeline::FlowFrame& frame) {
   const pipeline::FrameMeta& m = *frame.meta;
   const std::string& frame_id = options_.frame_id.empty() ? source_->frame_id() : options_.frame_id;
-  const std::string e = detail::WriteFlowMessages(frame, m.stamp_ns[0], m.stamp_ns[1], frame_id,
-                                                  options_.topics, nullptr, writer_);
+  const std::string e = pipeline::WriteFlowMessages(frame, m.stamp_ns[0], m.stamp_ns[1], frame_id,
+                                                    options_.topics, nullptr, writer_);
   if (!e.empty()) return Status::Error(e);
   // From the header stamp of the newest image the flow needs to its publication, on ROS time;
   // counted when it is a plausible latency (a bag's old stamps are not).
@@ -55,8 +55,8 @@ Status FlowTopicSink::Write(const pipeline::FlowFrame& frame) {
 
 Status VisTopicSink::Write(const pipeline::FlowFrame& frame) {
   const std::string& frame_id = frame_id_.empty() ? source_->frame_id() : frame_id_;
-  const std::string e = detail::WriteVisMessage(frame, frame.meta->stamp_ns[0], frame_id, topic_,
-                                                &renderer_, writer_);
+  const std::string e = pipeline::WriteVisMessage(frame, frame.meta->stamp_ns[0], frame_id, topic_,
+                                                  &renderer_, writer_);
   return e.empty() ? Status::Ok() : Status::Error(e);
 }
 

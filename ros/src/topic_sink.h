@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
-#include "flow_messages.h"
-#include "message_io.h"
 #include "node_io.h"
+#include "sfrt/pipeline/flow_messages.h"
+#include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/stats.h"
@@ -29,8 +29,8 @@ namespace sfrt::ros {
 class TopicSource;
 
 struct TopicSinkOptions {
-  detail::FlowTopics topics;  // resolved names; topics.vis is VisTopicSink's
-  std::string frame_id;       // "" = the left images' frame_id (TopicSource::frame_id())
+  pipeline::FlowTopics topics;  // resolved names; topics.vis is VisTopicSink's
+  std::string frame_id;         // "" = the left images' frame_id (TopicSource::frame_id())
   double diagnostics_period_s = 1;
   std::string diagnostics_name = "sfrt_ros: scene flow";
   std::string hardware_id;  // the model's name
@@ -47,8 +47,8 @@ class FlowTopicSink final : public pipeline::FlowSink {
  public:
   using Clock = std::function<int64_t()>;  // ROS time, ns
   using Publish = std::function<void(const std::vector<detail::DiagnosticReport>&)>;
-  FlowTopicSink(TopicSinkOptions options, detail::MessageWriter* writer, const TopicSource* source,
-                Clock ros_now, Publish publish_diagnostics);
+  FlowTopicSink(TopicSinkOptions options, pipeline::MessageWriter* writer,
+                const TopicSource* source, Clock ros_now, Publish publish_diagnostics);
 
   std::string name() const override { return "ros"; }
   Status Start() override;
@@ -68,7 +68,7 @@ class FlowTopicSink final : public pipeline::FlowSink {
   std::vector<std::pair<std::string, std::string>> Counters() const;
 
   TopicSinkOptions options_;
-  detail::MessageWriter* writer_;
+  pipeline::MessageWriter* writer_;
   const TopicSource* source_;
   Clock ros_now_;
   Publish publish_;
@@ -92,7 +92,7 @@ class FlowTopicSink final : public pipeline::FlowSink {
 class VisTopicSink final : public pipeline::FlowSink {
  public:
   VisTopicSink(std::string topic, pipeline::VisualizerOptions vis_options, std::string frame_id,
-               detail::MessageWriter* writer, const TopicSource* source)
+               pipeline::MessageWriter* writer, const TopicSource* source)
       : topic_(std::move(topic)),
         renderer_(std::move(vis_options)),
         frame_id_(std::move(frame_id)),
@@ -105,7 +105,7 @@ class VisTopicSink final : public pipeline::FlowSink {
   std::string topic_;
   pipeline::FlowRenderer renderer_;
   std::string frame_id_;  // "" = the left images' (TopicSource::frame_id())
-  detail::MessageWriter* writer_;
+  pipeline::MessageWriter* writer_;
   const TopicSource* source_;
 };
 

@@ -6,8 +6,8 @@
 #include <utility>
 
 #include "clock.h"
-#include "sfrt/pipeline/image_message.h"
 #include "sfrt/pipeline/log.h"
+#include "sfrt/pipeline/message_io.h"
 
 namespace sfrt::ros {
 namespace {
@@ -44,12 +44,12 @@ void TopicSource::Skip(const std::string& reason) {
   skipped_since_warn_ = 0;
 }
 
-void TopicSource::OnPair(const detail::ImageView& left, const detail::ImageView& right,
+void TopicSource::OnPair(const pipeline::ImageMessage& left, const pipeline::ImageMessage& right,
                          const std::string& left_frame_id) {
   Pair& p = scratch_;
   p.arrival_ns = detail::MonotonicNs();
   const int64_t wall = detail::ClockNs(CLOCK_REALTIME);
-  const detail::ImageView* views[2] = {&left, &right};
+  const pipeline::ImageMessage* views[2] = {&left, &right};
   const std::string* topics[2] = {&options_.left_topic, &options_.right_topic};
   for (int side = 0; side < 2; ++side) {
     if (std::string why = pipeline::ImageMessageToBgr(*views[side], &p.image[side]); !why.empty()) {

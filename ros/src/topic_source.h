@@ -1,5 +1,5 @@
 // The sfrt_ros node's source: stereo pairs from ROS topics (paired by NodeIo with message_filters'
-// ApproximateTime) as a pipeline::FrameSource. Plain C++20: the pairs arrive as ImageViews, so
+// ApproximateTime) as a pipeline::FrameSource. Plain C++20: the pairs arrive as ImageMessages, so
 // a ROS 2 node feeds the same class. Not installed.
 //
 // Handoff: OnPair() (the spinner's thread) converts both images to BGR8 into buffers of its own
@@ -33,8 +33,8 @@
 #include <string>
 #include <vector>
 
-#include "message_io.h"
 #include "sfrt/pipeline/log.h"
+#include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/pipeline.h"
 
 namespace sfrt::ros {
@@ -56,7 +56,7 @@ class TopicSource final : public pipeline::FrameSource {
   explicit TopicSource(TopicSourceOptions options);
 
   // One ApproximateTime pair; called on the spinner's thread.
-  void OnPair(const detail::ImageView& left, const detail::ImageView& right,
+  void OnPair(const pipeline::ImageMessage& left, const pipeline::ImageMessage& right,
               const std::string& left_frame_id);
 
   // Waits for the first pair (logging that it waits) and returns its size.

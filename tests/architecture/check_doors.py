@@ -20,8 +20,9 @@ MODULES = {
     "firmware-cfg": (["firmware-cfg/include"], {"vocabulary", "runtime", "camera"}),
     "pipeline": (["pipeline/include"], {"vocabulary", "runtime", "camera", "firmware-cfg"}),
     "ros": (["ros/include"], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
+    "ros2": (["ros2/include"], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
     "tools": (["tools"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg", "pipeline",
-                          "ros"}),
+                          "ros", "ros2"}),
     "examples": ([], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
 }
 # Top-level folders that are not modules of the library.

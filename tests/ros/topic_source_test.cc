@@ -38,7 +38,7 @@ struct Frame {
     view.size = bytes.size();
   }
   std::vector<uint8_t> bytes;
-  detail::ImageView view;
+  pipeline::ImageMessage view;
 };
 
 void Hand(TopicSource* source, uint8_t value, int64_t stamp, int h = 8, int w = 12) {

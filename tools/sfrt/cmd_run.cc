@@ -29,6 +29,10 @@
 #include "sfrt/ros/bag_sink.h"
 #include "sfrt/ros/bag_source.h"
 #endif
+#if SFRT_HAVE_ROS2
+#include "sfrt/ros2/bag_sink.h"
+#include "sfrt/ros2/bag_source.h"
+#endif
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
@@ -43,6 +47,35 @@ constexpr char kNoRosBagSupport[] =
     "this sfrt was built without ROS bag support (install librosbag-dev and libsensor-msgs-dev, "
     "then configure again)";
 #endif
+
+// How --replay-bag reads the bag it names: rosbag2 (a folder, a .mcap or a .db3: ros2/) or a
+// ROS 1 .bag (ros/), as this build has them.
+struct BagFormat {
+  Result<pipeline::BagProbe> (*probe)(const pipeline::BagReplaySpec&) = nullptr;
+  std::unique_ptr<pipeline::FrameSource> (*make)(const pipeline::BagReplaySpec&) = nullptr;
+};
+
+Result<BagFormat> BagFormatOf(const std::string& path) {
+  const std::filesystem::path p(path);
+  std::error_code ec;
+  const bool rosbag2 = std::filesystem::is_directory(p, ec) || p.extension() == ".mcap" ||
+                       p.extension() == ".db3" || p.extension() == ".yaml";
+  if (rosbag2) {
+#if SFRT_HAVE_ROS2
+    if (p.filename() == "metadata.yaml") return BagFormatOf(p.parent_path().string());
+    return BagFormat{&ros2::ProbeBag, &ros2::MakeBagSource};
+#else
+    return Status::Error("'" + path +
+                         "' is a rosbag2 bag; this sfrt was built without rosbag2 support "
+                         "(install libzstd-dev liblz4-dev libsqlite3-dev, then configure again)");
+#endif
+  }
+#if SFRT_HAVE_ROS
+  return BagFormat{&ros::ProbeBag, &ros::MakeBagSource};
+#else
+  return Status::Error("'" + path + "' is a ROS 1 bag; " + kNoRosBagSupport);
+#endif
+}
 
 struct RunArgs {
   std::string model;
@@ -91,6 +124,58 @@ struct RunArgs {
   std::string progress = "auto";
   int progress_every = 10;
 };
+
+// --record-bag: a ROS 1 bag for a ".bag" path, else a rosbag2 bag (a .mcap file or a new
+// folder), as this build has them. Checked before the run (CheckRecordBag), made after.
+bool RecordsRos1Bag(const std::string& path) {
+  return std::filesystem::path(path).extension() == ".bag";
+}
+
+Status CheckRecordBag(const std::string& path) {
+  if (RecordsRos1Bag(path)) {
+#if SFRT_HAVE_ROS
+    Result<std::string> bag = ros::ResolveBagPath(path);
+    return bag.ok() ? Status::Ok() : bag.status();
+#else
+    return Status::Error(std::string("--record-bag '") + path + "': " + kNoRosBagSupport);
+#endif
+  }
+#if SFRT_HAVE_ROS2
+  return ros2::CheckBag2Path(path);
+#else
+  return Status::Error("--record-bag '" + path +
+                       "' is a rosbag2 bag (a .mcap file or a folder; a ROS 1 bag ends in "
+                       ".bag): this sfrt was built without rosbag2 support (install "
+                       "libzstd-dev liblz4-dev libsqlite3-dev, then configure again)");
+#endif
+}
+
+// The sink of a path CheckRecordBag accepted.
+std::unique_ptr<pipeline::FlowSink> MakeBagRecorder(const RunArgs& args,
+                                                    const pipeline::VisualizerOptions& vis) {
+#if SFRT_HAVE_ROS
+  if (RecordsRos1Bag(args.record_bag)) {
+    ros::BagSinkOptions o;
+    o.path = args.record_bag;
+    o.frame_id = args.record_bag_frame_id;
+    o.vis = args.record_bag_vis;
+    o.vis_options = vis;
+    return std::make_unique<ros::FlowBagSink>(o);
+  }
+#endif
+#if SFRT_HAVE_ROS2
+  ros2::Bag2SinkOptions o;
+  o.path = args.record_bag;
+  o.frame_id = args.record_bag_frame_id;
+  o.vis = args.record_bag_vis;
+  o.vis_options = vis;
+  return std::make_unique<ros2::FlowBag2Sink>(o);
+#else
+  (void)args;
+  (void)vis;
+  return nullptr;  // CheckRecordBag refused it
+#endif
+}
 
 std::vector<std::string> SplitComma(const std::string& text) {
   std::vector<std::string> out;
@@ -312,20 +397,17 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
                            " channels; PFM holds 1 or 3 (use --flow-format npy)",
                        kExitUsage);
   }
-#if SFRT_HAVE_ROS
   if (!args.record_bag.empty()) {
-    if (Result<std::string> bag = ros::ResolveBagPath(args.record_bag); !bag.ok()) {
-      return ReportError(kName, bag.message(), kExitUsage);
+    if (Status s = CheckRecordBag(args.record_bag); !s.ok()) {
+      return ReportError(kName, s.message(), kExitUsage);
     }
   }
-#endif
 
   std::error_code ec;
   std::unique_ptr<pipeline::FrameSource> source;
   std::optional<pipeline::ReplaySpec> replay_spec;  // --profile-overhead replays it again
-#if SFRT_HAVE_ROS
-  std::optional<ros::BagReplaySpec> bag_spec;  // the same for a bag
-#endif
+  std::optional<pipeline::BagReplaySpec> bag_spec;  // the same for a bag
+  BagFormat bag_format;
   if (live) {
     v4l2::StereoConfig config;
     config.mode = args.camera.empty() ? v4l2::StereoConfig::Mode::kSideBySide
@@ -352,24 +434,25 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     config.timeout_ms = args.camera_timeout_ms;
     source = pipeline::MakeCameraSource(config, on_bad);
   } else if (!args.replay_bag.empty()) {
-#if SFRT_HAVE_ROS
-    ros::BagReplaySpec spec;
+    pipeline::BagReplaySpec spec;
     spec.path = args.replay_bag;
     spec.left_topic = args.left_topic;
     spec.right_topic = args.right_topic;
     spec.pair_tolerance_ms = args.pair_tolerance_ms > 0 ? args.pair_tolerance_ms : 8.0;
     spec.on_bad_frame = on_bad;
-    if (std::string problem = CheckInputFile(spec.path, "--replay-bag file"); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
+    if (!std::filesystem::is_directory(spec.path, ec)) {
+      if (std::string problem = CheckInputFile(spec.path, "--replay-bag file"); !problem.empty()) {
+        return ReportError(kName, problem, kExitFailure);
+      }
     }
-    if (Result<ros::BagProbe> probe = ros::ProbeBag(spec); !probe.ok()) {
+    Result<BagFormat> format = BagFormatOf(spec.path);
+    if (!format.ok()) return ReportError(kName, "--replay-bag: " + format.message(), kExitUsage);
+    if (Result<pipeline::BagProbe> probe = format->probe(spec); !probe.ok()) {
       return ReportError(kName, "--replay-bag: " + probe.message(), kExitUsage);
     }
     bag_spec = spec;
-    source = ros::MakeBagSource(spec);
-#else
-    return ReportError(kName, std::string("--replay-bag: ") + kNoRosBagSupport, kExitUsage);
-#endif
+    bag_format = *format;
+    source = bag_format.make(spec);
   } else {
     pipeline::ReplaySpec spec;
     if (!args.replay.empty()) {
@@ -430,22 +513,11 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   options.stop = stop_signals.stop;
   pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
   options.log = &log;
-#if SFRT_HAVE_ROS
-  std::optional<ros::FlowBagSink> bag_sink;
+  std::unique_ptr<pipeline::FlowSink> bag_sink;
   if (!args.record_bag.empty()) {
-    ros::BagSinkOptions bo;
-    bo.path = args.record_bag;
-    bo.frame_id = args.record_bag_frame_id;
-    bo.vis = args.record_bag_vis;
-    bo.vis_options = {options.vis_scale, (*loaded)->metadata().output.units};
-    bag_sink.emplace(bo);
-    options.sinks.push_back(&*bag_sink);
+    bag_sink = MakeBagRecorder(args, {options.vis_scale, (*loaded)->metadata().output.units});
+    options.sinks.push_back(bag_sink.get());
   }
-#else
-  if (!args.record_bag.empty()) {
-    return ReportError(kName, std::string("--record-bag: ") + kNoRosBagSupport, kExitUsage);
-  }
-#endif
   options.stop_signal = stop_signals.signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
   // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
@@ -470,9 +542,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
 
   std::function<std::unique_ptr<pipeline::FrameSource>()> again;
   if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };
-#if SFRT_HAVE_ROS
-  if (bag_spec) again = [&bag_spec] { return ros::MakeBagSource(*bag_spec); };
-#endif
+  if (bag_spec) again = [&bag_spec, &bag_format] { return bag_format.make(*bag_spec); };
   // Every check has passed: the note belongs to a run that starts.
   if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
       !notice.empty()) {
@@ -556,19 +626,21 @@ Command AddRunCommand(CLI::App& parent) {
                   "Side-by-side stereo video file (OpenCV VideoCapture)");
   cmd->add_option(
       "--replay-bag", args->replay_bag,
-      "ROS 1 bag: sensor_msgs/Image (bgr8, rgb8, bgra8, rgba8, mono8) or "
-      "CompressedImage (JPEG, PNG) on --left-topic and --right-topic, paired by header "
-      "stamp within --pair-tolerance-ms (default 8); unpaired frames are counted in the "
-      "summary. Needs a build with librosbag");
+      "A bag: rosbag2 (a folder from `ros2 bag record`, a .mcap or a .db3 file) or ROS 1 "
+      "(.bag). sensor_msgs Image (bgr8, rgb8, bgra8, rgba8, mono8) or CompressedImage (JPEG, "
+      "PNG) on --left-topic and --right-topic, paired by header stamp within "
+      "--pair-tolerance-ms (default 8); unpaired frames are counted in the summary. ROS 1 bags "
+      "need a build with librosbag");
   cmd->add_option("--left-topic", args->left_topic, "--replay-bag: the left image topic")
       ->capture_default_str();
   cmd->add_option("--right-topic", args->right_topic, "--replay-bag: the right image topic")
       ->capture_default_str();
   cmd->add_option("--record-bag", args->record_bag,
-                  "Also write the flow as a ROS 1 bag: /flow (sensor_msgs/Image 32FC3, dX dY dZ "
-                  "per pixel of the left image at t, stamped with pair t), /flow_t1 "
-                  "(std_msgs/Header stamped with pair t+1), /flow_vis with --record-bag-vis; "
-                  "written to a temporary file and renamed when complete (docs/ros.md)");
+                  "Also write the flow as a bag: rosbag2 for a .mcap file or a new folder (MCAP, "
+                  "as ros2 bag record writes it), ROS 1 for a .bag file. /flow (Image 32FC3, dX "
+                  "dY dZ per pixel of the left image at t, stamped with pair t), /flow_t1 "
+                  "(Header stamped with pair t+1), /flow_vis with --record-bag-vis; written "
+                  "under a temporary name and renamed when complete (docs/ros.md)");
   cmd->add_flag("--record-bag-vis", args->record_bag_vis,
                 "--record-bag: also the visualisation as /flow_vis (bgr8)");
   cmd->add_option("--record-bag-frame-id", args->record_bag_frame_id,

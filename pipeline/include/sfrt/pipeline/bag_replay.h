@@ -22,7 +22,7 @@
 #include <string>
 
 #include "sfrt/camera/stereo_source.h"
-#include "sfrt/pipeline/image_message.h"
+#include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/pipeline.h"
 
 namespace sfrt::pipeline {

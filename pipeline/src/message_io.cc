@@ -1,4 +1,4 @@
-#include "sfrt/pipeline/image_message.h"
+#include "sfrt/pipeline/message_io.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>

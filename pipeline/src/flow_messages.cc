@@ -1,10 +1,10 @@
-#include "flow_messages.h"
+#include "sfrt/pipeline/flow_messages.h"
 
-namespace sfrt::ros::detail {
+namespace sfrt::pipeline {
 
-std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
+std::string WriteFlowMessages(const FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
                               const std::string& frame_id, const FlowTopics& topics,
-                              pipeline::FlowRenderer* renderer, MessageWriter* writer) {
+                              FlowRenderer* renderer, MessageWriter* writer) {
   const auto seq = static_cast<uint32_t>(frame.meta->window);
   const auto row = static_cast<uint32_t>(frame.width * frame.channels * sizeof(float));
   const std::string encoding = "32FC" + std::to_string(frame.channels);
@@ -18,9 +18,9 @@ std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0
   return e;
 }
 
-std::string WriteVisMessage(const pipeline::FlowFrame& frame, int64_t stamp_t0,
-                            const std::string& frame_id, const std::string& topic,
-                            pipeline::FlowRenderer* renderer, MessageWriter* writer) {
+std::string WriteVisMessage(const FlowFrame& frame, int64_t stamp_t0, const std::string& frame_id,
+                            const std::string& topic, FlowRenderer* renderer,
+                            MessageWriter* writer) {
   const cv::Mat& canvas = renderer->Render(frame);
   return writer->WriteImage(topic, stamp_t0, static_cast<uint32_t>(frame.meta->window), frame_id,
                             "bgr8", static_cast<uint32_t>(canvas.rows),
@@ -28,4 +28,4 @@ std::string WriteVisMessage(const pipeline::FlowFrame& frame, int64_t stamp_t0,
                             static_cast<uint32_t>(canvas.step[0]), canvas.data);
 }
 
-}  // namespace sfrt::ros::detail
+}  // namespace sfrt::pipeline

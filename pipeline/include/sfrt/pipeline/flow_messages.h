@@ -1,15 +1,15 @@
-// One window's flow as the ROS messages a bag (bag_sink.h) and the node (sfrt_ros) both write,
-// so the two agree on topics, encodings, stamps and units. Not installed.
+// One window's flow as the messages every bag and node of sfrt writes (ros/: ROS 1 bags and
+// sfrt_ros; ros2/: rosbag2 bags), so they all agree on topics, encodings, stamps and units.
 #pragma once
 
 #include <cstdint>
 #include <string>
 
-#include "message_io.h"
+#include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 
-namespace sfrt::ros::detail {
+namespace sfrt::pipeline {
 
 struct FlowTopics {
   std::string flow = "/flow";     // sensor_msgs/Image, 32FC3
@@ -22,14 +22,14 @@ struct FlowTopics {
 // header.seq = the window number), `t1` (the same seq and frame_id, stamped stamp_t1) and, when
 // `renderer` is not null, `vis` (its canvas, bgr8, stamped stamp_t0). Returns "" or the first
 // error; the messages before it stay written.
-std::string WriteFlowMessages(const pipeline::FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
+std::string WriteFlowMessages(const FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
                               const std::string& frame_id, const FlowTopics& topics,
-                              pipeline::FlowRenderer* renderer, MessageWriter* writer);
+                              FlowRenderer* renderer, MessageWriter* writer);
 
 // The `vis` message alone: the renderer's canvas of `frame`, bgr8, stamped stamp_t0, seq = the
 // window number (the node publishes it from a queue of its own, VisTopicSink).
-std::string WriteVisMessage(const pipeline::FlowFrame& frame, int64_t stamp_t0,
-                            const std::string& frame_id, const std::string& topic,
-                            pipeline::FlowRenderer* renderer, MessageWriter* writer);
+std::string WriteVisMessage(const FlowFrame& frame, int64_t stamp_t0, const std::string& frame_id,
+                            const std::string& topic, FlowRenderer* renderer,
+                            MessageWriter* writer);
 
-}  // namespace sfrt::ros::detail
+}  // namespace sfrt::pipeline
