@@ -244,11 +244,11 @@ std::string NodeIo::WriteHeader(const std::string& topic, int64_t stamp_ns, uint
   return "";
 }
 
-void NodeIo::PublishDiagnostics(const std::vector<DiagnosticReport>& reports) {
+void NodeIo::PublishDiagnostics(const std::vector<pipeline::DiagnosticReport>& reports) {
   if (!impl_->diagnostics) return;
   diagnostic_msgs::DiagnosticArray array;
   array.header.stamp = ::ros::Time::now();
-  for (const DiagnosticReport& r : reports) {
+  for (const pipeline::DiagnosticReport& r : reports) {
     diagnostic_msgs::DiagnosticStatus st;
     st.level = static_cast<uint8_t>(r.level);
     st.name = r.name;

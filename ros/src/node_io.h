@@ -41,16 +41,6 @@ struct CameraInfoView {
   std::string frame_id;
 };
 
-// One diagnostic_msgs/DiagnosticStatus.
-struct DiagnosticReport {
-  enum Level { kOk = 0, kWarn = 1, kError = 2, kStale = 3 };
-  Level level = kOk;
-  std::string name;
-  std::string message;
-  std::string hardware_id;
-  std::vector<std::pair<std::string, std::string>> values;
-};
-
 enum class NodeLogLevel { kDebug, kInfo, kWarn, kError, kFatal };
 
 class NodeIo final : public pipeline::MessageWriter {
@@ -93,7 +83,7 @@ class NodeIo final : public pipeline::MessageWriter {
                          uint32_t width, uint32_t step, const uint8_t* data) override;
   std::string WriteHeader(const std::string& topic, int64_t stamp_ns, uint32_t seq,
                           const std::string& frame_id) override;
-  void PublishDiagnostics(const std::vector<DiagnosticReport>& reports);
+  void PublishDiagnostics(const std::vector<pipeline::DiagnosticReport>& reports);
 
   void StartSpinner();     // one callback thread
   static bool Ok();        // false after SIGINT, ros::shutdown or a lost master

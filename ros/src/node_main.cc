@@ -32,14 +32,19 @@
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/queued_sink.h"
-#include "topic_sink.h"
-#include "topic_source.h"
+#include "sfrt/pipeline/topic_sink.h"
+#include "sfrt/pipeline/topic_source.h"
 
 namespace sfrt::ros {
 namespace {
 
 using detail::NodeIo;
 using detail::NodeLogLevel;
+using pipeline::FlowTopicSink;
+using pipeline::TopicSinkOptions;
+using pipeline::TopicSource;
+using pipeline::TopicSourceOptions;
+using pipeline::VisTopicSink;
 
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
@@ -396,7 +401,7 @@ int Run(int argc, char** argv) {
   sink_opts.received = [&io](int side) { return io.received(side); };
   FlowTopicSink sink(
       sink_opts, &io, &source, &NodeIo::NowNs,
-      [&io](const std::vector<detail::DiagnosticReport>& r) { io.PublishDiagnostics(r); });
+      [&io](const std::vector<pipeline::DiagnosticReport>& r) { io.PublishDiagnostics(r); });
 
   io.Advertise(sink_opts.topics.flow, sink_opts.topics.t1, sink_opts.topics.vis, s.publish_vis);
   if (std::string e = io.Subscribe(

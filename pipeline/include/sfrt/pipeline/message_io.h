@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace sfrt::pipeline {
 
@@ -47,6 +49,16 @@ class MessageWriter {
   // A std_msgs/Header.
   virtual std::string WriteHeader(const std::string& topic, int64_t stamp_ns, uint32_t seq,
                                   const std::string& frame_id) = 0;
+};
+
+// One diagnostic_msgs/DiagnosticStatus, as a node publishes its health on /diagnostics.
+struct DiagnosticReport {
+  enum Level { kOk = 0, kWarn = 1, kError = 2, kStale = 3 };
+  Level level = kOk;
+  std::string name;
+  std::string message;
+  std::string hardware_id;
+  std::vector<std::pair<std::string, std::string>> values;
 };
 
 }  // namespace sfrt::pipeline

@@ -1,9 +1,9 @@
-// The sfrt_ros node's outputs: each window's flow published as ROS messages (flow_messages.h:
+// A node's outputs: each window's flow published as messages (flow_messages.h:
 // `flow` 32FC3 stamped with pair t, `flow_t1` with pair t+1; `flow_vis` by VisTopicSink), and
 // /diagnostics (diagnostic_msgs/DiagnosticArray) every `diagnostics_period_s`: latency p50/p99
 // per stage over the latest windows, drops, deadline misses, the ISA and precision in use.
-// Plain C++20 over a MessageWriter and a diagnostics callback, so a ROS 2 node reuses it. Not
-// installed.
+// Over a MessageWriter and a diagnostics callback (message_io.h), so the ROS 1 and ROS 2 nodes
+// share it.
 //
 // Threads: Write() and Completed() come from the output stage (sink.h), which also publishes the
 // diagnostics; PublishIfIdle() is for the node's main thread and reads only atomics, so nothing
@@ -17,20 +17,19 @@
 #include <string>
 #include <vector>
 
-#include "node_io.h"
 #include "sfrt/pipeline/flow_messages.h"
 #include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/stats.h"
 
-namespace sfrt::ros {
+namespace sfrt::pipeline {
 
 class TopicSource;
 
 struct TopicSinkOptions {
-  pipeline::FlowTopics topics;  // resolved names; topics.vis is VisTopicSink's
-  std::string frame_id;         // "" = the left images' frame_id (TopicSource::frame_id())
+  FlowTopics topics;     // resolved names; topics.vis is VisTopicSink's
+  std::string frame_id;  // "" = the left images' frame_id (TopicSource::frame_id())
   double diagnostics_period_s = 1;
   std::string diagnostics_name = "sfrt_ros: scene flow";
   std::string hardware_id;  // the model's name
@@ -43,17 +42,17 @@ struct TopicSinkOptions {
   size_t window_values = 300;  // the diagnostics' percentiles cover this many latest windows
 };
 
-class FlowTopicSink final : public pipeline::FlowSink {
+class FlowTopicSink final : public FlowSink {
  public:
   using Clock = std::function<int64_t()>;  // ROS time, ns
-  using Publish = std::function<void(const std::vector<detail::DiagnosticReport>&)>;
-  FlowTopicSink(TopicSinkOptions options, pipeline::MessageWriter* writer,
-                const TopicSource* source, Clock ros_now, Publish publish_diagnostics);
+  using Publish = std::function<void(const std::vector<DiagnosticReport>&)>;
+  FlowTopicSink(TopicSinkOptions options, MessageWriter* writer, const TopicSource* source,
+                Clock ros_now, Publish publish_diagnostics);
 
   std::string name() const override { return "ros"; }
   Status Start() override;
-  Status Write(const pipeline::FlowFrame& frame) override;
-  Status Completed(const pipeline::WindowRecord& record) override;
+  Status Write(const FlowFrame& frame) override;
+  Status Completed(const WindowRecord& record) override;
   Status Stop() override;
   void ToJson(nlohmann::json* out) const override;
 
@@ -68,7 +67,7 @@ class FlowTopicSink final : public pipeline::FlowSink {
   std::vector<std::pair<std::string, std::string>> Counters() const;
 
   TopicSinkOptions options_;
-  pipeline::MessageWriter* writer_;
+  MessageWriter* writer_;
   const TopicSource* source_;
   Clock ros_now_;
   Publish publish_;
@@ -87,26 +86,26 @@ class FlowTopicSink final : public pipeline::FlowSink {
 };
 
 // `flow_vis`: the picture `sfrt run` writes as PNG, as a bgr8 image stamped with pair t. Apart
-// from FlowTopicSink so that the node puts it behind a pipeline::QueuedSink that drops (and
+// from FlowTopicSink so that the node puts it behind a QueuedSink that drops (and
 // counts) the pictures it cannot keep up with: drawing never delays a flow message.
-class VisTopicSink final : public pipeline::FlowSink {
+class VisTopicSink final : public FlowSink {
  public:
-  VisTopicSink(std::string topic, pipeline::VisualizerOptions vis_options, std::string frame_id,
-               pipeline::MessageWriter* writer, const TopicSource* source)
+  VisTopicSink(std::string topic, VisualizerOptions vis_options, std::string frame_id,
+               MessageWriter* writer, const TopicSource* source)
       : topic_(std::move(topic)),
         renderer_(std::move(vis_options)),
         frame_id_(std::move(frame_id)),
         writer_(writer),
         source_(source) {}
   std::string name() const override { return "ros flow_vis"; }
-  Status Write(const pipeline::FlowFrame& frame) override;
+  Status Write(const FlowFrame& frame) override;
 
  private:
   std::string topic_;
-  pipeline::FlowRenderer renderer_;
+  FlowRenderer renderer_;
   std::string frame_id_;  // "" = the left images' (TopicSource::frame_id())
-  pipeline::MessageWriter* writer_;
+  MessageWriter* writer_;
   const TopicSource* source_;
 };
 
-}  // namespace sfrt::ros
+}  // namespace sfrt::pipeline

@@ -1,4 +1,4 @@
-#include "topic_source.h"
+#include "sfrt/pipeline/topic_source.h"
 
 #include <chrono>
 #include <ctime>
@@ -9,7 +9,7 @@
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/message_io.h"
 
-namespace sfrt::ros {
+namespace sfrt::pipeline {
 namespace {
 
 std::string SizeText(const cv::Size& s) {
@@ -31,11 +31,11 @@ void TopicSource::Skip(const std::string& reason) {
     std::lock_guard<std::mutex> lock(mu_);
     last_bad_ = reason;
   }
-  const int64_t now = detail::MonotonicNs();
+  const int64_t now = detail::NowNs();
   const auto period = static_cast<int64_t>(options_.warn_period_s * 1e9);
   if (last_warn_ns_ != 0 && now - last_warn_ns_ < period) return;
-  pipeline::LogSink& sink = options_.log != nullptr ? *options_.log : pipeline::DefaultLog();
-  sink.Write(pipeline::LogLevel::kWarn, "warning",
+  LogSink& sink = options_.log != nullptr ? *options_.log : DefaultLog();
+  sink.Write(LogLevel::kWarn, "warning",
              "skipped " + std::to_string(skipped_since_warn_) + " stereo pair(s) on '" +
                  options_.left_topic + "' and '" + options_.right_topic + "': " + reason +
                  " (this warning repeats at most every " +
@@ -44,15 +44,15 @@ void TopicSource::Skip(const std::string& reason) {
   skipped_since_warn_ = 0;
 }
 
-void TopicSource::OnPair(const pipeline::ImageMessage& left, const pipeline::ImageMessage& right,
+void TopicSource::OnPair(const ImageMessage& left, const ImageMessage& right,
                          const std::string& left_frame_id) {
   Pair& p = scratch_;
-  p.arrival_ns = detail::MonotonicNs();
-  const int64_t wall = detail::ClockNs(CLOCK_REALTIME);
-  const pipeline::ImageMessage* views[2] = {&left, &right};
+  p.arrival_ns = detail::NowNs();
+  const int64_t wall = detail::WallNs();
+  const ImageMessage* views[2] = {&left, &right};
   const std::string* topics[2] = {&options_.left_topic, &options_.right_topic};
   for (int side = 0; side < 2; ++side) {
-    if (std::string why = pipeline::ImageMessageToBgr(*views[side], &p.image[side]); !why.empty()) {
+    if (std::string why = ImageMessageToBgr(*views[side], &p.image[side]); !why.empty()) {
       Skip(*topics[side] + ": " + why);
       return;
     }
@@ -62,7 +62,7 @@ void TopicSource::OnPair(const pipeline::ImageMessage& left, const pipeline::Ima
          SizeText(p.image[1].size()));
     return;
   }
-  p.converted_ns = detail::MonotonicNs();
+  p.converted_ns = detail::NowNs();
   p.stamp_ns = left.stamp_ns;
   // The stamp as a capture time when it is one: not after the arrival, at most 2 s before it.
   const int64_t age = wall - left.stamp_ns;
@@ -101,7 +101,7 @@ void TopicSource::OnPair(const pipeline::ImageMessage& left, const pipeline::Ima
 }
 
 Result<cv::Size> TopicSource::Open() {
-  log().Write(pipeline::LogLevel::kInfo, "note",
+  log().Write(LogLevel::kInfo, "note",
               "waiting for stereo pairs on '" + options_.left_topic + "' and '" +
                   options_.right_topic + "'");
   std::unique_lock<std::mutex> lock(mu_);
@@ -115,20 +115,19 @@ Result<cv::Size> TopicSource::Open() {
   return size_;
 }
 
-Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
-                                          const std::atomic<bool>& stop) {
+Result<Fetch> TopicSource::Next(WindowItem* item, const std::atomic<bool>& stop) {
   while (true) {
     {
       std::unique_lock<std::mutex> lock(mu_);
       while (count_ == 0) {
-        if (stop.load()) return pipeline::Fetch::kEnd;
+        if (stop.load()) return Fetch::kEnd;
         ready_.wait_for(lock, std::chrono::milliseconds(100));
       }
       std::swap(cur_, ring_[head_]);
       head_ = (head_ + 1) % ring_.size();
       --count_;
     }
-    const int64_t taken = detail::MonotonicNs();
+    const int64_t taken = detail::NowNs();
     // Header stamps: a gap or a bag played again (stamps going back) breaks the chain too.
     if (cur_.after_loss) chain_.Lose();
     if (chain_.Offer(cur_.stamp_ns) != camera::ChainLink::kWindow) {
@@ -136,7 +135,7 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
       continued_ = false;
       continue;
     }
-    pipeline::FrameMeta& m = item->meta;
+    FrameMeta& m = item->meta;
     m.window = windows_;
     m.sequence.clear();
     m.frame0 = prev_.number;
@@ -160,7 +159,7 @@ Result<pipeline::Fetch> TopicSource::Next(pipeline::WindowItem* item,
     std::swap(prev_, cur_);
     ++windows_;
     continued_ = true;
-    return pipeline::Fetch::kWindow;
+    return Fetch::kWindow;
   }
 }
 
@@ -184,4 +183,4 @@ void TopicSource::ToJson(nlohmann::json* out) const {
   (*out)["input_queue"] = options_.input_queue;
 }
 
-}  // namespace sfrt::ros
+}  // namespace sfrt::pipeline

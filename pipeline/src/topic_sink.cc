@@ -1,4 +1,4 @@
-#include "topic_sink.h"
+#include "sfrt/pipeline/topic_sink.h"
 
 #include <cmath>
 #include <cstdio>
@@ -7,9 +7,9 @@
 #include <span>
 
 #include "clock.h"
-#include "topic_source.h"
+#include "sfrt/pipeline/topic_source.h"
 
-namespace sfrt::ros {
+namespace sfrt::pipeline {
 namespace {
 
 constexpr const char* kSeriesNames[] = {"source", "preprocess", "infer",
@@ -25,7 +25,7 @@ std::string Ms(double v) {
 
 }  // namespace
 
-FlowTopicSink::FlowTopicSink(TopicSinkOptions options, pipeline::MessageWriter* writer,
+FlowTopicSink::FlowTopicSink(TopicSinkOptions options, MessageWriter* writer,
                              const TopicSource* source, Clock ros_now, Publish publish_diagnostics)
     : options_(std::move(options)),
       writer_(writer),
@@ -36,15 +36,15 @@ FlowTopicSink::FlowTopicSink(TopicSinkOptions options, pipeline::MessageWriter* 
 Status FlowTopicSink::Start() {
   recent_.assign(kSeries, profiling::LatestValues(options_.window_values));
   all_.assign(kSeries, profiling::LatestValues());
-  last_publish_ns_ = detail::MonotonicNs();
+  last_publish_ns_ = detail::NowNs();
   return Status::Ok();
 }
 
-Status FlowTopicSink::Write(const pipeline::FlowFrame& frame) {
-  const pipeline::FrameMeta& m = *frame.meta;
+Status FlowTopicSink::Write(const FlowFrame& frame) {
+  const FrameMeta& m = *frame.meta;
   const std::string& frame_id = options_.frame_id.empty() ? source_->frame_id() : options_.frame_id;
-  const std::string e = pipeline::WriteFlowMessages(frame, m.stamp_ns[0], m.stamp_ns[1], frame_id,
-                                                    options_.topics, nullptr, writer_);
+  const std::string e = WriteFlowMessages(frame, m.stamp_ns[0], m.stamp_ns[1], frame_id,
+                                          options_.topics, nullptr, writer_);
   if (!e.empty()) return Status::Error(e);
   // From the header stamp of the newest image the flow needs to its publication, on ROS time;
   // counted when it is a plausible latency (a bag's old stamps are not).
@@ -53,15 +53,15 @@ Status FlowTopicSink::Write(const pipeline::FlowFrame& frame) {
   return Status::Ok();
 }
 
-Status VisTopicSink::Write(const pipeline::FlowFrame& frame) {
+Status VisTopicSink::Write(const FlowFrame& frame) {
   const std::string& frame_id = frame_id_.empty() ? source_->frame_id() : frame_id_;
-  const std::string e = pipeline::WriteVisMessage(frame, frame.meta->stamp_ns[0], frame_id, topic_,
-                                                  &renderer_, writer_);
+  const std::string e =
+      WriteVisMessage(frame, frame.meta->stamp_ns[0], frame_id, topic_, &renderer_, writer_);
   return e.empty() ? Status::Ok() : Status::Error(e);
 }
 
-Status FlowTopicSink::Completed(const pipeline::WindowRecord& record) {
-  const pipeline::FrameMeta& m = *record.meta;
+Status FlowTopicSink::Completed(const WindowRecord& record) {
+  const FrameMeta& m = *record.meta;
   double v[kSeries];
   for (int s = 0; s < 4; ++s) {
     v[s] = static_cast<double>(m.stage_ns[s][1] - m.stage_ns[s][0]) / 1e6;
@@ -77,7 +77,7 @@ Status FlowTopicSink::Completed(const pipeline::WindowRecord& record) {
   last_window_ = m.window;
   if (record.miss) ++misses_;
   ++windows_;
-  const int64_t now = detail::MonotonicNs();
+  const int64_t now = detail::NowNs();
   last_done_ns_ = now;
   if (static_cast<double>(now - last_publish_ns_) >= options_.diagnostics_period_s * 1e9) {
     PublishDiagnostics(now);
@@ -86,7 +86,7 @@ Status FlowTopicSink::Completed(const pipeline::WindowRecord& record) {
 }
 
 Status FlowTopicSink::Stop() {
-  if (windows_.load() > windows_at_publish_) PublishDiagnostics(detail::MonotonicNs());
+  if (windows_.load() > windows_at_publish_) PublishDiagnostics(detail::NowNs());
   return Status::Ok();
 }
 
@@ -116,7 +116,7 @@ void FlowTopicSink::PublishDiagnostics(int64_t now) {
   windows_at_publish_ = windows;
   misses_at_publish_ = misses;
 
-  detail::DiagnosticReport r;
+  DiagnosticReport r;
   r.name = options_.diagnostics_name;
   r.hardware_id = options_.hardware_id;
   r.values = Counters();
@@ -130,7 +130,7 @@ void FlowTopicSink::PublishDiagnostics(int64_t now) {
     r.values.emplace_back(std::string(kSeriesNames[s]) + " p50 ms", Ms(sum.p50));
     r.values.emplace_back(std::string(kSeriesNames[s]) + " p99 ms", Ms(sum.p99));
   }
-  r.level = new_misses > 0 ? detail::DiagnosticReport::kWarn : detail::DiagnosticReport::kOk;
+  r.level = new_misses > 0 ? DiagnosticReport::kWarn : DiagnosticReport::kOk;
   r.message = Ms(fps) + " fps, end to end p50 " + Ms(e2e.p50) + " ms, p99 " + Ms(e2e.p99) +
               " ms, " + std::to_string(new_misses) + " deadline misses since the last status";
   publish_({r});
@@ -145,10 +145,10 @@ void FlowTopicSink::PublishIfIdle(int64_t now) {
     return;
   }
   last_idle_publish_ns_ = now;
-  detail::DiagnosticReport r;
+  DiagnosticReport r;
   r.name = options_.diagnostics_name;
   r.hardware_id = options_.hardware_id;
-  r.level = detail::DiagnosticReport::kWarn;
+  r.level = DiagnosticReport::kWarn;
   r.message = last == 0
                   ? "waiting for stereo pairs"
                   : "no window in the last " + Ms(static_cast<double>(now - last) / 1e9) + " s";
@@ -167,4 +167,4 @@ void FlowTopicSink::ToJson(nlohmann::json* out) const {
   (*out)["misses"] = misses_.load();
 }
 
-}  // namespace sfrt::ros
+}  // namespace sfrt::pipeline

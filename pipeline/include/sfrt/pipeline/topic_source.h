@@ -1,6 +1,6 @@
-// The sfrt_ros node's source: stereo pairs from ROS topics (paired by NodeIo with message_filters'
-// ApproximateTime) as a pipeline::FrameSource. Plain C++20: the pairs arrive as ImageMessages, so
-// a ROS 2 node feeds the same class. Not installed.
+// A node's source: stereo pairs from a middleware's image topics (paired by the node's adapter:
+// sfrt_ros with message_filters' ApproximateTime) as a FrameSource. The pairs arrive as
+// ImageMessages (message_io.h), so the ROS 1 and ROS 2 nodes feed the same class.
 //
 // Handoff: OnPair() (the spinner's thread) converts both images to BGR8 into buffers of its own
 // and swaps them into a ring of `input_queue` pairs; the source stage takes the oldest. When the
@@ -37,7 +37,7 @@
 #include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/pipeline.h"
 
-namespace sfrt::ros {
+namespace sfrt::pipeline {
 
 struct TopicSourceOptions {
   std::string left_topic = "/left/image_rect";  // for messages and the summary
@@ -47,21 +47,21 @@ struct TopicSourceOptions {
   // Open() waits for the first pair until this is set (null: until the first pair).
   const std::atomic<bool>* stop = nullptr;
   // Where OnPair()'s warnings go (it runs before RunPipeline() sets the source's log, so it has
-  // its own); must take calls from any thread. Null: pipeline::DefaultLog().
-  pipeline::LogSink* log = nullptr;
+  // its own); must take calls from any thread. Null: DefaultLog().
+  LogSink* log = nullptr;
 };
 
-class TopicSource final : public pipeline::FrameSource {
+class TopicSource final : public FrameSource {
  public:
   explicit TopicSource(TopicSourceOptions options);
 
   // One ApproximateTime pair; called on the spinner's thread.
-  void OnPair(const pipeline::ImageMessage& left, const pipeline::ImageMessage& right,
+  void OnPair(const ImageMessage& left, const ImageMessage& right,
               const std::string& left_frame_id);
 
   // Waits for the first pair (logging that it waits) and returns its size.
   Result<cv::Size> Open() override;
-  Result<pipeline::Fetch> Next(pipeline::WindowItem* item, const std::atomic<bool>& stop) override;
+  Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& stop) override;
   std::string Describe() const override;
   std::string kind() const override { return "ros-topics"; }
   bool live() const override { return true; }
@@ -113,4 +113,4 @@ class TopicSource final : public pipeline::FrameSource {
   std::atomic<uint64_t> pairs_{0}, dropped_{0}, bad_{0};
 };
 
-}  // namespace sfrt::ros
+}  // namespace sfrt::pipeline

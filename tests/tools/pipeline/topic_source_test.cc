@@ -1,6 +1,6 @@
 // TopicSource (ros/src/topic_source.h), the node's pair handoff, without a ROS master: pairs are
 // handed in as the spinner's thread would, windows taken as the source stage would.
-#include "topic_source.h"
+#include "sfrt/pipeline/topic_source.h"
 
 #include <gtest/gtest.h>
 
@@ -12,12 +12,12 @@
 #include <utility>
 #include <vector>
 
-namespace sfrt::ros {
+namespace sfrt::pipeline {
 namespace {
 
-class RecordingLog final : public pipeline::LogSink {
+class RecordingLog final : public LogSink {
  public:
-  void Write(pipeline::LogLevel, std::string_view tag, std::string_view text) override {
+  void Write(LogLevel, std::string_view tag, std::string_view text) override {
     std::lock_guard<std::mutex> lock(mu);
     lines.push_back(std::string(tag) + ": " + std::string(text));
   }
@@ -38,7 +38,7 @@ struct Frame {
     view.size = bytes.size();
   }
   std::vector<uint8_t> bytes;
-  pipeline::ImageMessage view;
+  ImageMessage view;
 };
 
 void Hand(TopicSource* source, uint8_t value, int64_t stamp, int h = 8, int w = 12) {
@@ -58,10 +58,10 @@ TEST(TopicSource, ConsecutivePairsFormWindowsThatContinueTheLastOne) {
   EXPECT_EQ(*size, cv::Size(12, 8));
   EXPECT_EQ(source.frame_id(), "left_cam");
   std::atomic<bool> stop{false};
-  pipeline::WindowItem item;
+  WindowItem item;
   for (int k = 0; k < 2; ++k) {
-    Result<pipeline::Fetch> f = source.Next(&item, stop);
-    ASSERT_TRUE(f.ok() && *f == pipeline::Fetch::kWindow);
+    Result<Fetch> f = source.Next(&item, stop);
+    ASSERT_TRUE(f.ok() && *f == Fetch::kWindow);
     EXPECT_EQ(item.meta.window, k);
     EXPECT_EQ(item.meta.frame0, k);
     EXPECT_EQ(item.meta.frame1, k + 1);
@@ -74,9 +74,9 @@ TEST(TopicSource, ConsecutivePairsFormWindowsThatContinueTheLastOne) {
     EXPECT_EQ(item.right1.at<cv::Vec3b>(0, 0)[0], k + 101);
   }
   stop = true;
-  Result<pipeline::Fetch> end = source.Next(&item, stop);
+  Result<Fetch> end = source.Next(&item, stop);
   ASSERT_TRUE(end.ok());
-  EXPECT_EQ(*end, pipeline::Fetch::kEnd);
+  EXPECT_EQ(*end, Fetch::kEnd);
   EXPECT_EQ(source.drops(), 0u);
   EXPECT_TRUE(log.lines.empty());
 }
@@ -91,7 +91,7 @@ TEST(TopicSource, AFullInputQueueDropsTheOldestPairAndCountsIt) {
   Hand(&source, 3, 1003);  // pair 2 waits: pair 3 takes its place
   EXPECT_EQ(source.drops(), 3u);
   std::atomic<bool> stop{false};
-  pipeline::WindowItem item;
+  WindowItem item;
   std::atomic<bool> done{false};
   // Pair 3 becomes pair t; pair 4 completes the window. The feeder waits until Next() has
   // taken pair 3, which pair 4 would otherwise replace in the one-pair queue.
@@ -107,10 +107,10 @@ TEST(TopicSource, AFullInputQueueDropsTheOldestPairAndCountsIt) {
       }
     }
   });
-  Result<pipeline::Fetch> f = source.Next(&item, stop);
+  Result<Fetch> f = source.Next(&item, stop);
   done = true;
   feeder.join();
-  ASSERT_TRUE(f.ok() && *f == pipeline::Fetch::kWindow);
+  ASSERT_TRUE(f.ok() && *f == Fetch::kWindow);
   EXPECT_EQ(item.meta.stamp_ns[0], 1003);
   EXPECT_EQ(item.meta.stamp_ns[1], 1004);
   EXPECT_EQ(item.left0.at<cv::Vec3b>(0, 0)[0], 3);
@@ -121,11 +121,11 @@ TEST(TopicSource, AFullInputQueueDropsTheOldestPairAndCountsIt) {
 std::vector<std::pair<int64_t, int64_t>> WindowStamps(TopicSource* source) {
   std::vector<std::pair<int64_t, int64_t>> out;
   const std::atomic<bool> stop{true};
-  pipeline::WindowItem item;
+  WindowItem item;
   while (true) {
-    Result<pipeline::Fetch> f = source->Next(&item, stop);
+    Result<Fetch> f = source->Next(&item, stop);
     EXPECT_TRUE(f.ok());
-    if (!f.ok() || *f == pipeline::Fetch::kEnd) return out;
+    if (!f.ok() || *f == Fetch::kEnd) return out;
     out.emplace_back(item.meta.stamp_ns[0], item.meta.stamp_ns[1]);
   }
 }
@@ -195,4 +195,4 @@ TEST(TopicSource, OpenReturnsAnErrorWhenStoppedBeforeTheFirstPair) {
 }
 
 }  // namespace
-}  // namespace sfrt::ros
+}  // namespace sfrt::pipeline
