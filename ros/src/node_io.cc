@@ -143,11 +143,7 @@ std::string NodeIo::Resolve(const std::string& topic) const {
   return impl_->nh->resolveName(topic);
 }
 
-std::string NodeIo::ResolvePrivate(const std::string& name) const {
-  return impl_->private_->resolveName(name);
-}
-
-std::string NodeIo::Subscribe(const SubscribeOptions& options, PairCallback on_pair,
+std::string NodeIo::Subscribe(const pipeline::NodeSubscription& options, PairCallback on_pair,
                               InfoCallback on_info) {
   Impl& s = *impl_;
   s.on_pair = std::move(on_pair);
@@ -191,7 +187,7 @@ std::string NodeIo::Subscribe(const SubscribeOptions& options, PairCallback on_p
       for (int side = 0; side < 2; ++side) {
         s.info[side] = s.nh->subscribe<sensor_msgs::CameraInfo>(
             topics[side], 2, [&s, side](const sensor_msgs::CameraInfoConstPtr& m) {
-              CameraInfoView v;
+              pipeline::CameraInfoView v;
               v.width = m->width;
               v.height = m->height;
               for (int i = 0; i < 12; ++i) v.p[i] = m->P[static_cast<size_t>(i)];
@@ -208,8 +204,8 @@ std::string NodeIo::Subscribe(const SubscribeOptions& options, PairCallback on_p
 
 uint64_t NodeIo::received(int side) const { return impl_->received[side].load(); }
 
-void NodeIo::Advertise(const std::string& flow, const std::string& t1, const std::string& vis,
-                       bool with_vis) {
+std::string NodeIo::Advertise(const std::string& flow, const std::string& t1,
+                              const std::string& vis, bool with_vis) {
   Impl& s = *impl_;
   s.flow_name = flow;
   s.t1_name = t1;
@@ -218,6 +214,7 @@ void NodeIo::Advertise(const std::string& flow, const std::string& t1, const std
   s.t1 = s.nh->advertise<std_msgs::Header>(t1, 2);
   if (with_vis) s.vis = s.nh->advertise<sensor_msgs::Image>(vis, 2);
   s.diagnostics = s.nh->advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 4);
+  return "";
 }
 
 std::string NodeIo::WriteImage(const std::string& topic, int64_t stamp_ns, uint32_t seq,
@@ -270,20 +267,20 @@ void NodeIo::StartSpinner() {
   impl_->spinner->start();
 }
 
-bool NodeIo::Ok() { return ::ros::ok(); }
+bool NodeIo::Ok() const { return ::ros::ok(); }
 
-int64_t NodeIo::NowNs() { return static_cast<int64_t>(::ros::Time::now().toNSec()); }
+int64_t NodeIo::NowNs() const { return static_cast<int64_t>(::ros::Time::now().toNSec()); }
 
 void NodeIo::Shutdown() {
   if (impl_->spinner) impl_->spinner->stop();
   ::ros::shutdown();
 }
 
-void NodeIo::Log(NodeLogLevel level, const std::string& text) {
+void NodeIo::Log(pipeline::NodeLogLevel level, const std::string& text) {
   if (!::ros::ok()) {  // rosconsole is shut down with the node: the same format, by hand
     static const char* const kNames[] = {"DEBUG", "INFO", "WARN", "ERROR", "FATAL"};
     const auto i = static_cast<int>(level);
-    if (level == NodeLogLevel::kDebug) return;
+    if (level == pipeline::NodeLogLevel::kDebug) return;
     const ::ros::WallTime now = ::ros::WallTime::now();
     std::fprintf(i >= 2 ? stderr : stdout, "[%5s] [%u.%09u]: %s\n", kNames[i], now.sec, now.nsec,
                  text.c_str());
@@ -291,19 +288,19 @@ void NodeIo::Log(NodeLogLevel level, const std::string& text) {
     return;
   }
   switch (level) {
-    case NodeLogLevel::kDebug:
+    case pipeline::NodeLogLevel::kDebug:
       ROS_DEBUG("%s", text.c_str());
       break;
-    case NodeLogLevel::kInfo:
+    case pipeline::NodeLogLevel::kInfo:
       ROS_INFO("%s", text.c_str());
       break;
-    case NodeLogLevel::kWarn:
+    case pipeline::NodeLogLevel::kWarn:
       ROS_WARN("%s", text.c_str());
       break;
-    case NodeLogLevel::kError:
+    case pipeline::NodeLogLevel::kError:
       ROS_ERROR("%s", text.c_str());
       break;
-    case NodeLogLevel::kFatal:
+    case pipeline::NodeLogLevel::kFatal:
       ROS_FATAL("%s", text.c_str());
       break;
   }
