@@ -23,8 +23,11 @@ packages=(
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs
   libroscpp-dev libimage-transport-dev libmessage-filters-dev libcv-bridge-dev
   libdiagnostic-msgs-dev ros-core python3-rospy python3-diagnostic-msgs
-  # ROS 2 without rclcpp (ros2/): rosbag2's storages (MCAP chunks in zstd or lz4, sqlite3)
-  libzstd-dev liblz4-dev libsqlite3-dev python3-yaml
+  # ROS 2 without rclcpp (ros2/): rosbag2's storages (MCAP chunks in zstd or lz4, sqlite3), the
+  # DDS ROS 2 runs on (Cyclone DDS for sfrt_ros2; Fast DDS for a test participant of another
+  # vendor)
+  libzstd-dev liblz4-dev libsqlite3-dev python3-yaml cyclonedds-dev cyclonedds-tools
+  libfastrtps-dev libfastcdr-dev
 )
 
 # Node.js runs the tests' independent implementations (tests/npm: the MCAP and ROS 2 CDR
