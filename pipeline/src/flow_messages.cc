@@ -1,5 +1,7 @@
 #include "sfrt/pipeline/flow_messages.h"
 
+#include "clock.h"
+
 namespace sfrt::pipeline {
 
 std::string WriteFlowMessages(const FlowFrame& frame, int64_t stamp_t0, int64_t stamp_t1,
@@ -26,6 +28,31 @@ std::string WriteVisMessage(const FlowFrame& frame, int64_t stamp_t0, const std:
                             "bgr8", static_cast<uint32_t>(canvas.rows),
                             static_cast<uint32_t>(canvas.cols),
                             static_cast<uint32_t>(canvas.step[0]), canvas.data);
+}
+
+void FlowRecorder::Start() {
+  realtime_minus_monotonic_ns_ = detail::WallNs() - detail::NowNs();
+  if (options_.vis) renderer_.emplace(options_.vis_options);
+}
+
+int64_t FlowRecorder::WallStamp(const FrameMeta& m, int pair) const {
+  if (m.stamp_ns[pair] != 0) return m.stamp_ns[pair];
+  return m.capture_ns[pair] + realtime_minus_monotonic_ns_;
+}
+
+Status FlowRecorder::Write(const FlowFrame& frame, MessageWriter* writer) {
+  if (failed_) return Status::Error("the bag '" + options_.path + "' failed earlier");
+  const FrameMeta& m = *frame.meta;
+  const FlowTopics topics{options_.flow_topic, options_.t1_topic, options_.vis_topic};
+  const std::string e =
+      WriteFlowMessages(frame, WallStamp(m, 0), WallStamp(m, 1), options_.frame_id, topics,
+                        renderer_ ? &*renderer_ : nullptr, writer);
+  if (!e.empty()) {
+    failed_ = true;
+    return Status::Error(e);
+  }
+  ++windows_;
+  return Status::Ok();
 }
 
 }  // namespace sfrt::pipeline

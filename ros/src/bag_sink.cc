@@ -6,12 +6,11 @@
 #include <filesystem>
 
 #include "bag_reader.h"
-#include "clock.h"
 #include "sfrt/pipeline/flow_messages.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 
 namespace sfrt::ros {
-FlowBagSink::FlowBagSink(BagSinkOptions options) : options_(std::move(options)) {}
+FlowBagSink::FlowBagSink(pipeline::FlowRecordingOptions options) : recorder_(std::move(options)) {}
 FlowBagSink::~FlowBagSink() {
   if (writer_) {
     (void)writer_->Close();
@@ -31,7 +30,7 @@ Result<std::string> ResolveBagPath(const std::string& path) {
 }
 
 Status FlowBagSink::Start() {
-  Result<std::string> resolved = ResolveBagPath(options_.path);
+  Result<std::string> resolved = ResolveBagPath(recorder_.options().path);
   if (!resolved.ok()) return resolved.status();
   final_ = *resolved;
   tmp_ = final_ + ".tmp.bag";
@@ -41,38 +40,22 @@ Status FlowBagSink::Start() {
     ::unlink(tmp_.c_str());
     return Status::Error(e);
   }
-  realtime_minus_monotonic_ns_ = detail::ClockNs(CLOCK_REALTIME) - detail::ClockNs(CLOCK_MONOTONIC);
-  if (options_.vis) renderer_.emplace(options_.vis_options);
+  recorder_.Start();
   return Status::Ok();
-}
-
-int64_t FlowBagSink::WallStamp(const pipeline::FrameMeta& m, int pair) const {
-  if (m.stamp_ns[pair] != 0) return m.stamp_ns[pair];
-  return m.capture_ns[pair] + realtime_minus_monotonic_ns_;
 }
 
 Status FlowBagSink::Write(const pipeline::FlowFrame& frame) {
-  if (failed_) return Status::Error("the bag '" + options_.path + "' failed earlier");
-  const pipeline::FrameMeta& m = *frame.meta;
-  const pipeline::FlowTopics topics{options_.flow_topic, options_.t1_topic, options_.vis_topic};
-  const std::string e =
-      pipeline::WriteFlowMessages(frame, WallStamp(m, 0), WallStamp(m, 1), options_.frame_id,
-                                  topics, renderer_ ? &*renderer_ : nullptr, writer_.get());
-  if (!e.empty()) {
-    failed_ = true;
-    return Status::Error(e);
-  }
-  ++windows_;
-  return Status::Ok();
+  return recorder_.Write(frame, writer_.get());
 }
 
 Status FlowBagSink::Stop() {
   if (!writer_) return Status::Ok();
   std::string e = writer_->Close();
   writer_.reset();
-  if (failed_ || !e.empty()) {
+  if (recorder_.failed() || !e.empty()) {
     ::unlink(tmp_.c_str());
-    return Status::Error("the bag '" + options_.path + "' was not written (nothing replaced it)" +
+    return Status::Error("the bag '" + recorder_.options().path +
+                         "' was not written (nothing replaced it)" +
                          (e.empty() ? std::string() : ": " + e));
   }
   std::error_code ec;

@@ -16,12 +16,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-int64_t ClockNs(clockid_t clock) {
-  timespec ts{};
-  ::clock_gettime(clock, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 bool IsMcapPath(const std::string& path) { return fs::path(path).extension() == ".mcap"; }
 
 // metadata.yaml as rosbag2 (Jazzy, version 9) writes it for a bag of one MCAP file.
@@ -96,7 +90,8 @@ Status CheckBag2Path(const std::string& path) {
   return Status::Ok();
 }
 
-FlowBag2Sink::FlowBag2Sink(Bag2SinkOptions options) : options_(std::move(options)) {}
+FlowBag2Sink::FlowBag2Sink(pipeline::FlowRecordingOptions options)
+    : recorder_(std::move(options)) {}
 
 FlowBag2Sink::~FlowBag2Sink() {
   if (writer_) Discard();  // never finished by Stop(): nothing is replaced
@@ -110,10 +105,10 @@ void FlowBag2Sink::Discard() {
 }
 
 Status FlowBag2Sink::Start() {
-  if (Status s = CheckBag2Path(options_.path); !s.ok()) return s;
-  folder_ = !IsMcapPath(options_.path);
+  if (Status s = CheckBag2Path(recorder_.options().path); !s.ok()) return s;
+  folder_ = !IsMcapPath(recorder_.options().path);
   if (folder_) {
-    final_ = options_.path;
+    final_ = recorder_.options().path;
     tmp_ = final_ + ".partial-" + std::to_string(::getpid());
     std::error_code ec;
     fs::remove_all(tmp_, ec);  // a partial folder of this process id: ours, from no other run
@@ -123,7 +118,7 @@ Status FlowBag2Sink::Start() {
     const std::string name = fs::path(final_).filename().string();
     mcap_ = (fs::path(tmp_) / (name + "_0.mcap")).string();
   } else {
-    Result<io::OutputTarget> target = io::ResolveOutputTarget(options_.path);
+    Result<io::OutputTarget> target = io::ResolveOutputTarget(recorder_.options().path);
     if (!target.ok()) return target.status();
     final_ = target->path;
     tmp_ = mcap_ = final_ + ".tmp.mcap";
@@ -133,29 +128,12 @@ Status FlowBag2Sink::Start() {
     Discard();
     return s;
   }
-  realtime_minus_monotonic_ns_ = ClockNs(CLOCK_REALTIME) - ClockNs(CLOCK_MONOTONIC);
-  if (options_.vis) renderer_.emplace(options_.vis_options);
+  recorder_.Start();
   return Status::Ok();
-}
-
-int64_t FlowBag2Sink::WallStamp(const pipeline::FrameMeta& m, int pair) const {
-  if (m.stamp_ns[pair] != 0) return m.stamp_ns[pair];
-  return m.capture_ns[pair] + realtime_minus_monotonic_ns_;
 }
 
 Status FlowBag2Sink::Write(const pipeline::FlowFrame& frame) {
-  if (failed_) return Status::Error("the bag '" + options_.path + "' failed earlier");
-  const pipeline::FrameMeta& m = *frame.meta;
-  const pipeline::FlowTopics topics{options_.flow_topic, options_.t1_topic, options_.vis_topic};
-  const std::string e =
-      pipeline::WriteFlowMessages(frame, WallStamp(m, 0), WallStamp(m, 1), options_.frame_id,
-                                  topics, renderer_ ? &*renderer_ : nullptr, writer_.get());
-  if (!e.empty()) {
-    failed_ = true;
-    return Status::Error(e);
-  }
-  ++windows_;
-  return Status::Ok();
+  return recorder_.Write(frame, writer_.get());
 }
 
 Status FlowBag2Sink::Stop() {
@@ -167,9 +145,10 @@ Status FlowBag2Sink::Stop() {
         (fs::path(tmp_) / "metadata.yaml").string(),
         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(yaml.data()), yaml.size()));
   }
-  if (failed_ || !closed.ok()) {
+  if (recorder_.failed() || !closed.ok()) {
     Discard();
-    return Status::Error("the bag '" + options_.path + "' was not written (nothing replaced it)" +
+    return Status::Error("the bag '" + recorder_.options().path +
+                         "' was not written (nothing replaced it)" +
                          (closed.ok() ? std::string() : ": " + closed.message()));
   }
   // The bag's data on disk before it appears under its name.

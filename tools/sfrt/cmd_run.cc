@@ -153,26 +153,17 @@ Status CheckRecordBag(const std::string& path) {
 // The sink of a path CheckRecordBag accepted.
 std::unique_ptr<pipeline::FlowSink> MakeBagRecorder(const RunArgs& args,
                                                     const pipeline::VisualizerOptions& vis) {
-#if SFRT_HAVE_ROS
-  if (RecordsRos1Bag(args.record_bag)) {
-    ros::BagSinkOptions o;
-    o.path = args.record_bag;
-    o.frame_id = args.record_bag_frame_id;
-    o.vis = args.record_bag_vis;
-    o.vis_options = vis;
-    return std::make_unique<ros::FlowBagSink>(o);
-  }
-#endif
-#if SFRT_HAVE_ROS2
-  ros2::Bag2SinkOptions o;
+  pipeline::FlowRecordingOptions o;
   o.path = args.record_bag;
   o.frame_id = args.record_bag_frame_id;
   o.vis = args.record_bag_vis;
   o.vis_options = vis;
+#if SFRT_HAVE_ROS
+  if (RecordsRos1Bag(args.record_bag)) return std::make_unique<ros::FlowBagSink>(o);
+#endif
+#if SFRT_HAVE_ROS2
   return std::make_unique<ros2::FlowBag2Sink>(o);
 #else
-  (void)args;
-  (void)vis;
   return nullptr;  // CheckRecordBag refused it
 #endif
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "sfrt/pipeline/message_io.h"
@@ -31,5 +32,40 @@ std::string WriteFlowMessages(const FlowFrame& frame, int64_t stamp_t0, int64_t 
 std::string WriteVisMessage(const FlowFrame& frame, int64_t stamp_t0, const std::string& frame_id,
                             const std::string& topic, FlowRenderer* renderer,
                             MessageWriter* writer);
+
+// What every bag recorder of the flow writes (ros/: ROS 1 bags; ros2/: rosbag2 MCAP): the path,
+// the messages' frame_id, the topics and the optional picture.
+struct FlowRecordingOptions {
+  std::string path;
+  std::string frame_id = "left_camera";
+  std::string flow_topic = "/flow";
+  std::string t1_topic = "/flow_t1";
+  bool vis = false;
+  std::string vis_topic = "/flow_vis";
+  VisualizerOptions vis_options;
+};
+
+// The part of a bag recorder that does not depend on the bag: each window's messages through
+// WriteFlowMessages, stamped with the source's header stamps when it has them, else the capture
+// time moved from CLOCK_MONOTONIC to the wall clock by the offset between the two clocks at
+// Start(). After a failed write every later one fails too (a bag with a hole is not finished).
+class FlowRecorder {
+ public:
+  explicit FlowRecorder(FlowRecordingOptions options) : options_(std::move(options)) {}
+  void Start();  // the clock offset, the renderer
+  Status Write(const FlowFrame& frame, MessageWriter* writer);
+  bool failed() const { return failed_; }
+  int64_t windows() const { return windows_; }
+  const FlowRecordingOptions& options() const { return options_; }
+
+ private:
+  int64_t WallStamp(const FrameMeta& m, int pair) const;
+
+  FlowRecordingOptions options_;
+  std::optional<FlowRenderer> renderer_;
+  int64_t realtime_minus_monotonic_ns_ = 0;
+  int64_t windows_ = 0;
+  bool failed_ = false;
+};
 
 }  // namespace sfrt::pipeline

@@ -1,14 +1,15 @@
 // `sfrt run --record-bag`: the flow as a ROS 1 bag, so results open in the tools robotics teams
 // already use (rqt_bag, rosbag play, their own nodes).
 //
-// Topics (names from BagSinkOptions):
+// Topics (names from pipeline::FlowRecordingOptions):
 //   flow      sensor_msgs/Image, encoding 32FC3: dX, dY, dZ per pixel of the left image at t, in
 //             the model's output units (metres for the default model), little-endian floats,
 //             row-major; header.stamp = the stamp of pair t (the frame the flow is defined on),
-//             header.seq = the window number, header.frame_id = BagSinkOptions::frame_id.
+//             header.seq = the window number, header.frame_id = FlowRecordingOptions::frame_id.
 //   flow_t1   std_msgs/Header with the same seq and frame_id and the stamp of pair t+1, the other
 //             end of the motion.
-//   flow_vis  (BagSinkOptions::vis) sensor_msgs/Image, bgr8: the picture `sfrt run` writes as PNG.
+//   flow_vis  (FlowRecordingOptions::vis) sensor_msgs/Image, bgr8: the picture `sfrt run` writes as
+//   PNG.
 // Stamps: a bag's own header stamps (FrameMeta::stamp_ns) when the source has them; otherwise the
 // capture time (CLOCK_MONOTONIC) moved to the wall clock (CLOCK_REALTIME) by the offset between
 // the two clocks at Start(). The bag's record time of each message is its header stamp.
@@ -23,6 +24,7 @@
 #include <optional>
 #include <string>
 
+#include "sfrt/pipeline/flow_messages.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 
@@ -37,37 +39,21 @@ namespace detail {
 class BagWriter;
 }
 
-struct BagSinkOptions {
-  std::string path;
-  std::string frame_id = "left_camera";
-  std::string flow_topic = "/flow";
-  std::string t1_topic = "/flow_t1";
-  bool vis = false;
-  std::string vis_topic = "/flow_vis";
-  pipeline::VisualizerOptions vis_options;
-};
-
 class FlowBagSink final : public pipeline::FlowSink {
  public:
-  explicit FlowBagSink(BagSinkOptions options);
+  explicit FlowBagSink(pipeline::FlowRecordingOptions options);
   ~FlowBagSink() override;
   std::string name() const override { return "bag"; }
   Status Start() override;
   Status Write(const pipeline::FlowFrame& frame) override;
   Status Stop() override;
-  int64_t messages() const { return windows_; }
+  int64_t messages() const { return recorder_.windows(); }
 
  private:
-  int64_t WallStamp(const pipeline::FrameMeta& m, int pair) const;
-
-  BagSinkOptions options_;
+  pipeline::FlowRecorder recorder_;
   std::unique_ptr<detail::BagWriter> writer_;
-  std::optional<pipeline::FlowRenderer> renderer_;
   std::string final_;  // the path after following symbolic links
   std::string tmp_;
-  int64_t realtime_minus_monotonic_ns_ = 0;
-  int64_t windows_ = 0;
-  bool failed_ = false;
 };
 
 }  // namespace sfrt::ros

@@ -3,9 +3,9 @@
 // ROS 2's types:
 //   flow      sensor_msgs/msg/Image, encoding 32FC3: dX, dY, dZ per pixel of the left image at
 //             t, in the model's output units, little-endian floats, row-major;
-//             header.stamp = the stamp of pair t, header.frame_id = Bag2SinkOptions::frame_id
+//             header.stamp = the stamp of pair t, header.frame_id = FlowRecordingOptions::frame_id
 //   flow_t1   std_msgs/msg/Header: the stamp of pair t+1, the other end of the motion
-//   flow_vis  (Bag2SinkOptions::vis) sensor_msgs/msg/Image, bgr8: the picture of the window
+//   flow_vis  (FlowRecordingOptions::vis) sensor_msgs/msg/Image, bgr8: the picture of the window
 // Each message is CDR, in MCAP (profile "ros2", schema encoding "ros2msg", message encoding
 // "cdr"), chunked and compressed with zstd, with the summary and indexes; its log and publish
 // times are its header stamp. Stamps as the ROS 1 bag's: the source's header stamps when it has
@@ -26,6 +26,7 @@
 #include <optional>
 #include <string>
 
+#include "sfrt/pipeline/flow_messages.h"
 #include "sfrt/pipeline/output_sinks.h"
 #include "sfrt/pipeline/sink.h"
 
@@ -34,16 +35,6 @@ namespace sfrt::ros2 {
 namespace detail {
 class McapBagWriter;
 }
-
-struct Bag2SinkOptions {
-  std::string path;
-  std::string frame_id = "left_camera";
-  std::string flow_topic = "/flow";
-  std::string t1_topic = "/flow_t1";
-  bool vis = false;
-  std::string vis_topic = "/flow_vis";
-  pipeline::VisualizerOptions vis_options;
-};
 
 // Whether --record-bag PATH asks for a rosbag2 bag: a .mcap file or a folder (any path that is
 // not a ROS 1 ".bag").
@@ -56,28 +47,23 @@ Status CheckBag2Path(const std::string& path);
 
 class FlowBag2Sink final : public pipeline::FlowSink {
  public:
-  explicit FlowBag2Sink(Bag2SinkOptions options);
+  explicit FlowBag2Sink(pipeline::FlowRecordingOptions options);
   ~FlowBag2Sink() override;
   std::string name() const override { return "rosbag2"; }
   Status Start() override;
   Status Write(const pipeline::FlowFrame& frame) override;
   Status Stop() override;
-  int64_t messages() const { return windows_; }
+  int64_t messages() const { return recorder_.windows(); }
 
  private:
-  int64_t WallStamp(const pipeline::FrameMeta& m, int pair) const;
   void Discard();  // removes what was written under the temporary name
 
-  Bag2SinkOptions options_;
+  pipeline::FlowRecorder recorder_;
   std::unique_ptr<detail::McapBagWriter> writer_;
-  std::optional<pipeline::FlowRenderer> renderer_;
   bool folder_ = false;
   std::string final_;  // the path after following symbolic links (a file) or as given (a folder)
   std::string tmp_;    // the temporary file or folder
   std::string mcap_;   // the MCAP file being written
-  int64_t realtime_minus_monotonic_ns_ = 0;
-  int64_t windows_ = 0;
-  bool failed_ = false;
 };
 
 }  // namespace sfrt::ros2
