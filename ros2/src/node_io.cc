@@ -159,8 +159,10 @@ std::string Ros2NodeIo::EnsureParticipant() {
 void Ros2NodeIo::OnImage(int side, const pipeline::ImageMessage& image,
                          const std::string& frame_id) {
   ++received_[side];
-  if (!spinning_.load()) return;
+  // Under the lock, so that once Shutdown() has cleared spinning_ no callback is still inside
+  // the node's source (which RunNode destroys when it returns).
   std::lock_guard<std::mutex> lock(pair_mutex_);
+  if (!spinning_.load()) return;
   pairer_->Add(side, image, frame_id);
 }
 
@@ -203,14 +205,17 @@ std::string Ros2NodeIo::Subscribe(const pipeline::NodeSubscription& options, Pai
     if (!s.ok()) return s.message();
     if (!options.camera_info) continue;
     const std::string info = topics[side].substr(0, topics[side].rfind('/')) + "/camera_info";
-    s = participant_->SubscribeCameraInfo(info, qos_, [on_info, side](const msg::CameraInfo& m) {
-      pipeline::CameraInfoView v;
-      v.width = m.width;
-      v.height = m.height;
-      for (int i = 0; i < 12; ++i) v.p[i] = m.p[static_cast<size_t>(i)];
-      v.frame_id = m.header.frame_id;
-      on_info(side, v);
-    });
+    s = participant_->SubscribeCameraInfo(
+        info, qos_, [this, on_info, side](const msg::CameraInfo& m) {
+          std::lock_guard<std::mutex> lock(pair_mutex_);  // as OnImage: nothing after Shutdown()
+          if (!spinning_.load()) return;
+          pipeline::CameraInfoView v;
+          v.width = m.width;
+          v.height = m.height;
+          for (int i = 0; i < 12; ++i) v.p[i] = m.p[static_cast<size_t>(i)];
+          v.frame_id = m.header.frame_id;
+          on_info(side, v);
+        });
     if (!s.ok()) return s.message();
   }
   return "";
@@ -304,6 +309,10 @@ int64_t Ros2NodeIo::NowNs() const {
 
 void Ros2NodeIo::Shutdown() {
   shut_down_ = true;
+  {
+    std::lock_guard<std::mutex> lock(pair_mutex_);  // waits for a callback in progress
+    spinning_ = false;
+  }
   participant_.reset();  // peers see the node leave
 }
 

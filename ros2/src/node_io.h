@@ -76,7 +76,9 @@ class Ros2NodeIo final : public pipeline::NodeIo {
   mutable std::set<std::string> asked_;  // parameters the node read
   std::unique_ptr<dds::Participant> participant_;
   dds::Qos qos_;
-  std::mutex pair_mutex_;  // the two image subscriptions may call back on different threads
+  // The subscriptions may call back on different threads; held while a callback feeds the node,
+  // so Shutdown() (which clears spinning_ under it) knows none is still running.
+  std::mutex pair_mutex_;
   std::optional<StampPairer> pairer_;
   PairCallback on_pair_;
   std::atomic<uint64_t> received_[2] = {0, 0};
