@@ -19,11 +19,11 @@
 //   fastdds_peer publish-image --domain D --topic T --height H --width W --encoding E
 //                        --data FILE --stamp-ns T --frame-id F [--step S] [--is-bigendian 0|1]
 //                        [--reliability best_effort|reliable] [--match-timeout-s S]
-//                        [--settle-ms M] [--interface A]
+//                        [--settle-ms M] [--repeat N] [--interface A]
 //       waits for a matched reader, then M ms (default 1000) for that reader to match this
 //       writer, publishes one Image (data = the bytes of FILE), waits for its acknowledgement
 //       when reliable; exit 0 when sent, 3 when no reader matched in time or a reliable reader
-//       did not acknowledge.
+//       did not acknowledge. --repeat N writes it N times, 200 ms apart (default 1).
 //
 // --interface A (e.g. 127.0.0.1) keeps the participant on that one IPv4 interface: UDPv4 only (no
 // shared memory, which another vendor cannot use anyway), and A as the initial unicast discovery
@@ -254,7 +254,8 @@ const char kUsage[] =
     "  fastdds_peer publish-image --domain D --topic T --height H --width W --encoding E\n"
     "                       --data FILE --stamp-ns T --frame-id F [--step S]\n"
     "                       [--is-bigendian 0|1] [--reliability best_effort|reliable]\n"
-    "                       [--match-timeout-s S] [--settle-ms M] [--interface A]\n"
+    "                       [--match-timeout-s S] [--settle-ms M] [--repeat N]\n"
+    "                       [--interface A]\n"
     "  fastdds_peer --help\n"
     "T is the DDS topic (ROS topic /flow is rt/flow). receive writes DIR/<i>.json (fields),\n"
     "DIR/<i>.cdr (the serialized sample) and DIR/<i>.bin (an image's data) for i from 0.\n"
@@ -644,7 +645,13 @@ int PublishImage(const Options& options) {
   // this writer is (a reliable reader would have it resent); DDS lets the writer see no sign of
   // it, so wait a while.
   std::this_thread::sleep_for(settle);
-  if (!writer->write(&sample)) throw std::runtime_error("write on " + topic_name + " failed");
+  // --repeat: the same sample again every 200 ms, for a best-effort reader that may match this
+  // writer only later (its reader takes the first one that arrives).
+  const int64_t repeat = options.IntegerOr("repeat", 1, 1000, 1);
+  for (int64_t i = 0; i < repeat; ++i) {
+    if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    if (!writer->write(&sample)) throw std::runtime_error("write on " + topic_name + " failed");
+  }
   if (reliability == "reliable" && writer->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(
                                        10, 0)) != ReturnCode_t::RETCODE_OK) {
     std::cerr << "fastdds_peer: timeout after 10 s: the image on " << topic_name
@@ -676,7 +683,7 @@ int main(int argc, char** argv) {
       return PublishImage(ParseOptions(
           argc, argv,
           {"domain", "topic", "height", "width", "encoding", "data", "stamp-ns", "frame-id", "step",
-           "is-bigendian", "reliability", "match-timeout-s", "settle-ms", "interface"}));
+           "is-bigendian", "reliability", "match-timeout-s", "settle-ms", "repeat", "interface"}));
     }
     throw UsageError(command.empty() ? "no subcommand" : "unknown subcommand '" + command + "'");
   } catch (const UsageError& e) {
