@@ -61,8 +61,6 @@ std::string MetadataYaml(const std::string& file, const detail::McapBagWriter& w
 
 }  // namespace
 
-bool IsRosbag2RecordPath(const std::string& path) { return fs::path(path).extension() != ".bag"; }
-
 Status CheckBag2Path(const std::string& path) {
   if (IsMcapPath(path)) {
     Result<io::OutputTarget> target = io::ResolveOutputTarget(path);

@@ -1,6 +1,5 @@
 #include "sfrt/ros2/bag_source.h"
 
-#include <filesystem>
 #include <set>
 #include <utility>
 #include <vector>
@@ -155,13 +154,6 @@ class Rosbag2Bag final : public pipeline::ImageBag {
 };
 
 }  // namespace
-
-bool IsRosbag2Path(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return true;
-  const std::filesystem::path p(path);
-  return p.extension() == ".mcap" || p.extension() == ".db3";
-}
 
 Result<BagProbe> ProbeBag(const BagReplaySpec& spec) {
   Rosbag2Bag bag;

@@ -24,8 +24,8 @@ Status McapBagWriter::Open(const std::string& path) {
   return writer_.Open(path, options);
 }
 
-Result<uint16_t> McapBagWriter::ChannelOf(const std::string& topic, const std::string& type) {
-  if (auto t = topic_index_.find(topic); t != topic_index_.end()) return channels_[t->second];
+Result<size_t> McapBagWriter::TopicOf(const std::string& topic, const std::string& type) {
+  if (auto t = topic_index_.find(topic); t != topic_index_.end()) return t->second;
   auto schema = schemas_.find(type);
   if (schema == schemas_.end()) {
     const msg::MessageNames* names = msg::FindMessageNames(type);
@@ -44,15 +44,13 @@ Result<uint16_t> McapBagWriter::ChannelOf(const std::string& topic, const std::s
   topic_index_[topic] = topics_.size();
   topics_.push_back({topic, type, 0});
   channels_.push_back(*channel);
-  return *channel;
+  return topics_.size() - 1;
 }
 
-std::string McapBagWriter::Put(uint16_t channel, int64_t stamp_ns) {
-  const size_t t = static_cast<size_t>(std::find(channels_.begin(), channels_.end(), channel) -
-                                       channels_.begin());
+std::string McapBagWriter::Put(size_t t, int64_t stamp_ns) {
   const auto time = static_cast<uint64_t>(stamp_ns);
   const auto sequence = static_cast<uint32_t>(topics_[t].messages);
-  if (Status s = writer_.Write(channel, sequence, time, time, buffer_); !s.ok()) {
+  if (Status s = writer_.Write(channels_[t], sequence, time, time, buffer_); !s.ok()) {
     return s.message();
   }
   ++topics_[t].messages;
@@ -66,8 +64,8 @@ std::string McapBagWriter::WriteImage(const std::string& topic, int64_t stamp_ns
                                       const std::string& frame_id, const std::string& encoding,
                                       uint32_t height, uint32_t width, uint32_t step,
                                       const uint8_t* data) {
-  Result<uint16_t> channel = ChannelOf(topic, "sensor_msgs/msg/Image");
-  if (!channel.ok()) return "'" + path_ + "': " + channel.message();
+  Result<size_t> t = TopicOf(topic, "sensor_msgs/msg/Image");
+  if (!t.ok()) return "'" + path_ + "': " + t.message();
   msg::ImageView image;
   image.header.stamp = TimeOf(stamp_ns);
   image.header.frame_id = frame_id;
@@ -78,18 +76,18 @@ std::string McapBagWriter::WriteImage(const std::string& topic, int64_t stamp_ns
   image.step = step;
   image.data = std::span<const uint8_t>(data, static_cast<size_t>(step) * height);
   msg::Encode(image, &buffer_);
-  return Put(*channel, stamp_ns);
+  return Put(*t, stamp_ns);
 }
 
 std::string McapBagWriter::WriteHeader(const std::string& topic, int64_t stamp_ns, uint32_t /*seq*/,
                                        const std::string& frame_id) {
-  Result<uint16_t> channel = ChannelOf(topic, "std_msgs/msg/Header");
-  if (!channel.ok()) return "'" + path_ + "': " + channel.message();
+  Result<size_t> t = TopicOf(topic, "std_msgs/msg/Header");
+  if (!t.ok()) return "'" + path_ + "': " + t.message();
   msg::Header header;
   header.stamp = TimeOf(stamp_ns);
   header.frame_id = frame_id;
   msg::Encode(header, &buffer_);
-  return Put(*channel, stamp_ns);
+  return Put(*t, stamp_ns);
 }
 
 Status McapBagWriter::Close() { return writer_.Close(); }

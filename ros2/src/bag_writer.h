@@ -36,9 +36,10 @@ class McapBagWriter final : public pipeline::MessageWriter {
   int64_t messages() const { return messages_; }
 
  private:
-  // The channel of `topic` (made at its first message, with the schema of `type`).
-  Result<uint16_t> ChannelOf(const std::string& topic, const std::string& type);
-  std::string Put(uint16_t channel, int64_t stamp_ns);
+  // The index of `topic` in topics_ (its channel made at its first message, with the schema of
+  // `type`).
+  Result<size_t> TopicOf(const std::string& topic, const std::string& type);
+  std::string Put(size_t topic, int64_t stamp_ns);  // buffer_ as the topic's next message
 
   mcap::Writer writer_;
   std::string path_;

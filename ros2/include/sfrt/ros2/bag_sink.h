@@ -36,10 +36,6 @@ namespace detail {
 class McapBagWriter;
 }
 
-// Whether --record-bag PATH asks for a rosbag2 bag: a .mcap file or a folder (any path that is
-// not a ROS 1 ".bag").
-bool IsRosbag2RecordPath(const std::string& path);
-
 // Checks that a bag can be recorded at `path` (before a run): a .mcap path must be a regular
 // file or a new one (after following links); a folder path must not exist and its parent must.
 // Errors name the path.

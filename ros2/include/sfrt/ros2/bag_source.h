@@ -22,9 +22,6 @@ namespace sfrt::ros2 {
 using pipeline::BagProbe;
 using pipeline::BagReplaySpec;
 
-// Whether `path` is a rosbag2 bag rather than a ROS 1 .bag: a folder, or a .mcap or .db3 file.
-bool IsRosbag2Path(const std::string& path);
-
 // Opens the bag and checks the topics before a run.
 Result<BagProbe> ProbeBag(const BagReplaySpec& spec);
 
