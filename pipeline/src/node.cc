@@ -308,6 +308,23 @@ int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
   return 0;
 }
 
+// The run's last line (or its failure) through the node's log; the exit code.
+int ReportResult(NodeIo& io, const NodeIdentity& identity, const PipelineResult& result,
+                 bool stopped_by_signal) {
+  if (!result.started && stopped_by_signal) {
+    io.Log(NodeLogLevel::kInfo, identity.name + ": stopped before the first stereo pair arrived");
+    return kExitOk;
+  }
+  if (result.usage_error) return Fail(io, kExitUsage, result.status.message());
+  if (!result.status.ok()) return Fail(io, kExitFailure, result.status.message());
+  io.Log(NodeLogLevel::kInfo,
+         identity.name + ": " + std::to_string(result.frames) + " windows published, stopped by " +
+             result.stopped_by + ", end to end p50 " + Fixed(result.end_to_end.p50, 2) +
+             " ms, p99 " + Fixed(result.end_to_end.p99, 2) + " ms" +
+             (result.summary_path.empty() ? std::string() : ", summary " + result.summary_path));
+  return kExitOk;
+}
+
 }  // namespace
 
 int RunNode(NodeIo& io, const NodeIdentity& identity) {
@@ -446,21 +463,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
   }
   runner.join();
   for (const std::string& w : result.warnings) log.Write(LogLevel::kWarn, "warning", w);
-  int code = kExitOk;
-  if (!result.started && stop_signal.load() != 0) {
-    io.Log(NodeLogLevel::kInfo, identity.name + ": stopped before the first stereo pair arrived");
-  } else if (result.usage_error) {
-    code = Fail(io, kExitUsage, result.status.message());
-  } else if (!result.status.ok()) {
-    code = Fail(io, kExitFailure, result.status.message());
-  } else {
-    io.Log(NodeLogLevel::kInfo,
-           identity.name + ": " + std::to_string(result.frames) +
-               " windows published, stopped by " + result.stopped_by + ", end to end p50 " +
-               Fixed(result.end_to_end.p50, 2) + " ms, p99 " + Fixed(result.end_to_end.p99, 2) +
-               " ms" +
-               (result.summary_path.empty() ? std::string() : ", summary " + result.summary_path));
-  }
+  const int code = ReportResult(io, identity, result, stop_signal.load() != 0);
   io.Shutdown();
   return code;
 }
