@@ -48,6 +48,11 @@ Status FlowBagSink::Write(const pipeline::FlowFrame& frame) {
   return recorder_.Write(frame, writer_.get());
 }
 
+Status FlowBagSink::RecordInputs(const pipeline::WindowItem& item) {
+  if (!writer_) return Status::Error("the bag '" + recorder_.options().path + "' is not open");
+  return recorder_.WriteInputs(item, writer_.get());
+}
+
 Status FlowBagSink::Stop() {
   if (!writer_) return Status::Ok();
   std::string e = writer_->Close();

@@ -134,6 +134,11 @@ Status FlowBag2Sink::Write(const pipeline::FlowFrame& frame) {
   return recorder_.Write(frame, writer_.get());
 }
 
+Status FlowBag2Sink::RecordInputs(const pipeline::WindowItem& item) {
+  if (!writer_) return Status::Error("the bag '" + recorder_.options().path + "' is not open");
+  return recorder_.WriteInputs(item, writer_.get());
+}
+
 Status FlowBag2Sink::Stop() {
   if (!writer_) return Status::Ok();
   Status closed = writer_->Close();

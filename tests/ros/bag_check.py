@@ -17,8 +17,9 @@ Scenarios (each one ctest test named after the behaviour it checks):
   record_bag_holds_each_windows_flow_with_the_input_stamps
       --record-bag (with --record-bag-vis) on a bag replay: /flow has one 32FC3 message per window
       equal to that window's .npy flow file, stamped with the left stamp of pair t, seq = window,
-      frame_id as given; /flow_t1 carries pair t+1's stamp; /flow_vis one bgr8 picture each; no
-      temporary file is left. A --record-bag that is a character device or a FIFO is refused
+      frame_id as given; /flow_t1 carries pair t+1's stamp; /flow_vis one bgr8 picture each;
+      /left/image_rect and /right/image_rect hold the bag's 6 bgr8 images again (same bytes,
+      each pair stamped with its left image's stamp); no temporary file is left. A --record-bag that is a character device or a FIFO is refused
       (exit 2, no summary.json) before the
       first frame, naming it.
   bad_bags_and_topics_are_refused_naming_them
@@ -213,7 +214,18 @@ import numpy as np
 import rosbag
 src, rec, out = sys.argv[1:4]
 left = [m.header.stamp.to_nsec() for _, m, _ in rosbag.Bag(src).read_messages(topics=['/left/image_rect'])]
-res = {"flow": [], "t1": [], "vis": []}
+res = {"flow": [], "t1": [], "vis": [], "inputs": {}}
+sides = ('/left/image_rect', '/right/image_rect')
+def images(path):
+    with rosbag.Bag(path) as b:
+        return {t: [(m.header.stamp.to_nsec(), m.encoding, m.height, m.width, m.step, bytes(m.data))
+                    for _, m, _ in b.read_messages(topics=[t])] for t in sides}
+src_images, rec_images = images(src), images(rec)
+# Each pair is recorded with the pair's stamp, the left image's (the bag's right stamps are a few
+# milliseconds off them).
+for t in sides:
+    want = [(l[0],) + r[1:] for l, r in zip(src_images[sides[0]], src_images[t])]
+    res["inputs"][t] = [len(src_images[t]), len(rec_images[t]), want == rec_images[t]]
 with rosbag.Bag(rec) as b:
     for topic, m, t in b.read_messages():
         if topic == '/flow':
@@ -240,6 +252,9 @@ print(json.dumps(res))
         check(data_ok, "/flow %d: differs from frame_%06d.npy" % (i, i))
     check(res["t1"] == [True] * 5, "/flow_t1 stamps %s" % res["t1"])
     check(res["vis"] == ["bgr8"] * 5, "/flow_vis %s" % res["vis"])
+    for topic, (n_src, n_rec, same) in sorted(res["inputs"].items()):
+        check(n_src == n_rec == 6 and same, "%s: %d images recorded of the bag's %d (equal: %s)"
+              % (topic, n_rec, n_src, same))
     # A device or a FIFO: a usage error before anything is written (no summary.json either).
     fifo = os.path.join(a.work, "bag.fifo")
     if not os.path.exists(fifo):

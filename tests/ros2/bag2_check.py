@@ -22,9 +22,12 @@ Scenarios (each one ctest test named after the behaviour it checks):
       indexed and stream readers read the file (CRCs checked), profile ros2, ros2msg schemas, cdr;
       /flow has one 32FC3 Image per window whose data equals the window's .npy flow file,
       stamped (header and log time) with pair t's stamp from windows.csv, frame_id as given;
-      /flow_t1 carries pair t+1's stamp; /flow_vis one bgr8 picture each; the folder holds
-      <name>_0.mcap and a metadata.yaml that counts each topic's messages; no temporary file or
-      folder is left. An existing folder, a device and a FIFO are refused (exit 2, no summary).
+      /flow_t1 carries pair t+1's stamp; /flow_vis one bgr8 picture each; /left/image_rect and
+      /right/image_rect one bgr8 Image per stereo pair read (6), pixels equal to the frames' and
+      stamped as the source bag's; the folder holds <name>_0.mcap and a metadata.yaml that counts
+      each topic's messages, and replays to the same flow files; --record-bag-flow-only leaves
+      the images out; no temporary file or folder is left. An existing folder, a device and a
+      FIFO are refused (exit 2, no summary).
   rosbag2_bad_bags_and_topics_are_refused_naming_them
       a topic not in the bag (the error lists the bag's topics), a truncated .mcap (named, with
       an offset), a file that is neither MCAP nor sqlite3, a folder with no bag file in it, a
@@ -210,7 +213,34 @@ def windows_csv(out):
     return [(r[0], int(r[4]), int(r[5])) for r in rows]
 
 
-def check_recorded(label, bag, out):
+def check_recorded_inputs(label, bag, left, right, stamps):
+    """The stereo pairs the run read, one bgr8 Image per frame and side, as the frames' pixels."""
+    import base64
+    import numpy as np
+    from PIL import Image
+    for side, folder in (("left", left), ("right", right)):
+        topic = "/%s/image_rect" % side
+        got = [m for m in bag["messages"] if m["topic"] == topic]
+        files = sorted(os.listdir(folder))
+        if not check(len(got) == len(files) == len(stamps),
+                     "%s: %d %s messages, %d frames" % (label, len(got), topic, len(files))):
+            continue
+        for m, name, stamp in zip(got, files, stamps):
+            im = m["message"]
+            st = im["header"]["stamp"]["sec"] * 10**9 + im["header"]["stamp"]["nanosec"]
+            bgr = np.asarray(Image.open(os.path.join(folder, name)).convert("RGB"))[:, :, ::-1]
+            data = np.frombuffer(base64.b64decode(im["data"]["base64"]), dtype=np.uint8)
+            check(im["encoding"] == "bgr8" and st == stamp and int(m["log_time"]) == stamp
+                  and im["height"] == bgr.shape[0] and im["width"] == bgr.shape[1]
+                  and im["step"] == bgr.shape[1] * 3,
+                  "%s: %s %s: encoding %s stamp %d (pair stamp %d) %dx%d step %d" % (
+                      label, topic, name, im["encoding"], st, stamp, im["height"], im["width"],
+                      im["step"]))
+            check(data.size == bgr.size and np.array_equal(data.reshape(bgr.shape), bgr),
+                  "%s: %s %s: pixels differ from the frame's" % (label, topic, name))
+
+
+def check_recorded(label, bag, out, left=None, right=None):
     import base64
     import numpy as np
     if bag is None:
@@ -242,6 +272,11 @@ def check_recorded(label, bag, out):
         check(hs["sec"] * 10**9 + hs["nanosec"] == t1_ns and h["schema"] == "std_msgs/msg/Header",
               "%s: /flow_t1 of %s: %s, pair t+1 is %d" % (label, name, h, t1_ns))
         check(v["message"]["encoding"] == "bgr8", "%s: /flow_vis %s" % (label, v["message"]))
+    images = [m for m in bag["messages"] if m["topic"].endswith("/image_rect")]
+    if left is None:
+        check(not images, "%s: --record-bag-flow-only recorded %d images" % (label, len(images)))
+    else:
+        check_recorded_inputs(label, bag, left, right, [w[1] for w in windows] + [windows[-1][2]])
 
 
 def scenario_record(a):
@@ -259,26 +294,43 @@ def scenario_record(a):
         left_over = [n for n in os.listdir(out) if ".tmp." in n or ".partial-" in n]
         check(not left_over, "%s: temporary files left: %s" % (label, left_over))
         if name.endswith(".mcap"):
-            check_recorded(label, read_mcap(a, recorded), out)
+            check_recorded(label, read_mcap(a, recorded), out, left, right)
             continue
         names = sorted(os.listdir(recorded))
         check(names == ["flow_bag_0.mcap", "metadata.yaml"], "%s: holds %s" % (label, names))
-        check_recorded(label, read_mcap(a, os.path.join(recorded, "flow_bag_0.mcap")), out)
+        check_recorded(label, read_mcap(a, os.path.join(recorded, "flow_bag_0.mcap")), out, left,
+                       right)
         with open(os.path.join(recorded, "metadata.yaml")) as f:
             info = yaml.safe_load(f)["rosbag2_bagfile_information"]
         counts = {t["topic_metadata"]["name"]: t["message_count"]
                   for t in info["topics_with_message_count"]}
-        check(info["storage_identifier"] == "mcap" and info["message_count"] == 15
-              and counts == {"/flow": 5, "/flow_t1": 5, "/flow_vis": 5}
+        check(info["storage_identifier"] == "mcap" and info["message_count"] == 27
+              and counts == {"/flow": 5, "/flow_t1": 5, "/flow_vis": 5, "/left/image_rect": 6,
+                             "/right/image_rect": 6}
               and info["relative_file_paths"] == ["flow_bag_0.mcap"],
               "%s: metadata.yaml %s" % (label, info))
-        # The folder it wrote is a bag sfrt can replay: it has no images, so the topics are
-        # refused by name, which proves the folder and its metadata.yaml were read.
-        refused(a, "replaying the recorded folder", recorded, ["has no topic '/left/image_rect'",
-                                                               "/flow (sensor_msgs/msg/Image)"])
+        # The folder it wrote is a bag that replays: the same flow, file for file.
+        again = fresh(os.path.join(a.work, "record_replayed"))
+        p = sfrt_run(a, ["--replay-bag", recorded], again, ["--flow-format", "npy"], expect=0)
+        if check(p.returncode == 0, "replaying the recorded folder: exit %d" % p.returncode):
+            got = sorted(n for n in os.listdir(again) if n.endswith(".npy"))
+            want = sorted(n for n in os.listdir(out) if n.endswith(".npy"))
+            check(got == want and len(want) == 5, "the recorded folder replays to %s, not %s"
+                  % (got, want))
+            for n in set(got) & set(want):
+                with open(os.path.join(again, n), "rb") as f1, \
+                        open(os.path.join(out, n), "rb") as f2:
+                    check(f1.read() == f2.read(), "the recorded folder's replay: %s differs" % n)
         # Recording again onto the folder: refused before the run.
         refused(a, "existing folder", source, ["--record-bag '%s' exists" % recorded],
                 ["--record-bag", recorded])
+    out = fresh(os.path.join(a.work, "record_out_flow_only"))
+    p = sfrt_run(a, ["--replay-bag", source], out,
+                 ["--flow-format", "npy", "--record-bag", os.path.join(out, "flow.mcap"),
+                  "--record-bag-vis", "--record-bag-frame-id", "stereo_left",
+                  "--record-bag-flow-only"], expect=0)
+    if check(p.returncode == 0, "--record-bag-flow-only: exit %d" % p.returncode):
+        check_recorded("flow only", read_mcap(a, os.path.join(out, "flow.mcap")), out)
     fifo = os.path.join(a.work, "bag2.fifo")
     if not os.path.exists(fifo):
         os.mkfifo(fifo)

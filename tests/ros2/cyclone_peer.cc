@@ -7,13 +7,22 @@
 //   cyclone_peer publish-stereo --domain D --left-topic rt/left/image_rect
 //       --right-topic rt/right/image_rect --frames DIR [--reliability reliable|best-effort]
 //       [--depth N] [--rate-hz R] [--wait-subscribers N] [--wait-ms T] [--linger-ms T]
-//       [--left-frame-id S] [--right-frame-id S]
-//     Publishes the pairs listed in DIR/index.txt as sensor_msgs/msg/Image bgr8, left then right
-//     with the same stamp, at R pairs a second (default 30), once each writer has N matched
-//     readers (default 1; waits up to T ms, default 10000). Index lines (blank lines and lines
-//     starting with '#' skipped): "sec nanosec height width left.bgr right.bgr", file names
-//     relative to DIR, each file height * width * 3 bytes of B, G, R rows. Reliable writers then
-//     wait for acknowledgements; the peer lingers (default 500 ms) before leaving.
+//       [--left-frame-id S] [--right-frame-id S] [--transport raw|compressed] [--format S]
+//       [--stamp index|now] [--loops N]
+//       [--left-info-topic T --right-info-topic T --focal-px F --baseline-m B]
+//     Publishes the pairs listed in DIR/index.txt, left then right with the same stamp, at R
+//     pairs a second (default 30), once each writer has N matched readers (default 1; waits up
+//     to T ms, default 10000). Index lines (blank lines and lines starting with '#' skipped):
+//     "sec nanosec height width left right", file names relative to DIR. Transport raw (the
+//     default): sensor_msgs/msg/Image bgr8, each file height * width * 3 bytes of B, G, R rows;
+//     compressed: sensor_msgs/msg/CompressedImage, each file's bytes as they are (a PNG or JPEG
+//     file) with format S (default "bgr8; png compressed bgr8", as compressed_image_transport
+//     writes it). --stamp now stamps each pair with the wall clock as it goes out (a live camera;
+//     for latency measurements) instead of the index's stamp; --loops N goes over the index N
+//     times (default 1). With the info topics, one sensor_msgs/msg/CameraInfo per side goes out
+//     before the first pair (the index's first size, focal length F px, principal point at the
+//     centre, the right one's P[3] = -F * B as a rectified stereo pair has it). Reliable writers
+//     then wait for acknowledgements; the peer lingers (default 500 ms) before leaving.
 //
 //   cyclone_peer receive --domain D --topic rt/flow --count N --out DIR [--type image|header]
 //       [--reliability reliable|best-effort] [--depth N] [--timeout-ms T]
@@ -69,6 +78,7 @@ class Flags {
       values_[name.substr(2)] = argv[i + 1];
     }
   }
+  bool Has(const std::string& name) const { return values_.count(name) != 0; }
   std::string Get(const std::string& name, const std::string& fallback = "") {
     used_.push_back(name);
     auto it = values_.find(name);
@@ -82,6 +92,13 @@ class Flags {
     const long value = std::strtol(text.c_str(), &end, 10);
     if (text.empty() || *end != '\0' || value < 0)
       Usage("--" + name + " " + text + ": not a number");
+    return value;
+  }
+  double Real(const std::string& name) {
+    const std::string text = Get(name);
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    if (text.empty() || *end != '\0') Usage("--" + name + " " + text + ": not a number");
     return value;
   }
   // Refuses flags that no Get asked for (typos would otherwise pass silently).
@@ -144,19 +161,20 @@ struct Frame {
   std::vector<uint8_t> right;
 };
 
+// The file's bytes; `expected` of them unless it is 0 (a compressed image: any size).
 std::vector<uint8_t> ReadPixels(const std::string& path, size_t expected) {
   std::ifstream in(path, std::ios::binary);
   if (!in) Fail(path + ": cannot open");
   std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
                              std::istreambuf_iterator<char>());
-  if (bytes.size() != expected) {
+  if (expected != 0 && bytes.size() != expected) {
     Fail(path + ": " + std::to_string(bytes.size()) + " bytes, expected " +
          std::to_string(expected) + " (height * width * 3)");
   }
   return bytes;
 }
 
-std::vector<Frame> ReadFrames(const std::string& dir) {
+std::vector<Frame> ReadFrames(const std::string& dir, bool compressed) {
   const std::string index = dir + "/index.txt";
   std::ifstream in(index);
   if (!in) Fail(index + ": cannot open");
@@ -171,7 +189,7 @@ std::vector<Frame> ReadFrames(const std::string& dir) {
       Fail(index + ":" + std::to_string(number) +
            ": expected \"sec nanosec height width left right\"");
     }
-    const size_t size = size_t{frame.height} * frame.width * 3;
+    const size_t size = compressed ? 0 : size_t{frame.height} * frame.width * 3;
     frame.left = ReadPixels(dir + "/" + left, size);
     frame.right = ReadPixels(dir + "/" + right, size);
     frames.push_back(std::move(frame));
@@ -211,43 +229,125 @@ void WriteImage(dds_entity_t writer, const Frame& frame, const std::string& fram
   Check(dds_write(writer, &image), "write");
 }
 
+void WriteCompressed(dds_entity_t writer, const Frame& frame, const std::string& frame_id,
+                     const std::string& format, const std::vector<uint8_t>& bytes) {
+  sensor_msgs_msg_dds__CompressedImage_ image{};
+  image.header_.stamp_.sec_ = frame.sec;
+  image.header_.stamp_.nanosec_ = frame.nanosec;
+  image.header_.frame_id_ = const_cast<char*>(frame_id.c_str());
+  image.format_ = const_cast<char*>(format.c_str());
+  image.data_._length = image.data_._maximum = static_cast<uint32_t>(bytes.size());
+  image.data_._buffer = const_cast<uint8_t*>(bytes.data());
+  image.data_._release = false;
+  Check(dds_write(writer, &image), "write");
+}
+
+// A rectified camera of a stereo pair: no distortion, identity R, P = K [I | t] with
+// P[3] = tx = -focal * baseline for the right camera (0 for the left).
+void WriteCameraInfo(dds_entity_t writer, const Frame& frame, const std::string& frame_id,
+                     double focal_px, double tx) {
+  sensor_msgs_msg_dds__CameraInfo_ info{};
+  info.header_.stamp_.sec_ = frame.sec;
+  info.header_.stamp_.nanosec_ = frame.nanosec;
+  info.header_.frame_id_ = const_cast<char*>(frame_id.c_str());
+  info.height_ = frame.height;
+  info.width_ = frame.width;
+  info.distortion_model_ = const_cast<char*>("plumb_bob");
+  const double cx = frame.width / 2.0, cy = frame.height / 2.0;
+  const double k[9] = {focal_px, 0, cx, 0, focal_px, cy, 0, 0, 1};
+  const double p[12] = {focal_px, 0, cx, tx, 0, focal_px, cy, 0, 0, 0, 1, 0};
+  for (int i = 0; i < 9; ++i) info.k_[i] = k[i];
+  for (int i = 0; i < 9; ++i) info.r_[i] = i % 4 == 0 ? 1.0 : 0.0;
+  for (int i = 0; i < 12; ++i) info.p_[i] = p[i];
+  Check(dds_write(writer, &info), "write camera_info");
+}
+
+Frame StampedNow(const Frame& frame) {
+  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::system_clock::now().time_since_epoch())
+                      .count();
+  Frame stamped{};
+  stamped.sec = static_cast<int32_t>(ns / 1000000000);
+  stamped.nanosec = static_cast<uint32_t>(ns % 1000000000);
+  stamped.height = frame.height;
+  stamped.width = frame.width;
+  return stamped;
+}
+
 int PublishStereo(Flags& flags) {
   const auto domain = static_cast<dds_domainid_t>(flags.Number("domain"));
   const std::string left_topic = flags.Get("left-topic");
   const std::string right_topic = flags.Get("right-topic");
-  const std::vector<Frame> frames = ReadFrames(flags.Get("frames"));
+  const std::string transport = flags.Get("transport", "raw");
+  if (transport != "raw" && transport != "compressed") {
+    Usage("--transport " + transport + ": raw or compressed");
+  }
+  const bool compressed = transport == "compressed";
+  const std::vector<Frame> frames = ReadFrames(flags.Get("frames"), compressed);
+  const std::string format = flags.Get("format", "bgr8; png compressed bgr8");
   const long rate_hz = flags.Number("rate-hz", "30");
   const long wanted = flags.Number("wait-subscribers", "1");
   const long wait_ms = flags.Number("wait-ms", "10000");
   const long linger_ms = flags.Number("linger-ms", "500");
+  const long loops = flags.Number("loops", "1");
+  const std::string stamp = flags.Get("stamp", "index");
+  if (stamp != "index" && stamp != "now") Usage("--stamp " + stamp + ": index or now");
   const std::string left_id = flags.Get("left-frame-id", "left_camera");
   const std::string right_id = flags.Get("right-frame-id", "right_camera");
+  const bool with_info = flags.Has("left-info-topic");
+  const std::string info_topics[2] = {with_info ? flags.Get("left-info-topic") : "",
+                                      with_info ? flags.Get("right-info-topic") : ""};
+  const double focal_px = with_info ? flags.Real("focal-px") : 0;
+  const double baseline_m = with_info ? flags.Real("baseline-m") : 0;
   dds_qos_t* qos = NewQos(flags);
   flags.CheckAllUsed();
 
   Endpoints endpoints;
   endpoints.participant = dds_create_participant(domain, nullptr, nullptr);
   Check(endpoints.participant, "participant in domain " + std::to_string(domain));
-  const auto* type = &sensor_msgs_msg_dds__Image__desc;
+  const auto* type =
+      compressed ? &sensor_msgs_msg_dds__CompressedImage__desc : &sensor_msgs_msg_dds__Image__desc;
   const dds_entity_t left = NewEndpoint(endpoints.participant, type, left_topic, qos, true);
   const dds_entity_t right = NewEndpoint(endpoints.participant, type, right_topic, qos, true);
+  dds_entity_t info[2] = {0, 0};
+  for (int side = 0; with_info && side < 2; ++side) {
+    info[side] = NewEndpoint(endpoints.participant, &sensor_msgs_msg_dds__CameraInfo__desc,
+                             info_topics[side], qos, true);
+  }
   dds_delete_qos(qos);
   WaitForReaders(left, wanted, wait_ms, left_topic);
   WaitForReaders(right, wanted, wait_ms, right_topic);
+  if (with_info) {
+    for (int side = 0; side < 2; ++side) {
+      WaitForReaders(info[side], wanted, wait_ms, info_topics[side]);
+    }
+    WriteCameraInfo(info[0], frames.front(), left_id, focal_px, 0.0);
+    WriteCameraInfo(info[1], frames.front(), right_id, focal_px, -focal_px * baseline_m);
+  }
 
   const auto period = std::chrono::microseconds(1000000 / (rate_hz > 0 ? rate_hz : 1));
   auto next = std::chrono::steady_clock::now();
-  for (const Frame& frame : frames) {
-    std::this_thread::sleep_until(next);
-    WriteImage(left, frame, left_id, frame.left);
-    WriteImage(right, frame, right_id, frame.right);
-    next += period;
+  for (long loop = 0; loop < loops; ++loop) {
+    for (const Frame& frame : frames) {
+      std::this_thread::sleep_until(next);
+      const Frame now = stamp == "now" ? StampedNow(frame) : Frame{};
+      const Frame& stamped = stamp == "now" ? now : frame;
+      if (compressed) {
+        WriteCompressed(left, stamped, left_id, format, frame.left);
+        WriteCompressed(right, stamped, right_id, format, frame.right);
+      } else {
+        WriteImage(left, stamped, left_id, frame.left);
+        WriteImage(right, stamped, right_id, frame.right);
+      }
+      next += period;
+    }
   }
   // Best-effort writers answer "unsupported" here; reliable ones wait for every reader.
-  dds_wait_for_acks(left, DDS_SECS(5));
-  dds_wait_for_acks(right, DDS_SECS(5));
+  for (dds_entity_t writer : {left, right, info[0], info[1]}) {
+    if (writer > 0) dds_wait_for_acks(writer, DDS_SECS(5));
+  }
   std::this_thread::sleep_for(std::chrono::milliseconds(linger_ms));
-  std::printf("published %zu stereo pairs\n", frames.size());
+  std::printf("published %zu stereo pairs\n", frames.size() * static_cast<size_t>(loops));
   return 0;
 }
 

@@ -15,6 +15,13 @@ Scenarios (each one ctest test named after the behaviour it checks):
       Cyclone and the Fast DDS peer, each equal bit for bit to `sfrt infer` on the window's four
       images, 32FC3, stamped with pair t's left stamp and frame_id the left images'; `flow_t1`
       carries pair t+1's stamp; SIGINT ends the node with exit 0 and its summary.json.
+  node2_decodes_png_compressed_images_and_checks_camera_info_over_dds
+      the same frames as PNG files, published by cyclone_peer as sensor_msgs/msg/CompressedImage
+      on rt/left/image_rect/compressed and rt/right/image_rect/compressed (transport:=compressed),
+      after a sensor_msgs/msg/CameraInfo per side on rt/{left,right}/camera_info with a focal
+      length of 500 px and a baseline of 0.3 m: the 5 flows equal `sfrt infer` on the PNG files
+      bit for bit, and the node says once that the camera is not the model's training camera
+      (1050 px, 1 m), naming both values.
   node2_refuses_bad_arguments_and_parameters_before_joining_dds
       a parameter of the wrong type, a misspelt --ros-args option, an ROS_DOMAIN_ID out of
       range, no model: exit 2 naming them; a model file that is not one: exit 1; an unknown
@@ -86,16 +93,20 @@ def frames(a, n=6):
     lefts = sorted(os.path.join(seq, "left", f) for f in os.listdir(os.path.join(seq, "left")))
     rights = sorted(os.path.join(seq, "right", f) for f in os.listdir(os.path.join(seq, "right")))
     out = fresh(os.path.join(a.work, "frames"))
+    png = fresh(os.path.join(a.work, "frames_png"))  # the same, as files for CompressedImage
     stamps = []
-    with open(os.path.join(out, "index.txt"), "w") as index:
+    with open(os.path.join(out, "index.txt"), "w") as index, \
+            open(os.path.join(png, "index.txt"), "w") as png_index:
         for i, (l, r) in enumerate(zip(lefts, rights)):
             sec, nsec = 1700000000 + i // 30, (i % 30) * 33333333
             stamps.append(sec * 10**9 + nsec)
             for side, path in (("l", l), ("r", r)):
                 rgb = np.asarray(Image.open(path).convert("RGB"))
                 rgb[:, :, ::-1].tofile(os.path.join(out, "%s%d.bgr" % (side, i)))
-            index.write("%d %d %d %d l%d.bgr r%d.bgr\n" % (sec, nsec, rgb.shape[0], rgb.shape[1],
-                                                          i, i))
+                shutil.copyfile(path, os.path.join(png, "%s%d.png" % (side, i)))
+            size = "%d %d %d %d" % (sec, nsec, rgb.shape[0], rgb.shape[1])
+            index.write("%s l%d.bgr r%d.bgr\n" % (size, i, i))
+            png_index.write("%s l%d.png r%d.png\n" % (size, i, i))
     return lefts, rights, out, stamps
 
 
@@ -163,38 +174,32 @@ def check_fastdds_flows(out, want, stamps):
               "fast dds flow %d differs from sfrt infer on its four images" % k)
 
 
-def scenario_flow(a):
-    lefts, rights, frame_dir, stamps = frames(a)
-    want = infer(a, lefts, rights)
-    env = environment()
-    out = fresh(os.path.join(a.work, "node_out"))
-    log = os.path.join(a.work, "node.log")
-    cyc = fresh(os.path.join(a.work, "cyclone_flow"))
-    cyc_t1 = fresh(os.path.join(a.work, "cyclone_flow_t1"))
-    fast = fresh(os.path.join(a.work, "fastdds_flow"))
+def cyclone_receive(a, env, topic, out, kind="image"):
+    return [a.cyclone_peer, "receive", "--domain", env["ROS_DOMAIN_ID"], "--topic", topic,
+            "--type", kind, "--count", "5", "--out", out, "--reliability", "reliable",
+            "--timeout-ms", "120000"]
+
+
+def run_node(a, env, name, params, commands, publish):
+    """Starts the node with `params` (qos default and the test's out added), the receivers
+    (`commands`) once it is up, and `publish` (a cyclone_peer publish-stereo command) once every
+    receiver has matched it; SIGINT at the end. Returns the node's exit status and log text, or
+    None when it never started."""
+    out = fresh(os.path.join(a.work, name + "_out"))
+    log = os.path.join(a.work, name + ".log")
     with open(log, "w") as node_log:
         # qos default (reliable, keep last 10) end to end: a reliable writer resends what a
         # reader that matched a moment later missed, so no frame or flow is lost to discovery.
-        node = subprocess.Popen([a.node, "--ros-args", "-p", "model:=" + a.model, "-p",
-                                 "out:=" + out, "-p", "frame_interval_ms:=30", "-p",
-                                 "qos:=default"],
-                                stdout=node_log, stderr=subprocess.STDOUT, env=env)
+        args = [a.node, "--ros-args", "-p", "model:=" + a.model, "-p", "out:=" + out, "-p",
+                "frame_interval_ms:=30", "-p", "qos:=default"]
+        for p in params:
+            args += ["-p", p]
+        node = subprocess.Popen(args, stdout=node_log, stderr=subprocess.STDOUT, env=env)
     receivers = []
     try:
         if not check(wait_for_line(log, "publishing", 60), "the node did not start: " +
                      open(log).read()):
-            return
-        commands = [
-            [a.cyclone_peer, "receive", "--domain", env["ROS_DOMAIN_ID"], "--topic", "rt/flow",
-             "--count", "5", "--out", cyc, "--reliability", "reliable", "--timeout-ms",
-             "120000"],
-            [a.cyclone_peer, "receive", "--domain", env["ROS_DOMAIN_ID"], "--topic",
-             "rt/flow_t1", "--type", "header", "--count", "5", "--out", cyc_t1, "--reliability",
-             "reliable", "--timeout-ms", "120000"],
-            [a.fastdds_peer, "receive", "--domain", env["ROS_DOMAIN_ID"], "--topic", "rt/flow",
-             "--type", "image", "--count", "5", "--out", fast, "--timeout-s", "120",
-             "--reliability", "reliable", "--interface", "127.0.0.1"],
-        ]
+            return None
         logs = []
         for i, cmd in enumerate(commands):
             logs.append(os.path.join(a.work, "receiver_%d.log" % i))
@@ -207,12 +212,9 @@ def scenario_flow(a):
         for path in logs:
             if not check(wait_for_line(path, "matched", 60),
                          "a receiver did not match the node: " + open(path).read()):
-                return
+                return None
         time.sleep(0.5)
-        p = run([a.cyclone_peer, "publish-stereo", "--domain", env["ROS_DOMAIN_ID"],
-                 "--left-topic", "rt/left/image_rect", "--right-topic", "rt/right/image_rect",
-                 "--frames", frame_dir, "--rate-hz", "10", "--wait-subscribers", "1",
-                 "--left-frame-id", "stereo_left", "--right-frame-id", "stereo_right"], env=env)
+        p = run(publish, env=env)
         check(p.returncode == 0, "cyclone_peer publish-stereo: %s" % p.stderr)
         for r in receivers:
             try:
@@ -233,6 +235,33 @@ def scenario_flow(a):
     text = open(log).read()
     check(code == 0, "the node's exit %s after SIGINT: %s" % (code, text[-2000:]))
     check(os.path.exists(os.path.join(out, "summary.json")), "no summary.json in out")
+    return code, text
+
+
+def publish_command(a, env, frame_dir, *extra):
+    return [a.cyclone_peer, "publish-stereo", "--domain", env["ROS_DOMAIN_ID"],
+            "--frames", frame_dir, "--rate-hz", "10", "--wait-subscribers", "1",
+            "--left-frame-id", "stereo_left", "--right-frame-id", "stereo_right"] + list(extra)
+
+
+def scenario_flow(a):
+    lefts, rights, frame_dir, stamps = frames(a)
+    want = infer(a, lefts, rights)
+    env = environment()
+    cyc = fresh(os.path.join(a.work, "cyclone_flow"))
+    cyc_t1 = fresh(os.path.join(a.work, "cyclone_flow_t1"))
+    fast = fresh(os.path.join(a.work, "fastdds_flow"))
+    commands = [
+        cyclone_receive(a, env, "rt/flow", cyc),
+        cyclone_receive(a, env, "rt/flow_t1", cyc_t1, "header"),
+        [a.fastdds_peer, "receive", "--domain", env["ROS_DOMAIN_ID"], "--topic", "rt/flow",
+         "--type", "image", "--count", "5", "--out", fast, "--timeout-s", "120",
+         "--reliability", "reliable", "--interface", "127.0.0.1"],
+    ]
+    publish = publish_command(a, env, frame_dir, "--left-topic", "rt/left/image_rect",
+                              "--right-topic", "rt/right/image_rect")
+    if run_node(a, env, "node", [], commands, publish) is None:
+        return
     check_cyclone_flows(cyc, want, stamps)
     check_fastdds_flows(fast, want, stamps)
     for k in range(5):
@@ -242,6 +271,30 @@ def scenario_flow(a):
             check(int(f["sec"]) * 10**9 + int(f["nanosec"]) == stamps[k + 1],
                   "flow_t1 %d stamped %s.%s, pair t+1 is %d" % (k, f["sec"], f["nanosec"],
                                                                 stamps[k + 1]))
+
+
+def scenario_compressed(a):
+    lefts, rights, _, stamps = frames(a)
+    want = infer(a, lefts, rights)
+    env = environment()
+    cyc = fresh(os.path.join(a.work, "cyclone_flow_png"))
+    publish = publish_command(
+        a, env, os.path.join(a.work, "frames_png"), "--transport", "compressed",
+        "--left-topic", "rt/left/image_rect/compressed",
+        "--right-topic", "rt/right/image_rect/compressed",
+        "--left-info-topic", "rt/left/camera_info", "--right-info-topic", "rt/right/camera_info",
+        "--focal-px", "500", "--baseline-m", "0.3")
+    result = run_node(a, env, "node_png", ["transport:=compressed"],
+                      [cyclone_receive(a, env, "rt/flow", cyc)], publish)
+    if result is None:
+        return
+    check_cyclone_flows(cyc, want, stamps)
+    text = result[1]
+    check(text.count("camera_info: focal length 500.00 px") == 1
+          and "differs from the model's training camera (1050.00 px)" in text,
+          "one focal length warning naming 500 and 1050 px expected: %r" % text[-3000:])
+    check(text.count("camera_info: baseline 0.3000") == 1 and "training camera (1.0000)" in text,
+          "one baseline warning naming 0.3 and 1 m expected: %r" % text[-3000:])
 
 
 def refused(a, label, args, code, needles, env=None):
@@ -278,6 +331,7 @@ def scenario_errors(a):
 
 SCENARIOS = {
     "node2_publishes_each_windows_flow_to_cyclone_and_fast_dds_equal_to_sfrt_infer": scenario_flow,
+    "node2_decodes_png_compressed_images_and_checks_camera_info_over_dds": scenario_compressed,
     "node2_refuses_bad_arguments_and_parameters_before_joining_dds": scenario_errors,
 }
 

@@ -90,6 +90,7 @@ struct RunArgs {
   std::string right_topic = "right/image_rect";
   std::string record_bag;
   bool record_bag_vis = false;
+  bool record_bag_inputs = true;
   std::string record_bag_frame_id = "left_camera";
   std::string pass = "clean";
   bool right_first = false;
@@ -158,6 +159,8 @@ std::unique_ptr<pipeline::FlowSink> MakeBagRecorder(const RunArgs& args,
   o.frame_id = args.record_bag_frame_id;
   o.vis = args.record_bag_vis;
   o.vis_options = vis;
+  o.left_topic = pipeline::AbsoluteTopic(args.left_topic);  // a bag replayed keeps its topics
+  o.right_topic = pipeline::AbsoluteTopic(args.right_topic);
 #if SFRT_HAVE_ROS
   if (RecordsRos1Bag(args.record_bag)) return std::make_unique<ros::FlowBagSink>(o);
 #endif
@@ -508,6 +511,10 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   if (!args.record_bag.empty()) {
     bag_sink = MakeBagRecorder(args, {options.vis_scale, (*loaded)->metadata().output.units});
     options.sinks.push_back(bag_sink.get());
+    auto* inputs = dynamic_cast<pipeline::InputRecorder*>(bag_sink.get());
+    if (args.record_bag_inputs && inputs != nullptr) {
+      source = pipeline::MakeRecordingSource(std::move(source), inputs);
+    }
   }
   options.stop_signal = stop_signals.signal;
   if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
@@ -630,10 +637,13 @@ Command AddRunCommand(CLI::App& parent) {
                   "Also write the flow as a bag: rosbag2 for a .mcap file or a new folder (MCAP, "
                   "as ros2 bag record writes it), ROS 1 for a .bag file. /flow (Image 32FC3, dX "
                   "dY dZ per pixel of the left image at t, stamped with pair t), /flow_t1 "
-                  "(Header stamped with pair t+1), /flow_vis with --record-bag-vis; written "
+                  "(Header stamped with pair t+1), /flow_vis with --record-bag-vis, and the "
+                  "stereo pairs read on --left-topic and --right-topic (Image bgr8); written "
                   "under a temporary name and renamed when complete (docs/ros.md)");
   cmd->add_flag("--record-bag-vis", args->record_bag_vis,
                 "--record-bag: also the visualisation as /flow_vis (bgr8)");
+  cmd->add_flag("!--record-bag-flow-only", args->record_bag_inputs,
+                "--record-bag: leave the input images out (the flow messages only)");
   cmd->add_option("--record-bag-frame-id", args->record_bag_frame_id,
                   "--record-bag: header.frame_id of the messages (the left camera's frame)")
       ->capture_default_str();

@@ -3,11 +3,14 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 
 #include "sfrt/pipeline/message_io.h"
 #include "sfrt/pipeline/output_sinks.h"
+#include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/sink.h"
 
 namespace sfrt::pipeline {
@@ -34,7 +37,7 @@ std::string WriteVisMessage(const FlowFrame& frame, int64_t stamp_t0, const std:
                             MessageWriter* writer);
 
 // What every bag recorder of the flow writes (ros/: ROS 1 bags; ros2/: rosbag2 MCAP): the path,
-// the messages' frame_id, the topics and the optional picture.
+// the messages' frame_id, the topics, the optional picture and the optional input images.
 struct FlowRecordingOptions {
   std::string path;
   std::string frame_id = "left_camera";
@@ -43,29 +46,56 @@ struct FlowRecordingOptions {
   bool vis = false;
   std::string vis_topic = "/flow_vis";
   VisualizerOptions vis_options;
+  // The stereo pairs the source read (MakeRecordingSource), as sensor_msgs/Image bgr8 at the
+  // source's frame size, stamped as the flow is, header.seq the frame number: a bag that replays.
+  std::string left_topic = "/left/image_rect";
+  std::string right_topic = "/right/image_rect";
+  std::string right_frame_id = "right_camera";  // the left images' is frame_id
+};
+
+// Where a recording source hands each stereo pair it read (MakeRecordingSource).
+class InputRecorder {
+ public:
+  virtual ~InputRecorder() = default;
+  // The pairs of `item` not recorded yet: pair t+1, and pair t unless the window continues the
+  // one before (FrameMeta::continues). Called on the source's thread.
+  virtual Status RecordInputs(const WindowItem& item) = 0;
 };
 
 // The part of a bag recorder that does not depend on the bag: each window's messages through
-// WriteFlowMessages, stamped with the source's header stamps when it has them, else the capture
-// time moved from CLOCK_MONOTONIC to the wall clock by the offset between the two clocks at
-// Start(). After a failed write every later one fails too (a bag with a hole is not finished).
+// WriteFlowMessages, and the input pairs, stamped with the source's header stamps when it has
+// them, else the capture time moved from CLOCK_MONOTONIC to the wall clock by the offset between
+// the two clocks at Start(). Write (the output stage's thread) and WriteInputs (the source's) may
+// run at once: they take turns on the writer. After a failed write every later one fails too (a
+// bag with a hole is not finished).
 class FlowRecorder {
  public:
   explicit FlowRecorder(FlowRecordingOptions options) : options_(std::move(options)) {}
   void Start();  // the clock offset, the renderer
   Status Write(const FlowFrame& frame, MessageWriter* writer);
-  bool failed() const { return failed_; }
-  int64_t windows() const { return windows_; }
+  Status WriteInputs(const WindowItem& item, MessageWriter* writer);
+  bool failed() const;
+  int64_t windows() const;
+  int64_t input_pairs() const;
   const FlowRecordingOptions& options() const { return options_; }
 
  private:
   int64_t WallStamp(const FrameMeta& m, int pair) const;
+  Status Fail(const std::string& error);  // with mu_ held
 
   FlowRecordingOptions options_;
   std::optional<FlowRenderer> renderer_;
   int64_t realtime_minus_monotonic_ns_ = 0;
+  mutable std::mutex mu_;  // the writer and the counts below
   int64_t windows_ = 0;
+  int64_t input_pairs_ = 0;
   bool failed_ = false;
 };
+
+// `source` whose every window is also handed to `recorder` (not owned; it must outlive the
+// source) as it is read, before the pipeline sees it. A recorder's error ends the run as a source
+// error does. Everything else is `source`'s own.
+std::unique_ptr<FrameSource> MakeRecordingSource(std::unique_ptr<FrameSource> source,
+                                                 InputRecorder* recorder);
 
 }  // namespace sfrt::pipeline

@@ -10,6 +10,8 @@
 //             end of the motion.
 //   flow_vis  (FlowRecordingOptions::vis) sensor_msgs/Image, bgr8: the picture `sfrt run` writes as
 //   PNG.
+//   left_topic, right_topic  (RecordInputs) sensor_msgs/Image, bgr8: the stereo pairs read,
+//             header.seq = the frame number.
 // Stamps: a bag's own header stamps (FrameMeta::stamp_ns) when the source has them; otherwise the
 // capture time (CLOCK_MONOTONIC) moved to the wall clock (CLOCK_REALTIME) by the offset between
 // the two clocks at Start(). The bag's record time of each message is its header stamp.
@@ -39,7 +41,7 @@ namespace detail {
 class BagWriter;
 }
 
-class FlowBagSink final : public pipeline::FlowSink {
+class FlowBagSink final : public pipeline::FlowSink, public pipeline::InputRecorder {
  public:
   explicit FlowBagSink(pipeline::FlowRecordingOptions options);
   ~FlowBagSink() override;
@@ -47,7 +49,11 @@ class FlowBagSink final : public pipeline::FlowSink {
   Status Start() override;
   Status Write(const pipeline::FlowFrame& frame) override;
   Status Stop() override;
+  // The input pairs, when the run's source is a recording source (pipeline::MakeRecordingSource)
+  // handing them here: between Start() and Stop().
+  Status RecordInputs(const pipeline::WindowItem& item) override;
   int64_t messages() const { return recorder_.windows(); }
+  int64_t input_pairs() const { return recorder_.input_pairs(); }
 
  private:
   pipeline::FlowRecorder recorder_;

@@ -6,6 +6,7 @@
 //             header.stamp = the stamp of pair t, header.frame_id = FlowRecordingOptions::frame_id
 //   flow_t1   std_msgs/msg/Header: the stamp of pair t+1, the other end of the motion
 //   flow_vis  (FlowRecordingOptions::vis) sensor_msgs/msg/Image, bgr8: the picture of the window
+//   left_topic, right_topic  (RecordInputs) sensor_msgs/msg/Image, bgr8: the stereo pairs read
 // Each message is CDR, in MCAP (profile "ros2", schema encoding "ros2msg", message encoding
 // "cdr"), chunked and compressed with zstd, with the summary and indexes; its log and publish
 // times are its header stamp. Stamps as the ROS 1 bag's: the source's header stamps when it has
@@ -41,7 +42,7 @@ class McapBagWriter;
 // Errors name the path.
 Status CheckBag2Path(const std::string& path);
 
-class FlowBag2Sink final : public pipeline::FlowSink {
+class FlowBag2Sink final : public pipeline::FlowSink, public pipeline::InputRecorder {
  public:
   explicit FlowBag2Sink(pipeline::FlowRecordingOptions options);
   ~FlowBag2Sink() override;
@@ -49,7 +50,11 @@ class FlowBag2Sink final : public pipeline::FlowSink {
   Status Start() override;
   Status Write(const pipeline::FlowFrame& frame) override;
   Status Stop() override;
+  // The input pairs, when the run's source is a recording source (pipeline::MakeRecordingSource)
+  // handing them here: between Start() and Stop().
+  Status RecordInputs(const pipeline::WindowItem& item) override;
   int64_t messages() const { return recorder_.windows(); }
+  int64_t input_pairs() const { return recorder_.input_pairs(); }
 
  private:
   void Discard();  // removes what was written under the temporary name
