@@ -24,9 +24,12 @@ MODULES = {
     "tools": (["tools"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg", "pipeline",
                           "ros", "ros2"}),
     "examples": ([], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
+    # The tests use what they test and their own helpers (tests/common, ...); nothing uses them.
+    "tests": (["tests"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg",
+                          "pipeline", "ros", "ros2", "tools", "examples"}),
 }
 # Top-level folders that are not modules of the library.
-NOT_MODULES = {"tests", "docs", "cmake", "models", "build", "out", "data", ".ci", ".git"}
+NOT_MODULES = {"docs", "cmake", "models", "build", "out", "data", ".ci", ".git"}
 INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"')
 
 

@@ -16,27 +16,36 @@ extern "C" void __libc_free(void*);
 
 namespace {
 std::atomic<long> g_allocations{0};
+std::atomic<long> g_tagged[sfrt::testing::kAllocationTags];
+// The calling thread's tag; a trivial thread_local of the executable (static TLS), so reading it
+// in malloc allocates nothing.
+thread_local int t_tag = 0;
+
+void Count() {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (t_tag != 0) g_tagged[t_tag].fetch_add(1, std::memory_order_relaxed);
+}
 }  // namespace
 
 extern "C" {
 void* malloc(size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  Count();
   return __libc_malloc(n);
 }
 void* calloc(size_t n, size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  Count();
   return __libc_calloc(n, size);
 }
 void* realloc(void* p, size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  Count();
   return __libc_realloc(p, n);
 }
 void* aligned_alloc(size_t alignment, size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  Count();
   return __libc_memalign(alignment, n);
 }
 int posix_memalign(void** out, size_t alignment, size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  Count();
   *out = __libc_memalign(alignment, n);
   return *out != nullptr ? 0 : ENOMEM;
 }
@@ -66,4 +75,12 @@ bool sfrt::testing::CountingHooksAreLive() {
   sink = ::operator new(64);
   ::operator delete(sink);
   return AllocationCount() - before == 2;
+}
+
+void sfrt::testing::SetThreadAllocationTag(int tag) {
+  t_tag = tag > 0 && tag < kAllocationTags ? tag : 0;
+}
+
+long sfrt::testing::TaggedAllocationCount(int tag) {
+  return tag > 0 && tag < kAllocationTags ? g_tagged[tag].load() : 0;
 }

@@ -14,4 +14,12 @@ long AllocationCount();
 // proves nothing without it.
 bool CountingHooksAreLive();
 
+// Allocations attributed to threads: a thread that calls SetThreadAllocationTag(tag) counts its
+// later allocations under `tag` (1 .. kAllocationTags - 1; 0 = untagged, the default), e.g. a
+// pipeline stage's thread tagged from PipelineOptions::on_stage_start. Counted in addition to
+// AllocationCount().
+inline constexpr int kAllocationTags = 8;
+void SetThreadAllocationTag(int tag);
+long TaggedAllocationCount(int tag);
+
 }  // namespace sfrt::testing

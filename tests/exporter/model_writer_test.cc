@@ -9,8 +9,8 @@
 #include <fstream>
 #include <random>
 
-#include "common/sceneednet_spec.h"
 #include "sfrt/crc32c.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/exporter/sfrt_importer.h"
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
@@ -67,7 +67,7 @@ TEST(Crc32c, MatchesTheStandardCheckValue) {
 }
 
 TEST(ModelWriter, RoundTripsEveryFieldThroughTheRuntimeLoader) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   spec.input.color_order = ColorOrder::kRGB;
   spec.input.image_order = {ImageSlot::kLeft1, ImageSlot::kRight1, ImageSlot::kLeft0,
                             ImageSlot::kRight0};
@@ -104,7 +104,7 @@ TEST(ModelWriter, RoundTripsEveryFieldThroughTheRuntimeLoader) {
 }
 
 TEST(ModelWriter, Float16WeightsAreWidenedAtLoadWithinHalfPrecision) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   spec.weight_type = WeightType::kFloat16;
   auto bytes16 = SerializeModel(spec);
   spec.weight_type = WeightType::kFloat32;
@@ -124,7 +124,7 @@ TEST(ModelWriter, Float16WeightsAreWidenedAtLoadWithinHalfPrecision) {
 }
 
 TEST(ModelWriter, RejectsABrokenChainNamingTheLayer) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   std::get<ConvSpec>(spec.layers[2]).in_channels = 99;
   auto bytes = SerializeModel(spec);
   ASSERT_FALSE(bytes.ok());
@@ -132,7 +132,7 @@ TEST(ModelWriter, RejectsABrokenChainNamingTheLayer) {
 }
 
 TEST(ModelWriter, RejectsWrongWeightCounts) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   std::get<ConvSpec>(spec.layers[0]).weights_hwio.pop_back();
   auto bytes = SerializeModel(spec);
   ASSERT_FALSE(bytes.ok());
@@ -140,7 +140,7 @@ TEST(ModelWriter, RejectsWrongWeightCounts) {
 }
 
 TEST(ModelWriter, RejectsChannelNamesThatDoNotCountTheOutputChannels) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   spec.output.channel_names = {"dX", "dY"};
   auto bytes = SerializeModel(spec);
   ASSERT_FALSE(bytes.ok());
@@ -150,7 +150,7 @@ TEST(ModelWriter, RejectsChannelNamesThatDoNotCountTheOutputChannels) {
 }
 
 TEST(ModelWriter, APlainTensorInputWithAnyChannelCountRoundTrips) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
   first.in_channels = 5;
   first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * 5 *
@@ -169,7 +169,7 @@ TEST(ModelWriter, APlainTensorInputWithAnyChannelCountRoundTrips) {
 
 // SceneEDNet at 1/16 width reading `channels` input channels (8 for two RGB-D frames) in `order`.
 ModelSpec RgbdSpec(std::vector<ImageSlot> order, int channels = 8) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   ConvSpec& first = std::get<ConvSpec>(spec.layers[0]);
   first.in_channels = channels;
   first.weights_hwio.resize(static_cast<size_t>(first.kernel_h) * first.kernel_w * channels *
@@ -260,7 +260,7 @@ TEST(ModelWriter, LoaderRefusesAnRgbdOrderThatMixesKindsRepeatsOrMissesASlot) {
 }
 
 TEST(ModelWriter, UnitsAndTrainingStateRoundTripFromSchema12) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   spec.output.units = "metres";
   spec.training = TrainingState::kTrained;
   auto bytes = SerializeModel(spec);
@@ -275,7 +275,7 @@ TEST(ModelWriter, UnitsAndTrainingStateRoundTripFromSchema12) {
 }
 
 TEST(ModelWriter, UnitsNotStatedAreWrittenAsUnknown) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   auto bytes = SerializeModel(spec);
   ASSERT_TRUE(bytes.ok()) << bytes.message();
   auto model = Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy);
@@ -285,7 +285,7 @@ TEST(ModelWriter, UnitsNotStatedAreWrittenAsUnknown) {
 }
 
 TEST(ModelWriter, OlderLayoutsCarryNeitherUnitsNorTrainingState) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   spec.output.units = "metres";
   spec.training = TrainingState::kUntrained;
   for (int minor : {0, 1}) {
@@ -305,7 +305,7 @@ TEST(ModelWriter, OlderLayoutsCarryNeitherUnitsNorTrainingState) {
 // SceneEDNet w16 with conv0..conv2 int8 (seeded int8 weights, chained quantisation) and a
 // calibration record, as the quantiser would write it.
 ModelSpec Int8Spec() {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   std::mt19937 rng(17);
   std::uniform_int_distribution<int> byte(-127, 127);
   std::uniform_real_distribution<float> scale(1e-3f, 1e-1f);
@@ -405,7 +405,7 @@ TEST(ModelWriter, Int8WeightsAreCoveredByTheWeightsChecksum) {
 }
 
 TEST(ModelWriter, AFloat32FileAt13DiffersFrom12OnlyInTheVersionAndFileChecksum) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16);
   SerializeOptions v12;
   v12.schema_minor = 2;
   auto a = SerializeModel(spec, v12);
@@ -419,7 +419,7 @@ TEST(ModelWriter, AFloat32FileAt13DiffersFrom12OnlyInTheVersionAndFileChecksum) 
 }
 
 TEST(ModelWriter, Bf16LayersNeedSchema14) {
-  ModelSpec spec = testing::SceneEdNetSpec(16);
+  ModelSpec spec = exporter::SceneEdNetSpec(16);
   std::get<exporter::ConvSpec>(spec.layers[0]).precision = Precision::kBFloat16;
   SerializeOptions v13;
   v13.schema_minor = 3;
@@ -445,7 +445,7 @@ TEST(ModelWriter, Int8LayersAndCalibrationNeedSchema13) {
   EXPECT_NE(bytes.message().find("layer 0 'conv0': precision int8 needs schema 1.3"),
             std::string::npos)
       << bytes.message();
-  spec = testing::SceneEdNetSpec(16);
+  spec = exporter::SceneEdNetSpec(16);
   spec.calibration = CalibrationDesc{};
   bytes = SerializeModel(spec, v12);
   ASSERT_FALSE(bytes.ok());

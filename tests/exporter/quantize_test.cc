@@ -10,9 +10,9 @@
 #include <tuple>
 #include <vector>
 
-#include "common/sceneednet_spec.h"
 #include "common/unet_spec.h"
 #include "sfrt/exporter/model_writer.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
 #include "sfrt/reference.h"
@@ -146,7 +146,7 @@ TEST(ParseCalibrationMethod, AcceptsPercentilesFrom50To100AndMinmax) {
 }
 
 TEST(Quantize, SameInputsGiveTheSameFileBytesTwice) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(3, 11);
   QuantizeOptions options;
   auto a = Quantize(spec, data, options);
@@ -159,7 +159,7 @@ TEST(Quantize, SameInputsGiveTheSameFileBytesTwice) {
 }
 
 TEST(Quantize, Int8ModelStaysCloseToFloat32OnASceneEdNetShapedModel) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(4, 21);
   auto result = Quantize(spec, data, {});
   ASSERT_TRUE(result.ok()) << result.message();
@@ -187,7 +187,7 @@ TEST(Quantize, Int8ModelStaysCloseToFloat32OnASceneEdNetShapedModel) {
 }
 
 TEST(Quantize, AnInt8ConvolutionHandsTheNextItsOwnOutputQuantAndTheLoaderAgrees) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   auto result = Quantize(spec, RandomFrames(2, 31), {});
   ASSERT_TRUE(result.ok()) << result.message();
   const std::vector<const ConvSpec*> convs = Convs(result->spec);
@@ -206,7 +206,7 @@ TEST(Quantize, AnInt8ConvolutionHandsTheNextItsOwnOutputQuantAndTheLoaderAgrees)
 }
 
 TEST(Quantize, CalibrationRecordNamesMethodDataAndErrorsAndSurvivesTheFile) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(2, 41);
   QuantizeOptions options;
   options.method = "percentile:99.9";
@@ -245,7 +245,7 @@ TEST(Quantize, CalibrationRecordNamesMethodDataAndErrorsAndSurvivesTheFile) {
 }
 
 TEST(Quantize, ReportsProgressForEveryFrameOfEveryPass) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   QuantizeOptions options;
   std::vector<std::string> calls;
   options.progress = [&](const char* pass, int frame, int frames) {
@@ -259,7 +259,7 @@ TEST(Quantize, ReportsProgressForEveryFrameOfEveryPass) {
 // With either engine, frames on several threads, and (session) threads left over going to each
 // frame's session: 5 frames on 2, 3 and 8 threads, 1 frame on 2.
 TEST(Quantize, TheThreadCountChangesNoByteOfTheResult) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   for (auto [engine, mode, frames] :
        {std::tuple{CalibrationEngine::kSession, QuantizeMode::kInt8, 5},
         std::tuple{CalibrationEngine::kSession, QuantizeMode::kAuto, 5},
@@ -295,7 +295,7 @@ TEST(Quantize, TheThreadCountChangesNoByteOfTheResult) {
 // same weights, ranges within a histogram bin or two of the reference engine's, and the same
 // errors to a few percent.
 TEST(Quantize, TheSessionEngineFindsTheReferenceEnginesRangesAndErrors) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(3, 61);
   QuantizeOptions options;
   options.engine = CalibrationEngine::kReference;
@@ -326,7 +326,7 @@ TEST(Quantize, TheSessionEngineFindsTheReferenceEnginesRangesAndErrors) {
 }
 
 TEST(Quantize, ThreadsReportEveryFrameOnceInOrderAndZeroThreadsIsAnError) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   QuantizeOptions options;
   options.threads = 2;
   std::vector<std::string> calls;
@@ -397,7 +397,7 @@ std::vector<double> LargestChannelMeanErrors(const ModelSpec& fp32, const ModelS
 // outputs (a mean over few pixels in the deep layers of this small model), under 2% of a
 // quantisation step and a tenth of the uncorrected model's in all. The output's error drops.
 TEST(Quantize, BiasCorrectionLeavesNoChannelAMeanErrorAndLowersTheOutputsError) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(3, 63);
   QuantizeOptions options;
   auto plain = Quantize(spec, data, options);
@@ -433,7 +433,7 @@ TEST(Quantize, BiasCorrectionLeavesNoChannelAMeanErrorAndLowersTheOutputsError) 
 }
 
 TEST(Quantize, BiasCorrectionChangesNoByteWithTheThreadCountAndReportsItsPasses) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(3, 65);
   QuantizeOptions options;
   options.bias_correction = true;
@@ -461,14 +461,14 @@ TEST(Quantize, BiasCorrectionIsRefusedInTheAutoMode) {
   QuantizeOptions options;
   options.mode = QuantizeMode::kAuto;
   options.bias_correction = true;
-  auto result = Quantize(testing::SceneEdNetSpec(16, 5), RandomFrames(1, 67), options);
+  auto result = Quantize(exporter::SceneEdNetSpec(16, 5), RandomFrames(1, 67), options);
   ASSERT_FALSE(result.ok());
   EXPECT_NE(result.message().find("bias correction is for int8 quantisation"), std::string::npos)
       << result.message();
 }
 
 TEST(Quantize, AutoWithAHugeBudgetKeepsEveryConvolutionInt8) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   QuantizeOptions options;
   options.mode = QuantizeMode::kAuto;
   options.accuracy_budget = 1e9;
@@ -479,7 +479,7 @@ TEST(Quantize, AutoWithAHugeBudgetKeepsEveryConvolutionInt8) {
 }
 
 TEST(Quantize, AutoWithBudgetZeroPutsEveryConvolutionBackToFloat32) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const size_t convs = Convs(spec).size();
   // With the bf16 step (the default) each layer goes int8 -> bf16 -> fp32: two steps each.
   for (bool auto_bf16 : {true, false}) {
@@ -500,7 +500,7 @@ TEST(Quantize, AutoWithBudgetZeroPutsEveryConvolutionBackToFloat32) {
 }
 
 TEST(Quantize, AutoTriesBf16BeforeFloat32AndRecordsIt) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(2, 81);
   auto all = Quantize(spec, data, {});
   ASSERT_TRUE(all.ok()) << all.message();
@@ -526,7 +526,7 @@ TEST(Quantize, AutoTriesBf16BeforeFloat32AndRecordsIt) {
 }
 
 TEST(Quantize, AutoWithoutBf16AndAMiddleBudgetMeetsItWithSomeConvolutionsInt8) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(2, 81);
   auto all = Quantize(spec, data, {});
   ASSERT_TRUE(all.ok()) << all.message();
@@ -547,7 +547,7 @@ TEST(Quantize, AutoWithoutBf16AndAMiddleBudgetMeetsItWithSomeConvolutionsInt8) {
 }
 
 TEST(Quantize, AutoWithTheMaxMetricHoldsTheLargestErrorWithinTheBudget) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(2, 81);
   auto all = Quantize(spec, data, {});
   ASSERT_TRUE(all.ok()) << all.message();
@@ -578,7 +578,7 @@ TEST(Quantize, RefusesAllConstantFrames) {
   CalibrationSet data = RandomFrames(2, 1);
   for (size_t i = 0; i < data.values.size(); ++i)
     data.values[i] = i < data.values.size() / 2 ? 0 : 7;
-  auto r = Quantize(testing::SceneEdNetSpec(16, 5), data, {});
+  auto r = Quantize(exporter::SceneEdNetSpec(16, 5), data, {});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.message().find("all 2 calibration frames are constant"), std::string::npos)
       << r.message();
@@ -588,7 +588,7 @@ TEST(Quantize, RefusesANonFiniteValueNamingFrameAndElement) {
   CalibrationSet data = RandomFrames(2, 1);
   const size_t frame = static_cast<size_t>(kHeight) * kWidth * 12;
   data.values[frame + (3 * kWidth + 5) * 12 + 7] = std::numeric_limits<float>::quiet_NaN();
-  auto r = Quantize(testing::SceneEdNetSpec(16, 5), data, {});
+  auto r = Quantize(exporter::SceneEdNetSpec(16, 5), data, {});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.message().find("calibration frame 1, element [3, 5, 7] (flat index " +
                              std::to_string(frame + (3 * kWidth + 5) * 12 + 7) + ") is NaN"),
@@ -596,7 +596,7 @@ TEST(Quantize, RefusesANonFiniteValueNamingFrameAndElement) {
       << r.message();
   data.values[frame + (3 * kWidth + 5) * 12 + 7] = 1.0f;
   data.values[4] = -std::numeric_limits<float>::infinity();
-  r = Quantize(testing::SceneEdNetSpec(16, 5), data, {});
+  r = Quantize(exporter::SceneEdNetSpec(16, 5), data, {});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.message().find("frame 0, element [0, 0, 4] (flat index 4) is infinite"),
             std::string::npos)
@@ -604,12 +604,12 @@ TEST(Quantize, RefusesANonFiniteValueNamingFrameAndElement) {
 }
 
 TEST(Quantize, RefusesFramesWithTheWrongChannelCountOrNoFrames) {
-  auto r = Quantize(testing::SceneEdNetSpec(16, 5), RandomFrames(1, 1, 3), {});
+  auto r = Quantize(exporter::SceneEdNetSpec(16, 5), RandomFrames(1, 1, 3), {});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.message().find("calibration frames have 3 channels but the model's input has 12"),
             std::string::npos)
       << r.message();
-  r = Quantize(testing::SceneEdNetSpec(16, 5), CalibrationSet{0, kHeight, kWidth, 12, {}}, {});
+  r = Quantize(exporter::SceneEdNetSpec(16, 5), CalibrationSet{0, kHeight, kWidth, 12, {}}, {});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.message().find("the calibration set is empty"), std::string::npos) << r.message();
 }
@@ -667,7 +667,7 @@ TEST(Quantize, Int8GraphIsCalibratedOnWhatEachConvolutionReads) {
 TEST(SharedScaleGroups, GroupsTheConvolutionsThatReadOneTensorThroughCopies) {
   for (const auto& [spec, want] : {std::pair{testing::SceneEdNetUSpec(16, 5),
                                              std::vector<int>{0, 1, 2, 3, 3, 5, 3, 2, 1, 9, 10}},
-                                   std::pair{testing::SceneEdNetSpec(16, 5),
+                                   std::pair{exporter::SceneEdNetSpec(16, 5),
                                              std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10}}}) {
     SCOPED_TRACE(spec.name);
     auto model = LoadSpec(spec);
@@ -732,7 +732,7 @@ TEST(Quantize, SharedScalesLetASessionKeepSceneEdNetUTensorsUint8) {
 
 // A dilated convolution has no int8 form: it stays float32 while the others become int8.
 TEST(Quantize, DilatedConvolutionsStayFloat32BesideInt8Ones) {
-  ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   auto& c1 = std::get<ConvSpec>(spec.layers[1]);
   c1.dilation_h = c1.dilation_w = 2;
   auto result = Quantize(spec, RandomFrames(2, 21), {});
@@ -746,7 +746,7 @@ TEST(Quantize, DilatedConvolutionsStayFloat32BesideInt8Ones) {
 }
 
 TEST(Quantize, RefusesAModelThatIsAlreadyInt8) {
-  const ModelSpec spec = testing::SceneEdNetSpec(16, 5);
+  const ModelSpec spec = exporter::SceneEdNetSpec(16, 5);
   const CalibrationSet data = RandomFrames(1, 2);
   auto once = Quantize(spec, data, {});
   ASSERT_TRUE(once.ok()) << once.message();

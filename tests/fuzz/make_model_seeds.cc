@@ -8,9 +8,9 @@
 #include <fstream>
 #include <string>
 
-#include "common/sceneednet_spec.h"
 #include "common/unet_spec.h"
 #include "sfrt/exporter/model_writer.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 
 namespace {
 
@@ -70,10 +70,10 @@ int main(int argc, char** argv) {
   const std::filesystem::path dir = argv[1];
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  auto w64_fp16 = sfrt::testing::SceneEdNetSpec(64, 3);
+  auto w64_fp16 = sfrt::exporter::SceneEdNetSpec(64, 3);
   w64_fp16.weight_type = sfrt::WeightType::kFloat16;
-  const bool ok = Write(dir / "sceneednet-w16.sfrt", sfrt::testing::SceneEdNetSpec(16, 1)) &&
-                  Write(dir / "sceneednet-w64.sfrt", sfrt::testing::SceneEdNetSpec(64, 2)) &&
+  const bool ok = Write(dir / "sceneednet-w16.sfrt", sfrt::exporter::SceneEdNetSpec(16, 1)) &&
+                  Write(dir / "sceneednet-w64.sfrt", sfrt::exporter::SceneEdNetSpec(64, 2)) &&
                   Write(dir / "sceneednet-w64-fp16.sfrt", w64_fp16) &&
                   Write(dir / "explicit-chain.sfrt", ExplicitChain()) &&
                   Write(dir / "sceneednet-u-w64.sfrt", sfrt::testing::SceneEdNetUSpec(64, 4, true));

@@ -26,8 +26,8 @@
 #include <vector>
 
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "sfrt/exporter/model_writer.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 #include "sfrt/shapes.h"
@@ -245,7 +245,7 @@ class ModelFaultInjection : public ::testing::Test {
   void Prepare(int minor) {
     exporter::SerializeOptions options;
     options.schema_minor = minor;
-    auto bytes = exporter::SerializeModel(testing::SceneEdNetSpec(64, 7), options);
+    auto bytes = exporter::SerializeModel(exporter::SceneEdNetSpec(64, 7), options);
     ASSERT_TRUE(bytes.ok()) << bytes.message();
     file_ = std::move(*bytes);
     auto model = Model::LoadBuffer(file_.data(), file_.size(), BufferOwnership::kCopy);
@@ -422,7 +422,7 @@ TEST_F(ModelFaultInjection, Schema10FileLoadsWithItsWeightsChecksumOnly) {
   EXPECT_EQ((*model)->metadata().schema_minor, 0);
   EXPECT_FALSE((*model)->metadata().file_crc32c.has_value());
   // The same model in 1.1 has the same layers and weights.
-  auto v11 = testing::LoadOrDie(testing::SceneEdNetSpec(64, 7));
+  auto v11 = testing::LoadOrDie(exporter::SceneEdNetSpec(64, 7));
   ASSERT_NE(v11, nullptr);
   EXPECT_EQ((*model)->metadata().weights_crc32c, v11->metadata().weights_crc32c);
   EXPECT_EQ((*model)->parameter_count(), v11->parameter_count());
@@ -490,7 +490,7 @@ TEST(ModelLimits, FileAboveTheTwoGiBFormatLimitIsRejectedNamingTheLimit) {
 }
 
 TEST(ModelLimits, InputSideAboveTheLimitIsRejectedWithoutOverflow) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(64, 7));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(64, 7));
   ASSERT_NE(model, nullptr);
   for (const auto& [h, w] : {std::pair{kMaxTensorSide + 1, 16}, std::pair{16, kMaxTensorSide + 1},
                              std::pair{std::numeric_limits<int>::max(), 16}}) {
@@ -506,7 +506,7 @@ TEST(ModelLimits, InputSideAboveTheLimitIsRejectedWithoutOverflow) {
 }
 
 TEST(ModelLimits, UpsamplingPastTheLimitIsRejectedNamingTheLayer) {
-  exporter::ModelSpec spec = testing::SceneEdNetSpec(64, 7);
+  exporter::ModelSpec spec = exporter::SceneEdNetSpec(64, 7);
   for (int k = 0; k < 4; ++k) {
     spec.layers.insert(spec.layers.begin(),
                        exporter::UpsampleSpec{"up" + std::to_string(k), 64, 64, {}});
@@ -526,7 +526,7 @@ TEST(ModelLimits, UpsamplingPastTheLimitIsRejectedNamingTheLayer) {
 }
 
 TEST(ModelLimits, HugeExplicitCropIsRejectedWithoutOverflow) {
-  exporter::ModelSpec spec = testing::SceneEdNetSpec(64, 7);
+  exporter::ModelSpec spec = exporter::SceneEdNetSpec(64, 7);
   exporter::CropSpec crop;
   crop.name = "greedy";
   crop.rule = CropRule::kExplicit;
@@ -548,7 +548,7 @@ TEST(ModelLimits, HugeExplicitCropIsRejectedWithoutOverflow) {
 #if !defined(__SANITIZE_ADDRESS__)
 // Not under ASan, which aborts on an allocation this large instead of returning null.
 TEST(ModelLimits, ArenaThatCannotBeAllocatedIsAnErrorNamingItsSize) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(64, 7));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(64, 7));
   ASSERT_NE(model, nullptr);
   SessionOptions options;
   options.max_height = kMaxTensorSide;  // a few TiB of arena at the largest side

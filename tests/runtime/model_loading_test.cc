@@ -10,7 +10,7 @@
 #include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/model.h"
 #include "sfrt_model_generated.h"
 
@@ -20,7 +20,7 @@ namespace {
 namespace fb = ::sfrt::schema;
 
 std::vector<uint8_t> GoodModelBytes() {
-  return testing::SerializeOrDie(testing::SceneEdNetSpec(16));
+  return testing::SerializeOrDie(exporter::SceneEdNetSpec(16));
 }
 
 // The tests here edit fields as a crafted file would, so the file checksum is made valid again
@@ -168,7 +168,7 @@ TEST(ModelLoading, RejectsAWeightShapeThatDisagreesWithTheLayer) {
 }
 
 std::vector<uint8_t> Int8ModelBytes() {
-  return testing::SerializeOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16)));
+  return testing::SerializeOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
 }
 
 TEST(ModelLoading, AcceptsAnInt8ModelAndReadsItsQuantisation) {
@@ -193,7 +193,7 @@ TEST(ModelLoading, RejectsAPrecisionItDoesNotKnowNamingTheLayerAndValue) {
 }
 
 TEST(ModelLoading, AcceptsABf16ModelWithItsFloat32Weights) {
-  auto model = LoadBytes(testing::SerializeOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(16))));
+  auto model = LoadBytes(testing::SerializeOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(16))));
   ASSERT_TRUE(model.ok()) << model.message();
   EXPECT_TRUE((*model)->metadata().has_bf16);
   EXPECT_FALSE((*model)->metadata().has_int8);

@@ -20,8 +20,8 @@
 #include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/unet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -103,9 +103,9 @@ class NoLock : public ::testing::Test {
                          Precision precision = Precision::kFloat32, bool graph = false) {
     auto model = testing::LoadOrDie(
         graph                               ? testing::SceneEdNetUSpec(16, 1, true)
-        : precision == Precision::kInt8     ? testing::Int8Spec(testing::SceneEdNetSpec(16))
-        : precision == Precision::kBFloat16 ? testing::Bf16Spec(testing::SceneEdNetSpec(16))
-                                            : testing::SceneEdNetSpec(16));
+        : precision == Precision::kInt8     ? testing::Int8Spec(exporter::SceneEdNetSpec(16))
+        : precision == Precision::kBFloat16 ? testing::Bf16Spec(exporter::SceneEdNetSpec(16))
+                                            : exporter::SceneEdNetSpec(16));
     auto session = Session::Create(model, options);
     EXPECT_TRUE(session.ok()) << session.message();
     if (!session.ok()) return {};
@@ -131,7 +131,7 @@ TEST_F(NoLock, CountingHooksSeeAMutexAndAFutex) {
   // A pool that sleeps at once, given time to fall asleep before each run: its worker's futex
   // sleeps (and the caller's wakes) must be counted. Without the pauses a worker descheduled
   // throughout would leave every run to the caller, and nothing to count.
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   SessionOptions sleepy;
   sleepy.max_height = 96;
   sleepy.max_width = 128;
@@ -197,7 +197,7 @@ TEST_F(NoLock, RunAtTwoThreadsWithTheDefaultSpinTakesNoMutex) {
 }
 
 TEST_F(NoLock, EverySpinPolicyComputesTheSameOutput) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   std::vector<float> input(67 * 121 * 12);
   for (size_t i = 0; i < input.size(); ++i) input[i] = static_cast<float>((i * 37) % 255);
   std::vector<float> reference(67 * 121 * 3);

@@ -13,9 +13,9 @@
 #include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
 #include "kernels/bf16_job.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
 
@@ -62,7 +62,7 @@ void ExpectMatchesReference(Isa isa, const std::vector<float>& got,
 }
 
 TEST(SessionBf16, EveryIsaMatchesTheReferenceForward) {
-  auto model = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(16)));
+  auto model = testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(16)));
   ASSERT_NE(model, nullptr);
   ASSERT_TRUE(model->metadata().has_bf16);
   // 96x128 as the default model runs; 45x61 odd, so crops and odd padding occur.
@@ -82,7 +82,7 @@ TEST(SessionBf16, EveryIsaMatchesTheReferenceForward) {
 
 TEST(SessionBf16, PublishedWidthsMatchTheReferenceOnTheBestIsa) {
   // The real channel counts (12..1024) at a small size, so every kernel tile is exercised.
-  auto model = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(1)));
+  auto model = testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(1)));
   ASSERT_NE(model, nullptr);
   const int h = 33, w = 40;
   const std::vector<float> input = Input(h, w, 11);
@@ -94,7 +94,7 @@ TEST(SessionBf16, PublishedWidthsMatchTheReferenceOnTheBestIsa) {
 TEST(SessionBf16, TheOutputLayerRunsOnItsIsasFewOutputKernelAndMatchesTheReference) {
   // 1/4 width: the output convolution reads 16 channels, enough for the few-output kernels;
   // 45x61 has quads of pixels inside the input and single pixels at the borders.
-  auto model = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(4)));
+  auto model = testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(4)));
   ASSERT_NE(model, nullptr);
   const int h = 45, w = 61;
   const std::vector<float> input = Input(h, w, 13);
@@ -117,8 +117,8 @@ TEST(SessionBf16, StaysWithinTwoPercentOfTheFloat32Model) {
   // The bar for bf16: within 2e-2 of the float32 output's largest magnitude.
   for (int width_divisor : {16, 1}) {
     SCOPED_TRACE("1/" + std::to_string(width_divisor) + " width");
-    auto fp32 = testing::LoadOrDie(testing::SceneEdNetSpec(width_divisor));
-    auto bf16 = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(width_divisor)));
+    auto fp32 = testing::LoadOrDie(exporter::SceneEdNetSpec(width_divisor));
+    auto bf16 = testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(width_divisor)));
     ASSERT_NE(fp32, nullptr);
     ASSERT_NE(bf16, nullptr);
     const int h = width_divisor == 1 ? 33 : 96, w = width_divisor == 1 ? 40 : 128;
@@ -139,7 +139,7 @@ TEST(SessionBf16, MixedPrecisionConvertsEachFloatTensorOnceAndMatchesTheReferenc
   const std::vector<bool> int8 = {false, false, false, false, true, false,
                                   false, false, false, false, false};
   auto model = testing::LoadOrDie(
-      testing::Int8Spec(testing::Bf16Spec(testing::SceneEdNetSpec(16), bf16), int8));
+      testing::Int8Spec(testing::Bf16Spec(exporter::SceneEdNetSpec(16), bf16), int8));
   ASSERT_NE(model, nullptr);
   SessionOptions options;
   options.max_height = 64;
@@ -166,7 +166,7 @@ TEST(SessionBf16, MixedPrecisionConvertsEachFloatTensorOnceAndMatchesTheReferenc
 }
 
 TEST(SessionBf16, StepsReportBf16PrecisionAndTensorsStayBf16BetweenBf16Layers) {
-  auto model = testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(16)));
+  auto model = testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(16)));
   ASSERT_NE(model, nullptr);
   auto session = Session::Create(model, {96, 128, BestIsa()});
   ASSERT_TRUE(session.ok()) << session.message();

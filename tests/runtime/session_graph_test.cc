@@ -14,9 +14,9 @@
 #include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
 #include "common/unet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
@@ -60,7 +60,7 @@ TEST(GraphModel, LoadsAsAGraphWithItsInputsResolvedToLayerIndices) {
   // conv0 is read by conv1, by crop3 (for its size) and by cat3.
   EXPECT_EQ(model->consumer_count(0), 3);
   // A chain file still loads as one.
-  auto chain = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto chain = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   ASSERT_NE(chain, nullptr);
   EXPECT_TRUE(chain->is_chain());
 }

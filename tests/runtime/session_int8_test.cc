@@ -9,10 +9,10 @@
 
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
 #include "kernels/int8_job.h"
 #include "sfrt/crc32c.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
 
@@ -40,7 +40,7 @@ size_t FirstDifference(const std::vector<float>& a, const std::vector<float>& b)
 }
 
 TEST(SessionInt8, EveryIsaMatchesTheReferenceForwardBitForBit) {
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16)));
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
   ASSERT_NE(model, nullptr);
   ASSERT_TRUE(model->metadata().has_int8);
   // 96x128 as the default model runs; 45x61 odd, so crops and odd padding occur.
@@ -62,7 +62,7 @@ TEST(SessionInt8, EveryIsaMatchesTheReferenceForwardBitForBit) {
 
 TEST(SessionInt8, PublishedWidthsMatchTheReferenceOnTheBestIsa) {
   // The real channel counts (12..1024) at a small size, so every kernel tile is exercised.
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(1)));
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(1)));
   ASSERT_NE(model, nullptr);
   const int h = 33, w = 40;
   const std::vector<float> input = testing::RandomImage(h, w, 12, 11);
@@ -77,7 +77,7 @@ TEST(SessionInt8, PublishedWidthsMatchTheReferenceOnTheBestIsa) {
 // table names a kernel for it (`name` of IsaInt8Kernels), the session plans that kernel, and the
 // output is the reference's bytes, and the same with KernelTuning::few_out off (the tiles).
 void ExpectOutputLayerKernel(int width_divisor, const char* IsaInt8Kernels::*name) {
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(width_divisor)));
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(width_divisor)));
   ASSERT_NE(model, nullptr);
   const int h = 45, w = 61;
   const std::vector<float> input = testing::RandomImage(h, w, 12, 13);
@@ -121,7 +121,7 @@ TEST(SessionInt8, TheNarrowOutputLayerRunsOnItsIsasNarrowKernelAndMatchesTheRefe
 TEST(SessionInt8, OutputIsTheSameBytesOnEveryMachine) {
   // Int8 arithmetic is exact up to its epilogue, which is defined op by op (int8_job.h), so the
   // output's checksum is a constant: the same on x86-64 (reference and VNNI) and on aarch64.
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16)));
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
   ASSERT_NE(model, nullptr);
   const int h = 48, w = 64;
   const std::vector<float> input = testing::RandomImage(h, w, 12, 3);
@@ -137,7 +137,7 @@ TEST(SessionInt8, MixedPrecisionQuantisesEachFloatTensorOnceAndMatchesTheReferen
   // conv0 and output float32 (as `--precision auto` may keep them), one float32 layer inside.
   const std::vector<bool> int8 = {false, true, true, true, false, true,
                                   true,  true, true, true, false};
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16), int8));
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16), int8));
   ASSERT_NE(model, nullptr);
   SessionOptions options;
   options.max_height = 64;
@@ -164,7 +164,7 @@ TEST(SessionInt8, MixedPrecisionQuantisesEachFloatTensorOnceAndMatchesTheReferen
 }
 
 TEST(SessionInt8, StepsReportInt8PrecisionAndTensorsStayUint8BetweenInt8Layers) {
-  auto model = testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16)));
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
   ASSERT_NE(model, nullptr);
   auto session = Session::Create(model, {96, 128, BestIsa()});
   ASSERT_TRUE(session.ok()) << session.message();

@@ -17,8 +17,8 @@
 #include <vector>
 
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -35,7 +35,7 @@ namespace {
 constexpr double kRelativeTolerance = 1e-4;
 
 std::shared_ptr<const Model> FullWidthModel() {
-  static const std::shared_ptr<const Model> model = testing::LoadOrDie(testing::SceneEdNetSpec(1));
+  static const std::shared_ptr<const Model> model = testing::LoadOrDie(exporter::SceneEdNetSpec(1));
   return model;
 }
 

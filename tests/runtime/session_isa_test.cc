@@ -10,9 +10,9 @@
 #include <string>
 
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/scoped_env.h"
 #include "common/session_compare.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -33,7 +33,7 @@ class SessionIsa : public ::testing::TestWithParam<Isa> {
 };
 
 TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAt540x960) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   const auto input = testing::RandomImage(540, 960, 12, 3);
   const auto want = testing::RunSession(model, Isa::kRef, 2, input, 540, 960);
   const auto got = testing::RunSession(model, GetParam(), 1, input, 540, 960);
@@ -41,7 +41,7 @@ TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAt540x960) {
 }
 
 TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAtAnOddSize) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16, 7));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16, 7));
   const auto input = testing::RandomImage(67, 121, 12, 4);
   const auto want = testing::RunSession(model, Isa::kRef, 1, input, 67, 121);
   const auto got = testing::RunSession(model, GetParam(), 1, input, 67, 121);
@@ -49,14 +49,14 @@ TEST_P(SessionIsa, SceneEdNetW16MatchesTheReferencePathAtAnOddSize) {
 }
 
 TEST_P(SessionIsa, TwoThreadsGiveBitIdenticalResultsToOne) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16, 5));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16, 5));
   const auto input = testing::RandomImage(97, 133, 12, 5);
   EXPECT_EQ(testing::RunSession(model, GetParam(), 2, input, 97, 133),
             testing::RunSession(model, GetParam(), 1, input, 97, 133));
 }
 
 TEST_P(SessionIsa, FusesEveryUpsampleIntoTheConvolutionThatReadsIt) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   SessionOptions options;
   options.isa = GetParam();
   auto session = Session::Create(model, options);
@@ -87,7 +87,7 @@ INSTANTIATE_TEST_SUITE_P(EveryIsa, SessionIsa,
 
 TEST(SessionIsaSelection, FusedPlanHalvesTheFullWidthArena) {
   if (BestIsa() == Isa::kRef) GTEST_SKIP() << "no SIMD ISA on this CPU or build";
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(1));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(1));
   SessionOptions options;
   options.isa = BestIsa();
   auto session = Session::Create(model, options);
@@ -126,7 +126,7 @@ TEST(SessionIsaSelection, AnUnsupportedRequestFailsNamingTheIsaAndWhatIsSupporte
     if (!IsaSupported(isa)) missing = isa;
   }
   if (missing == Isa::kAuto) GTEST_SKIP() << "this CPU runs every ISA this runtime knows";
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   SessionOptions options;
   options.isa = missing;
   auto session = Session::Create(model, options);
@@ -141,7 +141,7 @@ using testing::ScopedEnv;
 // The library takes options and reads no environment: SFRT_ISA is the `sfrt` tool's to map
 // (tests/tools/session_environment_test.cc), and kAuto means BestIsa() whatever it says.
 TEST(SessionIsaSelection, AutoMeansTheBestIsaWhateverTheEnvironmentSays) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   for (const char* value : {"ref", "mmx"}) {
     ScopedEnv env("SFRT_ISA", value);
     auto session = Session::Create(model, {32, 32});
@@ -151,7 +151,7 @@ TEST(SessionIsaSelection, AutoMeansTheBestIsaWhateverTheEnvironmentSays) {
 }
 
 TEST(SessionIsaSelection, RejectsAWinogradTileOtherThanZeroTwoOrFour) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   SessionOptions options;
   options.max_height = options.max_width = 32;
   options.tuning.winograd_tile = 3;
@@ -161,7 +161,7 @@ TEST(SessionIsaSelection, RejectsAWinogradTileOtherThanZeroTwoOrFour) {
 }
 
 TEST(SessionIsaSelection, RejectsANegativeThreadCount) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   SessionOptions options;
   options.threads = -1;
   auto session = Session::Create(model, options);

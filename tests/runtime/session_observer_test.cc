@@ -13,9 +13,9 @@
 #include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/session_compare.h"
 #include "common/unet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
 
@@ -135,17 +135,17 @@ void ExpectObservedLayersMatchTheReference(const exporter::ModelSpec& spec, int 
 
 TEST(SessionObserver, Float32ChainShowsEachStepsLayerAsTheReferenceComputesIt) {
   // Winograd and SIMD sums in another order than the scalar reference.
-  ExpectObservedLayersMatchTheReference(testing::SceneEdNetSpec(16), 45, 61, 1e-4);
+  ExpectObservedLayersMatchTheReference(exporter::SceneEdNetSpec(16), 45, 61, 1e-4);
 }
 
 TEST(SessionObserver, Int8ChainShowsTheReferencesTensorsBitForBit) {
   // uint8 tensors dequantised as the reference does, int8 sums exact, the same epilogue.
-  ExpectObservedLayersMatchTheReference(testing::Int8Spec(testing::SceneEdNetSpec(16)), 45, 61,
+  ExpectObservedLayersMatchTheReference(testing::Int8Spec(exporter::SceneEdNetSpec(16)), 45, 61,
                                         0.0);
 }
 
 TEST(SessionObserver, Bf16ChainShowsTensorsNearTheReferences) {
-  ExpectObservedLayersMatchTheReference(testing::Bf16Spec(testing::SceneEdNetSpec(16)), 45, 61,
+  ExpectObservedLayersMatchTheReference(testing::Bf16Spec(exporter::SceneEdNetSpec(16)), 45, 61,
                                         1e-2);
 }
 
@@ -167,7 +167,7 @@ TEST(SessionObserver, Bf16GraphShowsItsBf16TensorsAndConcatsInPlaceNearTheRefere
 }
 
 TEST(SessionObserver, AnEmptyObserverRunsAsRunAndAnOversizedInputFailsAlike) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   ASSERT_NE(model, nullptr);
   SessionOptions options;
   options.max_height = 24;

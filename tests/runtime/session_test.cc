@@ -6,8 +6,8 @@
 #include <random>
 
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "memory_planner.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 
 namespace sfrt {
 namespace {
@@ -30,7 +30,7 @@ std::vector<float> RunOnce(Session& session, const std::vector<float>& input, in
 }
 
 TEST(Session, ProducesAFiniteOutputOfTheInputSize) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {67, 121});
   ASSERT_TRUE(session.ok()) << session.message();
   const auto out = RunOnce(**session, RandomImage(67, 121, 12, 1), 67, 121);
@@ -39,7 +39,7 @@ TEST(Session, ProducesAFiniteOutputOfTheInputSize) {
 }
 
 TEST(Session, SmallerInputsGiveTheSameResultAsASessionPlannedForThem) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto big = Session::Create(model, {80, 96});
   ASSERT_TRUE(big.ok()) << big.message();
   for (auto [h, w] : {std::pair{33, 47}, {80, 96}, {1, 1}, {64, 17}}) {
@@ -51,7 +51,7 @@ TEST(Session, SmallerInputsGiveTheSameResultAsASessionPlannedForThem) {
 }
 
 TEST(Session, RepeatedRunsAreBitIdentical) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {40, 50});
   ASSERT_TRUE(session.ok());
   const auto input = RandomImage(40, 50, 12, 9);
@@ -61,7 +61,7 @@ TEST(Session, RepeatedRunsAreBitIdentical) {
 }
 
 TEST(Session, TimedRunGivesTheSameOutputAndOrderedStepTimestamps) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {40, 50});
   ASSERT_TRUE(session.ok());
   const auto input = RandomImage(40, 50, 12, 3);
@@ -78,7 +78,7 @@ TEST(Session, TimedRunGivesTheSameOutputAndOrderedStepTimestamps) {
 }
 
 TEST(Session, TimedRunRejectsATimestampBufferTooShortForThePlan) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {40, 50});
   ASSERT_TRUE(session.ok());
   std::vector<float> input(40 * 50 * 12, 1.0f), output(40 * 50 * 3);
@@ -89,7 +89,7 @@ TEST(Session, TimedRunRejectsATimestampBufferTooShortForThePlan) {
 }
 
 TEST(Session, PlanHasNoOverlapsAndFitsTheArena) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {540, 960, Isa::kRef});
   ASSERT_TRUE(session.ok());
   std::vector<BufferRequest> requests;
@@ -110,7 +110,7 @@ TEST(Session, ArenaForFullWidthAt540x960IsPinned) {
   // largest neighbours, up4 (544x960x128) and conv9's input/output pair. A planner change that
   // grows this should be a conscious decision.
   // The reference path keeps every tensor; the fused plan is pinned in session_isa_test.
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(1));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(1));
   auto session = Session::Create(model, {540, 960, Isa::kRef});
   ASSERT_TRUE(session.ok()) << session.message();
   const size_t up4 = 544ull * 960 * 128 * 4;
@@ -119,7 +119,7 @@ TEST(Session, ArenaForFullWidthAt540x960IsPinned) {
 }
 
 TEST(Session, RejectsInputsLargerThanPlanned) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {32, 32});
   ASSERT_TRUE(session.ok());
   std::vector<float> in(33 * 32 * 12), out(33 * 32 * 3);
@@ -130,7 +130,7 @@ TEST(Session, RejectsInputsLargerThanPlanned) {
 }
 
 TEST(Session, RejectsBuffersThatAreTooSmall) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {16, 16});
   ASSERT_TRUE(session.ok());
   std::vector<float> in(16 * 16 * 12), out(16 * 16 * 3);
@@ -141,7 +141,7 @@ TEST(Session, RejectsBuffersThatAreTooSmall) {
 }
 
 TEST(Session, RejectsANonPositiveMaximumSize) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   auto session = Session::Create(model, {0, 960});
   ASSERT_FALSE(session.ok());
   EXPECT_NE(session.message().find("0x960"), std::string::npos) << session.message();

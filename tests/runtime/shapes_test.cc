@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 
 namespace sfrt {
 namespace {
@@ -33,7 +33,7 @@ TEST(ConvOutputSize, ExplicitPadsAreUsedAsGiven) {
 }
 
 TEST(InferGeometry, FullWidthSceneEdNetCostsAbout191Point6GmacAt540x960) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(1));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(1));
   ASSERT_NE(model, nullptr);
   auto geometry = InferGeometry(*model, 540, 960);
   ASSERT_TRUE(geometry.ok()) << geometry.message();
@@ -61,7 +61,7 @@ TEST(InferGeometry, FullWidthSceneEdNetCostsAbout191Point6GmacAt540x960) {
 }
 
 TEST(InferGeometry, LayerShapesFollowTheSpecTableAt540x960) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   ASSERT_NE(model, nullptr);
   auto geometry = InferGeometry(*model, 540, 960);
   ASSERT_TRUE(geometry.ok()) << geometry.message();
@@ -86,7 +86,7 @@ TEST(InferGeometry, LayerShapesFollowTheSpecTableAt540x960) {
 }
 
 TEST(InferGeometry, OddSizesCropBackToTheInputSize) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   ASSERT_NE(model, nullptr);
   for (auto [h, w] : {std::pair{67, 121}, {1, 1}, {17, 33}, {35, 61}, {541, 959}}) {
     auto geometry = InferGeometry(*model, h, w);
@@ -99,7 +99,7 @@ TEST(InferGeometry, OddSizesCropBackToTheInputSize) {
 }
 
 TEST(InferGeometry, RejectsNonPositiveSizes) {
-  auto model = testing::LoadOrDie(testing::SceneEdNetSpec(16));
+  auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   ASSERT_NE(model, nullptr);
   auto geometry = InferGeometry(*model, 0, 10);
   ASSERT_FALSE(geometry.ok());
@@ -107,7 +107,7 @@ TEST(InferGeometry, RejectsNonPositiveSizes) {
 }
 
 TEST(InferGeometry, ExplicitCropThatRemovesEverythingNamesTheLayer) {
-  exporter::ModelSpec spec = testing::SceneEdNetSpec(16);
+  exporter::ModelSpec spec = exporter::SceneEdNetSpec(16);
   std::get<exporter::CropSpec>(spec.layers[13]) = {
       "crop", exporter::CropRule::kExplicit, {40, 0, 0, 0}, true, true, {}};
   auto model = testing::LoadOrDie(spec);

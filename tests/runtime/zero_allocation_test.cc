@@ -11,8 +11,8 @@
 #include "common/float_ops_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
 #include "common/unet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/session.h"
 
@@ -32,9 +32,9 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   for (Precision precision : {Precision::kFloat32, Precision::kInt8, Precision::kBFloat16}) {
     SCOPED_TRACE(PrecisionName(precision));
     auto model = testing::LoadOrDie(
-        precision == Precision::kInt8       ? testing::Int8Spec(testing::SceneEdNetSpec(16))
-        : precision == Precision::kBFloat16 ? testing::Bf16Spec(testing::SceneEdNetSpec(16))
-                                            : testing::SceneEdNetSpec(16));
+        precision == Precision::kInt8       ? testing::Int8Spec(exporter::SceneEdNetSpec(16))
+        : precision == Precision::kBFloat16 ? testing::Bf16Spec(exporter::SceneEdNetSpec(16))
+                                            : exporter::SceneEdNetSpec(16));
     for (Isa isa : SupportedIsas()) {
       for (int threads : {1, 2}) {
         SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");
@@ -103,7 +103,7 @@ TEST(ZeroAllocation, OutputShapeAllocatesNothing) {
   for (bool graph : {false, true}) {
     SCOPED_TRACE(graph ? "graph" : "chain");
     auto model =
-        testing::LoadOrDie(graph ? testing::SceneEdNetUSpec(16) : testing::SceneEdNetSpec(16));
+        testing::LoadOrDie(graph ? testing::SceneEdNetUSpec(16) : exporter::SceneEdNetSpec(16));
     SessionOptions options;
     options.max_height = 96;
     options.max_width = 128;

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The README's shell examples, run in order on this build (issue #38, item 14), so the front door
-cannot drift from the product: every ```sh block of README.md is read, its commands are run one
-by one in a scratch directory that looks like the repository root (models/, tools/ and build/
+cannot drift from the product: every ```sh block of README.md (and then of each further document
+given, docs/features.md) is read, its commands are run one by one in a scratch directory that looks like the repository root (models/, tools/ and build/
 linked, firmware-cfg/ copied so a profile's relative outputs land here), with `sfrt` meaning this
 build's bin/sfrt as the README says, and each must exit 0. Variables a block sets (M=..., F=...)
 carry on to its later lines.
@@ -10,7 +10,8 @@ Commands it does not run, each with its reason (SKIPS below), are listed in its 
 command that matches no rule and fails fails the test. A SKIPS rule that matches no README line
 fails it too, so the list cannot go stale.
 
-usage: readme_check.py --readme README.md --repo ROOT --build BUILD_DIR --work DIR
+usage: readme_check.py --readme README.md [--readme docs/features.md ...] --repo ROOT
+                       --build BUILD_DIR --work DIR
 """
 import argparse
 import os
@@ -31,6 +32,8 @@ SKIPS = [
     (r"roscore &", "needs a stereo driver publishing images; tests/ros/node_check.py runs the "
      "node against a real roscore"),
     (r"build/release/bin/sfrt_ros ", "the node needs roscore and a stereo driver (see above)"),
+    (r"build/release/bin/sfrt_ros2 ", "the node needs a stereo driver on DDS; "
+     "tests/ros2/node2_check.py runs it against Cyclone DDS and Fast DDS participants"),
     (r"sfrt export (model\.onnx|old\.sfrt|model\.sfrt|rgbd\.onnx)", "needs the user's own "
      "model files"),
     (r"sfrt infer --model (model|rgbd)\.sfrt", "needs the user's own model and inputs"),
@@ -39,10 +42,11 @@ SKIPS = [
 ]
 
 
-def commands(readme):
-    """(block number, command) of every ```sh block, continuation lines joined, comments kept."""
+def commands(readmes):
+    """(block number, command) of every ```sh block of the documents in order, continuation lines
+    joined, comments kept; blocks are numbered across the documents."""
     out, block, inside, pending = [], 0, False, ""
-    for line in open(readme):
+    for line in (text for readme in readmes for text in open(readme)):
         if line.startswith("```"):
             inside = line.strip() == "```sh" if not inside else False
             block += inside
@@ -69,7 +73,8 @@ def skip_reason(command):
 
 def main():
     ap = argparse.ArgumentParser()
-    for flag in ("--readme", "--repo", "--build", "--work"):
+    ap.add_argument("--readme", required=True, action="append")
+    for flag in ("--repo", "--build", "--work"):
         ap.add_argument(flag, required=True)
     a = ap.parse_args()
     shutil.rmtree(a.work, ignore_errors=True)

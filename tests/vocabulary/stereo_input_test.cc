@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 
 namespace sfrt::vocabulary {
 namespace {
@@ -33,7 +33,7 @@ TEST(StereoInputWords, EveryNameParsesBackToItsWordAndOthersAreRefused) {
 }
 
 TEST(StereoInputWords, ModelFileMetadataIsSpelledWithTheVocabulary) {
-  exporter::ModelSpec spec = sfrt::testing::SceneEdNetSpec(16);
+  exporter::ModelSpec spec = sfrt::exporter::SceneEdNetSpec(16);
   spec.input.image_order = {ImageSlot::kRight1, ImageSlot::kLeft0, ImageSlot::kRight0,
                             ImageSlot::kLeft1};
   spec.input.color_order = ColorOrder::kRGB;

@@ -1,4 +1,5 @@
 // Side-by-side stereo video files through cv::VideoCapture.
+#include <cstdio>
 #include <filesystem>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -79,9 +80,13 @@ class SbsVideoSource final : public StereoSource {
     } else {
       pair->timestamp_s.reset();
     }
-    const std::string where = path_ + "#" + std::to_string(frame);
-    pair->left_path = where + (options_.left_first ? " (left half)" : " (right half)");
-    pair->right_path = where + (options_.left_first ? " (right half)" : " (left half)");
+    // Into the pair's own strings: once they have grown, no allocation per frame.
+    char number[24];
+    std::snprintf(number, sizeof(number), "#%lld", static_cast<long long>(frame));
+    for (std::string* name : {&pair->left_path, &pair->right_path}) {
+      const bool left_half = (name == &pair->left_path) == options_.left_first;
+      name->assign(path_).append(number).append(left_half ? " (left half)" : " (right half)");
+    }
     return Fetched::kPair;
   }
 

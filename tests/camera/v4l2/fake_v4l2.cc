@@ -593,6 +593,15 @@ int FakeV4l2System::Ioctl(int fd, unsigned long request, void* arg) {
   if (arg == nullptr) return Fail(EFAULT);
   FakeDevice* dev = file.dev;
   const FakeDeviceConfig& cfg = dev->config_;
+  if (dev->faults_.eintr_every_ioctl) {
+    const bool retry = dev->interrupted_fd_ == fd && dev->interrupted_request_ == request;
+    dev->interrupted_fd_ = retry ? -1 : fd;
+    dev->interrupted_request_ = retry ? 0 : request;
+    if (!retry) {
+      ++dev->stats_.ioctls_interrupted[IoctlName(request)];
+      return Fail(EINTR);
+    }
+  }
 
   switch (request) {
     case VIDIOC_QUERYCAP: {

@@ -23,7 +23,8 @@
 // POLLERR|POLLHUP on poll, ENOENT on open until Replug(); also by itself after N frames, with an
 // optional timed replug), V4L2_BUF_FLAG_ERROR, dropped frames
 // (sequence gaps), EIO on DQBUF (the buffer is lost as the kernel may do), EBUSY at open or
-// S_FMT, ENOSPC at STREAMON, stalls (no frames at all), short and corrupt frames (raw and MJPEG).
+// S_FMT, ENOSPC at STREAMON, stalls (no frames at all), short and corrupt frames (raw and MJPEG),
+// and EINTR on every ioctl (a signal arriving while the driver sleeps; off by default).
 //
 // Thread-safety: all V4l2Syscalls methods lock one mutex (poll() sleeps without it). Fault knobs
 // and Unplug/Replug are meant to be changed between calls from the test thread.
@@ -89,6 +90,11 @@ struct FakeFaults {
   // With unplug_after_dqbufs: the device comes back this long after that unplug (an open() from
   // then on succeeds, as after Replug(); the dead fds stay dead); < 0 = it stays away.
   int64_t replug_after_ns = -1;
+  // Every ioctl on the device's live fds is interrupted once, as by a signal during the call: it
+  // fails with EINTR, changing nothing, and only the immediate retry (the same request on the
+  // same fd as the next ioctl) is served; any other ioctl in between is interrupted in its turn.
+  // Counted in FakeDeviceStats::ioctls_interrupted.
+  bool eintr_every_ioctl = false;
 };
 
 struct FakeDeviceStats {
@@ -98,6 +104,8 @@ struct FakeDeviceStats {
   uint64_t frames_dropped_no_buffer = 0;  // slot passed with no buffer queued
   uint64_t opens = 0;
   uint64_t streamons = 0;
+  // eintr_every_ioctl: the EINTRs returned, by ioctl name as in call_log() ("QUERYCAP", ...).
+  std::map<std::string, uint64_t> ioctls_interrupted;
 };
 
 class FakeV4l2System;
@@ -142,6 +150,9 @@ class FakeDevice {
   double fps_ = 30.0;
   bool unplugged_ = false;
   int64_t replug_at_ = -1;  // unplug_after_dqbufs with replug_after_ns: when open() works again
+  // eintr_every_ioctl: the ioctl just interrupted, which is served if it comes next (fd -1: none).
+  int interrupted_fd_ = -1;
+  unsigned long interrupted_request_ = 0;
   uint64_t generation_ = 0;
   int owner_fd_ = -1;
   int memfd_ = -1;

@@ -3,7 +3,9 @@
 #include <linux/videodev2.h>
 
 #include <atomic>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "camera/v4l2/capture_test_util.h"
 
@@ -317,6 +319,102 @@ TEST_F(Faults, UnplugAfterDqbufsWithoutReplugStaysAway) {
   }
   EXPECT_EQ(cam.stats().reopens, 0u);
   EXPECT_EQ(cam.stats().reopen_attempts, 6u);
+}
+
+// capture.h: "Every ioctl is retried on EINTR." Every ioctl the device sees is interrupted once
+// and only its immediate retry is served, so one call that gives up on EINTR fails Open(), loses a
+// frame, or (in Close(), which ignores errors) breaks the pairing of the call log checked below.
+TEST_F(Faults, EveryIoctlInterruptedByASignalIsRetried) {
+  struct Session {
+    Status open;
+    std::vector<Frame> frames;
+    std::vector<std::string> log;
+    CaptureStats stats;
+  };
+  const auto run = [](FakeV4l2System& sys) {
+    Session out;
+    CaptureDevice cam(MakeConfig("/dev/video0", V4L2_PIX_FMT_YUYV, 64, 32), sys);
+    out.open = cam.Open();
+    if (!out.open.ok()) return out;
+    for (int i = 0; i < 6; ++i) {
+      Frame f;
+      const Status s = cam.Read(&f);
+      if (!s.ok()) {
+        ADD_FAILURE() << "Read " << i << ": " << s.message();
+        break;
+      }
+      out.frames.push_back(f);
+    }
+    cam.Close();
+    out.log = sys.call_log();
+    out.stats = cam.stats();
+    return out;
+  };
+  // The same session on a device that is never interrupted (the same virtual clock start).
+  FakeV4l2System plain_sys;
+  plain_sys.AddDevice({});
+  const Session plain = run(plain_sys);
+  ASSERT_TRUE(plain.open.ok()) << plain.open.message();
+
+  dev_->faults().eintr_every_ioctl = true;
+  const Session interrupted = run(sys_);
+  ASSERT_TRUE(interrupted.open.ok()) << interrupted.open.message();
+  EXPECT_EQ(interrupted.stats.last_error, "");
+  EXPECT_EQ(sys_.open_fds(), 0);
+  EXPECT_EQ(sys_.live_mappings(), 0);
+  EXPECT_EQ(dev_->buffer_count(), 0u) << "REQBUFS(0) was served";
+
+  // The frames are those of the uninterrupted session, pixel for pixel and stamp for stamp.
+  ASSERT_EQ(interrupted.frames.size(), plain.frames.size());
+  for (size_t i = 0; i < plain.frames.size(); ++i) {
+    const Frame& a = interrupted.frames[i];
+    const Frame& b = plain.frames[i];
+    EXPECT_EQ(a.sequence, b.sequence) << "frame " << i;
+    EXPECT_EQ(a.timestamp_ns, b.timestamp_ns) << "frame " << i;
+    EXPECT_EQ(a.dequeue_ns, b.dequeue_ns) << "frame " << i;
+    EXPECT_EQ(a.width, b.width);
+    EXPECT_EQ(a.height, b.height);
+    EXPECT_TRUE(a.bgr == b.bgr) << "frame " << i << " pixels differ";
+  }
+  EXPECT_EQ(interrupted.stats.frames_dequeued, plain.stats.frames_dequeued);
+  EXPECT_EQ(interrupted.stats.eagain, plain.stats.eagain);
+
+  // Each ioctl of the plain session appears twice in a row (interrupted, then retried and served);
+  // open, mmap, munmap, poll and close are untouched.
+  std::vector<std::string> expected;
+  for (const std::string& call : plain.log) {
+    expected.push_back(call);
+    const bool ioctl =
+        call != "open" && call != "close" && call != "mmap" && call != "munmap" && call != "poll";
+    if (ioctl) expected.push_back(call);
+  }
+  size_t first_difference = 0;
+  while (first_difference < expected.size() && first_difference < interrupted.log.size() &&
+         interrupted.log[first_difference] == expected[first_difference]) {
+    ++first_difference;
+  }
+  const auto around = [first_difference](const std::vector<std::string>& log) {
+    std::string text;
+    const size_t from = first_difference < 4 ? 0 : first_difference - 4;
+    for (size_t i = from; i < log.size() && i < first_difference + 4; ++i) {
+      text += (i == first_difference ? " [" : " ") + log[i] + (i == first_difference ? "]" : "");
+    }
+    return text;
+  };
+  EXPECT_TRUE(interrupted.log == expected)
+      << "call " << first_difference << " of " << expected.size() << ": expected..."
+      << around(expected) << "; got..." << around(interrupted.log);
+
+  // Every kind of ioctl the canonical sequence, Read() and Close() use was interrupted.
+  const std::map<std::string, uint64_t>& hits = dev_->stats().ioctls_interrupted;
+  for (const char* name : {"QUERYCAP", "ENUM_FMT", "S_FMT", "G_PARM", "S_PARM", "REQBUFS",
+                           "QUERYBUF", "QBUF", "DQBUF", "STREAMON", "STREAMOFF"}) {
+    const auto it = hits.find(name);
+    EXPECT_TRUE(it != hits.end() && it->second >= 1) << name << " was never interrupted";
+  }
+  uint64_t total = 0;
+  for (const auto& [name, count] : hits) total += count;
+  EXPECT_EQ(total, (expected.size() - plain.log.size())) << "one EINTR per ioctl served";
 }
 
 }  // namespace

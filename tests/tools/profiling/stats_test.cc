@@ -12,7 +12,7 @@
 #include "common/bf16_spec.h"
 #include "common/int8_spec.h"
 #include "common/model_builders.h"
-#include "common/sceneednet_spec.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 
@@ -225,9 +225,9 @@ TEST(LabelSteps, ConversionsAndConvolutionsNameTheirPrecision) {
     std::string prefix;
   };
   const std::vector<Case> cases = {
-      {testing::LoadOrDie(testing::Int8Spec(testing::SceneEdNetSpec(16))), "quantize uint8",
+      {testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16))), "quantize uint8",
        "int8 "},
-      {testing::LoadOrDie(testing::Bf16Spec(testing::SceneEdNetSpec(16))), "round to bf16",
+      {testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(16))), "round to bf16",
        "bf16 "},
   };
   for (const Case& c : cases) {

@@ -25,8 +25,8 @@
 #include <string>
 #include <vector>
 
-#include "common/sceneednet_spec.h"
 #include "sfrt/exporter/model_writer.h"
+#include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
@@ -259,7 +259,7 @@ int main(int argc, char** argv) {
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;
 
   static const std::vector<LayerCase> cases =
-      SceneEdNetCases(testing::SceneEdNetSpec(flags.width_divisor), flags.height, flags.width);
+      SceneEdNetCases(exporter::SceneEdNetSpec(flags.width_divisor), flags.height, flags.width);
   for (const LayerCase& c : cases) {
     for (Isa isa : flags.isas) {
       for (int threads : flags.threads) {

@@ -19,8 +19,12 @@
 // (replays) makes the source wait, so every window is processed.
 //
 // Memory: every buffer (raw images, network input, flow, visualisation) is allocated before the
-// threads start, at the source's frame size and the model input size, and circulates between
-// the stages by swapping. The infer stage only swaps and calls Session::Run: no allocation.
+// first frame (the queue slots before the threads start, each stage's working buffers as its
+// thread starts), at the source's frame size and the model input size, and circulates between
+// the stages by swapping. The infer stage only swaps and calls Session::Run: no allocation
+// (tools_pipeline_allocation_test). The preprocess stage's resizes (OpenCV's cv::resize, when
+// the frame size is not the model's, and at the fallback size) allocate scratch tables on
+// each call; its images are not reallocated.
 //
 // Stopping: `stop` (set from a signal handler by the caller) makes the source stop reading;
 // windows already read are finished and written (at most one per queue slot and stage), so
@@ -221,8 +225,10 @@ struct PipelineOptions {
   // both dimensions, smaller in one); after `recover_after` consecutive in-budget windows at
   // this size the run returns to the model input size. A miss at the fallback size restarts
   // the count (hysteresis). Buffers are sized for the model input size at start, so switching
-  // allocates nothing. Flow files have the size the window ran at; the PNG/video show the
-  // flow upscaled (bilinear) to the model input size, so they keep one size.
+  // reallocates no buffer and the infer stage allocates nothing (the preprocess stage's resizes
+  // allocate their scratch, as at any size other than the frame's). Flow files have the size
+  // the window ran at; the PNG/video show the flow upscaled (bilinear) to the model input size,
+  // so they keep one size.
   struct Size2 {
     int height = 0;
     int width = 0;

@@ -7,9 +7,10 @@
 //
 // Ownership: the factories return a std::unique_ptr the caller owns. Next() writes into the
 // caller's FramePair; the images are 8-bit 3-channel BGR (CV_8UC3). A source may reuse the
-// memory behind pair.left / pair.right when their size and type already match (the video source
-// does, so steady-state decoding does not allocate), so clone an image you keep past the next call
-// with the same FramePair.
+// memory behind pair.left / pair.right when their size and type already match, so clone an image
+// you keep past the next call with the same FramePair. The video source does: in steady state
+// its Next() allocates nothing beyond what OpenCV's decoder allocates per frame (FFmpeg's packets
+// and frame pool; one image with OpenCV's own MJPEG backend) (camera_video_allocation_test).
 //
 // Thread-safety: a source is not thread-safe; call it from one thread (it may be moved between
 // threads). Different sources are independent.

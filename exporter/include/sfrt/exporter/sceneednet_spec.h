@@ -1,5 +1,6 @@
 // Builds SceneEDNet (Thakur and Mukherjee, ICARCV 2018) as an exporter ModelSpec with seeded
-// random weights, so runtime tests need neither Python nor files.
+// random weights: the network's real layer shapes for the runtime's tests (which then need
+// neither Python nor files) and the kernel benchmarks (tools/bench/kernels).
 #pragma once
 
 #include <cmath>
@@ -9,11 +10,10 @@
 
 #include "sfrt/exporter/model_spec.h"
 
-namespace sfrt::testing {
+namespace sfrt::exporter {
 
 // width_divisor 1 = the published widths (64 ... 1024); 16 = every hidden width / 16.
 inline exporter::ModelSpec SceneEdNetSpec(int width_divisor, uint32_t seed = 1) {
-  using namespace sfrt::exporter;
   std::mt19937 rng(seed);
   ModelSpec spec;
   spec.name = "sceneednet-w" + std::to_string(width_divisor) + "-test";
@@ -58,4 +58,4 @@ inline exporter::ModelSpec SceneEdNetSpec(int width_divisor, uint32_t seed = 1) 
   return spec;
 }
 
-}  // namespace sfrt::testing
+}  // namespace sfrt::exporter
