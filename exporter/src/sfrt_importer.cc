@@ -95,6 +95,7 @@ LayerSpec LayerFromDesc(const LayerDesc& layer) {
       pool.pads = p.pads;
       pool.ceil_mode = p.ceil_mode;
       pool.count_include_pad = p.count_include_pad;
+      pool.indices_column_major = p.indices_column_major;
       return pool;
     }
     case LayerKind::kResize:

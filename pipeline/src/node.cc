@@ -190,13 +190,6 @@ class CameraInfoCheck {
 std::atomic<bool> g_sigterm{false};
 extern "C" void OnSigterm(int) { g_sigterm = true; }
 
-std::string PrecisionText(const ModelMetadata& md) {
-  if (md.has_int8 && md.has_bf16) return "int8+bf16+fp32";
-  if (md.has_int8) return "int8 (some layers fp32)";
-  if (md.has_bf16) return "bf16 (some layers fp32)";
-  return "fp32";
-}
-
 // Applies the deployment profile (parameter config) where no parameter sets the same thing, and
 // its process settings (CPUs, priorities, memory). 0, or the exit code after logging why.
 int ApplyProfile(NodeIo& io, NodeSettings* s, PipelineOptions* opts,
@@ -374,7 +367,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
   sink_opts.hardware_id = md.name;
   const Isa isa = opts.isa == Isa::kAuto ? BestIsa() : opts.isa;
   sink_opts.facts = {{"isa", IsaName(isa)},
-                     {"precision", PrecisionText(md)},
+                     {"precision", PrecisionSummary(md)},
                      {"threads", std::to_string(opts.threads)},
                      {"model", s.model},
                      {"input size", s.size.empty() ? "the size a trained model records, else the "
@@ -442,7 +435,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
   std::signal(SIGTERM, OnSigterm);
   io.StartSpinner();
   io.Log(NodeLogLevel::kInfo,
-         identity.name + ": model " + s.model + " (" + PrecisionText(md) + "), isa " +
+         identity.name + ": model " + s.model + " (" + PrecisionSummary(md) + "), isa " +
              IsaName(isa) + ", " + std::to_string(opts.threads) + " thread(s), budget " +
              (s.budget_ms > 0 ? Fixed(s.budget_ms, 1) + " ms" : std::string("none")) +
              ", publishing " + sink_opts.topics.flow);

@@ -587,6 +587,13 @@ const char* PrecisionName(Precision precision) {
   return "?";
 }
 
+std::string PrecisionSummary(const ModelMetadata& metadata) {
+  if (metadata.has_int8 && metadata.has_bf16) return "int8+bf16+fp32";
+  if (metadata.has_int8) return "int8 (some layers fp32)";
+  if (metadata.has_bf16) return "bf16 (some layers fp32)";
+  return metadata.weight_type == WeightType::kFloat16 ? "fp32 (fp16 weights)" : "fp32";
+}
+
 Model::~Model() = default;
 
 size_t Model::parameter_count() const {

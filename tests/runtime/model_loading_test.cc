@@ -64,6 +64,22 @@ TEST(ModelLoading, AcceptsAGoodModelAndReadsItsMetadata) {
   EXPECT_FLOAT_EQ((*model)->layers()[0].conv.leaky_slope, 0.3f);
 }
 
+// The few words titles and logs give a model's arithmetic (sfrt run --profile's plots, the ROS
+// nodes' start line and /diagnostics), from what its layers run in.
+TEST(ModelLoading, PrecisionSummaryNamesTheReducedPrecisionsAndFp16Weights) {
+  ModelMetadata md;
+  EXPECT_EQ(PrecisionSummary(md), "fp32");
+  md.weight_type = WeightType::kFloat16;
+  EXPECT_EQ(PrecisionSummary(md), "fp32 (fp16 weights)");
+  const auto int8 = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
+  EXPECT_EQ(PrecisionSummary(int8->metadata()), "int8 (some layers fp32)");
+  const auto bf16 = testing::LoadOrDie(testing::Bf16Spec(exporter::SceneEdNetSpec(16)));
+  EXPECT_EQ(PrecisionSummary(bf16->metadata()), "bf16 (some layers fp32)");
+  md.weight_type = WeightType::kFloat32;
+  md.has_int8 = md.has_bf16 = true;
+  EXPECT_EQ(PrecisionSummary(md), "int8+bf16+fp32");
+}
+
 TEST(ModelLoading, WeightsAreUsedInPlaceAt64ByteAlignedAddresses) {
   const auto bytes = GoodModelBytes();
   auto model = LoadBytes(bytes);

@@ -1128,8 +1128,10 @@ int RunExport(const ExportArgs& args) {
   int deconvs = 0;
   int pools = 0;
   int resizes = 0;
+  int affines = 0;
   for (const LayerDesc& layer : model.layers()) {
     resizes += layer.kind == LayerKind::kResize;
+    affines += layer.kind == LayerKind::kChannelAffine;
     pools += layer.kind == LayerKind::kPool2D;
     deconvs += layer.kind == LayerKind::kConvTranspose2D;
     convs += layer.kind == LayerKind::kConv2D;
@@ -1138,11 +1140,12 @@ int RunExport(const ExportArgs& args) {
     concats += layer.kind == LayerKind::kConcat;
     adds += layer.kind == LayerKind::kAdd;
   }
-  // The ops beyond a chain of convolutions: transposed convolutions, poolings, and a graph's skip
-  // connections (Concats and Adds).
+  // The ops beyond a chain of convolutions: transposed convolutions, poolings, resizes,
+  // per-channel scale and shift, and a graph's skip connections (Concats and Adds).
   const std::string merges = (deconvs > 0 ? ", " + std::to_string(deconvs) + " deconv" : "") +
                              (pools > 0 ? ", " + std::to_string(pools) + " pool" : "") +
                              (resizes > 0 ? ", " + std::to_string(resizes) + " resize" : "") +
+                             (affines > 0 ? ", " + std::to_string(affines) + " affine" : "") +
                              (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
                              (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
   const std::string traced =

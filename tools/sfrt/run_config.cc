@@ -403,8 +403,7 @@ pipeline::PipelineResult RunConfiguredPipeline(
     info.dir = state->profile_dir;
     info.budget_ms = options.budget_ms;
     info.model_path = options.model_path;
-    info.precision =
-        model->metadata().weight_type == WeightType::kFloat16 ? "fp16 weights" : "fp32";
+    info.precision = PrecisionSummary(model->metadata());
     info.source = source->Describe();
     info.stopped_by = result.stopped_by;
     info.ab = ab;

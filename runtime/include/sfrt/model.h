@@ -359,6 +359,11 @@ struct ModelMetadata {
   std::optional<CalibrationDesc> calibration;        // schema 1.3, reduced-precision files
 };
 
+// The arithmetic a model runs in, for titles and logs: "int8+bf16+fp32" (both reduced
+// precisions), "int8 (some layers fp32)", "bf16 (some layers fp32)", "fp32 (fp16 weights)"
+// (weights stored as fp16, widened at load) or "fp32".
+std::string PrecisionSummary(const ModelMetadata& metadata);
+
 struct LoadOptions {
   // The CRC-32C of the whole file (1.1) and of all weights; costs a pass over each.
   bool verify_checksum = true;
