@@ -212,12 +212,19 @@ void WaitForReaders(dds_entity_t writer, long wanted, long wait_ms, const std::s
   }
 }
 
+// The frame's stamp and `frame_id` (which must outlive the message) as a std_msgs Header.
+std_msgs_msg_dds__Header_ HeaderOf(const Frame& frame, const std::string& frame_id) {
+  std_msgs_msg_dds__Header_ header{};
+  header.stamp_.sec_ = frame.sec;
+  header.stamp_.nanosec_ = frame.nanosec;
+  header.frame_id_ = const_cast<char*>(frame_id.c_str());
+  return header;
+}
+
 void WriteImage(dds_entity_t writer, const Frame& frame, const std::string& frame_id,
                 const std::vector<uint8_t>& pixels) {
   sensor_msgs_msg_dds__Image_ image{};
-  image.header_.stamp_.sec_ = frame.sec;
-  image.header_.stamp_.nanosec_ = frame.nanosec;
-  image.header_.frame_id_ = const_cast<char*>(frame_id.c_str());
+  image.header_ = HeaderOf(frame, frame_id);
   image.height_ = frame.height;
   image.width_ = frame.width;
   image.encoding_ = const_cast<char*>("bgr8");
@@ -232,9 +239,7 @@ void WriteImage(dds_entity_t writer, const Frame& frame, const std::string& fram
 void WriteCompressed(dds_entity_t writer, const Frame& frame, const std::string& frame_id,
                      const std::string& format, const std::vector<uint8_t>& bytes) {
   sensor_msgs_msg_dds__CompressedImage_ image{};
-  image.header_.stamp_.sec_ = frame.sec;
-  image.header_.stamp_.nanosec_ = frame.nanosec;
-  image.header_.frame_id_ = const_cast<char*>(frame_id.c_str());
+  image.header_ = HeaderOf(frame, frame_id);
   image.format_ = const_cast<char*>(format.c_str());
   image.data_._length = image.data_._maximum = static_cast<uint32_t>(bytes.size());
   image.data_._buffer = const_cast<uint8_t*>(bytes.data());
@@ -247,9 +252,7 @@ void WriteCompressed(dds_entity_t writer, const Frame& frame, const std::string&
 void WriteCameraInfo(dds_entity_t writer, const Frame& frame, const std::string& frame_id,
                      double focal_px, double tx) {
   sensor_msgs_msg_dds__CameraInfo_ info{};
-  info.header_.stamp_.sec_ = frame.sec;
-  info.header_.stamp_.nanosec_ = frame.nanosec;
-  info.header_.frame_id_ = const_cast<char*>(frame_id.c_str());
+  info.header_ = HeaderOf(frame, frame_id);
   info.height_ = frame.height;
   info.width_ = frame.width;
   info.distortion_model_ = const_cast<char*>("plumb_bob");

@@ -25,6 +25,7 @@
 #include "common/counting_allocator.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/profiler.h"
+#include "tools/pipeline/fake_window.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -70,13 +71,7 @@ class LockstepSource : public FrameSource {
     std::snprintf(path, sizeof(path), "/data/replay/sequence-a/left/%06d.png", next_);
     item->meta.left0_path = path;
     item->meta.sequence = "sequence-a/left-and-right";
-    item->meta.frame0 = next_;
-    item->meta.frame1 = next_ + 1;
-    const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                            std::chrono::steady_clock::now().time_since_epoch())
-                            .count();
-    item->meta.capture_ns[0] = item->meta.capture_ns[1] = now;
-    item->meta.stage_ns[0][0] = now;
+    StampFakeWindow(&item->meta, next_);
     ++next_;
     return Fetch::kWindow;
   }

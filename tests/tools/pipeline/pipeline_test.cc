@@ -21,6 +21,7 @@
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
+#include "tools/pipeline/fake_window.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -94,14 +95,8 @@ class FakeSource : public FrameSource {
     PairImage(next_ + 1, 0).copyTo(item->left1);
     PairImage(next_ + 1, 1).copyTo(item->right1);
     item->meta.sequence = "seq";
-    item->meta.frame0 = next_;
-    item->meta.frame1 = next_ + 1;
+    StampFakeWindow(&item->meta, next_);
     item->meta.continues = continues_ && next_ > 0;
-    const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                            std::chrono::steady_clock::now().time_since_epoch())
-                            .count();
-    item->meta.capture_ns[0] = item->meta.capture_ns[1] = now;
-    item->meta.stage_ns[0][0] = now;
     ++next_;
     return Fetch::kWindow;
   }

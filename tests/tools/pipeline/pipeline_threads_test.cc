@@ -17,6 +17,7 @@
 
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/sink.h"
+#include "tools/pipeline/fake_window.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -133,13 +134,7 @@ class NoiseSource : public FrameSource {
       rng.fill(*mat, cv::RNG::UNIFORM, 0, 256);
     }
     item->meta.sequence = "seq";
-    item->meta.frame0 = next_;
-    item->meta.frame1 = next_ + 1;
-    const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                            std::chrono::steady_clock::now().time_since_epoch())
-                            .count();
-    item->meta.capture_ns[0] = item->meta.capture_ns[1] = now;
-    item->meta.stage_ns[0][0] = now;
+    StampFakeWindow(&item->meta, next_);
     ++next_;
     return Fetch::kWindow;
   }
