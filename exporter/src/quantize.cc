@@ -15,6 +15,7 @@
 
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/sha256.h"
+#include "sfrt/layer_kinds.h"
 #include "sfrt/model.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
@@ -139,17 +140,9 @@ struct QuantizedWeights {
 // loader's rule).
 bool ReadsUpsampling(std::span<const LayerDesc> layers, size_t index) {
   const LayerDesc& l = layers[index];
-  if (l.kind != LayerKind::kConv2D || l.conv.kernel_h != 3 || l.conv.kernel_w != 3 ||
-      l.conv.stride_h != 1 || l.conv.stride_w != 1) {
-    return false;
-  }
-  int k = l.inputs[0];
-  if (k >= 0 && layers[static_cast<size_t>(k)].kind == LayerKind::kCrop) {
-    k = layers[static_cast<size_t>(k)].inputs[0];
-  }
-  if (k < 0) return false;
-  const LayerDesc& u = layers[static_cast<size_t>(k)];
-  return u.kind == LayerKind::kUpsample && u.upsample.factor_h == 2 && u.upsample.factor_w == 2;
+  return l.kind == LayerKind::kConv2D && l.conv.kernel_h == 3 && l.conv.kernel_w == 3 &&
+         l.conv.stride_h == 1 && l.conv.stride_w == 1 &&
+         ReadsNearest2xUpsampling(layers, l.inputs[0]) >= 0;
 }
 
 // The tensor whose values convolution `conv` reads: its input, through the nearest upsamplings

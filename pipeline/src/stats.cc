@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 
+#include "sfrt/layer_kinds.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
 
@@ -100,52 +101,6 @@ std::string PercentileLabel(double percent) {
 
 namespace {
 
-std::string LayerOp(const LayerDesc& layer) {
-  switch (layer.kind) {
-    case LayerKind::kConv2D: {
-      const ConvParams& c = layer.conv;
-      std::string op = "conv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
-                       "/s" + std::to_string(c.stride_h);
-      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
-      if (c.dilation_h != 1 || c.dilation_w != 1) op += " dil" + std::to_string(c.dilation_h);
-      if (c.groups > 1) op += c.groups == c.in_channels ? " dw" : " g" + std::to_string(c.groups);
-      return op;
-    }
-    case LayerKind::kUpsample: {
-      const UpsampleParams& u = layer.upsample;
-      return u.factor_h == u.factor_w
-                 ? "upsample x" + std::to_string(u.factor_h)
-                 : "upsample " + std::to_string(u.factor_h) + "x" + std::to_string(u.factor_w);
-    }
-    case LayerKind::kCrop:
-      return "crop";
-    case LayerKind::kConcat:
-      return "concat " + std::to_string(layer.inputs.size());
-    case LayerKind::kAdd:
-      return "add";
-    case LayerKind::kResize:
-      return std::string("resize ") + ResizeModeName(layer.resize.mode);
-    case LayerKind::kChannelAffine:
-      return "scale+shift";
-    case LayerKind::kPool2D: {
-      const PoolParams& p = layer.pool;
-      return std::string(p.kind == PoolKind::kMax       ? "maxpool "
-                         : p.kind == PoolKind::kAverage ? "avgpool "
-                                                        : "argmax-pool ") +
-             std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
-             std::to_string(p.stride_h);
-    }
-    case LayerKind::kConvTranspose2D: {
-      const ConvTransposeParams& c = layer.deconv;
-      std::string op = "deconv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
-                       "/s" + std::to_string(c.stride_h);
-      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
-      return op;
-    }
-  }
-  return "?";
-}
-
 std::string Fixed(double v, int digits) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
@@ -187,7 +142,7 @@ std::vector<StepLabel> LabelSteps(const Session& session) {
         label.op += " + ";
       }
       label.name += layers[static_cast<size_t>(i)].name;
-      label.op += LayerOp(layers[static_cast<size_t>(i)]);
+      label.op += DescribeLayer(layers[static_cast<size_t>(i)], LayerText::kBrief);
     }
     if (step.last_layer > step.first_layer) label.op += " (fused)";
     if (step.precision != Precision::kFloat32) label.op = label.precision + " " + label.op;

@@ -9,15 +9,12 @@
 #include "int8_packing.h"
 #include "kernels/bf16_job.h"
 #include "kernels/int8_job.h"
-#include "kernels/ref/affine_ref.h"
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/conv2d_ref.h"
-#include "kernels/ref/conv_transpose_ref.h"
-#include "kernels/ref/merge_ref.h"
-#include "kernels/ref/pool_ref.h"
 #include "kernels/ref/resample_ref.h"
-#include "kernels/ref/resize_ref.h"
+#include "ops/layer_op.h"
+#include "sfrt/layer_kinds.h"
 
 namespace sfrt {
 namespace {
@@ -104,26 +101,16 @@ void* AlignedScratch(std::vector<uint8_t>& storage, size_t bytes) {
 // the crop's in `crop` (-1: none); -1 when it does not.
 int FusedUpsampling(const Model& model, size_t i, int& crop) {
   const auto layers = model.layers();
+  const int up = ReadsNearest2xUpsampling(layers, layers[i].inputs[0], &crop);
+  // Just before it, each read by the next layer only.
+  const int reader_of_up = crop >= 0 ? crop : static_cast<int>(i);
+  const bool fused = up >= 0 && up + 1 == reader_of_up &&
+                     model.consumer_count(static_cast<size_t>(up)) == 1 &&
+                     (crop < 0 || (static_cast<size_t>(crop) + 1 == i &&
+                                   model.consumer_count(static_cast<size_t>(crop)) == 1));
+  if (fused) return up;
   crop = -1;
-  int k = layers[i].inputs[0];
-  if (k < 0 || static_cast<size_t>(k) + 1 != i ||
-      model.consumer_count(static_cast<size_t>(k)) != 1) {
-    return -1;
-  }
-  if (layers[static_cast<size_t>(k)].kind == LayerKind::kCrop) {
-    crop = k;
-    k = layers[static_cast<size_t>(k)].inputs[0];
-    if (k < 0 || k + 1 != crop || model.consumer_count(static_cast<size_t>(k)) != 1) {
-      crop = -1;
-      return -1;
-    }
-  }
-  const LayerDesc& u = layers[static_cast<size_t>(k)];
-  if (u.kind != LayerKind::kUpsample || u.upsample.factor_h != 2 || u.upsample.factor_w != 2) {
-    crop = -1;
-    return -1;
-  }
-  return k;
+  return -1;
 }
 
 // A graph's int8 or bf16 convolution (float32 tensors between layers): `in` converted to what it
@@ -204,54 +191,20 @@ void ForwardGraph(const Model& model, std::span<const float> input,
     out.resize(s.elements());
     const TensorView dst = DenseView(out.data(), s.height, s.width, s.channels);
     const ConstTensorView src = view_of(layer.inputs[0]);
-    switch (layer.kind) {
-      case LayerKind::kConv2D: {
-        if (layer.conv.precision == Precision::kFloat32) {
-          ref::Conv2d(src, layer.conv, g[i].pads, dst);
-          break;
-        }
-        int crop = -1;
-        const int up = FusedUpsampling(model, i, crop);
-        if (up < 0) {
-          ReducedGraphConv(layer.conv, g[i], src, false, g[i], dst);
-          break;
-        }
+    if (layer.kind == LayerKind::kConv2D && layer.conv.precision != Precision::kFloat32) {
+      int crop = -1;
+      const int up = FusedUpsampling(model, i, crop);
+      if (up < 0) {
+        ReducedGraphConv(layer.conv, g[i], src, false, g[i], dst);
+      } else {
         ReducedGraphConv(layer.conv, g[i], view_of(layers[static_cast<size_t>(up)].inputs[0]), true,
                          g[static_cast<size_t>(crop >= 0 ? crop : up)], dst);
-        break;
       }
-      case LayerKind::kUpsample:
-        ref::UpsampleNearest(src, layer.upsample.factor_h, layer.upsample.factor_w, dst);
-        break;
-      case LayerKind::kCrop: {
-        ConstTensorView v = src;
-        v.data = src.pixel(g[i].crop.top, g[i].crop.left);
-        v.height = s.height;
-        v.width = s.width;
-        ref::Copy(v, dst);
-        break;
-      }
-      case LayerKind::kConcat: {
-        std::vector<ConstTensorView> ins;
-        for (int t : layer.inputs) ins.push_back(view_of(t));
-        ref::ConcatRows(ins.data(), static_cast<int>(ins.size()), dst, 0, s.height);
-        break;
-      }
-      case LayerKind::kAdd:
-        ref::AddRows(src, view_of(layer.inputs[1]), layer.add, dst, 0, s.height);
-        break;
-      case LayerKind::kConvTranspose2D:
-        ref::ConvTranspose2dRows(src, layer.deconv, dst, 0, s.height);
-        break;
-      case LayerKind::kPool2D:
-        ref::PoolRows(src, layer.pool, g[i].pads, dst, 0, s.height);
-        break;
-      case LayerKind::kResize:
-        ref::ResizeRows(src, layer.resize, dst, 0, s.height);
-        break;
-      case LayerKind::kChannelAffine:
-        ref::ChannelAffineRows(src, layer.affine, dst, 0, s.height);
-        break;
+    } else {  // every other layer: its kind's float32 rows (ops/layer_op.h)
+      std::vector<ConstTensorView> ins;
+      for (int t : layer.inputs) ins.push_back(view_of(t));
+      const ops::LayerRows rows{&layer, &g[i], ins.data(), static_cast<int>(ins.size()), dst};
+      ops::OpOf(layer.kind).rows(rows, 0, s.height);
     }
     if (observer) observer(static_cast<int>(i), s, out);
     for (size_t t = 0; t < i; ++t) {

@@ -13,17 +13,13 @@
 #include "kernels/bf16_job.h"
 #include "kernels/conv_job.h"
 #include "kernels/int8_job.h"
-#include "kernels/ref/affine_ref.h"
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
-#include "kernels/ref/conv2d_ref.h"
-#include "kernels/ref/conv_transpose_ref.h"
 #include "kernels/ref/merge_ref.h"
-#include "kernels/ref/pool_ref.h"
 #include "kernels/ref/resample_ref.h"
-#include "kernels/ref/resize_ref.h"
 #include "kernels/winograd_job.h"
 #include "memory_planner.h"
+#include "ops/layer_op.h"
 #include "thread_pool.h"
 #include "winograd_packing.h"
 #include "winograd_run.h"
@@ -33,36 +29,31 @@ namespace sfrt {
 // One entry of the flat list Run() walks.
 struct Session::Step {
   enum class Kind {
-    kConv,           // SIMD convolution (packed weights)
-    kUpConv,         // SIMD fused upsample 2x (+ crop) + 3x3 convolution
-    kRefConv,        // ref::Conv2d
-    kUpsample,       // ref::UpsampleNearest
-    kCrop,           // a view of the previous tensor (a copy only when it is the model's output)
-    kWinograd,       // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
-    kQuantize,       // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
-    kInt8Conv,       // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
-                     // or first_layer says so (kernels/int8_job.h)
-    kUpsampleU8,     // ref::UpsampleNearestPlane (an upsampling no int8 convolution fuses)
-    kToBf16,         // the float32 tensor a bf16 convolution reads, to bf16 (ToBf16KernelFor)
-    kBf16Conv,       // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
-                     // (kernels/bf16_job.h)
-    kUpsampleBf16,   // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
-    kConcat,         // ref::ConcatRows
-    kConcatU8,       // ref::ConcatRows on uint8 tensors (a graph's, PlanReducedTensors)
-    kConcatBf16,     // ref::ConcatRows on bf16 tensors (likewise)
-    kAdd,            // ref::AddRows
-    kConvTranspose,  // ref::ConvTranspose2dRows
-    kPool,           // ref::PoolRows
-    kResize,         // ref::ResizeRows
-    kChannelAffine,  // ref::ChannelAffineRows
+    kRows,          // a float32 layer's rows as its kind's unit computes them (ops/layer_op.h):
+                    // every kind without a faster step, the reference convolution included
+    kConv,          // SIMD convolution (packed weights)
+    kUpConv,        // SIMD fused upsample 2x (+ crop) + 3x3 convolution
+    kUpsample,      // ref::UpsampleNearest
+    kCrop,          // a view of the previous tensor (a copy only when it is the model's output)
+    kWinograd,      // SIMD Winograd F(m x m, 3 x 3) convolution (kernels/winograd_job.h)
+    kQuantize,      // the float32 tensor an int8 convolution reads, to uint8 (ref::QuantizeRows)
+    kInt8Conv,      // int8 convolution, fused with the upsample (+ crop) before it when crop_layer
+                    // or first_layer says so (kernels/int8_job.h)
+    kUpsampleU8,    // ref::UpsampleNearestPlane (an upsampling no int8 convolution fuses)
+    kToBf16,        // the float32 tensor a bf16 convolution reads, to bf16 (ToBf16KernelFor)
+    kBf16Conv,      // bf16 convolution, fused with the upsample (+ crop) before it as kInt8Conv
+                    // (kernels/bf16_job.h)
+    kUpsampleBf16,  // ref::UpsampleNearestPlane (an upsampling no bf16 convolution fuses)
+    kConcatU8,      // ref::ConcatRows on uint8 tensors (a graph's, PlanReducedTensors)
+    kConcatBf16,    // ref::ConcatRows on bf16 tensors (likewise)
   };
-  Kind kind = Kind::kRefConv;
+  Kind kind = Kind::kRows;
   int first_layer = 0;
   int last_layer = 0;
   int crop_layer = -1;  // kUpConv: the crop between upsample and convolution, if any
   ConvRowsFn fn = nullptr;
   PackedConv packed;
-  const ConvParams* params = nullptr;  // kRefConv
+  ops::LayerRowsFn rows = nullptr;  // kRows
   const char* kernel = "";
   const WinogradKernels* winograd = nullptr;  // kWinograd
   PackedWinograd wpacked;
@@ -214,26 +205,18 @@ void ToBf16Trampoline(void* ctx, int begin, int end) {
   job->fn(job->in, job->out, begin, end);
 }
 
-struct RefConvJob {
-  const ConvParams* params;
-  ConstTensorView in;
-  TensorView out;
-  Padding pads;
+// A kRows step over a range of output rows.
+struct RowsJob {
+  ops::LayerRowsFn fn;
+  ops::LayerRows rows;
 };
 
-// The reference kernel on output rows [begin, end): the same call on a view of those rows,
-// with the top padding shifted so that every row reads the input rows it did before.
-void RefConvTrampoline(void* ctx, int begin, int end) {
-  const RefConvJob* job = static_cast<const RefConvJob*>(ctx);
-  TensorView rows = job->out;
-  rows.data = job->out.pixel(begin, 0);
-  rows.height = end - begin;
-  Padding pads = job->pads;
-  pads.top -= begin * job->params->stride_h;
-  ref::Conv2d(job->in, *job->params, pads, rows);
+void RowsTrampoline(void* ctx, int begin, int end) {
+  const RowsJob* job = static_cast<const RowsJob*>(ctx);
+  job->fn(job->rows, begin, end);
 }
 
-// A Concat of float32, uint8 or bf16 views (ref::ConcatRows has an overload for each).
+// A Concat of uint8 or bf16 views (ref::ConcatRows has an overload for each).
 template <typename In, typename Out>
 struct ConcatJob {
   const In* inputs;
@@ -245,63 +228,6 @@ template <typename Job>
 void ConcatTrampoline(void* ctx, int begin, int end) {
   const Job* job = static_cast<const Job*>(ctx);
   ref::ConcatRows(job->inputs, job->count, job->out, begin, end);
-}
-
-struct AddJob {
-  ConstTensorView a;
-  ConstTensorView b;
-  const AddParams* params;
-  TensorView out;
-};
-
-void AddTrampoline(void* ctx, int begin, int end) {
-  const AddJob* job = static_cast<const AddJob*>(ctx);
-  ref::AddRows(job->a, job->b, *job->params, job->out, begin, end);
-}
-
-struct PoolJob {
-  ConstTensorView in;
-  const PoolParams* params;
-  Padding pads;
-  TensorView out;
-};
-
-void PoolTrampoline(void* ctx, int begin, int end) {
-  const PoolJob* job = static_cast<const PoolJob*>(ctx);
-  ref::PoolRows(job->in, *job->params, job->pads, job->out, begin, end);
-}
-
-struct ResizeJob {
-  ConstTensorView in;
-  const ResizeParams* params;
-  TensorView out;
-};
-
-void ResizeTrampoline(void* ctx, int begin, int end) {
-  const ResizeJob* job = static_cast<const ResizeJob*>(ctx);
-  ref::ResizeRows(job->in, *job->params, job->out, begin, end);
-}
-
-struct ChannelAffineJob {
-  ConstTensorView in;
-  const ChannelAffineParams* params;
-  TensorView out;
-};
-
-void ChannelAffineTrampoline(void* ctx, int begin, int end) {
-  const ChannelAffineJob* job = static_cast<const ChannelAffineJob*>(ctx);
-  ref::ChannelAffineRows(job->in, *job->params, job->out, begin, end);
-}
-
-struct ConvTransposeJob {
-  ConstTensorView in;
-  const ConvTransposeParams* params;
-  TensorView out;
-};
-
-void ConvTransposeTrampoline(void* ctx, int begin, int end) {
-  const ConvTransposeJob* job = static_cast<const ConvTransposeJob*>(ctx);
-  ref::ConvTranspose2dRows(job->in, *job->params, job->out, begin, end);
 }
 
 // Where a step writes an h x w x c uint8 or bf16 tensor at `data`: densely, or as its slice of a
@@ -612,7 +538,15 @@ Status Session::Plan() {
     slot = static_cast<int>(steps_.size());
     steps_.push_back(q);
   };
-  size_t gather = 0;  // the most inputs a Concat has
+  size_t gather = 0;  // the most inputs a kRows step or a reduced Concat has
+  // A layer's float32 rows as its kind computes them.
+  auto rows_step = [&gather](Step& step, const LayerDesc& layer) {
+    const ops::LayerOp& op = ops::OpOf(layer.kind);
+    step.kind = Step::Kind::kRows;
+    step.rows = op.rows;
+    step.kernel = op.rows_kernel;
+    gather = std::max(gather, layer.inputs.size());
+  };
   for (int i = 0; i < n; ++i) {
     const LayerDesc& layer = layers[i];
     const int consumer = next_conv(i);
@@ -628,29 +562,13 @@ Status Session::Plan() {
     if (layer.kind == LayerKind::kCrop) {
       step.kind = Step::Kind::kCrop;
       step.kernel = i + 1 == n ? "ref::Copy" : "view";
-    } else if (layer.kind == LayerKind::kConcat) {  // float32, or reduced (PlanReducedTensors)
-      step.kind = step.out_u8     ? Step::Kind::kConcatU8
-                  : step.out_bf16 ? Step::Kind::kConcatBf16
-                                  : Step::Kind::kConcat;
-      step.kernel = step.out_u8     ? "ref::ConcatRowsU8"
-                    : step.out_bf16 ? "ref::ConcatRowsBf16"
-                                    : "ref::ConcatRows";
+    } else if (layer.kind == LayerKind::kConcat && (step.out_u8 || step.out_bf16)) {
+      // A Concat between int8 or bf16 convolutions (PlanReducedTensors).
+      step.kind = step.out_u8 ? Step::Kind::kConcatU8 : Step::Kind::kConcatBf16;
+      step.kernel = step.out_u8 ? "ref::ConcatRowsU8" : "ref::ConcatRowsBf16";
       gather = std::max(gather, layer.inputs.size());
-    } else if (layer.kind == LayerKind::kAdd) {
-      step.kind = Step::Kind::kAdd;
-      step.kernel = "ref::AddRows";
-    } else if (layer.kind == LayerKind::kConvTranspose2D) {  // float32 (the loader checks)
-      step.kind = Step::Kind::kConvTranspose;
-      step.kernel = "ref::ConvTranspose2dRows";
-    } else if (layer.kind == LayerKind::kPool2D) {  // float32 (the loader checks)
-      step.kind = Step::Kind::kPool;
-      step.kernel = "ref::PoolRows";
-    } else if (layer.kind == LayerKind::kResize) {  // float32 (the loader checks)
-      step.kind = Step::Kind::kResize;
-      step.kernel = "ref::ResizeRows";
-    } else if (layer.kind == LayerKind::kChannelAffine) {  // float32 (the loader checks)
-      step.kind = Step::Kind::kChannelAffine;
-      step.kernel = "ref::ChannelAffineRows";
+    } else if (layer.kind != LayerKind::kUpsample && layer.kind != LayerKind::kConv2D) {
+      rows_step(step, layer);  // float32 (the loader checks)
     } else if (layer.kind == LayerKind::kUpsample) {
       int conv = i + 1;
       int crop = -1;
@@ -709,9 +627,7 @@ Status Session::Plan() {
     } else if (kernels != nullptr && simd_fits(layer.conv, false, kMaxConvTaps)) {
       step.kind = Step::Kind::kConv;
     } else {
-      step.kind = Step::Kind::kRefConv;
-      step.params = &layer.conv;
-      step.kernel = "ref::Conv2d";
+      rows_step(step, layer);
     }
     steps_.push_back(step);
   }
@@ -868,8 +784,7 @@ Status Session::Plan() {
     const bool convert = step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
     const int time = step.last_layer;
     switch (step.kind) {
-      case Step::Kind::kConcat:
-      case Step::Kind::kAdd:
+      case Step::Kind::kRows:
         for (int t : first.inputs) read(holder_f[slot_of(t)], time);
         break;
       case Step::Kind::kConcatU8:
@@ -1397,9 +1312,13 @@ Status Session::Execute(std::span<const float> input, int height, int width,
                          arena_ + step.scratch_offset / sizeof(float), cur, out, g.pads,
                          parallel_rows);
         break;
-      case Step::Kind::kRefConv: {
-        RefConvJob job{step.params, cur, out, g.pads};
-        parallel_rows(out.height, RefConvTrampoline, &job);
+      case Step::Kind::kRows: {
+        for (size_t k = 0; k < first.inputs.size(); ++k) {
+          views.gather[k] = views.f32[slot_of(first.inputs[k])];
+        }
+        RowsJob job{step.rows,
+                    {&first, &g, views.gather.data(), static_cast<int>(first.inputs.size()), out}};
+        parallel_rows(out.height, RowsTrampoline, &job);
         break;
       }
       case Step::Kind::kUpsample: {
@@ -1417,39 +1336,6 @@ Status Session::Execute(std::span<const float> input, int height, int width,
         Bf16ConvArgs args = bf16_args(step, cur16);
         args.out_f32 = out;
         run_blocked(step.fn16, args, out.height);
-        break;
-      }
-      case Step::Kind::kConcat: {
-        for (size_t k = 0; k < first.inputs.size(); ++k)
-          views.gather[k] = views.f32[slot_of(first.inputs[k])];
-        using Job = ConcatJob<ConstTensorView, TensorView>;
-        Job job{views.gather.data(), static_cast<int>(first.inputs.size()), out};
-        parallel_rows(out.height, ConcatTrampoline<Job>, &job);
-        break;
-      }
-      case Step::Kind::kAdd: {
-        AddJob job{cur, views.f32[slot_of(first.inputs[1])], &first.add, out};
-        parallel_rows(out.height, AddTrampoline, &job);
-        break;
-      }
-      case Step::Kind::kConvTranspose: {
-        ConvTransposeJob job{cur, &first.deconv, out};
-        parallel_rows(out.height, ConvTransposeTrampoline, &job);
-        break;
-      }
-      case Step::Kind::kPool: {
-        PoolJob job{cur, &first.pool, g.pads, out};
-        parallel_rows(out.height, PoolTrampoline, &job);
-        break;
-      }
-      case Step::Kind::kResize: {
-        ResizeJob job{cur, &first.resize, out};
-        parallel_rows(out.height, ResizeTrampoline, &job);
-        break;
-      }
-      case Step::Kind::kChannelAffine: {
-        ChannelAffineJob job{cur, &first.affine, out};
-        parallel_rows(out.height, ChannelAffineTrampoline, &job);
         break;
       }
       case Step::Kind::kCrop:

@@ -9,6 +9,7 @@
 
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
+#include "sfrt/layer_kinds.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
 #include "sfrt/session.h"
@@ -47,125 +48,9 @@ std::string InputKindLines(const InputDesc& input) {
   return lines;
 }
 
-std::string PadsString(const Padding& p) {
-  return std::to_string(p.top) + "," + std::to_string(p.left) + "," + std::to_string(p.bottom) +
-         "," + std::to_string(p.right);
-}
-
 std::string ShapeString(const TensorShape& s) {
   return std::to_string(s.height) + "x" + std::to_string(s.width) + "x" +
          std::to_string(s.channels);
-}
-
-// " + relu", " + leaky(0.1)", " + clip(0..6)", ...; empty for none. `affine` holds the
-// parameters of the ChannelAffine-only kinds.
-std::string ActivationSuffix(Activation activation, float leaky_slope,
-                             const ChannelAffineParams* affine = nullptr) {
-  switch (activation) {
-    case Activation::kNone:
-      return "";
-    case Activation::kLeakyRelu:
-      return " + leaky(" + FormatFloat(leaky_slope) + ")";
-    case Activation::kElu:
-      return " + elu(" + FormatFloat(affine->elu_alpha) + ")";
-    case Activation::kClip:
-      return " + clip(" + FormatFloat(affine->clip_min) + ".." + FormatFloat(affine->clip_max) +
-             ")";
-    default:
-      return std::string(" + ") + ActivationName(activation);
-  }
-}
-
-// " dilation 2x2", " groups 4", " depthwise": the schema 1.8 fields that are not 1.
-std::string DilationSuffix(int dh, int dw) {
-  if (dh == 1 && dw == 1) return "";
-  return " dilation " + std::to_string(dh) + (dw == dh ? "" : "x" + std::to_string(dw));
-}
-
-std::string OpString(const LayerDesc& layer) {
-  switch (layer.kind) {
-    case LayerKind::kConv2D: {
-      const ConvParams& c = layer.conv;
-      std::string op = "conv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
-                       "/s" + std::to_string(c.stride_h);
-      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
-      op += DilationSuffix(c.dilation_h, c.dilation_w);
-      if (c.groups > 1) {
-        op += c.groups == c.in_channels ? " depthwise" : " groups " + std::to_string(c.groups);
-      }
-      return op + ActivationSuffix(c.activation, c.leaky_slope);
-    }
-    case LayerKind::kUpsample: {
-      const UpsampleParams& u = layer.upsample;
-      std::string factor = u.factor_h == u.factor_w
-                               ? "x" + std::to_string(u.factor_h)
-                               : std::to_string(u.factor_h) + "x" + std::to_string(u.factor_w);
-      return "upsample " + factor + " nearest";
-    }
-    case LayerKind::kCrop: {
-      const CropParams& c = layer.crop;
-      if (c.rule == CropRule::kExplicit) return "crop explicit";
-      return std::string(c.rule == CropRule::kToSecondInput ? "crop to 2nd input"
-                                                            : "crop to input") +
-             " (rows from " + (c.excess_rows_from_top ? "top" : "bottom") + ", cols from " +
-             (c.excess_cols_from_left ? "left" : "right") + ")";
-    }
-    case LayerKind::kConvTranspose2D: {
-      const ConvTransposeParams& c = layer.deconv;
-      std::string op = "deconv " + std::to_string(c.kernel_h) + "x" + std::to_string(c.kernel_w) +
-                       "/s" + std::to_string(c.stride_h);
-      if (c.stride_w != c.stride_h) op += "x" + std::to_string(c.stride_w);
-      if (c.output_padding_h > 0 || c.output_padding_w > 0) {
-        op += " outpad " + std::to_string(c.output_padding_h) + "," +
-              std::to_string(c.output_padding_w);
-      }
-      return op + DilationSuffix(c.dilation_h, c.dilation_w) +
-             ActivationSuffix(c.activation, c.leaky_slope);
-    }
-    case LayerKind::kPool2D: {
-      const PoolParams& p = layer.pool;
-      std::string op = std::string(p.kind == PoolKind::kMax       ? "maxpool "
-                                   : p.kind == PoolKind::kAverage ? "avgpool "
-                                                                  : "argmax-pool ") +
-                       std::to_string(p.kernel_h) + "x" + std::to_string(p.kernel_w) + "/s" +
-                       std::to_string(p.stride_h);
-      if (p.stride_w != p.stride_h) op += "x" + std::to_string(p.stride_w);
-      op += DilationSuffix(p.dilation_h, p.dilation_w);
-      if (p.ceil_mode) op += " ceil";
-      if (p.kind == PoolKind::kAverage && p.count_include_pad) op += " count-pads";
-      if (p.kind == PoolKind::kArgMax && p.indices_column_major) op += " column-major";
-      return op;
-    }
-    case LayerKind::kResize: {
-      const ResizeParams& r = layer.resize;
-      auto scale = [](int64_t num, int64_t den) {
-        return den == 1 ? std::to_string(num) : std::to_string(num) + "/" + std::to_string(den);
-      };
-      std::string op = std::string("resize ") + ResizeModeName(r.mode) + " x" +
-                       scale(r.scale_num_h, r.scale_den_h) + "," +
-                       scale(r.scale_num_w, r.scale_den_w) + " " +
-                       ResizeCoordinatesName(r.coordinates);
-      if (r.mode == ResizeMode::kNearest) op += std::string(" ") + NearestRoundingName(r.nearest);
-      if (r.mode == ResizeMode::kCubic) {
-        op += " a=" + FormatFloat(r.cubic_coeff_a) + (r.exclude_outside ? " exclude-outside" : "");
-      }
-      if (r.coordinates == ResizeCoordinates::kTfCropAndResize) {
-        op += " roi " + FormatFloat(r.roi_start_h) + "," + FormatFloat(r.roi_start_w) + ".." +
-              FormatFloat(r.roi_end_h) + "," + FormatFloat(r.roi_end_w) + " outside " +
-              FormatFloat(r.extrapolation_value);
-      }
-      return op;
-    }
-    case LayerKind::kChannelAffine: {
-      const ChannelAffineParams& a = layer.affine;
-      return "scale+shift per channel" + ActivationSuffix(a.activation, a.leaky_slope, &a);
-    }
-    case LayerKind::kConcat:
-      return "concat channels";
-    case LayerKind::kAdd:
-      return "add" + ActivationSuffix(layer.add.activation, layer.add.leaky_slope);
-  }
-  return "?";
 }
 
 // What a layer of a graph model reads, when it is not just the layer before it: " <- a, b".
@@ -179,27 +64,6 @@ std::string InputsSuffix(const Model& model, size_t i) {
                               : model.layers()[static_cast<size_t>(t)].name;
   }
   return names;
-}
-
-// The "pads" column: what is added (conv) or removed (crop) per side at this size.
-std::string PadsColumn(const LayerDesc& layer, const LayerGeometry& g) {
-  switch (layer.kind) {
-    case LayerKind::kConv2D:
-      return PadsString(g.pads) + " " + PaddingRuleName(layer.conv.padding_rule);
-    case LayerKind::kCrop:
-      return "crop " + PadsString(g.crop);
-    case LayerKind::kConvTranspose2D:
-      return "crop " + PadsString(g.pads);
-    case LayerKind::kPool2D:
-      return PadsString(g.pads) + " " + PaddingRuleName(layer.pool.padding_rule);
-    case LayerKind::kUpsample:
-    case LayerKind::kResize:
-    case LayerKind::kChannelAffine:
-    case LayerKind::kConcat:
-    case LayerKind::kAdd:
-      return "-";
-  }
-  return "?";
 }
 
 // A text table: left-aligned text columns, right-aligned number columns.
@@ -385,11 +249,12 @@ int RunInspect(const InspectArgs& args) {
                     layers[i].conv.padding_rule == PaddingRule::kExplicit;
     const bool conv = layers[i].kind == LayerKind::kConv2D;
     const bool deconv = layers[i].kind == LayerKind::kConvTranspose2D;  // float32 only
-    table.Add({std::to_string(i), layers[i].name, OpString(layers[i]) + InputsSuffix(*model, i),
+    table.Add({std::to_string(i), layers[i].name,
+               DescribeLayer(layers[i], LayerText::kFull) + InputsSuffix(*model, i),
                conv     ? PrecisionName(layers[i].conv.precision)
                : deconv ? PrecisionName(Precision::kFloat32)
                         : "-",
-               PadsColumn(layers[i], g), ShapeString(g.output),
+               DescribePadding(layers[i], g), ShapeString(g.output),
                conv || deconv ? GroupDigits(g.macs) : "-",
                g.params > 0 ? GroupDigits(g.params) : "-"});
   }

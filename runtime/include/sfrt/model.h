@@ -47,11 +47,8 @@ enum class LayerKind {
 };
 // Layers that run in float32 only. A model with one (or a graph) runs its int8 and bf16
 // convolutions between float32 tensors: each converts what it reads and writes float32.
-inline bool Float32OnlyKind(LayerKind kind) {
-  return kind == LayerKind::kConcat || kind == LayerKind::kAdd ||
-         kind == LayerKind::kConvTranspose2D || kind == LayerKind::kPool2D ||
-         kind == LayerKind::kResize || kind == LayerKind::kChannelAffine;
-}
+// (Each kind's unit says: runtime/src/ops/<kind>.cc; sfrt/layer_kinds.h asks the others.)
+bool Float32OnlyKind(LayerKind kind);
 // kElu, kSigmoid, kTanh and kClip (schema 1.8) are taken by kChannelAffine layers only (their
 // parameters are in ChannelAffineParams); every layer kind takes the first three.
 enum class Activation { kNone, kRelu, kLeakyRelu, kElu, kSigmoid, kTanh, kClip };

@@ -6,10 +6,15 @@
 namespace sfrt::ref {
 
 void UpsampleNearest(const ConstTensorView& in, int factor_h, int factor_w, const TensorView& out) {
+  UpsampleNearestRows(in, factor_h, factor_w, out, 0, out.height);
+}
+
+void UpsampleNearestRows(const ConstTensorView& in, int factor_h, int factor_w,
+                         const TensorView& out, int row_begin, int row_end) {
   assert(out.height == in.height * factor_h && out.width == in.width * factor_w);
   assert(out.channels == in.channels);
   const size_t pixel_bytes = sizeof(float) * static_cast<size_t>(in.channels);
-  for (int y = 0; y < out.height; ++y) {
+  for (int y = row_begin; y < row_end; ++y) {
     for (int x = 0; x < out.width; ++x) {
       std::memcpy(out.pixel(y, x), in.pixel(y / factor_h, x / factor_w), pixel_bytes);
     }

@@ -9,6 +9,9 @@ namespace sfrt::ref {
 
 // out[y][x][c] = in[y / factor_h][x / factor_w][c]; out is (in.height*factor_h, in.width*factor_w).
 void UpsampleNearest(const ConstTensorView& in, int factor_h, int factor_w, const TensorView& out);
+// The same on output rows [row_begin, row_end) only.
+void UpsampleNearestRows(const ConstTensorView& in, int factor_h, int factor_w,
+                         const TensorView& out, int row_begin, int row_end);
 
 // out = in, element by element; both views have the same shape.
 void Copy(const ConstTensorView& in, const TensorView& out);
