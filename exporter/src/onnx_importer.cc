@@ -26,6 +26,8 @@
 
 #include "batch_norm_fold.h"
 #include "message_text.h"
+#include "onnx/const_tensors.h"
+#include "onnx/folders.h"
 
 // onnx_pb.h defines ONNX_API and then includes onnx-ml.pb.h (ONNX_ML=1); including
 // onnx-ml.pb.h directly does not compile with Debian's headers.
@@ -46,6 +48,7 @@
 #include <numeric>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -57,127 +60,16 @@
 #include "sfrt/model_limits.h"
 #include "sfrt/shapes.h"
 
-#define SFRT_ONNX_CONCAT_INNER(a, b) a##b
-#define SFRT_ONNX_CONCAT(a, b) SFRT_ONNX_CONCAT_INNER(a, b)
-
-// Returns the Status of `expr` from the enclosing function when it is an error.
-#define SFRT_ONNX_RETURN_IF_ERROR(expr)        \
-  do {                                         \
-    ::sfrt::Status sfrt_onnx_status_ = (expr); \
-    if (!sfrt_onnx_status_.ok()) {             \
-      return sfrt_onnx_status_;                \
-    }                                          \
-  } while (false)
-
-// `lhs = value of expr`, or returns expr's error Status from the enclosing function.
-#define SFRT_ONNX_ASSIGN_OR_RETURN(lhs, expr) \
-  SFRT_ONNX_ASSIGN_OR_RETURN_IMPL(SFRT_ONNX_CONCAT(sfrt_onnx_result_, __LINE__), lhs, expr)
-#define SFRT_ONNX_ASSIGN_OR_RETURN_IMPL(tmp, lhs, expr) \
-  auto tmp = (expr);                                    \
-  if (!tmp.ok()) {                                      \
-    return tmp.status();                                \
-  }                                                     \
-  lhs = std::move(tmp).value()
-
 namespace sfrt::exporter {
 namespace {
 
-using onnx::TensorProto;
-using Dims = std::vector<int64_t>;
+using namespace onnx_import;
 using Shape4 = std::array<int64_t, 4>;  // N, C, H, W
 
 constexpr int64_t kMinOpset = 11;
 constexpr int64_t kMaxOpset = 17;
-// Upper bound on the elements of one evaluated constant: shape arithmetic is tiny, and this keeps
-// a hostile file from making the importer allocate without limit.
-constexpr int64_t kMaxFoldedElements = int64_t{1} << 24;
-// What an import may allocate for constants (ConstantBudget): this slack for shape arithmetic,
-// plus this many bytes per byte of the file, room for every weight to be decoded, evaluated and
-// copied a few times (a Const takes 8 bytes a value, twice a float32 weight's 4).
-constexpr int64_t kConstantSlackBytes = int64_t{32} << 20;
-constexpr int64_t kConstantBytesPerFileByte = 16;
-// A Const holds every value as a double or an int64.
-constexpr size_t kConstValueBytes = 8;
 // Unsupported nodes named in one message; the rest are counted (a screenful at most).
 constexpr size_t kMaxListedNodes = 20;
-// Values of a list (a shape, scales, pads) written in one message; the rest are counted.
-constexpr size_t kMaxListedValues = 16;
-
-// Ops that may carry the network input. Concat (of channels) and Add read several such tensors.
-// Sub, Mul and Div (and Add) by a per-channel constant become a scale and shift.
-// clang-format off
-constexpr std::string_view kRuntimeOps[] = {
-    "Conv", "Pad", "BatchNormalization", "LeakyRelu", "Relu", "Elu", "Sigmoid", "Tanh", "Clip",
-    "Resize", "Upsample", "Slice", "Identity", "Concat", "Add", "Sub", "Mul", "Div",
-    "ConvTranspose", "MaxPool", "AveragePool"};
-// clang-format on
-// Ops evaluated at import when all their inputs are constants.
-// clang-format off
-constexpr std::string_view kFoldableOps[] = {
-    "Constant", "Shape", "Size", "Gather", "Cast", "CastLike", "Concat", "Unsqueeze", "Squeeze",
-    "Slice", "Reshape", "Expand", "Transpose", "Tile", "Range", "ConstantOfShape", "Identity",
-    "Add", "Sub", "Mul", "Div", "Mod", "Pow", "Neg", "Abs", "Floor", "Ceil", "Round", "Sqrt",
-    "Reciprocal", "Sign", "Min", "Max", "Clip", "Equal", "Less", "Greater", "LessOrEqual",
-    "GreaterOrEqual", "And", "Or", "Xor", "Not", "Where"};
-// clang-format on
-
-bool Contains(const auto& list, std::string_view op) {
-  return std::find(std::begin(list), std::end(list), op) != std::end(list);
-}
-
-std::string SupportedOpsText() {
-  std::string text;
-  for (std::string_view op : kRuntimeOps) {
-    if (!text.empty()) text += ", ";
-    text += op;
-  }
-  text += " (constant subgraphs may also use";
-  bool first = true;
-  for (std::string_view op : kFoldableOps) {
-    if (Contains(kRuntimeOps, op)) continue;  // already listed
-    text += first ? " " : ", ";
-    text += op;
-    first = false;
-  }
-  text += ")";
-  return text;
-}
-
-// A float for messages, as short as %g writes it.
-std::string FormatFloat(float v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", static_cast<double>(v));
-  return buf;
-}
-
-// "[1, 2, 3]"; past kMaxListedValues, the first of them and the count, so that a message stays
-// one readable line whatever length the file gives a list.
-std::string JoinInts(const std::vector<int64_t>& values) {
-  std::string s = "[";
-  for (size_t i = 0; i < values.size() && i < kMaxListedValues; ++i) {
-    if (i > 0) s += ", ";
-    s += std::to_string(values[i]);
-  }
-  if (values.size() > kMaxListedValues) s += ", ... (" + std::to_string(values.size()) + " values)";
-  return s + "]";
-}
-
-std::string FormatDouble(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.9g", v);
-  return buf;
-}
-
-// As JoinInts.
-std::string JoinReals(const std::vector<double>& values) {
-  std::string s = "[";
-  for (size_t i = 0; i < values.size() && i < kMaxListedValues; ++i) {
-    if (i > 0) s += ", ";
-    s += FormatDouble(values[i]);
-  }
-  if (values.size() > kMaxListedValues) s += ", ... (" + std::to_string(values.size()) + " values)";
-  return s + "]";
-}
 
 std::string PadsText(const Pads& p) {
   return "(top " + std::to_string(p.top) + ", left " + std::to_string(p.left) + ", bottom " +
@@ -187,761 +79,6 @@ std::string PadsText(const Pads& p) {
 std::string ShapeText(const Shape4& s) {
   return "(" + std::to_string(s[0]) + ", " + std::to_string(s[1]) + ", " + std::to_string(s[2]) +
          ", " + std::to_string(s[3]) + ")";
-}
-
-// ------------------------------------------------------------------------- constant tensors
-
-bool IsReal(int type) { return type == TensorProto::FLOAT || type == TensorProto::DOUBLE; }
-
-// 8- and 16-bit integers: every value is exact in float32.
-bool IsSmallInteger(int type) {
-  return type == TensorProto::INT8 || type == TensorProto::UINT8 || type == TensorProto::INT16 ||
-         type == TensorProto::UINT16;
-}
-
-bool IsSupportedType(int type) {
-  return type == TensorProto::FLOAT || type == TensorProto::DOUBLE || type == TensorProto::INT64 ||
-         type == TensorProto::INT32 || type == TensorProto::BOOL || IsSmallInteger(type);
-}
-
-std::string TypeName(int type) {
-  if (TensorProto::DataType_IsValid(type)) {
-    return TensorProto::DataType_Name(static_cast<TensorProto::DataType>(type));
-  }
-  return "data type " + std::to_string(type);
-}
-
-// FLOAT values are kept exactly representable as float, as an ONNX runtime would compute them.
-double RoundToType(int type, double v) {
-  return type == TensorProto::FLOAT ? static_cast<double>(static_cast<float>(v)) : v;
-}
-
-// double -> int64 without undefined behaviour: NaN gives 0, out-of-range values saturate.
-int64_t ToInt64(double v) {
-  if (std::isnan(v)) return 0;
-  if (v >= 9223372036854775807.0) return std::numeric_limits<int64_t>::max();
-  if (v <= -9223372036854775808.0) return std::numeric_limits<int64_t>::min();
-  return static_cast<int64_t>(v);
-}
-
-// Two's-complement wrapping int64 arithmetic, as ONNX runtimes compute it (no UB on overflow).
-int64_t WrapAdd(int64_t a, int64_t b) {
-  return static_cast<int64_t>(static_cast<uint64_t>(a) + static_cast<uint64_t>(b));
-}
-int64_t WrapSub(int64_t a, int64_t b) {
-  return static_cast<int64_t>(static_cast<uint64_t>(a) - static_cast<uint64_t>(b));
-}
-int64_t WrapMul(int64_t a, int64_t b) {
-  return static_cast<int64_t>(static_cast<uint64_t>(a) * static_cast<uint64_t>(b));
-}
-
-int64_t WrapToType(int type, int64_t v) {
-  if (type == TensorProto::INT32) return static_cast<int32_t>(v);
-  if (type == TensorProto::BOOL) return v != 0 ? 1 : 0;
-  return v;
-}
-
-// A constant tensor. Integer and bool values live in `ints`, FLOAT and DOUBLE values in `reals`.
-struct Const {
-  int type = TensorProto::INT64;
-  Dims dims;
-  std::vector<int64_t> ints;
-  std::vector<double> reals;
-
-  bool is_real() const { return IsReal(type); }
-  size_t size() const { return is_real() ? reals.size() : ints.size(); }
-  double Real(size_t i) const { return is_real() ? reals[i] : static_cast<double>(ints[i]); }
-  // Integer view; only used where the tensor is an integer tensor or the value is known whole.
-  int64_t Int(size_t i) const { return is_real() ? ToInt64(reals[i]) : ints[i]; }
-  void Set(size_t i, double v) {
-    if (is_real()) {
-      reals[i] = RoundToType(type, v);
-    } else {
-      ints[i] = WrapToType(type, ToInt64(v));
-    }
-  }
-  void SetInt(size_t i, int64_t v) {
-    if (is_real()) {
-      reals[i] = RoundToType(type, static_cast<double>(v));
-    } else {
-      ints[i] = WrapToType(type, v);
-    }
-  }
-};
-
-Result<int64_t> NumElements(const Dims& dims) {
-  int64_t n = 1;
-  for (int64_t d : dims) {
-    if (d < 0) return Status::Error("negative dimension " + std::to_string(d));
-    if (d != 0 && n > kMaxFoldedElements * 64 / d) {
-      return Status::Error("tensor of shape " + JoinInts(dims) + " is too large");
-    }
-    n *= d;
-  }
-  return n;
-}
-
-// The bytes an import may still allocate for constants. A file's shapes and counts are only
-// declarations: a 257-byte file declared a 2 GB weight (issue 38), and a few bytes of nodes can
-// repeat, broadcast or expand a tensor without limit. So every constant the importer decodes,
-// copies or evaluates, and every weight it reads, is charged here before it is allocated, which
-// keeps an import within kConstantSlackBytes plus kConstantBytesPerFileByte times the file,
-// whatever the file declares.
-class ConstantBudget {
- public:
-  explicit ConstantBudget(size_t file_bytes)
-      : file_bytes_(file_bytes),
-        limit_(kConstantSlackBytes + kConstantBytesPerFileByte * static_cast<int64_t>(file_bytes)),
-        left_(limit_) {}
-
-  // Charges `values` values of `value_bytes` bytes each. The error starts with `what` (a tensor
-  // and its shape) and says what it needed against what was left.
-  Status Take(size_t values, size_t value_bytes, const std::string& what) {
-    // values <= 2^30 (NumElements) or a field the parsed file holds; value_bytes <= 8.
-    const auto bytes = static_cast<int64_t>(values * value_bytes);
-    if (bytes > left_) {
-      return Status::Error(what + " needs " + std::to_string(bytes) +
-                           " bytes, more than this import may still allocate for constants (" +
-                           std::to_string(left_) + " of " + std::to_string(limit_) +
-                           " bytes: " + std::to_string(kConstantSlackBytes >> 20) + " MiB plus " +
-                           std::to_string(kConstantBytesPerFileByte) + " per byte of the " +
-                           std::to_string(file_bytes_) + "-byte file)");
-    }
-    left_ -= bytes;
-    return Status::Ok();
-  }
-
- private:
-  size_t file_bytes_;
-  int64_t limit_;
-  int64_t left_;
-};
-
-// A zero constant of `dims`, charged to `budget`.
-Result<Const> MakeConst(ConstantBudget& budget, int type, Dims dims) {
-  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t n, NumElements(dims));
-  if (n > kMaxFoldedElements) {
-    return Status::Error("a constant of shape " + JoinInts(dims) + " is too large to evaluate");
-  }
-  SFRT_ONNX_RETURN_IF_ERROR(budget.Take(static_cast<size_t>(n), kConstValueBytes,
-                                        "a constant of shape " + JoinInts(dims)));
-  Const c;
-  c.type = type;
-  c.dims = std::move(dims);
-  if (c.is_real()) {
-    c.reals.assign(static_cast<size_t>(n), 0.0);
-  } else {
-    c.ints.assign(static_cast<size_t>(n), 0);
-  }
-  return c;
-}
-
-// Copies element `si` of `src` into element `di` of `dst`, converting the type if needed.
-void CopyElement(const Const& src, size_t si, Const& dst, size_t di) {
-  if (src.is_real()) {
-    dst.Set(di, src.reals[si]);
-  } else {
-    dst.SetInt(di, src.ints[si]);
-  }
-}
-
-template <typename T>
-T LoadLittleEndian(const char* p) {
-  using U = std::conditional_t<sizeof(T) == 8, uint64_t, uint32_t>;
-  U u = 0;
-  for (size_t b = 0; b < sizeof(T); ++b) {
-    u |= static_cast<U>(static_cast<unsigned char>(p[b])) << (8 * b);
-  }
-  return std::bit_cast<T>(u);
-}
-
-// The bytes one value of a supported `type` takes in raw_data.
-size_t RawWidth(int type) {
-  switch (type) {
-    case TensorProto::DOUBLE:
-    case TensorProto::INT64:
-      return 8;
-    case TensorProto::FLOAT:
-    case TensorProto::INT32:
-      return 4;
-    case TensorProto::INT16:
-    case TensorProto::UINT16:
-      return 2;
-    default:  // INT8, UINT8, BOOL
-      return 1;
-  }
-}
-
-// The values a tensor of a supported type holds: whole values in raw_data, or the length of the
-// typed field its type uses (int32_data for the integer types narrower than 64 bits and BOOL).
-size_t HeldValues(const TensorProto& t) {
-  if (t.has_raw_data()) return t.raw_data().size() / RawWidth(t.data_type());
-  switch (t.data_type()) {
-    case TensorProto::FLOAT:
-      return static_cast<size_t>(t.float_data_size());
-    case TensorProto::DOUBLE:
-      return static_cast<size_t>(t.double_data_size());
-    case TensorProto::INT64:
-      return static_cast<size_t>(t.int64_data_size());
-    default:
-      return static_cast<size_t>(t.int32_data_size());
-  }
-}
-
-// Decodes an initialiser or a Constant node's tensor, charged to `budget`. `what` names it in
-// errors.
-Result<Const> DecodeTensor(const TensorProto& t, const std::string& what, ConstantBudget& budget) {
-  if (t.data_location() == TensorProto::EXTERNAL) {
-    return Status::Error(what +
-                         " uses external data, which is not supported (re-export with the "
-                         "weights inside the .onnx file)");
-  }
-  if (!IsSupportedType(t.data_type())) {
-    return Status::Error(
-        what + " has unsupported element type " + TypeName(t.data_type()) +
-        " (supported: FLOAT, DOUBLE, INT64, INT32, INT16, UINT16, INT8, UINT8, BOOL)");
-  }
-  Dims dims(t.dims().begin(), t.dims().end());
-  auto count = NumElements(dims);
-  if (!count.ok()) return Status::Error(what + ": " + count.message());
-  const auto n = static_cast<size_t>(*count);
-  // The declared shape against the values the file holds, before anything is sized from it.
-  const size_t width = RawWidth(t.data_type());
-  if (const size_t held = HeldValues(t);
-      held != n || (t.has_raw_data() && t.raw_data().size() != n * width)) {
-    return Status::Error(what + " holds " + std::to_string(held) + " values of " +
-                         TypeName(t.data_type()) + ", its shape " + JoinInts(dims) + " needs " +
-                         std::to_string(n));
-  }
-  SFRT_ONNX_RETURN_IF_ERROR(budget.Take(n, kConstValueBytes, what + " of shape " + JoinInts(dims)));
-  Const c;
-  c.type = t.data_type();
-  c.dims = std::move(dims);
-  const char* raw = t.raw_data().data();
-  if (c.is_real()) {
-    c.reals.resize(n);
-  } else {
-    c.ints.resize(n);
-  }
-  switch (t.data_type()) {
-    case TensorProto::FLOAT:
-      for (size_t i = 0; i < n; ++i) {
-        c.reals[i] = t.has_raw_data() ? LoadLittleEndian<float>(raw + 4 * i)
-                                      : t.float_data(static_cast<int>(i));
-      }
-      break;
-    case TensorProto::DOUBLE:
-      for (size_t i = 0; i < n; ++i) {
-        c.reals[i] = t.has_raw_data() ? LoadLittleEndian<double>(raw + 8 * i)
-                                      : t.double_data(static_cast<int>(i));
-      }
-      break;
-    case TensorProto::INT64:
-      for (size_t i = 0; i < n; ++i) {
-        c.ints[i] = t.has_raw_data() ? LoadLittleEndian<int64_t>(raw + 8 * i)
-                                     : t.int64_data(static_cast<int>(i));
-      }
-      break;
-    case TensorProto::INT32:
-      for (size_t i = 0; i < n; ++i) {
-        c.ints[i] = t.has_raw_data() ? LoadLittleEndian<int32_t>(raw + 4 * i)
-                                     : t.int32_data(static_cast<int>(i));
-      }
-      break;
-    case TensorProto::INT8:
-    case TensorProto::UINT8:
-    case TensorProto::INT16:
-    case TensorProto::UINT16: {
-      const bool is_signed =
-          t.data_type() == TensorProto::INT8 || t.data_type() == TensorProto::INT16;
-      const uint32_t sign_bit = width == 1 ? 0x80u : 0x8000u;
-      for (size_t i = 0; i < n; ++i) {
-        if (!t.has_raw_data()) {  // int32_data holds one value per element
-          c.ints[i] = t.int32_data(static_cast<int>(i));
-          continue;
-        }
-        uint32_t u = static_cast<unsigned char>(raw[width * i]);
-        if (width == 2) u |= static_cast<uint32_t>(static_cast<unsigned char>(raw[2 * i + 1])) << 8;
-        c.ints[i] = is_signed && (u & sign_bit) != 0 ? static_cast<int64_t>(u) - 2 * sign_bit
-                                                     : static_cast<int64_t>(u);
-      }
-      break;
-    }
-    default:  // BOOL
-      for (size_t i = 0; i < n; ++i) {
-        const bool set = t.has_raw_data() ? raw[i] != 0 : t.int32_data(static_cast<int>(i)) != 0;
-        c.ints[i] = set ? 1 : 0;
-      }
-      break;
-  }
-  return c;
-}
-
-// Numpy-style (multidirectional) broadcasting of several shapes.
-Result<Dims> BroadcastDims(const std::vector<const Dims*>& shapes) {
-  size_t rank = 0;
-  for (const Dims* s : shapes) rank = std::max(rank, s->size());
-  Dims out(rank, 1);
-  for (const Dims* s : shapes) {
-    const size_t offset = rank - s->size();
-    for (size_t i = 0; i < s->size(); ++i) {
-      const int64_t d = (*s)[i];
-      int64_t& o = out[offset + i];
-      if (d == o || d == 1) continue;
-      if (o == 1) {
-        o = d;
-        continue;
-      }
-      std::string text;
-      for (const Dims* t : shapes) text += (text.empty() ? "" : " and ") + JoinInts(*t);
-      return Status::Error("shapes " + text + " do not broadcast");
-    }
-  }
-  return out;
-}
-
-// The flat index into a tensor of shape `in` (broadcast to `out`) for flat output index `flat`.
-size_t SourceIndex(size_t flat, const Dims& out, const Dims& in) {
-  size_t index = 0;
-  size_t stride = 1;
-  const size_t offset = out.size() - in.size();
-  for (size_t k = out.size(); k-- > 0;) {
-    const auto extent = static_cast<size_t>(out[k]);
-    const size_t coord = extent == 0 ? 0 : flat % extent;
-    flat = extent == 0 ? 0 : flat / extent;
-    if (k >= offset) {
-      const auto in_extent = static_cast<size_t>(in[k - offset]);
-      if (in_extent != 1) index += coord * stride;
-      stride *= in_extent;
-    }
-  }
-  return index;
-}
-
-int PromoteTypes(int a, int b) {
-  if (a == b) return a;
-  if (a == TensorProto::DOUBLE || b == TensorProto::DOUBLE) return TensorProto::DOUBLE;
-  if (a == TensorProto::FLOAT || b == TensorProto::FLOAT) return TensorProto::FLOAT;
-  return TensorProto::INT64;
-}
-
-// Elementwise op over broadcast inputs. `real_fn(double, double) -> double` is used when the
-// computation type is real, `int_fn(int64, int64) -> Result<int64>` otherwise. The output has
-// `out_type` (which may differ from the computation type, e.g. BOOL for comparisons).
-template <typename RealFn, typename IntFn>
-Result<Const> Elementwise(ConstantBudget& budget, const Const& a, const Const& b, int out_type,
-                          RealFn real_fn, IntFn int_fn) {
-  SFRT_ONNX_ASSIGN_OR_RETURN(Dims dims, BroadcastDims({&a.dims, &b.dims}));
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, out_type, dims));
-  const bool real = a.is_real() || b.is_real();
-  for (size_t i = 0; i < out.size(); ++i) {
-    const size_t ia = SourceIndex(i, dims, a.dims);
-    const size_t ib = SourceIndex(i, dims, b.dims);
-    if (real) {
-      out.Set(i, real_fn(a.Real(ia), b.Real(ib)));
-    } else {
-      SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t v, int_fn(a.ints[ia], b.ints[ib]));
-      out.SetInt(i, v);
-    }
-  }
-  return out;
-}
-
-Result<int64_t> IntOk(int64_t v) { return v; }
-
-int64_t FloorDiv(int64_t n, int64_t d) {
-  int64_t q = n / d;
-  if ((n % d != 0) && ((n < 0) != (d < 0))) --q;
-  return q;
-}
-
-Result<Const> Cast(ConstantBudget& budget, const Const& in, int to) {
-  if (!IsSupportedType(to)) {
-    return Status::Error("attribute 'to' = " + TypeName(to) +
-                         " is not supported (FLOAT, DOUBLE, INT64, INT32, BOOL)");
-  }
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, to, in.dims));
-  for (size_t i = 0; i < in.size(); ++i) {
-    if (in.is_real() && !out.is_real()) {
-      const double v = in.reals[i];
-      if (to == TensorProto::BOOL) {
-        out.ints[i] = v != 0.0 ? 1 : 0;
-        continue;
-      }
-      if (!std::isfinite(v) || std::fabs(v) >= 9.2e18) {
-        return Status::Error("cannot cast " + FormatDouble(v) + " to " + TypeName(to));
-      }
-      out.SetInt(i, static_cast<int64_t>(std::trunc(v)));
-    } else {
-      CopyElement(in, i, out, i);
-    }
-  }
-  return out;
-}
-
-// Normalises an axis in [-rank, rank) to [0, rank).
-Result<int64_t> NormalizeAxis(int64_t axis, int64_t rank, const std::string& what) {
-  if (axis < -rank || axis >= rank) {
-    return Status::Error(what + " " + std::to_string(axis) + " is out of range for rank " +
-                         std::to_string(rank));
-  }
-  return axis < 0 ? axis + rank : axis;
-}
-
-Dims Strides(const Dims& dims) {
-  Dims strides(dims.size(), 1);
-  for (size_t k = dims.size(); k-- > 1;) strides[k - 1] = strides[k] * dims[k];
-  return strides;
-}
-
-Result<Const> Concat(ConstantBudget& budget, const std::vector<const Const*>& ins,
-                     int64_t axis_attr) {
-  if (ins.empty()) return Status::Error("no inputs");
-  const Const& first = *ins[0];
-  const auto rank = static_cast<int64_t>(first.dims.size());
-  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(axis_attr, rank, "axis"));
-  Dims dims = first.dims;
-  dims[axis] = 0;
-  int type = first.type;
-  for (const Const* in : ins) {
-    if (static_cast<int64_t>(in->dims.size()) != rank) {
-      return Status::Error("inputs have different ranks");
-    }
-    for (int64_t k = 0; k < rank; ++k) {
-      if (k != axis && in->dims[k] != first.dims[k]) {
-        return Status::Error("input shapes " + JoinInts(first.dims) + " and " + JoinInts(in->dims) +
-                             " differ outside axis " + std::to_string(axis));
-      }
-    }
-    dims[axis] += in->dims[axis];
-    type = PromoteTypes(type, in->type);
-  }
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, type, dims));
-  int64_t outer = 1;
-  for (int64_t k = 0; k < axis; ++k) outer *= dims[k];
-  size_t di = 0;
-  for (int64_t o = 0; o < outer; ++o) {
-    for (const Const* in : ins) {
-      const auto block =
-          static_cast<size_t>(in->size() / static_cast<size_t>(outer > 0 ? outer : 1));
-      const size_t base = static_cast<size_t>(o) * block;
-      for (size_t j = 0; j < block; ++j) CopyElement(*in, base + j, out, di++);
-    }
-  }
-  return out;
-}
-
-Result<Const> Gather(ConstantBudget& budget, const Const& data, const Const& indices,
-                     int64_t axis_attr) {
-  if (indices.is_real()) return Status::Error("indices must be integers");
-  const auto rank = static_cast<int64_t>(data.dims.size());
-  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(axis_attr, rank, "axis"));
-  Dims dims(data.dims.begin(), data.dims.begin() + axis);
-  dims.insert(dims.end(), indices.dims.begin(), indices.dims.end());
-  dims.insert(dims.end(), data.dims.begin() + axis + 1, data.dims.end());
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, data.type, dims));
-  int64_t outer = 1;
-  int64_t inner = 1;
-  for (int64_t k = 0; k < axis; ++k) outer *= data.dims[k];
-  for (int64_t k = axis + 1; k < rank; ++k) inner *= data.dims[k];
-  const int64_t extent = data.dims[axis];
-  size_t di = 0;
-  for (int64_t o = 0; o < outer; ++o) {
-    for (size_t j = 0; j < indices.size(); ++j) {
-      int64_t idx = indices.ints[j];
-      if (idx < 0) idx += extent;
-      if (idx < 0 || idx >= extent) {
-        return Status::Error("index " + std::to_string(indices.ints[j]) +
-                             " is out of range for axis of size " + std::to_string(extent));
-      }
-      for (int64_t i = 0; i < inner; ++i) {
-        CopyElement(data, static_cast<size_t>((o * extent + idx) * inner + i), out, di++);
-      }
-    }
-  }
-  return out;
-}
-
-// `in` with shape `dims`; it takes `in`'s values (no copy, so nothing to charge).
-Result<Const> Reshaped(Const in, Dims dims) {
-  SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t n, NumElements(dims));
-  if (static_cast<size_t>(n) != in.size()) {
-    return Status::Error("cannot reshape " + JoinInts(in.dims) + " to " + JoinInts(dims));
-  }
-  in.dims = std::move(dims);
-  return in;
-}
-
-Result<Const> Reshape(Const in, const Const& shape, bool allow_zero) {
-  if (shape.is_real() || shape.dims.size() != 1) {
-    return Status::Error("input 'shape' must be a 1-D integer tensor");
-  }
-  Dims dims(shape.ints.begin(), shape.ints.end());
-  int infer = -1;
-  int64_t known = 1;
-  for (size_t k = 0; k < dims.size(); ++k) {
-    if (dims[k] == 0 && !allow_zero) {
-      if (k >= in.dims.size())
-        return Status::Error("shape " + JoinInts(shape.ints) + " copies a missing dimension");
-      dims[k] = in.dims[k];
-    }
-    if (dims[k] == -1) {
-      if (infer >= 0) return Status::Error("shape " + JoinInts(shape.ints) + " has two -1 entries");
-      infer = static_cast<int>(k);
-      continue;
-    }
-    if (dims[k] < 0) {
-      return Status::Error("shape " + JoinInts(shape.ints) + " has a negative entry");
-    }
-    if (dims[k] > 0 && known > kMaxFoldedElements / dims[k]) {
-      return Status::Error("shape " + JoinInts(shape.ints) + " is too large");
-    }
-    known *= dims[k];
-  }
-  if (infer >= 0) {
-    const auto total = static_cast<int64_t>(in.size());
-    if (known == 0 || total % known != 0) {
-      return Status::Error("cannot reshape " + JoinInts(in.dims) + " to " + JoinInts(shape.ints));
-    }
-    dims[infer] = total / known;
-  }
-  return Reshaped(std::move(in), std::move(dims));
-}
-
-Result<Const> Unsqueeze(Const in, const std::vector<int64_t>& axes_in) {
-  const auto out_rank = static_cast<int64_t>(in.dims.size() + axes_in.size());
-  std::vector<int64_t> axes;
-  for (int64_t a : axes_in) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(a, out_rank, "axis"));
-    if (std::find(axes.begin(), axes.end(), axis) != axes.end()) {
-      return Status::Error("axes " + JoinInts(axes_in) + " repeat an axis");
-    }
-    axes.push_back(axis);
-  }
-  Dims dims;
-  size_t next = 0;
-  for (int64_t k = 0; k < out_rank; ++k) {
-    if (std::find(axes.begin(), axes.end(), k) != axes.end()) {
-      dims.push_back(1);
-    } else {
-      dims.push_back(in.dims[next++]);
-    }
-  }
-  return Reshaped(std::move(in), std::move(dims));
-}
-
-Result<Const> Squeeze(Const in, const std::vector<int64_t>& axes_in, bool have_axes) {
-  const auto rank = static_cast<int64_t>(in.dims.size());
-  std::vector<bool> drop(in.dims.size(), false);
-  if (!have_axes) {
-    for (int64_t k = 0; k < rank; ++k) drop[k] = in.dims[k] == 1;
-  }
-  for (int64_t a : axes_in) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, NormalizeAxis(a, rank, "axis"));
-    if (in.dims[axis] != 1) {
-      return Status::Error("cannot squeeze axis " + std::to_string(a) + " of shape " +
-                           JoinInts(in.dims));
-    }
-    drop[axis] = true;
-  }
-  Dims dims;
-  for (int64_t k = 0; k < rank; ++k) {
-    if (!drop[k]) dims.push_back(in.dims[k]);
-  }
-  return Reshaped(std::move(in), std::move(dims));
-}
-
-Result<Const> Transpose(ConstantBudget& budget, const Const& in, std::vector<int64_t> perm) {
-  const size_t rank = in.dims.size();
-  if (perm.empty()) {
-    for (size_t k = rank; k-- > 0;) perm.push_back(static_cast<int64_t>(k));
-  }
-  if (perm.size() != rank)
-    return Status::Error("attribute 'perm' " + JoinInts(perm) + " has the wrong length");
-  std::vector<bool> seen(rank, false);
-  for (int64_t p : perm) {
-    if (p < 0 || static_cast<size_t>(p) >= rank || seen[p]) {
-      return Status::Error("attribute 'perm' " + JoinInts(perm) + " is not a permutation");
-    }
-    seen[p] = true;
-  }
-  Dims dims(rank);
-  for (size_t k = 0; k < rank; ++k) dims[k] = in.dims[perm[k]];
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
-  const Dims in_strides = Strides(in.dims);
-  for (size_t i = 0; i < out.size(); ++i) {
-    size_t flat = i;
-    size_t src = 0;
-    for (size_t k = rank; k-- > 0;) {
-      const auto extent = static_cast<size_t>(dims[k]);
-      src += (flat % extent) * static_cast<size_t>(in_strides[perm[k]]);
-      flat /= extent;
-    }
-    CopyElement(in, src, out, i);
-  }
-  return out;
-}
-
-Result<Const> Expand(ConstantBudget& budget, const Const& in, const Const& shape) {
-  if (shape.is_real() || shape.dims.size() != 1) {
-    return Status::Error("input 'shape' must be a 1-D integer tensor");
-  }
-  const Dims target(shape.ints.begin(), shape.ints.end());
-  SFRT_ONNX_ASSIGN_OR_RETURN(const Dims dims, BroadcastDims({&in.dims, &target}));
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
-  for (size_t i = 0; i < out.size(); ++i) CopyElement(in, SourceIndex(i, dims, in.dims), out, i);
-  return out;
-}
-
-Result<Const> Tile(ConstantBudget& budget, const Const& in, const Const& repeats) {
-  if (repeats.is_real() || repeats.size() != in.dims.size()) {
-    return Status::Error("input 'repeats' must hold one integer per input dimension");
-  }
-  Dims dims = in.dims;
-  for (size_t k = 0; k < dims.size(); ++k) {
-    if (repeats.ints[k] < 0 || repeats.ints[k] > kMaxFoldedElements) {
-      return Status::Error("input 'repeats' = " + JoinInts(repeats.ints) + " is not supported");
-    }
-    dims[k] *= repeats.ints[k];  // both factors <= 2^24: no overflow
-  }
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
-  const Dims in_strides = Strides(in.dims);
-  for (size_t i = 0; i < out.size(); ++i) {
-    size_t flat = i;
-    size_t src = 0;
-    for (size_t k = dims.size(); k-- > 0;) {
-      const auto extent = static_cast<size_t>(dims[k]);
-      src +=
-          ((flat % extent) % static_cast<size_t>(in.dims[k])) * static_cast<size_t>(in_strides[k]);
-      flat /= extent;
-    }
-    CopyElement(in, src, out, i);
-  }
-  return out;
-}
-
-struct SliceAxis {
-  int64_t start = 0;
-  int64_t step = 1;
-  int64_t count = 0;
-};
-
-// ONNX Slice clamping for one axis of extent `dim`.
-SliceAxis ClampSlice(int64_t start, int64_t end, int64_t step, int64_t dim) {
-  SliceAxis s;
-  // Steps beyond the extent select one element either way; clamping keeps the arithmetic exact.
-  constexpr int64_t kMaxStep = int64_t{1} << 40;
-  step = std::clamp(step, -kMaxStep, kMaxStep);
-  s.step = step;
-  if (start < 0) start += dim;
-  if (end < 0) end += dim;
-  if (step > 0) {
-    start = std::clamp<int64_t>(start, 0, dim);
-    end = std::clamp<int64_t>(end, 0, dim);
-    s.count = end > start ? (end - start - 1) / step + 1 : 0;
-  } else {
-    start = std::clamp<int64_t>(start, 0, dim - 1);
-    end = std::clamp<int64_t>(end, -1, dim - 1);
-    s.count = start > end ? (start - end - 1) / (-step) + 1 : 0;
-  }
-  s.start = start;
-  return s;
-}
-
-struct SliceArgs {
-  std::vector<int64_t> starts, ends, axes, steps;
-};
-
-Result<SliceArgs> ReadSliceArgs(const Const* starts, const Const* ends, const Const* axes,
-                                const Const* steps, int64_t rank) {
-  auto ints = [](const Const* c, const char* name) -> Result<std::vector<int64_t>> {
-    if (c->is_real() || c->dims.size() > 1) {
-      return Status::Error(std::string("input '") + name + "' must be a 1-D integer tensor");
-    }
-    return c->ints;
-  };
-  SliceArgs a;
-  SFRT_ONNX_ASSIGN_OR_RETURN(a.starts, ints(starts, "starts"));
-  SFRT_ONNX_ASSIGN_OR_RETURN(a.ends, ints(ends, "ends"));
-  if (axes != nullptr) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(a.axes, ints(axes, "axes"));
-  } else {
-    for (size_t k = 0; k < a.starts.size(); ++k) a.axes.push_back(static_cast<int64_t>(k));
-  }
-  if (steps != nullptr) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(a.steps, ints(steps, "steps"));
-  } else {
-    a.steps.assign(a.starts.size(), 1);
-  }
-  if (a.ends.size() != a.starts.size() || a.axes.size() != a.starts.size() ||
-      a.steps.size() != a.starts.size()) {
-    return Status::Error("inputs 'starts' " + JoinInts(a.starts) + ", 'ends' " + JoinInts(a.ends) +
-                         ", 'axes' " + JoinInts(a.axes) + " and 'steps' " + JoinInts(a.steps) +
-                         " differ in length");
-  }
-  std::vector<int64_t> seen;
-  for (int64_t& axis : a.axes) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(axis, NormalizeAxis(axis, rank, "input 'axes' value"));
-    if (std::find(seen.begin(), seen.end(), axis) != seen.end()) {
-      return Status::Error("input 'axes' repeats axis " + std::to_string(axis));
-    }
-    seen.push_back(axis);
-  }
-  for (int64_t step : a.steps) {
-    if (step == 0) return Status::Error("input 'steps' contains 0");
-  }
-  return a;
-}
-
-Result<Const> SliceConst(ConstantBudget& budget, const Const& in, const SliceArgs& args) {
-  const size_t rank = in.dims.size();
-  std::vector<SliceAxis> axes(rank);
-  for (size_t k = 0; k < rank; ++k) axes[k] = SliceAxis{0, 1, in.dims[k]};
-  for (size_t i = 0; i < args.axes.size(); ++i) {
-    const auto k = static_cast<size_t>(args.axes[i]);
-    axes[k] = ClampSlice(args.starts[i], args.ends[i], args.steps[i], in.dims[k]);
-  }
-  Dims dims(rank);
-  for (size_t k = 0; k < rank; ++k) dims[k] = axes[k].count;
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, in.type, dims));
-  const Dims in_strides = Strides(in.dims);
-  for (size_t i = 0; i < out.size(); ++i) {
-    size_t flat = i;
-    int64_t src = 0;
-    for (size_t k = rank; k-- > 0;) {
-      const auto extent = static_cast<size_t>(dims[k]);
-      const auto coord = static_cast<int64_t>(flat % extent);
-      flat /= extent;
-      src += (axes[k].start + coord * axes[k].step) * in_strides[k];
-    }
-    CopyElement(in, static_cast<size_t>(src), out, i);
-  }
-  return out;
-}
-
-Result<Const> Range(ConstantBudget& budget, const Const& start, const Const& limit,
-                    const Const& delta) {
-  if (start.size() != 1 || limit.size() != 1 || delta.size() != 1) {
-    return Status::Error("inputs must be scalars");
-  }
-  const int type = start.type;
-  // The element count, computed in double: only small ranges are evaluated anyway.
-  const double d = delta.Real(0);
-  if (d == 0.0) return Status::Error("delta is 0");
-  const double count_d = std::max(std::ceil((limit.Real(0) - start.Real(0)) / d), 0.0);
-  if (!(count_d <= static_cast<double>(kMaxFoldedElements))) {
-    return Status::Error("range of " + FormatDouble(count_d) + " elements is too large");
-  }
-  const auto count = static_cast<int64_t>(count_d);
-  SFRT_ONNX_ASSIGN_OR_RETURN(Const out, MakeConst(budget, type, {count}));
-  for (int64_t i = 0; i < count; ++i) {
-    if (IsReal(type)) {
-      out.Set(static_cast<size_t>(i), start.Real(0) + static_cast<double>(i) * delta.Real(0));
-    } else {
-      out.SetInt(static_cast<size_t>(i), WrapAdd(start.Int(0), WrapMul(i, delta.Int(0))));
-    }
-  }
-  return out;
 }
 
 // ------------------------------------------------------------------------- resize semantics
@@ -1085,6 +222,25 @@ class Importer {
     return NodeError(idx, "unsupported; supported ops: " + SupportedOpsText() + note);
   }
 
+  // How a node that reads a tensor depending on the network input becomes a GraphOp: one rule per
+  // op type, found by name (FindRuntimeOp), as the constant folders are (onnx/folders.h).
+  enum class Merge {
+    kNever,                    // reads one such tensor; its other inputs are constants
+    kAlways,                   // Concat: reads several (ProcessMergeNode)
+    kWithSeveralRuntimeInputs  // Add: a merge when it reads several, a scale and shift otherwise
+  };
+  struct RuntimeOp {
+    std::string_view type;
+    GraphOp::Kind kind;
+    Status (Importer::*process)(int idx, GraphOp& op);  // null: nothing to read (Identity)
+    Activation activation = Activation::kNone;          // kActivation: which
+    Merge merge = Merge::kNever;
+  };
+  static std::span<const RuntimeOp> RuntimeOps();
+  static const RuntimeOp* FindRuntimeOp(std::string_view type);
+  // "Conv, Pad, ... (constant subgraphs may also use Constant, Shape, ...)".
+  static std::string SupportedOpsText();
+
   Status Load();
   Status ReadOpset();
   Status ReadInitializers();
@@ -1101,9 +257,11 @@ class Importer {
   // A node whose input `slot` is a runtime tensor and whose other inputs are constants.
   Status ProcessRuntimeNode(int idx, int slot);
   Status ProcessClip(int idx, GraphOp& op);
+  // Relu, LeakyRelu, Elu, Sigmoid, Tanh (op.activation set by the op's rule).
+  Status ProcessActivation(int idx, GraphOp& op);
   Status CheckIntegerGraph(const std::vector<bool>& needed) const;
-  // Add, Sub, Mul or Div of the runtime tensor at `slot` and a per-channel constant.
-  Status ProcessElementwise(int idx, int slot, GraphOp& op);
+  // Add, Sub, Mul or Div of the runtime tensor it reads (op.inputs[0]) and a per-channel constant.
+  Status ProcessElementwise(int idx, GraphOp& op);
   Status ProcessConv(int idx, GraphOp& op);
   Status ProcessConvTranspose(int idx, GraphOp& op);
   Status ProcessPool(int idx, GraphOp& op);
@@ -1162,19 +320,13 @@ class Importer {
 };
 
 const onnx::AttributeProto* Importer::FindAttr(int idx, std::string_view name) const {
-  for (const auto& a : graph().node(idx).attribute()) {
-    if (a.name() == name) return &a;
-  }
-  return nullptr;
+  return FindAttribute(graph().node(idx), name);
 }
 
 Result<int64_t> Importer::IntAttr(int idx, std::string_view name, int64_t fallback) const {
-  const auto* a = FindAttr(idx, name);
-  if (a == nullptr) return fallback;
-  if (a->type() != onnx::AttributeProto::INT) {
-    return NodeError(idx, "attribute '" + std::string(name) + "' is not an integer");
-  }
-  return a->i();
+  Result<int64_t> value = IntAttribute(graph().node(idx), name, fallback);
+  if (!value.ok()) return NodeError(idx, value.message());
+  return value;
 }
 
 Result<std::vector<int64_t>> Importer::DilationsAttr(int idx, std::string_view name) const {
@@ -1190,12 +342,9 @@ Result<std::vector<int64_t>> Importer::DilationsAttr(int idx, std::string_view n
 }
 
 Result<std::vector<int64_t>> Importer::IntsAttr(int idx, std::string_view name) const {
-  const auto* a = FindAttr(idx, name);
-  if (a == nullptr) return std::vector<int64_t>{};
-  if (a->type() != onnx::AttributeProto::INTS) {
-    return NodeError(idx, "attribute '" + std::string(name) + "' is not a list of integers");
-  }
-  return std::vector<int64_t>(a->ints().begin(), a->ints().end());
+  Result<std::vector<int64_t>> values = IntsAttribute(graph().node(idx), name);
+  if (!values.ok()) return NodeError(idx, values.message());
+  return values;
 }
 
 Result<float> Importer::FloatAttr(int idx, std::string_view name, float fallback) const {
@@ -1451,7 +600,7 @@ std::vector<int> Importer::UnknownOpNodes(const std::vector<bool>& live) const {
     const onnx::NodeProto& n = graph().node(i);
     const bool default_domain = n.domain().empty() || n.domain() == "ai.onnx";
     if (!default_domain ||
-        (!Contains(kRuntimeOps, n.op_type()) && !Contains(kFoldableOps, n.op_type()))) {
+        (FindRuntimeOp(n.op_type()) == nullptr && FindFolder(n.op_type()) == nullptr)) {
       unknown.push_back(i);
     }
   }
@@ -1521,326 +670,96 @@ Status Importer::ProcessConstant(int idx) {
   return Status::Ok();
 }
 
+// clang-format off
+std::span<const Importer::RuntimeOp> Importer::RuntimeOps() {
+  using K = GraphOp::Kind;
+  static constexpr std::array kOps = {
+      RuntimeOp{"Conv", K::kConv, &Importer::ProcessConv},
+      RuntimeOp{"Pad", K::kPad, &Importer::ProcessPad},
+      RuntimeOp{"BatchNormalization", K::kBatchNorm, &Importer::ProcessBatchNorm},
+      RuntimeOp{"LeakyRelu", K::kActivation, &Importer::ProcessActivation, Activation::kLeakyRelu},
+      RuntimeOp{"Relu", K::kActivation, &Importer::ProcessActivation, Activation::kRelu},
+      RuntimeOp{"Elu", K::kActivation, &Importer::ProcessActivation, Activation::kElu},
+      RuntimeOp{"Sigmoid", K::kActivation, &Importer::ProcessActivation, Activation::kSigmoid},
+      RuntimeOp{"Tanh", K::kActivation, &Importer::ProcessActivation, Activation::kTanh},
+      RuntimeOp{"Clip", K::kActivation, &Importer::ProcessClip},
+      RuntimeOp{"Resize", K::kUpsample, &Importer::ProcessResize},
+      RuntimeOp{"Upsample", K::kUpsample, &Importer::ProcessResize},
+      RuntimeOp{"Slice", K::kSlice, &Importer::ProcessSlice},
+      RuntimeOp{"Identity", K::kIdentity, nullptr},
+      RuntimeOp{"Concat", K::kConcat, nullptr, Activation::kNone, Merge::kAlways},
+      RuntimeOp{"Add", K::kAffine, &Importer::ProcessElementwise, Activation::kNone,
+                Merge::kWithSeveralRuntimeInputs},
+      RuntimeOp{"Sub", K::kAffine, &Importer::ProcessElementwise},
+      RuntimeOp{"Mul", K::kAffine, &Importer::ProcessElementwise},
+      RuntimeOp{"Div", K::kAffine, &Importer::ProcessElementwise},
+      RuntimeOp{"ConvTranspose", K::kConvTranspose, &Importer::ProcessConvTranspose},
+      RuntimeOp{"MaxPool", K::kPool, &Importer::ProcessPool},
+      RuntimeOp{"AveragePool", K::kPool, &Importer::ProcessPool},
+  };
+  return kOps;
+}
+// clang-format on
+
+const Importer::RuntimeOp* Importer::FindRuntimeOp(std::string_view type) {
+  for (const RuntimeOp& op : RuntimeOps()) {
+    if (op.type == type) return &op;
+  }
+  return nullptr;
+}
+
+std::string Importer::SupportedOpsText() {
+  std::string text;
+  for (const RuntimeOp& op : RuntimeOps()) {
+    if (!text.empty()) text += ", ";
+    text += op.type;
+  }
+  text += " (constant subgraphs may also use";
+  bool first = true;
+  for (const ConstantFolder& folder : ConstantFolders()) {
+    if (FindRuntimeOp(folder.op) != nullptr) continue;  // already listed
+    text += first ? " " : ", ";
+    text += folder.op;
+    first = false;
+  }
+  text += ")";
+  return text;
+}
+
+// Relu takes no attribute; LeakyRelu and Elu their alpha.
+Status Importer::ProcessActivation(int idx, GraphOp& op) {
+  if (op.activation == Activation::kLeakyRelu) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(op.slope, FloatAttr(idx, "alpha", 0.01f));
+  } else if (op.activation == Activation::kElu) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(op.elu_alpha, FloatAttr(idx, "alpha", 1.0f));
+  }
+  return Status::Ok();
+}
+
 Status Importer::FoldNode(int idx) {
   const onnx::NodeProto& n = graph().node(idx);
-  const std::string& op = n.op_type();
   if (n.output_size() < 1 || n.output(0).empty()) return NodeError(idx, "has no output");
-
-  // Shape and Size only need the input's static shape, which runtime tensors have too.
-  if (op == "Shape" || op == "Size") {
+  const ConstantFolder* folder = FindFolder(n.op_type());
+  if (folder == nullptr || folder->fold == nullptr) return Unsupported(idx, "");
+  FoldCall call{n, opset_, budget_, {}, {}};
+  if (folder->reads_shape_only) {
+    // Shape and Size only need the input's static shape, which runtime tensors have too.
     if (n.input_size() != 1) return NodeError(idx, "expected one input");
-    Dims shape;
     if (auto it = runtime_.find(n.input(0)); it != runtime_.end()) {
-      shape.assign(it->second.begin(), it->second.end());
+      call.shape.assign(it->second.begin(), it->second.end());
     } else {
       SFRT_ONNX_ASSIGN_OR_RETURN(const Const in, GetConst(idx, 0));
-      shape = in.dims;
+      call.shape = in.dims;
     }
-    Const out;
-    out.type = TensorProto::INT64;
-    if (op == "Size") {
-      int64_t count = 1;
-      for (int64_t d : shape) count *= d;
-      out.ints = {count};
-    } else {
-      const auto rank = static_cast<int64_t>(shape.size());
-      SFRT_ONNX_ASSIGN_OR_RETURN(int64_t start, IntAttr(idx, "start", 0));
-      SFRT_ONNX_ASSIGN_OR_RETURN(int64_t end, IntAttr(idx, "end", rank));
-      if (start < 0) start += rank;
-      if (end < 0) end += rank;
-      start = std::clamp<int64_t>(start, 0, rank);
-      end = std::clamp<int64_t>(end, start, rank);
-      out.ints.assign(shape.begin() + start, shape.begin() + end);
-      out.dims = {end - start};
-    }
-    consts_[n.output(0)] = std::move(out);
-    return Status::Ok();
-  }
-
-  std::vector<std::optional<Const>> in(static_cast<size_t>(n.input_size()));
-  for (int k = 0; k < n.input_size(); ++k) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(in[k], GetOptionalConst(idx, k));
-  }
-  auto input = [&](size_t k) -> const Const* {
-    return k < in.size() && in[k].has_value() ? &*in[k] : nullptr;
-  };
-  // Input k itself, moved out of `in` (call need() first): for ops whose result keeps its
-  // input's values, so that they cost no copy.
-  auto take = [&](size_t k) -> Const { return std::move(*in[k]); };
-  auto need = [&](size_t count) -> Status {
-    for (size_t k = 0; k < count; ++k) {
-      if (input(k) == nullptr) {
-        return NodeError(idx, "needs input " + std::to_string(k) + ", which is missing");
-      }
-    }
-    return Status::Ok();
-  };
-  auto int_list = [&](size_t k, const char* what) -> Result<std::vector<int64_t>> {
-    const Const* c = input(k);
-    if (c == nullptr || c->is_real() || c->dims.size() > 1) {
-      return NodeError(idx, std::string("input '") + what + "' must be a 1-D integer tensor");
-    }
-    return c->ints;
-  };
-
-  Result<Const> result = Status::Error("unreached");
-
-  auto binary = [&](auto real_fn, auto int_fn) -> Result<Const> {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    return Elementwise(budget_, *input(0), *input(1), PromoteTypes(input(0)->type, input(1)->type),
-                       real_fn, int_fn);
-  };
-  auto compare = [&](auto real_fn) -> Result<Const> {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    return Elementwise(
-        budget_, *input(0), *input(1), TensorProto::BOOL,
-        [&](double x, double y) { return real_fn(x, y) ? 1.0 : 0.0; },
-        [&](int64_t x, int64_t y) -> Result<int64_t> {
-          return real_fn(static_cast<double>(x), static_cast<double>(y)) ? 1 : 0;
-        });
-  };
-  auto integer_compare = [&](auto fn) -> Result<Const> {  // exact for int64 values
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    return Elementwise(
-        budget_, *input(0), *input(1), TensorProto::BOOL,
-        [&](double x, double y) { return fn(x, y) ? 1.0 : 0.0; },
-        [&](int64_t x, int64_t y) -> Result<int64_t> { return fn(x, y) ? 1 : 0; });
-  };
-  auto unary = [&](auto real_fn, auto int_fn) -> Result<Const> {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    Const out = take(0);
-    for (size_t i = 0; i < out.size(); ++i) {
-      if (out.is_real()) {
-        out.Set(i, real_fn(out.reals[i]));
-      } else {
-        out.SetInt(i, int_fn(out.ints[i]));
-      }
-    }
-    return out;
-  };
-
-  if (op == "Identity") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    result = take(0);
-  } else if (op == "Cast") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t to, IntAttr(idx, "to", -1));
-    result = Cast(budget_, *input(0), static_cast<int>(to));
-  } else if (op == "CastLike") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Cast(budget_, *input(0), input(1)->type);
-  } else if (op == "Concat") {
-    std::vector<const Const*> parts;
-    for (size_t k = 0; k < in.size(); ++k) {
-      if (input(k) != nullptr) parts.push_back(input(k));
-    }
-    if (FindAttr(idx, "axis") == nullptr) return NodeError(idx, "attribute 'axis' is missing");
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, IntAttr(idx, "axis", 0));
-    result = Concat(budget_, parts, axis);
-  } else if (op == "Gather") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t axis, IntAttr(idx, "axis", 0));
-    result = Gather(budget_, *input(0), *input(1), axis);
-  } else if (op == "Unsqueeze" || op == "Squeeze") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    std::vector<int64_t> axes;
-    bool have_axes = false;
-    if (opset_ >= 13) {
-      if (input(1) != nullptr) {
-        SFRT_ONNX_ASSIGN_OR_RETURN(axes, int_list(1, "axes"));
-        have_axes = true;
-      }
-    } else {
-      SFRT_ONNX_ASSIGN_OR_RETURN(axes, IntsAttr(idx, "axes"));
-      have_axes = FindAttr(idx, "axes") != nullptr;
-    }
-    if (op == "Unsqueeze") {
-      if (!have_axes) return NodeError(idx, "axes are missing");
-      result = Unsqueeze(take(0), axes);
-    } else {
-      result = Squeeze(take(0), axes, have_axes);
-    }
-  } else if (op == "Reshape") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t allow_zero, IntAttr(idx, "allowzero", 0));
-    result = Reshape(take(0), *input(1), allow_zero != 0);
-  } else if (op == "Expand") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Expand(budget_, *input(0), *input(1));
-  } else if (op == "Tile") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Tile(budget_, *input(0), *input(1));
-  } else if (op == "Transpose") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> perm, IntsAttr(idx, "perm"));
-    result = Transpose(budget_, *input(0), std::move(perm));
-  } else if (op == "Slice") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(3));
-    auto args = ReadSliceArgs(input(1), input(2), input(3), input(4),
-                              static_cast<int64_t>(input(0)->dims.size()));
-    if (!args.ok()) return NodeError(idx, args.message());
-    result = SliceConst(budget_, *input(0), *args);
-  } else if (op == "Range") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(3));
-    result = Range(budget_, *input(0), *input(1), *input(2));
-  } else if (op == "ConstantOfShape") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> shape, int_list(0, "input"));
-    Const value;
-    value.type = TensorProto::FLOAT;
-    value.reals = {0.0};
-    if (const auto* a = FindAttr(idx, "value"); a != nullptr) {
-      if (a->type() != onnx::AttributeProto::TENSOR) {
-        return NodeError(idx, "attribute 'value' is not a tensor");
-      }
-      auto decoded = DecodeTensor(a->t(), "attribute 'value'", budget_);
-      if (!decoded.ok()) return NodeError(idx, decoded.message());
-      value = std::move(decoded).value();
-      if (value.size() != 1) return NodeError(idx, "attribute 'value' must hold one element");
-    }
-    auto made = MakeConst(budget_, value.type, shape);
-    if (made.ok()) {
-      for (size_t i = 0; i < made->size(); ++i) CopyElement(value, 0, *made, i);
-    }
-    result = std::move(made);
-  } else if (op == "Add") {
-    result = binary([](double x, double y) { return x + y; },
-                    [](int64_t x, int64_t y) { return IntOk(WrapAdd(x, y)); });
-  } else if (op == "Sub") {
-    result = binary([](double x, double y) { return x - y; },
-                    [](int64_t x, int64_t y) { return IntOk(WrapSub(x, y)); });
-  } else if (op == "Mul") {
-    result = binary([](double x, double y) { return x * y; },
-                    [](int64_t x, int64_t y) { return IntOk(WrapMul(x, y)); });
-  } else if (op == "Div") {
-    result = binary([](double x, double y) { return x / y; },
-                    [](int64_t x, int64_t y) -> Result<int64_t> {
-                      if (y == 0) return Status::Error("integer division by zero");
-                      if (y == -1) return WrapSub(0, x);
-                      return x / y;  // truncates, as ONNX runtimes do
-                    });
-  } else if (op == "Mod") {
-    SFRT_ONNX_ASSIGN_OR_RETURN(const int64_t fmod, IntAttr(idx, "fmod", 0));
-    result = binary(
-        [fmod](double x, double y) {
-          const double r = std::fmod(x, y);
-          return (fmod == 0 && r != 0.0 && ((r < 0) != (y < 0))) ? r + y : r;
-        },
-        [fmod](int64_t x, int64_t y) -> Result<int64_t> {
-          if (y == 0) return Status::Error("integer modulo by zero");
-          const int64_t r = y == -1 ? 0 : x % y;
-          return (fmod == 0 && r != 0 && ((r < 0) != (y < 0))) ? r + y : r;
-        });
-  } else if (op == "Pow") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(2));
-    result = Elementwise(
-        budget_, *input(0), *input(1), input(0)->type,
-        [](double x, double y) { return std::pow(x, y); },
-        [](int64_t x, int64_t y) -> Result<int64_t> {
-          return ToInt64(std::round(std::pow(static_cast<double>(x), static_cast<double>(y))));
-        });
-  } else if (op == "Min" || op == "Max") {
-    const bool is_min = op == "Min";
-    std::optional<Const> acc;
-    for (size_t k = 0; k < in.size(); ++k) {
-      if (input(k) == nullptr) continue;
-      if (!acc.has_value()) {
-        acc = take(k);
-        continue;
-      }
-      auto next = Elementwise(
-          budget_, *acc, *input(k), PromoteTypes(acc->type, input(k)->type),
-          [is_min](double x, double y) { return is_min ? std::min(x, y) : std::max(x, y); },
-          [is_min](int64_t x, int64_t y) {
-            return IntOk(is_min ? std::min(x, y) : std::max(x, y));
-          });
-      if (!next.ok()) return NodeError(idx, next.message());
-      acc = std::move(next).value();
-    }
-    if (!acc.has_value()) return NodeError(idx, "has no inputs");
-    result = std::move(*acc);
-  } else if (op == "Clip") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(1));
-    Const out = take(0);
-    const Const* lo = input(1);
-    const Const* hi = input(2);
-    if ((lo != nullptr && lo->size() != 1) || (hi != nullptr && hi->size() != 1)) {
-      return NodeError(idx, "inputs 'min' and 'max' must be scalars");
-    }
-    for (size_t i = 0; i < out.size(); ++i) {
-      if (out.is_real()) {
-        double v = out.reals[i];
-        if (lo != nullptr) v = std::max(v, lo->Real(0));
-        if (hi != nullptr) v = std::min(v, hi->Real(0));
-        out.Set(i, v);
-      } else {
-        int64_t v = out.ints[i];
-        if (lo != nullptr) v = std::max(v, lo->Int(0));
-        if (hi != nullptr) v = std::min(v, hi->Int(0));
-        out.SetInt(i, v);
-      }
-    }
-    result = std::move(out);
-  } else if (op == "Equal") {
-    result = integer_compare([](auto x, auto y) { return x == y; });
-  } else if (op == "Less") {
-    result = integer_compare([](auto x, auto y) { return x < y; });
-  } else if (op == "Greater") {
-    result = integer_compare([](auto x, auto y) { return x > y; });
-  } else if (op == "LessOrEqual") {
-    result = integer_compare([](auto x, auto y) { return x <= y; });
-  } else if (op == "GreaterOrEqual") {
-    result = integer_compare([](auto x, auto y) { return x >= y; });
-  } else if (op == "And") {
-    result = compare([](double x, double y) { return x != 0 && y != 0; });
-  } else if (op == "Or") {
-    result = compare([](double x, double y) { return x != 0 || y != 0; });
-  } else if (op == "Xor") {
-    result = compare([](double x, double y) { return (x != 0) != (y != 0); });
-  } else if (op == "Not") {
-    result = unary([](double x) { return x == 0 ? 1.0 : 0.0; },
-                   [](int64_t x) -> int64_t { return x == 0 ? 1 : 0; });
-  } else if (op == "Neg") {
-    result = unary([](double x) { return -x; }, [](int64_t x) { return WrapSub(0, x); });
-  } else if (op == "Abs") {
-    result = unary([](double x) { return std::fabs(x); },
-                   [](int64_t x) { return x < 0 ? WrapSub(0, x) : x; });
-  } else if (op == "Sign") {
-    result = unary([](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); },
-                   [](int64_t x) -> int64_t { return x > 0 ? 1 : (x < 0 ? -1 : 0); });
-  } else if (op == "Floor") {
-    result = unary([](double x) { return std::floor(x); }, [](int64_t x) { return x; });
-  } else if (op == "Ceil") {
-    result = unary([](double x) { return std::ceil(x); }, [](int64_t x) { return x; });
-  } else if (op == "Round") {  // half to even
-    result = unary([](double x) { return std::nearbyint(x); }, [](int64_t x) { return x; });
-  } else if (op == "Sqrt") {
-    result = unary([](double x) { return std::sqrt(x); },
-                   [](int64_t x) { return ToInt64(std::sqrt(static_cast<double>(x))); });
-  } else if (op == "Reciprocal") {
-    result = unary([](double x) { return 1.0 / x; },
-                   [](int64_t x) -> int64_t { return x == 0 ? 0 : 1 / x; });
-  } else if (op == "Where") {
-    SFRT_ONNX_RETURN_IF_ERROR(need(3));
-    const Const& cond = *input(0);
-    const Const& x = *input(1);
-    const Const& y = *input(2);
-    auto dims = BroadcastDims({&cond.dims, &x.dims, &y.dims});
-    if (!dims.ok()) return NodeError(idx, dims.message());
-    auto out = MakeConst(budget_, PromoteTypes(x.type, y.type), *dims);
-    if (out.ok()) {
-      for (size_t i = 0; i < out->size(); ++i) {
-        const bool pick_x = cond.Real(SourceIndex(i, *dims, cond.dims)) != 0.0;
-        const Const& src = pick_x ? x : y;
-        CopyElement(src, SourceIndex(i, *dims, src.dims), *out, i);
-      }
-    }
-    result = std::move(out);
   } else {
-    return Unsupported(idx, "");
+    call.in.resize(static_cast<size_t>(n.input_size()));
+    for (int k = 0; k < n.input_size(); ++k) {
+      SFRT_ONNX_ASSIGN_OR_RETURN(call.in[static_cast<size_t>(k)], GetOptionalConst(idx, k));
+    }
   }
+  Result<Const> result = folder->fold(call);
   if (!result.ok()) {
-    // Helper errors are bare details; node-level errors already carry the file name.
+    // Folders' errors are bare details; those of GetConst already carry the file name.
     if (result.message().rfind(path_ + ": ", 0) == 0) return result.status();
     return NodeError(idx, result.message());
   }
@@ -2594,58 +1513,18 @@ Status Importer::ProcessRuntimeNode(int idx, int slot) {
   op.output = n.output(0);
   op.in_shape = in_shape;
   op.out_shape = in_shape;
-  if (type == "Conv") {
-    op.kind = GraphOp::Kind::kConv;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessConv(idx, op));
-  } else if (type == "ConvTranspose") {
-    op.kind = GraphOp::Kind::kConvTranspose;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessConvTranspose(idx, op));
-  } else if (type == "MaxPool" || type == "AveragePool") {
-    op.kind = GraphOp::Kind::kPool;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessPool(idx, op));
-  } else if (type == "Pad") {
-    op.kind = GraphOp::Kind::kPad;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessPad(idx, op));
-  } else if (type == "BatchNormalization") {
-    op.kind = GraphOp::Kind::kBatchNorm;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessBatchNorm(idx, op));
-  } else if (type == "LeakyRelu") {
-    op.kind = GraphOp::Kind::kActivation;
-    op.activation = Activation::kLeakyRelu;
-    SFRT_ONNX_ASSIGN_OR_RETURN(op.slope, FloatAttr(idx, "alpha", 0.01f));
-  } else if (type == "Relu") {
-    op.kind = GraphOp::Kind::kActivation;
-    op.activation = Activation::kRelu;
-  } else if (type == "Elu") {
-    op.kind = GraphOp::Kind::kActivation;
-    op.activation = Activation::kElu;
-    SFRT_ONNX_ASSIGN_OR_RETURN(op.elu_alpha, FloatAttr(idx, "alpha", 1.0f));
-  } else if (type == "Sigmoid" || type == "Tanh") {
-    op.kind = GraphOp::Kind::kActivation;
-    op.activation = type == "Sigmoid" ? Activation::kSigmoid : Activation::kTanh;
-  } else if (type == "Clip") {
-    op.kind = GraphOp::Kind::kActivation;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessClip(idx, op));
-  } else if (type == "Add" || type == "Sub" || type == "Mul" || type == "Div") {
-    op.kind = GraphOp::Kind::kAffine;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessElementwise(idx, slot, op));
-  } else if (type == "Resize" || type == "Upsample") {
-    op.kind = GraphOp::Kind::kUpsample;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessResize(idx, op));
-  } else if (type == "Slice") {
-    op.kind = GraphOp::Kind::kSlice;
-    SFRT_ONNX_RETURN_IF_ERROR(ProcessSlice(idx, op));
-  } else if (type == "Identity") {
-    op.kind = GraphOp::Kind::kIdentity;
-  } else {
-    return Unsupported(idx, "");  // ProcessNode only routes runtime ops here
-  }
+  const RuntimeOp* rule = FindRuntimeOp(type);
+  if (rule == nullptr) return Unsupported(idx, "");  // ProcessNode only routes runtime ops here
+  op.kind = rule->kind;
+  op.activation = rule->activation;
+  if (rule->process != nullptr) SFRT_ONNX_RETURN_IF_ERROR((this->*rule->process)(idx, op));
   for (int64_t d : op.out_shape) {
     if (d > std::numeric_limits<int32_t>::max()) {
       return NodeError(idx, "output shape " + ShapeText(op.out_shape) + " is too large");
     }
   }
-  if (type == "MaxPool" && n.output_size() > 1 && !n.output(1).empty()) {
+  if (op.kind == GraphOp::Kind::kPool && op.pool.kind == PoolKind::kMax && n.output_size() > 1 &&
+      !n.output(1).empty()) {
     // The Indices output: where each max is, as ONNX numbers the input's elements (batch 1):
     // c * H * W + y * W + x, or c * H * W + x * H + y with storage_order 1.
     GraphOp indices = op;
@@ -2688,17 +1567,19 @@ Status Importer::ProcessNode(int idx) {
     }
   }
   const std::string& type = n.op_type();
-  if (runtime_slot < 0 || type == "Shape" || type == "Size") {
-    if (Contains(kFoldableOps, type)) return FoldNode(idx);
-    if (Contains(kRuntimeOps, type)) {
+  const ConstantFolder* folder = FindFolder(type);
+  const RuntimeOp* rule = FindRuntimeOp(type);
+  if (runtime_slot < 0 || (folder != nullptr && folder->reads_shape_only)) {
+    if (folder != nullptr) return FoldNode(idx);
+    if (rule != nullptr) {
       return Unsupported(idx, "; " + Printable(type) +
                                   " on constant data only (it does not depend on the network "
                                   "input) cannot be evaluated at import");
     }
     return Unsupported(idx, "");
   }
-  if (!Contains(kRuntimeOps, type)) {
-    return Unsupported(idx, Contains(kFoldableOps, type)
+  if (rule == nullptr) {
+    return Unsupported(idx, folder != nullptr
                                 ? "; " + Printable(type) +
                                       " is only evaluated when all its inputs are constants, and "
                                       "input " +
@@ -2707,9 +1588,11 @@ Status Importer::ProcessNode(int idx) {
   }
   int runtime_inputs = 0;
   for (int k = 0; k < n.input_size(); ++k) runtime_inputs += runtime_.count(n.input(k)) > 0;
-  const bool elementwise = type == "Add" || type == "Sub" || type == "Mul" || type == "Div";
-  if (type == "Concat" || (type == "Add" && runtime_inputs > 1)) return ProcessMergeNode(idx);
-  if (elementwise) {
+  if (rule->merge == Merge::kAlways ||
+      (rule->merge == Merge::kWithSeveralRuntimeInputs && runtime_inputs > 1)) {
+    return ProcessMergeNode(idx);
+  }
+  if (rule->kind == GraphOp::Kind::kAffine) {
     if (runtime_inputs > 1 || n.input_size() != 2) {
       return Unsupported(idx, "; " + Printable(type) +
                                   " runs on one tensor that depends on the network input and a "
@@ -2819,9 +1702,10 @@ Status Importer::ProcessClip(int idx, GraphOp& op) {
 // x + c, x - c, c - x, x * c and x / c for a constant c that varies at most along the channels
 // (shapes that broadcast to [1, C, 1, 1]): out = x * scale[ch] + shift[ch]. x / c becomes
 // x * (1 / c), within a rounding of the division.
-Status Importer::ProcessElementwise(int idx, int slot, GraphOp& op) {
+Status Importer::ProcessElementwise(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   const std::string& type = n.op_type();
+  const int slot = n.input(0) == op.inputs[0] ? 0 : 1;  // which input depends on the network's
   const int other = 1 - slot;
   Dims dims;
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<float> c, GetFloats(idx, other, &dims));
