@@ -25,6 +25,7 @@
 #include "sfrt/exporter/onnx_importer.h"
 
 #include "batch_norm_fold.h"
+#include "crop_rule.h"
 #include "message_text.h"
 #include "onnx/const_tensors.h"
 #include "onnx/folders.h"
@@ -2202,21 +2203,11 @@ Result<ModelSpec> Importer::Assemble() {
     conv.padding_rule = same_upper ? PaddingRule::kSameUpper : PaddingRule::kExplicit;
   }
 
-  // Crop rule: a crop, removing on one side per axis, whose only reader is a Concat with an
-  // earlier layer of the crop's size is "crop to that layer's size" (a U-Net cutting an upsampled
-  // tensor to its skip tensor's size); one that restores the input size is "crop to the input
-  // size"; anything else keeps its numbers.
-  std::unordered_map<std::string, size_t> layer_index;
-  for (size_t k = 0; k < spec.layers.size(); ++k) {
-    layer_index[std::visit([](const auto& l) { return l.name; }, spec.layers[k])] = k;
-  }
+  // Crop rules (crop_rule.h): the skip a crop's only reader, a Concat, also reads at the crop's
+  // size decides a crop to that layer's size.
   for (const CropTrace& t : crops) {
     auto& crop = std::get<CropSpec>(spec.layers[t.layer]);
-    const Pads& a = crop.amounts;
-    const bool one_sided_rows = a.top == 0 || a.bottom == 0;
-    const bool one_sided_cols = a.left == 0 || a.right == 0;
-    std::string reference;  // an earlier layer (or the input) of the crop's size that the same
-                            // Concat reads
+    TracedCrop traced{static_cast<int>(t.out_h), static_cast<int>(t.out_w), ""};
     const auto& crop_readers = readers[t.output];
     if (crop_readers.size() == 1 && ops_[crop_readers[0]].kind == GraphOp::Kind::kConcat) {
       for (const std::string& in : ops_[crop_readers[0]].inputs) {
@@ -2226,20 +2217,12 @@ Result<ModelSpec> Importer::Assemble() {
             shape[2] != t.out_h || shape[3] != t.out_w) {
           continue;
         }
-        reference = other.layer;
+        traced.skip = other.layer;
         break;
       }
     }
-    if (!reference.empty() && one_sided_rows && one_sided_cols) {
-      CropToSecondInput(crop, reference);
-    } else if (t.out_h == input_shape_[2] && t.out_w == input_shape_[3] && one_sided_rows &&
-               one_sided_cols) {
-      crop.rule = CropRule::kToInputSize;
-      crop.excess_rows_from_top = a.top > 0 || a.bottom == 0;
-      crop.excess_cols_from_left = a.left > 0 || a.right == 0;
-    } else {
-      crop.rule = CropRule::kExplicit;
-    }
+    ChooseCropRule(crop, traced, static_cast<int>(input_shape_[2]),
+                   static_cast<int>(input_shape_[3]));
   }
 
   const Shape4& out_shape = runtime_.at(out_name);
