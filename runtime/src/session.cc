@@ -341,6 +341,21 @@ Status CheckTuning(const KernelTuning& tuning) {
   return Status::Ok();
 }
 
+// Whether a SIMD kernel takes convolution `p`: undilated and ungrouped, and a 3x3 stride-1
+// kernel when it reads a fused upsampling (`upsampled`), else at most `max_taps` taps.
+bool SimdFits(const ConvParams& p, bool upsampled, int max_taps) {
+  if (!UndilatedUngrouped(p)) return false;
+  return upsampled ? p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1
+                   : p.kernel_h * p.kernel_w <= max_taps;
+}
+
+// Whether the int8 SIMD step of `p` runs on the kernel table's narrow kernel.
+bool Int8Narrow(const KernelTuning& tuning, const IsaInt8Kernels* kernels8, const ConvParams& p,
+                bool upsampled) {
+  return !upsampled && tuning.few_out && kernels8 != nullptr && kernels8->narrow_name[0] != '\0' &&
+         Int8NarrowConv(p);
+}
+
 }  // namespace
 
 Session::~Session() {
@@ -393,6 +408,14 @@ Result<std::unique_ptr<Session>> Session::Create(std::shared_ptr<const Model> mo
 }
 
 Status Session::Plan() {
+  const size_t gather = PlanSteps();
+  if (options_.tuning.concat_in_place) PlaceConcatInputs();
+  if (Status s = PackWeights(); !s.ok()) return s;
+  return PlanTensors(gather);
+}
+
+// 1. The steps, as the fusion rules give them. Returns the most inputs a step gathers.
+size_t Session::PlanSteps() {
   const auto layers = model_->layers();
   const int n = static_cast<int>(layers.size());
   const IsaConvKernels* kernels = ConvKernelsFor(isa_);
@@ -424,16 +447,6 @@ Status Session::Plan() {
     step.out_u8 = element == Precision::kInt8;
     step.out_bf16 = element == Precision::kBFloat16;
   };
-  auto simd_fits = [](const ConvParams& p, bool upsampled, int max_taps) {
-    if (!UndilatedUngrouped(p)) return false;
-    return upsampled ? p.kernel_h == 3 && p.kernel_w == 3 && p.stride_h == 1 && p.stride_w == 1
-                     : p.kernel_h * p.kernel_w <= max_taps;
-  };
-  // Whether the int8 SIMD step of `p` runs on the kernel table's narrow kernel.
-  auto int8_narrow = [&](const ConvParams& p, bool upsampled) {
-    return !upsampled && tuning.few_out && kernels8 != nullptr &&
-           kernels8->narrow_name[0] != '\0' && Int8NarrowConv(p);
-  };
   // The int8 or bf16 convolution `conv`, reading the upsampling before it when `upsampled`.
   auto reduced_step = [&](int conv, bool upsampled, int crop) {
     Step step;
@@ -447,21 +460,21 @@ Status Session::Plan() {
     step.quant = p.output_quant;
     if (p.precision == Precision::kInt8) {
       step.kind = Step::Kind::kInt8Conv;
-      if (kernels8 != nullptr && simd_fits(p, upsampled, kMaxInt8Taps)) {
+      if (kernels8 != nullptr && SimdFits(p, upsampled, kMaxInt8Taps)) {
         step.fn8 = upsampled ? kernels8->upconv : kernels8->conv;
         step.kernel = upsampled ? kernels8->upconv_name : kernels8->conv_name;
         if (!upsampled && tuning.few_out && kernels8->few_out_name[0] != '\0' &&
             Int8FewOutputs(p)) {
           step.kernel = kernels8->few_out_name;
         }
-        if (int8_narrow(p, upsampled)) step.kernel = kernels8->narrow_name;
+        if (Int8Narrow(tuning, kernels8, p, upsampled)) step.kernel = kernels8->narrow_name;
       } else {
         step.fn8 = ref::Conv2dInt8Rows;
         step.kernel = upsampled ? "ref::UpConv2dInt8" : "ref::Conv2dInt8";
       }
     } else {
       step.kind = Step::Kind::kBf16Conv;
-      if (kernels16 != nullptr && simd_fits(p, upsampled, kMaxBf16Taps)) {
+      if (kernels16 != nullptr && SimdFits(p, upsampled, kMaxBf16Taps)) {
         step.fn16 = upsampled ? kernels16->upconv : kernels16->conv;
         step.kernel = upsampled ? kernels16->upconv_name : kernels16->conv_name;
         if (!upsampled && tuning.few_out && kernels16->few_out_name[0] != '\0' &&
@@ -577,7 +590,7 @@ Status Session::Plan() {
                              only_reader(conv, crop >= 0 ? crop : i);
       const bool factor2 = layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2;
       const bool fusable = kernels != nullptr && factor2 && conv_next &&
-                           cur == Precision::kFloat32 && simd_fits(layers[conv].conv, true, 0);
+                           cur == Precision::kFloat32 && SimdFits(layers[conv].conv, true, 0);
       if (graph && factor2 && conv_next && precision_of(conv) != Precision::kFloat32) {
         if (tensor_type(layer.inputs[0]) != precision_of(conv)) convert_in_graph(i, conv);
         step = reduced_step(conv, true, crop);
@@ -624,17 +637,23 @@ Status Session::Plan() {
       step.kind = Step::Kind::kWinograd;
       step.winograd = winograd;
       step.kernel = winograd->name;
-    } else if (kernels != nullptr && simd_fits(layer.conv, false, kMaxConvTaps)) {
+    } else if (kernels != nullptr && SimdFits(layer.conv, false, kMaxConvTaps)) {
       step.kind = Step::Kind::kConv;
     } else {
       rows_step(step, layer);
     }
     steps_.push_back(step);
   }
+  return gather;
+}
 
-  if (options_.tuning.concat_in_place) PlaceConcatInputs();
-
-  // 2. Packed weights for the SIMD steps, in one 64-byte-aligned allocation.
+// 2. Packed weights for the SIMD steps, in one 64-byte-aligned allocation.
+Status Session::PackWeights() {
+  const auto layers = model_->layers();
+  const IsaConvKernels* kernels = ConvKernelsFor(isa_);
+  const KernelTuning& tuning = options_.tuning;
+  const IsaInt8Kernels* kernels8 = Int8KernelsFor(isa_);
+  const IsaBf16Kernels* kernels16 = Bf16KernelsFor(isa_);
   auto variant_for = [&](const ConvParams& p) -> const ConvKernelVariant& {
     return PickConvVariant(*kernels, p.out_channels);
   };
@@ -711,7 +730,7 @@ Status Session::Plan() {
     return step.fn16 == ref::Conv2dBf16Rows ? 0 : kernels16->nr;
   };
   auto phases16 = [&](const Step& step) {
-    return step.upsampled && simd_fits(layers[step.last_layer].conv, true, 0);
+    return step.upsampled && SimdFits(layers[step.last_layer].conv, true, 0);
   };
   auto reduced_bytes = [&](const Step& step) -> size_t {
     const ConvParams& p = layers[step.last_layer].conv;
@@ -733,7 +752,7 @@ Status Session::Plan() {
     if (step.kind == Step::Kind::kInt8Conv) {
       step.packed8 = PackInt8Conv(p, nr8(step), step.out_u8 ? &step.quant : nullptr, cursor8);
       if (!tuning.few_out) step.packed8.few_weights = nullptr;  // the tiles compute it
-      step.packed8.narrow = nr8(step) > 0 && int8_narrow(p, step.upsampled);
+      step.packed8.narrow = nr8(step) > 0 && Int8Narrow(tuning, kernels8, p, step.upsampled);
     } else if (step.kind == Step::Kind::kBf16Conv) {
       step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
       if (!tuning.few_out) step.packed16.few_weights = nullptr;
@@ -744,7 +763,12 @@ Status Session::Plan() {
     step_info_.push_back({step.first_layer, step.last_layer, step.kernel, step.precision,
                           step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16});
   }
+  return Status::Ok();
+}
 
+// 3. The arena: where each tensor lives.
+Status Session::PlanTensors(size_t gather) {
+  const auto layers = model_->layers();
   // 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is
   // a view of its input. Times are layer indices: a tensor is born with the last layer of the
   // step that writes it (a converting step's, with the tensor it converts) and lives until the
@@ -1043,6 +1067,322 @@ void Session::Observe(const Step& step, size_t src_slot, Observation& observatio
   (*observation.observer)(step.last_layer, shape, observation.values);
 }
 
+// One Run() over the steps (Execute): each step reads the views of the tensors it names and
+// writes its output's, in the element type it writes; its rows are spread over the pool.
+struct Session::StepRun {
+  Session& s;
+  std::span<float> output;
+
+  size_t SlotOf(int t) const {
+    return t == kModelInput ? s.model_->layers().size() : static_cast<size_t>(t);
+  }
+  void ParallelRows(int rows, ThreadPool::Fn fn, void* ctx) const {
+    if (s.pool_ != nullptr) {
+      s.pool_->ParallelFor(rows, fn, ctx);
+    } else {
+      fn(ctx, 0, rows);
+    }
+  }
+  // An int8 or bf16 step's call (Args: Int8ConvArgs or Bf16ConvArgs with conv and in set): the
+  // pads, and the upsampling it fuses (then `in` is the low-resolution map).
+  template <typename Args>
+  Args Reduced(const Step& step, Args args) const {
+    args.pads = s.geometry_[step.last_layer].pads;
+    if (step.upsampled) {
+      const LayerGeometry& c =
+          s.geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+      args.upsampled = true;
+      if (step.crop_layer >= 0) {
+        args.crop_top = c.crop.top;
+        args.crop_left = c.crop.left;
+      }
+      args.c_height = c.output.height;
+      args.c_width = c.output.width;
+    }
+    return args;
+  }
+  Int8ConvArgs Int8Args(const Step& step, const ConstByteView& in) const {
+    Int8ConvArgs args;
+    args.conv = &step.packed8;
+    args.in = in;
+    return Reduced(step, args);
+  }
+  Bf16ConvArgs Bf16Args(const Step& step, const ConstBf16View& in) const {
+    Bf16ConvArgs args;
+    args.conv = &step.packed16;
+    args.in = in;
+    return Reduced(step, args);
+  }
+  // Runs `fn` over `rows` output rows and every block, split over the pool as BlockedConvJob
+  // says.
+  template <typename Fn, typename Args>
+  void RunBlocked(Fn fn, const Args& args, int rows) const {
+    const int blocks = args.conv->blocks;
+    if (s.pool_ == nullptr) {
+      fn(args, 0, rows, 0, blocks);
+    } else {
+      using Job = BlockedConvJob<Fn, Args>;
+      Job job{fn, &args, rows, ConvChunks(blocks, rows, s.threads_)};
+      s.pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Job>, &job);
+    }
+  }
+
+  // Step k, by the element type it writes.
+  void Do(const Step& step, size_t k) {
+    if (step.kind == Step::Kind::kCrop) return Crop(step, k);
+    if (step.kind == Step::Kind::kToBf16 || step.kind == Step::Kind::kUpsampleBf16 ||
+        step.kind == Step::Kind::kConcatBf16 ||
+        (step.kind == Step::Kind::kBf16Conv && step.out_bf16)) {
+      return WriteBf16(step, k);
+    }
+    if (step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kUpsampleU8 ||
+        step.kind == Step::Kind::kConcatU8 || (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
+      return WriteU8(step, k);
+    }
+    WriteF32(step, k);
+  }
+  // A view of its input (a copy only when it is the model's output).
+  void Crop(const Step& step, size_t k);
+  void WriteBf16(const Step& step, size_t k);
+  void WriteU8(const Step& step, size_t k);
+  void WriteF32(const Step& step, size_t k);
+};
+
+void Session::StepRun::Crop(const Step& step, size_t at) {
+  const LayerDesc& first = s.model_->layers()[static_cast<size_t>(step.first_layer)];
+  const size_t src = SlotOf(first.inputs[0]);
+  const LayerGeometry& g = s.geometry_[step.last_layer];
+  const size_t dst_slot = static_cast<size_t>(step.last_layer);
+  Views& views = *s.views_;
+  const ConstTensorView cur = views.f32[src];
+  const ConstByteView cur8 = views.u8[src];
+  const ConstBf16View cur16 = views.bf16[src];
+  const bool last = at + 1 == s.steps_.size();
+  if (step.out_u8) {
+    // A uint8 tensor is never the model's output: an int8 convolution whose output no int8
+    // convolution reads writes float32.
+    ConstByteView view = cur8;
+    view.data = cur8.pixel(g.crop.top, g.crop.left);
+    view.height = g.output.height;
+    view.width = g.output.width;
+    views.u8[dst_slot] = view;
+    return;
+  }
+  if (step.out_bf16) {
+    ConstBf16View view = cur16;
+    view.data = cur16.pixel(g.crop.top, g.crop.left);
+    view.height = g.output.height;
+    view.width = g.output.width;
+    views.bf16[dst_slot] = view;
+    return;
+  }
+  ConstTensorView view = cur;
+  view.data = cur.pixel(g.crop.top, g.crop.left);
+  view.height = g.output.height;
+  view.width = g.output.width;
+  if (last) {
+    ref::Copy(view, DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
+  }
+  views.f32[dst_slot] = view;
+}
+
+void Session::StepRun::WriteBf16(const Step& step, size_t at) {
+  const LayerGeometry& g = s.geometry_[step.last_layer];
+  const LayerDesc& first = s.model_->layers()[static_cast<size_t>(step.first_layer)];
+  const size_t src = SlotOf(first.inputs[0]);
+  const size_t dst_slot = static_cast<size_t>(step.last_layer);
+  Views& views = *s.views_;
+  const ConstTensorView cur = views.f32[src];
+  const ConstBf16View cur16 = views.bf16[src];
+  // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
+  // and the extent a step writes (an upsampling into a slice: only its crop's).
+  const TensorShape* whole =
+      step.slice_of < 0
+          ? nullptr
+          : &s.geometry_[s.steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
+  const TensorShape& extent =
+      step.slice_crop >= 0 ? s.geometry_[static_cast<size_t>(step.slice_crop)].output : g.output;
+  uint16_t* dst16 =
+      reinterpret_cast<uint16_t*>(reinterpret_cast<uint8_t*>(s.arena_) +
+                                  s.plan_[static_cast<size_t>(s.tensor_of_step_[at])].offset);
+  Bf16View written;
+  const Bf16View out16 =
+      OutputPlane(dst16 + step.slice_channel, extent.height, extent.width, extent.channels, whole);
+  if (step.kind == Step::Kind::kToBf16) {
+    ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
+    ParallelRows(cur.height, ToBf16Trampoline, &job);
+    written = job.out;
+    views.bf16[src] = written;
+  } else if (step.kind == Step::Kind::kUpsampleBf16) {
+    written = out16;
+    const UpsampleParams& u = s.model_->layers()[static_cast<size_t>(step.last_layer)].upsample;
+    ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, written);
+    views.bf16[dst_slot] = written;
+  } else if (step.in_place) {  // the producers wrote the slices
+    written = out16;
+    views.bf16[dst_slot] = written;
+  } else if (step.kind == Step::Kind::kConcatBf16) {
+    for (size_t k = 0; k < first.inputs.size(); ++k)
+      views.gather16[k] = views.bf16[SlotOf(first.inputs[k])];
+    using Job = ConcatJob<ConstBf16View, Bf16View>;
+    Job job{views.gather16.data(), static_cast<int>(first.inputs.size()), out16};
+    ParallelRows(g.output.height, ConcatTrampoline<Job>, &job);
+    written = job.out;
+    views.bf16[dst_slot] = written;
+  } else {
+    Bf16ConvArgs args = Bf16Args(step, cur16);
+    args.out_bf16 = out16;
+    RunBlocked(step.fn16, args, g.output.height);
+    written = args.out_bf16;
+    views.bf16[dst_slot] = written;
+  }
+  // The slack a kernel may read past the tensor: finite (bf16_job.h). A slice of a Concat's
+  // tensor has none of its own (its channels are even: no kernel reads past its pixels); the
+  // Concat's is zeroed by its step.
+  if (step.slice_of < 0) {
+    std::memset(dst16 + static_cast<size_t>(written.height) * written.width * written.channels, 0,
+                kBf16TensorSlack);
+  }
+}
+
+void Session::StepRun::WriteU8(const Step& step, size_t at) {
+  const LayerGeometry& g = s.geometry_[step.last_layer];
+  const LayerDesc& first = s.model_->layers()[static_cast<size_t>(step.first_layer)];
+  const size_t src = SlotOf(first.inputs[0]);
+  const size_t dst_slot = static_cast<size_t>(step.last_layer);
+  Views& views = *s.views_;
+  const ConstTensorView cur = views.f32[src];
+  const ConstByteView cur8 = views.u8[src];
+  // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
+  // and the extent a step writes (an upsampling into a slice: only its crop's).
+  const TensorShape* whole =
+      step.slice_of < 0
+          ? nullptr
+          : &s.geometry_[s.steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
+  const TensorShape& extent =
+      step.slice_crop >= 0 ? s.geometry_[static_cast<size_t>(step.slice_crop)].output : g.output;
+  uint8_t* dst8 = reinterpret_cast<uint8_t*>(s.arena_) +
+                  s.plan_[static_cast<size_t>(s.tensor_of_step_[at])].offset;
+  const ByteView out8 =
+      OutputPlane(dst8 + step.slice_channel, extent.height, extent.width, extent.channels, whole);
+  if (step.kind == Step::Kind::kQuantize) {
+    QuantizeJob job{step.quantize, cur, DenseByteView(dst8, cur.height, cur.width, cur.channels),
+                    1.0f / step.quant.scale, step.quant.zero_point};
+    ParallelRows(cur.height, QuantizeTrampoline, &job);
+    views.u8[src] = job.out;
+  } else if (step.kind == Step::Kind::kUpsampleU8) {
+    const UpsampleParams& u = s.model_->layers()[static_cast<size_t>(step.last_layer)].upsample;
+    ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
+    views.u8[dst_slot] = out8;
+  } else if (step.in_place) {  // the producers wrote the slices
+    views.u8[dst_slot] = out8;
+  } else if (step.kind == Step::Kind::kConcatU8) {
+    for (size_t k = 0; k < first.inputs.size(); ++k)
+      views.gather8[k] = views.u8[SlotOf(first.inputs[k])];
+    using Job = ConcatJob<ConstByteView, ByteView>;
+    Job job{views.gather8.data(), static_cast<int>(first.inputs.size()), out8};
+    ParallelRows(g.output.height, ConcatTrampoline<Job>, &job);
+    views.u8[dst_slot] = job.out;
+  } else {
+    Int8ConvArgs args = Int8Args(step, cur8);
+    args.out_u8 = out8;
+    RunBlocked(step.fn8, args, g.output.height);
+    views.u8[dst_slot] = args.out_u8;
+  }
+}
+
+void Session::StepRun::WriteF32(const Step& step, size_t at) {
+  const LayerGeometry& g = s.geometry_[step.last_layer];
+  const LayerDesc& first = s.model_->layers()[static_cast<size_t>(step.first_layer)];
+  const size_t src = SlotOf(first.inputs[0]);
+  const size_t dst_slot = static_cast<size_t>(step.last_layer);
+  Views& views = *s.views_;
+  const ConstTensorView cur = views.f32[src];
+  const ConstByteView cur8 = views.u8[src];
+  const ConstBf16View cur16 = views.bf16[src];
+  const bool last = at + 1 == s.steps_.size();
+  float* dst =
+      last ? output.data()
+           : s.arena_ + s.plan_[static_cast<size_t>(s.tensor_of_step_[at])].offset / sizeof(float);
+  const TensorView out = DenseView(dst, g.output.height, g.output.width, g.output.channels);
+  switch (step.kind) {
+    case Step::Kind::kConv:
+    case Step::Kind::kUpConv: {
+      ConvArgs args;
+      args.conv = &step.packed;
+      args.in = cur;
+      args.out = out;
+      args.pads = g.pads;
+      if (step.kind == Step::Kind::kUpConv) {
+        const LayerGeometry& c =
+            s.geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+        if (step.crop_layer >= 0) {
+          args.crop_top = c.crop.top;
+          args.crop_left = c.crop.left;
+        }
+        args.c_height = c.output.height;
+        args.c_width = c.output.width;
+      }
+      if (step.upwinograd != nullptr) {
+        RunUpWinogradBands(
+            *step.upwinograd, step.wpacked, step.band_rows,
+            s.arena_ + step.scratch_offset / sizeof(float), args,
+            [this](int rows, ThreadPool::Fn fn, void* ctx) { ParallelRows(rows, fn, ctx); });
+        args.skip_interior = true;
+      }
+      if (s.pool_ == nullptr) {
+        step.fn(args, 0, out.height, 0, step.packed.blocks);
+      } else {
+        ConvJob job{step.fn, &args, out.height,
+                    ConvChunks(step.packed.blocks, out.height, s.threads_)};
+        s.pool_->ParallelFor(step.packed.blocks * job.chunks, BlockedConvTrampoline<ConvJob>, &job);
+      }
+      break;
+    }
+    case Step::Kind::kWinograd:
+      RunWinogradBands(
+          *step.winograd, step.wpacked, step.band_rows,
+          s.arena_ + step.scratch_offset / sizeof(float), cur, out, g.pads,
+          [this](int rows, ThreadPool::Fn fn, void* ctx) { ParallelRows(rows, fn, ctx); });
+      break;
+    case Step::Kind::kRows: {
+      for (size_t k = 0; k < first.inputs.size(); ++k) {
+        views.gather[k] = views.f32[SlotOf(first.inputs[k])];
+      }
+      RowsJob job{step.rows,
+                  {&first, &g, views.gather.data(), static_cast<int>(first.inputs.size()), out}};
+      ParallelRows(out.height, RowsTrampoline, &job);
+      break;
+    }
+    case Step::Kind::kUpsample: {
+      const UpsampleParams& u = s.model_->layers()[static_cast<size_t>(step.last_layer)].upsample;
+      ref::UpsampleNearest(cur, u.factor_h, u.factor_w, out);
+      break;
+    }
+    case Step::Kind::kInt8Conv: {  // float32 output
+      Int8ConvArgs args = Int8Args(step, cur8);
+      args.out_f32 = out;
+      RunBlocked(step.fn8, args, out.height);
+      break;
+    }
+    case Step::Kind::kBf16Conv: {  // float32 output
+      Bf16ConvArgs args = Bf16Args(step, cur16);
+      args.out_f32 = out;
+      RunBlocked(step.fn16, args, out.height);
+      break;
+    }
+    case Step::Kind::kCrop:
+    case Step::Kind::kQuantize:
+    case Step::Kind::kUpsampleU8:
+    case Step::Kind::kConcatU8:
+    case Step::Kind::kConcatBf16:
+    case Step::Kind::kToBf16:
+    case Step::Kind::kUpsampleBf16:
+      break;
+  }
+  views.f32[dst_slot] = out;
+}
+
 Status Session::Execute(std::span<const float> input, int height, int width,
                         std::span<float> output, std::span<int64_t> step_end_ns,
                         Observation* observation) {
@@ -1076,279 +1416,21 @@ Status Session::Execute(std::span<const float> input, int height, int width,
                          "the output needs " + std::to_string(out_shape.elements()));
   }
 
-  auto parallel_rows = [&](int rows, ThreadPool::Fn fn, void* ctx) {
-    if (pool_ != nullptr) {
-      pool_->ParallelFor(rows, fn, ctx);
-    } else {
-      fn(ctx, 0, rows);
-    }
-  };
   const auto layers = model_->layers();
-  Views& views = *views_;
-  const size_t input_slot = layers.size();
-  auto slot_of = [&](int t) { return t == kModelInput ? input_slot : static_cast<size_t>(t); };
-  views.f32[input_slot] = {input.data(), in_shape.height, in_shape.width, in_shape.channels,
-                           static_cast<ptrdiff_t>(in_shape.width) * in_shape.channels};
-  // An int8 or bf16 step's call (Args: Int8ConvArgs or Bf16ConvArgs with conv and in set): the
-  // pads, and the upsampling it fuses (then `in` is the low-resolution map).
-  auto reduced_args = [&]<typename Args>(const Step& step, Args args) {
-    args.pads = geometry_[step.last_layer].pads;
-    if (step.upsampled) {
-      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
-      args.upsampled = true;
-      if (step.crop_layer >= 0) {
-        args.crop_top = c.crop.top;
-        args.crop_left = c.crop.left;
-      }
-      args.c_height = c.output.height;
-      args.c_width = c.output.width;
-    }
-    return args;
-  };
-  auto int8_args = [&](const Step& step, const ConstByteView& in) {
-    Int8ConvArgs args;
-    args.conv = &step.packed8;
-    args.in = in;
-    return reduced_args(step, args);
-  };
-  auto bf16_args = [&](const Step& step, const ConstBf16View& in) {
-    Bf16ConvArgs args;
-    args.conv = &step.packed16;
-    args.in = in;
-    return reduced_args(step, args);
-  };
-  // Runs `fn` over `rows` output rows and every block, split over the pool as BlockedConvJob says.
-  auto run_blocked = [&]<typename Fn, typename Args>(Fn fn, const Args& args, int rows) {
-    const int blocks = args.conv->blocks;
-    if (pool_ == nullptr) {
-      fn(args, 0, rows, 0, blocks);
-    } else {
-      using Job = BlockedConvJob<Fn, Args>;
-      Job job{fn, &args, rows, ConvChunks(blocks, rows, threads_)};
-      pool_->ParallelFor(blocks * job.chunks, BlockedConvTrampoline<Job>, &job);
-    }
-  };
+  const TensorShape& in = geometry_.front().input;
+  views_->f32[layers.size()] = {input.data(), in.height, in.width, in.channels,
+                                static_cast<ptrdiff_t>(in.width) * in.channels};
+  StepRun run{*this, output};
   if (timed) stamp(0);
-  size_t step_index = 0;
-  for (const Step& step : steps_) {
-    ++step_index;
-    const LayerGeometry& g = geometry_[step.last_layer];
-    const bool last = step_index == steps_.size();
-    const LayerDesc& first = layers[step.first_layer];
-    // What the step reads (the tensor its first layer names, in the element type the step reads)
-    // and the slot its output goes to: its last layer's, or for a converting step the converted
-    // form of its input's slot.
-    const size_t src = slot_of(first.inputs[0]);
-    const size_t dst_slot = static_cast<size_t>(step.last_layer);
-    const ConstTensorView cur = views.f32[src];
-    const ConstByteView cur8 = views.u8[src];
-    const ConstBf16View cur16 = views.bf16[src];
+  for (size_t k = 0; k < steps_.size(); ++k) {
+    const Step& step = steps_[k];
+    run.Do(step, k);
     // After the step: its timestamp, and what RunObserved shows.
-    auto finish = [&] {
-      if (timed) stamp(step_index);
-      if (observation != nullptr) Observe(step, src, *observation);
-    };
-    if (step.kind == Step::Kind::kCrop && step.out_u8) {
-      // A uint8 tensor is never the model's output: an int8 convolution whose output no int8
-      // convolution reads writes float32.
-      ConstByteView view = cur8;
-      view.data = cur8.pixel(g.crop.top, g.crop.left);
-      view.height = g.output.height;
-      view.width = g.output.width;
-      views.u8[dst_slot] = view;
-      finish();
-      continue;
+    if (timed) stamp(k + 1);
+    if (observation != nullptr) {
+      Observe(step, run.SlotOf(layers[static_cast<size_t>(step.first_layer)].inputs[0]),
+              *observation);
     }
-    if (step.kind == Step::Kind::kCrop && step.out_bf16) {
-      ConstBf16View view = cur16;
-      view.data = cur16.pixel(g.crop.top, g.crop.left);
-      view.height = g.output.height;
-      view.width = g.output.width;
-      views.bf16[dst_slot] = view;
-      finish();
-      continue;
-    }
-    // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
-    // and the extent a step writes (an upsampling into a slice: only its crop's).
-    const TensorShape* whole =
-        step.slice_of < 0
-            ? nullptr
-            : &geometry_[steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
-    const TensorShape& extent =
-        step.slice_crop >= 0 ? geometry_[static_cast<size_t>(step.slice_crop)].output : g.output;
-    if (step.kind == Step::Kind::kToBf16 || step.kind == Step::Kind::kUpsampleBf16 ||
-        step.kind == Step::Kind::kConcatBf16 ||
-        (step.kind == Step::Kind::kBf16Conv && step.out_bf16)) {
-      uint16_t* dst16 = reinterpret_cast<uint16_t*>(
-          reinterpret_cast<uint8_t*>(arena_) +
-          plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset);
-      Bf16View written;
-      const Bf16View out16 = OutputPlane(dst16 + step.slice_channel, extent.height, extent.width,
-                                         extent.channels, whole);
-      if (step.kind == Step::Kind::kToBf16) {
-        ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
-        parallel_rows(cur.height, ToBf16Trampoline, &job);
-        written = job.out;
-        views.bf16[src] = written;
-      } else if (step.kind == Step::Kind::kUpsampleBf16) {
-        written = out16;
-        const UpsampleParams& u = layers[step.last_layer].upsample;
-        ref::UpsampleNearestPlane(cur16, u.factor_h, u.factor_w, written);
-        views.bf16[dst_slot] = written;
-      } else if (step.in_place) {  // the producers wrote the slices
-        written = out16;
-        views.bf16[dst_slot] = written;
-      } else if (step.kind == Step::Kind::kConcatBf16) {
-        for (size_t k = 0; k < first.inputs.size(); ++k)
-          views.gather16[k] = views.bf16[slot_of(first.inputs[k])];
-        using Job = ConcatJob<ConstBf16View, Bf16View>;
-        Job job{views.gather16.data(), static_cast<int>(first.inputs.size()), out16};
-        parallel_rows(g.output.height, ConcatTrampoline<Job>, &job);
-        written = job.out;
-        views.bf16[dst_slot] = written;
-      } else {
-        Bf16ConvArgs args = bf16_args(step, cur16);
-        args.out_bf16 = out16;
-        run_blocked(step.fn16, args, g.output.height);
-        written = args.out_bf16;
-        views.bf16[dst_slot] = written;
-      }
-      // The slack a kernel may read past the tensor: finite (bf16_job.h). A slice of a Concat's
-      // tensor has none of its own (its channels are even: no kernel reads past its pixels); the
-      // Concat's is zeroed by its step.
-      if (step.slice_of < 0) {
-        std::memset(dst16 + static_cast<size_t>(written.height) * written.width * written.channels,
-                    0, kBf16TensorSlack);
-      }
-      finish();
-      continue;
-    }
-    if (step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kUpsampleU8 ||
-        step.kind == Step::Kind::kConcatU8 || (step.kind == Step::Kind::kInt8Conv && step.out_u8)) {
-      uint8_t* dst8 = reinterpret_cast<uint8_t*>(arena_) +
-                      plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset;
-      const ByteView out8 = OutputPlane(dst8 + step.slice_channel, extent.height, extent.width,
-                                        extent.channels, whole);
-      if (step.kind == Step::Kind::kQuantize) {
-        QuantizeJob job{step.quantize, cur,
-                        DenseByteView(dst8, cur.height, cur.width, cur.channels),
-                        1.0f / step.quant.scale, step.quant.zero_point};
-        parallel_rows(cur.height, QuantizeTrampoline, &job);
-        views.u8[src] = job.out;
-      } else if (step.kind == Step::Kind::kUpsampleU8) {
-        const UpsampleParams& u = layers[step.last_layer].upsample;
-        ref::UpsampleNearestPlane(cur8, u.factor_h, u.factor_w, out8);
-        views.u8[dst_slot] = out8;
-      } else if (step.in_place) {  // the producers wrote the slices
-        views.u8[dst_slot] = out8;
-      } else if (step.kind == Step::Kind::kConcatU8) {
-        for (size_t k = 0; k < first.inputs.size(); ++k)
-          views.gather8[k] = views.u8[slot_of(first.inputs[k])];
-        using Job = ConcatJob<ConstByteView, ByteView>;
-        Job job{views.gather8.data(), static_cast<int>(first.inputs.size()), out8};
-        parallel_rows(g.output.height, ConcatTrampoline<Job>, &job);
-        views.u8[dst_slot] = job.out;
-      } else {
-        Int8ConvArgs args = int8_args(step, cur8);
-        args.out_u8 = out8;
-        run_blocked(step.fn8, args, g.output.height);
-        views.u8[dst_slot] = args.out_u8;
-      }
-      finish();
-      continue;
-    }
-    if (step.kind == Step::Kind::kCrop) {
-      ConstTensorView view = cur;
-      view.data = cur.pixel(g.crop.top, g.crop.left);
-      view.height = g.output.height;
-      view.width = g.output.width;
-      if (last) {
-        ref::Copy(view,
-                  DenseView(output.data(), g.output.height, g.output.width, g.output.channels));
-      }
-      views.f32[dst_slot] = view;
-      finish();
-      continue;
-    }
-    float* dst = last
-                     ? output.data()
-                     : arena_ + plan_[static_cast<size_t>(tensor_of_step_[step_index - 1])].offset /
-                                    sizeof(float);
-    const TensorView out = DenseView(dst, g.output.height, g.output.width, g.output.channels);
-    switch (step.kind) {
-      case Step::Kind::kConv:
-      case Step::Kind::kUpConv: {
-        ConvArgs args;
-        args.conv = &step.packed;
-        args.in = cur;
-        args.out = out;
-        args.pads = g.pads;
-        if (step.kind == Step::Kind::kUpConv) {
-          const LayerGeometry& c =
-              geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
-          if (step.crop_layer >= 0) {
-            args.crop_top = c.crop.top;
-            args.crop_left = c.crop.left;
-          }
-          args.c_height = c.output.height;
-          args.c_width = c.output.width;
-        }
-        if (step.upwinograd != nullptr) {
-          RunUpWinogradBands(*step.upwinograd, step.wpacked, step.band_rows,
-                             arena_ + step.scratch_offset / sizeof(float), args, parallel_rows);
-          args.skip_interior = true;
-        }
-        if (pool_ == nullptr) {
-          step.fn(args, 0, out.height, 0, step.packed.blocks);
-        } else {
-          ConvJob job{step.fn, &args, out.height,
-                      ConvChunks(step.packed.blocks, out.height, threads_)};
-          pool_->ParallelFor(step.packed.blocks * job.chunks, BlockedConvTrampoline<ConvJob>, &job);
-        }
-        break;
-      }
-      case Step::Kind::kWinograd:
-        RunWinogradBands(*step.winograd, step.wpacked, step.band_rows,
-                         arena_ + step.scratch_offset / sizeof(float), cur, out, g.pads,
-                         parallel_rows);
-        break;
-      case Step::Kind::kRows: {
-        for (size_t k = 0; k < first.inputs.size(); ++k) {
-          views.gather[k] = views.f32[slot_of(first.inputs[k])];
-        }
-        RowsJob job{step.rows,
-                    {&first, &g, views.gather.data(), static_cast<int>(first.inputs.size()), out}};
-        parallel_rows(out.height, RowsTrampoline, &job);
-        break;
-      }
-      case Step::Kind::kUpsample: {
-        const UpsampleParams& u = layers[step.last_layer].upsample;
-        ref::UpsampleNearest(cur, u.factor_h, u.factor_w, out);
-        break;
-      }
-      case Step::Kind::kInt8Conv: {  // float32 output
-        Int8ConvArgs args = int8_args(step, cur8);
-        args.out_f32 = out;
-        run_blocked(step.fn8, args, out.height);
-        break;
-      }
-      case Step::Kind::kBf16Conv: {  // float32 output
-        Bf16ConvArgs args = bf16_args(step, cur16);
-        args.out_f32 = out;
-        run_blocked(step.fn16, args, out.height);
-        break;
-      }
-      case Step::Kind::kCrop:
-      case Step::Kind::kQuantize:
-      case Step::Kind::kUpsampleU8:
-      case Step::Kind::kConcatU8:
-      case Step::Kind::kConcatBf16:
-      case Step::Kind::kToBf16:
-      case Step::Kind::kUpsampleBf16:
-        break;
-    }
-    views.f32[dst_slot] = out;
-    finish();
   }
   return Status::Ok();
 }

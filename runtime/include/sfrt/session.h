@@ -160,13 +160,17 @@ class Session {
   struct Step;
   struct Views;
   struct Observation;
+  struct StepRun;  // one Run() over the steps
   Status Execute(std::span<const float> input, int height, int width, std::span<float> output,
                  std::span<int64_t> step_end_ns, Observation* observation);
   void Observe(const Step& step, size_t src_slot, Observation& observation) const;
   class Pool;
   Session() = default;
   Status Plan();
-  void PlaceConcatInputs();  // Plan, step 1b
+  size_t PlanSteps();                 // Plan, step 1
+  void PlaceConcatInputs();           // Plan, step 1b
+  Status PackWeights();               // Plan, step 2
+  Status PlanTensors(size_t gather);  // Plan, step 3
   std::shared_ptr<const Model> model_;
   SessionOptions options_;
   std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops
