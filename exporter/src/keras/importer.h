@@ -322,52 +322,6 @@ class Importer {
   std::vector<std::string> notes_;
 };
 
-// Helpers keras_importer.cc defines.
-std::string DimsText(const std::vector<uint64_t>& dims);
-
-herr_t FirstErrorText(unsigned /*n*/, const H5E_error2_t* err, void* data);
-
-// The most specific message on HDF5's error stack (then cleared), as " (HDF5: ...)" or "".
-std::string Hdf5Error();
-
-// Why a read of variable-length data failed: the guard's refusal (a damaged heap reference it
-// stopped before libhdf5 followed it) as ": ...", else HDF5's message.
-std::string ReadFailureDetail();
-
-Status CheckStoredSize(hid_t ds, hid_t type, uint64_t count);
-
-// Reads a string attribute (scalar or 1-D; fixed- or variable-length) of `obj`. `where` names the
-// object in errors. Returns std::nullopt-like empty optional when the attribute does not exist.
-Result<std::optional<std::vector<std::string>>> ReadStringsAttr(hid_t obj, const char* name,
-                                                                const std::string& where);
-
-// A list attribute as Keras writes it: whole, or (when over HDF5's 64 KiB attribute limit) split
-// by save_attributes_to_hdf5_group into `<name>0`, `<name>1`, ...
-Result<std::optional<std::vector<std::string>>> ReadKerasList(hid_t obj, const std::string& name,
-                                                              const std::string& where);
-
-std::string JsonText(const json& v);
-
-bool IsInt(const json& v);
-
-// `v` (may be null) as an integer in [lo, hi].
-bool GetInt(const json* v, int64_t lo, int64_t hi, int* out);
-
-// `v` as (a, b): an integer n gives (n, n); a list of two integers gives them.
-bool GetPair(const json* v, int64_t lo, int64_t hi, std::array<int, 2>* out);
-
-// Keras' cropping/padding argument: n, (rows, cols) symmetric, or ((top, bottom), (left, right)).
-bool GetSidePads(const json* v, Pads* out);
-
-// TensorFlow 'same' amounts for one axis: (before, after).
-std::pair<int, int> SameAxis(int in, int stride, int kernel);
-
-bool IsNestedModelClass(const std::string& cls);
-
-// Sets the activation of a convolution, transposed convolution or Add that a following layer
-// fuses into.
-void SetActivation(LayerSpec* target, Activation act, float slope);
-
 // Keras 2.4 and later run only on TensorFlow 2 ("2.4.0", "2.9.0", "3.1.0"); 2.0-2.3 (and the
 // "-tf" versions tf.keras wrote up to TensorFlow 2.1) may have run on TensorFlow 1.
 bool SavedOnTensorFlow2(const std::string& keras_version);
