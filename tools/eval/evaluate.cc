@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -15,6 +16,7 @@
 #include "sfrt/model.h"
 #include "sfrt/pipeline/io/pfm.h"
 #include "sfrt/session.h"
+#include "sfrt/vocabulary/stereo_input.h"
 #include "synth/annotate.h"
 #include "synth/dataset.h"
 
@@ -126,7 +128,6 @@ class ModelRunner {
     auto runner = std::unique_ptr<ModelRunner>(new ModelRunner());
     runner->model_ = std::move(model).value();
     const InputDesc& in = runner->model_->metadata().input;
-    const char* slots[4] = {"left0", "right0", "left1", "right1"};
     if (in.is_rgbd()) {
       return Status::Error(path +
                            ": the model reads two RGB-D frames, and sfrt eval feeds stereo pairs "
@@ -138,18 +139,19 @@ class ModelRunner {
                            " channels as " + std::to_string(in.image_order.size()) +
                            " images; sfrt eval feeds 4 images of 3 channels");
     }
-    for (const std::string& slot : in.image_order) {
-      int found = -1;
-      for (int i = 0; i < 4; ++i) {
-        if (slot == slots[i]) found = i;
+    for (const std::string& name : in.image_order) {
+      const std::optional<vocabulary::ImageSlot> slot = vocabulary::ImageSlotFromName(name);
+      if (!slot || vocabulary::IsRgbdSlot(*slot)) {
+        return Status::Error(path + ": unknown image '" + name + "' in image order");
       }
-      if (found < 0) return Status::Error(path + ": unknown image '" + slot + "' in image order");
-      runner->order_.push_back(found);
+      runner->order_.push_back(static_cast<int>(*slot));
     }
-    if (in.color_order != "BGR" && in.color_order != "RGB") {
+    const std::optional<vocabulary::ColorOrder> color =
+        vocabulary::ColorOrderFromName(in.color_order);
+    if (!color) {
       return Status::Error(path + ": color order '" + in.color_order + "' is neither BGR nor RGB");
     }
-    runner->rgb_ = in.color_order == "RGB";
+    runner->rgb_ = *color == vocabulary::ColorOrder::kRGB;
     SessionOptions options;
     options.max_height = height;
     options.max_width = width;

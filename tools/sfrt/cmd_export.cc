@@ -9,7 +9,6 @@
 #include <cctype>
 #include <cerrno>
 #include <charconv>
-#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdint>
@@ -19,35 +18,26 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <random>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "sfrt/calibration_input.h"
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
-#include "sfrt/exporter/keras_importer.h"
-#include "sfrt/exporter/model_spec.h"
-#include "sfrt/exporter/model_writer.h"
-#include "sfrt/exporter/onnx_importer.h"
-#include "sfrt/exporter/quantize.h"
-#include "sfrt/exporter/sfrt_importer.h"
+#include "sfrt/export_report.h"
+#include "sfrt/exporter/export.h"
 #include "sfrt/model.h"
-#include "sfrt/model_notes.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
-#include "sfrt/shapes.h"
 
 namespace sfrt::tools {
 namespace {
 
 constexpr char kName[] = "export";
-constexpr double kDefaultTolerance = 1e-4;      // relative to the reference's largest |value|
-constexpr double kDefaultFp16Tolerance = 1e-2;  // with --weights fp16
-constexpr uint32_t kCheckSeed = 0;
 
 struct ExportArgs {
   std::string input;
@@ -101,7 +91,6 @@ constexpr const char* kMetadataFlags[] = {
     "--name", "--input-kind", "--color-order", "--image-order",   "--scale", "--mean",
     "--std",  "--depth-mean", "--depth-std",   "--depth-invalid", "--focal", "--baseline",
     "--cx",   "--cy",         "--units",       "--training-state"};
-constexpr const char* kDepthFlags[] = {"--depth-mean", "--depth-std", "--depth-invalid"};
 constexpr size_t kMaxUnitsLength = 64;
 // Flags that only apply with --calibration.
 constexpr const char* kCalibrationFlags[] = {"--calibration-size",    "--calibration-frames",
@@ -110,89 +99,6 @@ constexpr const char* kCalibrationFlags[] = {"--calibration-size",    "--calibra
 
 bool Given(const ExportArgs& args, std::string_view flag) {
   return std::find(args.given.begin(), args.given.end(), flag) != args.given.end();
-}
-
-// What the network's input holds (--input-kind).
-enum class InputKind { kImages, kRgbd, kTensor };
-
-bool IsRgbdOrder(const std::vector<exporter::ImageSlot>& order) {
-  return !order.empty() && vocabulary::IsRgbdSlot(order.front());
-}
-
-int OrderChannels(const std::vector<exporter::ImageSlot>& order) {
-  int channels = 0;
-  for (exporter::ImageSlot slot : order) channels += vocabulary::SlotChannels(slot);
-  return channels;
-}
-
-// The input kind --input-kind asks for, checked against the network's channel count and the
-// image order. `image_order` is --image-order's, or empty when it was not given. A .sfrt source
-// without --input-kind keeps what its file says.
-Result<InputKind> ChooseInputKind(const ExportArgs& args, const exporter::ModelSpec& spec,
-                                  const std::vector<exporter::ImageSlot>& image_order,
-                                  bool sfrt_source) {
-  const int channels = spec.input.channels;
-  std::string kind = args.input_kind;
-  if (sfrt_source && !Given(args, "--input-kind")) {
-    kind = spec.input.image_order.empty()        ? "tensor"
-           : IsRgbdOrder(spec.input.image_order) ? "rgbd"
-                                                 : "images";
-  } else if (kind == "auto") {
-    const bool rgbd = IsRgbdOrder(image_order);
-    const int wanted = image_order.empty() ? 3 * vocabulary::kDefaultImageOrder.size()
-                                           : OrderChannels(image_order);
-    kind = channels != wanted ? "tensor" : rgbd ? "rgbd" : "images";
-  }
-  if (!image_order.empty() && kind != "tensor" && IsRgbdOrder(image_order) != (kind == "rgbd")) {
-    return Status::Error("--image-order '" + args.image_order + "' names " +
-                         (kind == "rgbd" ? "stereo images; --input-kind rgbd takes C0,D0,C1,D1"
-                                         : "RGB-D frames; give --input-kind rgbd for them"));
-  }
-  if (kind != "rgbd") {
-    for (const char* flag : kDepthFlags) {
-      if (Given(args, flag)) {
-        return Status::Error(std::string(flag) +
-                             " describes the depth maps of RGB-D frames, but the input is " +
-                             (kind == "images" ? "stereo images" : "a plain tensor") +
-                             "; give --input-kind rgbd for RGB-D frames");
-      }
-    }
-  }
-  if (kind == "images" || kind == "rgbd") {
-    const bool rgbd = kind == "rgbd";
-    const int wanted = rgbd ? 8 : 12;
-    if (channels != wanted) {
-      return Status::Error(args.input + ": the network's input has " + std::to_string(channels) +
-                           " channels; --input-kind " + kind + " takes " + std::to_string(wanted) +
-                           (rgbd ? " (colour and depth of two frames: 3 + 1 + 3 + 1)"
-                                 : " (3 per image of --image-order, default L0,R0,L1,R1)"));
-    }
-    return rgbd ? InputKind::kRgbd : InputKind::kImages;
-  }
-  for (const char* flag : {"--image-order", "--color-order", "--scale", "--mean", "--std"}) {
-    if (Given(args, flag)) {
-      return Status::Error(std::string(flag) + " describes image inputs, but the input is a " +
-                           std::to_string(channels) + "-channel plain tensor (--input-kind " +
-                           args.input_kind + "); give --input-kind images or rgbd for images");
-    }
-  }
-  return InputKind::kTensor;
-}
-
-// The report's description of the input: the images and their preprocessing, or a plain tensor.
-std::string InputLine(const InputDesc& input) {
-  const std::string channels = std::to_string(input.channels) + " channels: ";
-  if (input.image_order.empty()) return channels + "a plain tensor, fed as given";
-  std::string line = channels + Join(input.image_order, ",") + ", " + input.color_order +
-                     ", value = (pixel * " + FormatFloat(input.scale) + " - mean) / std, mean " +
-                     FormatFloat(input.mean[0]) + "," + FormatFloat(input.mean[1]) + "," +
-                     FormatFloat(input.mean[2]) + ", std " + FormatFloat(input.std[0]) + "," +
-                     FormatFloat(input.std[1]) + "," + FormatFloat(input.std[2]);
-  if (input.is_rgbd()) {
-    line += "; depth value = (metres - " + FormatFloat(input.depth_mean) + ") / " +
-            FormatFloat(input.depth_std) + ", missing depth " + FormatFloat(input.depth_invalid);
-  }
-  return line;
 }
 
 // Empty when `units` can be stored: 1..64 printable ASCII characters.
@@ -245,14 +151,6 @@ bool ParseTriple(const std::string& text, std::array<float, 3>* out) {
 bool ParseImageOrder(const std::string& text, std::vector<exporter::ImageSlot>* out,
                      std::string* error) {
   using exporter::ImageSlot;
-  static constexpr struct {
-    const char* short_name;
-    const char* long_name;
-    ImageSlot slot;
-  } kTokens[] = {{"L0", "LEFT0", ImageSlot::kLeft0},   {"R0", "RIGHT0", ImageSlot::kRight0},
-                 {"L1", "LEFT1", ImageSlot::kLeft1},   {"R1", "RIGHT1", ImageSlot::kRight1},
-                 {"C0", "COLOR0", ImageSlot::kColor0}, {"D0", "DEPTH0", ImageSlot::kDepth0},
-                 {"C1", "COLOR1", ImageSlot::kColor1}, {"D1", "DEPTH1", ImageSlot::kDepth1}};
   out->clear();
   size_t start = 0;
   while (true) {
@@ -260,25 +158,23 @@ bool ParseImageOrder(const std::string& text, std::vector<exporter::ImageSlot>* 
     std::string token = Upper(text.substr(start, comma - start));
     while (!token.empty() && token.front() == ' ') token.erase(token.begin());
     while (!token.empty() && token.back() == ' ') token.pop_back();
-    const auto* match = std::find_if(std::begin(kTokens), std::end(kTokens), [&](const auto& t) {
-      return token == t.short_name || token == t.long_name;
-    });
-    if (match == std::end(kTokens)) {
+    const std::optional<ImageSlot> slot = vocabulary::ImageSlotFromAnyName(token);
+    if (!slot) {
       *error = "--image-order: unknown image '" + token +
                "' (use L0, R0, L1, R1 for stereo pairs, C0, D0, C1, D1 for RGB-D frames)";
       return false;
     }
     for (ImageSlot seen : *out) {
-      if (seen == match->slot) {
+      if (seen == *slot) {
         *error = "--image-order: image '" + token + "' appears twice";
         return false;
       }
-      if (vocabulary::IsRgbdSlot(seen) != vocabulary::IsRgbdSlot(match->slot)) {
+      if (vocabulary::IsRgbdSlot(seen) != vocabulary::IsRgbdSlot(*slot)) {
         *error = "--image-order: '" + text + "' mixes stereo images and RGB-D frames";
         return false;
       }
     }
-    out->push_back(match->slot);
+    out->push_back(*slot);
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
@@ -287,265 +183,6 @@ bool ParseImageOrder(const std::string& text, std::vector<exporter::ImageSlot>* 
         "--image-order: expected the four images L0,R0,L1,R1 or C0,D0,C1,D1 in some order, "
         "got '" +
         text + "'";
-    return false;
-  }
-  return true;
-}
-
-// One line describing how the model's convolutions pad, as the loaded file states it.
-std::string DescribePadding(const Model& model) {
-  int same_upper = 0;
-  int same_lower = 0;
-  int explicit_pads = 0;
-  for (const LayerDesc& layer : model.layers()) {
-    if (layer.kind != LayerKind::kConv2D) continue;
-    same_upper += layer.conv.padding_rule == PaddingRule::kSameUpper;
-    same_lower += layer.conv.padding_rule == PaddingRule::kSameLower;
-    explicit_pads += layer.conv.padding_rule == PaddingRule::kExplicit;
-  }
-  const InputDesc& in = model.metadata().input;
-  std::string traced = in.traced_height > 0 ? std::to_string(in.traced_height) + "x" +
-                                                  std::to_string(in.traced_width)
-                                            : "an unknown size";
-  const int convs = same_upper + same_lower + explicit_pads;
-  for (const auto& [count, rule] :
-       {std::pair{same_upper, "same-upper"}, {same_lower, "same-lower"}}) {
-    if (count == convs) {
-      return std::string(rule) + " at all " + std::to_string(count) +
-             " convs (pads computed per input size)";
-    }
-  }
-  if (explicit_pads == convs) {
-    return "explicit at all " + std::to_string(explicit_pads) + " convs (the amounts traced at " +
-           traced + ", applied unchanged at every size)";
-  }
-  return "mixed: " + std::to_string(same_upper) + " convs same-upper, " +
-         (same_lower > 0 ? std::to_string(same_lower) + " same-lower, " : "") +
-         std::to_string(explicit_pads) + " explicit (as traced at " + traced + ")";
-}
-
-std::string Sci(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.2e", v);
-  return buf;
-}
-
-std::string SizeText(int height, int width) {
-  return std::to_string(height) + "x" + std::to_string(width);
-}
-
-// "float16, 1,234 bytes (float32: 2,468; saves 1,234)".
-std::string WeightsLine(const Model& model) {
-  const uint64_t params = model.parameter_count();
-  if (std::string int8 = Int8LayersText(model); !int8.empty()) {
-    return int8 + ", " + GroupDigits(StoredParameterBytes(model)) + " bytes (float32 would need " +
-           GroupDigits(params * 4) + ")";
-  }
-  if (model.metadata().weight_type == WeightType::kFloat16) {
-    return "float16, " + GroupDigits(params * 2) + " bytes (float32 would need " +
-           GroupDigits(params * 4) + "; saves " + GroupDigits(params * 2) +
-           "), widened to float32 at load";
-  }
-  return "float32, " + GroupDigits(params * 4) + " bytes";
-}
-
-// Runs `model` once on `input` (height x width x input channels).
-bool RunOnce(const std::shared_ptr<const Model>& model, const std::vector<float>& input, int height,
-             int width, std::vector<float>* output, TensorShape* out_shape, double* ms,
-             std::string* failure) {
-  SessionOptions options;
-  options.max_height = height;
-  options.max_width = width;
-  if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
-    *failure = "check: " + env.message();
-    return false;
-  }
-  Result<std::unique_ptr<Session>> session = Session::Create(model, options);
-  if (!session.ok()) {
-    *failure =
-        "check: cannot plan the model at " + SizeText(height, width) + ": " + session.message();
-    return false;
-  }
-  Result<TensorShape> shape = (*session)->OutputShape(height, width);
-  if (!shape.ok()) {
-    *failure = "check: at " + SizeText(height, width) + ": " + shape.message();
-    return false;
-  }
-  *out_shape = *shape;
-  output->assign(shape->elements(), 0.0f);
-  const auto t0 = std::chrono::steady_clock::now();
-  Status s = (*session)->Run(input, height, width, *output);
-  *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  if (!s.ok()) {
-    *failure = "check: the model fails to run: " + s.message();
-    return false;
-  }
-  return true;
-}
-
-// Reads a float32 .npy of shape (H, W, C) or (1, H, W, C).
-bool ReadImageArray(const std::string& path, const char* flag, io::NpyArray* array, int* height,
-                    int* width, int* channels, std::string* failure) {
-  Result<io::NpyArray> read = io::ReadNpy(path);
-  if (!read.ok()) {
-    *failure = std::string(flag) + ": " + read.message();
-    return false;
-  }
-  *array = std::move(read).value();
-  std::vector<int64_t> shape = array->shape;
-  if (shape.size() == 4 && shape[0] == 1) shape.erase(shape.begin());
-  if (shape.size() != 3 || shape[0] <= 0 || shape[1] <= 0 || shape[2] <= 0 ||
-      shape[0] > (1 << 16) || shape[1] > (1 << 16)) {
-    *failure = std::string(flag) + " " + path + ": shape " + array->ShapeString() +
-               " is not (H, W, C) or (1, H, W, C)";
-    return false;
-  }
-  *height = static_cast<int>(shape[0]);
-  *width = static_cast<int>(shape[1]);
-  *channels = static_cast<int>(shape[2]);
-  return true;
-}
-
-// --check-input [--check-output]: runs the model on the given (already preprocessed) input and
-// compares with the reference. Appends report lines; false (with `failure`) when it fails.
-bool ParityCheck(const std::shared_ptr<const Model>& model, const std::string& input_path,
-                 const std::string& output_path, double tolerance, std::vector<std::string>* lines,
-                 std::string* failure) {
-  io::NpyArray input;
-  int h = 0, w = 0, c = 0;
-  if (!ReadImageArray(input_path, "--check-input", &input, &h, &w, &c, failure)) return false;
-  if (c != model->metadata().input.channels) {
-    *failure = "--check-input " + input_path + ": shape " + input.ShapeString() + " has " +
-               std::to_string(c) + " channels but the model takes " +
-               std::to_string(model->metadata().input.channels);
-    return false;
-  }
-  io::NpyArray reference;
-  int rh = 0, rw = 0, rc = 0;
-  if (!output_path.empty() &&
-      !ReadImageArray(output_path, "--check-output", &reference, &rh, &rw, &rc, failure)) {
-    return false;
-  }
-  std::vector<float> output;
-  TensorShape shape;
-  double ms = 0;
-  if (!RunOnce(model, input.data, h, w, &output, &shape, &ms, failure)) return false;
-  char line[512];
-  std::snprintf(line, sizeof(line),
-                "  check       input %s (%dx%dx%d) -> output %dx%dx%d in %.0f ms",
-                input_path.c_str(), h, w, c, shape.height, shape.width, shape.channels, ms);
-  lines->push_back(line);
-  size_t non_finite = 0;
-  for (float v : output) non_finite += std::isfinite(v) ? 0 : 1;
-  if (output_path.empty()) {
-    double lo = INFINITY, hi = -INFINITY;
-    for (float v : output) {
-      if (!std::isfinite(v)) continue;
-      lo = std::min(lo, static_cast<double>(v));
-      hi = std::max(hi, static_cast<double>(v));
-    }
-    lines->push_back("  output      min " + Sci(lo) + ", max " + Sci(hi) + "; finite " +
-                     (non_finite == 0 ? "yes" : "NO (" + std::to_string(non_finite) + ")"));
-    if (non_finite > 0) {
-      *failure = "check: the output has " + std::to_string(non_finite) + " non-finite values";
-      return false;
-    }
-    return true;
-  }
-  if (rh != shape.height || rw != shape.width || rc != shape.channels) {
-    *failure = "--check-output " + output_path + ": shape " + reference.ShapeString() +
-               " differs from the model's output " + std::to_string(shape.height) + "x" +
-               std::to_string(shape.width) + "x" + std::to_string(shape.channels);
-    return false;
-  }
-  double max_abs = 0;
-  double ref_max = 0;
-  for (float v : reference.data) ref_max = std::max(ref_max, std::fabs(static_cast<double>(v)));
-  const double scale = ref_max > 0 ? ref_max : 1.0;
-  size_t pixels_over = 0;
-  const size_t pixels = static_cast<size_t>(rh) * static_cast<size_t>(rw);
-  for (size_t p = 0; p < pixels; ++p) {
-    double pixel_err = 0;
-    for (int k = 0; k < rc; ++k) {
-      const size_t i = p * static_cast<size_t>(rc) + static_cast<size_t>(k);
-      const double err = std::fabs(static_cast<double>(output[i]) - reference.data[i]);
-      pixel_err = std::isnan(err) ? INFINITY : std::max(pixel_err, err);
-    }
-    max_abs = std::max(max_abs, pixel_err);
-    pixels_over += pixel_err > tolerance * scale ? 1 : 0;
-  }
-  const double relative = max_abs / scale;
-  char share[32];
-  std::snprintf(share, sizeof(share), "%.3f%%",
-                pixels > 0 ? 100.0 * static_cast<double>(pixels_over) / pixels : 0.0);
-  lines->push_back("  parity      vs " + output_path + ": max abs error " + Sci(max_abs) +
-                   ", reference max |value| " + Sci(ref_max) + ", max error relative to it " +
-                   Sci(relative) + " (tolerance " + Sci(tolerance) + "), pixels over tolerance " +
-                   GroupDigits(pixels_over) + " of " + GroupDigits(pixels) + " (" + share +
-                   "), finite " + (non_finite == 0 ? "yes" : "NO"));
-  if (non_finite > 0) {
-    *failure =
-        "parity check failed: the output has " + std::to_string(non_finite) + " non-finite values";
-    return false;
-  }
-  if (!(relative <= tolerance)) {
-    *failure = "parity check failed: max error relative to the reference's largest value " +
-               Sci(relative) + " exceeds the tolerance " + Sci(tolerance) + " (" +
-               GroupDigits(pixels_over) + " pixels over)";
-    return false;
-  }
-  lines->push_back("  parity      ok");
-  return true;
-}
-
-// --check without a reference: a seeded input (pixel values: uniform integers 0..255, put
-// through the model's preprocessing) at the built size (or --check-size, else 540x960).
-bool SeededCheck(const std::shared_ptr<const Model>& model, int height, int width,
-                 std::vector<std::string>* lines, std::string* failure) {
-  const InputDesc& in = model->metadata().input;
-  if (height == 0) {
-    height = in.traced_height > 0 ? in.traced_height : 540;
-    width = in.traced_width > 0 ? in.traced_width : 960;
-  }
-  const size_t count =
-      static_cast<size_t>(height) * static_cast<size_t>(width) * static_cast<size_t>(in.channels);
-  std::vector<float> input(count);
-  std::mt19937 rng(kCheckSeed);
-  for (size_t i = 0; i < count; ++i) {
-    const int c = static_cast<int>(i % static_cast<size_t>(in.channels)) % 3;
-    const auto pixel = static_cast<float>(rng() % 256u);
-    input[i] = (pixel * in.scale - in.mean[c]) / in.std[c];
-  }
-  std::vector<float> output;
-  TensorShape shape;
-  double ms = 0;
-  if (!RunOnce(model, input, height, width, &output, &shape, &ms, failure)) return false;
-  double sum = 0, sum2 = 0, lo = INFINITY, hi = -INFINITY;
-  size_t non_finite = 0;
-  for (float v : output) {
-    if (!std::isfinite(v)) {
-      ++non_finite;
-      continue;
-    }
-    sum += v;
-    sum2 += static_cast<double>(v) * v;
-    lo = std::min(lo, static_cast<double>(v));
-    hi = std::max(hi, static_cast<double>(v));
-  }
-  const double n = static_cast<double>(output.size() - non_finite);
-  const double mean = n > 0 ? sum / n : 0;
-  const double stddev = n > 0 ? std::sqrt(std::max(sum2 / n - mean * mean, 0.0)) : 0;
-  char line[256];
-  std::snprintf(line, sizeof(line),
-                "  check       seeded input (pixels uniform 0..255, seed %u) at %dx%d -> output "
-                "%dx%dx%d in %.0f ms",
-                kCheckSeed, height, width, shape.height, shape.width, shape.channels, ms);
-  lines->push_back(line);
-  lines->push_back("  output      min " + Sci(lo) + ", max " + Sci(hi) + ", mean " + Sci(mean) +
-                   ", std " + Sci(stddev) + "; finite " +
-                   (non_finite == 0 ? "yes" : "NO (" + std::to_string(non_finite) + ")"));
-  if (non_finite > 0) {
-    *failure = "check failed: the output has " + std::to_string(non_finite) + " non-finite values";
     return false;
   }
   return true;
@@ -586,608 +223,424 @@ std::string ProbeKerasImportInChild(const std::string& path,
          "Nothing was written";
 }
 
-// --precision int8|auto: reads the calibration frames, quantises `spec` (float32) and appends
-// the summary lines. Errors name the calibration file or directory.
-Result<exporter::QuantizeResult> QuantizeForExport(const ExportArgs& args,
-                                                   const exporter::ModelSpec& spec,
-                                                   const ModelMetadata& meta,
-                                                   std::vector<std::string>* lines) {
+// Reads a float32 .npy of shape (H, W, C) or (1, H, W, C) for the check.
+Result<exporter::CheckArray> ReadCheckArray(const std::string& path, const char* flag) {
+  Result<io::NpyArray> read = io::ReadNpy(path);
+  if (!read.ok()) return Status::Error(std::string(flag) + ": " + read.message());
+  std::vector<int64_t> shape = read->shape;
+  if (shape.size() == 4 && shape[0] == 1) shape.erase(shape.begin());
+  if (shape.size() != 3 || shape[0] <= 0 || shape[1] <= 0 || shape[2] <= 0 ||
+      shape[0] > (1 << 16) || shape[1] > (1 << 16)) {
+    return Status::Error(std::string(flag) + " " + path + ": shape " + read->ShapeString() +
+                         " is not (H, W, C) or (1, H, W, C)");
+  }
+  exporter::CheckArray array;
+  array.path = path;
+  array.shape_text = read->ShapeString();
+  array.height = static_cast<int>(shape[0]);
+  array.width = static_cast<int>(shape[1]);
+  array.channels = static_cast<int>(shape[2]);
+  array.values = std::move(read->data);
+  return array;
+}
+
+// The metadata flags: each one given sets its field (export.h, MetadataChanges).
+std::string MetadataFromFlags(const ExportArgs& args, exporter::MetadataChanges* changes) {
+  const exporter::InputSpec defaults;
+  std::array<float, 3> mean = defaults.mean;
+  std::array<float, 3> stddev = defaults.std;
+  if (!args.mean.empty() && !ParseTriple(args.mean, &mean)) {
+    return "--mean: expected three comma-separated numbers, got '" + args.mean + "'";
+  }
+  if (!args.std.empty()) {
+    if (!ParseTriple(args.std, &stddev)) {
+      return "--std: expected three comma-separated numbers, got '" + args.std + "'";
+    }
+    for (float s : stddev) {
+      if (!(s > 0)) return "--std: every value must be positive, got '" + args.std + "'";
+    }
+  }
+  std::vector<exporter::ImageSlot> image_order;  // empty when not given
+  if (!args.image_order.empty()) {
+    if (std::string error; !ParseImageOrder(args.image_order, &image_order, &error)) return error;
+  }
+  exporter::ColorOrder color_order = defaults.color_order;
+  if (!args.color_order.empty()) {
+    const std::optional<exporter::ColorOrder> parsed =
+        vocabulary::ColorOrderFromName(Upper(args.color_order));
+    if (!parsed) return "--color-order: expected BGR or RGB, got '" + args.color_order + "'";
+    color_order = *parsed;
+  }
+  if (!std::isfinite(args.scale) || args.scale == 0) {
+    return "--scale: must be a finite non-zero number";
+  }
+  if (!std::isfinite(args.depth_mean) || !std::isfinite(args.depth_invalid)) {
+    return "--depth-mean, --depth-invalid: must be finite numbers";
+  }
+  if (!std::isfinite(args.depth_std) || args.depth_std == 0) {
+    return "--depth-std: must be a finite non-zero number";
+  }
+  if (!(args.focal > 0) || !std::isfinite(args.focal)) {
+    return "--focal: must be a positive number of pixels";
+  }
+  if (!(args.baseline > 0) || !std::isfinite(args.baseline)) return "--baseline: must be positive";
+  if (!std::isfinite(args.cx) || !std::isfinite(args.cy))
+    return "--cx/--cy: must be finite numbers";
+  if (!args.units.empty() || Given(args, "--units")) {
+    if (std::string problem = CheckUnits(args.units); !problem.empty()) return problem;
+  }
+  const auto set = [&](std::string_view flag, auto value, auto* field) {
+    if (Given(args, flag)) *field = value;
+  };
+  if (!args.name.empty()) changes->name = args.name;
+  set("--input-kind", *exporter::ParseInputKindChoice(args.input_kind), &changes->input_kind);
+  set("--image-order", image_order, &changes->image_order);
+  changes->image_order_text = args.image_order;
+  set("--color-order", color_order, &changes->color_order);
+  set("--scale", args.scale, &changes->scale);
+  set("--mean", mean, &changes->mean);
+  set("--std", stddev, &changes->std);
+  set("--depth-mean", args.depth_mean, &changes->depth_mean);
+  set("--depth-std", args.depth_std, &changes->depth_std);
+  set("--depth-invalid", args.depth_invalid, &changes->depth_invalid);
+  set("--focal", args.focal, &changes->focal_px);
+  set("--baseline", args.baseline, &changes->baseline);
+  set("--cx", args.cx, &changes->cx);
+  set("--cy", args.cy, &changes->cy);
+  set("--units", args.units, &changes->units);
+  set("--training-state", ParseTrainingState(args.training_state), &changes->training);
+  return "";
+}
+
+// The source and how it is imported, and the weight storage.
+std::string SourceFromFlags(const ExportArgs& args, exporter::ExportOptions* options) {
+  options->source = args.input;
+  options->destination = args.output;
+  if (args.weights != "fp32" && args.weights != "fp16") {
+    return "--weights: expected fp32 or fp16, got '" + args.weights + "'";
+  }
+  if (Given(args, "--weights")) {
+    options->weights =
+        args.weights == "fp16" ? exporter::WeightType::kFloat16 : exporter::WeightType::kFloat32;
+  }
+  options->onnx.output = args.onnx_output;
+  if (args.padding == "auto") {
+    options->onnx.padding = exporter::PaddingDetection::kAuto;
+  } else if (args.padding == "same-upper") {
+    options->onnx.padding = exporter::PaddingDetection::kSameUpper;
+  } else if (args.padding == "explicit") {
+    options->onnx.padding = exporter::PaddingDetection::kExplicit;
+  } else {
+    return "--padding: expected auto, same-upper or explicit, got '" + args.padding + "'";
+  }
+  Result<exporter::SourceFormat> format = exporter::SourceFormatOf(args.input);
+  if (!format.ok()) return format.message();
+  const bool keras = *format == exporter::SourceFormat::kKeras;
+  if (*format == exporter::SourceFormat::kSfrt && args.padding != "auto") {
+    return "--padding applies to ONNX input only (a .sfrt file keeps its rules)";
+  }
+  if (keras && args.padding != "auto") {
+    return "--padding applies to ONNX input only (Keras layers state 'same' or 'valid' "
+           "themselves)";
+  }
+  if (!keras && !args.architecture.empty()) {
+    return "--architecture applies to Keras .h5 input only";
+  }
+  if (*format != exporter::SourceFormat::kOnnx && !args.onnx_output.empty()) {
+    return "--onnx-output applies to ONNX input only";
+  }
+  if (!keras && !args.keras_bilinear.empty()) {
+    return "--keras-bilinear applies to Keras .h5 input only (ONNX Resize states its "
+           "coordinate_transformation_mode)";
+  }
+  options->keras.architecture_json = args.architecture;
+  if (args.keras_bilinear == "half-pixel") {
+    options->keras.bilinear_grid = exporter::KerasBilinearGrid::kHalfPixel;
+  } else if (args.keras_bilinear == "asymmetric") {
+    options->keras.bilinear_grid = exporter::KerasBilinearGrid::kAsymmetric;
+  }
+  if (args.output.empty()) return "-o: output path is empty";
+  return "";
+}
+
+// --check, --check-size, --check-input, --check-output, --tolerance (the arrays are read later).
+std::string CheckFromFlags(const ExportArgs& args, exporter::CheckOptions* check) {
+  if (args.tolerance_opt->count() > 0 && !(args.tolerance > 0 && std::isfinite(args.tolerance))) {
+    return "--tolerance: must be a positive number, got " + FormatFloat(args.tolerance);
+  }
+  if (!args.check_output.empty() && args.check_input.empty()) {
+    return "--check-output needs --check-input (the input it was computed from)";
+  }
+  if (!args.check_size.empty()) {
+    if (!ParseSize(args.check_size, &check->height, &check->width)) {
+      return "--check-size: expected HxW with positive integers, got '" + args.check_size + "'";
+    }
+    if (!args.check || !args.check_input.empty()) {
+      return "--check-size applies to --check without --check-input";
+    }
+    // The limits every --size has (a 5000x5000 check: 3.9 GB).
+    if (std::string problem =
+            config::CheckSize(config::kInputSide, "--check-size", check->height, check->width);
+        !problem.empty()) {
+      return problem;
+    }
+  }
+  using Kind = exporter::CheckOptions::Kind;
+  check->kind = !args.check_input.empty() ? Kind::kParity
+                : args.check              ? Kind::kSeeded
+                                          : Kind::kNone;
+  check->tolerance = args.tolerance;  // <= 0: the default for the weight type
+  return "";
+}
+
+// --calibration PATH: the frames for the verified float32 model whose input is `input`: a
+// directory of stereo frames (preprocessed as `input` says) or a .npy of network inputs.
+Result<exporter::CalibrationSet> ReadCalibration(const ExportArgs& args, const InputDesc& input,
+                                                 std::string* described) {
   const std::string& path = args.calibration;
   const std::string flag = "--calibration " + path;
   std::error_code ec;
-  Result<exporter::CalibrationSet> data = Status::Error("unread");
-  std::string described;
   if (std::filesystem::is_directory(path, ec)) {
-    int height = meta.input.traced_height;
-    int width = meta.input.traced_width;
+    int height = input.traced_height;
+    int width = input.traced_width;
     if (!args.calibration_size.empty()) ParseSize(args.calibration_size, &height, &width);
     if (height <= 0 || width <= 0) {
       return Status::Error(flag +
                            ": the model's traced size is unknown; give --calibration-size "
                            "HxW to say what size to preprocess the frames at");
     }
-    data = ReadCalibrationDirectory(path, meta.input, height, width, args.calibration_frames,
-                                    &described);
+    Result<exporter::CalibrationSet> data =
+        ReadCalibrationDirectory(path, input, height, width, args.calibration_frames, described);
     if (!data.ok()) return Status::Error("--calibration " + data.message());
-  } else {
-    if (std::string problem = CheckInputFile(path, "--calibration file"); !problem.empty()) {
-      return Status::Error(problem);
-    }
-    if (LowerExtension(path) != ".npy") {
-      return Status::Error(flag + ": neither a directory of stereo frames nor a .npy file");
-    }
-    data = ReadCalibrationNpy(path, meta.input.channels, args.calibration_frames);
-    if (!data.ok()) return Status::Error("--calibration " + data.message());
-    described = std::to_string(data->frames) + " frames of " + path;
+    return data;
   }
-  exporter::QuantizeOptions options;
-  options.mode =
-      args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
-  options.accuracy_budget = args.accuracy_budget;
-  options.auto_bf16 = !args.no_auto_bf16;
-  options.bias_correction = args.bias_correction;
-  options.threads = args.calibration_threads;
-  options.engine = args.calibration_engine == "reference" ? exporter::CalibrationEngine::kReference
-                                                          : exporter::CalibrationEngine::kSession;
-  options.accuracy_metric = args.accuracy_metric == "max" ? exporter::AccuracyMetric::kMax
-                                                          : exporter::AccuracyMetric::kRms;
-  options.method = args.calibration_method;
-  options.shared_scales = args.calibration_scales == "shared";
-  options.progress = [](const char* pass, int frame, int frames) {
+  if (std::string problem = CheckInputFile(path, "--calibration file"); !problem.empty()) {
+    return Status::Error(problem);
+  }
+  if (LowerExtension(path) != ".npy") {
+    return Status::Error(flag + ": neither a directory of stereo frames nor a .npy file");
+  }
+  Result<exporter::CalibrationSet> data =
+      ReadCalibrationNpy(path, input.channels, args.calibration_frames);
+  if (!data.ok()) return Status::Error("--calibration " + data.message());
+  *described = std::to_string(data->frames) + " frames of " + path;
+  return data;
+}
+
+// The flags that apply to --precision int8|auto only, each refused without it.
+std::string CheckQuantizeFlags(const ExportArgs& args) {
+  for (const char* flag : kCalibrationFlags) {
+    if (Given(args, flag) && args.calibration.empty()) {
+      return std::string(flag) + " applies with --calibration";
+    }
+  }
+  if (args.no_auto_bf16 && args.precision != "auto") {
+    return "--no-auto-bf16 applies to --precision auto";
+  }
+  if (args.bias_correction && args.precision != "int8") {
+    return "--bias-correction applies to --precision int8";
+  }
+  if (Given(args, "--accuracy-metric") && args.precision != "auto") {
+    return "--accuracy-metric applies to --precision auto";
+  }
+  if (Given(args, "--accuracy-budget")) {
+    if (args.precision != "auto") return "--accuracy-budget applies to --precision auto";
+    if (!(args.accuracy_budget >= 0) || !std::isfinite(args.accuracy_budget)) {
+      return "--accuracy-budget: must be a finite number >= 0, got " +
+             FormatFloat(args.accuracy_budget);
+    }
+  }
+  if (args.calibration_frames < 1) {
+    return "--calibration-frames: must be at least 1, got " +
+           std::to_string(args.calibration_frames);
+  }
+  if (args.calibration_threads < 1) {
+    return "--calibration-threads: must be at least 1, got " +
+           std::to_string(args.calibration_threads);
+  }
+  if (Result<exporter::CalibrationMethod> method =
+          exporter::ParseCalibrationMethod(args.calibration_method);
+      !method.ok()) {
+    return "--calibration-method: " + method.message();
+  }
+  if (args.calibration_size.empty()) return "";
+  int h = 0;
+  int w = 0;
+  if (!ParseSize(args.calibration_size, &h, &w)) {
+    return "--calibration-size: expected HxW with positive integers, got '" +
+           args.calibration_size + "'";
+  }
+  if (std::string problem = config::CheckSize(config::kInputSide, "--calibration-size", h, w);
+      !problem.empty()) {
+    return problem;
+  }
+  if (LowerExtension(args.calibration) == ".npy") {
+    return "--calibration-size applies to a directory of frames; a .npy gives its own size";
+  }
+  return "";
+}
+
+// --precision and its calibration: int8 and auto quantise from calibration frames; bf16 only
+// marks the layers (the runtime rounds the float32 weights to bf16 at load).
+std::string PrecisionFromFlags(const ExportArgs& args, exporter::ExportOptions* options) {
+  const bool quantise = args.precision == "int8" || args.precision == "auto";
+  if (args.precision != "fp32" && args.precision != "bf16" && !quantise) {
+    return "--precision: expected fp32, bf16, int8 or auto, got '" + args.precision + "'";
+  }
+  if (quantise && args.calibration.empty()) {
+    return "--precision " + args.precision +
+           " needs --calibration PATH (a float32 .npy of network inputs, or a directory of "
+           "stereo frames)";
+  }
+  if (!quantise && !args.calibration.empty()) {
+    return "--calibration applies to --precision int8 or auto (bf16 needs no calibration: it "
+           "rounds weights and activations, it chooses no ranges)";
+  }
+  if (std::string problem = CheckQuantizeFlags(args); !problem.empty()) return problem;
+  options->precision = quantise                   ? exporter::PrecisionChange::kQuantize
+                       : args.precision == "bf16" ? exporter::PrecisionChange::kBFloat16
+                                                  : exporter::PrecisionChange::kNone;
+  exporter::QuantizeOptions& q = options->quantize;
+  q.mode = args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
+  q.accuracy_budget = args.accuracy_budget;
+  q.auto_bf16 = !args.no_auto_bf16;
+  q.bias_correction = args.bias_correction;
+  q.threads = args.calibration_threads;
+  q.engine = args.calibration_engine == "reference" ? exporter::CalibrationEngine::kReference
+                                                    : exporter::CalibrationEngine::kSession;
+  q.accuracy_metric = args.accuracy_metric == "max" ? exporter::AccuracyMetric::kMax
+                                                    : exporter::AccuracyMetric::kRms;
+  q.method = args.calibration_method;
+  q.shared_scales = args.calibration_scales == "shared";
+  q.progress = [](const char* pass, int frame, int frames) {
     const int step = std::max(1, frames / 4);
     if (frame % step == 0 || frame == frames) {
       std::cout << "calibration: frame " << frame << "/" << frames << " (" << pass << ")"
                 << std::endl;
     }
   };
-  Result<exporter::QuantizeResult> result = exporter::Quantize(spec, *data, options);
-  if (!result.ok()) return Status::Error(flag + ": " + result.message());
+  options->calibration_name = "--calibration " + args.calibration;
+  options->calibration = [&args](const InputDesc& input, std::string* described) {
+    return ReadCalibration(args, input, described);
+  };
+  return "";
+}
 
-  const CalibrationDesc& cal = result->calibration;
-  size_t int8 = 0, bf16 = 0;
-  size_t name_width = 0;
-  for (const LayerErrorDesc& e : cal.layers) {
-    int8 += e.precision == Precision::kInt8;
-    bf16 += e.precision == Precision::kBFloat16;
-    name_width = std::max(name_width, e.layer.size());
+// Flags -> options; a usage error when the command line alone is inconsistent.
+std::string OptionsFromFlags(const ExportArgs& args, exporter::ExportOptions* options) {
+  if (std::string e = MetadataFromFlags(args, &options->metadata); !e.empty()) return e;
+  if (std::string e = SourceFromFlags(args, options); !e.empty()) return e;
+  if (std::string e = CheckFromFlags(args, &options->check); !e.empty()) return e;
+  return PrecisionFromFlags(args, options);
+}
+
+// The files named on the command line exist (the input and the ones beside it) and -o can be
+// written; a Keras file is read once in a child process first.
+std::string CheckFiles(const ExportArgs& args, const exporter::ExportOptions& options) {
+  if (std::string problem = CheckInputFile(args.input, "input file"); !problem.empty()) {
+    return problem;
   }
-  const size_t convs = cal.layers.size();
-  std::string precision = int8 == convs
-                              ? "int8, all " + std::to_string(convs) + " convolutions"
-                              : std::to_string(int8) + " of " + std::to_string(convs) +
-                                    " convolutions int8, " + std::to_string(bf16) + " bf16, " +
-                                    std::to_string(convs - int8 - bf16) + " fp32";
-  if (args.precision == "auto") {
-    precision += " (--precision auto, accuracy budget " + ErrorText(args.accuracy_budget) +
-                 " on the output's " + (args.accuracy_metric == "max" ? "largest" : "rms") +
-                 " error)";
-    if (int8 + bf16 == 0) precision += "; no int8 or bf16 convolution fits: the file is float32";
+  if (std::string problem = CheckOutputFile(args.output, "-o"); !problem.empty()) return problem;
+  const std::pair<const std::string*, const char*> files[] = {
+      {&args.architecture, "--architecture file"},
+      {&args.check_input, "--check-input file"},
+      {&args.check_output, "--check-output file"}};
+  for (const auto& [file, role] : files) {
+    if (file->empty()) continue;
+    if (std::string problem = CheckInputFile(*file, role); !problem.empty()) return problem;
   }
-  lines->push_back("  precision   " + precision);
-  lines->push_back("  calibration " + cal.method + ", " + std::to_string(cal.frames) +
-                   " frames of " + std::to_string(cal.height) + "x" + std::to_string(cal.width) +
-                   ", data sha256 " + cal.data_sha256);
-  lines->push_back("  frames      " + described);
-  lines->push_back("  error       output max " + ErrorText(cal.output_max_rel) + ", rms " +
-                   ErrorText(cal.output_rms_rel) +
-                   " relative to float32 over the calibration frames, on " +
-                   (options.engine == exporter::CalibrationEngine::kReference
-                        ? std::string("the reference kernels")
-                        : std::string("this CPU's ") + IsaName(BestIsa()) + " kernels"));
-  for (const LayerErrorDesc& e : cal.layers) {
-    lines->push_back("  layer       " + e.layer + std::string(name_width - e.layer.size(), ' ') +
-                     "  " + PrecisionName(e.precision) + "  relative rms " +
-                     ErrorText(e.relative_rms));
+  if (exporter::SourceFormatOf(args.input).value() == exporter::SourceFormat::kKeras) {
+    return ProbeKerasImportInChild(args.input, options.keras);
   }
-  for (const std::string& step : result->auto_steps) lines->push_back("  auto        " + step);
-  return result;
+  return "";
+}
+
+// The check's arrays and session, read where the command line names them.
+Status PrepareCheck(const ExportArgs& args, exporter::CheckOptions* check) {
+  if (check->kind == exporter::CheckOptions::Kind::kNone) return Status::Ok();
+  if (Status env = tools::ApplySessionEnvironment(check->session); !env.ok()) {
+    return Status::Error("check: " + env.message());
+  }
+  if (check->kind != exporter::CheckOptions::Kind::kParity) return Status::Ok();
+  Result<exporter::CheckArray> input = ReadCheckArray(args.check_input, "--check-input");
+  if (!input.ok()) return input.status();
+  check->input = std::move(input).value();
+  if (args.check_output.empty()) return Status::Ok();
+  Result<exporter::CheckArray> reference = ReadCheckArray(args.check_output, "--check-output");
+  if (!reference.ok()) return reference.status();
+  check->reference = std::move(reference).value();
+  return Status::Ok();
 }
 
 int RunExport(const ExportArgs& args) {
-  // Everything decidable from the command line alone is checked first (usage errors).
-  exporter::ModelSpec defaults;
-  std::array<float, 3> mean = defaults.input.mean;
-  std::array<float, 3> stddev = defaults.input.std;
-  if (!args.mean.empty() && !ParseTriple(args.mean, &mean)) {
-    return ReportError(kName,
-                       "--mean: expected three comma-separated numbers, got '" + args.mean + "'",
-                       kExitUsage);
+  exporter::ExportOptions options;
+  if (std::string usage = OptionsFromFlags(args, &options); !usage.empty()) {
+    return ReportError(kName, usage, kExitUsage);
   }
-  if (!args.std.empty()) {
-    if (!ParseTriple(args.std, &stddev)) {
-      return ReportError(kName,
-                         "--std: expected three comma-separated numbers, got '" + args.std + "'",
-                         kExitUsage);
-    }
-    for (float s : stddev) {
-      if (!(s > 0)) {
-        return ReportError(kName, "--std: every value must be positive, got '" + args.std + "'",
-                           kExitUsage);
+  if (std::string problem = CheckFiles(args, options); !problem.empty()) {
+    return ReportError(kName, problem, kExitFailure);
+  }
+  if (Status s = PrepareCheck(args, &options.check); !s.ok()) {
+    return ReportError(kName, s.message() + "; nothing written to " + args.output, kExitFailure);
+  }
+  const exporter::ExportResult result = exporter::Export(options);
+  if (!result.status.ok()) {
+    if (result.check) {
+      for (const std::string& line : CheckLines(options.check, *result.check)) {
+        std::cout << line << "\n";
       }
-    }
-  }
-  std::vector<exporter::ImageSlot> image_order;  // --image-order's; empty when not given
-  if (!args.image_order.empty()) {
-    std::string error;
-    if (!ParseImageOrder(args.image_order, &image_order, &error)) {
-      return ReportError(kName, error, kExitUsage);
-    }
-  }
-  exporter::ColorOrder color_order = defaults.input.color_order;
-  if (!args.color_order.empty()) {
-    std::string c = Upper(args.color_order);
-    if (c == "BGR") {
-      color_order = exporter::ColorOrder::kBGR;
-    } else if (c == "RGB") {
-      color_order = exporter::ColorOrder::kRGB;
-    } else {
-      return ReportError(
-          kName, "--color-order: expected BGR or RGB, got '" + args.color_order + "'", kExitUsage);
-    }
-  }
-  if (!std::isfinite(args.scale) || args.scale == 0) {
-    return ReportError(kName, "--scale: must be a finite non-zero number", kExitUsage);
-  }
-  if (!std::isfinite(args.depth_mean) || !std::isfinite(args.depth_invalid)) {
-    return ReportError(kName, "--depth-mean, --depth-invalid: must be finite numbers", kExitUsage);
-  }
-  if (!std::isfinite(args.depth_std) || args.depth_std == 0) {
-    return ReportError(kName, "--depth-std: must be a finite non-zero number", kExitUsage);
-  }
-  if (!(args.focal > 0) || !std::isfinite(args.focal)) {
-    return ReportError(kName, "--focal: must be a positive number of pixels", kExitUsage);
-  }
-  if (!(args.baseline > 0) || !std::isfinite(args.baseline)) {
-    return ReportError(kName, "--baseline: must be positive", kExitUsage);
-  }
-  if (!std::isfinite(args.cx) || !std::isfinite(args.cy)) {
-    return ReportError(kName, "--cx/--cy: must be finite numbers", kExitUsage);
-  }
-  exporter::WeightType weight_type = exporter::WeightType::kFloat32;
-  if (args.weights == "fp16") {
-    weight_type = exporter::WeightType::kFloat16;
-  } else if (args.weights != "fp32") {
-    return ReportError(kName, "--weights: expected fp32 or fp16, got '" + args.weights + "'",
-                       kExitUsage);
-  }
-  if (args.tolerance_opt->count() > 0 && !(args.tolerance > 0 && std::isfinite(args.tolerance))) {
-    return ReportError(kName,
-                       "--tolerance: must be a positive number, got " + FormatFloat(args.tolerance),
-                       kExitUsage);
-  }
-  if (!args.check_output.empty() && args.check_input.empty()) {
-    return ReportError(kName, "--check-output needs --check-input (the input it was computed from)",
-                       kExitUsage);
-  }
-  int check_height = 0;
-  int check_width = 0;
-  if (!args.check_size.empty() && !ParseSize(args.check_size, &check_height, &check_width)) {
-    return ReportError(
-        kName, "--check-size: expected HxW with positive integers, got '" + args.check_size + "'",
-        kExitUsage);
-  }
-  if (!args.check_size.empty() && (!args.check || !args.check_input.empty())) {
-    return ReportError(kName, "--check-size applies to --check without --check-input", kExitUsage);
-  }
-  if (!args.check_size.empty()) {  // the limits every --size has (a 5000x5000 check: 3.9 GB)
-    if (std::string problem =
-            config::CheckSize(config::kInputSide, "--check-size", check_height, check_width);
-        !problem.empty()) {
-      return ReportError(kName, problem, kExitUsage);
-    }
-  }
-  exporter::OnnxImportOptions import_options;
-  import_options.output = args.onnx_output;
-  if (args.padding == "auto") {
-    import_options.padding = exporter::PaddingDetection::kAuto;
-  } else if (args.padding == "same-upper") {
-    import_options.padding = exporter::PaddingDetection::kSameUpper;
-  } else if (args.padding == "explicit") {
-    import_options.padding = exporter::PaddingDetection::kExplicit;
-  } else {
-    return ReportError(
-        kName, "--padding: expected auto, same-upper or explicit, got '" + args.padding + "'",
-        kExitUsage);
-  }
-  if (!args.units.empty() || Given(args, "--units")) {
-    if (std::string problem = CheckUnits(args.units); !problem.empty()) {
-      return ReportError(kName, problem, kExitUsage);
-    }
-  }
-  const std::string ext = LowerExtension(args.input);
-  const bool keras = ext == ".h5" || ext == ".hdf5";
-  const bool sfrt_source = ext == ".sfrt";
-  if (ext == ".keras") {
-    return ReportError(kName,
-                       args.input +
-                           ": Keras 3 .keras archives are not supported; save the model from "
-                           "Keras 2 / tf.keras as HDF5 (model.save('model.h5')) and pass that",
-                       kExitUsage);
-  }
-  if (ext != ".onnx" && !keras && !sfrt_source) {
-    return ReportError(kName,
-                       args.input + ": unsupported input format '" +
-                           (ext.empty() ? std::string("(no extension)") : ext) +
-                           "' (supported: .onnx, Keras 2 .h5/.hdf5, .sfrt to rewrite metadata)",
-                       kExitUsage);
-  }
-  if (sfrt_source && args.padding != "auto") {
-    return ReportError(kName, "--padding applies to ONNX input only (a .sfrt file keeps its rules)",
-                       kExitUsage);
-  }
-  if (keras && args.padding != "auto") {
-    return ReportError(kName,
-                       "--padding applies to ONNX input only (Keras layers state 'same' or "
-                       "'valid' themselves)",
-                       kExitUsage);
-  }
-  if (!keras && !args.architecture.empty()) {
-    return ReportError(kName, "--architecture applies to Keras .h5 input only", kExitUsage);
-  }
-  if (ext != ".onnx" && !args.onnx_output.empty()) {
-    return ReportError(kName, "--onnx-output applies to ONNX input only", kExitUsage);
-  }
-  if (!keras && !args.keras_bilinear.empty()) {
-    return ReportError(kName,
-                       "--keras-bilinear applies to Keras .h5 input only (ONNX Resize states its "
-                       "coordinate_transformation_mode)",
-                       kExitUsage);
-  }
-  if (args.output.empty()) return ReportError(kName, "-o: output path is empty", kExitUsage);
-  // int8 and auto quantise from calibration frames; bf16 only marks the layers (the runtime
-  // rounds the float32 weights to bf16 at load).
-  const bool quantise = args.precision == "int8" || args.precision == "auto";
-  const bool bf16 = args.precision == "bf16";
-  if (args.precision != "fp32" && args.precision != "bf16" && !quantise) {
-    return ReportError(
-        kName, "--precision: expected fp32, bf16, int8 or auto, got '" + args.precision + "'",
-        kExitUsage);
-  }
-  if (quantise && args.calibration.empty()) {
-    return ReportError(kName,
-                       "--precision " + args.precision +
-                           " needs --calibration PATH (a float32 .npy of network inputs, or a "
-                           "directory of stereo frames)",
-                       kExitUsage);
-  }
-  if (!quantise && !args.calibration.empty()) {
-    return ReportError(kName,
-                       "--calibration applies to --precision int8 or auto (bf16 needs no "
-                       "calibration: it rounds weights and activations, it chooses no ranges)",
-                       kExitUsage);
-  }
-  for (const char* flag : kCalibrationFlags) {
-    if (Given(args, flag) && args.calibration.empty()) {
-      return ReportError(kName, std::string(flag) + " applies with --calibration", kExitUsage);
-    }
-  }
-  if (args.no_auto_bf16 && args.precision != "auto") {
-    return ReportError(kName, "--no-auto-bf16 applies to --precision auto", kExitUsage);
-  }
-  if (args.bias_correction && args.precision != "int8") {
-    return ReportError(kName, "--bias-correction applies to --precision int8", kExitUsage);
-  }
-  if (Given(args, "--accuracy-metric") && args.precision != "auto") {
-    return ReportError(kName, "--accuracy-metric applies to --precision auto", kExitUsage);
-  }
-  if (Given(args, "--accuracy-budget")) {
-    if (args.precision != "auto") {
-      return ReportError(kName, "--accuracy-budget applies to --precision auto", kExitUsage);
-    }
-    if (!(args.accuracy_budget >= 0) || !std::isfinite(args.accuracy_budget)) {
-      return ReportError(kName,
-                         "--accuracy-budget: must be a finite number >= 0, got " +
-                             FormatFloat(args.accuracy_budget),
-                         kExitUsage);
-    }
-  }
-  if (args.calibration_frames < 1) {
-    return ReportError(
-        kName,
-        "--calibration-frames: must be at least 1, got " + std::to_string(args.calibration_frames),
-        kExitUsage);
-  }
-  if (args.calibration_threads < 1) {
-    return ReportError(kName,
-                       "--calibration-threads: must be at least 1, got " +
-                           std::to_string(args.calibration_threads),
-                       kExitUsage);
-  }
-  if (Result<exporter::CalibrationMethod> method =
-          exporter::ParseCalibrationMethod(args.calibration_method);
-      !method.ok()) {
-    return ReportError(kName, "--calibration-method: " + method.message(), kExitUsage);
-  }
-  if (!args.calibration_size.empty()) {
-    int h = 0;
-    int w = 0;
-    if (!ParseSize(args.calibration_size, &h, &w)) {
-      return ReportError(kName,
-                         "--calibration-size: expected HxW with positive integers, got '" +
-                             args.calibration_size + "'",
-                         kExitUsage);
-    }
-    if (std::string problem = config::CheckSize(config::kInputSide, "--calibration-size", h, w);
-        !problem.empty()) {
-      return ReportError(kName, problem, kExitUsage);
-    }
-    if (LowerExtension(args.calibration) == ".npy") {
-      return ReportError(kName,
-                         "--calibration-size applies to a directory of frames; a .npy gives its "
-                         "own size",
-                         kExitUsage);
-    }
-  }
-
-  // Import.
-  if (std::string problem = CheckInputFile(args.input, "input file"); !problem.empty()) {
-    return ReportError(kName, problem, kExitFailure);
-  }
-  if (std::string problem = CheckOutputFile(args.output, "-o"); !problem.empty()) {
-    return ReportError(kName, problem, kExitFailure);
-  }
-  for (const std::string* file : {&args.architecture, &args.check_input, &args.check_output}) {
-    if (file->empty()) continue;
-    const char* role = file == &args.architecture  ? "--architecture file"
-                       : file == &args.check_input ? "--check-input file"
-                                                   : "--check-output file";
-    if (std::string problem = CheckInputFile(*file, role); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
-    }
-  }
-  exporter::ModelSpec spec;
-  std::vector<std::string> notes;
-  if (keras) {
-    exporter::KerasImportOptions keras_options;
-    keras_options.architecture_json = args.architecture;
-    if (args.keras_bilinear == "half-pixel") {
-      keras_options.bilinear_grid = exporter::KerasBilinearGrid::kHalfPixel;
-    } else if (args.keras_bilinear == "asymmetric") {
-      keras_options.bilinear_grid = exporter::KerasBilinearGrid::kAsymmetric;
-    }
-    if (std::string crash = ProbeKerasImportInChild(args.input, keras_options); !crash.empty()) {
-      return ReportError(kName, crash, kExitFailure);
-    }
-    Result<exporter::KerasImportResult> imported =
-        exporter::ImportKerasH5(args.input, keras_options);
-    if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
-    spec = std::move(imported->spec);
-    notes = std::move(imported->notes);
-  } else if (sfrt_source) {
-    Result<exporter::ModelSpec> imported = exporter::ImportSfrt(args.input);
-    if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
-    spec = std::move(imported).value();
-    notes.push_back(std::string(quantise ? "quantised from a .sfrt file: layers and float32 "
-                                           "weights from "
-                                         : "rewritten from a .sfrt file: weights and layers "
-                                           "unchanged, metadata from ") +
-                    args.input + (quantise ? ", its metadata" : "") + " except the flags given");
-  } else {
-    Result<exporter::ModelSpec> imported = exporter::ImportOnnx(args.input, import_options);
-    if (!imported.ok()) return ReportError(kName, imported.message(), kExitFailure);
-    spec = std::move(imported).value();
-  }
-  if (!sfrt_source || Given(args, "--weights")) spec.weight_type = weight_type;
-  std::string bf16_line;
-  if (quantise || bf16) {
-    for (const exporter::LayerSpec& layer : spec.layers) {
-      const auto* conv = std::get_if<exporter::ConvSpec>(&layer);
-      if (conv == nullptr || conv->precision == Precision::kFloat32) continue;
-      return ReportError(kName,
-                         args.input + ": layer '" + conv->name + "' is already " +
-                             PrecisionName(conv->precision) +
-                             "; --precision converts a float32 model (export from the float32 "
-                             "source, or drop --precision to rewrite metadata)",
-                         kExitFailure);
-    }
-  }
-  if (bf16) {
-    int convs = 0, marked = 0;
-    for (exporter::LayerSpec& layer : spec.layers) {
-      auto* conv = std::get_if<exporter::ConvSpec>(&layer);
-      if (conv == nullptr) continue;
-      ++convs;
-      if (!exporter::ReducibleConv(*conv)) continue;
-      conv->precision = Precision::kBFloat16;
-      ++marked;
-    }
-    if (marked == 0) {
-      return ReportError(kName,
-                         args.input + ": no convolution has a bf16 form (" + std::to_string(convs) +
-                             " found; dilated and grouped ones run in fp32 only): drop "
-                             "--precision",
-                         kExitFailure);
-    }
-    bf16_line = "  precision   bf16, " +
-                (marked == convs ? "all " + std::to_string(convs)
-                                 : std::to_string(marked) + " of " + std::to_string(convs)) +
-                " convolutions (weights stored as --weights says, rounded to bf16 when a "
-                "session loads them; activations bf16 between the bf16 convolutions of a chain, "
-                "float32 in a graph or around a float32-only layer)";
-  }
-
-  // Apply the flags (a .sfrt source keeps its own value of each flag not given).
-  auto apply = [&](std::string_view flag) { return !sfrt_source || Given(args, flag); };
-  Result<InputKind> kind = ChooseInputKind(args, spec, image_order, sfrt_source);
-  if (!kind.ok()) return ReportError(kName, kind.message(), kExitFailure);
-  if (*kind != InputKind::kTensor) {
-    const bool rgbd = *kind == InputKind::kRgbd;
-    if (image_order.empty()) {
-      image_order = rgbd ? std::vector<exporter::ImageSlot>(vocabulary::kDefaultRgbdOrder.begin(),
-                                                            vocabulary::kDefaultRgbdOrder.end())
-                         : defaults.input.image_order;
-    }
-    if (apply("--image-order") || apply("--input-kind")) spec.input.image_order = image_order;
-    if (apply("--color-order")) spec.input.color_order = color_order;
-    if (apply("--scale")) spec.input.scale = args.scale;
-    if (apply("--mean")) spec.input.mean = mean;
-    if (apply("--std")) spec.input.std = stddev;
-    if (apply("--depth-mean")) spec.input.depth_mean = rgbd ? args.depth_mean : 0.0f;
-    if (apply("--depth-std")) spec.input.depth_std = rgbd ? args.depth_std : 1.0f;
-    if (apply("--depth-invalid")) spec.input.depth_invalid = rgbd ? args.depth_invalid : 0.0f;
-  } else {
-    // A plain tensor is fed as given: no image order, and the pixel transform is the identity.
-    const exporter::InputSpec plain;
-    if (spec.input.name == plain.name) spec.input.name = "tensor";
-    spec.input.image_order.clear();
-    spec.input.color_order = plain.color_order;
-    spec.input.scale = plain.scale;
-    spec.input.mean = plain.mean;
-    spec.input.std = plain.std;
-    spec.input.depth_mean = plain.depth_mean;
-    spec.input.depth_std = plain.depth_std;
-    spec.input.depth_invalid = plain.depth_invalid;
-  }
-  if (!args.name.empty()) spec.name = args.name;
-  if (apply("--focal")) spec.camera.focal_px = args.focal;
-  if (apply("--baseline")) spec.camera.baseline = args.baseline;
-  if (apply("--cx")) spec.camera.cx = args.cx;
-  if (apply("--cy")) spec.camera.cy = args.cy;
-  if (apply("--units")) spec.output.units = args.units;
-  if (apply("--training-state")) spec.training = ParseTrainingState(args.training_state);
-
-  // Serialise, then check the bytes load and verify exactly as a deployment would load them
-  // before anything is written: a model that fails here never reaches the disk.
-  Result<std::vector<uint8_t>> bytes = exporter::SerializeModel(spec);
-  if (!bytes.ok()) return ReportError(kName, args.input + ": " + bytes.message(), kExitFailure);
-  Result<std::shared_ptr<const Model>> loaded =
-      Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy, {}, args.output);
-  if (!loaded.ok()) {
-    return ReportError(kName,
-                       "the converted model does not verify, nothing written: " + loaded.message(),
-                       kExitFailure);
-  }
-  // --precision int8|auto: quantise the verified float32 model, then verify what is written.
-  std::vector<std::string> quant_lines;
-  if (!bf16_line.empty()) quant_lines.push_back(bf16_line);
-  if (quantise) {
-    Result<exporter::QuantizeResult> quantised =
-        QuantizeForExport(args, spec, (*loaded)->metadata(), &quant_lines);
-    if (!quantised.ok()) return ReportError(kName, quantised.message(), kExitFailure);
-    spec = std::move(quantised->spec);
-    bytes = exporter::SerializeModel(spec);
-    if (!bytes.ok()) return ReportError(kName, args.input + ": " + bytes.message(), kExitFailure);
-    loaded =
-        Model::LoadBuffer(bytes->data(), bytes->size(), BufferOwnership::kCopy, {}, args.output);
-    if (!loaded.ok()) {
-      return ReportError(
-          kName, "the quantised model does not verify, nothing written: " + loaded.message(),
-          kExitFailure);
-    }
-  }
-  const std::shared_ptr<const Model> model_ptr = *loaded;
-  const Model& model = *model_ptr;
-  const ModelMetadata& meta = model.metadata();
-  std::string shapes_line = "not checked (traced size unknown)";
-  if (meta.input.traced_height > 0 && meta.input.traced_width > 0) {
-    Result<std::vector<LayerGeometry>> geometry =
-        InferGeometry(model, meta.input.traced_height, meta.input.traced_width);
-    if (!geometry.ok() || geometry->empty()) {
-      return ReportError(kName,
-                         "the converted model has no valid shapes at its traced size, nothing "
-                         "written: " +
-                             (geometry.ok() ? std::string("no layers") : geometry.message()),
-                         kExitFailure);
-    }
-    const TensorShape& out = geometry->back().output;
-    shapes_line = "at the traced size " + std::to_string(meta.input.traced_height) + "x" +
-                  std::to_string(meta.input.traced_width) + " the output is " +
-                  std::to_string(out.height) + "x" + std::to_string(out.width) + "x" +
-                  std::to_string(out.channels);
-  }
-
-  // The parity check runs before anything is written: a model that fails it never reaches
-  // the disk (and an existing file at -o stays as it was).
-  std::vector<std::string> check_lines;
-  if (args.check || !args.check_input.empty()) {
-    const double tolerance = args.tolerance > 0                              ? args.tolerance
-                             : weight_type == exporter::WeightType::kFloat16 ? kDefaultFp16Tolerance
-                                                                             : kDefaultTolerance;
-    std::string failure;
-    const bool passed =
-        args.check_input.empty()
-            ? SeededCheck(model_ptr, check_height, check_width, &check_lines, &failure)
-            : ParityCheck(model_ptr, args.check_input, args.check_output, tolerance, &check_lines,
-                          &failure);
-    if (!passed) {
-      for (const std::string& line : check_lines) std::cout << line << "\n";
       std::cout.flush();
-      return ReportError(kName, failure + "; nothing written to " + args.output, kExitFailure);
     }
+    return ReportError(kName, result.status.message(), kExitFailure);
   }
-
-  if (Status s = io::WriteFileAtomically(args.output, *bytes); !s.ok()) {
+  if (Status s = io::WriteFileAtomically(args.output, result.bytes); !s.ok()) {
     return ReportError(kName, s.message(), kExitFailure);
   }
-
-  int convs = 0;
-  int upsamples = 0;
-  int crops = 0;
-  int concats = 0;
-  int adds = 0;
-  int deconvs = 0;
-  int pools = 0;
-  int resizes = 0;
-  int affines = 0;
-  for (const LayerDesc& layer : model.layers()) {
-    resizes += layer.kind == LayerKind::kResize;
-    affines += layer.kind == LayerKind::kChannelAffine;
-    pools += layer.kind == LayerKind::kPool2D;
-    deconvs += layer.kind == LayerKind::kConvTranspose2D;
-    convs += layer.kind == LayerKind::kConv2D;
-    upsamples += layer.kind == LayerKind::kUpsample;
-    crops += layer.kind == LayerKind::kCrop;
-    concats += layer.kind == LayerKind::kConcat;
-    adds += layer.kind == LayerKind::kAdd;
-  }
-  // The ops beyond a chain of convolutions: transposed convolutions, poolings, resizes,
-  // per-channel scale and shift, and a graph's skip connections (Concats and Adds).
-  const std::string merges = (deconvs > 0 ? ", " + std::to_string(deconvs) + " deconv" : "") +
-                             (pools > 0 ? ", " + std::to_string(pools) + " pool" : "") +
-                             (resizes > 0 ? ", " + std::to_string(resizes) + " resize" : "") +
-                             (affines > 0 ? ", " + std::to_string(affines) + " affine" : "") +
-                             (concats > 0 ? ", " + std::to_string(concats) + " concat" : "") +
-                             (adds > 0 ? ", " + std::to_string(adds) + " add" : "");
-  const std::string traced =
-      meta.input.traced_height > 0
-          ? std::to_string(meta.input.traced_height) + "x" + std::to_string(meta.input.traced_width)
-          : "unknown";
-  std::cout << "sfrt export: " << args.input << " -> " << args.output << "\n"
-            << "  source      " << meta.source_format << ", sha256 " << meta.source_sha256 << "\n"
-            << "  name        " << meta.name << "\n"
-            << "  layers      " << model.layers().size() << " (" << convs << " conv, " << upsamples
-            << " upsample, " << crops << " crop" << merges << "), traced at " << traced << "\n"
-            << "  parameters  " << GroupDigits(model.parameter_count()) << "\n"
-            << "  padding     " << DescribePadding(model) << "\n"
-            << "  shapes      " << shapes_line << "\n"
-            << "  input       " << InputLine(meta.input) << "\n"
-            << "  camera      f " << FormatFloat(meta.camera.focal_px) << " px, baseline "
-            << FormatFloat(meta.camera.baseline) << ", cx " << FormatFloat(meta.camera.cx)
-            << ", cy " << FormatFloat(meta.camera.cy) << "\n"
-            << "  units       " << UnitsText(meta) << "\n"
-            << "  training    " << TrainingStateName(meta.training) << "\n"
-            << "  weights     " << WeightsLine(model) << "\n"
-            << "  file        " << GroupDigits(model.file_bytes())
-            << " bytes, loads and verifies (CRC-32C ok)\n";
-  for (const std::string& note : notes) std::cout << "  note        " << note << "\n";
-  for (const std::string& line : quant_lines) std::cout << line << "\n";
-  for (const std::string& line : check_lines) std::cout << line << "\n";
+  PrintExportReport(options, result);
   return kExitOk;
 }
 
 }  // namespace
 
-Command AddExportCommand(CLI::App& parent) {
-  auto args = std::make_shared<ExportArgs>();
-  const exporter::ModelSpec defaults;
-  args->focal = defaults.camera.focal_px;
-  args->baseline = defaults.camera.baseline;
-  args->cx = defaults.camera.cx;
-  args->cy = defaults.camera.cy;
-  args->scale = defaults.input.scale;
+// The help text after the options.
+constexpr char kFooter[] =
+    "Reads ONNX as torch.onnx.export writes it (opsets 11-17), and Keras 2 HDF5 (.h5/.hdf5)\n"
+    "from model.save() (functional or Sequential; a multi_gpu_model checkpoint exports its\n"
+    "nested model) or save_weights() with --architecture. Keras 3 .keras archives are not\n"
+    "read. Records the preprocessing and the training camera given by the flags; the\n"
+    "defaults are the SceneEDNet authors' setup (BGR, L0,R0,L1,R1, raw 0..255 pixels,\n"
+    "FlyingThings3D camera). Serialises, loads the bytes back and verifies them, runs the\n"
+    "checks asked for, and only then writes the file (atomically).\n"
+    "A .sfrt source is rewritten at the current schema version with the same layers and\n"
+    "weights: its metadata is kept except for the flags given (e.g. sfrt export m.sfrt\n"
+    "-o m.sfrt --units metres --training-state trained).\n"
+    "Quantisation (--precision int8|auto): activation ranges are observed on the float32\n"
+    "model over the calibration frames (--calibration-method), weights are quantised per\n"
+    "output channel, then the int8 model is run against float32 on the same frames (both\n"
+    "on this CPU's kernels; on the scalar reference with --calibration-engine reference);\n"
+    "the method, a SHA-256 of the frames and the output and per-layer errors are stored in\n"
+    "the file (sfrt inspect shows them) and printed. auto starts from every convolution\n"
+    "int8 and moves up, one step at a time, the layer whose error rose most over its input's\n"
+    "(int8 to bf16, bf16 to float32; int8 straight to float32 with --no-auto-bf16), until\n"
+    "the output's error (--accuracy-metric) is within --accuracy-budget. A .sfrt source\n"
+    "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
+    "bf16 (--precision bf16) marks every convolution bf16 (dilated and grouped ones stay\n"
+    "fp32): a session rounds the weights to bf16 at load and keeps bf16 activations\n"
+    "between the layers of a chain; measure its accuracy with sfrt eval.\n"
+    "Graphs (Concat, Add, named inputs) and models with a pooling, resize, transposed\n"
+    "convolution or channel affine layer keep float32 tensors between layers: each int8\n"
+    "or bf16 convolution converts what it reads and writes float32, except that tensors\n"
+    "stay uint8 or bf16 where every reader (through upsamplings, crops and Concats) is a\n"
+    "convolution of that precision (int8: of one quantisation, which\n"
+    "--calibration-scales shared arranges).\n"
+    "Parity check: prints max abs error, max error relative to the reference's largest\n"
+    "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
+    "written (an existing file at -o is left unchanged) and the exit code is 1.\n"
+    "Exit codes: 0 success, 1 import/check/write/verify failure, 2 usage error.";
 
-  CLI::App* cmd = parent.add_subcommand(
-      "export", "Convert a trained network (.onnx, Keras .h5) into a .sfrt model file");
+// The source, the file to write and its name.
+void AddSourceOptions(CLI::App* cmd, ExportArgs* args) {
+  const exporter::ModelSpec defaults;
   cmd->add_option("model", args->input,
                   "Source network (.onnx, or Keras 2 .h5/.hdf5), or a .sfrt file whose metadata "
                   "to rewrite")
@@ -1202,6 +655,10 @@ Command AddExportCommand(CLI::App& parent) {
          "the traced pads contradict it), explicit (keep the traced numbers)")
       ->check(CLI::IsMember({"auto", "same-upper", "explicit"}))
       ->capture_default_str();
+}
+
+// The input's preprocessing, the training camera, the units, the training state.
+void AddMetadataOptions(CLI::App* cmd, ExportArgs* args) {
   cmd->add_option("--color-order", args->color_order,
                   "Channel order the network was trained on: BGR or RGB (default: BGR, as "
                   "OpenCV reads images)");
@@ -1217,7 +674,8 @@ Command AddExportCommand(CLI::App& parent) {
                   "count, fed as given: sfrt infer --input-npy), or auto: the kind of "
                   "--image-order (default stereo pairs) when the channel count fits it, else "
                   "tensor")
-      ->check(CLI::IsMember({"auto", "images", "rgbd", "tensor"}))
+      ->check(CLI::IsMember(std::vector<std::string>(exporter::kInputKindChoiceNames.begin(),
+                                                     exporter::kInputKindChoiceNames.end())))
       ->capture_default_str();
   cmd->add_option("--depth-mean", args->depth_mean,
                   "RGB-D frames: fed depth = (metres - depth-mean) / depth-std")
@@ -1252,6 +710,10 @@ Command AddExportCommand(CLI::App& parent) {
                   "Whether the weights were trained: trained, untrained (sfrt run, infer, eval and "
                   "inspect then say so) or unknown (default)")
       ->check(CLI::IsMember({"trained", "untrained", "unknown"}));
+}
+
+// How each source format is read, and the weights' storage.
+void AddImportOptions(CLI::App* cmd, ExportArgs* args) {
   cmd->add_option("--architecture", args->architecture,
                   "Keras only: architecture JSON (model.to_json()); needed for a weights-only "
                   ".h5 from save_weights(), replaces a full model's own model_config");
@@ -1270,6 +732,10 @@ Command AddExportCommand(CLI::App& parent) {
                   "widens to float32 once at load and computes in float32)")
       ->check(CLI::IsMember({"fp32", "fp16"}))
       ->capture_default_str();
+}
+
+// The checks before anything is written (--tolerance is added last, after the precision).
+void AddCheckOptions(CLI::App* cmd, ExportArgs* args) {
   cmd->add_flag("--check", args->check,
                 "Run the converted model on a seeded input (pixels 0..255 through the model's "
                 "preprocessing) at the built size (or --check-size; 540x960 if unknown); "
@@ -1281,6 +747,10 @@ Command AddExportCommand(CLI::App& parent) {
   cmd->add_option("--check-output", args->check_output,
                   "Parity check reference: the source framework's output for --check-input, "
                   "float32 .npy (H,W,3) or (1,H,W,3)");
+}
+
+// The convolutions' arithmetic and the calibration it is chosen from.
+void AddPrecisionOptions(CLI::App* cmd, ExportArgs* args) {
   cmd->add_option("--precision", args->precision,
                   "Arithmetic of the convolutions (dilated and grouped ones stay fp32): fp32; "
                   "bf16 (bf16 weights and activations, float32 sums; no calibration); int8 "
@@ -1344,44 +814,28 @@ Command AddExportCommand(CLI::App& parent) {
                 "its activation) each output channel shows against float32 on the calibration "
                 "frames, one convolution after the other (one more pass over the frames per "
                 "convolution); recorded in the file's calibration method");
+}
+
+Command AddExportCommand(CLI::App& parent) {
+  auto args = std::make_shared<ExportArgs>();
+  const exporter::ModelSpec defaults;
+  args->focal = defaults.camera.focal_px;
+  args->baseline = defaults.camera.baseline;
+  args->cx = defaults.camera.cx;
+  args->cy = defaults.camera.cy;
+  args->scale = defaults.input.scale;
+
+  CLI::App* cmd = parent.add_subcommand(
+      "export", "Convert a trained network (.onnx, Keras .h5) into a .sfrt model file");
+  for (auto* add : {AddSourceOptions, AddMetadataOptions, AddImportOptions, AddCheckOptions,
+                    AddPrecisionOptions}) {
+    add(cmd, args.get());
+  }
   args->tolerance_opt =
       cmd->add_option("--tolerance", args->tolerance,
                       "Parity tolerance: largest allowed |error| relative to the reference's "
                       "largest |value| (default 1e-4; 1e-2 with --weights fp16)");
-  cmd->footer(
-      "Reads ONNX as torch.onnx.export writes it (opsets 11-17), and Keras 2 HDF5 (.h5/.hdf5)\n"
-      "from model.save() (functional or Sequential; a multi_gpu_model checkpoint exports its\n"
-      "nested model) or save_weights() with --architecture. Keras 3 .keras archives are not\n"
-      "read. Records the preprocessing and the training camera given by the flags; the\n"
-      "defaults are the SceneEDNet authors' setup (BGR, L0,R0,L1,R1, raw 0..255 pixels,\n"
-      "FlyingThings3D camera). Serialises, loads the bytes back and verifies them, runs the\n"
-      "checks asked for, and only then writes the file (atomically).\n"
-      "A .sfrt source is rewritten at the current schema version with the same layers and\n"
-      "weights: its metadata is kept except for the flags given (e.g. sfrt export m.sfrt\n"
-      "-o m.sfrt --units metres --training-state trained).\n"
-      "Quantisation (--precision int8|auto): activation ranges are observed on the float32\n"
-      "model over the calibration frames (--calibration-method), weights are quantised per\n"
-      "output channel, then the int8 model is run against float32 on the same frames (both\n"
-      "on this CPU's kernels; on the scalar reference with --calibration-engine reference);\n"
-      "the method, a SHA-256 of the frames and the output and per-layer errors are stored in\n"
-      "the file (sfrt inspect shows them) and printed. auto starts from every convolution\n"
-      "int8 and moves up, one step at a time, the layer whose error rose most over its input's\n"
-      "(int8 to bf16, bf16 to float32; int8 straight to float32 with --no-auto-bf16), until\n"
-      "the output's error (--accuracy-metric) is within --accuracy-budget. A .sfrt source\n"
-      "must be float32 to be quantised; an int8 .sfrt is rewritten without --precision.\n"
-      "bf16 (--precision bf16) marks every convolution bf16 (dilated and grouped ones stay\n"
-      "fp32): a session rounds the weights to bf16 at load and keeps bf16 activations\n"
-      "between the layers of a chain; measure its accuracy with sfrt eval.\n"
-      "Graphs (Concat, Add, named inputs) and models with a pooling, resize, transposed\n"
-      "convolution or channel affine layer keep float32 tensors between layers: each int8\n"
-      "or bf16 convolution converts what it reads and writes float32, except that tensors\n"
-      "stay uint8 or bf16 where every reader (through upsamplings, crops and Concats) is a\n"
-      "convolution of that precision (int8: of one quantisation, which\n"
-      "--calibration-scales shared arranges).\n"
-      "Parity check: prints max abs error, max error relative to the reference's largest\n"
-      "|value| and the share of pixels over the tolerance. When a check fails, NO file is\n"
-      "written (an existing file at -o is left unchanged) and the exit code is 1.\n"
-      "Exit codes: 0 success, 1 import/check/write/verify failure, 2 usage error.");
+  cmd->footer(kFooter);
   return Command{cmd, [args, cmd] {
                    args->given.clear();
                    for (const char* flag : kMetadataFlags) {

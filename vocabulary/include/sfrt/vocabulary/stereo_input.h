@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <optional>
 #include <string_view>
 
@@ -50,6 +51,33 @@ constexpr std::string_view ImageSlotName(ImageSlot s) {
 constexpr std::optional<ImageSlot> ImageSlotFromName(std::string_view name) {
   for (int i = 0; i < kImageSlots; ++i) {
     if (name == kImageSlotNames[static_cast<size_t>(i)]) return static_cast<ImageSlot>(i);
+  }
+  return std::nullopt;
+}
+
+// The short names a command line also takes for the slots: L = left, R = right, C = colour,
+// D = depth; 0 = time t, 1 = t+1.
+inline constexpr std::array<std::string_view, kImageSlots> kImageSlotShortNames = {
+    "L0", "R0", "L1", "R1", "C0", "D0", "C1", "D1"};
+
+// ASCII letters equal regardless of case.
+constexpr bool EqualsIgnoringCase(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c + 32) : c; };
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (lower(a[i]) != lower(b[i])) return false;
+  }
+  return true;
+}
+
+// The slot a name or short name spells in any case ("left0", "LEFT0", "L0", "l0"), or nothing.
+constexpr std::optional<ImageSlot> ImageSlotFromAnyName(std::string_view name) {
+  for (int i = 0; i < kImageSlots; ++i) {
+    const auto at = static_cast<size_t>(i);
+    if (EqualsIgnoringCase(name, kImageSlotNames[at]) ||
+        EqualsIgnoringCase(name, kImageSlotShortNames[at])) {
+      return static_cast<ImageSlot>(i);
+    }
   }
   return std::nullopt;
 }
