@@ -5,7 +5,7 @@
 // 1.2 ms against 1.8 ms for libpng with zlib level 1 and run-length matching
 // (tools/bench/README.md). The PNG container (signature, IHDR, one IDAT, IEND, each chunk with its
 // CRC-32) is written here, as the PNG specification lays it out. Lossless: any PNG decoder reads
-// back the exact pixels (tests/tools/pipeline/png_encoder_test.cc decodes with OpenCV's libpng
+// back the exact pixels (tests/pipeline/png_encoder_test.cc decodes with OpenCV's libpng
 // reader).
 //
 // One encoder per writing thread: it keeps the compressor and the filtered rows between frames,

@@ -22,7 +22,7 @@
 // first frame (the queue slots before the threads start, each stage's working buffers as its
 // thread starts), at the source's frame size and the model input size, and circulates between
 // the stages by swapping. The infer stage only swaps and calls Session::Run: no allocation
-// (tools_pipeline_allocation_test). The preprocess stage's resizes (OpenCV's cv::resize, when
+// (pipeline_allocation_test). The preprocess stage's resizes (OpenCV's cv::resize, when
 // the frame size is not the model's, and at the fallback size) allocate scratch tables on
 // each call; its images are not reallocated.
 //

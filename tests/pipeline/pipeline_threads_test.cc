@@ -15,9 +15,9 @@
 #include <thread>
 #include <vector>
 
+#include "pipeline/fake_window.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/sink.h"
-#include "tools/pipeline/fake_window.h"
 
 namespace sfrt::pipeline {
 namespace {

@@ -23,9 +23,9 @@
 #include <vector>
 
 #include "common/counting_allocator.h"
+#include "pipeline/fake_window.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/profiler.h"
-#include "tools/pipeline/fake_window.h"
 
 namespace sfrt::pipeline {
 namespace {

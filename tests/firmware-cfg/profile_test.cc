@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 
 const std::string kSource = SFRT_SOURCE_DIR;
 const std::string kFirmware = kSource + "/firmware-cfg";
-const std::string kBroken = kSource + "/tests/tools/config/broken";
+const std::string kBroken = kSource + "/tests/firmware-cfg/broken";
 const std::string kDemoModel = kSource + "/tools/demo/sceneednet-w16-demo.sfrt";
 // What the shipped profiles run: the trained default model (issue 15).
 const std::string kDefaultModel = kSource + "/models/sceneednet-default.sfrt";

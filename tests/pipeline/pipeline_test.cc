@@ -13,6 +13,7 @@
 #include <string>
 #include <thread>
 
+#include "pipeline/fake_window.h"
 #include "sfrt/camera/rectifier.h"
 #include "sfrt/pipeline/io/npy.h"
 #include "sfrt/pipeline/io/pfm.h"
@@ -21,7 +22,6 @@
 #include "sfrt/pipeline/sink.h"
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
-#include "tools/pipeline/fake_window.h"
 
 namespace sfrt::pipeline {
 namespace {
