@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -64,18 +65,6 @@ const char* SourceKindName(SourceKind k) {
 
 const char* SbsOrderName(SbsOrder o) {
   return o == SbsOrder::kLeftRight ? "left-right" : "right-left";
-}
-
-const char* MissActionName(MissAction a) {
-  switch (a) {
-    case MissAction::kDropNext:
-      return "drop-next";
-    case MissAction::kSmallerInput:
-      return "smaller-input";
-    case MissAction::kCountOnly:
-      return "count-only";
-  }
-  return "?";
 }
 
 std::string Diagnostic::ToString() const {
@@ -399,6 +388,14 @@ std::optional<E> ReadEnum(Checker& c, const Field& f,
   }
   c.Error(f.pos, f.path, "expected one of the names, got " + Describe(f.node), Join(names));
   return std::nullopt;
+}
+
+// The same for a vocabulary declared with its names beside it (sfrt/vocabulary/names.h).
+template <typename E, size_t N>
+std::optional<E> ReadEnum(Checker& c, const Field& f, const std::array<const char*, N>& names) {
+  std::vector<std::pair<std::string, E>> table;
+  for (size_t i = 0; i < N; ++i) table.emplace_back(names[i], static_cast<E>(i));
+  return ReadEnum<E>(c, f, table);
 }
 
 // "none" or an integer in lo..hi. Returns {present-and-valid, value}.
@@ -856,10 +853,7 @@ class Parser {
     if (auto v = ReadNumber(c_, m.Get("percentile"), {50, false, 100, "(percent)"})) {
       p_.budget_percentile = *v;
     }
-    const auto miss = ReadEnum<MissAction>(c_, m.Get("on_miss"),
-                                           {{"drop-next", MissAction::kDropNext},
-                                            {"smaller-input", MissAction::kSmallerInput},
-                                            {"count-only", MissAction::kCountOnly}});
+    const auto miss = ReadEnum<MissAction>(c_, m.Get("on_miss"), kMissActionNames);
     if (miss) p_.on_miss = *miss;
     if (miss == MissAction::kSmallerInput) {
       const std::string side = "integer " + RangeText(kInputSide);
@@ -892,8 +886,7 @@ class Parser {
     if (!field.present || !field.node.IsMap()) return;
     p_.output_dir = ReadPath(m.Require("dir", "an output directory"), "an output directory");
     if (auto v = ReadBool(c_, m.Get("flow"))) p_.write_flow = *v;
-    if (auto v = ReadEnum<FlowFormat>(c_, m.Get("flow_format"),
-                                      {{"pfm", FlowFormat::kPfm}, {"npy", FlowFormat::kNpy}})) {
+    if (auto v = ReadEnum<FlowFormat>(c_, m.Get("flow_format"), kFlowFormatNames)) {
       p_.flow_format = *v;
     }
     if (auto v = ReadBool(c_, m.Get("visualisation"))) p_.visualisation = *v;
@@ -904,11 +897,7 @@ class Parser {
   void ParseLogging(const Field& field) {
     MapView m(c_, field, {"level", "file"});
     if (!field.present || !field.node.IsMap()) return;
-    if (auto v = ReadEnum<LogLevel>(c_, m.Get("level"),
-                                    {{"error", LogLevel::kError},
-                                     {"warn", LogLevel::kWarn},
-                                     {"info", LogLevel::kInfo},
-                                     {"debug", LogLevel::kDebug}})) {
+    if (auto v = ReadEnum<LogLevel>(c_, m.Get("level"), kLogLevelNames)) {
       p_.log_level = *v;
     }
     if (m.Has("file")) p_.log_file = ReadPath(m.Get("file"), "a log file path");

@@ -27,6 +27,7 @@
 #include "sfrt/pipeline/queued_sink.h"
 #include "sfrt/pipeline/topic_sink.h"
 #include "sfrt/pipeline/topic_source.h"
+#include "sfrt/vocabulary/names.h"
 
 namespace sfrt::pipeline {
 namespace {
@@ -60,7 +61,7 @@ struct NodeSettings {
   int threads = 1;
   std::string isa = "auto";
   double budget_ms = 0;
-  std::string on_miss = "count-only";
+  config::MissAction on_miss = config::MissAction::kCountOnly;
   std::string fallback_size;
   int recover_after = 30;
   std::string size;
@@ -94,7 +95,14 @@ std::string ReadParams(const NodeIo& io, NodeSettings* s) {
   get("threads", &s->threads);
   get("isa", &s->isa);
   get("budget_ms", &s->budget_ms);
-  get("on_miss", &s->on_miss);
+  std::string on_miss = config::MissActionName(s->on_miss);
+  get("on_miss", &on_miss);
+  if (const std::optional<config::MissAction> action = config::MissActionFromName(on_miss)) {
+    s->on_miss = *action;
+  } else if (e.empty()) {
+    e = io.ParamName("on_miss") + " '" + on_miss + "' is not one of " +
+        vocabulary::NameList(config::kMissActionNames);
+  }
   get("fallback_size", &s->fallback_size);
   get("recover_after", &s->recover_after);
   get("size", &s->size);
@@ -211,7 +219,7 @@ int ApplyProfile(NodeIo& io, NodeSettings* s, PipelineOptions* opts,
   if (!io.HasParam("threads")) s->threads = p.stage(config::Stage::kInfer).threads;
   if (!io.HasParam("budget_ms")) s->budget_ms = p.budget_ms;
   if (!io.HasParam("on_miss")) {
-    s->on_miss = config::MissActionName(p.on_miss);
+    s->on_miss = p.on_miss;
     if (p.on_miss == config::MissAction::kSmallerInput) {
       s->fallback_size = std::to_string(p.fallback_height) + "x" + std::to_string(p.fallback_width);
       s->recover_after = p.recover_after_frames;
@@ -260,9 +268,8 @@ int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
                 io.ParamName("budget_ms") + " must be >= 0, got " + Fixed(s.budget_ms, 3));
   }
   opts->budget_ms = s.budget_ms;
-  if (s.on_miss == "drop-next") {
-    opts->drop_next_on_miss = true;
-  } else if (s.on_miss == "smaller-input") {
+  opts->on_miss = s.on_miss;
+  if (s.on_miss == config::MissAction::kSmallerInput) {
     int h = 0, w = 0;
     if (!ParseHxW(s.fallback_size, &h, &w)) {
       return Fail(io, kExitUsage,
@@ -271,10 +278,6 @@ int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
     }
     opts->smaller_input_on_miss = {h, w};
     opts->recover_after = std::max(1, s.recover_after);
-  } else if (s.on_miss != "count-only") {
-    return Fail(io, kExitUsage,
-                io.ParamName("on_miss") + " '" + s.on_miss +
-                    "' is not count-only, drop-next or smaller-input");
   }
   if (s.queue_policy == "block") {
     opts->policy = QueuePolicy::kBlock;
@@ -373,7 +376,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
                      {"input size", s.size.empty() ? "the size a trained model records, else the "
                                                      "images'"
                                                    : s.size},
-                     {"on_miss", s.on_miss}};
+                     {"on_miss", config::MissActionName(s.on_miss)}};
   sink_opts.budget_ms = s.budget_ms;
   sink_opts.received = [&io](int side) { return io.received(side); };
   FlowTopicSink sink(

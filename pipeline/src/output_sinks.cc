@@ -17,8 +17,9 @@
 namespace sfrt::pipeline {
 namespace {
 
+// The file for `meta`'s window in `dir`: <stem>.<extension>.
 std::string PathIn(const std::string& dir, const FrameMeta& meta, const char* extension) {
-  return (std::filesystem::path(dir) / (OutputStem(meta) + extension)).string();
+  return (std::filesystem::path(dir) / (OutputStem(meta) + "." + extension)).string();
 }
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
@@ -88,7 +89,7 @@ FlowFileSink::FlowFileSink(std::string dir, config::FlowFormat format)
 Status FlowFileSink::Write(const FlowFrame& frame) {
   last_path_.clear();
   const bool pfm = format_ == config::FlowFormat::kPfm;
-  std::string path = PathIn(dir_, *frame.meta, pfm ? ".pfm" : ".npy");
+  std::string path = PathIn(dir_, *frame.meta, config::FlowFormatName(format_));
   const int64_t shape[3] = {frame.height, frame.width, frame.channels};
   Result<std::vector<uint8_t>> bytes =
       pfm ? io::SerializePfm(frame.flow, frame.height, frame.width, frame.channels)
@@ -142,7 +143,7 @@ Status PngSink::Write(const FlowFrame& frame) {
     return Status::Error("cannot encode the visualisation of " + OutputStem(*frame.meta) +
                          " as PNG: " + encoded.message());
   }
-  std::string path = PathIn(dir_, *frame.meta, ".png");
+  std::string path = PathIn(dir_, *frame.meta, "png");
   if (Status s = io::WriteFileAtomically(path, png_, io::Flush::kLater); !s.ok()) return s;
   wrote_ = true;
   last_path_ = std::move(path);

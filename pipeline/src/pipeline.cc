@@ -165,7 +165,7 @@ class Runner {
   int64_t frames_ = 0;
   int64_t misses_ = 0;
   int64_t discarded_after_max_ = 0;
-  std::atomic<bool> skip_next_{false};  // drop_next_on_miss: set by output, taken by source
+  std::atomic<bool> skip_next_{false};  // on_miss kDropNext: set by output, taken by source
   int64_t skipped_after_miss_ = 0;      // written by the source stage
   int64_t pairs_rectified_ = 0;         // written by the preprocess stage (at the model size)
   int64_t pairs_reused_ = 0;            // pairs t taken from the window before
@@ -361,8 +361,8 @@ Status Runner::Setup() {
 }
 
 Status Runner::SetupFallback() {
+  if (options_.on_miss != config::MissAction::kSmallerInput) return Status::Ok();
   const PipelineOptions::Size2& fb = options_.smaller_input_on_miss;
-  if (fb.height == 0 && fb.width == 0) return Status::Ok();
   const std::string fb_text = std::to_string(fb.height) + "x" + std::to_string(fb.width);
   const std::string size_text = std::to_string(height_) + "x" + std::to_string(width_);
   if (fb.height <= 0 || fb.width <= 0 || fb.height > height_ || fb.width > width_ ||
@@ -724,7 +724,7 @@ void Runner::OutputStage() {
     if (!CompleteSinks(WindowRecord{&m, e2e, miss, f.step_ns}, stem)) break;
     if (miss) {
       ++misses_;
-      if (options_.drop_next_on_miss) skip_next_ = true;
+      if (options_.on_miss == config::MissAction::kDropNext) skip_next_ = true;
     }
     if (fallback_) UpdateFallback(m, miss);
     last_stem_ = stem;
@@ -819,9 +819,7 @@ Status Runner::FinishSinks(PipelineResult* result) {
   j["deadline"] = {
       {"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
       {"misses", misses_},
-      {"on_miss", options_.drop_next_on_miss ? "drop-next"
-                  : fallback_                ? "smaller-input"
-                                             : "count-only"},
+      {"on_miss", config::MissActionName(options_.on_miss)},
       {"skipped_after_miss", skipped_after_miss_},
       {"fallback_size", fallback_ ? json::array({fb_height_, fb_width_}) : json(nullptr)},
       {"recover_after_frames", fallback_ ? json(options_.recover_after) : json(nullptr)},
@@ -861,9 +859,7 @@ Status Runner::FinishSinks(PipelineResult* result) {
   j["clock"] = "CLOCK_MONOTONIC";
   j["outputs"] = {
       {"dir", options_.out_dir},
-      {"flow_format", !options_.write_flow                       ? "none"
-                      : options_.flow_format == FlowFormat::kPfm ? "pfm"
-                                                                 : "npy"},
+      {"flow_format", options_.write_flow ? config::FlowFormatName(options_.flow_format) : "none"},
       {"png", options_.write_png},
       {"video", video_sink_ != nullptr && video_sink_->written() ? json(options_.video_path)
                                                                  : json(nullptr)},

@@ -207,6 +207,7 @@ TEST(PipelineAllocationTest, TheInferStageAllocatesNothingWhileTheSizeSwitchesBa
   {
     SCOPED_TRACE("every window over budget");
     PipelineOptions options;
+    options.on_miss = config::MissAction::kSmallerInput;
     options.smaller_input_on_miss = {kFbH, kFbW};
     options.budget_ms = 0.001;
     const CountedRun run = RunCounted(20, options);
@@ -221,6 +222,7 @@ TEST(PipelineAllocationTest, TheInferStageAllocatesNothingWhileTheSizeSwitchesBa
   {
     SCOPED_TRACE("the size switching back and forth");
     PipelineOptions options;
+    options.on_miss = config::MissAction::kSmallerInput;
     options.smaller_input_on_miss = {kFbH, kFbW};
     options.budget_ms = 1e7;
     options.recover_after = 1;

@@ -314,6 +314,7 @@ class SmallerInputTest : public PipelineTest {
  protected:
   void SetUp() override {
     PipelineTest::SetUp();
+    options_.on_miss = config::MissAction::kSmallerInput;
     options_.smaller_input_on_miss = {kFbH, kFbW};
     options_.after_window = [this](const FrameMeta&) { ++done_; };
   }
@@ -445,6 +446,7 @@ TEST_F(SmallerInputTest, FallbackNotSmallerThanTheInputSizeIsAnErrorNamingBothSi
   auto model = DemoModel();
   ASSERT_TRUE(model);
   FakeSource source(2);
+  options_.on_miss = config::MissAction::kSmallerInput;
   options_.smaller_input_on_miss = {kH, kW + 8};
   PipelineResult r = RunPipeline(model, &source, options_);
   ASSERT_FALSE(r.status.ok());

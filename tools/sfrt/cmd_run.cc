@@ -258,10 +258,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     }
     on_bad = *parsed;
   }
-  if (args.flow_format == "pfm") {
-    options.flow_format = pipeline::FlowFormat::kPfm;
-  } else if (args.flow_format == "npy") {
-    options.flow_format = pipeline::FlowFormat::kNpy;
+  if (const std::optional<config::FlowFormat> format =
+          config::FlowFormatFromName(args.flow_format)) {
+    options.flow_format = *format;
   } else if (args.flow_format == "none") {
     options.write_flow = false;
   } else {

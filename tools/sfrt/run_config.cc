@@ -303,8 +303,8 @@ int ConfigurePipeline(RunConfigState* state, pipeline::PipelineOptions* options)
       options->prefault = true;
       state->applied.push_back("memory.prefault_arena (one inference on zeros at start)");
     }
+    options->on_miss = p.on_miss;
     if (p.on_miss == config::MissAction::kDropNext) {
-      options->drop_next_on_miss = true;
       state->applied.push_back("latency.on_miss drop-next");
     }
     if (p.on_miss == config::MissAction::kSmallerInput) {

@@ -42,13 +42,11 @@ enum class SourceKind {
   kReplayVideo,    // a side-by-side stereo video file
 };
 enum class SbsOrder { kLeftRight, kRightLeft };  // which half is the left image
-enum class MissAction { kDropNext, kSmallerInput, kCountOnly };
 
 // Canonical spellings as written in profiles ("MJPEG", "drop-next", "pfm", ...).
 const char* PixelFormatName(PixelFormat f);
 const char* SourceKindName(SourceKind k);  // "stereo cameras", "side-by-side camera", ...
 const char* SbsOrderName(SbsOrder o);
-const char* MissActionName(MissAction a);
 
 // camera: (live capture). width/height are the device frame; for a side-by-side camera the full
 // frame, both halves.

@@ -218,11 +218,13 @@ struct PipelineOptions {
   // called first on each stage's thread with its index (0 source, 1 preprocess, 2 infer,
   // 3 output), e.g. to set the thread's CPU affinity and SCHED_FIFO priority.
   std::function<void(int stage)> on_stage_start;
-  bool prefault = false;           // one inference on zeros at setup: arena and weights paged in
-  bool drop_next_on_miss = false;  // a deadline miss makes the source skip its next window
-  // latency.on_miss: smaller-input. {0, 0} = off. Otherwise, after a window over budget the
-  // following windows are preprocessed and inferred at this size (<= the model input size in
-  // both dimensions, smaller in one); after `recover_after` consecutive in-budget windows at
+  bool prefault = false;  // one inference on zeros at setup: arena and weights paged in
+  // What a deadline miss does (latency.on_miss): kCountOnly counts it; kDropNext makes the
+  // source skip its next window; kSmallerInput runs the next windows at smaller_input_on_miss.
+  config::MissAction on_miss = config::MissAction::kCountOnly;
+  // on_miss kSmallerInput: after a window over budget the following windows are preprocessed
+  // and inferred at this size (<= the model input size in both dimensions, smaller in one;
+  // another size is an error at setup); after `recover_after` consecutive in-budget windows at
   // this size the run returns to the model input size. A miss at the fallback size restarts
   // the count (hysteresis). Buffers are sized for the model input size at start, so switching
   // reallocates no buffer and the infer stage allocates nothing (the preprocess stage's resizes
