@@ -15,7 +15,7 @@ namespace {
 enum class Fruit { kApple, kPear, kPlum };
 constexpr std::array<const char*, 3> kFruitNames = {"apple", "pear", "plum"};
 
-TEST(Names, EveryNameParsesBackToItsValueAndOthersAreRefused) {
+TEST(VocabularyNames, EveryNameParsesBackToItsValueAndOthersAreRefused) {
   for (size_t i = 0; i < kFruitNames.size(); ++i) {
     const auto fruit = static_cast<Fruit>(i);
     EXPECT_EQ(FromName<Fruit>(kFruitNames, NameOf(kFruitNames, fruit)), fruit);
@@ -26,7 +26,7 @@ TEST(Names, EveryNameParsesBackToItsValueAndOthersAreRefused) {
   static_assert(FromName<Fruit>(kFruitNames, "pear") == Fruit::kPear, "usable at compile time");
 }
 
-TEST(Names, NameListJoinsTheNamesInTheirOrder) {
+TEST(VocabularyNames, NameListJoinsTheNamesInTheirOrder) {
   EXPECT_EQ(NameList(kFruitNames), "apple, pear, plum");
   EXPECT_EQ(NameList(kFruitNames, "|"), "apple|pear|plum");
 }
