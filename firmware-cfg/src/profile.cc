@@ -661,12 +661,8 @@ class Parser {
       if (auto v = ReadEnum(c_, m.Get("order"), kOrders)) r.video_order = *v;
     }
     if (!video) m.Forbid("order", "order applies to a side-by-side video");
-    if (auto v = ReadEnum<camera::BadFramePolicy>(
-            c_, m.Get("on_bad_frame"),
-            {{camera::BadFramePolicyName(camera::BadFramePolicy::kSkip),
-              camera::BadFramePolicy::kSkip},
-             {camera::BadFramePolicyName(camera::BadFramePolicy::kStop),
-              camera::BadFramePolicy::kStop}})) {
+    if (auto v = ReadEnum<camera::BadFramePolicy>(c_, m.Get("on_bad_frame"),
+                                                  vocabulary::kFailurePolicyNames)) {
       r.on_bad_frame = *v;
     }
     if (auto v = ReadBool(c_, m.Get("loop"))) r.loop = *v;

@@ -243,8 +243,7 @@ int ApplyProfile(NodeIo& io, NodeSettings* s, PipelineOptions* opts,
 int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
   if (s.isa != "auto" && (!ParseIsa(s.isa, &opts->isa) || opts->isa == Isa::kAuto)) {
     return Fail(io, kExitUsage,
-                io.ParamName("isa") + " '" + s.isa +
-                    "' is not one of auto, ref, avx2, avx512, avx512amx, neon");
+                io.ParamName("isa") + " '" + s.isa + "' is not one of " + IsaNameList(true));
   }
   if (std::string e = config::CheckRange(config::kThreads, io.ParamName("threads"), s.threads);
       !e.empty()) {

@@ -812,10 +812,9 @@ Status Runner::FinishSinks(PipelineResult* result) {
   for (const FrameSource::BadFrame& b : skipped_outputs_) {
     skipped.push_back({{"window", b.path}, {"error", b.reason}});
   }
-  j["output_errors"] = {
-      {"policy", options_.on_output_error == OutputErrorPolicy::kStop ? "stop" : "skip"},
-      {"count", output_errors_},
-      {"skipped", skipped}};
+  j["output_errors"] = {{"policy", vocabulary::FailurePolicyName(options_.on_output_error)},
+                        {"count", output_errors_},
+                        {"skipped", skipped}};
   j["deadline"] = {
       {"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
       {"misses", misses_},

@@ -91,7 +91,7 @@ class ReplaySource : public FrameSource {
   bool live() const override { return false; }
   void ToJson(nlohmann::json* out) const override {
     nlohmann::json& j = *out;
-    j["on_bad_frame"] = spec_.on_bad_frame == camera::BadFramePolicy::kStop ? "stop" : "skip";
+    j["on_bad_frame"] = camera::BadFramePolicyName(spec_.on_bad_frame);
     if (spec_.kind == ReplaySpec::Kind::kDataset) j["root"] = spec_.root;
     if (spec_.kind == ReplaySpec::Kind::kPlain) {
       j["left"] = spec_.left;
@@ -105,11 +105,7 @@ class ReplaySource : public FrameSource {
     j["images_decoded"] = decoded_before_ + (source_ ? source_->images_decoded() : 0);
     j["images_listed"] = images_listed_;
   }
-  std::vector<BadFrame> bad_frames() const override {
-    std::vector<BadFrame> out;
-    for (const camera::BadFrame& b : bad_) out.push_back({b.path, b.reason});
-    return out;
-  }
+  std::vector<BadFrame> bad_frames() const override { return bad_; }
   camera::ChainCounts chain_counts() const override {
     camera::ChainCounts c = chain_before_;
     if (window_) c += window_->counts();
@@ -405,7 +401,7 @@ class CameraSource : public FrameSource {
     j["timeouts"] = timeouts_;
     j["io_errors"] = io_errors_;
     j["frame_errors"] = frame_errors_;
-    j["on_bad_frame"] = policy_ == camera::BadFramePolicy::kStop ? "stop" : "skip";
+    j["on_bad_frame"] = camera::BadFramePolicyName(policy_);
     nlohmann::json devices = nlohmann::json::array();
     for (int i = 0; i < (sbs() ? 1 : 2); ++i) {
       const v4l2::CaptureDevice& d = i == 0 ? cap_.left() : cap_.right();

@@ -111,32 +111,30 @@ const CpuFeatures& HostCpuFeatures() {
 }
 
 const char* IsaName(Isa isa) {
-  switch (isa) {
-    case Isa::kAuto:
-      return "auto";
-    case Isa::kRef:
-      return "ref";
-    case Isa::kAvx2:
-      return "avx2";
-    case Isa::kAvx512:
-      return "avx512";
-    case Isa::kNeon:
-      return "neon";
-    case Isa::kAvx512Amx:
-      return "avx512amx";
+  for (const IsaWord& word : kIsaWords) {
+    if (word.isa == isa) return word.name;
   }
   return "?";
 }
 
 bool ParseIsa(std::string_view name, Isa* isa) {
-  for (Isa candidate :
-       {Isa::kAuto, Isa::kRef, Isa::kAvx2, Isa::kAvx512, Isa::kNeon, Isa::kAvx512Amx}) {
-    if (name == IsaName(candidate)) {
-      *isa = candidate;
+  for (const IsaWord& word : kIsaWords) {
+    if (name == word.name) {
+      *isa = word.isa;
       return true;
     }
   }
   return false;
+}
+
+std::string IsaNameList(bool with_auto, std::string_view separator) {
+  std::string out;
+  for (const IsaWord& word : kIsaWords) {
+    if (word.isa == Isa::kAuto && !with_auto) continue;
+    if (!out.empty()) out += separator;
+    out += word.name;
+  }
+  return out;
 }
 
 bool IsaSupported(Isa isa) {

@@ -135,7 +135,7 @@ std::string ParseLists(const BenchArgs& args, std::vector<Isa>* isas,
     }
     Isa isa = Isa::kRef;
     if (!ParseIsa(name, &isa) || isa == Isa::kAuto) {
-      return "--isa: '" + name + "' is not one of ref, avx2, avx512, avx512amx, neon, best, all";
+      return "--isa: '" + name + "' is not one of " + IsaNameList(false) + ", best, all";
     }
     isas->push_back(isa);
   }
@@ -700,9 +700,8 @@ Command AddBenchCommand(CLI::App& parent) {
   cmd->add_option("--size", args->size,
                   "Input size HxW (default: the size the model was traced at, as sfrt inspect "
                   "uses, else 540x960)");
-  cmd->add_option(
-      "--isa", args->isas,
-      "Comma-separated ISAs to time: ref, avx2, avx512, avx512amx, neon, best (default), all");
+  cmd->add_option("--isa", args->isas,
+                  "Comma-separated ISAs to time: " + IsaNameList(false) + ", best (default), all");
   cmd->add_option("--threads", args->threads,
                   "Comma-separated thread counts, each 0..256 (0: one per CPU; default 1)");
   cmd->add_option("--warmup", args->warmup,

@@ -36,6 +36,7 @@
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shapes.h"
+#include "sfrt/vocabulary/failure_policy.h"
 
 namespace sfrt::tools {
 namespace {
@@ -269,9 +270,8 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
                        kExitUsage);
   }
   if (args.isa != "auto" && (!ParseIsa(args.isa, &options.isa) || options.isa == Isa::kAuto)) {
-    return ReportError(
-        kName, "--isa: '" + args.isa + "' is not one of auto, ref, avx2, avx512, avx512amx, neon",
-        kExitUsage);
+    return ReportError(kName, "--isa: '" + args.isa + "' is not one of " + IsaNameList(true),
+                       kExitUsage);
   }
   if (options.isa != Isa::kAuto && !IsaSupported(options.isa)) {
     return ReportError(kName,
@@ -488,8 +488,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
 
   options.out_dir = args.out;
   options.allow_aspect_change = args.allow_aspect_change;
-  options.on_output_error = args.on_output_error == "skip" ? pipeline::OutputErrorPolicy::kSkip
-                                                           : pipeline::OutputErrorPolicy::kStop;
+  options.on_output_error = *vocabulary::FailurePolicyFromName(args.on_output_error);
   options.write_png = !args.no_png;
   options.write_summary = !args.no_summary;
   options.video_path = args.video;
@@ -681,7 +680,8 @@ Command AddRunCommand(CLI::App& parent) {
                   "(exit 1) or skip it (counted and listed in summary.json). Either way no "
                   "partial file is left")
       ->capture_default_str()
-      ->check(CLI::IsMember({"stop", "skip"}));
+      ->check(CLI::IsMember(std::vector<std::string>(vocabulary::kFailurePolicyNames.begin(),
+                                                     vocabulary::kFailurePolicyNames.end())));
   RequireAtLeast(cmd->add_option("--loop", args->loop,
                                  "Replays: pass over the files this many times (soak runs; "
                                  "later passes overwrite the same output files)")
@@ -730,9 +730,8 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_flag("--allow-aspect-change", args->allow_aspect_change,
                 "Take a --size of the inverse aspect of the frames (refused otherwise, as a "
                 "likely WxH given for HxW)");
-  cmd->add_option(
-         "--isa", args->isa,
-         "Kernels: auto (SFRT_ISA or the best this CPU runs), ref, avx2, avx512, avx512amx, neon")
+  cmd->add_option("--isa", args->isa,
+                  "Kernels: auto (SFRT_ISA or the best this CPU runs), " + IsaNameList(false))
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Threads for inference, 0..256 (0: one per CPU)")
       ->capture_default_str();

@@ -14,7 +14,7 @@ const char* Variable(const char* name) {
   return value != nullptr && *value != '\0' ? value : nullptr;
 }
 
-Status Invalid(const char* name, const std::string& value, const char* accepted) {
+Status Invalid(const char* name, const std::string& value, const std::string& accepted) {
   return Status::Error(std::string(name) + "='" + value + "' is not one of " + accepted);
 }
 
@@ -37,7 +37,7 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
   if (const char* value = Variable("SFRT_ISA"); value != nullptr && isa == Isa::kAuto) {
     Isa parsed = Isa::kAuto;
     if (!ParseIsa(value, &parsed)) {
-      return Invalid("SFRT_ISA", value, "auto, ref, avx2, avx512, avx512amx, neon");
+      return Invalid("SFRT_ISA", value, IsaNameList(true));
     }
     isa = parsed;
   }

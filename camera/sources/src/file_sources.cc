@@ -354,14 +354,8 @@ Result<Detected> Detect(const std::string& root, const DatasetOptions& options) 
 
 }  // namespace
 
-const char* BadFramePolicyName(BadFramePolicy policy) {
-  return policy == BadFramePolicy::kSkip ? "skip" : "stop";
-}
-
 Result<BadFramePolicy> ParseBadFramePolicy(const std::string& text) {
-  for (BadFramePolicy p : {BadFramePolicy::kSkip, BadFramePolicy::kStop}) {
-    if (text == BadFramePolicyName(p)) return p;
-  }
+  if (const std::optional<BadFramePolicy> p = vocabulary::FailurePolicyFromName(text)) return *p;
   return Status::Error("bad-frame policy '" + text + "' is neither skip nor stop");
 }
 

@@ -6,6 +6,7 @@
 // itself reads no environment.)
 #pragma once
 
+#include <array>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -24,10 +25,24 @@ enum class Isa {
   kAvx512Amx,
 };
 
-// "auto", "ref", "avx2", "avx512", "neon", "avx512amx".
+// The ISAs' names, declared once, in the order messages and help texts list them.
+struct IsaWord {
+  Isa isa;
+  const char* name;
+};
+inline constexpr std::array<IsaWord, 6> kIsaWords = {{{Isa::kAuto, "auto"},
+                                                      {Isa::kRef, "ref"},
+                                                      {Isa::kAvx2, "avx2"},
+                                                      {Isa::kAvx512, "avx512"},
+                                                      {Isa::kAvx512Amx, "avx512amx"},
+                                                      {Isa::kNeon, "neon"}}};
+// "auto", "ref", "avx2", "avx512", "avx512amx", "neon" (kIsaWords).
 const char* IsaName(Isa isa);
-// Parses the names above (lower case); false for anything else.
+// Parses the names above (exactly, lower case); false for anything else.
 bool ParseIsa(std::string_view name, Isa* isa);
+// The names joined by `separator`, "auto" first or left out: "auto, ref, avx2, avx512,
+// avx512amx, neon", for messages and help texts.
+std::string IsaNameList(bool with_auto, std::string_view separator = ", ");
 // True when this build has kernels for `isa` and this CPU (and OS) can execute them.
 bool IsaSupported(Isa isa);
 // Every supported ISA, kRef first, best last.

@@ -46,6 +46,7 @@
 
 #include "sfrt/camera/calibration.h"
 #include "sfrt/camera/preprocess.h"
+#include "sfrt/camera/stereo_source.h"
 #include "sfrt/camera/window_chain.h"
 #include "sfrt/config/vocabulary.h"
 #include "sfrt/isa.h"
@@ -55,6 +56,7 @@
 #include "sfrt/pipeline/visualize.h"
 #include "sfrt/session.h"
 #include "sfrt/status.h"
+#include "sfrt/vocabulary/failure_policy.h"
 
 namespace sfrt::pipeline {
 
@@ -149,11 +151,8 @@ class FrameSource {
   // Frames the source itself lost before the pipeline saw them (driver sequence gaps, frames
   // left without a stereo partner), for the summary's per-stage drop counts.
   virtual uint64_t drops() const { return 0; }
-  // Bad frames skipped (or the one that stopped the run), by path.
-  struct BadFrame {
-    std::string path;
-    std::string reason;
-  };
+  // Bad frames skipped (or the one that stopped the run), by path (camera::BadFrame's words).
+  using BadFrame = camera::BadFrame;
   virtual std::vector<BadFrame> bad_frames() const { return {}; }
   // How the source chained its pairs into windows (sfrt/camera/window_chain.h, the one rule for
   // every source): windows formed, and pairs that opened none because a frame was lost, the
@@ -177,7 +176,7 @@ using config::FlowFormat;  // sfrt/config/vocabulary.h: "pfm", "npy"
 // renamed, and the files of a window already written are removed when a later one fails.
 //   kStop: the run ends with the error (exit 1), queued windows are discarded.
 //   kSkip: the window is dropped, counted and listed in the summary; the run goes on.
-enum class OutputErrorPolicy { kStop, kSkip };
+using OutputErrorPolicy = vocabulary::FailurePolicy;  // kStop, kSkip
 enum class ProgressMode { kAuto, kTty, kLines, kOff };
 
 struct PipelineOptions {

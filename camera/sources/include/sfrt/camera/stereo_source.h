@@ -33,6 +33,7 @@
 
 #include "sfrt/camera/status.h"
 #include "sfrt/camera/window_chain.h"
+#include "sfrt/vocabulary/failure_policy.h"
 
 namespace sfrt::camera {
 
@@ -56,7 +57,7 @@ struct FramePair {
   std::string right_path;
 };
 
-enum class BadFramePolicy { kSkip, kStop };
+using BadFramePolicy = vocabulary::FailurePolicy;  // kSkip, kStop
 
 struct BadFrame {
   std::string path;    // the file at fault (for a left/right size mismatch: the right file)
@@ -64,9 +65,12 @@ struct BadFrame {
   int64_t index = -1;  // FramePair::index the bad pair would have had
 };
 
-// "skip" / "stop" (as `--on-bad-frame` and profiles' `on_bad_frame` spell them).
+// "skip" / "stop" (as `--on-bad-frame` and profiles' `on_bad_frame` spell them); the error
+// names the text.
 Result<BadFramePolicy> ParseBadFramePolicy(const std::string& text);
-const char* BadFramePolicyName(BadFramePolicy policy);
+constexpr const char* BadFramePolicyName(BadFramePolicy policy) {
+  return vocabulary::FailurePolicyName(policy);
+}
 
 struct SourceOptions {
   BadFramePolicy on_bad_frame = BadFramePolicy::kStop;
