@@ -63,7 +63,7 @@ class BagSource final : public FrameSource {
       m.capture_ns[0] = m.capture_ns[1] = detail::NowNs();
       m.stamp_ns[0] = prev_stamp_;
       m.stamp_ns[1] = pair_stamp_;
-      m.stage_ns[0][0] = start;
+      m.start_ns(config::Stage::kSource) = start;
       KeepAsPrevious();
       continues_ = true;
       return Fetch::kWindow;

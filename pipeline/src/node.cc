@@ -24,6 +24,7 @@
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/profile_options.h"
 #include "sfrt/pipeline/queued_sink.h"
 #include "sfrt/pipeline/topic_sink.h"
 #include "sfrt/pipeline/topic_source.h"
@@ -218,20 +219,9 @@ int ApplyProfile(NodeIo& io, NodeSettings* s, PipelineOptions* opts,
   }
   if (!io.HasParam("threads")) s->threads = p.stage(config::Stage::kInfer).threads;
   if (!io.HasParam("budget_ms")) s->budget_ms = p.budget_ms;
-  if (!io.HasParam("on_miss")) {
-    s->on_miss = p.on_miss;
-    if (p.on_miss == config::MissAction::kSmallerInput) {
-      s->fallback_size = std::to_string(p.fallback_height) + "x" + std::to_string(p.fallback_width);
-      s->recover_after = p.recover_after_frames;
-    }
-  }
-  opts->prefault = p.prefault_arena;
-  *process = std::make_unique<config::ProcessSettings>(p, config::QueryProcessCapabilities());
-  (*process)->ApplyProcessWide();
-  if ((*process)->has_thread_settings()) {
-    config::ProcessSettings* ps = process->get();
-    opts->on_stage_start = [ps](int stage) { ps->ApplyToCurrentThread(stage); };
-  }
+  ProfileRun run = ApplyProfileToRun(p, config::QueryProcessCapabilities(),
+                                     /*keep_on_miss=*/io.HasParam("on_miss"), opts);
+  *process = std::move(run.process);
   for (const std::string& w : (*process)->Warnings()) notes->push_back(w);
   notes->push_back("profile '" + s->config +
                    "': its source, calibration (the topics are rectified) and outputs are not "
@@ -267,8 +257,9 @@ int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
                 io.ParamName("budget_ms") + " must be >= 0, got " + Fixed(s.budget_ms, 3));
   }
   opts->budget_ms = s.budget_ms;
-  opts->on_miss = s.on_miss;
-  if (s.on_miss == config::MissAction::kSmallerInput) {
+  // The parameter, or without one what the profile set (ApplyProfile).
+  if (io.HasParam("on_miss") || s.config.empty()) opts->on_miss = s.on_miss;
+  if (io.HasParam("on_miss") && s.on_miss == config::MissAction::kSmallerInput) {
     int h = 0, w = 0;
     if (!ParseHxW(s.fallback_size, &h, &w)) {
       return Fail(io, kExitUsage,
@@ -375,7 +366,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
                      {"input size", s.size.empty() ? "the size a trained model records, else the "
                                                      "images'"
                                                    : s.size},
-                     {"on_miss", config::MissActionName(s.on_miss)}};
+                     {"on_miss", config::MissActionName(opts.on_miss)}};
   sink_opts.budget_ms = s.budget_ms;
   sink_opts.received = [&io](int side) { return io.received(side); };
   FlowTopicSink sink(

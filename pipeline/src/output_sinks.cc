@@ -24,6 +24,8 @@ std::string PathIn(const std::string& dir, const FrameMeta& meta, const char* ex
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
+double StageMs(const FrameMeta& m, config::Stage s) { return Ms(m.end_ns(s) - m.start_ns(s)); }
+
 // Retract() of a file sink: removes the file it wrote last, if any.
 void RemoveLastFile(std::string* path) {
   if (!path->empty()) ::unlink(path->c_str());
@@ -200,21 +202,21 @@ Status VideoSink::Stop() {
 // --------------------------------------------------------------------------------- latency log
 
 Status LatencyLogSink::Start() {
-  return OpenCsv(path_,
-                 "window,source_ms,preprocess_ms,infer_ms,output_ms,end_to_end_ms,input_height,"
-                 "input_width,done_monotonic_ms\n",
-                 "the latency log", &file_);
+  std::string header = "window";
+  for (const char* stage : config::kStageNames) header += std::string(",") + stage + "_ms";
+  header += ",end_to_end_ms,input_height,input_width,done_monotonic_ms\n";
+  return OpenCsv(path_, header, "the latency log", &file_);
 }
 
 Status LatencyLogSink::Completed(const WindowRecord& record) {
   const FrameMeta& m = *record.meta;
   char line[256];
-  const int n = std::snprintf(
-      line, sizeof(line), "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
-      static_cast<long long>(m.window), Ms(m.stage_ns[0][1] - m.stage_ns[0][0]),
-      Ms(m.stage_ns[1][1] - m.stage_ns[1][0]), Ms(m.stage_ns[2][1] - m.stage_ns[2][0]),
-      Ms(m.stage_ns[3][1] - m.stage_ns[3][0]), record.end_to_end_ms, m.input_height, m.input_width,
-      Ms(m.stage_ns[3][1]));
+  const int n =
+      std::snprintf(line, sizeof(line), "%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.3f\n",
+                    static_cast<long long>(m.window), StageMs(m, config::Stage::kSource),
+                    StageMs(m, config::Stage::kPreprocess), StageMs(m, config::Stage::kInfer),
+                    StageMs(m, config::Stage::kOutput), record.end_to_end_ms, m.input_height,
+                    m.input_width, Ms(m.end_ns(config::Stage::kOutput)));
   return WriteCsvLine(
       &file_, std::string_view(line, static_cast<size_t>(std::clamp(n, 0, int{sizeof(line)} - 1))),
       "the latency log");

@@ -177,7 +177,7 @@ class Runner {
   int64_t output_errors_ = 0;
   static constexpr size_t kMaxListedSkips = 100;        // summary.json lists at most this many
   std::vector<FrameSource::BadFrame> skipped_outputs_;  // {stem, error} under kSkip
-  LatencyWindow stage_ms_[4];
+  LatencyWindow stage_ms_[config::kStageCount];
   LatencyWindow e2e_ms_;
   LatencyWindow part_ms_[kLatencyParts];
   std::string last_stem_;
@@ -247,14 +247,14 @@ Status Runner::Setup() {
   Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
   if (!params.ok()) return params.status();
   auto pre = camera::Preprocessor::Create(*params, height_, width_);
-  if (!pre.ok()) return Status::Error(pre.message());
+  if (!pre.ok()) return pre.status();
   preprocessor_.emplace(std::move(pre).value());
 
   const cv::Size model_size(width_, height_);
   if (options_.calibration) {
     auto rect = camera::StereoRectifier::Create(*options_.calibration, source_size_,
                                                 camera::RectifyOptions{model_size});
-    if (!rect.ok()) return Status::Error(rect.message());
+    if (!rect.ok()) return rect.status();
     rectifier_.emplace(std::move(rect).value());
     // The network was trained on one camera; a different rectified camera scales its output.
     const CameraDesc& trained = model_->metadata().camera;
@@ -281,7 +281,7 @@ Status Runner::Setup() {
     }
   } else {
     auto rect = camera::StereoRectifier::CreateResizeOnly(source_size_, model_size);
-    if (!rect.ok()) return Status::Error(rect.message());
+    if (!rect.ok()) return rect.status();
     rectifier_.emplace(std::move(rect).value());
   }
 
@@ -381,14 +381,14 @@ Status Runner::SetupFallback() {
   Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
   if (!params.ok()) return params.status();
   auto pre = camera::Preprocessor::Create(*params, fb_height_, fb_width_);
-  if (!pre.ok()) return Status::Error(pre.message());
+  if (!pre.ok()) return pre.status();
   fb_preprocessor_.emplace(std::move(pre).value());
   const cv::Size fb_size(fb_width_, fb_height_);
   auto rect = options_.calibration
                   ? camera::StereoRectifier::Create(*options_.calibration, source_size_,
                                                     camera::RectifyOptions{fb_size})
                   : camera::StereoRectifier::CreateResizeOnly(source_size_, fb_size);
-  if (!rect.ok()) return Status::Error(rect.message());
+  if (!rect.ok()) return rect.status();
   fb_rectifier_.emplace(std::move(rect).value());
   if (options_.budget_ms <= 0 && !options_.miss_verdict) {
     warnings_.push_back("latency.on_miss smaller-input " + fb_text +
@@ -421,7 +421,7 @@ void Runner::UpdateFallback(const FrameMeta& m, bool miss) {
 }
 
 void Runner::SourceStage() {
-  if (options_.on_stage_start) options_.on_stage_start(0);
+  if (options_.on_stage_start) options_.on_stage_start(config::StageIndex(config::Stage::kSource));
   WindowItem item = MakeWindow();
   const auto period =
       options_.source_fps > 0
@@ -447,14 +447,15 @@ void Runner::SourceStage() {
       continue;
     }
     item.meta.window = windows_read_++;
-    item.meta.stage_ns[0][1] = NowNs();
+    item.meta.end_ns(config::Stage::kSource) = NowNs();
     if (!q1_->Push(&item)) break;
   }
   q1_->Close();
 }
 
 void Runner::PreprocessStage() {
-  if (options_.on_stage_start) options_.on_stage_start(1);
+  if (options_.on_stage_start)
+    options_.on_stage_start(config::StageIndex(config::Stage::kPreprocess));
   WindowItem w = MakeWindow();
   InputItem in = MakeInput();
   cv::Mat l0, r0, l1, r1;  // rectified, model size
@@ -467,7 +468,7 @@ void Runner::PreprocessStage() {
     for (cv::Mat* m : {&fl0, &fr0, &fl1, &fr1}) m->create(fb_height_, fb_width_, CV_8UC3);
   }
   while (q1_->Pop(&w)) {
-    w.meta.stage_ns[1][0] = NowNs();
+    w.meta.start_ns(config::Stage::kPreprocess) = NowNs();
     const bool small = fallback_ && use_fallback_.load();
     const cv::Size size = w.left0.size();
     if (w.left1.size() != size) {
@@ -538,19 +539,19 @@ void Runner::PreprocessStage() {
     w.meta.input_height = small ? fb_height_ : height_;
     w.meta.input_width = small ? fb_width_ : width_;
     std::swap(in.meta, w.meta);
-    in.meta.stage_ns[1][1] = NowNs();
+    in.meta.end_ns(config::Stage::kPreprocess) = NowNs();
     if (!q2_->Push(&in)) break;
   }
   q2_->Close();
 }
 
 void Runner::InferStage() {
-  if (options_.on_stage_start) options_.on_stage_start(2);
+  if (options_.on_stage_start) options_.on_stage_start(config::StageIndex(config::Stage::kInfer));
   // Both items are allocated here, before the first frame; the loop only swaps and runs.
   InputItem in = MakeInput();
   FlowItem out = MakeFlow();
   while (q2_->Pop(&in)) {
-    in.meta.stage_ns[2][0] = NowNs();
+    in.meta.start_ns(config::Stage::kInfer) = NowNs();
     const int h = in.meta.input_height, w = in.meta.input_width;  // the size it was prepared at
     Status s = out.step_ns.empty() ? session_->Run(in.input, h, w, out.flow)
                                    : session_->Run(in.input, h, w, out.flow, out.step_ns);
@@ -560,7 +561,7 @@ void Runner::InferStage() {
     }
     std::swap(out.meta, in.meta);
     std::swap(out.left_vis, in.left_vis);
-    out.meta.stage_ns[2][1] = NowNs();
+    out.meta.end_ns(config::Stage::kInfer) = NowNs();
     if (!q3_->Push(&out)) break;
   }
   q3_->Close();
@@ -688,7 +689,7 @@ Status Runner::StopSinks() {
 }
 
 void Runner::OutputStage() {
-  if (options_.on_stage_start) options_.on_stage_start(3);
+  if (options_.on_stage_start) options_.on_stage_start(config::StageIndex(config::Stage::kOutput));
   FlowItem f = MakeFlow();
   while (q3_->Pop(&f)) {
     if (max_reached_.load()) {
@@ -696,7 +697,7 @@ void Runner::OutputStage() {
       continue;
     }
     FrameMeta& m = f.meta;
-    m.stage_ns[3][0] = NowNs();
+    m.start_ns(config::Stage::kOutput) = NowNs();
     const std::string stem = OutputStem(m);
     const int h = m.input_height, w = m.input_width;  // the size the window ran at
     const std::span<const float> flow(f.flow.data(), static_cast<size_t>(h) * w * out_channels_);
@@ -712,9 +713,10 @@ void Runner::OutputStage() {
       }
       continue;
     }
-    m.stage_ns[3][1] = NowNs();
-    for (int st = 0; st < 4; ++st) stage_ms_[st].Add(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
-    const double e2e = Ms(m.stage_ns[3][1] - m.capture_ns[1]);
+    m.end_ns(config::Stage::kOutput) = NowNs();
+    for (int st = 0; st < config::kStageCount; ++st)
+      stage_ms_[st].Add(Ms(m.stage_ns[st][1] - m.stage_ns[st][0]));
+    const double e2e = Ms(m.end_ns(config::Stage::kOutput) - m.capture_ns[1]);
     e2e_ms_.Add(e2e);
     double parts[kLatencyParts];
     SplitLatency(m, parts);
@@ -826,7 +828,8 @@ Status Runner::FinishSinks(PipelineResult* result) {
       {"recoveries", recoveries_},
       {"frames_at_fallback_size", frames_at_fallback_}};
   json lat;
-  for (int st = 0; st < 4; ++st) lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
+  for (int st = 0; st < config::kStageCount; ++st)
+    lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
   lat["end_to_end"] = PercentilesJson(result->end_to_end);
   j["latency_ms"] = lat;
   // Each pair is rectified once: pair t of a window that continues the one before is its pair
@@ -906,7 +909,7 @@ PipelineResult Runner::Run() {
   result.started = true;
   if (!size_note_.empty()) log_.Write(LogLevel::kInfo, "note", size_note_);
   start_ns_ = NowNs();
-  std::thread threads[4] = {
+  std::thread threads[config::kStageCount] = {
       std::thread([this] { SourceStage(); }), std::thread([this] { PreprocessStage(); }),
       std::thread([this] { InferStage(); }), std::thread([this] { OutputStage(); })};
   // Relay an asynchronous stop (signal) to the stages until the source has finished.
@@ -942,7 +945,8 @@ PipelineResult Runner::Run() {
   }
   const double wall = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   result.fps = wall > 0 ? static_cast<double>(frames_) / wall : 0;
-  for (int st = 0; st < 4; ++st) result.stage[st] = profiling::Summarize(stage_ms_[st].Values());
+  for (int st = 0; st < config::kStageCount; ++st)
+    result.stage[st] = profiling::Summarize(stage_ms_[st].Values());
   for (int p = 0; p < kLatencyParts; ++p) {
     result.parts[p] = profiling::Summarize(part_ms_[p].Values());
   }
@@ -1049,8 +1053,8 @@ void SplitLatency(const FrameMeta& m, double out_ms[kLatencyParts]) {
   b[1] = m.dequeue_ns > 0 ? m.dequeue_ns : b[0];
   b[2] = m.paired_ns > 0 ? m.paired_ns : b[1];
   b[3] = m.converted_ns > 0 ? m.converted_ns : b[2];
-  b[4] = m.stage_ns[0][1];
-  for (int st = 1; st < 4; ++st) {
+  b[4] = m.end_ns(config::Stage::kSource);
+  for (int st = 1; st < config::kStageCount; ++st) {
     b[2 * st + 3] = m.stage_ns[st][0];
     b[2 * st + 4] = m.stage_ns[st][1];
   }

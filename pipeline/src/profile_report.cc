@@ -70,7 +70,7 @@ Series Collect(const FrameProfiler& prof) {
     for (int st = 0; st < kProfileStages; ++st) {
       s.stage[st].push_back(Ms(f.stage_ns[st][1] - f.stage_ns[st][0]));
     }
-    s.e2e.push_back(Ms(f.stage_ns[3][1] - f.capture_ns));
+    s.e2e.push_back(Ms(f.end_ns(config::Stage::kOutput) - f.capture_ns));
     if (f.miss) ++s.misses;
     if (f.input_height > 0 && (f.input_height != prof.height() || f.input_width != prof.width())) {
       ++s.at_other_size;
@@ -238,6 +238,9 @@ cv::Mat SeriesPlot(const std::vector<double>& e2e, const std::vector<double>& in
 
 // ---- trace
 
+// The trace's track (thread id) of a stage: 1 for the source, then in stage order.
+int TrackOf(config::Stage stage) { return config::StageIndex(stage) + 1; }
+
 json TraceEvent(const char* ph, const std::string& name, int tid, double ts_us) {
   return json{{"ph", ph}, {"name", name}, {"pid", 1}, {"tid", tid}, {"ts", ts_us}};
 }
@@ -246,7 +249,7 @@ std::string TraceJson(const FrameProfiler& prof, const ProfileReportInfo& info) 
   int64_t origin = INT64_MAX;
   for (size_t i = 0; i < prof.size(); ++i) {
     const ProfiledFrame& f = prof.frame(i);
-    origin = std::min({origin, f.capture_ns, f.stage_ns[0][0]});
+    origin = std::min({origin, f.capture_ns, f.start_ns(config::Stage::kSource)});
   }
   auto us = [&](int64_t ns) { return std::round(static_cast<double>(ns - origin) / 10.0) / 100.0; };
   json events = json::array();
@@ -256,33 +259,35 @@ std::string TraceJson(const FrameProfiler& prof, const ProfileReportInfo& info) 
     events.push_back(json{{"ph", "M"},
                           {"name", "thread_name"},
                           {"pid", 1},
-                          {"tid", st + 1},
+                          {"tid", TrackOf(static_cast<config::Stage>(st))},
                           {"args", {{"name", kStageNames[st]}}}});
     events.push_back(json{{"ph", "M"},
                           {"name", "thread_sort_index"},
                           {"pid", 1},
-                          {"tid", st + 1},
+                          {"tid", TrackOf(static_cast<config::Stage>(st))},
                           {"args", {{"sort_index", st}}}});
   }
   for (size_t i = 0; i < prof.size(); ++i) {
     const ProfiledFrame& f = prof.frame(i);
     const std::string frame = "frame " + std::to_string(f.window);
     for (int st = 0; st < kProfileStages; ++st) {
-      json e = TraceEvent("X", frame, st + 1, us(f.stage_ns[st][0]));
+      json e =
+          TraceEvent("X", frame, TrackOf(static_cast<config::Stage>(st)), us(f.stage_ns[st][0]));
       e["cat"] = kStageNames[st];
       e["dur"] = us(f.stage_ns[st][1]) - us(f.stage_ns[st][0]);
       e["args"] = {{"window", f.window},
                    {"frame0", f.frame0},
                    {"frame1", f.frame1},
                    {"input_size", {f.input_height, f.input_width}}};
-      if (st == 3) e["args"]["end_to_end_ms"] = Ms(f.stage_ns[3][1] - f.capture_ns);
+      if (st == config::StageIndex(config::Stage::kOutput))
+        e["args"]["end_to_end_ms"] = Ms(f.end_ns(config::Stage::kOutput) - f.capture_ns);
       events.push_back(std::move(e));
     }
     if (f.has_steps) {
       std::span<const int64_t> t = prof.step_end_ns(i);
       for (size_t k = 0; k + 1 < t.size(); ++k) {
         const ProfileStep& s = prof.steps()[k];
-        json e = TraceEvent("X", s.name, 3, us(t[k]));
+        json e = TraceEvent("X", s.name, TrackOf(config::Stage::kInfer), us(t[k]));
         e["cat"] = "layer";
         e["dur"] = us(t[k + 1]) - us(t[k]);
         e["args"] = {
@@ -291,7 +296,8 @@ std::string TraceJson(const FrameProfiler& prof, const ProfileReportInfo& info) 
       }
     }
     if (f.miss) {
-      json e = TraceEvent("i", "deadline miss", 4, us(f.stage_ns[3][1]));
+      json e = TraceEvent("i", "deadline miss", TrackOf(config::Stage::kOutput),
+                          us(f.end_ns(config::Stage::kOutput)));
       e["s"] = "t";
       e["args"] = {{"window", f.window}, {"budget_ms", info.budget_ms}};
       events.push_back(std::move(e));
@@ -495,7 +501,8 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
     for (int st = 0; st < kProfileStages; ++st) {
       csv += "," + Fixed(Ms(f.stage_ns[st][1] - f.stage_ns[st][0]), 4);
     }
-    csv += "," + Fixed(Ms(f.stage_ns[3][1] - f.capture_ns), 4) + (f.miss ? ",1" : ",0");
+    csv += "," + Fixed(Ms(f.end_ns(config::Stage::kOutput) - f.capture_ns), 4) +
+           (f.miss ? ",1" : ",0");
     csv += "," + std::to_string(f.input_height) + "," + std::to_string(f.input_width);
     std::span<const int64_t> t = prof.step_end_ns(i);
     for (size_t k = 0; k < prof.steps().size(); ++k) {
@@ -512,8 +519,9 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
       !st.ok()) {
     return st;
   }
-  if (Status st =
-          WritePng(files.series_png, SeriesPlot(s.e2e, s.stage[2], info.budget_ms, subtitle));
+  if (Status st = WritePng(files.series_png,
+                           SeriesPlot(s.e2e, s.stage[config::StageIndex(config::Stage::kInfer)],
+                                      info.budget_ms, subtitle));
       !st.ok()) {
     return st;
   }

@@ -67,7 +67,7 @@ class ReplaySource : public FrameSource {
     last_left1_path_ = cur.left_path;
     const int64_t now = NowNs();
     m.capture_ns[0] = m.capture_ns[1] = now;
-    m.stage_ns[0][0] = start;
+    m.start_ns(config::Stage::kSource) = start;
     return Fetch::kWindow;
   }
 
@@ -142,17 +142,17 @@ class ReplaySource : public FrameSource {
         static_cast<camera::SourceOptions&>(options) = base;
         options.pass = spec_.pass;
         auto info = camera::DetectDataset(spec_.root, options);
-        if (!info.ok()) return Status::Error(info.message());
+        if (!info.ok()) return info.status();
         const int64_t sequences = static_cast<int64_t>(info->sequences.size());
         total_ = std::max<int64_t>(0, info->pairs - sequences);
         auto source = camera::OpenDatasetSource(spec_.root, options);
-        if (!source.ok()) return Status::Error(source.message());
+        if (!source.ok()) return source.status();
         source_ = std::move(source).value();
         break;
       }
       case ReplaySpec::Kind::kPlain: {
         auto source = camera::OpenPlainSource(spec_.left, spec_.right, base);
-        if (!source.ok()) return Status::Error(source.message());
+        if (!source.ok()) return source.status();
         source_ = std::move(source).value();
         if (auto n = source_->size()) total_ = std::max<int64_t>(0, *n - 1);
         break;
@@ -162,7 +162,7 @@ class ReplaySource : public FrameSource {
         static_cast<camera::SourceOptions&>(options) = base;
         options.left_first = spec_.video_left_first;
         auto source = camera::OpenSbsVideoSource(spec_.video, options);
-        if (!source.ok()) return Status::Error(source.message());
+        if (!source.ok()) return source.status();
         source_ = std::move(source).value();
         if (auto n = source_->size()) total_ = std::max<int64_t>(0, *n - 1);
         break;
@@ -191,7 +191,7 @@ class ReplaySource : public FrameSource {
   Result<Fetch> Advance() {
     const size_t bad_before = bad_.size();
     camera::Result<camera::Fetched> next = window_->Next();
-    if (!next.ok()) return Status::Error(next.message());
+    if (!next.ok()) return next.status();
     if (spec_.on_bad_frame == camera::BadFramePolicy::kSkip && !quiet_) {
       for (size_t i = bad_before; i < bad_.size(); ++i) {
         log().Write(LogLevel::kWarn, "warning",
@@ -236,7 +236,7 @@ class CameraSource : public FrameSource {
 
   Result<cv::Size> Open() override {
     camera::Status s = cap_.Open();
-    if (!s.ok()) return Status::Error(s.message());
+    if (!s.ok()) return s;
     const v4l2::NegotiatedFormat& left = cap_.left().format();
     // The driver's rate is the interval a gap is judged against; without one, the stream's own.
     chain_ = camera::WindowChain(left.fps > 0 ? std::llround(1e9 / left.fps) : 0);
@@ -307,7 +307,7 @@ class CameraSource : public FrameSource {
               Log(s.message());
               continue;
             }
-            return Status::Error(s.message());
+            return s;
         }
       }
       const v4l2::Frame& l = pair_.left;
@@ -346,7 +346,7 @@ class CameraSource : public FrameSource {
         m.left0_path.clear();
         m.capture_ns[0] = prev_ts_;
         m.capture_ns[1] = ts;
-        m.stage_ns[0][0] = start;
+        m.start_ns(config::Stage::kSource) = start;
         m.dequeue_ns = l.timestamp_ns >= r.timestamp_ns ? l.dequeue_ns : r.dequeue_ns;
         m.paired_ns = pair_.paired_ns;
         m.converted_ns = pair_.converted_ns;

@@ -12,10 +12,14 @@
 namespace sfrt::pipeline {
 namespace {
 
-constexpr const char* kSeriesNames[] = {"source", "preprocess", "infer",
-                                        "output", "end_to_end", "stamp_to_publish"};
-constexpr int kEndToEnd = 4;
-constexpr int kStampToPublish = 5;
+// The series: the stages (config::Stage's order), then end to end and stamp to publish.
+constexpr int kEndToEnd = config::kStageCount;
+constexpr int kStampToPublish = kEndToEnd + 1;
+const char* SeriesName(int s) {
+  return s < config::kStageCount ? config::kStageNames[static_cast<size_t>(s)]
+         : s == kEndToEnd        ? "end_to_end"
+                                 : "stamp_to_publish";
+}
 
 std::string Ms(double v) {
   char buf[32];
@@ -63,7 +67,7 @@ Status VisTopicSink::Write(const FlowFrame& frame) {
 Status FlowTopicSink::Completed(const WindowRecord& record) {
   const FrameMeta& m = *record.meta;
   double v[kSeries];
-  for (int s = 0; s < 4; ++s) {
+  for (int s = 0; s < config::kStageCount; ++s) {
     v[s] = static_cast<double>(m.stage_ns[s][1] - m.stage_ns[s][0]) / 1e6;
   }
   v[kEndToEnd] = record.end_to_end_ms;
@@ -127,8 +131,8 @@ void FlowTopicSink::PublishDiagnostics(int64_t now) {
     const profiling::Summary sum = profiling::Summarize(values);
     if (s == kEndToEnd) e2e = sum;
     if (sum.count == 0) continue;
-    r.values.emplace_back(std::string(kSeriesNames[s]) + " p50 ms", Ms(sum.p50));
-    r.values.emplace_back(std::string(kSeriesNames[s]) + " p99 ms", Ms(sum.p99));
+    r.values.emplace_back(std::string(SeriesName(s)) + " p50 ms", Ms(sum.p50));
+    r.values.emplace_back(std::string(SeriesName(s)) + " p99 ms", Ms(sum.p99));
   }
   r.level = new_misses > 0 ? DiagnosticReport::kWarn : DiagnosticReport::kOk;
   r.message = Ms(fps) + " fps, end to end p50 " + Ms(e2e.p50) + " ms, p99 " + Ms(e2e.p99) +
@@ -159,7 +163,7 @@ void FlowTopicSink::PublishIfIdle(int64_t now) {
 void FlowTopicSink::ToJson(nlohmann::json* out) const {
   for (int s = 0; s < kSeries; ++s) {
     const profiling::Summary sum = profiling::Summarize(all_[static_cast<size_t>(s)].Values());
-    (*out)[std::string(kSeriesNames[s]) + "_ms"] = {
+    (*out)[std::string(SeriesName(s)) + "_ms"] = {
         {"count", sum.count}, {"p50", sum.p50}, {"p99", sum.p99}, {"max", sum.max}};
   }
   (*out)["windows"] = windows_.load();

@@ -149,7 +149,7 @@ Result<Fetch> TopicSource::Next(WindowItem* item, const std::atomic<bool>& stop)
     m.dequeue_ns = cur_.arrival_ns;
     m.paired_ns = cur_.arrival_ns;
     m.converted_ns = cur_.converted_ns;
-    m.stage_ns[0][0] = taken;
+    m.start_ns(config::Stage::kSource) = taken;
     // Pair t's buffers go to the window (the item's come back for reuse); pair t+1 is copied,
     // as it is also the next window's pair t.
     std::swap(item->left0, prev_.image[0]);

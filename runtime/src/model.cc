@@ -544,18 +544,6 @@ const char* ActivationName(Activation activation) {
   return "?";
 }
 
-const char* PrecisionName(Precision precision) {
-  switch (precision) {
-    case Precision::kFloat32:
-      return "fp32";
-    case Precision::kInt8:
-      return "int8";
-    case Precision::kBFloat16:
-      return "bf16";
-  }
-  return "?";
-}
-
 std::string PrecisionSummary(const ModelMetadata& metadata) {
   if (metadata.has_int8 && metadata.has_bf16) return "int8+bf16+fp32";
   if (metadata.has_int8) return "int8 (some layers fp32)";

@@ -70,7 +70,7 @@ Result<exporter::CalibrationSet> ReadCalibrationDirectory(const std::string& pat
   Result<camera::PreprocessParams> params = pipeline::PreprocessFromMetadata(input);
   if (!params.ok()) return Status::Error("the model's input: " + params.message());
   auto pre = camera::Preprocessor::Create(*params, height, width);
-  if (!pre.ok()) return Status::Error(pre.message());
+  if (!pre.ok()) return pre.status();
 
   pipeline::ReplaySpec spec;
   spec.kind = pipeline::ReplaySpec::Kind::kDataset;

@@ -316,13 +316,9 @@ std::string MetadataFromFlags(const ExportArgs& args, exporter::MetadataChanges*
 std::string SourceFromFlags(const ExportArgs& args, exporter::ExportOptions* options) {
   options->source = args.input;
   options->destination = args.output;
-  if (args.weights != "fp32" && args.weights != "fp16") {
-    return "--weights: expected fp32 or fp16, got '" + args.weights + "'";
-  }
-  if (Given(args, "--weights")) {
-    options->weights =
-        args.weights == "fp16" ? exporter::WeightType::kFloat16 : exporter::WeightType::kFloat32;
-  }
+  const std::optional<WeightType> weights = WeightTypeFromName(args.weights);
+  if (!weights) return "--weights: expected fp32 or fp16, got '" + args.weights + "'";
+  if (Given(args, "--weights")) options->weights = *weights;
   options->onnx.output = args.onnx_output;
   if (args.padding == "auto") {
     options->onnx.padding = exporter::PaddingDetection::kAuto;
@@ -483,8 +479,9 @@ std::string CheckQuantizeFlags(const ExportArgs& args) {
 // --precision and its calibration: int8 and auto quantise from calibration frames; bf16 only
 // marks the layers (the runtime rounds the float32 weights to bf16 at load).
 std::string PrecisionFromFlags(const ExportArgs& args, exporter::ExportOptions* options) {
-  const bool quantise = args.precision == "int8" || args.precision == "auto";
-  if (args.precision != "fp32" && args.precision != "bf16" && !quantise) {
+  const std::optional<Precision> precision = PrecisionFromName(args.precision);
+  const bool quantise = args.precision == "auto" || precision == Precision::kInt8;
+  if (!precision && !quantise) {
     return "--precision: expected fp32, bf16, int8 or auto, got '" + args.precision + "'";
   }
   if (quantise && args.calibration.empty()) {
@@ -497,9 +494,9 @@ std::string PrecisionFromFlags(const ExportArgs& args, exporter::ExportOptions* 
            "rounds weights and activations, it chooses no ranges)";
   }
   if (std::string problem = CheckQuantizeFlags(args); !problem.empty()) return problem;
-  options->precision = quantise                   ? exporter::PrecisionChange::kQuantize
-                       : args.precision == "bf16" ? exporter::PrecisionChange::kBFloat16
-                                                  : exporter::PrecisionChange::kNone;
+  options->precision = quantise                            ? exporter::PrecisionChange::kQuantize
+                       : precision == Precision::kBFloat16 ? exporter::PrecisionChange::kBFloat16
+                                                           : exporter::PrecisionChange::kNone;
   exporter::QuantizeOptions& q = options->quantize;
   q.mode = args.precision == "auto" ? exporter::QuantizeMode::kAuto : exporter::QuantizeMode::kInt8;
   q.accuracy_budget = args.accuracy_budget;
@@ -601,6 +598,13 @@ int RunExport(const ExportArgs& args) {
 }
 
 }  // namespace
+
+// --precision: a convolution precision, or auto (per layer, within an accuracy budget).
+std::vector<std::string> PrecisionChoices() {
+  std::vector<std::string> choices(kPrecisionNames.begin(), kPrecisionNames.end());
+  choices.push_back("auto");
+  return choices;
+}
 
 // The help text after the options.
 constexpr char kFooter[] =
@@ -730,7 +734,8 @@ void AddImportOptions(CLI::App* cmd, ExportArgs* args) {
   cmd->add_option("--weights", args->weights,
                   "Weight storage: fp32, or fp16 (IEEE half: about half the file; the runtime "
                   "widens to float32 once at load and computes in float32)")
-      ->check(CLI::IsMember({"fp32", "fp16"}))
+      ->check(
+          CLI::IsMember(std::vector<std::string>(kWeightTypeNames.begin(), kWeightTypeNames.end())))
       ->capture_default_str();
 }
 
@@ -757,7 +762,7 @@ void AddPrecisionOptions(CLI::App* cmd, ExportArgs* args) {
                   "(int8 weights per output channel, uint8 activations, quantised from "
                   "--calibration); auto (per layer int8, else bf16, else fp32, so that the "
                   "output's error stays within --accuracy-budget)")
-      ->check(CLI::IsMember({"fp32", "bf16", "int8", "auto"}))
+      ->check(CLI::IsMember(PrecisionChoices()))
       ->capture_default_str();
   cmd->add_option("--calibration", args->calibration,
                   "With --precision int8|auto: network inputs to choose the quantisation from: a "

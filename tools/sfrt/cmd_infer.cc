@@ -158,11 +158,11 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& 
     // The same resize as `sfrt run` (INTER_AREA when shrinking, bilinear when enlarging).
     auto resizer = camera::StereoRectifier::CreateResizeOnly(sources[0].image.size(),
                                                              cv::Size(resize_w, resize_h));
-    if (!resizer.ok()) return Status::Error(resizer.message());
+    if (!resizer.ok()) return resizer.status();
     for (size_t i = 0; i < 4; i += 2) {
       cv::Mat left, right;
       camera::Status r = resizer->Apply(sources[i].image, sources[i + 1].image, &left, &right);
-      if (!r.ok()) return Status::Error(r.message());
+      if (!r.ok()) return r;
       sources[i].image = left;
       sources[i + 1].image = right;
     }
@@ -172,11 +172,11 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& 
   input.height = sources[0].image.rows;
   input.width = sources[0].image.cols;
   auto pre = camera::Preprocessor::Create(*params, input.height, input.width);
-  if (!pre.ok()) return Status::Error(pre.message());
+  if (!pre.ok()) return pre.status();
   input.data.resize(pre->output_floats());
   camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
                                 sources[3].image, input.data.data(), input.data.size());
-  if (!ran.ok()) return Status::Error(ran.message());
+  if (!ran.ok()) return ran;
   input.description =
       "4 images as " + Join(desc.image_order, ",") + ", " + desc.color_order + resized;
   return input;
@@ -274,11 +274,11 @@ Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, 
   input.height = sources[0].image.rows;
   input.width = sources[0].image.cols;
   auto pre = camera::RgbdPreprocessor::Create(params, input.height, input.width);
-  if (!pre.ok()) return Status::Error(pre.message());
+  if (!pre.ok()) return pre.status();
   input.data.resize(pre->output_floats());
   camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
                                 sources[3].image, input.data.data(), input.data.size());
-  if (!ran.ok()) return Status::Error(ran.message());
+  if (!ran.ok()) return ran;
   input.description = "2 RGB-D frames as " + Join(desc.image_order, ",") + ", " + desc.color_order +
                       ", 16-bit depth at " + FormatFloat(args.depth_units) + " per metre" + resized;
   return input;

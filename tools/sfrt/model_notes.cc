@@ -117,11 +117,13 @@ std::string PrecisionFallbackNotice(const Model& model, Isa isa) {
   };
   std::string notice;
   if (int8 > 0 && !Int8KernelsAvailable(isa)) {
-    notice = line(int8, "int8", "avx512 needs AVX-512 VNNI, neon the dot-product extension");
+    notice = line(int8, PrecisionName(Precision::kInt8),
+                  "avx512 needs AVX-512 VNNI, neon the dot-product extension");
   }
   if (bf16 > 0 && !Bf16KernelsAvailable(isa)) {
     if (!notice.empty()) notice += "\n";
-    notice += line(bf16, "bf16", "avx512 needs AVX512_BF16, neon the BF16 extension");
+    notice += line(bf16, PrecisionName(Precision::kBFloat16),
+                   "avx512 needs AVX512_BF16, neon the BF16 extension");
   }
   return notice;
 }
@@ -142,10 +144,12 @@ std::string ForcedIsaPrecisionProblem(const Model& model, Isa forced) {
            "the reference kernel";
   };
   if (int8 > 0 && !Int8KernelsAvailable(forced)) {
-    return problem(int8, "int8", "avx512 needs AVX-512 VNNI, neon the dot-product extension");
+    return problem(int8, PrecisionName(Precision::kInt8),
+                   "avx512 needs AVX-512 VNNI, neon the dot-product extension");
   }
   if (bf16 > 0 && !Bf16KernelsAvailable(forced)) {
-    return problem(bf16, "bf16", "avx512 needs AVX512_BF16, neon the BF16 extension");
+    return problem(bf16, PrecisionName(Precision::kBFloat16),
+                   "avx512 needs AVX512_BF16, neon the BF16 extension");
   }
   return "";
 }

@@ -14,6 +14,7 @@
 
 #include "sfrt/commands.h"
 #include "sfrt/config/capabilities.h"
+#include "sfrt/pipeline/profile_options.h"
 
 namespace sfrt::tools {
 namespace {
@@ -274,17 +275,14 @@ int ConfigurePipeline(RunConfigState* state, pipeline::PipelineOptions* options)
       if (fd >= 0) ::close(fd);
     }
     const config::ProcessCapabilities caps = Capabilities();
-    state->process = std::make_unique<config::ProcessSettings>(p, caps);
-    state->process->ApplyProcessWide();
+    pipeline::ProfileRun run =
+        pipeline::ApplyProfileToRun(p, caps, /*keep_on_miss=*/false, options);
+    state->process = std::move(run.process);
     for (const config::SettingOutcome& o : state->process->Outcomes()) {
       std::cout << "  "
                 << (o.setting.rfind("memory.", 0) == 0 ? (o.applied ? "applied " : "refused ")
                                                        : "pending ")
                 << "  " << o.setting << " " << o.value << "\n";
-    }
-    if (state->process->has_thread_settings()) {
-      config::ProcessSettings* ps = state->process.get();
-      options->on_stage_start = [ps](int stage) { ps->ApplyToCurrentThread(stage); };
     }
     // Warn now about what the snapshot already refuses; failures found when a stage starts are
     // reported in the final summary.
@@ -299,22 +297,7 @@ int ConfigurePipeline(RunConfigState* state, pipeline::PipelineOptions* options)
         std::cerr << "sfrt run: warning: " << o.setting << ": " << o.note << std::endl;
       }
     }
-    if (p.prefault_arena) {
-      options->prefault = true;
-      state->applied.push_back("memory.prefault_arena (one inference on zeros at start)");
-    }
-    options->on_miss = p.on_miss;
-    if (p.on_miss == config::MissAction::kDropNext) {
-      state->applied.push_back("latency.on_miss drop-next");
-    }
-    if (p.on_miss == config::MissAction::kSmallerInput) {
-      options->smaller_input_on_miss = {p.fallback_height, p.fallback_width};
-      options->recover_after = p.recover_after_frames;
-      state->applied.push_back("latency.on_miss smaller-input " +
-                               std::to_string(p.fallback_height) + "x" +
-                               std::to_string(p.fallback_width) + " (full size again after " +
-                               std::to_string(p.recover_after_frames) + " in-budget frames)");
-    }
+    state->applied.insert(state->applied.end(), run.applied.begin(), run.applied.end());
     for (const std::string& s : state->not_applied) {
       std::cerr << "sfrt run: warning: " << s << std::endl;
     }
@@ -348,7 +331,8 @@ pipeline::PipelineResult RunConfiguredPipeline(
     // The infer stage's affinity and policy on the thread that creates the Session: its pool
     // inherits them; each stage thread then sets its own.
     std::thread runner([&] {
-      if (ps && ps->has_thread_settings()) ps->ApplyToCurrentThread(2);
+      if (ps && ps->has_thread_settings())
+        ps->ApplyToCurrentThread(config::StageIndex(config::Stage::kInfer));
       result = pipeline::RunPipeline(model, src, opts);
     });
     runner.join();
@@ -390,12 +374,12 @@ pipeline::PipelineResult RunConfiguredPipeline(
     for (const pipeline::PipelineResult& r : without) {
       c.frames_without += r.frames;
       e2e += r.end_to_end.p50;
-      infer += r.stage[2].p50;
+      infer += r.stage[config::StageIndex(config::Stage::kInfer)].p50;
     }
     c.e2e_p50_without_ms = e2e / static_cast<double>(without.size());
     c.infer_p50_without_ms = infer / static_cast<double>(without.size());
     c.e2e_p50_with_ms = result.end_to_end.p50;
-    c.infer_p50_with_ms = result.stage[2].p50;
+    c.infer_p50_with_ms = result.stage[config::StageIndex(config::Stage::kInfer)].p50;
     ab = c;
   }
   if (state->profiler && state->profiler->recorded() > 0) {

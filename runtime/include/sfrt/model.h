@@ -16,15 +16,18 @@
 // parameter ranges) and the CRC-32C of all weights. Any failure names the layer and field.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "sfrt/status.h"
+#include "sfrt/vocabulary/names.h"
 
 namespace sfrt {
 
@@ -60,12 +63,26 @@ enum class PaddingRule { kExplicit, kSameUpper, kSameLower };
 const char* PaddingRuleName(PaddingRule rule);
 // kToSecondInput (schema 1.5): to the height and width of the crop's second input.
 enum class CropRule { kExplicit, kToInputSize, kToSecondInput };
+// How a float model file stores its weights: "fp32", "fp16" (as sfrt export --weights says).
 enum class WeightType { kFloat32, kFloat16 };
+inline constexpr std::array<const char*, 2> kWeightTypeNames = {"fp32", "fp16"};
+constexpr const char* WeightTypeName(WeightType type) {
+  return vocabulary::NameOf(kWeightTypeNames, type);
+}
+constexpr std::optional<WeightType> WeightTypeFromName(std::string_view name) {
+  return vocabulary::FromName<WeightType>(kWeightTypeNames, name);
+}
 // The arithmetic a convolution runs in (schema 1.3; every layer of an older file is kFloat32).
 // kInt8: see ConvParams and docs/model-format.md, "Int8 arithmetic".
 enum class Precision { kFloat32, kInt8, kBFloat16 };
+inline constexpr std::array<const char*, 3> kPrecisionNames = {"fp32", "int8", "bf16"};
 // "fp32", "int8", "bf16".
-const char* PrecisionName(Precision precision);
+constexpr const char* PrecisionName(Precision precision) {
+  return vocabulary::NameOf(kPrecisionNames, precision);
+}
+constexpr std::optional<Precision> PrecisionFromName(std::string_view name) {
+  return vocabulary::FromName<Precision>(kPrecisionNames, name);
+}
 // Affine quantisation of an activation tensor: real = scale * (q - zero_point), q in 0..255.
 struct QuantParams {
   float scale = 1.0f;

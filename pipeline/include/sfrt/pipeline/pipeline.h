@@ -83,8 +83,13 @@ struct FrameMeta {
   // The sensor's own stamps of pair t and t+1 where the source has them (a bag's header stamps
   // of the left images, ns since the epoch); 0 otherwise.
   int64_t stamp_ns[2] = {0, 0};
-  // [stage][0 start, 1 end], CLOCK_MONOTONIC ns; stages: source, preprocess, infer, output.
-  int64_t stage_ns[4][2] = {};
+  // [stage][0 start, 1 end], CLOCK_MONOTONIC ns, indexed by config::Stage (source, preprocess,
+  // infer, output), or through start_ns(stage) and end_ns(stage).
+  int64_t stage_ns[config::kStageCount][2] = {};
+  int64_t& start_ns(config::Stage s) { return stage_ns[config::StageIndex(s)][0]; }
+  int64_t& end_ns(config::Stage s) { return stage_ns[config::StageIndex(s)][1]; }
+  int64_t start_ns(config::Stage s) const { return stage_ns[config::StageIndex(s)][0]; }
+  int64_t end_ns(config::Stage s) const { return stage_ns[config::StageIndex(s)][1]; }
   // Live sources, for pair t+1 (0 for files): when the frame with the later capture time was
   // dequeued, when the pair formed (its partner dequeued too) and when both were converted to BGR.
   // With capture_ns[1] and stage_ns they split the end-to-end latency (LatencyPart).
@@ -276,15 +281,15 @@ struct PipelineResult {
   // replay's windows wait in the queues, so its end to end measures throughput instead.
   profiling::Summary end_to_end;
   bool paced = false;
-  profiling::Summary stage[4];              // source, preprocess, infer, output
-  profiling::Summary parts[kLatencyParts];  // the end to end split (LatencyPart order)
-  int64_t misses = 0;                       // windows over the budget (or miss_verdict)
-  bool pictures_queued = false;             // PipelineOptions::picture_queue > 0 and pictures
-  profiling::Summary pictures_ms;           // then: the encoders' time per window
-  uint64_t pictures_dropped = 0;            // and the pictures dropped to keep up
-  camera::ChainCounts chain;                // FrameSource::chain_counts() at the end
-  int64_t frames_at_fallback_size = 0;      // written windows that ran at smaller_input_on_miss
-  int64_t fallback_entries = 0;             // switches from the model input size to the fallback
+  profiling::Summary stage[config::kStageCount];  // indexed by config::Stage
+  profiling::Summary parts[kLatencyParts];        // the end to end split (LatencyPart order)
+  int64_t misses = 0;                             // windows over the budget (or miss_verdict)
+  bool pictures_queued = false;                   // PipelineOptions::picture_queue > 0 and pictures
+  profiling::Summary pictures_ms;                 // then: the encoders' time per window
+  uint64_t pictures_dropped = 0;                  // and the pictures dropped to keep up
+  camera::ChainCounts chain;                      // FrameSource::chain_counts() at the end
+  int64_t frames_at_fallback_size = 0;  // written windows that ran at smaller_input_on_miss
+  int64_t fallback_entries = 0;         // switches from the model input size to the fallback
   std::vector<std::string> warnings;
 };
 

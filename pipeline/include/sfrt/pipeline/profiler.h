@@ -43,10 +43,14 @@ struct ProfiledFrame {
   int64_t frame0 = -1;
   int64_t frame1 = -1;
   int64_t capture_ns = 0;                    // capture of pair t+1: start of the end-to-end time
-  int64_t stage_ns[kProfileStages][2] = {};  // [stage][start, end]
-  bool has_steps = false;                    // the step times are valid
-  bool miss = false;                         // end to end over the budget
-  int input_height = 0;                      // the size the frame ran at (smaller-input)
+  int64_t stage_ns[kProfileStages][2] = {};  // [stage][start, end], indexed by config::Stage
+  int64_t& start_ns(config::Stage s) { return stage_ns[config::StageIndex(s)][0]; }
+  int64_t& end_ns(config::Stage s) { return stage_ns[config::StageIndex(s)][1]; }
+  int64_t start_ns(config::Stage s) const { return stage_ns[config::StageIndex(s)][0]; }
+  int64_t end_ns(config::Stage s) const { return stage_ns[config::StageIndex(s)][1]; }
+  bool has_steps = false;  // the step times are valid
+  bool miss = false;       // end to end over the budget
+  int input_height = 0;    // the size the frame ran at (smaller-input)
   int input_width = 0;
 };
 

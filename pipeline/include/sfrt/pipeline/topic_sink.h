@@ -72,7 +72,8 @@ class FlowTopicSink final : public FlowSink {
   Clock ros_now_;
   Publish publish_;
   // The output stage's thread only.
-  static constexpr int kSeries = 6;              // the four stages, end to end, stamp to publish
+  static constexpr int kSeries =
+      config::kStageCount + 2;                   // the stages, end to end, stamp to publish
   std::vector<profiling::LatestValues> recent_;  // the latest windows
   std::vector<profiling::LatestValues> all_;     // the run (for summary.json)
   int64_t last_window_ = -1;
