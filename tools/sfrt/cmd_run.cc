@@ -188,128 +188,121 @@ std::string Fixed(double v, int digits) {
   return buf;
 }
 
-int RunRun(const RunArgs& args, RunConfigState* rc) {
-  // Installed first and kept until the process exits: a signal while the model loads or the
-  // camera opens stops the run before its first frame, and one that lands after the pipeline
-  // has finished only sets a flag nobody reads any more; either way the summary is printed.
-  const StopSignals stop_signals = CatchStopSignals();
+// What the command line says about the source, checked (ParseSourceFlags).
+struct SourceFlags {
+  bool live = false;                 // --camera or --sbs-camera
+  bool plain = false;                // --replay-left/--replay-right
+  std::vector<std::string> devices;  // --camera's two
+  int cam_h = 0;
+  int cam_w = 0;
+  uint32_t fourcc = 0;  // --format; 0: auto
+  camera::BadFramePolicy on_bad = camera::BadFramePolicy::kStop;
+};
 
-  // ---- usage checks, before any file or device is touched
+// The source flags: exactly one source, its devices, sizes, format and bad-frame policy. A usage
+// error's message, or "".
+std::string ParseSourceFlags(const RunArgs& args, SourceFlags* flags) {
+  flags->plain = !args.replay_left.empty() || !args.replay_right.empty();
+  flags->live = !args.camera.empty() || !args.sbs_camera.empty();
   if (args.model.empty() || args.out.empty()) {
-    return ReportError(kName, "--model and --out are required (or a --config profile)", kExitUsage);
+    return "--model and --out are required (or a --config profile)";
   }
-  const bool plain = !args.replay_left.empty() || !args.replay_right.empty();
   const int sources = !args.camera.empty() + !args.sbs_camera.empty() + !args.replay.empty() +
-                      plain + !args.replay_video.empty() + !args.replay_bag.empty();
+                      flags->plain + !args.replay_video.empty() + !args.replay_bag.empty();
   if (sources != 1) {
-    return ReportError(kName,
-                       sources == 0 ? "no source: give one of --camera, --sbs-camera, --replay, "
-                                      "--replay-left/--replay-right, --replay-video, --replay-bag"
-                                    : "give exactly one source (--camera, --sbs-camera, "
-                                      "--replay, --replay-left/--replay-right, --replay-video, "
-                                      "--replay-bag)",
-                       kExitUsage);
+    return sources == 0 ? "no source: give one of --camera, --sbs-camera, --replay, "
+                          "--replay-left/--replay-right, --replay-video, --replay-bag"
+                        : "give exactly one source (--camera, --sbs-camera, "
+                          "--replay, --replay-left/--replay-right, --replay-video, "
+                          "--replay-bag)";
   }
   if (!args.replay_bag.empty() && args.loop != 1) {
-    return ReportError(kName, "--loop: passes over a bag are not supported; give --loop 1",
-                       kExitUsage);
+    return "--loop: passes over a bag are not supported; give --loop 1";
   }
-  if (plain && (args.replay_left.empty() || args.replay_right.empty())) {
-    return ReportError(kName, "--replay-left and --replay-right go together", kExitUsage);
+  if (flags->plain && (args.replay_left.empty() || args.replay_right.empty())) {
+    return "--replay-left and --replay-right go together";
   }
-  std::vector<std::string> devices = SplitComma(args.camera);
-  if (!args.camera.empty() && devices.size() != 2) {
-    return ReportError(kName,
-                       "--camera: expected two devices LEFT,RIGHT (e.g. /dev/video0,/dev/video2), "
-                       "got '" +
-                           args.camera + "'",
-                       kExitUsage);
+  flags->devices = SplitComma(args.camera);
+  if (!args.camera.empty() && flags->devices.size() != 2) {
+    return "--camera: expected two devices LEFT,RIGHT (e.g. /dev/video0,/dev/video2), "
+           "got '" +
+           args.camera + "'";
   }
-  const bool live = !args.camera.empty() || !args.sbs_camera.empty();
-  pipeline::PipelineOptions options;
-  if (!args.size.empty() && !ParseSize(args.size, &options.height, &options.width)) {
-    return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
-                       kExitUsage);
+  if (!ParseSize(args.camera_size, &flags->cam_h, &flags->cam_w)) {
+    return "--camera-size: expected HxW (e.g. 480x640), got '" + args.camera_size + "'";
   }
-  int cam_h = 0, cam_w = 0;
-  if (!ParseSize(args.camera_size, &cam_h, &cam_w)) {
-    return ReportError(kName,
-                       "--camera-size: expected HxW (e.g. 480x640), got '" + args.camera_size + "'",
-                       kExitUsage);
-  }
-  uint32_t fourcc = 0;
   if (args.format != "auto") {
     if (args.format.size() != 4) {
-      return ReportError(kName,
-                         "--format: expected auto or a fourcc (YUYV, MJPG, GREY, NV12, BGR3, "
-                         "RGB3), got '" +
-                             args.format + "'",
-                         kExitUsage);
+      return "--format: expected auto or a fourcc (YUYV, MJPG, GREY, NV12, BGR3, "
+             "RGB3), got '" +
+             args.format + "'";
     }
-    fourcc = v4l2_fourcc(args.format[0], args.format[1], args.format[2], args.format[3]);
+    flags->fourcc = v4l2_fourcc(args.format[0], args.format[1], args.format[2], args.format[3]);
   }
-  camera::BadFramePolicy on_bad =
-      live ? camera::BadFramePolicy::kSkip : camera::BadFramePolicy::kStop;
+  flags->on_bad = flags->live ? camera::BadFramePolicy::kSkip : camera::BadFramePolicy::kStop;
   if (!args.on_bad_frame.empty()) {
     auto parsed = camera::ParseBadFramePolicy(args.on_bad_frame);
     if (!parsed.ok()) {
-      return ReportError(kName,
-                         "--on-bad-frame: expected skip or stop, got '" + args.on_bad_frame + "'",
-                         kExitUsage);
+      return "--on-bad-frame: expected skip or stop, got '" + args.on_bad_frame + "'";
     }
-    on_bad = *parsed;
+    flags->on_bad = *parsed;
+  }
+  return "";
+}
+
+// The flags that set pipeline options before anything is opened: size, flow format, ISA, queue,
+// progress, the limits and bounds every value has, the pictures' scale. A usage error's
+// message, or "".
+std::string ParseOptionFlags(const RunArgs& args, const SourceFlags& flags,
+                             pipeline::PipelineOptions* options) {
+  if (!args.size.empty() && !ParseSize(args.size, &options->height, &options->width)) {
+    return "--size: expected HxW (e.g. 540x960), got '" + args.size + "'";
   }
   if (const std::optional<config::FlowFormat> format =
           config::FlowFormatFromName(args.flow_format)) {
-    options.flow_format = *format;
+    options->flow_format = *format;
   } else if (args.flow_format == "none") {
-    options.write_flow = false;
+    options->write_flow = false;
   } else {
-    return ReportError(kName,
-                       "--flow-format: expected pfm, npy or none, got '" + args.flow_format + "'",
-                       kExitUsage);
+    return "--flow-format: expected pfm, npy or none, got '" + args.flow_format + "'";
   }
-  if (args.isa != "auto" && (!ParseIsa(args.isa, &options.isa) || options.isa == Isa::kAuto)) {
-    return ReportError(kName, "--isa: '" + args.isa + "' is not one of " + IsaNameList(true),
-                       kExitUsage);
+  if (args.isa != "auto" && (!ParseIsa(args.isa, &options->isa) || options->isa == Isa::kAuto)) {
+    return "--isa: '" + args.isa + "' is not one of " + IsaNameList(true);
   }
-  if (options.isa != Isa::kAuto && !IsaSupported(options.isa)) {
-    return ReportError(kName,
-                       "--isa " + args.isa + ": this CPU (or this build) cannot run it; it runs " +
-                           SupportedIsaList(),
-                       kExitUsage);
+  if (options->isa != Isa::kAuto && !IsaSupported(options->isa)) {
+    return "--isa " + args.isa + ": this CPU (or this build) cannot run it; it runs " +
+           SupportedIsaList();
   }
   if (!args.queue.empty()) {
     if (args.queue == "newest-wins") {
-      options.policy = pipeline::QueuePolicy::kNewestWins;
+      options->policy = pipeline::QueuePolicy::kNewestWins;
     } else if (args.queue == "block") {
-      options.policy = pipeline::QueuePolicy::kBlock;
+      options->policy = pipeline::QueuePolicy::kBlock;
     } else {
-      return ReportError(kName, "--queue: expected newest-wins or block, got '" + args.queue + "'",
-                         kExitUsage);
+      return "--queue: expected newest-wins or block, got '" + args.queue + "'";
     }
   }
   if (args.progress == "auto") {
-    options.progress = pipeline::ProgressMode::kAuto;
+    options->progress = pipeline::ProgressMode::kAuto;
   } else if (args.progress == "tty") {
-    options.progress = pipeline::ProgressMode::kTty;
+    options->progress = pipeline::ProgressMode::kTty;
   } else if (args.progress == "lines") {
-    options.progress = pipeline::ProgressMode::kLines;
+    options->progress = pipeline::ProgressMode::kLines;
   } else if (args.progress == "off") {
-    options.progress = pipeline::ProgressMode::kOff;
+    options->progress = pipeline::ProgressMode::kOff;
   } else {
-    return ReportError(kName,
-                       "--progress: expected auto, tty, lines or off, got '" + args.progress + "'",
-                       kExitUsage);
+    return "--progress: expected auto, tty, lines or off, got '" + args.progress + "'";
   }
   for (const std::string& problem :
        {args.size.empty()
             ? std::string()
-            : config::CheckSize(config::kInputSide, "--size", options.height, options.width),
-        live ? config::CheckSize(config::kFrameSide, "--camera-size", cam_h, cam_w) : "",
+            : config::CheckSize(config::kInputSide, "--size", options->height, options->width),
+        flags.live
+            ? config::CheckSize(config::kFrameSide, "--camera-size", flags.cam_h, flags.cam_w)
+            : "",
         config::CheckRange(config::kThreads, "--threads", args.threads),
-        live ? config::CheckRange(config::kCameraBuffers, "--buffers", args.buffers) : ""}) {
-    if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
+        flags.live ? config::CheckRange(config::kCameraBuffers, "--buffers", args.buffers) : ""}) {
+    if (!problem.empty()) return problem;
   }
   // Each bound names its option (the values may come from a profile as well).
   for (const std::string& problem :
@@ -320,20 +313,27 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
         CheckAtLeast("--fps", args.fps, 0),
         CheckAbove("--camera-timeout-ms", static_cast<double>(args.camera_timeout_ms), 0),
         CheckAbove("--video-fps", args.video_fps, 0)}) {
-    if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
+    if (!problem.empty()) return problem;
   }
 
-  {
+  {  // the pictures' colour scale
     const std::string vis_scale = !args.vis_scale.empty() ? args.vis_scale
                                   : args.video.empty()    ? std::string("auto")
                                                           : std::string("first");
     Result<pipeline::VisScale> scale = pipeline::ParseVisScale(vis_scale);
-    if (!scale.ok()) return ReportError(kName, scale.message(), kExitUsage);
-    options.vis_scale = *scale;
+    if (!scale.ok()) return scale.message();
+    options->vis_scale = *scale;
   }
 
-  // ---- files: everything that can be checked is checked before the output directory is
-  // created or the source opened for the run, so a run that cannot start writes nothing.
+  return "";
+}
+
+// Everything that can be checked before the output directory is created or the source opened,
+// so that a run that cannot start writes nothing: the model, --out, the output files, the
+// calibration, the size against the model, the flow format against its output, --record-bag.
+// kExitOk, or the exit code after reporting.
+int CheckRunInputs(const RunArgs& args, pipeline::PipelineOptions* options,
+                   std::shared_ptr<const Model>* model) {
   if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
@@ -371,19 +371,20 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     }
     auto calib = camera::ReadStereoCalibration(files);
     if (!calib.ok()) return ReportError(kName, calib.message(), kExitFailure);
-    options.calibration = std::move(calib).value();
+    options->calibration = std::move(calib).value();
   }
   Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
+  *model = *loaded;
   if (!args.size.empty()) {
-    if (auto geometry = InferGeometry(**loaded, options.height, options.width); !geometry.ok()) {
+    if (auto geometry = InferGeometry(**loaded, options->height, options->width); !geometry.ok()) {
       return ReportError(kName, "--size " + args.size + ": " + geometry.message(), kExitUsage);
     }
   }
   // Options that cannot work with this model or path are usage errors, found before the output
   // directory is made or a frame read (the pipeline would only find them at its setup).
   const int channels = (*loaded)->metadata().output.channels;
-  if (options.write_flow && options.flow_format == pipeline::FlowFormat::kPfm && channels > 0 &&
+  if (options->write_flow && options->flow_format == pipeline::FlowFormat::kPfm && channels > 0 &&
       channels != 1 && channels != 3) {
     return ReportError(kName,
                        args.model + " outputs " + std::to_string(channels) +
@@ -395,27 +396,37 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
       return ReportError(kName, s.message(), kExitUsage);
     }
   }
+  return kExitOk;
+}
 
-  std::error_code ec;
+// The run's source, and what --profile-overhead needs to open it again.
+struct RunSource {
   std::unique_ptr<pipeline::FrameSource> source;
-  std::optional<pipeline::ReplaySpec> replay_spec;  // --profile-overhead replays it again
-  std::optional<pipeline::BagReplaySpec> bag_spec;  // the same for a bag
+  std::optional<pipeline::ReplaySpec> replay;
+  std::optional<pipeline::BagReplaySpec> bag;
   BagFormat bag_format;
-  if (live) {
+};
+
+// Opens the source the flags name (cameras, a bag, or files), each probed first. kExitOk, or the
+// exit code after reporting.
+int OpenRunSource(const RunArgs& args, const SourceFlags& flags, RunSource* out) {
+  std::error_code ec;
+  if (flags.live) {
     v4l2::StereoConfig config;
     config.mode = args.camera.empty() ? v4l2::StereoConfig::Mode::kSideBySide
                                       : v4l2::StereoConfig::Mode::kTwoDevices;
-    config.left.device = args.camera.empty() ? args.sbs_camera : devices[0];
-    config.left.pixel_format = fourcc;
-    config.left.width = config.mode == v4l2::StereoConfig::Mode::kSideBySide ? 2 * cam_w : cam_w;
-    config.left.height = cam_h;
+    config.left.device = args.camera.empty() ? args.sbs_camera : flags.devices[0];
+    config.left.pixel_format = flags.fourcc;
+    config.left.width =
+        config.mode == v4l2::StereoConfig::Mode::kSideBySide ? 2 * flags.cam_w : flags.cam_w;
+    config.left.height = flags.cam_h;
     config.left.fps = args.fps;
     config.left.buffer_count = args.buffers;
     config.left.watchdog_ms = args.camera_timeout_ms;
     config.right = config.left;
     if (!args.camera.empty()) {
-      config.right.device = devices[1];
-      config.right.width = cam_w;
+      config.right.device = flags.devices[1];
+      config.right.width = flags.cam_w;
     }
     // Default pairing tolerance: under half a frame period (0.45 of it), at most 8 ms... unless
     // the frame rate is unknown (--fps 0), then 8 ms.
@@ -425,14 +436,14 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
             : (args.fps > 0 ? static_cast<int64_t>(0.45e9 / args.fps) : int64_t{8'000'000});
     config.sbs_left_first = !args.right_first;
     config.timeout_ms = args.camera_timeout_ms;
-    source = pipeline::MakeCameraSource(config, on_bad);
+    out->source = pipeline::MakeCameraSource(config, flags.on_bad);
   } else if (!args.replay_bag.empty()) {
     pipeline::BagReplaySpec spec;
     spec.path = args.replay_bag;
     spec.left_topic = args.left_topic;
     spec.right_topic = args.right_topic;
     spec.pair_tolerance_ms = args.pair_tolerance_ms > 0 ? args.pair_tolerance_ms : 8.0;
-    spec.on_bad_frame = on_bad;
+    spec.on_bad_frame = flags.on_bad;
     if (!std::filesystem::is_directory(spec.path, ec)) {
       if (std::string problem = CheckInputFile(spec.path, "--replay-bag file"); !problem.empty()) {
         return ReportError(kName, problem, kExitFailure);
@@ -443,9 +454,9 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     if (Result<pipeline::BagProbe> probe = format->probe(spec); !probe.ok()) {
       return ReportError(kName, "--replay-bag: " + probe.message(), kExitUsage);
     }
-    bag_spec = spec;
-    bag_format = *format;
-    source = bag_format.make(spec);
+    out->bag = spec;
+    out->bag_format = *format;
+    out->source = out->bag_format.make(spec);
   } else {
     pipeline::ReplaySpec spec;
     if (!args.replay.empty()) {
@@ -455,7 +466,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
         return ReportError(kName, "--replay: dataset root '" + spec.root + "' does not exist",
                            kExitFailure);
       }
-    } else if (plain) {
+    } else if (flags.plain) {
       spec.kind = pipeline::ReplaySpec::Kind::kPlain;
       spec.left = args.replay_left;
       spec.right = args.replay_right;
@@ -469,92 +480,70 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     }
     spec.pass = args.pass;
     spec.video_left_first = !args.right_first;
-    spec.on_bad_frame = on_bad;
+    spec.on_bad_frame = flags.on_bad;
     spec.loops = args.loop;
     const char* flag = !args.replay.empty() ? "--replay"
-                       : plain              ? "--replay-left/--replay-right"
+                       : flags.plain        ? "--replay-left/--replay-right"
                                             : "--replay-video";
     if (Result<int64_t> probe = pipeline::ProbeReplay(spec); !probe.ok()) {
       return ReportError(kName, std::string(flag) + ": " + probe.message(), kExitUsage);
     }
-    replay_spec = spec;
-    source = pipeline::MakeReplaySource(spec);
+    out->replay = spec;
+    out->source = pipeline::MakeReplaySource(spec);
   }
-  std::filesystem::create_directories(args.out, ec);
-  if (!std::filesystem::is_directory(args.out, ec)) {
-    return ReportError(kName, "--out: cannot create the output directory '" + args.out + "'",
-                       kExitFailure);
-  }
+  return kExitOk;
+}
 
-  options.out_dir = args.out;
-  options.allow_aspect_change = args.allow_aspect_change;
-  options.on_output_error = *vocabulary::FailurePolicyFromName(args.on_output_error);
-  options.write_png = !args.no_png;
-  options.write_summary = !args.no_summary;
-  options.video_path = args.video;
-  options.video_fps = args.video_fps;
-  options.budget_ms = args.budget_ms;
-  options.max_frames = args.max_frames;
-  options.source_fps = args.replay_fps;
-  options.threads = args.threads;
-  options.queue_capacity = static_cast<size_t>(args.queue_depth);
-  if (args.picture_queue >= 0) options.picture_queue = static_cast<size_t>(args.picture_queue);
-  options.progress_every = args.progress_every;
-  options.model_path = args.model;
-  options.latency_log = args.latency_log;
-  options.stop = stop_signals.stop;
-  pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
-  options.log = &log;
-  std::unique_ptr<pipeline::FlowSink> bag_sink;
-  if (!args.record_bag.empty()) {
-    bag_sink = MakeBagRecorder(args, {options.vis_scale, (*loaded)->metadata().output.units});
-    options.sinks.push_back(bag_sink.get());
-    auto* inputs = dynamic_cast<pipeline::InputRecorder*>(bag_sink.get());
-    if (args.record_bag_inputs && inputs != nullptr) {
-      source = pipeline::MakeRecordingSource(std::move(source), inputs);
-    }
-  }
-  options.stop_signal = stop_signals.signal;
-  if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
+// The flags that only set options (checked already).
+void SetRunOptions(const RunArgs& args, pipeline::PipelineOptions* options) {
+  options->out_dir = args.out;
+  options->allow_aspect_change = args.allow_aspect_change;
+  options->on_output_error = *vocabulary::FailurePolicyFromName(args.on_output_error);
+  options->write_png = !args.no_png;
+  options->write_summary = !args.no_summary;
+  options->video_path = args.video;
+  options->video_fps = args.video_fps;
+  options->budget_ms = args.budget_ms;
+  options->max_frames = args.max_frames;
+  options->source_fps = args.replay_fps;
+  options->threads = args.threads;
+  options->queue_capacity = static_cast<size_t>(args.queue_depth);
+  if (args.picture_queue >= 0) options->picture_queue = static_cast<size_t>(args.picture_queue);
+  options->progress_every = args.progress_every;
+  options->model_path = args.model;
+  options->latency_log = args.latency_log;
+}
+
+// The ISA the run will use, from --isa, the profile or SFRT_ISA: refused before the run when this
+// CPU cannot run it or the model's precision needs kernels it lacks. kExitOk, or the exit code
+// after reporting.
+int CheckRunIsa(const RunArgs& args, const Model& model, pipeline::PipelineOptions* options) {
   // SFRT_ISA (when neither --isa nor the profile chose one) and the kernel switches.
-  if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
+  if (Status env = tools::ApplySessionEnvironment(options->isa, options->tuning); !env.ok()) {
     return ReportError(kName, env.message(), kExitUsage);
   }
   // An ISA from SFRT_ISA (or the profile) gets the same check as --isa: refused before the run.
-  if (options.isa != Isa::kAuto && !IsaSupported(options.isa)) {
+  if (options->isa != Isa::kAuto && !IsaSupported(options->isa)) {
     return ReportError(kName,
-                       std::string("ISA ") + IsaName(options.isa) +
+                       std::string("ISA ") + IsaName(options->isa) +
                            " (from --isa, the profile or SFRT_ISA): this CPU (or this build) "
                            "cannot run it; it runs " +
                            SupportedIsaList(),
                        kExitUsage);
   }
-  if (std::string problem = ForcedIsaPrecisionProblem(**loaded, options.isa); !problem.empty()) {
+  if (std::string problem = ForcedIsaPrecisionProblem(model, options->isa); !problem.empty()) {
     return ReportError(kName,
-                       args.model + ": " + problem + " (ISA " + IsaName(options.isa) +
+                       args.model + ": " + problem + " (ISA " + IsaName(options->isa) +
                            " from --isa, the profile or SFRT_ISA)",
                        kExitFailure);
   }
+  return kExitOk;
+}
 
-  std::function<std::unique_ptr<pipeline::FrameSource>()> again;
-  if (replay_spec) again = [&replay_spec] { return pipeline::MakeReplaySource(*replay_spec); };
-  if (bag_spec) again = [&bag_spec, &bag_format] { return bag_format.make(*bag_spec); };
-  // Every check has passed: the note belongs to a run that starts.
-  if (std::string notice = UntrainedNotice(args.model, (*loaded)->metadata().training);
-      !notice.empty()) {
-    std::cout << notice << "\n";
-  }
-  if (std::string notice = PrecisionFallbackNotice(**loaded, options.isa); !notice.empty()) {
-    std::cout << notice << "\n";
-  }
-  pipeline::PipelineResult result =
-      RunConfiguredPipeline(rc, *loaded, source.get(), options, again);
-  if (!result.started) {  // nothing ran: no statistics to show
-    return ReportError(kName, result.status.message(),
-                       result.usage_error ? kExitUsage : kExitFailure);
-  }
-
-  std::cout << "source      " << source->Describe() << "\n"
+// The console summary of a run that started: frames, throughput, stage and end-to-end latency
+// and its parts, pictures, the summary file.
+void PrintRunResult(const pipeline::FrameSource& source, const pipeline::PipelineResult& result) {
+  std::cout << "source      " << source.Describe() << "\n"
             << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n";
   if (result.chain.breaks() > 0) {
     std::cout << "windows     " << result.chain.breaks() << " pair(s) opened no window (lost frame "
@@ -591,6 +580,71 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
               << " ms per window, " << result.pictures_dropped << " dropped to keep up\n";
   }
   if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
+}
+
+int RunRun(const RunArgs& args, RunConfigState* rc) {
+  // Installed first and kept until the process exits: a signal while the model loads or the
+  // camera opens stops the run before its first frame, and one that lands after the pipeline
+  // has finished only sets a flag nobody reads any more; either way the summary is printed.
+  const StopSignals stop_signals = CatchStopSignals();
+  // Usage checks, before any file or device is touched.
+  SourceFlags flags;
+  pipeline::PipelineOptions options;
+  if (std::string usage = ParseSourceFlags(args, &flags); !usage.empty()) {
+    return ReportError(kName, usage, kExitUsage);
+  }
+  if (std::string usage = ParseOptionFlags(args, flags, &options); !usage.empty()) {
+    return ReportError(kName, usage, kExitUsage);
+  }
+  std::shared_ptr<const Model> model;
+  if (int code = CheckRunInputs(args, &options, &model); code != kExitOk) return code;
+  RunSource run_source;
+  if (int code = OpenRunSource(args, flags, &run_source); code != kExitOk) return code;
+  std::unique_ptr<pipeline::FrameSource>& source = run_source.source;
+  std::error_code ec;
+  std::filesystem::create_directories(args.out, ec);
+  if (!std::filesystem::is_directory(args.out, ec)) {
+    return ReportError(kName, "--out: cannot create the output directory '" + args.out + "'",
+                       kExitFailure);
+  }
+  SetRunOptions(args, &options);
+  options.stop = stop_signals.stop;
+  pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
+  options.log = &log;
+  std::unique_ptr<pipeline::FlowSink> bag_sink;
+  if (!args.record_bag.empty()) {
+    bag_sink = MakeBagRecorder(args, {options.vis_scale, model->metadata().output.units});
+    options.sinks.push_back(bag_sink.get());
+    auto* inputs = dynamic_cast<pipeline::InputRecorder*>(bag_sink.get());
+    if (args.record_bag_inputs && inputs != nullptr) {
+      source = pipeline::MakeRecordingSource(std::move(source), inputs);
+    }
+  }
+  options.stop_signal = stop_signals.signal;
+  if (int code = ConfigurePipeline(rc, &options); code != kExitOk) return code;
+  if (int code = CheckRunIsa(args, *model, &options); code != kExitOk) return code;
+
+  std::function<std::unique_ptr<pipeline::FrameSource>()> again;
+  if (run_source.replay) {
+    again = [&run_source] { return pipeline::MakeReplaySource(*run_source.replay); };
+  }
+  if (run_source.bag) {
+    again = [&run_source] { return run_source.bag_format.make(*run_source.bag); };
+  }
+  // Every check has passed: the note belongs to a run that starts.
+  if (std::string notice = UntrainedNotice(args.model, model->metadata().training);
+      !notice.empty()) {
+    std::cout << notice << "\n";
+  }
+  if (std::string notice = PrecisionFallbackNotice(*model, options.isa); !notice.empty()) {
+    std::cout << notice << "\n";
+  }
+  pipeline::PipelineResult result = RunConfiguredPipeline(rc, model, source.get(), options, again);
+  if (!result.started) {  // nothing ran: no statistics to show
+    return ReportError(kName, result.status.message(),
+                       result.usage_error ? kExitUsage : kExitFailure);
+  }
+  PrintRunResult(*source, result);
   PrintRunConfigReport(*rc, result, std::cout);
   if (!result.status.ok()) return ReportError(kName, result.status.message(), kExitFailure);
   if (rc->profile_write_failed) {  // asked for and measured, but lost: not a success
