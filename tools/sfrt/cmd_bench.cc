@@ -303,43 +303,17 @@ Json StepsJson(const std::vector<prof::StepRow>& rows) {
   return steps;
 }
 
-int RunBench(const BenchArgs& args) {
-  std::vector<Isa> isas;
-  std::vector<int> thread_counts;
-  if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
-    return ReportError(kName, problem, kExitUsage);
-  }
-  // Found out now, not after the measurements: where --json goes must take a file.
-  if (!args.json.empty()) {
-    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
-    }
-  }
-  if (args.peak_seconds < 0 || (args.peak && args.peak_seconds <= 0)) {
-    return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
-  }
-  if (args.peak) {
-    if (!args.model.empty() || args.budget_given) {
-      return ReportError(kName,
-                         "--peak runs only the peak microbenchmarks; it takes no --model or "
-                         "--budget-ms (a model run measures the peak by itself)",
-                         kExitUsage);
-    }
-    return RunPeak(args, isas, thread_counts);
-  }
-  if (args.model.empty()) {
-    return ReportError(kName, "--model is required (or --peak for the peak microbenchmarks)",
-                       kExitUsage);
-  }
-  int height = 0, width = 0;
-  if (!args.size.empty() && !ParseSize(args.size, &height, &width)) {
-    return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
-                       kExitUsage);
+// The flags of a model run: size, the bounds of runs and warm-ups, the budget and its
+// percentile. A usage error's message, or "".
+std::string CheckModelRunFlags(const BenchArgs& args, int* height, int* width,
+                               double* budget_percent) {
+  if (!args.size.empty() && !ParseSize(args.size, height, width)) {
+    return "--size: expected HxW (e.g. 540x960), got '" + args.size + "'";
   }
   if (!args.size.empty()) {  // without --size: the model's traced size, once it is loaded
-    if (std::string problem = config::CheckSize(config::kInputSide, "--size", height, width);
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", *height, *width);
         !problem.empty()) {
-      return ReportError(kName, problem, kExitUsage);
+      return problem;
     }
   }
   // Each bound names its option; the upper ones keep the timing buffers small (a run is kept).
@@ -349,41 +323,29 @@ int RunBench(const BenchArgs& args) {
         CheckAtLeast("--min-seconds", args.min_seconds, 0),
         CheckAtMost("--min-seconds", args.min_seconds, 86400),
         CheckAtLeast("--top", args.top, 0)}) {
-    if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
+    if (!problem.empty()) return problem;
   }
-  double budget_percent = 99;
   if (args.budget_given) {
     if (!(args.budget_ms > 0) || !std::isfinite(args.budget_ms)) {
-      return ReportError(kName,
-                         "--budget-ms must be a positive number of milliseconds, got " +
-                             FormatFloat(args.budget_ms),
-                         kExitUsage);
+      return "--budget-ms must be a positive number of milliseconds, got " +
+             FormatFloat(args.budget_ms);
     }
   }
-  if (!prof::ParsePercentile(args.budget_percentile, &budget_percent)) {
-    return ReportError(kName,
-                       "--budget-percentile: '" + args.budget_percentile +
-                           "' is not a percentile (p50, p90, p99, p99.9, max, or a number in "
-                           "(0, 100])",
-                       kExitUsage);
+  if (!prof::ParsePercentile(args.budget_percentile, budget_percent)) {
+    return "--budget-percentile: '" + args.budget_percentile +
+           "' is not a percentile (p50, p90, p99, p99.9, max, or a number in "
+           "(0, 100])";
   }
-  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
-    return ReportError(kName, problem, kExitFailure);
-  }
-  auto model = Model::LoadFile(args.model);
-  if (!model.ok()) return ReportError(kName, model.message(), kExitFailure);
-  std::string size_source = "--size";
-  if (args.size.empty()) size_source = DefaultInputSize((*model)->metadata(), &height, &width);
-  auto geometry = InferGeometry(**model, height, width);
-  if (!geometry.ok()) return ReportError(kName, geometry.message(), kExitFailure);
-  uint64_t macs = 0;
-  for (const LayerGeometry& g : *geometry) macs += g.macs;
+  return "";
+}
 
-  // Before any session's thread pool exists, so the pools' threads are counted too.
-  prof::MigrationCounter migrations;
-
+// One configuration per ISA and thread count, each with its session planned and its timing
+// buffers reserved for `runs` runs and some. kExitOk, or the exit code after reporting.
+int MakeConfigs(const BenchArgs& args, const std::shared_ptr<const Model>& model,
+                const std::vector<Isa>& isas, const std::vector<int>& thread_counts, int height,
+                int width, std::vector<Config>* configs_out) {
+  std::vector<Config>& configs = *configs_out;
   const size_t expected_runs = static_cast<size_t>(args.runs) + 16;
-  std::vector<Config> configs;
   for (Isa isa : isas) {
     for (int threads : thread_counts) {
       SessionOptions options;
@@ -394,13 +356,13 @@ int RunBench(const BenchArgs& args) {
       if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
         return ReportError(kName, env.message(), kExitUsage);
       }
-      auto session = Session::Create(*model, options);
+      auto session = Session::Create(model, options);
       if (!session.ok()) return ReportError(kName, session.message(), kExitFailure);
       Config c;
       c.isa = isa;
       c.threads = threads;
       c.session = std::move(session).value();
-      if (std::string notice = PrecisionFallbackNotice(**model, isa); !notice.empty()) {
+      if (std::string notice = PrecisionFallbackNotice(*model, isa); !notice.empty()) {
         std::printf("%s\n", notice.c_str());
       }
       for (const PlannedStep& step : c.session->steps()) {
@@ -421,31 +383,28 @@ int RunBench(const BenchArgs& args) {
     }
   }
 
-  const int channels = (*model)->metadata().input.channels;
-  std::vector<float> input(static_cast<size_t>(height) * width * channels);
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<float> dist(0.0f, 255.0f);
-  for (float& v : input) v = dist(rng);
-  std::vector<float> output(geometry->back().output.elements());
+  return kExitOk;
+}
 
-  // Three significant digits: a small model's 0.0217 GMAC is not "0.02 GMAC (0.0 GFLOP)".
-  std::printf("model  %s at %dx%d (%s): %.3g GMAC (%.3g GFLOP) per run\n", args.model.c_str(),
-              height, width, size_source.c_str(), static_cast<double>(macs) / 1e9,
-              2.0 * static_cast<double>(macs) / 1e9);
-  PrintBuildAndCpu();
-  for (const Config& c : configs) {
-    const std::string flags = prof::IsaFlags(IsaName(c.isa));
-    std::printf("  %-6s x%d threads: %s (kernels built with %s)\n", IsaName(c.isa), c.threads,
-                c.kernels.c_str(), flags.empty() ? "the build's flags" : flags.c_str());
-  }
-  std::fflush(stdout);
+// The input every configuration runs on (seeded), and the output buffer.
+struct BenchInput {
+  int height = 0;
+  int width = 0;
+  std::vector<float> input;
+  std::vector<float> output;
+};
 
+// The warm-up runs, then rounds of every configuration once until --runs and --min-seconds are
+// both reached, recording wall time, step times and the process counters. False after
+// reporting a failed run.
+bool TimeRuns(const BenchArgs& args, BenchInput& in, prof::MigrationCounter& migrations,
+              std::vector<Config>& configs) {
   using Clock = std::chrono::steady_clock;
   auto run_once = [&](Config& c, bool record) -> bool {
     const prof::ResourceUsage u0 = prof::ReadResourceUsage();
     const int64_t m0 = migrations.Read();
     const auto t0 = Clock::now();
-    const Status s = c.session->Run(input, height, width, output, c.stamps);
+    const Status s = c.session->Run(in.input, in.height, in.width, in.output, c.stamps);
     const auto t1 = Clock::now();
     const int64_t m1 = migrations.Read();
     const prof::ResourceUsage du = prof::ReadResourceUsage() - u0;
@@ -466,7 +425,7 @@ int RunBench(const BenchArgs& args) {
   };
   for (int i = 0; i < args.warmup; ++i) {
     for (Config& c : configs) {
-      if (!run_once(c, false)) return kExitFailure;
+      if (!run_once(c, false)) return false;
     }
   }
   // Round-robin: every configuration once per round.
@@ -475,31 +434,73 @@ int RunBench(const BenchArgs& args) {
     const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
     if (round >= args.runs && elapsed >= args.min_seconds) break;
     for (Config& c : configs) {
-      if (!run_once(c, true)) return kExitFailure;
+      if (!run_once(c, true)) return false;
     }
   }
-  const prof::ResourceUsage usage = prof::ReadResourceUsage();
+  return true;
+}
 
-  // Peak FMA throughput per distinct (ISA, threads), measured after the timed runs.
-  if (args.peak_seconds > 0) {
-    for (Config& c : configs) {
-      Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
-      if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
-      c.peak_gflops = peak->gflops;
-      c.peak_kernel = peak->kernel;
-    }
+// One configuration's results, for --json.
+Json ResultJson(const Config& c, const prof::Summary& s, double gflops, double percent_peak,
+                int top_count, const prof::MigrationCounter& migrations) {
+  const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
+  double steps_total = 0;
+  for (size_t r = 0; r < c.recorder->runs(); ++r) steps_total += c.recorder->total_ms(r);
+  steps_total /= static_cast<double>(std::max<size_t>(c.recorder->runs(), 1));
+  Json by_op = Json::array();
+  for (const prof::OpRow& op : prof::ByOp(rows)) {
+    by_op.push_back(Json{{"op", op.op},
+                         {"steps", op.steps},
+                         {"median_ms", op.median_ms},
+                         {"mean_ms", op.mean_ms},
+                         {"share", op.share}});
   }
+  Json top = Json::array();
+  for (const prof::StepRow& r : prof::TopSteps(rows, static_cast<size_t>(top_count))) {
+    top.push_back(r.step);
+  }
+  const RunCounters& k = c.counters;
+  Json per_run{{"wall_ms", k.wall_ms},
+               {"minor_faults", k.minor_faults},
+               {"major_faults", k.major_faults},
+               {"voluntary_switches", k.voluntary_switches},
+               {"involuntary_switches", k.involuntary_switches},
+               {"cpu_migrations", migrations.available() ? Json(k.migrations) : Json(nullptr)}};
+  return Json{{"isa", IsaName(c.isa)},
+              {"threads", c.threads},
+              {"runs", s.count},
+              {"median_ms", s.p50},
+              {"p90_ms", s.p90},
+              {"p99_ms", s.p99},
+              {"p999_ms", s.p999},
+              {"max_ms", s.max},
+              {"min_ms", s.min},
+              {"mean_ms", s.mean},
+              {"stddev_ms", s.stddev},
+              {"gflops", gflops},
+              {"peak_gflops", c.peak_gflops > 0 ? Json(c.peak_gflops) : Json()},
+              {"percent_of_peak", c.peak_gflops > 0 ? Json(percent_peak) : Json()},
+              {"peak_kernel", c.peak_kernel},
+              {"kernels", c.kernels},
+              {"isa_flags", prof::IsaFlags(IsaName(c.isa))},
+              {"steps_total_mean_ms", steps_total},
+              {"steps", StepsJson(rows)},
+              {"top_steps", top},
+              {"by_op", by_op},
+              {"per_run", per_run}};
+}
 
-  // Summary table.
+// The summary table (median, tails, GFLOP/s, share of peak, against the first configuration);
+// returns each configuration's results for --json.
+Json PrintSummaryTable(const BenchArgs& args, const std::vector<Config>& configs, uint64_t macs,
+                       const prof::MigrationCounter& migrations) {
   const double base = prof::Percentile(configs.front().counters.wall_ms, 0.5);
   std::printf("\n%-7s %7s %5s %9s %9s %9s %9s %9s %8s %9s %7s %9s\n", "isa", "threads", "runs",
               "median ms", "p90 ms", "p99 ms", "p99.9 ms", "max ms", "stddev", "GFLOP/s", "% peak",
               "vs first");
   Json results = Json::array();
-  std::vector<prof::Summary> summaries;
   for (const Config& c : configs) {
     const prof::Summary s = prof::Summarize(c.counters.wall_ms);
-    summaries.push_back(s);
     const double gflops = 2.0 * static_cast<double>(macs) / (s.p50 * 1e6);
     const double percent_peak = c.peak_gflops > 0 ? 100.0 * gflops / c.peak_gflops : NAN;
     std::printf("%-7s %7d %5zu %9s %9s %9s %9s %9s %8s %9s %7s %8sx\n", IsaName(c.isa), c.threads,
@@ -508,65 +509,14 @@ int RunBench(const BenchArgs& args) {
                 Fixed(gflops, 1).c_str(), Fixed(percent_peak, 1).c_str(),
                 Fixed(s.p50 / base, 3).c_str());
 
-    const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
-    double steps_total = 0;
-    for (size_t r = 0; r < c.recorder->runs(); ++r) steps_total += c.recorder->total_ms(r);
-    steps_total /= static_cast<double>(std::max<size_t>(c.recorder->runs(), 1));
-    Json by_op = Json::array();
-    for (const prof::OpRow& op : prof::ByOp(rows)) {
-      by_op.push_back(Json{{"op", op.op},
-                           {"steps", op.steps},
-                           {"median_ms", op.median_ms},
-                           {"mean_ms", op.mean_ms},
-                           {"share", op.share}});
-    }
-    Json top = Json::array();
-    for (const prof::StepRow& r : prof::TopSteps(rows, static_cast<size_t>(args.top))) {
-      top.push_back(r.step);
-    }
-    const RunCounters& k = c.counters;
-    Json per_run{{"wall_ms", k.wall_ms},
-                 {"minor_faults", k.minor_faults},
-                 {"major_faults", k.major_faults},
-                 {"voluntary_switches", k.voluntary_switches},
-                 {"involuntary_switches", k.involuntary_switches},
-                 {"cpu_migrations", migrations.available() ? Json(k.migrations) : Json(nullptr)}};
-    results.push_back(Json{{"isa", IsaName(c.isa)},
-                           {"threads", c.threads},
-                           {"runs", s.count},
-                           {"median_ms", s.p50},
-                           {"p90_ms", s.p90},
-                           {"p99_ms", s.p99},
-                           {"p999_ms", s.p999},
-                           {"max_ms", s.max},
-                           {"min_ms", s.min},
-                           {"mean_ms", s.mean},
-                           {"stddev_ms", s.stddev},
-                           {"gflops", gflops},
-                           {"peak_gflops", c.peak_gflops > 0 ? Json(c.peak_gflops) : Json()},
-                           {"percent_of_peak", c.peak_gflops > 0 ? Json(percent_peak) : Json()},
-                           {"peak_kernel", c.peak_kernel},
-                           {"kernels", c.kernels},
-                           {"isa_flags", prof::IsaFlags(IsaName(c.isa))},
-                           {"steps_total_mean_ms", steps_total},
-                           {"steps", StepsJson(rows)},
-                           {"top_steps", top},
-                           {"by_op", by_op},
-                           {"per_run", per_run}});
+    results.push_back(ResultJson(c, s, gflops, percent_peak, args.top, migrations));
   }
-  if (args.peak_seconds > 0) {
-    std::printf(
-        "%% peak: GFLOP/s / the peak FMA throughput of the same ISA and threads, measured "
-        "in this process after the runs:\n");
-    std::map<std::pair<Isa, int>, bool> shown;
-    for (const Config& c : configs) {
-      if (shown[{c.isa, c.threads}]) continue;
-      shown[{c.isa, c.threads}] = true;
-      std::printf("  %-6s x%d: %.1f GFLOP/s (%s)\n", IsaName(c.isa), c.threads, c.peak_gflops,
-                  c.peak_kernel.c_str());
-    }
-  }
+  return results;
+}
 
+// The process counters per run (faults, switches, migrations), median / max and the slowest run.
+void PrintProcessCounters(const std::vector<Config>& configs,
+                          const prof::MigrationCounter& migrations) {
   // Process counters per run.
   std::printf("\nper run, median / max (getrusage, whole process%s):\n",
               migrations.available() ? "; migrations: perf_event_open" : "");
@@ -597,7 +547,10 @@ int RunBench(const BenchArgs& args) {
   if (!migrations.available()) {
     std::printf("CPU migrations unavailable: %s\n", migrations.unavailable_reason().c_str());
   }
+}
 
+// Each configuration's steps in run order, the top steps and the time by op type.
+void PrintStepTables(const BenchArgs& args, const std::vector<Config>& configs) {
   // Per-step tables.
   for (const Config& c : configs) {
     const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
@@ -614,7 +567,147 @@ int RunBench(const BenchArgs& args) {
     std::printf("by op type:\n");
     std::fputs(prof::FormatOpTable(prof::ByOp(rows)).c_str(), stdout);
   }
+}
 
+// --budget-ms: each configuration's chosen percentile against the budget, printed and put in
+// `budget_json`. False when some configuration missed it.
+bool CheckBudget(const BenchArgs& args, double budget_percent, const std::vector<Config>& configs,
+                 Json* budget_json) {
+  bool budget_met = true;
+  const std::string label = prof::PercentileLabel(budget_percent);
+  Json budget_results = Json::array();
+  for (size_t i = 0; i < configs.size(); ++i) {
+    const Config& c = configs[i];
+    const double value = prof::Percentile(c.counters.wall_ms, budget_percent / 100.0);
+    const bool met = value <= args.budget_ms;
+    budget_met = budget_met && met;
+    if (met) {
+      std::printf("budget met: %s threads %s %.3f ms <= %s ms (%.3f ms to spare)\n",
+                  ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
+                  Milliseconds(args.budget_ms).c_str(), args.budget_ms - value);
+    } else {
+      std::printf("budget MISSED: %s threads %s %.3f ms > %s ms, over by %.3f ms (%.1f%%)\n",
+                  ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
+                  Milliseconds(args.budget_ms).c_str(), value - args.budget_ms,
+                  100.0 * (value - args.budget_ms) / args.budget_ms);
+    }
+    budget_results.push_back(Json{{"isa", IsaName(c.isa)},
+                                  {"threads", c.threads},
+                                  {"value_ms", value},
+                                  {"met", met},
+                                  {"over_ms", value - args.budget_ms}});
+  }
+  *budget_json = Json{{"budget_ms", args.budget_ms},
+                      {"percentile", label},
+                      {"met", budget_met},
+                      {"results", budget_results}};
+  return budget_met;
+}
+
+int RunBench(const BenchArgs& args) {
+  std::vector<Isa> isas;
+  std::vector<int> thread_counts;
+  if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
+  }
+  // Found out now, not after the measurements: where --json goes must take a file.
+  if (!args.json.empty()) {
+    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
+  if (args.peak_seconds < 0 || (args.peak && args.peak_seconds <= 0)) {
+    return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
+  }
+  if (args.peak) {
+    if (!args.model.empty() || args.budget_given) {
+      return ReportError(kName,
+                         "--peak runs only the peak microbenchmarks; it takes no --model or "
+                         "--budget-ms (a model run measures the peak by itself)",
+                         kExitUsage);
+    }
+    return RunPeak(args, isas, thread_counts);
+  }
+  if (args.model.empty()) {
+    return ReportError(kName, "--model is required (or --peak for the peak microbenchmarks)",
+                       kExitUsage);
+  }
+  int height = 0, width = 0;
+  double budget_percent = 99;
+  if (std::string problem = CheckModelRunFlags(args, &height, &width, &budget_percent);
+      !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
+  }
+  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
+    return ReportError(kName, problem, kExitFailure);
+  }
+  auto model = Model::LoadFile(args.model);
+  if (!model.ok()) return ReportError(kName, model.message(), kExitFailure);
+  std::string size_source = "--size";
+  if (args.size.empty()) size_source = DefaultInputSize((*model)->metadata(), &height, &width);
+  auto geometry = InferGeometry(**model, height, width);
+  if (!geometry.ok()) return ReportError(kName, geometry.message(), kExitFailure);
+  uint64_t macs = 0;
+  for (const LayerGeometry& g : *geometry) macs += g.macs;
+
+  // Before any session's thread pool exists, so the pools' threads are counted too.
+  prof::MigrationCounter migrations;
+  std::vector<Config> configs;
+  if (int code = MakeConfigs(args, *model, isas, thread_counts, height, width, &configs);
+      code != kExitOk) {
+    return code;
+  }
+  BenchInput in;
+  in.height = height;
+  in.width = width;
+  const int channels = (*model)->metadata().input.channels;
+  in.input.resize(static_cast<size_t>(height) * width * channels);
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> dist(0.0f, 255.0f);
+  for (float& v : in.input) v = dist(rng);
+  in.output.resize(geometry->back().output.elements());
+
+  // Three significant digits: a small model's 0.0217 GMAC is not "0.02 GMAC (0.0 GFLOP)".
+  std::printf("model  %s at %dx%d (%s): %.3g GMAC (%.3g GFLOP) per run\n", args.model.c_str(),
+              height, width, size_source.c_str(), static_cast<double>(macs) / 1e9,
+              2.0 * static_cast<double>(macs) / 1e9);
+  PrintBuildAndCpu();
+  for (const Config& c : configs) {
+    const std::string flags = prof::IsaFlags(IsaName(c.isa));
+    std::printf("  %-6s x%d threads: %s (kernels built with %s)\n", IsaName(c.isa), c.threads,
+                c.kernels.c_str(), flags.empty() ? "the build's flags" : flags.c_str());
+  }
+  std::fflush(stdout);
+
+  if (!TimeRuns(args, in, migrations, configs)) return kExitFailure;
+  const prof::ResourceUsage usage = prof::ReadResourceUsage();
+
+  // Peak FMA throughput per distinct (ISA, threads), measured after the timed runs.
+  if (args.peak_seconds > 0) {
+    for (Config& c : configs) {
+      Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
+      if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
+      c.peak_gflops = peak->gflops;
+      c.peak_kernel = peak->kernel;
+    }
+  }
+
+  const Json results = PrintSummaryTable(args, configs, macs, migrations);
+  if (args.peak_seconds > 0) {
+    std::printf(
+        "%% peak: GFLOP/s / the peak FMA throughput of the same ISA and threads, measured "
+        "in this process after the runs:\n");
+    std::map<std::pair<Isa, int>, bool> shown;
+    for (const Config& c : configs) {
+      if (shown[{c.isa, c.threads}]) continue;
+      shown[{c.isa, c.threads}] = true;
+      std::printf("  %-6s x%d: %.1f GFLOP/s (%s)\n", IsaName(c.isa), c.threads, c.peak_gflops,
+                  c.peak_kernel.c_str());
+    }
+  }
+
+  PrintProcessCounters(configs, migrations);
+  PrintStepTables(args, configs);
   std::printf("\n");
   if (configs.size() == 1) {
     std::printf(
@@ -628,38 +721,9 @@ int RunBench(const BenchArgs& args) {
         static_cast<double>(usage.max_rss_kib) / 1024.0, configs.size());
   }
 
-  // Budget.
   bool budget_met = true;
   Json budget_json;
-  if (args.budget_given) {
-    const std::string label = prof::PercentileLabel(budget_percent);
-    Json budget_results = Json::array();
-    for (size_t i = 0; i < configs.size(); ++i) {
-      const Config& c = configs[i];
-      const double value = prof::Percentile(c.counters.wall_ms, budget_percent / 100.0);
-      const bool met = value <= args.budget_ms;
-      budget_met = budget_met && met;
-      if (met) {
-        std::printf("budget met: %s threads %s %.3f ms <= %s ms (%.3f ms to spare)\n",
-                    ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
-                    Milliseconds(args.budget_ms).c_str(), args.budget_ms - value);
-      } else {
-        std::printf("budget MISSED: %s threads %s %.3f ms > %s ms, over by %.3f ms (%.1f%%)\n",
-                    ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
-                    Milliseconds(args.budget_ms).c_str(), value - args.budget_ms,
-                    100.0 * (value - args.budget_ms) / args.budget_ms);
-      }
-      budget_results.push_back(Json{{"isa", IsaName(c.isa)},
-                                    {"threads", c.threads},
-                                    {"value_ms", value},
-                                    {"met", met},
-                                    {"over_ms", value - args.budget_ms}});
-    }
-    budget_json = Json{{"budget_ms", args.budget_ms},
-                       {"percentile", label},
-                       {"met", budget_met},
-                       {"results", budget_results}};
-  }
+  if (args.budget_given) budget_met = CheckBudget(args, budget_percent, configs, &budget_json);
 
   if (!args.json.empty()) {
     Json json{{"model", args.model},
