@@ -167,7 +167,8 @@ class Session {
   class Pool;
   Session() = default;
   Status Plan();
-  size_t PlanSteps();                 // Plan, step 1
+  class StepPlanner;
+  size_t PlanSteps();                 // Plan, step 1 (step_planner.cc)
   void PlaceConcatInputs();           // Plan, step 1b
   Status PackWeights();               // Plan, step 2
   Status PlanTensors(size_t gather);  // Plan, step 3
