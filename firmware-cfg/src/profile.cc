@@ -24,48 +24,11 @@
 #include "sfrt/camera/calibration.h"
 #include "sfrt/config/limits.h"
 #include "sfrt/model.h"
+#include "text.h"
 
 namespace sfrt::config {
 
 namespace fs = std::filesystem;
-
-const char* PixelFormatName(PixelFormat f) {
-  switch (f) {
-    case PixelFormat::kYuyv:
-      return "YUYV";
-    case PixelFormat::kMjpeg:
-      return "MJPEG";
-    case PixelFormat::kGrey:
-      return "GREY";
-    case PixelFormat::kNv12:
-      return "NV12";
-    case PixelFormat::kBgr24:
-      return "BGR24";
-    case PixelFormat::kRgb24:
-      return "RGB24";
-  }
-  return "?";
-}
-
-const char* SourceKindName(SourceKind k) {
-  switch (k) {
-    case SourceKind::kStereoCameras:
-      return "stereo cameras";
-    case SourceKind::kSbsCamera:
-      return "side-by-side camera";
-    case SourceKind::kReplayDataset:
-      return "replay dataset";
-    case SourceKind::kReplayGlobs:
-      return "replay left/right frames";
-    case SourceKind::kReplayVideo:
-      return "replay side-by-side video";
-  }
-  return "?";
-}
-
-const char* SbsOrderName(SbsOrder o) {
-  return o == SbsOrder::kLeftRight ? "left-right" : "right-left";
-}
 
 std::string Diagnostic::ToString() const {
   std::string out = file;
@@ -104,15 +67,6 @@ std::string Lower(std::string s) {
   return s;
 }
 
-std::string Join(const std::vector<std::string>& items, const char* sep = ", ") {
-  std::string out;
-  for (const std::string& item : items) {
-    if (!out.empty()) out += sep;
-    out += item;
-  }
-  return out;
-}
-
 // The closest candidate when it is close enough to be a plausible typo; "" otherwise.
 std::string Suggest(const std::string& word, const std::vector<std::string>& candidates) {
   std::string best;
@@ -127,12 +81,6 @@ std::string Suggest(const std::string& word, const std::vector<std::string>& can
   }
   const int limit = std::max(2, static_cast<int>(word.size()) / 3);
   return best_distance <= limit ? best : "";
-}
-
-std::string FormatNumber(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
 }
 
 struct Pos {
@@ -471,12 +419,6 @@ const std::vector<std::string> kTopKeys = {"version", "name",        "descriptio
                                            "replay",  "calibration", "model",       "stages",
                                            "memory",  "latency",     "outputs",     "logging"};
 
-const std::vector<std::pair<std::string, PixelFormat>> kPixelFormats = {
-    {"YUYV", PixelFormat::kYuyv}, {"MJPEG", PixelFormat::kMjpeg}, {"GREY", PixelFormat::kGrey},
-    {"NV12", PixelFormat::kNv12}, {"BGR24", PixelFormat::kBgr24}, {"RGB24", PixelFormat::kRgb24}};
-const std::vector<std::pair<std::string, SbsOrder>> kOrders = {
-    {"left-right", SbsOrder::kLeftRight}, {"right-left", SbsOrder::kRightLeft}};
-
 class Parser {
  public:
   Parser(Checker& checker, DeploymentProfile& profile) : c_(checker), p_(profile) {}
@@ -569,13 +511,13 @@ class Parser {
       m.Forbid("order", "order applies to mode: side-by-side");
     } else if (mode == SourceKind::kSbsCamera) {
       cam.device = ReadDevice(m.Require("device", "an absolute device path such as /dev/video0"));
-      if (auto v = ReadEnum(c_, m.Get("order"), kOrders)) cam.order = *v;
+      if (auto v = ReadEnum<SbsOrder>(c_, m.Get("order"), kSbsOrderNames)) cam.order = *v;
       m.Forbid("left_device", "two devices need mode: stereo");
       m.Forbid("right_device", "two devices need mode: stereo");
       m.Forbid("pair_tolerance_ms", "one side-by-side device needs no pairing");
     }
     const Field fmt_field = m.Require("pixel_format", "YUYV, MJPEG, GREY, NV12, BGR24, RGB24");
-    const auto fmt = ReadEnum(c_, fmt_field, kPixelFormats);
+    const auto fmt = ReadEnum<PixelFormat>(c_, fmt_field, kPixelFormatNames);
     if (fmt) cam.pixel_format = *fmt;
     const Field width = m.Require("width", "integer " + RangeText(kFrameSide));
     const Field height = m.Require("height", "integer " + RangeText(kFrameSide));
@@ -658,7 +600,7 @@ class Parser {
       if (!r.video.empty() && !IsRegularFile(r.video)) {
         c_.Error(f.pos, f.path, "video file does not exist: '" + r.video + "'");
       }
-      if (auto v = ReadEnum(c_, m.Get("order"), kOrders)) r.video_order = *v;
+      if (auto v = ReadEnum<SbsOrder>(c_, m.Get("order"), kSbsOrderNames)) r.video_order = *v;
     }
     if (!video) m.Forbid("order", "order applies to a side-by-side video");
     if (auto v = ReadEnum<camera::BadFramePolicy>(c_, m.Get("on_bad_frame"),
@@ -1048,83 +990,6 @@ Result<DeploymentProfile> LoadProfile(const std::string& path, ValidationReport*
     return Finish(DeploymentProfile{}, local, report);
   }
   return LoadProfileFromString(text, path, report);
-}
-
-std::string FormatProfileSummary(const DeploymentProfile& p) {
-  std::ostringstream s;
-  auto row = [&s](const char* label, const std::string& value) {
-    const size_t width = std::strlen(label);
-    s << "  " << label << std::string(width < 16 ? 18 - width : 2, ' ') << value << "\n";
-  };
-  if (!p.name.empty()) row("name", p.name);
-  std::string source = SourceKindName(p.source);
-  const CameraSettings& cam = p.camera;
-  switch (p.source) {
-    case SourceKind::kStereoCameras:
-      source += " " + cam.left_device + " + " + cam.right_device;
-      break;
-    case SourceKind::kSbsCamera:
-      source += " " + cam.device + " (" + SbsOrderName(cam.order) + ")";
-      break;
-    case SourceKind::kReplayDataset:
-      source += " " + p.replay.dataset;
-      break;
-    case SourceKind::kReplayGlobs:
-      source += " " + p.replay.left + " | " + p.replay.right;
-      break;
-    case SourceKind::kReplayVideo:
-      source += " " + p.replay.video + " (" + SbsOrderName(p.replay.video_order) + ")";
-      break;
-  }
-  row("source", source);
-  if (p.source == SourceKind::kStereoCameras || p.source == SourceKind::kSbsCamera) {
-    std::string c = std::string(PixelFormatName(cam.pixel_format)) + " " +
-                    std::to_string(cam.height) + "x" + std::to_string(cam.width) + " (HxW) at " +
-                    FormatNumber(cam.fps) + " fps, " + std::to_string(cam.buffer_count) +
-                    " buffers";
-    if (p.source == SourceKind::kStereoCameras) {
-      c += ", pairing within " + FormatNumber(cam.pair_tolerance_ms) + " ms";
-    }
-    row("capture", c);
-  } else {
-    row("on bad frame", std::string(camera::BadFramePolicyName(p.replay.on_bad_frame)) +
-                            (p.replay.loop ? ", loop" : ""));
-  }
-  row("calibration", p.calibration.empty() ? "none (no rectification)" : Join(p.calibration));
-  row("model", p.model_file + " at " + std::to_string(p.input_height) + "x" +
-                   std::to_string(p.input_width) + " (HxW)");
-  for (int i = 0; i < kStageCount; ++i) {
-    const StageSettings& st = p.stages[i];
-    std::string v = std::to_string(st.threads) + (st.threads == 1 ? " thread" : " threads");
-    if (st.cpus.empty()) {
-      v += ", any CPU";
-    } else {
-      std::vector<std::string> cpus;
-      for (int cpu : st.cpus) cpus.push_back(std::to_string(cpu));
-      v += ", CPUs " + Join(cpus, ",");
-    }
-    v += st.rt_priority ? ", SCHED_FIFO " + std::to_string(*st.rt_priority) : ", SCHED_OTHER";
-    const std::string label = std::string("stage ") + StageName(static_cast<Stage>(i));
-    row(label.c_str(), v);
-  }
-  row("memory", std::string("mlockall ") + (p.mlockall ? "on" : "off") + ", arena prefault " +
-                    (p.prefault_arena ? "on" : "off") + ", cap " +
-                    (p.memory_cap_mib ? std::to_string(*p.memory_cap_mib) + " MiB" : "none"));
-  std::string latency = "p" + FormatNumber(p.budget_percentile) +
-                        " <= " + FormatNumber(p.budget_ms) + " ms; on miss " +
-                        MissActionName(p.on_miss);
-  if (p.on_miss == MissAction::kSmallerInput) {
-    latency += " " + std::to_string(p.fallback_height) + "x" + std::to_string(p.fallback_width);
-  }
-  row("latency", latency);
-  std::string out = p.output_dir + ": flow ";
-  out += p.write_flow ? FlowFormatName(p.flow_format) : "off";
-  out += std::string(", visualisation ") + (p.visualisation ? "on" : "off") + ", video " +
-         (p.video ? "on" : "off") + ", summary " + (p.summary ? "on" : "off");
-  row("outputs", out);
-  row("logging", std::string(LogLevelName(p.log_level)) + " to " +
-                     (p.log_file.empty() ? "stderr" : p.log_file));
-  return s.str();
 }
 
 }  // namespace sfrt::config

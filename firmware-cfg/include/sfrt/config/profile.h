@@ -20,6 +20,7 @@
 // Thread-safety: the functions are reentrant; they share no state.
 #pragma once
 
+#include <array>
 #include <iosfwd>
 #include <optional>
 #include <string>
@@ -43,10 +44,21 @@ enum class SourceKind {
 };
 enum class SbsOrder { kLeftRight, kRightLeft };  // which half is the left image
 
-// Canonical spellings as written in profiles ("MJPEG", "drop-next", "pfm", ...).
-const char* PixelFormatName(PixelFormat f);
-const char* SourceKindName(SourceKind k);  // "stereo cameras", "side-by-side camera", ...
-const char* SbsOrderName(SbsOrder o);
+// Canonical spellings as written in profiles ("MJPEG", "left-right"), and the source kinds as the
+// profile summary names them ("stereo cameras", "side-by-side camera", ...).
+inline constexpr std::array<const char*, 6> kPixelFormatNames = {"YUYV", "MJPEG", "GREY",
+                                                                 "NV12", "BGR24", "RGB24"};
+inline constexpr std::array<const char*, 5> kSourceKindNames = {
+    "stereo cameras", "side-by-side camera", "replay dataset", "replay left/right frames",
+    "replay side-by-side video"};
+inline constexpr std::array<const char*, 2> kSbsOrderNames = {"left-right", "right-left"};
+constexpr const char* PixelFormatName(PixelFormat f) {
+  return vocabulary::NameOf(kPixelFormatNames, f);
+}
+constexpr const char* SourceKindName(SourceKind k) {
+  return vocabulary::NameOf(kSourceKindNames, k);
+}
+constexpr const char* SbsOrderName(SbsOrder o) { return vocabulary::NameOf(kSbsOrderNames, o); }
 
 // camera: (live capture). width/height are the device frame; for a side-by-side camera the full
 // frame, both halves.
