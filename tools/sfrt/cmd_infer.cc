@@ -336,17 +336,21 @@ struct ChannelStats {
   size_t inf = 0;
 };
 
-int RunInfer(const InferArgs& args) {
-  // Usage checks: decided from the command line alone, before any file is read.
+// Whether any RGB-D frame option was given.
+bool AnyRgbd(const InferArgs& args) {
+  return !args.color0.empty() || !args.depth0.empty() || !args.color1.empty() ||
+         !args.depth1.empty();
+}
+
+// The checks decided from the command line alone, before any file is read: one input kind, all
+// of its options, the depth units, --size, the output's format. A usage error's message, or "".
+std::string CheckInferFlags(const InferArgs& args, int* resize_h, int* resize_w) {
   const bool any_image =
       !args.left0.empty() || !args.right0.empty() || !args.left1.empty() || !args.right1.empty();
-  const bool any_rgbd =
-      !args.color0.empty() || !args.depth0.empty() || !args.color1.empty() || !args.depth1.empty();
+  const bool any_rgbd = AnyRgbd(args);
   if (int(any_image) + int(any_rgbd) + int(!args.input_npy.empty()) > 1) {
-    return ReportError(kName,
-                       "give one input: the four stereo images, the two RGB-D frames or "
-                       "--input-npy",
-                       kExitUsage);
+    return "give one input: the four stereo images, the two RGB-D frames or "
+           "--input-npy";
   }
   if (any_rgbd) {
     std::string missing;
@@ -355,10 +359,8 @@ int RunInfer(const InferArgs& args) {
     if (args.color1.empty()) missing += " --color1";
     if (args.depth1.empty()) missing += " --depth1";
     if (!missing.empty()) {
-      return ReportError(kName,
-                         "missing RGB-D option(s):" + missing +
-                             " (all four of --color0 --depth0 --color1 --depth1 are needed)",
-                         kExitUsage);
+      return "missing RGB-D option(s):" + missing +
+             " (all four of --color0 --depth0 --color1 --depth1 are needed)";
     }
   } else if (args.input_npy.empty()) {
     std::string missing;
@@ -367,46 +369,100 @@ int RunInfer(const InferArgs& args) {
     if (args.left1.empty()) missing += " --left1";
     if (args.right1.empty()) missing += " --right1";
     if (!missing.empty()) {
-      return ReportError(kName,
-                         any_image ? "missing image option(s):" + missing +
-                                         " (all four of --left0 --right0 --left1 --right1 are "
-                                         "needed)"
-                                   : "no input: give --left0 --right0 --left1 --right1, "
-                                     "--color0 --depth0 --color1 --depth1, or --input-npy",
-                         kExitUsage);
+      return any_image ? "missing image option(s):" + missing +
+                             " (all four of --left0 --right0 --left1 --right1 are "
+                             "needed)"
+                       : "no input: give --left0 --right0 --left1 --right1, "
+                         "--color0 --depth0 --color1 --depth1, or --input-npy";
     }
   }
   if (!(args.depth_units > 0) || !std::isfinite(args.depth_units)) {
-    return ReportError(
-        kName, "--depth-units: must be positive, got " + FormatFloat(args.depth_units), kExitUsage);
+    return "--depth-units: must be positive, got " + FormatFloat(args.depth_units);
   }
-  int resize_h = 0;
-  int resize_w = 0;
   if (!args.size.empty()) {
-    if (!ParseSize(args.size, &resize_h, &resize_w)) {
-      return ReportError(
-          kName,
-          "--size: expected HxW with positive integers (e.g. 540x960), got '" + args.size + "'",
-          kExitUsage);
+    if (!ParseSize(args.size, resize_h, resize_w)) {
+      return "--size: expected HxW with positive integers (e.g. 540x960), got '" + args.size + "'";
     }
     if (!args.input_npy.empty()) {
-      return ReportError(kName, "--size resizes images; it cannot be used with --input-npy",
-                         kExitUsage);
+      return "--size resizes images; it cannot be used with --input-npy";
     }
-    if (std::string problem = config::CheckSize(config::kInputSide, "--size", resize_h, resize_w);
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", *resize_h, *resize_w);
         !problem.empty()) {
-      return ReportError(kName, problem, kExitUsage);
+      return problem;
     }
   }
-  const std::string out_ext = LowerExtension(args.output);
-  if (out_ext != ".pfm" && out_ext != ".npy") {
-    return ReportError(kName,
-                       "-o " + args.output + ": unsupported output format '" +
-                           (out_ext.empty() ? std::string("(no extension)") : out_ext) +
-                           "' (supported: .pfm, 3-channel PFM; .npy, float32 (H,W,3))",
-                       kExitUsage);
+  if (const std::string out_ext = LowerExtension(args.output);
+      out_ext != ".pfm" && out_ext != ".npy") {
+    return "-o " + args.output + ": unsupported output format '" +
+           (out_ext.empty() ? std::string("(no extension)") : out_ext) +
+           "' (supported: .pfm, 3-channel PFM; .npy, float32 (H,W,3))";
   }
 
+  return "";
+}
+
+// Per output channel: min, max and mean over the finite values; then whether every value is
+// finite.
+void PrintOutputStats(const std::vector<float>& output, const TensorShape& shape,
+                      const ModelMetadata& meta) {
+  const size_t channels = static_cast<size_t>(shape.channels);
+  std::vector<ChannelStats> stats(channels);
+  for (size_t i = 0; i < output.size(); ++i) {
+    ChannelStats& s = stats[i % channels];
+    const float v = output[i];
+    if (std::isnan(v)) {
+      ++s.nan;
+    } else if (std::isinf(v)) {
+      ++s.inf;
+    } else {
+      s.finite.Add(v);
+    }
+  }
+  std::cout << "output  " << shape.height << "x" << shape.width << "x" << shape.channels
+            << " (units: " << UnitsText(meta) << ")\n";
+  size_t nan = 0;
+  size_t inf = 0;
+  for (size_t c = 0; c < channels; ++c) {
+    const ChannelStats& s = stats[c];
+    std::string name = c < meta.output.channel_names.size() ? meta.output.channel_names[c]
+                                                            : "ch" + std::to_string(c);
+    char line[160];
+    if (s.finite.count() > 0) {
+      std::snprintf(line, sizeof(line), "  %-4s  min %12.6g  max %12.6g  mean %12.6g", name.c_str(),
+                    s.finite.min(), s.finite.max(), s.finite.mean());
+    } else {
+      std::snprintf(line, sizeof(line), "  %-4s  no finite values", name.c_str());
+    }
+    std::cout << line << "\n";
+    nan += s.nan;
+    inf += s.inf;
+  }
+  if (nan == 0 && inf == 0) {
+    std::cout << "finite  yes (all " << GroupDigits(output.size()) << " values)\n";
+  } else {
+    std::cout << "finite  NO: " << GroupDigits(nan) << " NaN, " << GroupDigits(inf)
+              << " infinite of " << GroupDigits(output.size()) << " values\n";
+  }
+}
+
+// The flow as .pfm or .npy, as `path` says (checked by CheckInferFlags).
+Status WriteFlow(const std::string& path, const std::vector<float>& output,
+                 const TensorShape& shape) {
+  if (LowerExtension(path) == ".pfm") {
+    return io::WritePfm(path, output, shape.height, shape.width, shape.channels);
+  }
+  const int64_t dims[3] = {shape.height, shape.width, shape.channels};
+  return io::WriteNpy(path, dims, output);
+}
+
+int RunInfer(const InferArgs& args) {
+  int resize_h = 0;
+  int resize_w = 0;
+  if (std::string usage = CheckInferFlags(args, &resize_h, &resize_w); !usage.empty()) {
+    return ReportError(kName, usage, kExitUsage);
+  }
+  const std::string out_ext = LowerExtension(args.output);
+  const bool any_rgbd = AnyRgbd(args);
   if (std::string problem = CheckOutputFile(args.output, "-o"); !problem.empty()) {
     return ReportError(kName, problem, kExitFailure);
   }
@@ -485,55 +541,10 @@ int RunInfer(const InferArgs& args) {
   std::snprintf(time_line, sizeof(time_line), "%.1f ms", ms);
   std::cout << "run     " << time_line << " (Session::Run, steady_clock)\n";
 
-  // Statistics per output channel.
-  const size_t channels = static_cast<size_t>(out_shape->channels);
-  std::vector<ChannelStats> stats(channels);
-  for (size_t i = 0; i < output.size(); ++i) {
-    ChannelStats& s = stats[i % channels];
-    const float v = output[i];
-    if (std::isnan(v)) {
-      ++s.nan;
-    } else if (std::isinf(v)) {
-      ++s.inf;
-    } else {
-      s.finite.Add(v);
-    }
+  PrintOutputStats(output, *out_shape, meta);
+  if (Status written = WriteFlow(args.output, output, *out_shape); !written.ok()) {
+    return ReportError(kName, written.message(), kExitFailure);
   }
-  std::cout << "output  " << out_shape->height << "x" << out_shape->width << "x"
-            << out_shape->channels << " (units: " << UnitsText(meta) << ")\n";
-  size_t nan = 0;
-  size_t inf = 0;
-  for (size_t c = 0; c < channels; ++c) {
-    const ChannelStats& s = stats[c];
-    std::string name = c < meta.output.channel_names.size() ? meta.output.channel_names[c]
-                                                            : "ch" + std::to_string(c);
-    char line[160];
-    if (s.finite.count() > 0) {
-      std::snprintf(line, sizeof(line), "  %-4s  min %12.6g  max %12.6g  mean %12.6g", name.c_str(),
-                    s.finite.min(), s.finite.max(), s.finite.mean());
-    } else {
-      std::snprintf(line, sizeof(line), "  %-4s  no finite values", name.c_str());
-    }
-    std::cout << line << "\n";
-    nan += s.nan;
-    inf += s.inf;
-  }
-  if (nan == 0 && inf == 0) {
-    std::cout << "finite  yes (all " << GroupDigits(output.size()) << " values)\n";
-  } else {
-    std::cout << "finite  NO: " << GroupDigits(nan) << " NaN, " << GroupDigits(inf)
-              << " infinite of " << GroupDigits(output.size()) << " values\n";
-  }
-
-  Status written = Status::Ok();
-  if (out_ext == ".pfm") {
-    written =
-        io::WritePfm(args.output, output, out_shape->height, out_shape->width, out_shape->channels);
-  } else {
-    const int64_t shape[3] = {out_shape->height, out_shape->width, out_shape->channels};
-    written = io::WriteNpy(args.output, shape, output);
-  }
-  if (!written.ok()) return ReportError(kName, written.message(), kExitFailure);
   std::cout << "wrote   " << args.output << "\n";
   return kExitOk;
 }
