@@ -99,14 +99,22 @@ Status CaptureDevice::Open() {
   return Status::Ok();
 }
 
-Status CaptureDevice::Setup() {
-  const std::string& dev = config_.device;
-  format_ = NegotiatedFormat{};
-  auto sys_error = [&](const char* call, int err) {
-    ErrorKind kind = IsGone(err) ? ErrorKind::kDisconnected : ErrorKind::kSystem;
-    return Status::Error(kind, dev + ": " + call + ": " + ErrnoText(err), err);
-  };
+Status CaptureDevice::SysError(const char* call, int err) const {
+  const ErrorKind kind = IsGone(err) ? ErrorKind::kDisconnected : ErrorKind::kSystem;
+  return Status::Error(kind, config_.device + ": " + call + ": " + ErrnoText(err), err);
+}
 
+namespace {
+
+// One more adjustment the driver made, for NegotiatedFormat::adjustments.
+void AddNote(std::string* notes, const std::string& note) {
+  *notes += (notes->empty() ? "" : "; ") + note;
+}
+
+}  // namespace
+
+Status CaptureDevice::QueryCapabilities() {
+  const std::string& dev = config_.device;
   // QUERYCAP: a video capture device with streaming I/O.
   v4l2_capability cap{};
   if (Xioctl(VIDIOC_QUERYCAP, &cap) < 0) {
@@ -116,7 +124,7 @@ Status CaptureDevice::Setup() {
                            dev + ": VIDIOC_QUERYCAP: " + ErrnoText(err) + ": not a V4L2 device",
                            err);
     }
-    return sys_error("VIDIOC_QUERYCAP", err);
+    return SysError("VIDIOC_QUERYCAP", err);
   }
   const uint32_t caps =
       (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
@@ -138,6 +146,11 @@ Status CaptureDevice::Setup() {
   format_.card = FixedString(cap.card, sizeof cap.card);
   format_.bus_info = FixedString(cap.bus_info, sizeof cap.bus_info);
 
+  return Status::Ok();
+}
+
+Status CaptureDevice::ChooseFourcc(uint32_t* fourcc) {
+  const std::string& dev = config_.device;
   // ENUM_FMT: what the device offers, in its order of preference.
   std::vector<uint32_t> offered;
   for (uint32_t i = 0; i < 256; ++i) {
@@ -146,7 +159,7 @@ Status CaptureDevice::Setup() {
     desc.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     if (Xioctl(VIDIOC_ENUM_FMT, &desc) < 0) {
       if (errno == EINVAL) break;
-      return sys_error("VIDIOC_ENUM_FMT", errno);
+      return SysError("VIDIOC_ENUM_FMT", errno);
     }
     offered.push_back(desc.pixelformat);
   }
@@ -160,7 +173,8 @@ Status CaptureDevice::Setup() {
                            dev + ": VIDIOC_ENUM_FMT: none of the offered formats [" + offered_text +
                                "] is supported (YUYV, MJPG, GREY, NV12, BGR3, RGB3)");
     }
-    want = *it;
+    *fourcc = *it;
+    return Status::Ok();
   } else if (!IsSupportedFourcc(want)) {
     return Status::Error(ErrorKind::kUnsupported, dev + ": pixel_format " + FourccToString(want) +
                                                       " is not one this module converts");
@@ -169,7 +183,12 @@ Status CaptureDevice::Setup() {
                          dev + ": VIDIOC_ENUM_FMT: pixel_format " + FourccToString(want) +
                              " is not offered; the device offers [" + offered_text + "]");
   }
+  *fourcc = want;
+  return Status::Ok();
+}
 
+Status CaptureDevice::SetFormat(uint32_t want, std::string* notes) {
+  const std::string& dev = config_.device;
   // S_FMT: the driver may adjust anything; read back what it chose.
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -185,10 +204,8 @@ Status CaptureDevice::Setup() {
                                ": the device is streaming for another process",
                            err);
     }
-    return sys_error("VIDIOC_S_FMT", err);
+    return SysError("VIDIOC_S_FMT", err);
   }
-  std::string notes;
-  auto note = [&notes](const std::string& n) { notes += (notes.empty() ? "" : "; ") + n; };
   const v4l2_pix_format& pix = fmt.fmt.pix;
   if (pix.pixelformat != want) {
     if (!IsSupportedFourcc(pix.pixelformat)) {
@@ -197,12 +214,12 @@ Status CaptureDevice::Setup() {
                                                         FourccToString(pix.pixelformat) +
                                                         ", which is not supported");
     }
-    note("format " + FourccToString(want) + " -> " + FourccToString(pix.pixelformat));
+    AddNote(notes, "format " + FourccToString(want) + " -> " + FourccToString(pix.pixelformat));
   }
   if (static_cast<int>(pix.width) != config_.width ||
       static_cast<int>(pix.height) != config_.height) {
-    note("size " + std::to_string(config_.width) + "x" + std::to_string(config_.height) + " -> " +
-         std::to_string(pix.width) + "x" + std::to_string(pix.height));
+    AddNote(notes, "size " + std::to_string(config_.width) + "x" + std::to_string(config_.height) +
+                       " -> " + std::to_string(pix.width) + "x" + std::to_string(pix.height));
   }
   format_.fourcc = pix.pixelformat;
   format_.width = static_cast<int>(pix.width);
@@ -221,6 +238,10 @@ Status CaptureDevice::Setup() {
                     static_cast<int>(RequiredBytes(format_.fourcc, format_.width, format_.height,
                                                    format_.bytesperline)));
 
+  return Status::Ok();
+}
+
+Status CaptureDevice::SetFrameInterval(std::string* notes) {
   // S_PARM / G_PARM: the frame interval, when the driver lets us choose it.
   v4l2_streamparm parm{};
   parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -231,22 +252,27 @@ Status CaptureDevice::Setup() {
       set.parm.capture.timeperframe.numerator = 1000;
       set.parm.capture.timeperframe.denominator =
           static_cast<uint32_t>(std::lround(config_.fps * 1000.0));
-      if (Xioctl(VIDIOC_S_PARM, &set) < 0) return sys_error("VIDIOC_S_PARM", errno);
+      if (Xioctl(VIDIOC_S_PARM, &set) < 0) return SysError("VIDIOC_S_PARM", errno);
       parm = v4l2_streamparm{};
       parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-      if (Xioctl(VIDIOC_G_PARM, &parm) < 0) return sys_error("VIDIOC_G_PARM", errno);
+      if (Xioctl(VIDIOC_G_PARM, &parm) < 0) return SysError("VIDIOC_G_PARM", errno);
     } else if (config_.fps > 0) {
-      note("fps " + FpsText(config_.fps) + " not settable (no V4L2_CAP_TIMEPERFRAME)");
+      AddNote(notes, "fps " + FpsText(config_.fps) + " not settable (no V4L2_CAP_TIMEPERFRAME)");
     }
     const v4l2_fract tpf = parm.parm.capture.timeperframe;
     if (tpf.numerator != 0) format_.fps = static_cast<double>(tpf.denominator) / tpf.numerator;
     if (config_.fps > 0 && format_.fps > 0 && std::abs(format_.fps - config_.fps) > 0.01) {
-      note("fps " + FpsText(config_.fps) + " -> " + FpsText(format_.fps));
+      AddNote(notes, "fps " + FpsText(config_.fps) + " -> " + FpsText(format_.fps));
     }
   } else if (IsGone(errno)) {
-    return sys_error("VIDIOC_G_PARM", errno);
+    return SysError("VIDIOC_G_PARM", errno);
   }
 
+  return Status::Ok();
+}
+
+Status CaptureDevice::MapBuffers(std::string* notes) {
+  const std::string& dev = config_.device;
   // REQBUFS: the driver grants what it can.
   v4l2_requestbuffers req{};
   req.count = static_cast<uint32_t>(config_.buffer_count);
@@ -266,7 +292,7 @@ Status CaptureDevice::Setup() {
           dev + ": VIDIOC_REQBUFS: " + ErrnoText(err) + ": buffers are owned by another process",
           err);
     }
-    return sys_error("VIDIOC_REQBUFS", err);
+    return SysError("VIDIOC_REQBUFS", err);
   }
   buffers_.resize(req.count);  // from here on Close() releases them with REQBUFS(0)
   if (req.count < 2) {
@@ -276,15 +302,15 @@ Status CaptureDevice::Setup() {
   }
   format_.buffer_count = static_cast<int>(req.count);
   if (format_.buffer_count != config_.buffer_count) {
-    note("buffers " + std::to_string(config_.buffer_count) + " -> " +
-         std::to_string(format_.buffer_count));
+    AddNote(notes, "buffers " + std::to_string(config_.buffer_count) + " -> " +
+                       std::to_string(format_.buffer_count));
   }
   for (uint32_t i = 0; i < req.count; ++i) {
     v4l2_buffer b{};
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
     b.index = i;
-    if (Xioctl(VIDIOC_QUERYBUF, &b) < 0) return sys_error("VIDIOC_QUERYBUF", errno);
+    if (Xioctl(VIDIOC_QUERYBUF, &b) < 0) return SysError("VIDIOC_QUERYBUF", errno);
     void* p = sys_.Mmap(nullptr, b.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_,
                         static_cast<off_t>(b.m.offset));
     if (p == MAP_FAILED) {
@@ -298,13 +324,18 @@ Status CaptureDevice::Setup() {
     buffers_[i] = Buffer{p, b.length};
   }
 
+  return Status::Ok();
+}
+
+Status CaptureDevice::StartStreaming() {
+  const std::string& dev = config_.device;
   // Hand every buffer to the driver and start.
-  for (uint32_t i = 0; i < req.count; ++i) {
+  for (uint32_t i = 0; i < static_cast<uint32_t>(buffers_.size()); ++i) {
     v4l2_buffer b{};
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
     b.index = i;
-    if (Xioctl(VIDIOC_QBUF, &b) < 0) return sys_error("VIDIOC_QBUF", errno);
+    if (Xioctl(VIDIOC_QBUF, &b) < 0) return SysError("VIDIOC_QBUF", errno);
   }
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   if (Xioctl(VIDIOC_STREAMON, &type) < 0) {
@@ -320,8 +351,21 @@ Status CaptureDevice::Setup() {
               "put each camera on its own USB controller",
           err);
     }
-    return sys_error("VIDIOC_STREAMON", err);
+    return SysError("VIDIOC_STREAMON", err);
   }
+  return Status::Ok();
+}
+
+Status CaptureDevice::Setup() {
+  format_ = NegotiatedFormat{};
+  std::string notes;
+  uint32_t fourcc = 0;
+  if (Status s = QueryCapabilities(); !s.ok()) return s;
+  if (Status s = ChooseFourcc(&fourcc); !s.ok()) return s;
+  if (Status s = SetFormat(fourcc, &notes); !s.ok()) return s;
+  if (Status s = SetFrameInterval(&notes); !s.ok()) return s;
+  if (Status s = MapBuffers(&notes); !s.ok()) return s;
+  if (Status s = StartStreaming(); !s.ok()) return s;
   streaming_ = true;
   have_sequence_ = false;
   consecutive_timeouts_ = 0;

@@ -150,6 +150,15 @@ class CaptureDevice {
  private:
   friend class StereoCapture;  // counts the frames it delivers in pairs (frames_delivered)
   camera::Status Setup();      // the canonical sequence after open(), up to STREAMON
+  // Setup's steps in V4L2's order, each failing with the ioctl named and an ErrorKind.
+  camera::Status QueryCapabilities();             // QUERYCAP: capture with streaming I/O
+  camera::Status ChooseFourcc(uint32_t* fourcc);  // ENUM_FMT: the configured or first usable
+  camera::Status SetFormat(uint32_t fourcc, std::string* notes);  // S_FMT, read back
+  camera::Status SetFrameInterval(std::string* notes);            // S_PARM / G_PARM
+  camera::Status MapBuffers(std::string* notes);                  // REQBUFS, QUERYBUF, mmap
+  camera::Status StartStreaming();                                // QBUF each, STREAMON
+  // A failed system call as an error of kind kDisconnected (the device is gone) or kSystem.
+  camera::Status SysError(const char* call, int err) const;
   camera::Status WaitNewest(RawFrame* out);
   camera::Status Fail(camera::Status s);  // records s.message() in stats_.last_error and returns s
   camera::Status Lost(const std::string& what, int err);
