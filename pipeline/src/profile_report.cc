@@ -385,26 +385,42 @@ cv::Rect LabelBesideHorizontalLine(const std::string& text, int line_y, int line
   return {plot.x + plot.width - 8 - w, y, w, h};
 }
 
-Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
-                                               const ProfileReportInfo& info, std::string* table) {
-  if (prof.size() == 0) {
-    return Status::Error("no frame was recorded, so there is no profile to write to '" + info.dir +
-                         "'");
+// The profiling overhead: the clock reads and recording per frame, estimated and, with an A/B
+// comparison, measured.
+json OverheadJson(const FrameProfiler& prof, const ProfileReportInfo& info, const Summary& e2e) {
+  json overhead;
+  overhead["clock_read_ns"] = prof.clock_read_ns();
+  overhead["record_ns_mean"] = prof.record_ns_mean();
+  overhead["record_ns_max"] = prof.record_ns_max();
+  overhead["estimated_ns_per_frame"] = prof.overhead_ns_per_frame();
+  overhead["estimated_percent_of_e2e_p50"] =
+      e2e.p50 > 0 ? prof.overhead_ns_per_frame() / 1e6 / e2e.p50 * 100 : 0.0;
+  if (info.ab) {
+    const OverheadComparison& ab = *info.ab;
+    auto pct = [](double with, double without) {
+      return without > 0 ? (with - without) / without * 100 : 0.0;
+    };
+    overhead["ab"] = {
+        {"frames_without", ab.frames_without},
+        {"frames_with", ab.frames_with},
+        {"e2e_p50_without_ms", ab.e2e_p50_without_ms},
+        {"e2e_p50_with_ms", ab.e2e_p50_with_ms},
+        {"e2e_p50_change_ms", ab.e2e_p50_with_ms - ab.e2e_p50_without_ms},
+        {"e2e_p50_change_percent", pct(ab.e2e_p50_with_ms, ab.e2e_p50_without_ms)},
+        {"infer_p50_without_ms", ab.infer_p50_without_ms},
+        {"infer_p50_with_ms", ab.infer_p50_with_ms},
+        {"infer_p50_change_ms", ab.infer_p50_with_ms - ab.infer_p50_without_ms},
+        {"infer_p50_change_percent", pct(ab.infer_p50_with_ms, ab.infer_p50_without_ms)}};
+  } else {
+    overhead["ab"] = nullptr;
   }
-  const std::filesystem::path dir(info.dir);
-  ProfileReportFiles files;
-  files.json = (dir / "profile.json").string();
-  files.csv = (dir / "frames.csv").string();
-  files.trace = (dir / "trace.json").string();
-  files.histogram_png = (dir / "latency_hist.png").string();
-  files.series_png = (dir / "latency_series.png").string();
-  const Series s = Collect(prof);
-  Summary stage_stats[kProfileStages];
-  for (int st = 0; st < kProfileStages; ++st) stage_stats[st] = profiling::Summarize(s.stage[st]);
-  const Summary e2e = profiling::Summarize(s.e2e);
-  const std::vector<profiling::StepRow> step_rows =
-      profiling::StepTable(prof.steps(), s.step_ms);  // empty when no frame has step times
-                                                      // ---- JSON
+  return overhead;
+}
+
+// profile.json: the run, its frames, each stage's and step's statistics, the overhead.
+json ProfileJson(const FrameProfiler& prof, const ProfileReportInfo& info, const Series& s,
+                 const Summary (&stage_stats)[kProfileStages], const Summary& e2e,
+                 const std::vector<profiling::StepRow>& step_rows) {
   json j;
   j["format"] = kFormat;
   j["version"] = kFormatVersion;
@@ -449,40 +465,16 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
                          {"share", r.share}});
   }
   j["by_op"] = by_op;
-  json overhead;
-  overhead["clock_read_ns"] = prof.clock_read_ns();
-  overhead["record_ns_mean"] = prof.record_ns_mean();
-  overhead["record_ns_max"] = prof.record_ns_max();
-  overhead["estimated_ns_per_frame"] = prof.overhead_ns_per_frame();
-  overhead["estimated_percent_of_e2e_p50"] =
-      e2e.p50 > 0 ? prof.overhead_ns_per_frame() / 1e6 / e2e.p50 * 100 : 0.0;
-  if (info.ab) {
-    const OverheadComparison& ab = *info.ab;
-    auto pct = [](double with, double without) {
-      return without > 0 ? (with - without) / without * 100 : 0.0;
-    };
-    overhead["ab"] = {
-        {"frames_without", ab.frames_without},
-        {"frames_with", ab.frames_with},
-        {"e2e_p50_without_ms", ab.e2e_p50_without_ms},
-        {"e2e_p50_with_ms", ab.e2e_p50_with_ms},
-        {"e2e_p50_change_ms", ab.e2e_p50_with_ms - ab.e2e_p50_without_ms},
-        {"e2e_p50_change_percent", pct(ab.e2e_p50_with_ms, ab.e2e_p50_without_ms)},
-        {"infer_p50_without_ms", ab.infer_p50_without_ms},
-        {"infer_p50_with_ms", ab.infer_p50_with_ms},
-        {"infer_p50_change_ms", ab.infer_p50_with_ms - ab.infer_p50_without_ms},
-        {"infer_p50_change_percent", pct(ab.infer_p50_with_ms, ab.infer_p50_without_ms)}};
-  } else {
-    overhead["ab"] = nullptr;
-  }
-  j["overhead"] = overhead;
+  j["overhead"] = OverheadJson(prof, info, e2e);
   j["files"] = {{"csv", "frames.csv"},
                 {"trace", "trace.json"},
                 {"histogram", "latency_hist.png"},
                 {"series", "latency_series.png"}};
-  if (Status st = WriteText(files.json, j.dump(2) + "\n"); !st.ok()) return st;
+  return j;
+}
 
-  // ---- CSV
+// frames.csv: one row per retained frame with its stage stamps and times and its step times.
+std::string FramesCsv(const FrameProfiler& prof) {
   std::string csv = "window,frame0,frame1,capture_ns";
   for (const char* name : kStageNames) {
     csv += std::string(",") + name + "_start_ns," + name + "_end_ns";
@@ -510,6 +502,82 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
     }
     csv += "\n";
   }
+  return csv;
+}
+
+// The console table: stage percentiles, misses, the slowest steps, the overhead.
+std::string ConsoleTable(const FrameProfiler& prof, const ProfileReportInfo& info, const Series& s,
+                         const Summary (&stage_stats)[kProfileStages], const Summary& e2e,
+                         const std::vector<profiling::StepRow>& step_rows) {
+  const json oh = OverheadJson(prof, info, e2e);
+  std::string t;
+  t += "profile     " + std::to_string(prof.size()) + " frames";
+  if (prof.overwritten() > 0) {
+    t += " (the last " + std::to_string(prof.size()) + " of " + std::to_string(prof.recorded()) +
+         "; raise --profile-frames to keep all)";
+  }
+  t += ", " + std::to_string(prof.steps().size()) + " steps, clock CLOCK_MONOTONIC\n";
+  t += "  " + Pad("stage", 14) + Pad("p50 ms", 10, true) + Pad("p90 ms", 10, true) +
+       Pad("p99 ms", 10, true) + Pad("max ms", 10, true) + "\n";
+  auto row = [&](const std::string& name, const Summary& st) {
+    t += "  " + Pad(name, 14) + Pad(Fixed(st.p50, 3), 10, true) + Pad(Fixed(st.p90, 3), 10, true) +
+         Pad(Fixed(st.p99, 3), 10, true) + Pad(Fixed(st.max, 3), 10, true) + "\n";
+  };
+  for (int st = 0; st < kProfileStages; ++st) row(kStageNames[st], stage_stats[st]);
+  row("end to end", e2e);
+  if (info.budget_ms > 0) {
+    t += "  budget " + Fixed(info.budget_ms, 2) + " ms: " + std::to_string(s.misses) + " of " +
+         std::to_string(prof.size()) + " frames over\n";
+  }
+  const std::vector<profiling::StepRow> top = profiling::TopSteps(step_rows, 5);
+  if (!top.empty()) {
+    t += "  slowest steps (p50 ms): ";
+    for (size_t r = 0; r < top.size(); ++r) {
+      t += (r ? ", " : "") + top[r].label.name + " " + Fixed(top[r].ms.p50, 3);
+    }
+    t += "\n";
+  }
+  t += "  overhead    estimated " + Fixed(prof.overhead_ns_per_frame() / 1000, 2) +
+       " us per frame (" + std::to_string(prof.steps().size() + 1) + " clock reads of " +
+       Fixed(prof.clock_read_ns(), 1) + " ns + record " + Fixed(prof.record_ns_mean(), 0) +
+       " ns) = " + Fixed(oh["estimated_percent_of_e2e_p50"].get<double>(), 3) +
+       "% of the end-to-end p50\n";
+  if (info.ab) {
+    t += "  overhead    A/B in this process: end-to-end p50 " +
+         Fixed(info.ab->e2e_p50_without_ms, 3) + " ms without, " +
+         Fixed(info.ab->e2e_p50_with_ms, 3) + " ms with (" +
+         Fixed(oh["ab"]["e2e_p50_change_percent"].get<double>(), 2) + "%); infer p50 " +
+         Fixed(info.ab->infer_p50_without_ms, 3) + " / " + Fixed(info.ab->infer_p50_with_ms, 3) +
+         " ms (" + Fixed(oh["ab"]["infer_p50_change_percent"].get<double>(), 2) + "%)\n";
+  }
+  return t;
+}
+
+Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
+                                               const ProfileReportInfo& info, std::string* table) {
+  if (prof.size() == 0) {
+    return Status::Error("no frame was recorded, so there is no profile to write to '" + info.dir +
+                         "'");
+  }
+  const std::filesystem::path dir(info.dir);
+  ProfileReportFiles files;
+  files.json = (dir / "profile.json").string();
+  files.csv = (dir / "frames.csv").string();
+  files.trace = (dir / "trace.json").string();
+  files.histogram_png = (dir / "latency_hist.png").string();
+  files.series_png = (dir / "latency_series.png").string();
+  const Series s = Collect(prof);
+  Summary stage_stats[kProfileStages];
+  for (int st = 0; st < kProfileStages; ++st) stage_stats[st] = profiling::Summarize(s.stage[st]);
+  const Summary e2e = profiling::Summarize(s.e2e);
+  const std::vector<profiling::StepRow> step_rows =
+      profiling::StepTable(prof.steps(), s.step_ms);  // empty when no frame has step times
+
+  const json j = ProfileJson(prof, info, s, stage_stats, e2e, step_rows);
+  if (Status st = WriteText(files.json, j.dump(2) + "\n"); !st.ok()) return st;
+
+  // ---- CSV
+  const std::string csv = FramesCsv(prof);
   if (Status st = WriteText(files.csv, csv); !st.ok()) return st;
 
   // ---- trace and plots
@@ -526,51 +594,7 @@ Result<ProfileReportFiles> WriteProfileReports(const FrameProfiler& prof,
     return st;
   }
 
-  // ---- console table
-  if (table) {
-    std::string t;
-    t += "profile     " + std::to_string(prof.size()) + " frames";
-    if (prof.overwritten() > 0) {
-      t += " (the last " + std::to_string(prof.size()) + " of " + std::to_string(prof.recorded()) +
-           "; raise --profile-frames to keep all)";
-    }
-    t += ", " + std::to_string(prof.steps().size()) + " steps, clock CLOCK_MONOTONIC\n";
-    t += "  " + Pad("stage", 14) + Pad("p50 ms", 10, true) + Pad("p90 ms", 10, true) +
-         Pad("p99 ms", 10, true) + Pad("max ms", 10, true) + "\n";
-    auto row = [&](const std::string& name, const Summary& st) {
-      t += "  " + Pad(name, 14) + Pad(Fixed(st.p50, 3), 10, true) +
-           Pad(Fixed(st.p90, 3), 10, true) + Pad(Fixed(st.p99, 3), 10, true) +
-           Pad(Fixed(st.max, 3), 10, true) + "\n";
-    };
-    for (int st = 0; st < kProfileStages; ++st) row(kStageNames[st], stage_stats[st]);
-    row("end to end", e2e);
-    if (info.budget_ms > 0) {
-      t += "  budget " + Fixed(info.budget_ms, 2) + " ms: " + std::to_string(s.misses) + " of " +
-           std::to_string(prof.size()) + " frames over\n";
-    }
-    const std::vector<profiling::StepRow> top = profiling::TopSteps(step_rows, 5);
-    if (!top.empty()) {
-      t += "  slowest steps (p50 ms): ";
-      for (size_t r = 0; r < top.size(); ++r) {
-        t += (r ? ", " : "") + top[r].label.name + " " + Fixed(top[r].ms.p50, 3);
-      }
-      t += "\n";
-    }
-    t += "  overhead    estimated " + Fixed(prof.overhead_ns_per_frame() / 1000, 2) +
-         " us per frame (" + std::to_string(prof.steps().size() + 1) + " clock reads of " +
-         Fixed(prof.clock_read_ns(), 1) + " ns + record " + Fixed(prof.record_ns_mean(), 0) +
-         " ns) = " + Fixed(overhead["estimated_percent_of_e2e_p50"].get<double>(), 3) +
-         "% of the end-to-end p50\n";
-    if (info.ab) {
-      t += "  overhead    A/B in this process: end-to-end p50 " +
-           Fixed(info.ab->e2e_p50_without_ms, 3) + " ms without, " +
-           Fixed(info.ab->e2e_p50_with_ms, 3) + " ms with (" +
-           Fixed(overhead["ab"]["e2e_p50_change_percent"].get<double>(), 2) + "%); infer p50 " +
-           Fixed(info.ab->infer_p50_without_ms, 3) + " / " + Fixed(info.ab->infer_p50_with_ms, 3) +
-           " ms (" + Fixed(overhead["ab"]["infer_p50_change_percent"].get<double>(), 2) + "%)\n";
-    }
-    *table = t;
-  }
+  if (table) *table = ConsoleTable(prof, info, s, stage_stats, e2e, step_rows);
   return files;
 }
 
