@@ -655,12 +655,25 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
 
 }  // namespace
 
-Command AddRunCommand(CLI::App& parent) {
-  auto args = std::make_shared<RunArgs>();
-  CLI::App* cmd = parent.add_subcommand(
-      "run", "Run the real-time pipeline on cameras or recorded frames and write the scene flow");
-  auto rc = std::make_shared<RunConfigState>();
-  AddRunConfigOptions(cmd, rc.get());
+// The help text after the options.
+constexpr char kRunFooter[] =
+    "Stages (source, preprocess, infer, output) run on their own threads joined by\n"
+    "bounded queues. The network sees (pair t, pair t+1) windows, preprocessed as the model's\n"
+    "metadata says. Latencies are measured on CLOCK_MONOTONIC from capture (the V4L2 buffer\n"
+    "timestamp; for files, the end of reading) to the written output. SIGINT/SIGTERM stop the\n"
+    "source; frames already read are finished, every file is written to a temporary name and\n"
+    "renamed, and summary.json says how far the run got. Exit codes: 0 success (also after a\n"
+    "stop by signal), 1 runtime or input failure (incl. a bad frame under --on-bad-frame\n"
+    "stop), 2 usage error (incl. an invalid --config profile, and anything checked before the\n"
+    "first frame: an ISA this CPU cannot run, a --size outside 16..4096 per side or one the\n"
+    "model cannot take, an --out where files cannot be created, an empty replay folder, left\n"
+    "and right folders with different frame counts; then nothing is written).\n"
+    "With --config FILE the profile gives every option above it has a key for (the start\n"
+    "banner lists them); an option given on the command line overrides the profile. The final\n"
+    "summary lists the settings applied and not applied.";
+
+// The model, the source (cameras, files, a video, a bag) and the bag to record.
+void AddSourceOptions(CLI::App* cmd, RunArgs* args) {
   cmd->add_option("--model", args->model, "Model file (.sfrt); required unless --config");
   cmd->add_option("--camera", args->camera,
                   "Two V4L2 devices LEFT,RIGHT, paired by capture timestamp");
@@ -699,6 +712,10 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--record-bag-frame-id", args->record_bag_frame_id,
                   "--record-bag: header.frame_id of the messages (the left camera's frame)")
       ->capture_default_str();
+}
+
+// How the source is read: passes, formats and sizes, pairing, calibration, bad frames.
+void AddInputOptions(CLI::App* cmd, RunArgs* args) {
   cmd->add_option("--pass", args->pass,
                   "Scene Flow datasets: rendering pass to read, clean or final")
       ->capture_default_str();
@@ -748,6 +765,10 @@ Command AddRunCommand(CLI::App& parent) {
       "CLOCK_MONOTONIC in ms (for soak runs). Written as the run goes; a device or FIFO "
       "(e.g. /dev/stdout) is written in place; a failed write is an output error "
       "(--on-output-error)");
+}
+
+// What the run writes: the directory, flow files, pictures, video, summary.
+void AddOutputOptions(CLI::App* cmd, RunArgs* args) {
   cmd->add_option("--out", args->out,
                   "Output directory (created): <stem>.pfm|.npy flow, <stem>.png visualisation, "
                   "summary.json (unless --no-summary); required unless --config");
@@ -767,6 +788,10 @@ Command AddRunCommand(CLI::App& parent) {
                   "99th percentile of its |d|, then the same flow gets the same colour in every "
                   "frame), 'fixed:VALUE' (full colour at |d| = VALUE, in the model's units) or "
                   "'auto' (each frame's largest |d|). Default: first with --video, auto without");
+}
+
+// How the run is timed and computed: budget, pacing, size, ISA, threads, queues, progress.
+void AddRunOptions(CLI::App* cmd, RunArgs* args) {
   cmd->add_option("--budget-ms", args->budget_ms,
                   "Deadline per frame, capture to written output; misses are counted (0: none)")
       ->capture_default_str();
@@ -816,21 +841,18 @@ Command AddRunCommand(CLI::App& parent) {
   cmd->add_option("--progress-every", args->progress_every,
                   "With line progress: one line every this many frames")
       ->capture_default_str();
-  cmd->footer(
-      "Stages (capture/read, preprocess, infer, output) run on their own threads joined by\n"
-      "bounded queues. The network sees (pair t, pair t+1) windows, preprocessed as the model's\n"
-      "metadata says. Latencies are measured on CLOCK_MONOTONIC from capture (the V4L2 buffer\n"
-      "timestamp; for files, the end of reading) to the written output. SIGINT/SIGTERM stop the\n"
-      "source; frames already read are finished, every file is written to a temporary name and\n"
-      "renamed, and summary.json says how far the run got. Exit codes: 0 success (also after a\n"
-      "stop by signal), 1 runtime or input failure (incl. a bad frame under --on-bad-frame\n"
-      "stop), 2 usage error (incl. an invalid --config profile, and anything checked before the\n"
-      "first frame: an ISA this CPU cannot run, a --size outside 16..4096 per side or one the\n"
-      "model cannot take, an --out where files cannot be created, an empty replay folder, left\n"
-      "and right folders with different frame counts; then nothing is written).\n"
-      "With --config FILE the profile gives every option above it has a key for (the start\n"
-      "banner lists them); an option given on the command line overrides the profile. The final\n"
-      "summary lists the settings applied and not applied.");
+}
+
+Command AddRunCommand(CLI::App& parent) {
+  auto args = std::make_shared<RunArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "run", "Run the real-time pipeline on cameras or recorded frames and write the scene flow");
+  auto rc = std::make_shared<RunConfigState>();
+  AddRunConfigOptions(cmd, rc.get());
+  for (auto* add : {AddSourceOptions, AddInputOptions, AddOutputOptions, AddRunOptions}) {
+    add(cmd, args.get());
+  }
+  cmd->footer(kRunFooter);
   return Command{cmd, [args, rc, cmd] {
                    if (int code = ApplyRunConfig(cmd, rc.get()); code != kExitOk) return code;
                    return RunRun(*args, rc.get());
