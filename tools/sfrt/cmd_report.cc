@@ -46,7 +46,7 @@ Command AddReportCommand(CLI::App& parent) {
       ->required();
   compare->add_option("b", args->b, "Profile B (the candidate)")->required();
   compare->footer(
-      "For every stage (capture, preprocess, infer, output, end_to_end) and every layer step,\n"
+      "For every stage (source, preprocess, infer, output, end_to_end) and every layer step,\n"
       "prints the p50 of A and of B in ms and the change B - A in ms and percent, sorted by\n"
       "the largest absolute change; steps present in only one file come last. Steps are matched\n"
       "by name (a repeated name by its occurrence).\n"
