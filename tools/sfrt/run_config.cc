@@ -86,15 +86,9 @@ void AddRunConfigOptions(CLI::App* cmd, RunConfigState* state) {
                 "in this process and report the median difference (implies --profile)");
 }
 
-int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
-  state->profile = cmd->count("--profile") > 0 || state->profile_overhead;
-  if (state->profile_frames < 1) {
-    return ReportError(
-        kName, "--profile-frames must be >= 1, got " + std::to_string(state->profile_frames),
-        kExitUsage);
-  }
-  if (state->config_path.empty()) return kExitOk;
-
+// --config: the profile read and checked (its errors printed, its warnings too). kExitOk, or
+// kExitUsage after reporting.
+int LoadRunProfile(RunConfigState* state) {
   config::ValidationReport report;
   Result<config::DeploymentProfile> loaded = config::LoadProfile(state->config_path, &report);
   if (!loaded.ok()) {
@@ -110,9 +104,14 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
     std::cerr << w.ToString() << "\n";
   }
   state->cfg = std::move(loaded).value();
-  const config::DeploymentProfile& p = *state->cfg;
 
-  // ---- the profile as `sfrt run` options
+  return kExitOk;
+}
+
+// The profile's source as flags; none when the command line names a source (then each is
+// listed as overridden).
+std::vector<Mapping> SourceAsFlags(const config::DeploymentProfile& p, CLI::App* cmd,
+                                   RunConfigState* state) {
   std::vector<Mapping> maps;
   const bool cli_source = cmd->count("--camera") + cmd->count("--sbs-camera") +
                               cmd->count("--replay") + cmd->count("--replay-left") +
@@ -145,6 +144,14 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
   } else {
     maps.insert(maps.end(), source_maps.begin(), source_maps.end());
   }
+  return maps;
+}
+
+// The rest of the profile as `sfrt run` flags: the camera or replay settings, calibration,
+// model, size, threads, budget, outputs, logging.
+std::vector<Mapping> SettingsAsFlags(const config::DeploymentProfile& p, CLI::App* cmd,
+                                     RunConfigState* state) {
+  std::vector<Mapping> maps;
   const bool camera =
       p.source == config::SourceKind::kStereoCameras || p.source == config::SourceKind::kSbsCamera;
   if (camera) {
@@ -207,6 +214,13 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
       break;
   }
 
+  return maps;
+}
+
+// Each mapping given to its option, unless the command line set it (then it is listed as
+// overridden) or this build lacks the option (not applied). kExitOk, or kExitUsage after
+// reporting a value the option refuses.
+int ApplyMappings(const std::vector<Mapping>& maps, CLI::App* cmd, RunConfigState* state) {
   for (const Mapping& m : maps) {
     CLI::Option* opt = cmd->get_option_no_throw(m.flag);
     if (opt == nullptr) {
@@ -229,8 +243,13 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
     state->from_profile.push_back(m.flag + (m.value == "true" ? "" : " " + m.value) + "  (" +
                                   m.key + ")");
   }
-  // The video goes into the output directory actually used.
-  if (p.video) {
+  return kExitOk;
+}
+
+// outputs.video: the video goes into the output directory actually used.
+void ApplyProfileVideo(const config::DeploymentProfile& p, CLI::App* cmd, RunConfigState* state) {
+  if (!p.video) return;
+  {
     CLI::Option* video = cmd->get_option_no_throw("--video");
     CLI::Option* out = cmd->get_option_no_throw("--out");
     if (video && video->count() > 0) {
@@ -243,6 +262,10 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
       state->from_profile.push_back("--video " + path + "  (outputs.video)");
     }
   }
+}
+
+// Stages other than infer run on one thread: more in the profile is not applied.
+void NoteStageThreads(const config::DeploymentProfile& p, RunConfigState* state) {
   for (int i = 0; i < config::kStageCount; ++i) {
     const auto stage = static_cast<config::Stage>(i);
     if (stage != config::Stage::kInfer && p.stage(stage).threads > 1) {
@@ -251,6 +274,27 @@ int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
                                    ": this stage runs on one thread (only infer has a pool)");
     }
   }
+}
+
+int ApplyRunConfig(CLI::App* cmd, RunConfigState* state) {
+  state->profile = cmd->count("--profile") > 0 || state->profile_overhead;
+  if (state->profile_frames < 1) {
+    return ReportError(
+        kName, "--profile-frames must be >= 1, got " + std::to_string(state->profile_frames),
+        kExitUsage);
+  }
+  if (state->config_path.empty()) return kExitOk;
+
+  if (int code = LoadRunProfile(state); code != kExitOk) return code;
+  const config::DeploymentProfile& p = *state->cfg;
+
+  // ---- the profile as `sfrt run` options
+  std::vector<Mapping> maps = SourceAsFlags(p, cmd, state);
+  const std::vector<Mapping> settings = SettingsAsFlags(p, cmd, state);
+  maps.insert(maps.end(), settings.begin(), settings.end());
+  if (int code = ApplyMappings(maps, cmd, state); code != kExitOk) return code;
+  ApplyProfileVideo(p, cmd, state);
+  NoteStageThreads(p, state);
   return kExitOk;
 }
 
