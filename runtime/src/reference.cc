@@ -216,6 +216,169 @@ void ForwardGraph(const Model& model, std::span<const float> input,
 
 }  // namespace
 
+// The uint8 or bf16 map before a chain's last nearest-2x upsampling, and what crops after it
+// removed: an int8 or bf16 convolution with phase weights reads it (int8_job.h); a convolution
+// ends it.
+struct LowMap {
+  Tensor tensor;
+  bool have = false;
+  int crop_top = 0;
+  int crop_left = 0;
+};
+
+// A chain's bf16 convolution at layer i, reading `cur` (or `low` through the phase kernels, as the
+// session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it).
+Tensor ChainBf16Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeometry& g,
+                     const Tensor& cur, const LowMap& low) {
+  const LayerDesc& layer = layers[i];
+  Tensor next;
+  next.shape = g.output;
+  const TensorShape& s = next.shape;
+  const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
+  const ConvParams& p = layer.conv;
+  const int consumer = NextConv(layers, i);
+  const bool out_float =
+      consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kBFloat16;
+  // The session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it and
+  // computes its interior from the phase kernels: so does the reference.
+  const bool phases = low.have && low.tensor.is_bf16 && p.kernel_h == 3 && p.kernel_w == 3 &&
+                      p.stride_h == 1 && p.stride_w == 1;
+  std::vector<uint8_t> packing;
+  const PackedBf16Conv packed =
+      PackBf16Conv(p, 0, phases, out_float, AlignedScratch(packing, PackedBf16Bytes(p, 0, phases)));
+  Bf16ConvArgs args;
+  args.conv = &packed;
+  args.in = cur.hview();
+  args.pads = g.pads;
+  if (phases) {
+    args.in = low.tensor.hview();
+    args.upsampled = true;
+    args.crop_top = low.crop_top;
+    args.crop_left = low.crop_left;
+    args.c_height = cur.shape.height;
+    args.c_width = cur.shape.width;
+  }
+  if (out_float) {
+    next.f.resize(s.elements());
+    args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
+  } else {
+    next.is_bf16 = true;
+    next.h.resize(s.elements());
+    args.out_bf16 = {next.h.data(), s.height, s.width, s.channels, row};
+  }
+  ref::Conv2dBf16Rows(args, 0, s.height, 0, 1);
+  return next;
+}
+
+// A chain's int8 convolution at layer i, reading `cur` (or `low` through its phase weights).
+Tensor ChainInt8Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeometry& g,
+                     const Tensor& cur, const LowMap& low) {
+  const LayerDesc& layer = layers[i];
+  Tensor next;
+  next.shape = g.output;
+  const TensorShape& s = next.shape;
+  const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
+  const ConvParams& p = layer.conv;
+  const int consumer = NextConv(layers, i);
+  const bool out_float =
+      consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kInt8;
+  std::vector<uint8_t> packing;
+  const PackedInt8Conv packed = PackInt8Conv(p, 0, out_float ? nullptr : &p.output_quant,
+                                             AlignedScratch(packing, PackedInt8Bytes(p, 0)));
+  Int8ConvArgs args;
+  args.conv = &packed;
+  args.in = cur.qview();
+  args.pads = g.pads;
+  if (p.phase_weights_q != nullptr && low.have && low.tensor.is_u8) {
+    args.in = low.tensor.qview();
+    args.upsampled = true;
+    args.crop_top = low.crop_top;
+    args.crop_left = low.crop_left;
+    args.c_height = cur.shape.height;
+    args.c_width = cur.shape.width;
+  }
+  if (out_float) {
+    next.f.resize(s.elements());
+    args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
+  } else {
+    next.is_u8 = true;
+    next.quant = p.output_quant;
+    next.q.resize(s.elements());
+    args.out_u8 = {next.q.data(), s.height, s.width, s.channels, row};
+  }
+  ref::Conv2dInt8Rows(args, 0, s.height, 0, 1);
+  return next;
+}
+
+// A chain's nearest upsampling, in the current tensor's type; a 2x one of a uint8 or bf16
+// tensor starts a LowMap.
+Tensor ChainUpsample(const LayerDesc& layer, const LayerGeometry& g, const Tensor& cur,
+                     LowMap* low) {
+  Tensor next;
+  next.shape = g.output;
+  const TensorShape& s = next.shape;
+  const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
+  if ((cur.is_u8 || cur.is_bf16) && layer.upsample.factor_h == 2 && layer.upsample.factor_w == 2) {
+    low->tensor = cur;
+    low->have = true;
+    low->crop_top = low->crop_left = 0;
+  }
+  next.is_u8 = cur.is_u8;
+  next.is_bf16 = cur.is_bf16;
+  next.quant = cur.quant;
+  if (cur.is_bf16) {
+    next.h.resize(s.elements());
+    ref::UpsampleNearestPlane(cur.hview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                              Bf16View{next.h.data(), s.height, s.width, s.channels, row});
+  } else if (cur.is_u8) {
+    next.q.resize(s.elements());
+    ref::UpsampleNearestPlane(cur.qview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                              ByteView{next.q.data(), s.height, s.width, s.channels, row});
+  } else {
+    next.f.resize(s.elements());
+    ref::UpsampleNearest(cur.fview(), layer.upsample.factor_h, layer.upsample.factor_w,
+                         {next.f.data(), s.height, s.width, s.channels, row});
+  }
+  return next;
+}
+
+// A chain's crop, in the current tensor's type; a LowMap remembers what it removed.
+Tensor ChainCrop(const LayerGeometry& g, const Tensor& cur, LowMap* low) {
+  Tensor next;
+  next.shape = g.output;
+  const TensorShape& s = next.shape;
+  const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
+  next.is_u8 = cur.is_u8;
+  next.is_bf16 = cur.is_bf16;
+  next.quant = cur.quant;
+  const Padding& c = g.crop;
+  low->crop_top += c.top;
+  low->crop_left += c.left;
+  if (cur.is_bf16) {
+    next.h.resize(s.elements());
+    ConstBf16View v = cur.hview();
+    v.data = v.pixel(c.top, c.left);
+    v.height = s.height;
+    v.width = s.width;
+    ref::CopyPlane(v, Bf16View{next.h.data(), s.height, s.width, s.channels, row});
+  } else if (cur.is_u8) {
+    next.q.resize(s.elements());
+    ConstByteView v = cur.qview();
+    v.data = v.pixel(c.top, c.left);
+    v.height = s.height;
+    v.width = s.width;
+    ref::CopyPlane(v, ByteView{next.q.data(), s.height, s.width, s.channels, row});
+  } else {
+    next.f.resize(s.elements());
+    ConstTensorView v = cur.fview();
+    v.data = v.pixel(c.top, c.left);
+    v.height = s.height;
+    v.width = s.width;
+    ref::Copy(v, {next.f.data(), s.height, s.width, s.channels, row});
+  }
+  return next;
+}
+
 Status RunReferenceForward(const Model& model, std::span<const float> input, int height, int width,
                            std::span<float> output, const LayerObserver& observer) {
   Result<std::vector<LayerGeometry>> geometry = InferGeometry(model, height, width);
@@ -236,11 +399,7 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
   }
   Tensor cur;
   cur.shape = g.front().input;
-  // The uint8 map before the last nearest-2x upsampling, and what a crop after it removed: an
-  // int8 convolution with phase weights reads it (int8_job.h); any other layer forgets it.
-  Tensor low;
-  bool have_low = false;
-  int low_crop_top = 0, low_crop_left = 0;
+  LowMap low;
   cur.f.assign(input.begin(), input.begin() + static_cast<ptrdiff_t>(cur.shape.elements()));
   for (size_t i = 0; i < layers.size(); ++i) {
     const LayerDesc& layer = layers[i];
@@ -253,130 +412,23 @@ Status RunReferenceForward(const Model& model, std::span<const float> input, int
       if (c.precision == Precision::kBFloat16) cur = ToBf16(cur);
     }
     Tensor next;
-    next.shape = g[i].output;
-    const TensorShape& s = next.shape;
-    const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
     if (layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kBFloat16) {
-      const ConvParams& p = layer.conv;
-      const int consumer = NextConv(layers, i);
-      const bool out_float = consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision !=
-                                                 Precision::kBFloat16;
-      // The session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it and
-      // computes its interior from the phase kernels: so does the reference.
-      const bool phases = have_low && low.is_bf16 && p.kernel_h == 3 && p.kernel_w == 3 &&
-                          p.stride_h == 1 && p.stride_w == 1;
-      std::vector<uint8_t> packing;
-      const PackedBf16Conv packed = PackBf16Conv(
-          p, 0, phases, out_float, AlignedScratch(packing, PackedBf16Bytes(p, 0, phases)));
-      Bf16ConvArgs args;
-      args.conv = &packed;
-      args.in = cur.hview();
-      args.pads = g[i].pads;
-      if (phases) {
-        args.in = low.hview();
-        args.upsampled = true;
-        args.crop_top = low_crop_top;
-        args.crop_left = low_crop_left;
-        args.c_height = cur.shape.height;
-        args.c_width = cur.shape.width;
-      }
-      if (out_float) {
-        next.f.resize(s.elements());
-        args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
-      } else {
-        next.is_bf16 = true;
-        next.h.resize(s.elements());
-        args.out_bf16 = {next.h.data(), s.height, s.width, s.channels, row};
-      }
-      ref::Conv2dBf16Rows(args, 0, s.height, 0, 1);
+      next = ChainBf16Conv(layers, i, g[i], cur, low);
     } else if (layer.kind == LayerKind::kConv2D && layer.conv.precision == Precision::kInt8) {
-      const ConvParams& p = layer.conv;
-      const int consumer = NextConv(layers, i);
-      const bool out_float =
-          consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kInt8;
-      std::vector<uint8_t> packing;
-      const PackedInt8Conv packed = PackInt8Conv(p, 0, out_float ? nullptr : &p.output_quant,
-                                                 AlignedScratch(packing, PackedInt8Bytes(p, 0)));
-      Int8ConvArgs args;
-      args.conv = &packed;
-      args.in = cur.qview();
-      args.pads = g[i].pads;
-      if (p.phase_weights_q != nullptr && have_low && low.is_u8) {
-        args.in = low.qview();
-        args.upsampled = true;
-        args.crop_top = low_crop_top;
-        args.crop_left = low_crop_left;
-        args.c_height = cur.shape.height;
-        args.c_width = cur.shape.width;
-      }
-      if (out_float) {
-        next.f.resize(s.elements());
-        args.out_f32 = {next.f.data(), s.height, s.width, s.channels, row};
-      } else {
-        next.is_u8 = true;
-        next.quant = p.output_quant;
-        next.q.resize(s.elements());
-        args.out_u8 = {next.q.data(), s.height, s.width, s.channels, row};
-      }
-      ref::Conv2dInt8Rows(args, 0, s.height, 0, 1);
+      next = ChainInt8Conv(layers, i, g[i], cur, low);
     } else if (layer.kind == LayerKind::kConv2D) {
+      next.shape = g[i].output;
+      const TensorShape& s = next.shape;
       next.f.resize(s.elements());
       ref::Conv2d(cur.fview(), layer.conv, g[i].pads,
-                  {next.f.data(), s.height, s.width, s.channels, row});
+                  {next.f.data(), s.height, s.width, s.channels,
+                   static_cast<ptrdiff_t>(s.width) * s.channels});
     } else if (layer.kind == LayerKind::kUpsample) {
-      if ((cur.is_u8 || cur.is_bf16) && layer.upsample.factor_h == 2 &&
-          layer.upsample.factor_w == 2) {
-        low = cur;
-        have_low = true;
-        low_crop_top = low_crop_left = 0;
-      }
-      next.is_u8 = cur.is_u8;
-      next.is_bf16 = cur.is_bf16;
-      next.quant = cur.quant;
-      if (cur.is_bf16) {
-        next.h.resize(s.elements());
-        ref::UpsampleNearestPlane(cur.hview(), layer.upsample.factor_h, layer.upsample.factor_w,
-                                  Bf16View{next.h.data(), s.height, s.width, s.channels, row});
-      } else if (cur.is_u8) {
-        next.q.resize(s.elements());
-        ref::UpsampleNearestPlane(cur.qview(), layer.upsample.factor_h, layer.upsample.factor_w,
-                                  ByteView{next.q.data(), s.height, s.width, s.channels, row});
-      } else {
-        next.f.resize(s.elements());
-        ref::UpsampleNearest(cur.fview(), layer.upsample.factor_h, layer.upsample.factor_w,
-                             {next.f.data(), s.height, s.width, s.channels, row});
-      }
-    } else {  // crop
-      next.is_u8 = cur.is_u8;
-      next.is_bf16 = cur.is_bf16;
-      next.quant = cur.quant;
-      const Padding& c = g[i].crop;
-      low_crop_top += c.top;
-      low_crop_left += c.left;
-      if (cur.is_bf16) {
-        next.h.resize(s.elements());
-        ConstBf16View v = cur.hview();
-        v.data = v.pixel(c.top, c.left);
-        v.height = s.height;
-        v.width = s.width;
-        ref::CopyPlane(v, Bf16View{next.h.data(), s.height, s.width, s.channels, row});
-      } else if (cur.is_u8) {
-        next.q.resize(s.elements());
-        ConstByteView v = cur.qview();
-        v.data = v.pixel(c.top, c.left);
-        v.height = s.height;
-        v.width = s.width;
-        ref::CopyPlane(v, ByteView{next.q.data(), s.height, s.width, s.channels, row});
-      } else {
-        next.f.resize(s.elements());
-        ConstTensorView v = cur.fview();
-        v.data = v.pixel(c.top, c.left);
-        v.height = s.height;
-        v.width = s.width;
-        ref::Copy(v, {next.f.data(), s.height, s.width, s.channels, row});
-      }
+      next = ChainUpsample(layer, g[i], cur, &low);
+    } else {
+      next = ChainCrop(g[i], cur, &low);
     }
-    if (layer.kind == LayerKind::kConv2D) have_low = false;
+    if (layer.kind == LayerKind::kConv2D) low.have = false;
     cur = std::move(next);
     if (observer) {
       const std::vector<float> real = cur.Real();
