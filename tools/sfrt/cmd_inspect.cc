@@ -157,6 +157,123 @@ void PrintCalibration(std::ostream& out, const CalibrationDesc& cal) {
   table.Print(out, "    ");
 }
 
+// The model's metadata: name, producer, input, output, training camera, weights.
+void PrintModelHeader(std::ostream& out, const std::string& path, const Model& model,
+                      const std::string& traced) {
+  const ModelMetadata& meta = model.metadata();
+  char crc[16];
+  std::snprintf(crc, sizeof(crc), "0x%08x", static_cast<unsigned>(meta.weights_crc32c));
+  out << "model     " << path << "\n"
+      << "  name            " << meta.name << "\n"
+      << "  schema version  " << meta.schema_major << "." << meta.schema_minor << "\n"
+      << "  file size       " << GroupDigits(model.file_bytes()) << " bytes\n"
+      << "  training        " << TrainingStateName(meta.training) << "\n"
+      << "producer\n"
+      << "  exporter        " << meta.exporter_version << "\n"
+      << "  source          " << meta.source_format << " file " << meta.source_file << "\n"
+      << "  source sha256   " << meta.source_sha256 << "\n"
+      << "input     " << meta.input.name << "\n"
+      << "  channels        " << meta.input.channels << "\n"
+      << InputKindLines(meta.input) << "  traced size     " << traced << "\n"
+      << "output    " << meta.output.name << "\n"
+      << "  channels        " << meta.output.channels
+      << (meta.output.channel_names.empty() ? std::string(" (unnamed)")
+                                            : " (" + Join(meta.output.channel_names, ", ") + ")")
+      << "\n"
+      << "  units           " << UnitsText(meta) << "\n"
+      << "camera    (training)\n"
+      << "  focal           " << FormatFloat(meta.camera.focal_px) << " px\n"
+      << "  baseline        " << BaselineText(meta) << "\n"
+      << "  cx, cy          " << FormatFloat(meta.camera.cx) << ", " << FormatFloat(meta.camera.cy)
+      << "\n"
+      << "weights\n"
+      << "  type            " << WeightStorageLine(model) << "\n"
+      << "  vs float32      " << Fp32ComparisonLine(model) << "\n"
+      << "  CRC-32C         " << crc << "\n";
+}
+
+// The layers at height x width: op, precision, pads, output shape, MACs and parameters; then the
+// totals.
+void PrintLayerTable(std::ostream& out, const Model& model,
+                     const std::vector<LayerGeometry>& geometry, int height, int width,
+                     const std::string& size_source, const std::string& traced) {
+  const ModelMetadata& meta = model.metadata();
+  std::span<const LayerDesc> layers = model.layers();
+  Table table({{"#", true},
+               {"name", false},
+               {"op", false},
+               {"precision", false},
+               {"pads t,l,b,r", false},
+               {"output HxWxC", true},
+               {"MACs", true},
+               {"params", true}});
+  uint64_t total_macs = 0;
+  uint64_t total_params = 0;
+  bool any_explicit = false;
+  for (size_t i = 0; i < layers.size(); ++i) {
+    const LayerGeometry& g = geometry[i];
+    total_macs += g.macs;
+    total_params += g.params;
+    any_explicit |= layers[i].kind == LayerKind::kConv2D &&
+                    layers[i].conv.padding_rule == PaddingRule::kExplicit;
+    const bool conv = layers[i].kind == LayerKind::kConv2D;
+    const bool deconv = layers[i].kind == LayerKind::kConvTranspose2D;  // float32 only
+    table.Add({std::to_string(i), layers[i].name,
+               DescribeLayer(layers[i], LayerText::kFull) + InputsSuffix(model, i),
+               conv     ? PrecisionName(layers[i].conv.precision)
+               : deconv ? PrecisionName(Precision::kFloat32)
+                        : "-",
+               DescribePadding(layers[i], g), ShapeString(g.output),
+               conv || deconv ? GroupDigits(g.macs) : "-",
+               g.params > 0 ? GroupDigits(g.params) : "-"});
+  }
+  char gmac[32];
+  std::snprintf(gmac, sizeof(gmac), "%.2f", static_cast<double>(total_macs) / 1e9);
+  out << "\nlayers at " << height << "x" << width << " (" << size_source << ")\n";
+  table.Print(out, "  ");
+  out << "totals\n"
+      << "  compute         " << gmac << " GMAC (" << GroupDigits(total_macs) << " MACs)\n"
+      << "  parameters      " << GroupDigits(total_params) << "\n"
+      << "  weight bytes    " << GroupDigits(StoredParameterBytes(model)) << " ("
+      << (meta.has_int8                              ? "int8 and float"
+          : meta.weight_type == WeightType::kFloat16 ? "float16"
+                                                     : "float32")
+      << ")\n";
+  if (any_explicit && traced != std::to_string(height) + "x" + std::to_string(width)) {
+    out << "  note            explicit pads apply unchanged at every size; if the source padded "
+           "by a size-dependent rule (TF/Keras 'same') they are exact only at the traced size "
+        << traced << "\n";
+  }
+}
+
+// --print-plan: where each tensor lives in the arena.
+void PrintArenaPlan(std::ostream& out, const Session& session, std::span<const LayerDesc> layers,
+                    int height, int width) {
+  const size_t arena = session.arena_bytes();
+  std::span<const PlannedTensor> plan = session.plan();
+  Table plan_table({{"tensor", true},
+                    {"producer", false},
+                    {"last consumer", false},
+                    {"offset", true},
+                    {"bytes", true},
+                    {"type", false}});
+  auto layer_label = [&](int index) -> std::string {
+    if (index < 0 || static_cast<size_t>(index) >= layers.size()) return std::to_string(index);
+    return std::to_string(index) + " " + layers[static_cast<size_t>(index)].name;
+  };
+  for (size_t t = 0; t < plan.size(); ++t) {
+    plan_table.Add({std::to_string(t), layer_label(plan[t].producer),
+                    layer_label(plan[t].last_consumer), GroupDigits(plan[t].offset),
+                    GroupDigits(plan[t].bytes),
+                    plan[t].is_u8     ? "uint8"
+                    : plan[t].is_bf16 ? "bf16"
+                                      : "fp32"});
+  }
+  out << "\narena plan at " << height << "x" << width << " (" << plan.size() << " tensors, "
+      << GroupDigits(arena) << " bytes)\n";
+  plan_table.Print(out, "  ");
+}
+
 int RunInspect(const InspectArgs& args) {
   int height = 0;
   int width = 0;
@@ -191,35 +308,7 @@ int RunInspect(const InspectArgs& args) {
       meta.input.traced_height > 0
           ? std::to_string(meta.input.traced_height) + "x" + std::to_string(meta.input.traced_width)
           : "unknown";
-  char crc[16];
-  std::snprintf(crc, sizeof(crc), "0x%08x", static_cast<unsigned>(meta.weights_crc32c));
-  out << "model     " << args.model << "\n"
-      << "  name            " << meta.name << "\n"
-      << "  schema version  " << meta.schema_major << "." << meta.schema_minor << "\n"
-      << "  file size       " << GroupDigits(model->file_bytes()) << " bytes\n"
-      << "  training        " << TrainingStateName(meta.training) << "\n"
-      << "producer\n"
-      << "  exporter        " << meta.exporter_version << "\n"
-      << "  source          " << meta.source_format << " file " << meta.source_file << "\n"
-      << "  source sha256   " << meta.source_sha256 << "\n"
-      << "input     " << meta.input.name << "\n"
-      << "  channels        " << meta.input.channels << "\n"
-      << InputKindLines(meta.input) << "  traced size     " << traced << "\n"
-      << "output    " << meta.output.name << "\n"
-      << "  channels        " << meta.output.channels
-      << (meta.output.channel_names.empty() ? std::string(" (unnamed)")
-                                            : " (" + Join(meta.output.channel_names, ", ") + ")")
-      << "\n"
-      << "  units           " << UnitsText(meta) << "\n"
-      << "camera    (training)\n"
-      << "  focal           " << FormatFloat(meta.camera.focal_px) << " px\n"
-      << "  baseline        " << BaselineText(meta) << "\n"
-      << "  cx, cy          " << FormatFloat(meta.camera.cx) << ", " << FormatFloat(meta.camera.cy)
-      << "\n"
-      << "weights\n"
-      << "  type            " << WeightStorageLine(*model) << "\n"
-      << "  vs float32      " << Fp32ComparisonLine(*model) << "\n"
-      << "  CRC-32C         " << crc << "\n";
+  PrintModelHeader(out, args.model, *model, traced);
   if (meta.calibration) PrintCalibration(out, *meta.calibration);
 
   Result<std::vector<LayerGeometry>> geometry = InferGeometry(*model, height, width);
@@ -229,53 +318,7 @@ int RunInspect(const InspectArgs& args) {
         "at " + std::to_string(height) + "x" + std::to_string(width) + ": " + geometry.message(),
         kExitFailure);
   }
-  std::span<const LayerDesc> layers = model->layers();
-  Table table({{"#", true},
-               {"name", false},
-               {"op", false},
-               {"precision", false},
-               {"pads t,l,b,r", false},
-               {"output HxWxC", true},
-               {"MACs", true},
-               {"params", true}});
-  uint64_t total_macs = 0;
-  uint64_t total_params = 0;
-  bool any_explicit = false;
-  for (size_t i = 0; i < layers.size(); ++i) {
-    const LayerGeometry& g = (*geometry)[i];
-    total_macs += g.macs;
-    total_params += g.params;
-    any_explicit |= layers[i].kind == LayerKind::kConv2D &&
-                    layers[i].conv.padding_rule == PaddingRule::kExplicit;
-    const bool conv = layers[i].kind == LayerKind::kConv2D;
-    const bool deconv = layers[i].kind == LayerKind::kConvTranspose2D;  // float32 only
-    table.Add({std::to_string(i), layers[i].name,
-               DescribeLayer(layers[i], LayerText::kFull) + InputsSuffix(*model, i),
-               conv     ? PrecisionName(layers[i].conv.precision)
-               : deconv ? PrecisionName(Precision::kFloat32)
-                        : "-",
-               DescribePadding(layers[i], g), ShapeString(g.output),
-               conv || deconv ? GroupDigits(g.macs) : "-",
-               g.params > 0 ? GroupDigits(g.params) : "-"});
-  }
-  char gmac[32];
-  std::snprintf(gmac, sizeof(gmac), "%.2f", static_cast<double>(total_macs) / 1e9);
-  out << "\nlayers at " << height << "x" << width << " (" << size_source << ")\n";
-  table.Print(out, "  ");
-  out << "totals\n"
-      << "  compute         " << gmac << " GMAC (" << GroupDigits(total_macs) << " MACs)\n"
-      << "  parameters      " << GroupDigits(total_params) << "\n"
-      << "  weight bytes    " << GroupDigits(StoredParameterBytes(*model)) << " ("
-      << (meta.has_int8                              ? "int8 and float"
-          : meta.weight_type == WeightType::kFloat16 ? "float16"
-                                                     : "float32")
-      << ")\n";
-  if (any_explicit && traced != std::to_string(height) + "x" + std::to_string(width)) {
-    out << "  note            explicit pads apply unchanged at every size; if the source padded "
-           "by a size-dependent rule (TF/Keras 'same') they are exact only at the traced size "
-        << traced << "\n";
-  }
-
+  PrintLayerTable(out, *model, *geometry, height, width, size_source, traced);
   SessionOptions options;
   options.max_height = height;
   options.max_width = width;
@@ -295,30 +338,7 @@ int RunInspect(const InspectArgs& args) {
   out << "  arena           " << GroupDigits(arena) << " bytes (" << mib << " MiB) at " << height
       << "x" << width << "\n";
 
-  if (args.print_plan) {
-    std::span<const PlannedTensor> plan = (*session)->plan();
-    Table plan_table({{"tensor", true},
-                      {"producer", false},
-                      {"last consumer", false},
-                      {"offset", true},
-                      {"bytes", true},
-                      {"type", false}});
-    auto layer_label = [&](int index) -> std::string {
-      if (index < 0 || static_cast<size_t>(index) >= layers.size()) return std::to_string(index);
-      return std::to_string(index) + " " + layers[static_cast<size_t>(index)].name;
-    };
-    for (size_t t = 0; t < plan.size(); ++t) {
-      plan_table.Add({std::to_string(t), layer_label(plan[t].producer),
-                      layer_label(plan[t].last_consumer), GroupDigits(plan[t].offset),
-                      GroupDigits(plan[t].bytes),
-                      plan[t].is_u8     ? "uint8"
-                      : plan[t].is_bf16 ? "bf16"
-                                        : "fp32"});
-    }
-    out << "\narena plan at " << height << "x" << width << " (" << plan.size() << " tensors, "
-        << GroupDigits(arena) << " bytes)\n";
-    plan_table.Print(out, "  ");
-  }
+  if (args.print_plan) PrintArenaPlan(out, **session, model->layers(), height, width);
   return kExitOk;
 }
 
