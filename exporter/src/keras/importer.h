@@ -278,6 +278,9 @@ class Importer {
   using LayerBuilder = Status (Importer::*)(LayerBuild& b);
   static LayerBuilder BuilderOf(std::string_view cls);
   Status BuildConvolution(LayerBuild& b);
+  Status ReadConvConfig(const LayerBuild& b, bool depthwise, ConvSpec* conv, bool* use_bias);
+  Status PadConvolution(LayerBuild& b, ConvSpec* conv);
+  Status ReadConvWeights(const LayerBuild& b, bool depthwise, bool use_bias, ConvSpec* conv);
   Status BuildBatchNormalization(LayerBuild& b);
   Status BuildLeakyRelu(LayerBuild& b);
   Status BuildActivation(LayerBuild& b);

@@ -247,20 +247,13 @@ Importer::LayerBuilder Importer::BuilderOf(std::string_view cls) {
 }
 
 // Conv2D and DepthwiseConv2D.
-Status Importer::BuildConvolution(LayerBuild& b) {
+// A Conv2D's or DepthwiseConv2D's configuration: filters (or depth_multiplier), kernel size,
+// strides, dilation, groups, bias and activation, into `conv`.
+Status Importer::ReadConvConfig(const LayerBuild& b, bool depthwise, ConvSpec* conv,
+                                bool* use_bias) {
   const ChainLayer& l = b.l;
   const json& cfg = *l.config;
-  const Tensor& in = b.in;
-  int& h = b.h;
-  int& w = b.w;
-  int& c = b.c;
-  Pads& pending = b.pending;
-  const ChainLayer*& pending_pad = b.pending_pad;
-  // DepthwiseConv2D: depth_multiplier outputs per input channel, kernel (kh, kw, in,
-  // multiplier), which is HWIO with one input per group (output c * multiplier + m).
-  const bool depthwise = l.cls == "DepthwiseConv2D";
-  if (Status s = OneInput(b, depthwise ? "a DepthwiseConv2D" : "a Conv2D"); !s.ok()) return s;
-  SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+  const int c = b.c;
   auto field = [&](const char* key) { return Find(cfg, key); };
   int filters_value = 0;
   std::array<int, 2> kernel_value{};
@@ -304,13 +297,10 @@ Status Importer::BuildConvolution(LayerBuild& b) {
                               " input channels and " + std::to_string(filters_value) + " filters");
     }
   }
-  Result<std::string> padding_value = SameOrValid(l);
-  if (!padding_value.ok()) return padding_value.status();
-  const std::string& padding = *padding_value;
-  bool use_bias = true;
+  *use_bias = true;
   if (const json* flag = field("use_bias")) {
     if (!flag->is_boolean()) return LayerFail(l, "use_bias " + JsonText(*flag) + " is not a bool");
-    use_bias = flag->get<bool>();
+    *use_bias = flag->get<bool>();
   }
   std::string activation = "linear";
   if (const json* a = field("activation")) {
@@ -323,45 +313,58 @@ Status Importer::BuildConvolution(LayerBuild& b) {
     return LayerFail(l, "activation " + Quote(activation) + " is not supported (linear, relu)");
   }
 
-  ConvSpec conv;
-  conv.name = l.name;
-  conv.in_channels = c;
-  conv.out_channels = *filters;
-  conv.kernel_h = (*kernel)[0];
-  conv.kernel_w = (*kernel)[1];
-  conv.stride_h = strides[0];
-  conv.stride_w = strides[1];
-  conv.dilation_h = dilation[0];
-  conv.dilation_w = dilation[1];
-  conv.groups = groups;
-  conv.activation = activation == "relu" ? Activation::kRelu : Activation::kNone;
+  conv->name = l.name;
+  conv->in_channels = c;
+  conv->out_channels = *filters;
+  conv->kernel_h = (*kernel)[0];
+  conv->kernel_w = (*kernel)[1];
+  conv->stride_h = strides[0];
+  conv->stride_w = strides[1];
+  conv->dilation_h = dilation[0];
+  conv->dilation_w = dilation[1];
+  conv->groups = groups;
+  conv->activation = activation == "relu" ? Activation::kRelu : Activation::kNone;
+  return Status::Ok();
+}
+
+// The convolution's padding: 'same' as the same-upper rule, 'valid' taking the ZeroPadding2D
+// before it; then the output size, where the input size is known.
+Status Importer::PadConvolution(LayerBuild& b, ConvSpec* conv) {
+  const ChainLayer& l = b.l;
+  int& h = b.h;
+  int& w = b.w;
+  Pads& pending = b.pending;
+  const ChainLayer*& pending_pad = b.pending_pad;
+  Result<std::string> padding_value = SameOrValid(l);
+  if (!padding_value.ok()) return padding_value.status();
+  const std::string& padding = *padding_value;
   // The window's rows and columns (the kernel's dilated extent).
-  const int extent_h = DilatedExtent(conv.kernel_h, conv.dilation_h);
-  const int extent_w = DilatedExtent(conv.kernel_w, conv.dilation_w);
+  const int extent_h = DilatedExtent(conv->kernel_h, conv->dilation_h);
+  const int extent_w = DilatedExtent(conv->kernel_w, conv->dilation_w);
   if (padding == "same") {
     if (pending_pad != nullptr) {
       return LayerFail(l, "follows ZeroPadding2D " + Quote(pending_pad->name) +
                               " but pads 'same'; only padding 'valid' can absorb it");
     }
-    conv.padding_rule = PaddingRule::kSameUpper;
+    conv->padding_rule = PaddingRule::kSameUpper;
     if (b.s.known) {
-      const auto [top, bottom] = SameAxis(h, conv.stride_h, extent_h);
-      const auto [left, right] = SameAxis(w, conv.stride_w, extent_w);
-      conv.pads = Pads{top, left, bottom, right};
+      const auto [top, bottom] = SameAxis(h, conv->stride_h, extent_h);
+      const auto [left, right] = SameAxis(w, conv->stride_w, extent_w);
+      conv->pads = Pads{top, left, bottom, right};
     }
   } else {
-    conv.padding_rule = PaddingRule::kExplicit;
-    conv.pads = pending;
+    conv->padding_rule = PaddingRule::kExplicit;
+    conv->pads = pending;
     // The model format takes explicit pads of at most kernel - 1 per side (as the loader).
-    for (const auto& [amount, side, size] : {std::tuple{conv.pads.top, "top", extent_h},
-                                             std::tuple{conv.pads.bottom, "bottom", extent_h},
-                                             std::tuple{conv.pads.left, "left", extent_w},
-                                             std::tuple{conv.pads.right, "right", extent_w}}) {
+    for (const auto& [amount, side, size] : {std::tuple{conv->pads.top, "top", extent_h},
+                                             std::tuple{conv->pads.bottom, "bottom", extent_h},
+                                             std::tuple{conv->pads.left, "left", extent_w},
+                                             std::tuple{conv->pads.right, "right", extent_w}}) {
       if (amount > model_limits::MaxPad(size)) {
         return LayerFail(
             l, "follows ZeroPadding2D " + Quote(pending_pad != nullptr ? pending_pad->name : "") +
                    " whose padding gives it " + std::to_string(amount) + " on the " + side +
-                   "; a " + std::to_string(conv.kernel_h) + "x" + std::to_string(conv.kernel_w) +
+                   "; a " + std::to_string(conv->kernel_h) + "x" + std::to_string(conv->kernel_w) +
                    " kernel takes at most " + std::to_string(model_limits::MaxPad(size)));
       }
     }
@@ -369,44 +372,68 @@ Status Importer::BuildConvolution(LayerBuild& b) {
   pending = Pads{};
   pending_pad = nullptr;
   if (b.s.known) {
-    const int ph = h + conv.pads.top + conv.pads.bottom;
-    const int pw = w + conv.pads.left + conv.pads.right;
+    const int ph = h + conv->pads.top + conv->pads.bottom;
+    const int pw = w + conv->pads.left + conv->pads.right;
     if (ph < extent_h || pw < extent_w) {
       return LayerFail(l, "its " + std::to_string(ph) + "x" + std::to_string(pw) +
                               " input at the built size is smaller than the kernel");
     }
-    h = (ph - extent_h) / conv.stride_h + 1;
-    w = (pw - extent_w) / conv.stride_w + 1;
+    h = (ph - extent_h) / conv->stride_h + 1;
+    w = (pw - extent_w) / conv->stride_w + 1;
   }
+  return Status::Ok();
+}
+
+// The convolution's kernel (and bias) from the file, checked against its configuration.
+Status Importer::ReadConvWeights(const LayerBuild& b, bool depthwise, bool use_bias,
+                                 ConvSpec* conv) {
+  const ChainLayer& l = b.l;
+  const int c = b.c;
+  const int groups = conv->groups;
   Result<std::vector<std::string>> paths = WeightPaths(l, use_bias ? 2 : 1);
   if (!paths.ok()) return paths.status();
   const std::string meaning =
-      "(kernel_size " + std::to_string(conv.kernel_h) + "x" + std::to_string(conv.kernel_w) + ", " +
-      std::to_string(c) + " input channels, " +
-      (depthwise ? "depth_multiplier " + std::to_string(*filters / c)
-                 : "filters " + std::to_string(*filters) +
+      "(kernel_size " + std::to_string(conv->kernel_h) + "x" + std::to_string(conv->kernel_w) +
+      ", " + std::to_string(c) + " input channels, " +
+      (depthwise ? "depth_multiplier " + std::to_string(conv->out_channels / c)
+                 : "filters " + std::to_string(conv->out_channels) +
                        (groups > 1 ? ", groups " + std::to_string(groups) : "")) +
       ")";
   // Conv2D: (kh, kw, in / groups, filters); DepthwiseConv2D: (kh, kw, in, multiplier).
   const uint64_t third = depthwise ? static_cast<uint64_t>(c) : static_cast<uint64_t>(c / groups);
-  const uint64_t fourth =
-      depthwise ? static_cast<uint64_t>(*filters / c) : static_cast<uint64_t>(*filters);
+  const uint64_t fourth = depthwise ? static_cast<uint64_t>(conv->out_channels / c)
+                                    : static_cast<uint64_t>(conv->out_channels);
   auto kernel_values = ReadDataset(
       l, (*paths)[0],
-      {static_cast<uint64_t>(conv.kernel_h), static_cast<uint64_t>(conv.kernel_w), third, fourth},
+      {static_cast<uint64_t>(conv->kernel_h), static_cast<uint64_t>(conv->kernel_w), third, fourth},
       meaning);
   if (!kernel_values.ok()) return kernel_values.status();
-  conv.weights_hwio = std::move(kernel_values).value();
+  conv->weights_hwio = std::move(kernel_values).value();
   if (use_bias) {
-    auto bias = ReadDataset(l, (*paths)[1], {static_cast<uint64_t>(*filters)},
-                            "(filters " + std::to_string(*filters) + ")");
+    auto bias = ReadDataset(l, (*paths)[1], {static_cast<uint64_t>(conv->out_channels)},
+                            "(filters " + std::to_string(conv->out_channels) + ")");
     if (!bias.ok()) return bias.status();
-    conv.bias = std::move(bias).value();
+    conv->bias = std::move(bias).value();
   } else {
-    conv.bias.assign(static_cast<size_t>(*filters), 0.0f);
+    conv->bias.assign(static_cast<size_t>(conv->out_channels), 0.0f);
   }
-  c = *filters;
-  conv.inputs = {in.layer};
+  return Status::Ok();
+}
+
+Status Importer::BuildConvolution(LayerBuild& b) {
+  const ChainLayer& l = b.l;
+  // DepthwiseConv2D: depth_multiplier outputs per input channel, kernel (kh, kw, in,
+  // multiplier), which is HWIO with one input per group (output c * multiplier + m).
+  const bool depthwise = l.cls == "DepthwiseConv2D";
+  if (Status s = OneInput(b, depthwise ? "a DepthwiseConv2D" : "a Conv2D"); !s.ok()) return s;
+  SFRT_KERAS_RETURN_IF_ERROR(CheckChannelsLast(l, path_));
+  ConvSpec conv;
+  bool use_bias = true;
+  if (Status s = ReadConvConfig(b, depthwise, &conv, &use_bias); !s.ok()) return s;
+  if (Status s = PadConvolution(b, &conv); !s.ok()) return s;
+  if (Status s = ReadConvWeights(b, depthwise, use_bias, &conv); !s.ok()) return s;
+  b.c = conv.out_channels;
+  conv.inputs = {b.in.layer};
   ++b.s.convs;
   AddLayer(b, std::move(conv));
   return Status::Ok();

@@ -175,6 +175,13 @@ class Importer {
   Status ProcessElementwise(int idx, GraphOp& op);
   Status ProcessConv(int idx, GraphOp& op);
   Status ProcessConvTranspose(int idx, GraphOp& op);
+  Status ConvTransposePads(int idx, const GraphOp& op, std::array<int64_t, 2> kernel,
+                           const std::vector<int64_t>& dilations,
+                           const std::vector<int64_t>& strides,
+                           const std::vector<int64_t>& output_shape,
+                           std::vector<int64_t>* output_padding, std::vector<int64_t>* pads);
+  Status CheckKernelShape(int idx, const Dims& wdims);
+  Status ReadBias(int idx, int64_t out_ch, std::vector<float>* bias);
   Status ProcessPool(int idx, GraphOp& op);
   Status ProcessPad(int idx, GraphOp& op);
   Status ProcessBatchNorm(int idx, GraphOp& op);

@@ -14,6 +14,94 @@
 
 namespace sfrt::exporter::onnx_import {
 
+// A ConvTranspose's pads (top, left, bottom, right) from its auto_pad, pads and output_shape
+// attributes; where the asked-for size needs it, more output padding in `output_padding`. Each
+// pad removes output rows or columns the kernel wrote, so each is below its kernel side.
+Status Importer::ConvTransposePads(int idx, const GraphOp& op, std::array<int64_t, 2> kernel,
+                                   const std::vector<int64_t>& dilations,
+                                   const std::vector<int64_t>& strides,
+                                   const std::vector<int64_t>& output_shape,
+                                   std::vector<int64_t>* output_padding,
+                                   std::vector<int64_t>* pads_out) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
+  std::vector<int64_t>& out_pad = *output_padding;
+  if (auto_pad != "NOTSET" && auto_pad != "VALID" && auto_pad != "SAME_UPPER" &&
+      auto_pad != "SAME_LOWER") {
+    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
+                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
+  }
+  if (!output_shape.empty() && output_shape.size() < 2) {
+    return NodeError(idx, "attribute 'output_shape' = " + JoinInts(output_shape) +
+                              " needs the output height and width");
+  }
+  const bool same = auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER";
+  if (same || (!output_shape.empty() && auto_pad == "NOTSET" && pads.empty())) {
+    // ONNX: the pads (and, where they would be negative, extra output padding) that give the
+    // asked-for size: in * stride for SAME_*, else output_shape; the odd pixel goes to the end
+    // for SAME_UPPER, to the start otherwise.
+    pads = {0, 0, 0, 0};
+    for (int a = 0; a < 2; ++a) {
+      const int64_t in = op.in_shape[2 + a];
+      const int64_t extent = (kernel[a] - 1) * dilations[a] + 1;
+      const int64_t target = same ? in * strides[a] : output_shape[output_shape.size() - 2 + a];
+      const int64_t total = (in - 1) * strides[a] + out_pad[a] + extent - target;
+      if (total < 0) {
+        out_pad[a] -= total;
+        continue;
+      }
+      const int64_t larger = total - total / 2;
+      pads[a] = auto_pad == "SAME_UPPER" ? total / 2 : larger;
+      pads[a + 2] = total - pads[a];
+    }
+    if (out_pad[0] >= strides[0] || out_pad[1] >= strides[1]) {
+      return NodeError(idx, "its output size needs output padding " + JoinInts(out_pad) +
+                                ", not below its strides " + JoinInts(strides));
+    }
+  }
+  if (auto_pad == "VALID" || (auto_pad == "NOTSET" && pads.empty())) pads = {0, 0, 0, 0};
+  if (pads.size() != 4) {
+    return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
+  }
+  // pads are (top, left, bottom, right); each removes output rows or columns the kernel wrote.
+  const int64_t extent_h = (kernel[0] - 1) * dilations[0] + 1;
+  const int64_t extent_w = (kernel[1] - 1) * dilations[1] + 1;
+  const int64_t limits[4] = {extent_h, extent_w, extent_h, extent_w};
+  for (size_t k = 0; k < 4; ++k) {
+    if (pads[k] < 0 || pads[k] >= limits[k]) {
+      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) +
+                                " is not supported (each at least 0 and below its kernel side)");
+    }
+  }
+  *pads_out = pads;
+  return Status::Ok();
+}
+
+// A convolution's 'kernel_shape', when given, matches its weight's kernel sides.
+Status Importer::CheckKernelShape(int idx, const Dims& wdims) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
+                             IntsAttr(idx, "kernel_shape"));
+  if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{wdims[2], wdims[3]}) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts(kernel_shape) +
+                              " does not match the weight shape " + JoinInts(wdims));
+  }
+  return Status::Ok();
+}
+
+// A convolution's bias: its third input, of shape [out_ch], or zeros when it has none.
+Status Importer::ReadBias(int idx, int64_t out_ch, std::vector<float>* bias) {
+  const onnx::NodeProto& n = graph().node(idx);
+  bias->assign(static_cast<size_t>(out_ch), 0.0f);
+  if (n.input_size() <= 2 || n.input(2).empty()) return Status::Ok();
+  Dims bdims;
+  SFRT_ONNX_ASSIGN_OR_RETURN(*bias, GetFloats(idx, 2, &bdims));
+  if (bdims != Dims{out_ch}) {
+    return NodeError(idx, "bias " + Quote(n.input(2)) + " has shape " + JoinInts(bdims) +
+                              ", expected [" + std::to_string(out_ch) + "]");
+  }
+  return Status::Ok();
+}
+
 Status Importer::ProcessConv(int idx, GraphOp& op) {
   const onnx::NodeProto& n = graph().node(idx);
   if (n.input_size() < 2) return NodeError(idx, "needs a weight input");
@@ -33,12 +121,7 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   }
   const int64_t in_ch = group_in * group;
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, DilationsAttr(idx, "dilations"));
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
-                             IntsAttr(idx, "kernel_shape"));
-  if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{kh, kw}) {
-    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts(kernel_shape) +
-                              " does not match the weight shape " + JoinInts(wdims));
-  }
+  if (Status s = CheckKernelShape(idx, wdims); !s.ok()) return s;
   SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> strides, IntsAttr(idx, "strides"));
   if (strides.empty()) strides = {1, 1};
   if (strides.size() != 2 || strides[0] < 1 || strides[1] < 1) {
@@ -139,16 +222,7 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
       }
     }
   }
-  c.bias.assign(static_cast<size_t>(out_ch), 0.0f);
-  if (n.input_size() > 2 && !n.input(2).empty()) {
-    Dims bdims;
-    SFRT_ONNX_ASSIGN_OR_RETURN(c.bias, GetFloats(idx, 2, &bdims));
-    if (bdims != Dims{out_ch}) {
-      return NodeError(idx, "bias " + Quote(n.input(2)) + " has shape " + JoinInts(bdims) +
-                                ", expected [" + std::to_string(out_ch) + "]");
-    }
-  }
-  return Status::Ok();
+  return ReadBias(idx, out_ch, &c.bias);
 }
 
 // ONNX ConvTranspose (opsets 1-17): weights (C_in, C_out, kH, kW), each input pixel scattered
@@ -170,12 +244,7 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
         idx, "attribute 'group' = " + std::to_string(group) + " is not supported (only group 1)");
   }
   SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> dilations, DilationsAttr(idx, "dilations"));
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> kernel_shape,
-                             IntsAttr(idx, "kernel_shape"));
-  if (!kernel_shape.empty() && kernel_shape != std::vector<int64_t>{kh, kw}) {
-    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts(kernel_shape) +
-                              " does not match the weight shape " + JoinInts(wdims));
-  }
+  if (Status s = CheckKernelShape(idx, wdims); !s.ok()) return s;
   if (in_ch != op.in_shape[1]) {
     return NodeError(idx, "weight " + Quote(n.input(1)) + " expects " + std::to_string(in_ch) +
                               " input channels, the input tensor " + Quote(op.inputs[0]) + " has " +
@@ -202,57 +271,15 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
     return NodeError(idx, "attribute 'output_padding' = " + JoinInts(out_pad) +
                               " is not supported (two values, each below its stride)");
   }
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
-  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::vector<int64_t> output_shape,
-                             IntsAttr(idx, "output_shape"));
-  if (auto_pad != "NOTSET" && auto_pad != "VALID" && auto_pad != "SAME_UPPER" &&
-      auto_pad != "SAME_LOWER") {
-    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
-                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> output_shape, IntsAttr(idx, "output_shape"));
+  std::vector<int64_t> pads;
+  if (Status s =
+          ConvTransposePads(idx, op, {kh, kw}, dilations, strides, output_shape, &out_pad, &pads);
+      !s.ok()) {
+    return s;
   }
-  if (!output_shape.empty() && output_shape.size() < 2) {
-    return NodeError(idx, "attribute 'output_shape' = " + JoinInts(output_shape) +
-                              " needs the output height and width");
-  }
-  const bool same = auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER";
-  if (same || (!output_shape.empty() && auto_pad == "NOTSET" && pads.empty())) {
-    // ONNX: the pads (and, where they would be negative, extra output padding) that give the
-    // asked-for size: in * stride for SAME_*, else output_shape; the odd pixel goes to the end
-    // for SAME_UPPER, to the start otherwise.
-    pads = {0, 0, 0, 0};
-    for (int a = 0; a < 2; ++a) {
-      const int64_t in = op.in_shape[2 + a];
-      const int64_t kernel = ((a == 0 ? kh : kw) - 1) * dilations[a] + 1;
-      const int64_t target = same ? in * strides[a] : output_shape[output_shape.size() - 2 + a];
-      const int64_t total = (in - 1) * strides[a] + out_pad[a] + kernel - target;
-      if (total < 0) {
-        out_pad[a] -= total;
-        continue;
-      }
-      const int64_t larger = total - total / 2;
-      pads[a] = auto_pad == "SAME_UPPER" ? total / 2 : larger;
-      pads[a + 2] = total - pads[a];
-    }
-    if (out_pad[0] >= strides[0] || out_pad[1] >= strides[1]) {
-      return NodeError(idx, "its output size needs output padding " + JoinInts(out_pad) +
-                                ", not below its strides " + JoinInts(strides));
-    }
-  }
-  if (auto_pad == "VALID" || (auto_pad == "NOTSET" && pads.empty())) pads = {0, 0, 0, 0};
-  if (pads.size() != 4) {
-    return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
-  }
-  // pads are (top, left, bottom, right); each removes output rows or columns the kernel wrote.
   const int64_t extent_h = (kh - 1) * dilations[0] + 1;
   const int64_t extent_w = (kw - 1) * dilations[1] + 1;
-  const int64_t limits[4] = {extent_h, extent_w, extent_h, extent_w};
-  for (size_t k = 0; k < 4; ++k) {
-    if (pads[k] < 0 || pads[k] >= limits[k]) {
-      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) +
-                                " is not supported (each at least 0 and below its kernel side)");
-    }
-  }
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
   const int64_t out_h = (in_h - 1) * strides[0] - pads[0] - pads[2] + extent_h + out_pad[0];
@@ -295,16 +322,7 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
       }
     }
   }
-  d.bias.assign(static_cast<size_t>(out_ch), 0.0f);
-  if (n.input_size() > 2 && !n.input(2).empty()) {
-    Dims bdims;
-    SFRT_ONNX_ASSIGN_OR_RETURN(d.bias, GetFloats(idx, 2, &bdims));
-    if (bdims != Dims{out_ch}) {
-      return NodeError(idx, "bias " + Quote(n.input(2)) + " has shape " + JoinInts(bdims) +
-                                ", expected [" + std::to_string(out_ch) + "]");
-    }
-  }
-  return Status::Ok();
+  return ReadBias(idx, out_ch, &d.bias);
 }
 
 // ONNX MaxPool and AveragePool (opsets 1-17), 2-D: explicit pads, VALID or SAME_UPPER,
