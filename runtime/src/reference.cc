@@ -226,6 +226,18 @@ struct LowMap {
   int crop_left = 0;
 };
 
+// A convolution that reads the LowMap through its phases (`view`, the map) instead of the
+// upsampled tensor of shape `upsampled`, with what crops after the upsampling removed.
+template <typename Args, typename View>
+void ReadThroughPhases(Args& args, View view, const LowMap& low, const TensorShape& upsampled) {
+  args.in = view;
+  args.upsampled = true;
+  args.crop_top = low.crop_top;
+  args.crop_left = low.crop_left;
+  args.c_height = upsampled.height;
+  args.c_width = upsampled.width;
+}
+
 // A chain's bf16 convolution at layer i, reading `cur` (or `low` through the phase kernels, as the
 // session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it).
 Tensor ChainBf16Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeometry& g,
@@ -251,12 +263,7 @@ Tensor ChainBf16Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeo
   args.in = cur.hview();
   args.pads = g.pads;
   if (phases) {
-    args.in = low.tensor.hview();
-    args.upsampled = true;
-    args.crop_top = low.crop_top;
-    args.crop_left = low.crop_left;
-    args.c_height = cur.shape.height;
-    args.c_width = cur.shape.width;
+    ReadThroughPhases(args, low.tensor.hview(), low, cur.shape);
   }
   if (out_float) {
     next.f.resize(s.elements());
@@ -290,12 +297,7 @@ Tensor ChainInt8Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeo
   args.in = cur.qview();
   args.pads = g.pads;
   if (p.phase_weights_q != nullptr && low.have && low.tensor.is_u8) {
-    args.in = low.tensor.qview();
-    args.upsampled = true;
-    args.crop_top = low.crop_top;
-    args.crop_left = low.crop_left;
-    args.c_height = cur.shape.height;
-    args.c_width = cur.shape.width;
+    ReadThroughPhases(args, low.tensor.qview(), low, cur.shape);
   }
   if (out_float) {
     next.f.resize(s.elements());

@@ -638,10 +638,7 @@ int RunBench(const BenchArgs& args) {
       !problem.empty()) {
     return ReportError(kName, problem, kExitUsage);
   }
-  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
-    return ReportError(kName, problem, kExitFailure);
-  }
-  auto model = Model::LoadFile(args.model);
+  auto model = LoadModelFile(args.model);
   if (!model.ok()) return ReportError(kName, model.message(), kExitFailure);
   std::string size_source = "--size";
   if (args.size.empty()) size_source = DefaultInputSize((*model)->metadata(), &height, &width);

@@ -468,10 +468,7 @@ int RunInfer(const InferArgs& args) {
   }
 
   // Model.
-  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
-    return ReportError(kName, problem, kExitFailure);
-  }
-  Result<std::shared_ptr<const Model>> loaded = Model::LoadFile(args.model);
+  Result<std::shared_ptr<const Model>> loaded = LoadModelFile(args.model);
   if (!loaded.ok()) return ReportError(kName, loaded.message(), kExitFailure);
   std::shared_ptr<const Model> model = std::move(loaded).value();
   const ModelMetadata& meta = model->metadata();

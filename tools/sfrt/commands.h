@@ -8,9 +8,12 @@
 
 #include <atomic>
 #include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "sfrt/status.h"
 
 namespace CLI {
 class App;
@@ -19,6 +22,7 @@ class Option;
 
 namespace sfrt {
 struct ModelMetadata;
+class Model;
 }  // namespace sfrt
 
 namespace sfrt::tools {
@@ -63,6 +67,10 @@ const char* DefaultInputSize(const ModelMetadata& meta, int* height, int* width)
 // Empty when `path` names an existing regular file (or a symlink to one); otherwise a message
 // such as "model file 'x.sfrt' does not exist". `what` names the role ("model file").
 std::string CheckInputFile(const std::string& path, std::string_view what);
+
+// The model file at `path`, loaded and verified: CheckInputFile's message for a missing file,
+// else the loader's (each names the file).
+Result<std::shared_ptr<const Model>> LoadModelFile(const std::string& path);
 
 // Empty when an output file could be written at `path` (by io::WriteFileAtomically's rule): its
 // directory exists and takes a new file, or it is a device or FIFO; otherwise a message naming

@@ -60,6 +60,13 @@ bool ParseSize(std::string_view text, int* height, int* width) {
   return parse(text.substr(0, sep), height) && parse(text.substr(sep + 1), width);
 }
 
+Result<std::shared_ptr<const Model>> LoadModelFile(const std::string& path) {
+  if (std::string problem = CheckInputFile(path, "model file"); !problem.empty()) {
+    return Status::Error(problem);
+  }
+  return Model::LoadFile(path);
+}
+
 std::string CheckInputFile(const std::string& path, std::string_view what) {
   std::error_code ec;
   std::filesystem::file_status st = std::filesystem::status(path, ec);
