@@ -241,6 +241,28 @@ struct Session::StepRun {
     }
   }
 
+  // Step `at`'s output tensor in the arena, as elements of type T.
+  template <typename T>
+  T* OutputTensor(size_t at) const {
+    return reinterpret_cast<T*>(reinterpret_cast<uint8_t*>(s.arena_) +
+                                s.plan_[static_cast<size_t>(s.tensor_of_step_[at])].offset);
+  }
+  // Where a reduced-type step writes in its output tensor `dst`: all of it, or its slice of a
+  // Concat's tensor (PlaceConcatInputs: that tensor's shape), over the extent the step writes
+  // (an upsampling into a slice: only its crop's).
+  template <typename T>
+  PlaneView<T> OutputSlice(const Step& step, T* dst) const {
+    const TensorShape* whole =
+        step.slice_of < 0
+            ? nullptr
+            : &s.geometry_[s.steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
+    const TensorShape& extent = step.slice_crop >= 0
+                                    ? s.geometry_[static_cast<size_t>(step.slice_crop)].output
+                                    : s.geometry_[step.last_layer].output;
+    return OutputPlane(dst + step.slice_channel, extent.height, extent.width, extent.channels,
+                       whole);
+  }
+
   // Step k, by the element type it writes.
   void Do(const Step& step, size_t k) {
     if (step.kind == Step::Kind::kCrop) return Crop(step, k);
@@ -308,20 +330,9 @@ void Session::StepRun::WriteBf16(const Step& step, size_t at) {
   Views& views = *s.views_;
   const ConstTensorView cur = views.f32[src];
   const ConstBf16View cur16 = views.bf16[src];
-  // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
-  // and the extent a step writes (an upsampling into a slice: only its crop's).
-  const TensorShape* whole =
-      step.slice_of < 0
-          ? nullptr
-          : &s.geometry_[s.steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
-  const TensorShape& extent =
-      step.slice_crop >= 0 ? s.geometry_[static_cast<size_t>(step.slice_crop)].output : g.output;
-  uint16_t* dst16 =
-      reinterpret_cast<uint16_t*>(reinterpret_cast<uint8_t*>(s.arena_) +
-                                  s.plan_[static_cast<size_t>(s.tensor_of_step_[at])].offset);
+  uint16_t* dst16 = OutputTensor<uint16_t>(at);
   Bf16View written;
-  const Bf16View out16 =
-      OutputPlane(dst16 + step.slice_channel, extent.height, extent.width, extent.channels, whole);
+  const Bf16View out16 = OutputSlice(step, dst16);
   if (step.kind == Step::Kind::kToBf16) {
     ToBf16Job job{step.to_bf16, cur, DenseBf16View(dst16, cur.height, cur.width, cur.channels)};
     ParallelRows(cur.height, ToBf16Trampoline, &job);
@@ -367,18 +378,8 @@ void Session::StepRun::WriteU8(const Step& step, size_t at) {
   Views& views = *s.views_;
   const ConstTensorView cur = views.f32[src];
   const ConstByteView cur8 = views.u8[src];
-  // A step that writes its slice of a Concat's tensor (PlaceConcatInputs): that tensor's shape;
-  // and the extent a step writes (an upsampling into a slice: only its crop's).
-  const TensorShape* whole =
-      step.slice_of < 0
-          ? nullptr
-          : &s.geometry_[s.steps_[static_cast<size_t>(step.slice_of)].last_layer].output;
-  const TensorShape& extent =
-      step.slice_crop >= 0 ? s.geometry_[static_cast<size_t>(step.slice_crop)].output : g.output;
-  uint8_t* dst8 = reinterpret_cast<uint8_t*>(s.arena_) +
-                  s.plan_[static_cast<size_t>(s.tensor_of_step_[at])].offset;
-  const ByteView out8 =
-      OutputPlane(dst8 + step.slice_channel, extent.height, extent.width, extent.channels, whole);
+  uint8_t* dst8 = OutputTensor<uint8_t>(at);
+  const ByteView out8 = OutputSlice(step, dst8);
   if (step.kind == Step::Kind::kQuantize) {
     QuantizeJob job{step.quantize, cur, DenseByteView(dst8, cur.height, cur.width, cur.channels),
                     1.0f / step.quant.scale, step.quant.zero_point};
