@@ -14,6 +14,29 @@
 
 namespace sfrt::exporter::onnx_import {
 
+namespace {
+
+// Weights of shape (outputs, inputs, kh, kw) (ONNX Conv's OIHW, `outputs_first`) or (inputs,
+// outputs, kh, kw) (ConvTranspose's IOHW) as HWIO (kh, kw, inputs, outputs).
+std::vector<float> ToHwio(const std::vector<float>& w, int64_t inputs, int64_t outputs, int64_t kh,
+                          int64_t kw, bool outputs_first) {
+  std::vector<float> hwio(w.size());
+  for (int64_t i = 0; i < inputs; ++i) {
+    for (int64_t o = 0; o < outputs; ++o) {
+      const int64_t plane = outputs_first ? o * inputs + i : i * outputs + o;
+      for (int64_t ky = 0; ky < kh; ++ky) {
+        for (int64_t kx = 0; kx < kw; ++kx) {
+          hwio[static_cast<size_t>(((ky * kw + kx) * inputs + i) * outputs + o)] =
+              w[static_cast<size_t>((plane * kh + ky) * kw + kx)];
+        }
+      }
+    }
+  }
+  return hwio;
+}
+
+}  // namespace
+
 // A ConvTranspose's pads (top, left, bottom, right) from its auto_pad, pads and output_shape
 // attributes; where the asked-for size needs it, more output padding in `output_padding`. Each
 // pad removes output rows or columns the kernel wrote, so each is below its kernel side.
@@ -210,18 +233,8 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   c.groups = static_cast<int>(group);
   c.pads = p;
   c.padding_rule = rule;
-  c.weights_hwio.resize(w.size());
   // OIHW with I the inputs per group -> HWIO with the same I: the output index stays global.
-  for (int64_t co = 0; co < out_ch; ++co) {
-    for (int64_t ci = 0; ci < group_in; ++ci) {
-      for (int64_t ky = 0; ky < kh; ++ky) {
-        for (int64_t kx = 0; kx < kw; ++kx) {
-          c.weights_hwio[((ky * kw + kx) * group_in + ci) * out_ch + co] =
-              w[((co * group_in + ci) * kh + ky) * kw + kx];
-        }
-      }
-    }
-  }
+  c.weights_hwio = ToHwio(w, group_in, out_ch, kh, kw, /*outputs_first=*/true);
   return ReadBias(idx, out_ch, &c.bias);
 }
 
@@ -311,17 +324,7 @@ Status Importer::ProcessConvTranspose(int idx, GraphOp& op) {
                 static_cast<int>(pads[3])};
   d.output_padding_h = static_cast<int>(out_pad[0]);
   d.output_padding_w = static_cast<int>(out_pad[1]);
-  d.weights_hwio.resize(w.size());
-  for (int64_t ci = 0; ci < in_ch; ++ci) {
-    for (int64_t co = 0; co < out_ch; ++co) {
-      for (int64_t ky = 0; ky < kh; ++ky) {
-        for (int64_t kx = 0; kx < kw; ++kx) {
-          d.weights_hwio[((ky * kw + kx) * in_ch + ci) * out_ch + co] =
-              w[((ci * out_ch + co) * kh + ky) * kw + kx];
-        }
-      }
-    }
-  }
+  d.weights_hwio = ToHwio(w, in_ch, out_ch, kh, kw, /*outputs_first=*/false);
   return ReadBias(idx, out_ch, &d.bias);
 }
 
