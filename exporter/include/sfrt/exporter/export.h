@@ -135,10 +135,10 @@ struct CheckReport {
   size_t non_finite = 0;
   bool compared = false;      // against a reference; then:
   double max_abs_error = 0;   // the largest per-pixel max |error| over the channels
-  double reference_max = 0;   // the reference's largest |value|
-  double relative_error = 0;  // max_abs_error / reference_max (1 when that is 0)
+  double reference_max = 0;   // the reference's largest |value| (the scale; 1 if it is 0)
+  double relative_error = 0;  // max_abs_error / the scale
   double tolerance = 0;
-  size_t pixels_over = 0;  // pixels whose error exceeds tolerance x reference_max
+  size_t pixels_over = 0;  // pixels whose error exceeds tolerance x the scale
   size_t pixels = 0;
   bool passed = false;
 };
