@@ -238,6 +238,13 @@ void ReadThroughPhases(Args& args, View view, const LowMap& low, const TensorSha
   args.c_width = upsampled.width;
 }
 
+// Whether a chain's int8 or bf16 convolution at layer i writes float32: no convolution reads its
+// output, or the next one runs in another precision (the session's rule, StepPlanner).
+bool WritesFloat(std::span<const LayerDesc> layers, size_t i) {
+  const int next = NextConv(layers, i);
+  return next < 0 || layers[static_cast<size_t>(next)].conv.precision != layers[i].conv.precision;
+}
+
 // A chain's bf16 convolution at layer i, reading `cur` (or `low` through the phase kernels, as the
 // session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it).
 Tensor ChainBf16Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeometry& g,
@@ -248,9 +255,7 @@ Tensor ChainBf16Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeo
   const TensorShape& s = next.shape;
   const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
   const ConvParams& p = layer.conv;
-  const int consumer = NextConv(layers, i);
-  const bool out_float =
-      consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kBFloat16;
+  const bool out_float = WritesFloat(layers, i);
   // The session fuses a nearest-2x upsampling into the 3x3 stride-1 convolution after it and
   // computes its interior from the phase kernels: so does the reference.
   const bool phases = low.have && low.tensor.is_bf16 && p.kernel_h == 3 && p.kernel_w == 3 &&
@@ -286,9 +291,7 @@ Tensor ChainInt8Conv(std::span<const LayerDesc> layers, size_t i, const LayerGeo
   const TensorShape& s = next.shape;
   const ptrdiff_t row = static_cast<ptrdiff_t>(s.width) * s.channels;
   const ConvParams& p = layer.conv;
-  const int consumer = NextConv(layers, i);
-  const bool out_float =
-      consumer < 0 || layers[static_cast<size_t>(consumer)].conv.precision != Precision::kInt8;
+  const bool out_float = WritesFloat(layers, i);
   std::vector<uint8_t> packing;
   const PackedInt8Conv packed = PackInt8Conv(p, 0, out_float ? nullptr : &p.output_quant,
                                              AlignedScratch(packing, PackedInt8Bytes(p, 0)));
