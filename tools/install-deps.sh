@@ -18,6 +18,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev clang-14 libclang-rt-14-dev valgrind
   # reference models for tests (PyTorch builds SceneEDNet and exports ONNX)
   python3 python3-numpy python3-torch python3-onnx python3-h5py python3-pil python3-flatbuffers
+  # the Python package (python/: pybind11 against Debian's python3), its tests and examples
+  python3-dev pybind11-dev python3-pybind11 python3-pytest python3-matplotlib
   # ROS 1 as Debian packages it: bag replay (ros/), the sfrt_ros node, and the master, rosbag
   # play and Python clients its tests use
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs

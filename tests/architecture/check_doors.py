@@ -23,6 +23,8 @@ MODULES = {
     "ros2": (["ros2/include"], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
     "tools": (["tools"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg", "pipeline",
                           "ros", "ros2"}),
+    # The Python package binds the runtime, the pipeline and the eval and bag libraries of tools/.
+    "python": ([], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline", "tools"}),
     "examples": ([], {"vocabulary", "runtime", "camera", "firmware-cfg", "pipeline"}),
     # The tests use what they test and their own helpers (tests/common, ...); nothing uses them.
     "tests": (["tests"], {"vocabulary", "runtime", "exporter", "camera", "firmware-cfg",

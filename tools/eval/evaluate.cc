@@ -123,10 +123,14 @@ class ModelRunner {
  public:
   static Result<std::unique_ptr<ModelRunner>> Create(const std::string& path, int height, int width,
                                                      const EvalOptions& eval) {
-    Result<std::shared_ptr<const Model>> model = Model::LoadFile(path);
-    if (!model.ok()) return model.status();
     auto runner = std::unique_ptr<ModelRunner>(new ModelRunner());
-    runner->model_ = std::move(model).value();
+    if (eval.model) {
+      runner->model_ = eval.model;
+    } else {
+      Result<std::shared_ptr<const Model>> model = Model::LoadFile(path);
+      if (!model.ok()) return model.status();
+      runner->model_ = std::move(model).value();
+    }
     const InputDesc& in = runner->model_->metadata().input;
     if (in.is_rgbd()) {
       return Status::Error(path +
@@ -331,6 +335,13 @@ std::string CompareCameras(const CameraDesc& model, double focal, double baselin
 
 }  // namespace
 
+void DefaultModelSize(const ModelMetadata& meta, int* height, int* width) {
+  if (meta.training == TrainingState::kTrained && meta.input.traced_height > 0) {
+    *height = meta.input.traced_height;
+    *width = meta.input.traced_width;
+  }
+}
+
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress) {
   EvalReport report;
@@ -338,7 +349,7 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
   for (MetricsAccumulator& m : report.overall) m = MetricsAccumulator(options.thresholds);
   report.dataset = options.dataset;
   report.model_path = options.model_path;
-  report.has_model = !options.model_path.empty();
+  report.has_model = !options.model_path.empty() || options.model != nullptr;
   report.has_classical = options.classical;
 
   if (Status complete = synth::CheckDatasetComplete(options.dataset); !complete.ok()) {

@@ -38,7 +38,9 @@ inline constexpr int kMethodCount = 3;
 inline constexpr double kCameraTolerance = 0.05;
 
 struct EvalOptions {
-  std::string model_path;  // .sfrt; empty: baselines only
+  std::string model_path;  // .sfrt; empty: baselines only (unless `model` is set)
+  // A model already loaded (the Python package's); model_path then only names it in the report.
+  std::shared_ptr<const Model> model;
   std::string dataset;
   int model_height = 0;  // 0: the dataset's size
   int model_width = 0;
@@ -52,6 +54,11 @@ struct EvalOptions {
   // The share metrics' conditions (metrics.h): FlowNet3D's (absolute or relative) or relative only.
   Thresholds thresholds = Thresholds::kAbsolute;
 };
+
+// The model input size without --size, as `sfrt run` chooses it: the size a trained model
+// records (its training camera's focal length is for that size) into *height, *width; nothing
+// changes otherwise (0 x 0: the dataset's size).
+void DefaultModelSize(const ModelMetadata& meta, int* height, int* width);
 
 struct FrameRef {
   std::string sequence;

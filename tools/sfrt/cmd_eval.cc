@@ -80,11 +80,7 @@ int RunEval(const EvalArgs& args) {
     if (args.size.empty()) {
       Result<std::shared_ptr<const Model>> model = Model::LoadFile(args.model);
       if (!model.ok()) return ReportError(kName, model.message(), kExitFailure);
-      const ModelMetadata& meta = (*model)->metadata();
-      if (meta.training == TrainingState::kTrained && meta.input.traced_height > 0) {
-        options.model_height = meta.input.traced_height;
-        options.model_width = meta.input.traced_width;
-      }
+      eval::DefaultModelSize((*model)->metadata(), &options.model_height, &options.model_width);
     }
   }
 

@@ -1,6 +1,7 @@
 // sfrt infer: one forward pass on four images (or a prepared .npy input); writes the flow.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -9,13 +10,11 @@
 #include <memory>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
 #include "sfrt/camera/image_file.h"
 #include "sfrt/camera/preprocess.h"
-#include "sfrt/camera/rectifier.h"
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
 #include "sfrt/model.h"
@@ -24,6 +23,7 @@
 #include "sfrt/pipeline/io/pfm.h"
 #include "sfrt/pipeline/pipeline.h"
 #include "sfrt/pipeline/stats.h"
+#include "sfrt/pipeline/window_input.h"
 #include "sfrt/session.h"
 #include "sfrt/session_environment.h"
 
@@ -84,38 +84,64 @@ Status ReadColourImage(InputFile& file) {
   return Status::Ok();
 }
 
-// Every file of the window has the first one's size; the error names them "<flag><noun> 'path'"
-// and says `rule`.
-Status CheckSameSize(const InputFile (&files)[4], const std::string& noun, const char* rule) {
-  for (size_t i = 1; i < 4; ++i) {
-    if (files[i].image.size() != files[0].image.size()) {
-      return Status::Error(std::string(files[i].flag) + noun + " '" + *files[i].path + "' is " +
-                           SizeString(files[i].image.rows, files[i].image.cols) + " but " +
-                           files[0].flag + noun + " '" + *files[0].path + "' is " +
-                           SizeString(files[0].image.rows, files[0].image.cols) + " (" + rule +
-                           ")");
-    }
+// The four files' names for messages: "--left1 image 'b.png'".
+std::array<std::string, 4> FileNames(const InputFile (&files)[4], const std::string& noun) {
+  std::array<std::string, 4> names;
+  for (size_t i = 0; i < 4; ++i)
+    names[i] = std::string(files[i].flag) + noun + " '" + *files[i].path + "'";
+  return names;
+}
+
+// The network input of the window read into `files`, as pipeline::WindowInput builds it (the
+// size `sfrt run` would choose, its resize, the model's preprocessing); notes about the size on
+// stderr.
+Result<InputTensor> BuildInput(const ModelMetadata& meta, const pipeline::WindowInputOptions& opts,
+                               const InputFile (&files)[4], const std::string& noun,
+                               const char* rule) {
+  Result<pipeline::WindowInput> window = pipeline::WindowInput::Create(meta, opts);
+  if (!window.ok()) return window.status();
+  const std::array<cv::Mat, 4> images = {files[0].image, files[1].image, files[2].image,
+                                         files[3].image};
+  if (Status ok = window->Check(images, FileNames(files, noun), rule); !ok.ok()) return ok;
+  const int rows = images[0].rows;
+  const int cols = images[0].cols;
+  Result<pipeline::InputSizeChoice> chosen = window->ChooseSize(rows, cols);
+  if (!chosen.ok()) return chosen.status();
+  if (!window->rgbd() && (chosen->height != rows || chosen->width != cols)) {
+    std::cerr << "sfrt infer: note: input size " << SizeString(chosen->height, chosen->width)
+              << " (HxW): " << chosen->reason << std::endl;
   }
-  return Status::Ok();
+  if (!chosen->aspect_note.empty()) {
+    std::cerr << "sfrt infer: warning: " << chosen->aspect_note << std::endl;
+  }
+  InputTensor input;
+  input.height = chosen->height;
+  input.width = chosen->width;
+  input.data.resize(window->Floats(input.height, input.width));
+  if (Status built = window->Build(images, input.height, input.width, input.data); !built.ok()) {
+    return built;
+  }
+  input.description = window->description();
+  if (input.height != rows || input.width != cols) {
+    input.description += ", resized from " + SizeString(rows, cols);
+  }
+  return input;
 }
 
 // Reads the four images and builds the network input as the model's metadata prescribes:
 // image order, color order, then value = (pixel * scale - mean[c]) / std[c].
 Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& meta, int resize_h,
                                     int resize_w) {
-  const InputDesc& desc = meta.input;
   InputFile sources[4] = {{"--left0", &args.left0, {}},
                           {"--right0", &args.right0, {}},
                           {"--left1", &args.left1, {}},
                           {"--right1", &args.right1, {}}};
-
   // Check the metadata before reading anything big: the same preprocessing as `sfrt run`
   // (camera/sources Preprocessor, parameters from the model's metadata).
-  Result<camera::PreprocessParams> params = pipeline::PreprocessFromMetadata(desc);
+  Result<camera::PreprocessParams> params = pipeline::PreprocessFromMetadata(meta.input);
   if (!params.ok()) {
     return Status::Error(params.message() + "; give --input-npy instead");
   }
-
   for (InputFile& s : sources) {
     if (Status read = ReadColourImage(s); !read.ok()) return read;
   }
@@ -130,56 +156,11 @@ Result<InputTensor> InputFromImages(const InferArgs& args, const ModelMetadata& 
               << std::endl;
     break;
   }
-  if (Status same = CheckSameSize(sources, " image", "all four images must have the same size");
-      !same.ok()) {
-    return same;
-  }
-  // The size as `sfrt run` chooses it: --size, else the size a trained model records, else the
-  // images'.
-  pipeline::PipelineOptions asked;
-  asked.height = resize_h;
-  asked.width = resize_w;
-  asked.allow_aspect_change = args.allow_aspect_change;
-  Result<pipeline::InputSizeChoice> chosen =
-      pipeline::ChooseInputSize(asked, meta, sources[0].image.rows, sources[0].image.cols);
-  if (!chosen.ok()) return chosen.status();
-  resize_h = chosen->height;
-  resize_w = chosen->width;
-  if (resize_h != sources[0].image.rows || resize_w != sources[0].image.cols) {
-    std::cerr << "sfrt infer: note: input size " << SizeString(resize_h, resize_w)
-              << " (HxW): " << chosen->reason << std::endl;
-  }
-  if (!chosen->aspect_note.empty()) {
-    std::cerr << "sfrt infer: warning: " << chosen->aspect_note << std::endl;
-  }
-  std::string resized;
-  if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
-    resized = ", resized from " + SizeString(sources[0].image.rows, sources[0].image.cols);
-    // The same resize as `sfrt run` (INTER_AREA when shrinking, bilinear when enlarging).
-    auto resizer = camera::StereoRectifier::CreateResizeOnly(sources[0].image.size(),
-                                                             cv::Size(resize_w, resize_h));
-    if (!resizer.ok()) return resizer.status();
-    for (size_t i = 0; i < 4; i += 2) {
-      cv::Mat left, right;
-      camera::Status r = resizer->Apply(sources[i].image, sources[i + 1].image, &left, &right);
-      if (!r.ok()) return r;
-      sources[i].image = left;
-      sources[i + 1].image = right;
-    }
-  }
-
-  InputTensor input;
-  input.height = sources[0].image.rows;
-  input.width = sources[0].image.cols;
-  auto pre = camera::Preprocessor::Create(*params, input.height, input.width);
-  if (!pre.ok()) return pre.status();
-  input.data.resize(pre->output_floats());
-  camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
-                                sources[3].image, input.data.data(), input.data.size());
-  if (!ran.ok()) return ran;
-  input.description =
-      "4 images as " + Join(desc.image_order, ",") + ", " + desc.color_order + resized;
-  return input;
+  pipeline::WindowInputOptions opts;
+  opts.height = resize_h;
+  opts.width = resize_w;
+  opts.allow_aspect_change = args.allow_aspect_change;
+  return BuildInput(meta, opts, sources, " image", "all four images must have the same size");
 }
 
 // A depth map: a .npy of float32 (H, W) in metres, or an image file holding one channel of
@@ -218,24 +199,9 @@ Result<cv::Mat> ReadDepthMap(const std::string& flag, const std::string& path) {
 }
 
 // Reads two RGB-D frames (colour images and depth maps) and builds the network input as the
-// model's metadata prescribes (camera::RgbdPreprocessor).
-Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, int resize_h,
+// model's metadata prescribes (camera::RgbdPreprocessor, through pipeline::WindowInput).
+Result<InputTensor> InputFromRgbd(const InferArgs& args, const ModelMetadata& meta, int resize_h,
                                   int resize_w) {
-  camera::RgbdPreprocessParams params;
-  auto order = camera::ParseImageOrder(desc.image_order);
-  if (!order.ok()) return Status::Error("the model's image order: " + order.message());
-  auto color = camera::ParseColorOrder(desc.color_order);
-  if (!color.ok()) return Status::Error("the model's color order: " + color.message());
-  params.order = *order;
-  params.color_order = *color;
-  params.scale = desc.scale;
-  std::copy(desc.mean, desc.mean + 3, params.mean);
-  std::copy(desc.std, desc.std + 3, params.std);
-  params.depth_mean = desc.depth_mean;
-  params.depth_std = desc.depth_std;
-  params.depth_invalid = desc.depth_invalid;
-  params.depth_units_per_metre = args.depth_units;
-
   // Colour, depth, colour, depth: the depth maps are the odd entries.
   InputFile sources[4] = {{"--color0", &args.color0, {}},
                           {"--depth0", &args.depth0, {}},
@@ -251,37 +217,12 @@ Result<InputTensor> InputFromRgbd(const InferArgs& args, const InputDesc& desc, 
     if (!depth.ok()) return depth.status();
     s.image = *depth;
   }
-  if (Status same =
-          CheckSameSize(sources, "", "both frames' colour and depth must have the same size");
-      !same.ok()) {
-    return same;
-  }
-  std::string resized;
-  if (resize_h > 0 && (sources[0].image.rows != resize_h || sources[0].image.cols != resize_w)) {
-    resized = ", resized from " + SizeString(sources[0].image.rows, sources[0].image.cols);
-    const bool shrink = resize_h < sources[0].image.rows || resize_w < sources[0].image.cols;
-    for (size_t i = 0; i < 4; ++i) {
-      cv::Mat out;
-      // Depth by the nearest sample: averaging would invent depths between surfaces (and mix
-      // in the missing ones).
-      const bool depth = i % 2 == 1;
-      cv::resize(sources[i].image, out, cv::Size(resize_w, resize_h), 0, 0,
-                 depth ? cv::INTER_NEAREST : (shrink ? cv::INTER_AREA : cv::INTER_LINEAR));
-      sources[i].image = out;
-    }
-  }
-  InputTensor input;
-  input.height = sources[0].image.rows;
-  input.width = sources[0].image.cols;
-  auto pre = camera::RgbdPreprocessor::Create(params, input.height, input.width);
-  if (!pre.ok()) return pre.status();
-  input.data.resize(pre->output_floats());
-  camera::Status ran = pre->Run(sources[0].image, sources[1].image, sources[2].image,
-                                sources[3].image, input.data.data(), input.data.size());
-  if (!ran.ok()) return ran;
-  input.description = "2 RGB-D frames as " + Join(desc.image_order, ",") + ", " + desc.color_order +
-                      ", 16-bit depth at " + FormatFloat(args.depth_units) + " per metre" + resized;
-  return input;
+  pipeline::WindowInputOptions opts;
+  opts.height = resize_h;
+  opts.width = resize_w;
+  opts.depth_units = args.depth_units;
+  return BuildInput(meta, opts, sources, "",
+                    "both frames' colour and depth must have the same size");
 }
 
 // Reads an (H, W, C) or (1, H, W, C) float32 array already in the model's channel order.
@@ -311,16 +252,10 @@ Result<InputTensor> InputFromNpy(const std::string& path, const InputDesc& desc)
                          std::to_string(shape[2]) + " channels but the model takes " +
                          std::to_string(desc.channels));
   }
-  // A NaN or infinity would only come out as a NaN flow: refuse it, naming the first one.
-  for (size_t i = 0; i < array->data.size(); ++i) {
-    const float v = array->data[i];
-    if (std::isfinite(v)) continue;
-    const size_t c = i % static_cast<size_t>(shape[2]);
-    const size_t x = i / static_cast<size_t>(shape[2]) % static_cast<size_t>(shape[1]);
-    const size_t y = i / static_cast<size_t>(shape[2]) / static_cast<size_t>(shape[1]);
-    return Status::Error(path + ": element [" + std::to_string(y) + ", " + std::to_string(x) +
-                         ", " + std::to_string(c) + "] (flat index " + std::to_string(i) + ") is " +
-                         (std::isnan(v) ? "NaN" : "infinite") + "; the input must be finite");
+  if (Status finite = pipeline::CheckFiniteTensor(array->data, static_cast<int>(shape[1]),
+                                                  static_cast<int>(shape[2]), path);
+      !finite.ok()) {
+    return finite;
   }
   InputTensor input;
   input.height = static_cast<int>(shape[0]);
@@ -490,7 +425,7 @@ int RunInfer(const InferArgs& args) {
                        kExitUsage);
   }
   Result<InputTensor> input = !args.input_npy.empty() ? InputFromNpy(args.input_npy, meta.input)
-                              : any_rgbd ? InputFromRgbd(args, meta.input, resize_h, resize_w)
+                              : any_rgbd ? InputFromRgbd(args, meta, resize_h, resize_w)
                                          : InputFromImages(args, meta, resize_h, resize_w);
   if (!input.ok()) return ReportError(kName, input.message(), kExitFailure);
   const int height = input->height;

@@ -27,11 +27,10 @@
 #include "sfrt/pipeline/sources.h"
 #if SFRT_HAVE_ROS
 #include "sfrt/ros/bag_sink.h"
-#include "sfrt/ros/bag_source.h"
 #endif
 #if SFRT_HAVE_ROS2
+#include "bags/any_bag.h"
 #include "sfrt/ros2/bag_sink.h"
-#include "sfrt/ros2/bag_source.h"
 #endif
 #include "sfrt/run_config.h"
 #include "sfrt/session_environment.h"
@@ -49,34 +48,23 @@ constexpr char kNoRosBagSupport[] =
     "then configure again)";
 #endif
 
-// How --replay-bag reads the bag it names: rosbag2 (a folder, a .mcap or a .db3: ros2/) or a
-// ROS 1 .bag (ros/), as this build has them.
+// How --replay-bag reads the bag it names (bags/any_bag.h: rosbag2, or ROS 1 when this build
+// has ros/).
+#if SFRT_HAVE_ROS2
+using bags::BagFormat;
+using bags::BagFormatOf;
+#else
 struct BagFormat {
   Result<pipeline::BagProbe> (*probe)(const pipeline::BagReplaySpec&) = nullptr;
   std::unique_ptr<pipeline::FrameSource> (*make)(const pipeline::BagReplaySpec&) = nullptr;
 };
-
 Result<BagFormat> BagFormatOf(const std::string& path) {
-  const std::filesystem::path p(path);
-  std::error_code ec;
-  const bool rosbag2 = std::filesystem::is_directory(p, ec) || p.extension() == ".mcap" ||
-                       p.extension() == ".db3" || p.extension() == ".yaml";
-  if (rosbag2) {
-#if SFRT_HAVE_ROS2
-    if (p.filename() == "metadata.yaml") return BagFormatOf(p.parent_path().string());
-    return BagFormat{&ros2::ProbeBag, &ros2::MakeBagSource};
-#else
-    return Status::Error("'" + path +
-                         "' is a rosbag2 bag; this sfrt was built without rosbag2 support "
-                         "(install libzstd-dev liblz4-dev libsqlite3-dev, then configure again)");
-#endif
-  }
-#if SFRT_HAVE_ROS
-  return BagFormat{&ros::ProbeBag, &ros::MakeBagSource};
-#else
-  return Status::Error("'" + path + "' is a ROS 1 bag; " + kNoRosBagSupport);
-#endif
+  return Status::Error("'" + path +
+                       "': this sfrt was built without bag replay (ros2/ needs libzstd-dev "
+                       "liblz4-dev libsqlite3-dev libyaml-cpp-dev; install them, then configure "
+                       "again)");
 }
+#endif
 
 struct RunArgs {
   std::string model;
