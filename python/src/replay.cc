@@ -141,7 +141,9 @@ class PyReplay {
       changed_.notify_all();
     }
     stop_.store(true);
-    if (thread_.joinable()) thread_.join();
+    // Once, whichever thread gets here first (a close() beside a next() that reached the end);
+    // the others wait until the pipeline's thread has ended.
+    std::call_once(joined_, [this] { thread_.join(); });
   }
 
   void CloseFromPython() {
@@ -217,6 +219,7 @@ class PyReplay {
   pipeline::PipelineResult result_;
   std::string summary_;
   std::thread thread_;
+  std::once_flag joined_;
 };
 
 Status HandOffSink::Write(const pipeline::FlowFrame& frame) { return owner_->Deliver(frame); }

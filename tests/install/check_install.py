@@ -42,6 +42,8 @@ def main():
     ap.add_argument("--example", default="")
     ap.add_argument("--preload", default="")
     ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--python-package", action="store_true",
+                    help="also check the installed Python package (lib/python3/dist-packages)")
     a = ap.parse_args()
 
     shutil.rmtree(a.work, ignore_errors=True)
@@ -97,9 +99,32 @@ def main():
             print("%s consumer: %d values, bit-identical to sfrt infer" % (kind, got.size))
     if a.example and not check_example(a, os.path.join(a.work, "example-build", "robot_flow")):
         ok = False
+    if a.python_package and not check_python(a, prefix, npy, expected_path):
+        ok = False
     if not ok:
         sys.exit(1)
     print("PASS")
+
+
+def check_python(a, prefix, npy, expected_path):
+    """`import sfrt` from the installed package (Debian's layout: <prefix>/lib/python3/
+    dist-packages/sfrt), in a fresh interpreter, gives sfrt infer's output bit for bit."""
+    package = os.path.join(prefix, "lib", "python3", "dist-packages")
+    for must in ["__init__.py", "__init__.pyi", "py.typed"]:
+        if not os.path.exists(os.path.join(package, "sfrt", must)):
+            print("FAIL: the install has no lib/python3/dist-packages/sfrt/%s" % must)
+            return False
+    code = ("import sys, numpy as np, sfrt\n"
+            "assert sfrt.__file__.startswith(sys.argv[1]), sfrt.__file__\n"
+            "s = sfrt.Session(sfrt.Model(sys.argv[2]), size=(%d, %d))\n"
+            "got = s.run_tensor(np.load(sys.argv[3]))\n"
+            "assert np.array_equal(got.view(np.uint32), np.load(sys.argv[4]).view(np.uint32))\n"
+            "print('installed package', sfrt.__version__, 'at', sfrt.__file__)\n" % (HEIGHT, WIDTH))
+    env = dict(os.environ)
+    env["PYTHONPATH"] = package
+    out = run([sys.executable, "-c", code, package, a.model, npy, expected_path], env=env)
+    print(out.strip() + ": run_tensor bit-identical to sfrt infer")
+    return True
 
 
 def check_example(a, binary):
