@@ -20,6 +20,8 @@ packages=(
   python3 python3-numpy python3-torch python3-onnx python3-h5py python3-pil python3-flatbuffers
   # the Python package (python/: pybind11 against Debian's python3), its tests and examples
   python3-dev pybind11-dev python3-pybind11 python3-pytest python3-matplotlib
+  # the KITTI tests' PNG decoder, independent of OpenCV and libpng (pure Python)
+  python3-png
   # ROS 1 as Debian packages it: bag replay (ros/), the sfrt_ros node, and the master, rosbag
   # play and Python clients its tests use
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs

@@ -117,4 +117,6 @@ def evaluate(
     thresholds: str = "absolute",
     allow_camera_mismatch: bool = False,
     isa: str = "auto",
+    depth: str = "gt",
+    write_submission: str = "",
 ) -> dict[str, Any]: ...

@@ -136,6 +136,14 @@ void SessionSize(const PyModel& model, const py::object& size, int* height, int*
   }
 }
 
+int ThreadsArgument(int threads) {
+  if (std::string problem = config::CheckRange(config::kThreads, "threads", threads);
+      !problem.empty()) {
+    throw py::value_error(problem);
+  }
+  return threads;
+}
+
 Isa ParseIsaArgument(const std::string& name) {
   Isa isa = Isa::kAuto;
   if (!ParseIsa(name, &isa)) {

@@ -23,6 +23,9 @@ void BindModel(pybind11::module_& m);
 // records; a ValueError naming `size` otherwise.
 void SessionSize(const PyModel& model, const pybind11::object& size, int* height, int* width);
 
+// A thread count within the command line's limits (0: one per CPU); a ValueError otherwise.
+int ThreadsArgument(int threads);
+
 // An ISA name ("auto", "avx512", ...), checked against this CPU: a ValueError listing the ones
 // it runs otherwise.
 Isa ParseIsaArgument(const std::string& name);

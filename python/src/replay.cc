@@ -289,9 +289,8 @@ std::unique_ptr<PyReplay> StartReplay(std::shared_ptr<PyModel> model, const Repl
                                       int64_t max_frames) {
   pipeline::PipelineOptions options;
   if (!size.is_none()) SessionSize(*model, size, &options.height, &options.width);
-  if (threads < 0) throw py::value_error("threads: must be 0 (one per CPU) or more");
   if (max_frames < 0) throw py::value_error("max_frames: must be 0 (all) or more");
-  options.threads = threads;
+  options.threads = ThreadsArgument(threads);
   options.isa = ParseIsaArgument(isa);
   options.max_frames = max_frames;
   options.write_flow = false;

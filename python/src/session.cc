@@ -34,11 +34,10 @@ class PySession {
             const std::string& isa, bool allow_aspect_change)
       : model_(std::move(model)), allow_aspect_change_(allow_aspect_change) {
     SessionSize(*model_, size, &height_, &width_);
-    if (threads < 0) throw py::value_error("threads: must be 0 (one per CPU) or more");
     SessionOptions options;
     options.max_height = height_;
     options.max_width = width_;
-    options.threads = threads;
+    options.threads = ThreadsArgument(threads);
     options.isa = ParseIsaArgument(isa);
     Result<std::unique_ptr<Session>> session = [&] {
       py::gil_scoped_release released;

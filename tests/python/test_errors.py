@@ -49,8 +49,9 @@ def test_session_arguments_are_checked():
         sfrt.Session(m, size="96x128")
     with pytest.raises(ValueError, match="isa: 'sse9'"):
         sfrt.Session(m, isa="sse9")
-    with pytest.raises(ValueError, match="threads"):
-        sfrt.Session(m, threads=-1)
+    for threads in (-1, 100000):
+        with pytest.raises(ValueError, match="threads"):
+            sfrt.Session(m, threads=threads)
     with pytest.raises(TypeError):
         sfrt.Session("models/sceneednet-default.sfrt")
 

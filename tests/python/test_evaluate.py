@@ -26,3 +26,16 @@ def test_evaluate_without_a_model_scores_the_baselines(tmp_path, synth_dataset):
     out = tmp_path / "eval.json"
     run_cli("eval", "--dataset", synth_dataset, "--json", str(out), "--quiet", "--no-classical")
     assert sfrt.evaluate(None, synth_dataset, classical=False) == json.loads(out.read_text())
+
+
+def test_evaluate_on_the_kitti_layout_equals_sfrt_eval_json(tmp_path, model):
+    root = str(tmp_path / "kitti")
+    run_cli("synth", "--layout", "kitti", "--out", root, "--scene", "robot", "--seed", "7",
+            "--sequences", "1", "--frames", "3", "--size", "96x128", "--focal", "90",
+            "--baseline", "0.12", "--objects", "3")
+    out = tmp_path / "eval.json"
+    run_cli("eval", "--model", DEFAULT_MODEL, "--dataset", root, "--json", str(out), "--quiet",
+            "--depth", "stereo")
+    got = sfrt.evaluate(model, root, depth="stereo")
+    assert got == json.loads(out.read_text())
+    assert got["layout"] == "kitti" and got["sfrt"]["kitti"]["depth"] == "stereo"

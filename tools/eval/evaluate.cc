@@ -12,6 +12,8 @@
 #include <sstream>
 
 #include "eval/classical.h"
+#include "eval/kitti_eval.h"
+#include "eval/model_runner.h"
 #include "sfrt/camera/image_file.h"
 #include "sfrt/model.h"
 #include "sfrt/pipeline/io/pfm.h"
@@ -118,113 +120,6 @@ std::string MetricsJson(const FlowMetrics& m, int frames, const std::string& ind
   return o.str();
 }
 
-// Runs the model on the four images at (height, width) and returns the flow at the images' size.
-class ModelRunner {
- public:
-  static Result<std::unique_ptr<ModelRunner>> Create(const std::string& path, int height, int width,
-                                                     const EvalOptions& eval) {
-    auto runner = std::unique_ptr<ModelRunner>(new ModelRunner());
-    if (eval.model) {
-      runner->model_ = eval.model;
-    } else {
-      Result<std::shared_ptr<const Model>> model = Model::LoadFile(path);
-      if (!model.ok()) return model.status();
-      runner->model_ = std::move(model).value();
-    }
-    const InputDesc& in = runner->model_->metadata().input;
-    if (in.is_rgbd()) {
-      return Status::Error(path +
-                           ": the model reads two RGB-D frames, and sfrt eval feeds stereo pairs "
-                           "(the Scene Flow datasets' layout); run it with sfrt infer --color0 "
-                           "--depth0 --color1 --depth1");
-    }
-    if (in.channels != 12 || in.image_order.size() != 4) {
-      return Status::Error(path + ": the model takes " + std::to_string(in.channels) +
-                           " channels as " + std::to_string(in.image_order.size()) +
-                           " images; sfrt eval feeds 4 images of 3 channels");
-    }
-    for (const std::string& name : in.image_order) {
-      const std::optional<vocabulary::ImageSlot> slot = vocabulary::ImageSlotFromName(name);
-      if (!slot || vocabulary::IsRgbdSlot(*slot)) {
-        return Status::Error(path + ": unknown image '" + name + "' in image order");
-      }
-      runner->order_.push_back(static_cast<int>(*slot));
-    }
-    const std::optional<vocabulary::ColorOrder> color =
-        vocabulary::ColorOrderFromName(in.color_order);
-    if (!color) {
-      return Status::Error(path + ": color order '" + in.color_order + "' is neither BGR nor RGB");
-    }
-    runner->rgb_ = *color == vocabulary::ColorOrder::kRGB;
-    SessionOptions options;
-    options.max_height = height;
-    options.max_width = width;
-    options.isa = eval.isa;
-    options.tuning = eval.tuning;
-    Result<std::unique_ptr<Session>> session = Session::Create(runner->model_, options);
-    if (!session.ok()) return session.status();
-    runner->session_ = std::move(session).value();
-    runner->height_ = height;
-    runner->width_ = width;
-    Result<TensorShape> shape = runner->session_->OutputShape(height, width);
-    if (!shape.ok()) return shape.status();
-    if (shape->channels != 3 || shape->height != height || shape->width != width) {
-      return Status::Error(path + ": output is " + std::to_string(shape->height) + "x" +
-                           std::to_string(shape->width) + "x" + std::to_string(shape->channels) +
-                           " for a " + std::to_string(height) + "x" + std::to_string(width) +
-                           " input; expected 3 channels at the input size");
-    }
-    runner->input_.resize(static_cast<size_t>(height) * width * 12);
-    runner->output_.resize(static_cast<size_t>(height) * width * 3);
-    return runner;
-  }
-
-  const ModelMetadata& metadata() const { return model_->metadata(); }
-
-  Result<std::vector<float>> Run(const cv::Mat* images[4]) {
-    const InputDesc& in = model_->metadata().input;
-    const int src_h = images[0]->rows;
-    const int src_w = images[0]->cols;
-    for (size_t g = 0; g < 4; ++g) {
-      const cv::Mat* src = images[order_[g]];
-      cv::Mat resized;
-      if (src->rows != height_ || src->cols != width_) {
-        const bool shrink = height_ <= src->rows && width_ <= src->cols;
-        cv::resize(*src, resized, cv::Size(width_, height_), 0, 0,
-                   shrink ? cv::INTER_AREA : cv::INTER_LINEAR);
-        src = &resized;
-      }
-      for (int y = 0; y < height_; ++y) {
-        const uint8_t* s = src->ptr<uint8_t>(y);
-        float* d = input_.data() + (static_cast<size_t>(y) * width_) * 12 + 3 * g;
-        for (int x = 0; x < width_; ++x, s += 3, d += 12) {
-          for (int c = 0; c < 3; ++c) {
-            const float pixel = static_cast<float>(rgb_ ? s[2 - c] : s[c]);
-            d[c] = (pixel * in.scale - in.mean[c]) / in.std[c];
-          }
-        }
-      }
-    }
-    Status run = session_->Run(input_, height_, width_, output_);
-    if (!run.ok()) return run;
-    if (src_h == height_ && src_w == width_) return output_;
-    cv::Mat small(height_, width_, CV_32FC3, output_.data());
-    cv::Mat big;
-    cv::resize(small, big, cv::Size(src_w, src_h), 0, 0, cv::INTER_LINEAR);
-    return std::vector<float>(big.ptr<float>(0), big.ptr<float>(0) + big.total() * 3);
-  }
-
- private:
-  ModelRunner() = default;
-  std::shared_ptr<const Model> model_;
-  std::unique_ptr<Session> session_;
-  std::vector<int> order_;
-  bool rgb_ = false;
-  int height_ = 0, width_ = 0;
-  std::vector<float> input_;
-  std::vector<float> output_;
-};
-
 }  // namespace
 
 Result<std::vector<FrameRef>> ListEvalFrames(const std::string& root) {
@@ -315,26 +210,6 @@ Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameR
   return out;
 }
 
-namespace {
-
-// Empty when the dataset's camera (focal already scaled to the model's input size) is within
-// kCameraTolerance of the model's training camera; else a message naming both.
-std::string CompareCameras(const CameraDesc& model, double focal, double baseline, int height,
-                           int width, const std::string& camera_json) {
-  auto relative = [](double a, double b) { return std::fabs(a - b) / std::fabs(b); };
-  const double df = relative(focal, model.focal_px);
-  const double db = relative(baseline, model.baseline);
-  if (!(df > kCameraTolerance) && !(db > kCameraTolerance)) return "";
-  return "camera mismatch: " + camera_json + " gives f " + Fmt(focal, "%g") +
-         " px at the model's " + std::to_string(height) + "x" + std::to_string(width) +
-         " and baseline " + Fmt(baseline, "%g") + ", but the model's training camera has f " +
-         Fmt(model.focal_px, "%g") + " px and baseline " + Fmt(model.baseline, "%g") + " (off by " +
-         Fmt(100 * df, "%.0f") + "% and " + Fmt(100 * db, "%.0f") + "%; tolerance " +
-         Fmt(100 * kCameraTolerance, "%.0f") + "%)";
-}
-
-}  // namespace
-
 void DefaultModelSize(const ModelMetadata& meta, int* height, int* width) {
   if (meta.training == TrainingState::kTrained && meta.input.traced_height > 0) {
     *height = meta.input.traced_height;
@@ -344,6 +219,7 @@ void DefaultModelSize(const ModelMetadata& meta, int* height, int* width) {
 
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress) {
+  if (IsKittiLayout(options.dataset)) return RunKittiEvaluation(options, progress);
   EvalReport report;
   report.thresholds = options.thresholds;
   for (MetricsAccumulator& m : report.overall) m = MetricsAccumulator(options.thresholds);
@@ -487,6 +363,7 @@ std::string FormatTable(const EvalReport& r) {
   for (int m = 0; m < kMethodCount; ++m) {
     if (MethodShown(r, m)) out += Row("overall", kMethodNames[m], r.overall[m].Metrics());
   }
+  if (r.kitti) out += "\n" + FormatKittiTable(r);
   return out;
 }
 
@@ -510,11 +387,15 @@ std::string FormatJson(const EvalReport& r) {
   }
   o << "},\n";
   o << "  \"thresholds\": " << JsonString(ThresholdsName(r.thresholds)) << ",\n";
+  o << "  \"layout\": " << (r.kitti ? "\"kitti\"" : "\"scene flow\"") << ",\n";
   o << "  \"gt_median_motion\": " << JsonNumber(r.overall[1].Metrics().gt_median);
   for (int m = 0; m < kMethodCount; ++m) {
     if (!MethodShown(r, m)) continue;
     o << ",\n  \"" << kMethodNames[m]
-      << "\": " << MetricsJson(r.overall[m].Metrics(), r.frames, "  ") << ",\n    \"sequences\": {";
+      << "\": " << MetricsJson(r.overall[m].Metrics(), r.frames, "  ");
+    if (r.kitti)
+      o << ",\n    \"kitti\": " << KittiJson(r.kitti_counts[m], DepthLabel(r, m), "    ");
+    o << ",\n    \"sequences\": {";
     for (size_t s = 0; s < r.sequences.size(); ++s) {
       const SequenceResult& seq = r.sequences[s];
       o << (s == 0 ? "\n" : ",\n") << "      " << JsonString(seq.name) << ": "

@@ -16,12 +16,14 @@
 //   classical  eval/classical.h at the dataset's resolution, with the dataset's camera
 #pragma once
 
+#include <array>
 #include <functional>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "eval/kitti.h"
 #include "eval/metrics.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
@@ -36,6 +38,12 @@ inline constexpr int kMethodCount = 3;
 // How far the dataset's camera may be from the model's training camera (focal length at the
 // model's input size, and baseline; relative) before RunEvaluation refuses the pair.
 inline constexpr double kCameraTolerance = 0.05;
+
+// Where the disparity at t comes from when a 3D flow is scored on KITTI (its metrics are in
+// disparities and pixels: eval/kitti.h): the dataset's ground truth (an oracle depth, named so in
+// every result) or sfrt's classical stereo (eval/classical.h).
+enum class DepthSource { kGroundTruth, kStereo };
+inline constexpr std::array<const char*, 2> kDepthSourceNames = {"gt", "stereo"};
 
 struct EvalOptions {
   std::string model_path;  // .sfrt; empty: baselines only (unless `model` is set)
@@ -53,6 +61,11 @@ struct EvalOptions {
   bool allow_camera_mismatch = false;
   // The share metrics' conditions (metrics.h): FlowNet3D's (absolute or relative) or relative only.
   Thresholds thresholds = Thresholds::kAbsolute;
+  // KITTI layout only: the depth the model's and zero flow's 3D flow is projected with, and a
+  // folder to write the model's predictions to in the devkit's encodings (disp_0/, disp_1/,
+  // flow/; "" = none).
+  DepthSource depth = DepthSource::kGroundTruth;
+  std::string submission_dir;
 };
 
 // The model input size without --size, as `sfrt run` chooses it: the size a trained model
@@ -87,6 +100,11 @@ struct EvalReport {
   std::vector<SequenceResult> sequences;
   Thresholds thresholds = Thresholds::kAbsolute;
   MetricsAccumulator overall[kMethodCount];
+  // The KITTI layout (eval/kitti_eval.h): its outlier counts per method, and the depth the model's
+  // and zero flow's 3D flow was projected with (the classical baseline uses its own stereo).
+  bool kitti = false;
+  DepthSource depth = DepthSource::kGroundTruth;
+  KittiCounts kitti_counts[kMethodCount];
 };
 
 struct EvalProgress {

@@ -15,6 +15,7 @@
 #include "sfrt/model_notes.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/session_environment.h"
+#include "sfrt/vocabulary/names.h"
 
 namespace sfrt::tools {
 namespace {
@@ -31,6 +32,8 @@ struct EvalArgs {
   bool quiet = false;
   bool allow_camera_mismatch = false;
   std::string thresholds = "absolute";
+  std::string depth = "gt";
+  std::string submission;
 };
 
 int RunEval(const EvalArgs& args) {
@@ -41,6 +44,12 @@ int RunEval(const EvalArgs& args) {
       args.thresholds == "relative" ? eval::Thresholds::kRelative : eval::Thresholds::kAbsolute;
   options.max_frames = args.max_frames;
   options.classical = !args.no_classical;
+  options.depth = *vocabulary::FromName<eval::DepthSource>(eval::kDepthSourceNames, args.depth);
+  options.submission_dir = args.submission;
+  if (!args.submission.empty() && args.model.empty()) {
+    return ReportError(kName, "--write-submission writes the model's predictions; it needs --model",
+                       kExitUsage);
+  }
   if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
     return ReportError(kName, env.message(), kExitUsage);
   }
@@ -101,7 +110,10 @@ int RunEval(const EvalArgs& args) {
                 report->baseline, report->cx, report->cy);
   std::cout << "dataset   " << report->dataset << " (" << report->frames << " frames, "
             << report->height << "x" << report->width << ")\n"
-            << "camera    " << camera << " (camera.json); metrics in its scene units\n";
+            << "camera    " << camera
+            << (report->kitti ? " (calib_cam_to_cam of the first scene); metrics in metres, "
+                                "pixels and percent\n"
+                              : " (camera.json); metrics in its scene units\n");
   if (report->has_model) {
     std::cout << "model     " << report->model_path << " (" << report->model_name << ") at "
               << report->model_height << "x" << report->model_width << "\n";
@@ -147,8 +159,19 @@ Command AddEvalCommand(CLI::App& parent) {
   cmd->add_option("--model", args->model, "Model file (.sfrt); without it, baselines only");
   cmd->add_option("--dataset", args->dataset,
                   "Dataset root in the Scene Flow layout with camera.json (as sfrt synth "
-                  "writes; one sfrt synth did not finish, without \"complete\": true, is refused)")
+                  "writes; one sfrt synth did not finish, without \"complete\": true, is refused), "
+                  "or in KITTI Scene Flow 2015's (ROOT/training/image_2, disp_occ_0, ...; "
+                  "detected)")
       ->required();
+  cmd->add_option("--depth", args->depth,
+                  "KITTI: the disparity at t the model's (and zero flow's) 3D flow is projected "
+                  "with: gt (the dataset's, an oracle depth, so named in every result) or stereo "
+                  "(the classical baseline's SGBM)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"gt", "stereo"}));
+  cmd->add_option("--write-submission", args->submission,
+                  "KITTI: also write the model's predictions in the devkit's encodings to "
+                  "DIR/disp_0, DIR/disp_1, DIR/flow (NNNNNN_10.png, 16-bit)");
   cmd->add_option("--json", args->json,
                   "Also write the results as JSON to this file (replaced atomically; a device "
                   "or FIFO such as /dev/stdout is written in place)");
@@ -197,6 +220,14 @@ Command AddEvalCommand(CLI::App& parent) {
       "Per sequence and overall. JSON: keys sfrt, zero_flow, classical, each with epe3d,\n"
       "epe_x, epe_y, epe_z, acc05, acc10, outliers, valid_pixels, frames and sequences;\n"
       "thresholds and gt_median_motion.\n"
+      "KITTI Scene Flow 2015 layout (detected): each scene's 3D flow is projected into\n"
+      "disparities at t and t+1 and optical flow with the --depth disparity at t, filled as\n"
+      "the devkit fills missing values, and scored as the devkit scores it: D1, D2, Fl and SF\n"
+      "outliers (> 3 px and > 5%; SF: any of the three) on background, foreground and all\n"
+      "pixels with ground truth, counts summed over the scenes; the classical baseline is\n"
+      "projected with its own stereo. JSON: each method's \"kitti\" with d1, d2, fl, sf as\n"
+      "{bg, fg, all} percent, the depth used and the raw counts; EPE3D etc. against the 3D flow\n"
+      "the ground truth means (metres).\n"
       "Exit codes: 0 success, 1 runtime or input failure, 2 usage error.");
   return Command{cmd, [args] { return RunEval(*args); }};
 }

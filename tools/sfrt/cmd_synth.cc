@@ -10,6 +10,7 @@
 #include <string>
 #include <thread>
 
+#include "eval/kitti_layout.h"
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
 #include "synth/dataset.h"
@@ -22,6 +23,7 @@ constexpr char kName[] = "synth";
 
 struct SynthArgs {
   std::string out;
+  std::string layout = "scene-flow";
   unsigned long long seed = 1;
   int frames = 10;
   std::string size = "540x960";
@@ -45,6 +47,27 @@ struct SynthArgs {
   CLI::Option* pitch_rate_opt = nullptr;
   CLI::Option* max_speed_opt = nullptr;
 };
+
+// --layout kitti: the scenes as KITTI Scene Flow 2015's training folder (eval/kitti_layout.h).
+template <typename Seconds>
+int WriteKitti(const synth::DatasetOptions& options, const SynthArgs& args, Seconds seconds) {
+  if (args.force) {
+    return ReportError(kName,
+                       "--force replaces a Scene Flow layout sfrt synth wrote; the KITTI "
+                       "layout is written to a new or empty --out only",
+                       kExitUsage);
+  }
+  Status status = eval::WriteKittiLayout(options, args.out, [&](int done, int total) {
+    if (done % std::max(1, total / 20) != 0 && done != total) return;
+    std::cout << "scene     " << done << "/" << total << "\n" << std::flush;
+  });
+  if (!status.ok()) return ReportError(kName, status.message(), kExitFailure);
+  char line[200];
+  std::snprintf(line, sizeof(line), "wrote     %d KITTI scenes to %s/training in %.1f s",
+                args.sequences * (args.frames - 1), args.out.c_str(), seconds());
+  std::cout << line << "\n";
+  return kExitOk;
+}
 
 int RunSynth(const SynthArgs& args) {
   int height = 0;
@@ -148,6 +171,7 @@ int RunSynth(const SynthArgs& args) {
   auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
+  if (args.layout == "kitti") return WriteKitti(options, args, seconds);
   const int total = args.sequences * args.frames;
   const int every = std::max(1, total / 100);
   Status status =
@@ -175,6 +199,12 @@ Command AddSynthCommand(CLI::App& parent) {
   auto args = std::make_shared<SynthArgs>();
   CLI::App* cmd = parent.add_subcommand(
       "synth", "Generate synthetic stereo sequences with exact scene-flow ground truth");
+  cmd->add_option("--layout", args->layout,
+                  "scene-flow (the Scene Flow datasets' folders, FlyingThings3D's) or kitti (KITTI "
+                  "Scene Flow 2015's training/ folders and encodings: frames f -> f+1 of each "
+                  "sequence as scenes, dense ground truth, obj_map from the objects)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"scene-flow", "kitti"}));
   cmd->add_option("--out", args->out,
                   "Output directory: new or empty, or with --force a data set sfrt synth wrote")
       ->required();
