@@ -41,8 +41,8 @@
 #include "hdf5_vlen_guard.h"
 #include "keras/importer.h"
 #include "message_text.h"
-#include "sfrt/exporter/sha256.h"
 #include "sfrt/model_limits.h"
+#include "sfrt/sha256.h"
 
 namespace sfrt::exporter::keras_import {
 

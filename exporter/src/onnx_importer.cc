@@ -58,8 +58,8 @@
 #include <utility>
 #include <vector>
 
-#include "sfrt/exporter/sha256.h"
 #include "sfrt/model_limits.h"
+#include "sfrt/sha256.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::exporter::onnx_import {

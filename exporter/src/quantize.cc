@@ -14,11 +14,11 @@
 #include <utility>
 
 #include "sfrt/exporter/model_writer.h"
-#include "sfrt/exporter/sha256.h"
 #include "sfrt/layer_kinds.h"
 #include "sfrt/model.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
+#include "sfrt/sha256.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::exporter {

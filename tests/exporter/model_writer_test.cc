@@ -13,8 +13,8 @@
 #include "sfrt/crc32c.h"
 #include "sfrt/exporter/sceneednet_spec.h"
 #include "sfrt/exporter/sfrt_importer.h"
-#include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
+#include "sfrt/sha256.h"
 
 namespace sfrt::exporter {
 namespace {

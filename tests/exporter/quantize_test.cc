@@ -13,10 +13,10 @@
 #include "common/unet_spec.h"
 #include "sfrt/exporter/model_writer.h"
 #include "sfrt/exporter/sceneednet_spec.h"
-#include "sfrt/exporter/sha256.h"
 #include "sfrt/model.h"
 #include "sfrt/reference.h"
 #include "sfrt/session.h"
+#include "sfrt/sha256.h"
 #include "sfrt/shapes.h"
 
 namespace sfrt::exporter {

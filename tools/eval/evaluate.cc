@@ -14,6 +14,7 @@
 #include "eval/classical.h"
 #include "eval/kitti_eval.h"
 #include "eval/model_runner.h"
+#include "eval/shards.h"
 #include "sfrt/camera/image_file.h"
 #include "sfrt/model.h"
 #include "sfrt/pipeline/io/pfm.h"
@@ -118,6 +119,27 @@ std::string MetricsJson(const FlowMetrics& m, int frames, const std::string& ind
     << indent << "  \"valid_pixels\": " << m.valid_pixels << ",\n"
     << indent << "  \"frames\": " << frames;
   return o.str();
+}
+
+// The sequences of `frames` (sorted by sequence), once each.
+std::vector<std::string> SequencesOf(const std::vector<FrameRef>& frames) {
+  std::vector<std::string> units;
+  for (const FrameRef& f : frames) {
+    if (units.empty() || units.back() != f.sequence) units.push_back(f.sequence);
+  }
+  return units;
+}
+
+// The frames of the sequences `shard` takes from `list`.
+std::vector<FrameRef> FramesOfShard(const std::vector<FrameRef>& frames, const WorkList& list,
+                                    const ShardSpec& shard) {
+  std::vector<FrameRef> mine;
+  for (const FrameRef& f : frames) {
+    const size_t k = static_cast<size_t>(
+        std::lower_bound(list.units.begin(), list.units.end(), f.sequence) - list.units.begin());
+    if (InShard(k, shard)) mine.push_back(f);
+  }
+  return mine;
 }
 
 }  // namespace
@@ -245,6 +267,8 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
   if (options.max_frames > 0 && static_cast<int>(frames.size()) > options.max_frames) {
     frames.resize(static_cast<size_t>(options.max_frames));
   }
+  report.list = MakeWorkList(SequencesOf(frames));
+  if (options.shard) frames = FramesOfShard(frames, report.list, *options.shard);
 
   std::unique_ptr<ModelRunner> runner;
   const PinholeStereo rig{camera->focal, camera->baseline, camera->cx, camera->cy};
@@ -304,7 +328,7 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
       }
     }
     if (report.sequences.empty() || report.sequences.back().name != f.sequence) {
-      report.sequences.push_back(SequenceResult{f.sequence, 0, {}});
+      report.sequences.push_back(SequenceResult{f.sequence, 0, {}, {}});
       for (MetricsAccumulator& m : report.sequences.back().methods) {
         m = MetricsAccumulator(options.thresholds);
       }
@@ -328,6 +352,10 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
   }
   for (const SequenceResult& seq : report.sequences) {
     for (int m = 0; m < kMethodCount; ++m) report.overall[m].Merge(seq.methods[m]);
+  }
+  if (runner) report.isa = IsaName(runner->isa());
+  if (options.shard) {
+    if (Status st = SetShardProvenance(options, &report); !st.ok()) return st;
   }
   if (progress) progress(EvalProgress{report.frames, report.frames, nullptr});
   return report;
@@ -356,6 +384,7 @@ std::string FormatTable(const EvalReport& r) {
                 "method", "EPE3D", "EPE_X", "EPE_Y", "EPE_Z", "ACC.05", "ACC.10", "outliers");
   out += head;
   for (const SequenceResult& seq : r.sequences) {
+    if (r.kitti) break;  // one row per scene would be hundreds; the JSON has them
     for (int m = 0; m < kMethodCount; ++m) {
       if (MethodShown(r, m)) out += Row(seq.name, kMethodNames[m], seq.methods[m].Metrics());
     }
@@ -403,6 +432,7 @@ std::string FormatJson(const EvalReport& r) {
     }
     o << "\n    }\n  }";
   }
+  if (r.shard) o << ",\n  " << ShardJson(r);
   o << "\n}\n";
   return o.str();
 }

@@ -20,6 +20,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,17 @@ inline constexpr double kCameraTolerance = 0.05;
 enum class DepthSource { kGroundTruth, kStereo };
 inline constexpr std::array<const char*, 2> kDepthSourceNames = {"gt", "stereo"};
 
+// Shard `index` of `count` of a sharded evaluation (eval/shards.h).
+struct ShardSpec {
+  int index = 0;
+  int count = 1;
+};
+// The units of a dataset (sequences, KITTI scenes), sorted, and the SHA-256 of their names.
+struct WorkList {
+  std::vector<std::string> units;
+  std::string sha256;
+};
+
 struct EvalOptions {
   std::string model_path;  // .sfrt; empty: baselines only (unless `model` is set)
   // A model already loaded (the Python package's); model_path then only names it in the report.
@@ -66,6 +78,8 @@ struct EvalOptions {
   // flow/; "" = none).
   DepthSource depth = DepthSource::kGroundTruth;
   std::string submission_dir;
+  // Evaluate only this shard's units and add the partial results (eval/shards.h) to the report.
+  std::optional<ShardSpec> shard;
 };
 
 // The model input size without --size, as `sfrt run` chooses it: the size a trained model
@@ -83,6 +97,7 @@ struct SequenceResult {
   std::string name;
   int frames = 0;
   MetricsAccumulator methods[kMethodCount];
+  KittiCounts kitti[kMethodCount];  // the KITTI layout's counts (a sequence is one scene there)
 };
 
 struct EvalReport {
@@ -105,6 +120,13 @@ struct EvalReport {
   bool kitti = false;
   DepthSource depth = DepthSource::kGroundTruth;
   KittiCounts kitti_counts[kMethodCount];
+  // A sharded evaluation (eval/shards.h): the whole list, this shard, and what the numbers
+  // depend on.
+  WorkList list;
+  std::optional<ShardSpec> shard;
+  std::string model_sha256;
+  std::string isa;      // the session's ISA; "" when no frame ran
+  std::string options;  // JSON object of the options that change the numbers
 };
 
 struct EvalProgress {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <vector>
@@ -320,6 +321,26 @@ uint64_t KittiCounts::pixels(KittiMap map, KittiRegion region) const {
 
 uint64_t KittiCounts::outliers(KittiMap map, KittiRegion region) const {
   return outliers_[static_cast<int>(map)][static_cast<int>(region)];
+}
+
+nlohmann::json KittiCounts::State() const { return {{"pixels", pixels_}, {"outliers", outliers_}}; }
+
+Result<KittiCounts> KittiCounts::FromState(const nlohmann::json& state) {
+  KittiCounts c;
+  for (auto [key, table] : {std::pair{"pixels", &c.pixels_}, std::pair{"outliers", &c.outliers_}}) {
+    const bool shaped = state.is_object() && state.contains(key) && state[key].is_array() &&
+                        state[key].size() == kKittiMaps;
+    if (!shaped) return Status::Error(std::string("kitti ") + key + ": expected 4 [bg, fg] pairs");
+    for (int m = 0; m < kKittiMaps; ++m) {
+      const nlohmann::json& pair = state[key][m];
+      if (!pair.is_array() || pair.size() != 2 || !pair[0].is_number_unsigned() ||
+          !pair[1].is_number_unsigned()) {
+        return Status::Error(std::string("kitti ") + key + ": expected 4 [bg, fg] pairs of counts");
+      }
+      (*table)[m] = {pair[0].get<uint64_t>(), pair[1].get<uint64_t>()};
+    }
+  }
+  return c;
 }
 
 double KittiCounts::Percent(KittiMap map, KittiRegion region) const {

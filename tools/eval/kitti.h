@@ -24,6 +24,7 @@
 
 #include <array>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 #include <string>
 
@@ -89,6 +90,9 @@ class KittiCounts {
   double PercentAll(KittiMap map) const;
   uint64_t pixels(KittiMap map, KittiRegion region) const;
   uint64_t outliers(KittiMap map, KittiRegion region) const;
+  // The counts as {"pixels": [[bg, fg] per map], "outliers": [...]}, for a shard's partial result.
+  nlohmann::json State() const;
+  static Result<KittiCounts> FromState(const nlohmann::json& state);
 
  private:
   std::array<std::array<uint64_t, 2>, kKittiMaps> pixels_{};

@@ -8,6 +8,7 @@
 
 #include "eval/classical.h"
 #include "eval/model_runner.h"
+#include "eval/shards.h"
 #include "sfrt/camera/image_file.h"
 
 namespace sfrt::eval {
@@ -178,7 +179,7 @@ Status StartModel(const EvalOptions& options, const KittiScene& s, EvalReport* r
 
 // The three methods on one scene.
 Status ScoreScene(const EvalOptions& options, const KittiScene& s, ModelRunner* runner,
-                  EvalReport* report, SequenceResult* seq) {
+                  SequenceResult* seq) {
   const size_t pixels = s.images[0].total();
   const std::vector<float> truth = KittiGroundTruthSceneFlow(s.d0, s.d1, s.flow, s.camera);
   const bool stereo = options.depth == DepthSource::kStereo || options.classical;
@@ -190,21 +191,21 @@ Status ScoreScene(const EvalOptions& options, const KittiScene& s, ModelRunner* 
     if (!pred.ok()) return Status::Error(s.name + ": model run failed: " + pred.message());
     seq->methods[0].Add(pred->data(), truth.data(), pixels);
     const KittiEstimate e = Filled(ProjectSceneFlow(depth, pred->data(), s.camera));
-    report->kitti_counts[0].Add(s.d0, s.d1, s.flow, s.objects, e);
+    seq->kitti[0].Add(s.d0, s.d1, s.flow, s.objects, e);
     if (!options.submission_dir.empty()) {
       if (Status st = WriteSubmission(options.submission_dir, s.name, e); !st.ok()) return st;
     }
   }
   const std::vector<float> zero(pixels * 3, 0.0f);
   seq->methods[1].Add(nullptr, truth.data(), pixels);
-  report->kitti_counts[1].Add(s.d0, s.d1, s.flow, s.objects,
-                              Filled(ProjectSceneFlow(depth, zero.data(), s.camera)));
+  seq->kitti[1].Add(s.d0, s.d1, s.flow, s.objects,
+                    Filled(ProjectSceneFlow(depth, zero.data(), s.camera)));
   if (options.classical) {
     const std::vector<float> flow =
         ClassicalSceneFlow(s.images[0], s.images[1], s.images[2], s.images[3], s.camera);
     seq->methods[2].Add(flow.data(), truth.data(), pixels);
-    report->kitti_counts[2].Add(s.d0, s.d1, s.flow, s.objects,
-                                Filled(ProjectSceneFlow(own, flow.data(), s.camera)));
+    seq->kitti[2].Add(s.d0, s.d1, s.flow, s.objects,
+                      Filled(ProjectSceneFlow(own, flow.data(), s.camera)));
   }
   return Status::Ok();
 }
@@ -240,35 +241,49 @@ Result<EvalReport> RunKittiEvaluation(const EvalOptions& options,
   if (options.max_frames > 0 && static_cast<int>(names->size()) > options.max_frames) {
     names->resize(static_cast<size_t>(options.max_frames));
   }
+  report.list = MakeWorkList(*names);
   if (!options.submission_dir.empty() && report.has_model) {
     if (Status st = MakeSubmissionDirs(options.submission_dir); !st.ok()) return st;
   }
-  report.sequences.push_back(SequenceResult{dir.filename().string(), 0, {}});
-  SequenceResult& seq = report.sequences.back();
-  for (MetricsAccumulator& m : seq.methods) m = MetricsAccumulator(options.thresholds);
+  // The first scene of the list sets the image and model size and the camera of the report, in
+  // every shard alike.
+  Result<KittiScene> first = ReadKittiScene(dir, report.list.units[0]);
+  if (!first.ok()) return first.status();
+  report.height = first->images[0].rows;
+  report.width = first->images[0].cols;
+  report.focal = first->camera.focal;
+  report.baseline = first->camera.baseline;
+  report.cx = first->camera.cx;
+  report.cy = first->camera.cy;
   std::unique_ptr<ModelRunner> runner;
-  for (size_t i = 0; i < names->size(); ++i) {
-    const FrameRef ref{seq.name, (*names)[i], (*names)[i]};
-    if (progress)
-      progress(EvalProgress{static_cast<int>(i), static_cast<int>(names->size()), &ref});
-    Result<KittiScene> scene = ReadKittiScene(dir, (*names)[i]);
+  if (report.has_model) {
+    if (Status st = StartModel(options, *first, &report, &runner); !st.ok()) return st;
+    report.isa = IsaName(runner->isa());
+  }
+  std::vector<std::string> mine;
+  for (size_t k = 0; k < report.list.units.size(); ++k) {
+    if (!options.shard || InShard(k, *options.shard)) mine.push_back(report.list.units[k]);
+  }
+  for (size_t i = 0; i < mine.size(); ++i) {
+    const FrameRef ref{mine[i], mine[i], mine[i]};
+    if (progress) progress(EvalProgress{static_cast<int>(i), static_cast<int>(mine.size()), &ref});
+    Result<KittiScene> scene = ReadKittiScene(dir, mine[i]);
     if (!scene.ok()) return scene.status();
-    if (i == 0) {
-      report.height = scene->images[0].rows;
-      report.width = scene->images[0].cols;
-      report.focal = scene->camera.focal;
-      report.baseline = scene->camera.baseline;
-      report.cx = scene->camera.cx;
-      report.cy = scene->camera.cy;
-      if (report.has_model) {
-        if (Status st = StartModel(options, *scene, &report, &runner); !st.ok()) return st;
-      }
-    }
-    if (Status st = ScoreScene(options, *scene, runner.get(), &report, &seq); !st.ok()) return st;
-    ++seq.frames;
+    SequenceResult seq{mine[i], 1, {}, {}};
+    for (MetricsAccumulator& m : seq.methods) m = MetricsAccumulator(options.thresholds);
+    if (Status st = ScoreScene(options, *scene, runner.get(), &seq); !st.ok()) return st;
+    report.sequences.push_back(std::move(seq));
     ++report.frames;
   }
-  for (int m = 0; m < kMethodCount; ++m) report.overall[m].Merge(seq.methods[m]);
+  for (const SequenceResult& seq : report.sequences) {
+    for (int m = 0; m < kMethodCount; ++m) {
+      report.overall[m].Merge(seq.methods[m]);
+      report.kitti_counts[m].Merge(seq.kitti[m]);
+    }
+  }
+  if (options.shard) {
+    if (Status st = SetShardProvenance(options, &report); !st.ok()) return st;
+  }
   if (progress) progress(EvalProgress{report.frames, report.frames, nullptr});
   return report;
 }

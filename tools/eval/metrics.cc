@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
+#include <nlohmann/json.hpp>
 
 namespace sfrt::eval {
 
@@ -68,6 +70,86 @@ void MetricsAccumulator::Merge(const MetricsAccumulator& other) {
   valid_ += other.valid_;
   skipped_ += other.skipped_;
   for (size_t b = 0; b < gt_bins_.size(); ++b) gt_bins_[b] += other.gt_bins_[b];
+}
+
+namespace {
+
+std::string ExactDouble(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%a", v);
+  return buf;
+}
+
+// A double written by ExactDouble, or an error naming `key`.
+Result<double> ReadExactDouble(const nlohmann::json& value, const std::string& key) {
+  if (!value.is_string()) return Status::Error(key + ": expected a hexadecimal float string");
+  const std::string text = value.get<std::string>();
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0') return Status::Error(key + ": '" + text + "' is not a number");
+  return v;
+}
+
+Result<uint64_t> ReadCount(const nlohmann::json& state, const char* key) {
+  if (!state.contains(key) || !state[key].is_number_unsigned()) {
+    return Status::Error(std::string(key) + ": expected a count");
+  }
+  return state[key].get<uint64_t>();
+}
+
+}  // namespace
+
+nlohmann::json MetricsAccumulator::State() const {
+  nlohmann::json s;
+  s["sum_epe"] = ExactDouble(sum_epe_);
+  s["sum_abs"] = {ExactDouble(sum_abs_[0]), ExactDouble(sum_abs_[1]), ExactDouble(sum_abs_[2])};
+  s["acc05"] = acc05_;
+  s["acc10"] = acc10_;
+  s["outliers"] = outliers_;
+  s["valid"] = valid_;
+  s["skipped"] = skipped_;
+  nlohmann::json bins = nlohmann::json::array();
+  for (size_t b = 0; b < gt_bins_.size(); ++b) {
+    if (gt_bins_[b] != 0) bins.push_back({b, gt_bins_[b]});
+  }
+  s["gt_bins"] = bins;
+  return s;
+}
+
+Result<MetricsAccumulator> MetricsAccumulator::FromState(const nlohmann::json& s,
+                                                         Thresholds thresholds) {
+  MetricsAccumulator m(thresholds);
+  if (!s.is_object()) return Status::Error("metrics state: expected an object");
+  Result<double> sum = ReadExactDouble(s.value("sum_epe", nlohmann::json()), "sum_epe");
+  if (!sum.ok()) return sum.status();
+  m.sum_epe_ = *sum;
+  if (!s.contains("sum_abs") || !s["sum_abs"].is_array() || s["sum_abs"].size() != 3) {
+    return Status::Error("sum_abs: expected 3 hexadecimal floats");
+  }
+  for (int c = 0; c < 3; ++c) {
+    Result<double> v = ReadExactDouble(s["sum_abs"][c], "sum_abs");
+    if (!v.ok()) return v.status();
+    m.sum_abs_[c] = *v;
+  }
+  size_t* counts[] = {&m.acc05_, &m.acc10_, &m.outliers_, &m.valid_, &m.skipped_};
+  const char* keys[] = {"acc05", "acc10", "outliers", "valid", "skipped"};
+  for (int i = 0; i < 5; ++i) {
+    Result<uint64_t> n = ReadCount(s, keys[i]);
+    if (!n.ok()) return n.status();
+    *counts[i] = static_cast<size_t>(*n);
+  }
+  if (!s.contains("gt_bins") || !s["gt_bins"].is_array()) {
+    return Status::Error("gt_bins: expected [bin, count] pairs");
+  }
+  for (const nlohmann::json& pair : s["gt_bins"]) {
+    if (!pair.is_array() || pair.size() != 2 || !pair[0].is_number_unsigned() ||
+        !pair[1].is_number_unsigned() || pair[0].get<uint64_t>() >= m.gt_bins_.size()) {
+      return Status::Error("gt_bins: expected [bin, count] pairs with bins below " +
+                           std::to_string(m.gt_bins_.size()));
+    }
+    m.gt_bins_[pair[0].get<size_t>()] = pair[1].get<uint64_t>();
+  }
+  return m;
 }
 
 FlowMetrics MetricsAccumulator::Metrics() const {

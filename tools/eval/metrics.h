@@ -24,7 +24,10 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
+
+#include "sfrt/status.h"
 
 namespace sfrt::eval {
 
@@ -83,6 +86,11 @@ class MetricsAccumulator {
   void Add(const float* pred, const float* truth, size_t pixels);
   void Merge(const MetricsAccumulator& other);
   FlowMetrics Metrics() const;
+  // The raw sums and counts, for a shard's partial result (eval/shards.h) that merges exactly:
+  // doubles as hexadecimal floats (exact, infinities included), the histogram as its non-empty
+  // bins. FromState refuses a malformed state, naming the key.
+  nlohmann::json State() const;
+  static Result<MetricsAccumulator> FromState(const nlohmann::json& state, Thresholds thresholds);
   size_t valid_pixels() const { return valid_; }
 
  private:

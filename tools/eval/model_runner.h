@@ -13,6 +13,7 @@
 
 #include "eval/evaluate.h"
 #include "sfrt/pipeline/window_input.h"
+#include "sfrt/session.h"
 
 namespace sfrt::eval {
 
@@ -22,6 +23,7 @@ class ModelRunner {
   static Result<std::unique_ptr<ModelRunner>> Create(const std::string& path, int height, int width,
                                                      const EvalOptions& eval);
   const ModelMetadata& metadata() const { return model_->metadata(); }
+  Isa isa() const { return session_->isa(); }
   // Flow (rows * cols * 3 floats) at the images' size for left0, right0, left1, right1.
   Result<std::vector<float>> Run(const cv::Mat* images[4]);
 

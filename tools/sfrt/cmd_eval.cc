@@ -6,15 +6,19 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "eval/evaluate.h"
+#include "eval/shards.h"
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/session_environment.h"
+#include "sfrt/shard_args.h"
 #include "sfrt/vocabulary/names.h"
 
 namespace sfrt::tools {
@@ -34,100 +38,94 @@ struct EvalArgs {
   std::string thresholds = "absolute";
   std::string depth = "gt";
   std::string submission;
+  std::string shard;
+  int shard_count = 0;
 };
 
-int RunEval(const EvalArgs& args) {
-  eval::EvalOptions options;
-  options.model_path = args.model;
-  options.dataset = args.dataset;
-  options.thresholds =
+// The flags as evaluation options: a usage error's message (and *code), or "".
+std::string OptionsFromArgs(const EvalArgs& args, eval::EvalOptions* options, int* code) {
+  *code = kExitUsage;
+  options->model_path = args.model;
+  options->dataset = args.dataset;
+  options->thresholds =
       args.thresholds == "relative" ? eval::Thresholds::kRelative : eval::Thresholds::kAbsolute;
-  options.max_frames = args.max_frames;
-  options.classical = !args.no_classical;
-  options.depth = *vocabulary::FromName<eval::DepthSource>(eval::kDepthSourceNames, args.depth);
-  options.submission_dir = args.submission;
+  options->max_frames = args.max_frames;
+  options->classical = !args.no_classical;
+  options->depth = *vocabulary::FromName<eval::DepthSource>(eval::kDepthSourceNames, args.depth);
+  options->submission_dir = args.submission;
+  options->allow_camera_mismatch = args.allow_camera_mismatch;
   if (!args.submission.empty() && args.model.empty()) {
-    return ReportError(kName, "--write-submission writes the model's predictions; it needs --model",
-                       kExitUsage);
+    return "--write-submission writes the model's predictions; it needs --model";
   }
-  if (Status env = tools::ApplySessionEnvironment(options.isa, options.tuning); !env.ok()) {
-    return ReportError(kName, env.message(), kExitUsage);
+  if (Status env = tools::ApplySessionEnvironment(options->isa, options->tuning); !env.ok()) {
+    return env.message();
   }
-  options.allow_camera_mismatch = args.allow_camera_mismatch;
   if (!args.size.empty()) {
-    if (args.model.empty()) {
-      return ReportError(kName, "--size sets the model's input size; it needs --model", kExitUsage);
+    if (args.model.empty()) return "--size sets the model's input size; it needs --model";
+    if (!ParseSize(args.size, &options->model_height, &options->model_width)) {
+      return "--size: expected HxW with positive integers (e.g. 128x224), got '" + args.size + "'";
     }
-    if (!ParseSize(args.size, &options.model_height, &options.model_width)) {
-      return ReportError(
-          kName,
-          "--size: expected HxW with positive integers (e.g. 128x224), got '" + args.size + "'",
-          kExitUsage);
-    }
-    if (std::string problem = config::CheckSize(config::kInputSide, "--size", options.model_height,
-                                                options.model_width);
+    if (std::string problem = config::CheckSize(config::kInputSide, "--size", options->model_height,
+                                                options->model_width);
         !problem.empty()) {
-      return ReportError(kName, problem, kExitUsage);
+      return problem;
     }
   }
   if (args.max_frames < 0) {
-    return ReportError(
-        kName, "--max-frames: must be 0 (all) or more, got " + std::to_string(args.max_frames),
-        kExitUsage);
+    return "--max-frames: must be 0 (all) or more, got " + std::to_string(args.max_frames);
   }
+  if (!args.shard.empty()) {
+    Result<ShardSpec> shard = ParseShardFlag(args.shard, args.shard_count);
+    if (!shard.ok()) return shard.message();
+    options->shard = eval::ShardSpec{shard->index, shard->count};
+    if (args.json.empty()) return "--shard: a shard's results are its --json file; give --json";
+  }
+  *code = kExitFailure;
   if (!args.json.empty()) {
     if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
+      return problem;
     }
   }
-  if (!args.model.empty()) {
-    if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
-    }
-    // Without --size, as `sfrt run` chooses: the size a trained model records (its training
-    // camera's focal length is for it), else the dataset's.
-    if (args.size.empty()) {
-      Result<std::shared_ptr<const Model>> model = Model::LoadFile(args.model);
-      if (!model.ok()) return ReportError(kName, model.message(), kExitFailure);
-      eval::DefaultModelSize((*model)->metadata(), &options.model_height, &options.model_width);
-    }
+  if (args.model.empty()) return "";
+  if (std::string problem = CheckInputFile(args.model, "model file"); !problem.empty()) {
+    return problem;
   }
+  // Without --size, as `sfrt run` chooses: the size a trained model records (its training
+  // camera's focal length is for it), else the dataset's.
+  if (args.size.empty()) {
+    Result<std::shared_ptr<const Model>> model = Model::LoadFile(args.model);
+    if (!model.ok()) return model.message();
+    eval::DefaultModelSize((*model)->metadata(), &options->model_height, &options->model_width);
+  }
+  return "";
+}
 
-  const auto start = std::chrono::steady_clock::now();
-  Result<eval::EvalReport> report = eval::RunEvaluation(options, [&](const eval::EvalProgress& p) {
-    if (args.quiet || p.frame == nullptr) return;
-    if (p.done % 10 != 0) return;
-    std::cout << "frame     " << p.done + 1 << "/" << p.total << "  seq " << p.frame->sequence
-              << " frame " << p.frame->frame << "\n"
-              << std::flush;
-  });
-  if (!report.ok()) return ReportError(kName, report.message(), kExitFailure);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
+// The report as `sfrt eval` prints it (also `sfrt merge`): the data set, camera and model, the
+// table, the note on the thresholds' scale.
+void PrintReport(const eval::EvalReport& report) {
   char camera[200];
-  std::snprintf(camera, sizeof(camera), "f %g px, baseline %g, cx %g, cy %g", report->focal,
-                report->baseline, report->cx, report->cy);
-  std::cout << "dataset   " << report->dataset << " (" << report->frames << " frames, "
-            << report->height << "x" << report->width << ")\n"
+  std::snprintf(camera, sizeof(camera), "f %g px, baseline %g, cx %g, cy %g", report.focal,
+                report.baseline, report.cx, report.cy);
+  std::cout << "dataset   " << report.dataset << " (" << report.frames << " frames, "
+            << report.height << "x" << report.width << ")\n"
             << "camera    " << camera
-            << (report->kitti ? " (calib_cam_to_cam of the first scene); metrics in metres, "
-                                "pixels and percent\n"
-                              : " (camera.json); metrics in its scene units\n");
-  if (report->has_model) {
-    std::cout << "model     " << report->model_path << " (" << report->model_name << ") at "
-              << report->model_height << "x" << report->model_width << "\n";
-    if (std::string notice = UntrainedNotice(report->model_path, report->model_training);
+            << (report.kitti ? " (calib_cam_to_cam of the first scene); metrics in metres, "
+                               "pixels and percent\n"
+                             : " (camera.json); metrics in its scene units\n");
+  if (report.has_model) {
+    std::cout << "model     " << report.model_path << " (" << report.model_name << ") at "
+              << report.model_height << "x" << report.model_width << "\n";
+    if (std::string notice = UntrainedNotice(report.model_path, report.model_training);
         !notice.empty()) {
       std::cout << notice << "\n";
     }
   }
-  if (!report->camera_note.empty()) std::cout << "warning   " << report->camera_note << "\n";
-  std::cout << "\n" << eval::FormatTable(*report) << "\n";
+  if (!report.camera_note.empty()) std::cout << "warning   " << report.camera_note << "\n";
+  std::cout << "\n" << eval::FormatTable(report) << "\n";
   // FlowNet3D's absolute thresholds are for FlyingThings3D's scale: on slower data every
   // prediction, zero flow too, is within them. Said, not changed (the definitions stay).
-  const double median = report->overall[1].Metrics().gt_median;
-  if (report->thresholds == eval::Thresholds::kAbsolute && median < eval::kAcc05.epe_threshold) {
+  const double median = report.overall[1].Metrics().gt_median;
+  if (report.thresholds == eval::Thresholds::kAbsolute && median < eval::kAcc05.epe_threshold) {
     std::cout << "note      the ground truth's median motion is " << FormatFloat(median)
               << " scene units per frame, below the absolute thresholds (ACC.05 "
               << FormatFloat(eval::kAcc05.epe_threshold) << ", ACC.10 "
@@ -136,21 +134,108 @@ int RunEval(const EvalArgs& args) {
               << ") made for FlyingThings3D's scale: zero flow passes ACC.05 and ACC.10 on most "
                  "pixels whatever its error; --thresholds relative scores against |gt| only\n";
   }
+}
+
+Status WriteJson(const std::string& path, const eval::EvalReport& report) {
+  const std::string json = eval::FormatJson(report);
+  return io::WriteFileAtomically(
+      path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
+}
+
+int RunEval(const EvalArgs& args) {
+  eval::EvalOptions options;
+  int code = kExitOk;
+  if (std::string problem = OptionsFromArgs(args, &options, &code); !problem.empty()) {
+    return ReportError(kName, problem, code);
+  }
+  ShardProgress progress(
+      options.shard ? ShardName(options.shard->index, options.shard->count) : std::string(),
+      args.quiet, args.json.empty() || !options.shard ? "" : args.json + ".status");
+  Result<eval::EvalReport> report = eval::RunEvaluation(options, [&](const eval::EvalProgress& p) {
+    progress.Update(p.done, p.total, p.frame ? p.frame->sequence + " frame " + p.frame->frame : "");
+  });
+  if (!report.ok()) {
+    progress.Failed(report.message());
+    return ReportError(kName, report.message(), kExitFailure);
+  }
+  PrintReport(*report);
   char done[96];
-  std::snprintf(done, sizeof(done), "evaluated %d frames in %.1f s", report->frames, seconds);
+  std::snprintf(done, sizeof(done), "evaluated %d frames in %.1f s", report->frames,
+                progress.seconds());
   std::cout << done << "\n";
   if (!args.json.empty()) {
-    const std::string json = eval::FormatJson(*report);
-    Status written = io::WriteFileAtomically(
-        args.json,
-        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
-    if (!written.ok()) return ReportError(kName, written.message(), kExitFailure);
+    if (Status written = WriteJson(args.json, *report); !written.ok()) {
+      return ReportError(kName, written.message(), kExitFailure);
+    }
+    std::cout << "wrote     " << args.json << "\n";
+  }
+  progress.Done(report->frames);
+  return kExitOk;
+}
+
+struct MergeArgs {
+  std::vector<std::string> inputs;
+  std::string json;
+};
+
+// One shard's --json file, parsed; errors name the file.
+Result<eval::ShardFile> ReadShardFile(const std::string& path) {
+  if (std::string problem = CheckInputFile(path, "shard result"); !problem.empty()) {
+    return Status::Error(problem + " (sfrt merge reads the --json files of sfrt eval --shard)");
+  }
+  std::ifstream in(path);
+  eval::ShardFile shard{path, nlohmann::json::parse(in, nullptr, false)};
+  if (shard.json.is_discarded()) return Status::Error(path + ": not a JSON file");
+  return shard;
+}
+
+int RunMerge(const MergeArgs& args) {
+  if (!args.json.empty()) {
+    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
+      return ReportError("merge", problem, kExitFailure);
+    }
+  }
+  std::vector<eval::ShardFile> shards;
+  for (const std::string& path : args.inputs) {
+    Result<eval::ShardFile> shard = ReadShardFile(path);
+    if (!shard.ok()) return ReportError("merge", shard.message(), kExitFailure);
+    shards.push_back(std::move(shard).value());
+  }
+  Result<eval::EvalReport> merged = eval::MergeShards(shards);
+  if (!merged.ok()) return ReportError("merge", merged.message(), kExitFailure);
+  PrintReport(*merged);
+  std::cout << "merged    " << shards.size() << " shard(s): " << merged->frames << " frames of "
+            << merged->list.units.size() << " unit(s), list " << merged->list.sha256.substr(0, 12)
+            << "\n";
+  if (!args.json.empty()) {
+    if (Status written = WriteJson(args.json, *merged); !written.ok()) {
+      return ReportError("merge", written.message(), kExitFailure);
+    }
     std::cout << "wrote     " << args.json << "\n";
   }
   return kExitOk;
 }
 
 }  // namespace
+
+Command AddMergeCommand(CLI::App& parent) {
+  auto args = std::make_shared<MergeArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "merge", "Reduce the shards of a sharded sfrt eval to the single run's results");
+  cmd->add_option("shards", args->inputs, "Each shard's --json file (sfrt eval --shard I/N)")
+      ->required();
+  cmd->add_option("--json", args->json,
+                  "Also write the merged results as JSON: the keys and values of a single run's "
+                  "--json (replaced atomically)");
+  cmd->footer(
+      "Checks that all N shards of one work list are there, none twice, with one model (its\n"
+      "SHA-256), sfrt version, ISA and option set (a refusal names the shard's file and the\n"
+      "field), then merges each unit's raw sums and counts in the list's order, as a single run\n"
+      "merges its sequences: every metric, count and median equals the single run's, and the\n"
+      "tables are those sfrt eval prints.\n"
+      "Exit codes: 0 success, 1 failure (a refusal included), 2 usage error.");
+  return Command{cmd, [args] { return RunMerge(*args); }};
+}
 
 Command AddEvalCommand(CLI::App& parent) {
   auto args = std::make_shared<EvalArgs>();
@@ -169,6 +254,15 @@ Command AddEvalCommand(CLI::App& parent) {
                   "(the classical baseline's SGBM)")
       ->capture_default_str()
       ->check(CLI::IsMember({"gt", "stereo"}));
+  cmd->add_option("--shard", args->shard,
+                  "Evaluate shard I of N (I/N, 0-based) of the dataset's sorted units (sequences, "
+                  "KITTI scenes; unit k to shard k mod N), or auto: the scheduler's index "
+                  "(SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of SLURM_ARRAY_TASK_COUNT, or "
+                  "JOB_COMPLETION_INDEX of --shard-count). Needs --json: the shard's partial "
+                  "results, which sfrt merge reduces to the single run's; progress also in "
+                  "JSON.status");
+  cmd->add_option("--shard-count", args->shard_count,
+                  "--shard auto with JOB_COMPLETION_INDEX (Kubernetes Indexed Jobs set no count)");
   cmd->add_option("--write-submission", args->submission,
                   "KITTI: also write the model's predictions in the devkit's encodings to "
                   "DIR/disp_0, DIR/disp_1, DIR/flow (NNNNNN_10.png, 16-bit)");

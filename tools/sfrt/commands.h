@@ -46,6 +46,7 @@ Command AddSynthCommand(CLI::App& parent);
 Command AddAnnotateCommand(CLI::App& parent);
 Command AddRunCommand(CLI::App& parent);
 Command AddEvalCommand(CLI::App& parent);
+Command AddMergeCommand(CLI::App& parent);
 Command AddConfigCommand(CLI::App& parent);
 Command AddReportCommand(CLI::App& parent);
 

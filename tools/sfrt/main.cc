@@ -315,6 +315,7 @@ int main(int argc, char** argv) {
   commands.push_back(sfrt::tools::AddAnnotateCommand(app));
   commands.push_back(sfrt::tools::AddRunCommand(app));
   commands.push_back(sfrt::tools::AddEvalCommand(app));
+  commands.push_back(sfrt::tools::AddMergeCommand(app));
   commands.push_back(sfrt::tools::AddConfigCommand(app));
   commands.push_back(sfrt::tools::AddReportCommand(app));
   RequireFiniteNumbers(&app);

@@ -29,8 +29,8 @@
 #include "hdf5_vlen_guard.h"
 #include "message_text.h"
 #include "sfrt/exporter/keras_importer.h"
-#include "sfrt/exporter/sha256.h"
 #include "sfrt/model_limits.h"
+#include "sfrt/sha256.h"
 
 // Returns the Status of `expr` from the enclosing function when it is an error.
 #define SFRT_KERAS_RETURN_IF_ERROR(expr)        \

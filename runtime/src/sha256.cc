@@ -1,5 +1,5 @@
 // SHA-256 per FIPS 180-4, section 6.2.
-#include "sfrt/exporter/sha256.h"
+#include "sfrt/sha256.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -8,7 +8,7 @@
 #include <memory>
 #include <vector>
 
-namespace sfrt::exporter {
+namespace sfrt {
 namespace {
 
 constexpr uint32_t kRoundConstants[64] = {
@@ -113,4 +113,4 @@ Result<std::string> Sha256OfFile(const std::string& path) {
   return hash.FinishHex();
 }
 
-}  // namespace sfrt::exporter
+}  // namespace sfrt

@@ -1,4 +1,5 @@
-// SHA-256 (FIPS 180-4), used to record which source file a model came from.
+// SHA-256 (FIPS 180-4): which source file a model came from (the exporter), which model and
+// work list a shard of a fleet replay ran (sfrt eval --shard, sfrt merge).
 #pragma once
 
 #include <cstddef>
@@ -7,7 +8,7 @@
 
 #include "sfrt/status.h"
 
-namespace sfrt::exporter {
+namespace sfrt {
 
 class Sha256 {
  public:
@@ -26,4 +27,4 @@ class Sha256 {
 // SHA-256 of a whole file, lowercase hex. Errors name the file.
 Result<std::string> Sha256OfFile(const std::string& path);
 
-}  // namespace sfrt::exporter
+}  // namespace sfrt
