@@ -22,6 +22,8 @@ packages=(
   python3-dev pybind11-dev python3-pybind11 python3-pytest python3-matplotlib
   # the KITTI tests' PNG decoder, independent of OpenCV and libpng (pure Python)
   python3-png
+  # sharded evaluation on a real scheduler: the suite starts a single-node Slurm on loopback
+  slurm-wlm
   # ROS 1 as Debian packages it: bag replay (ros/), the sfrt_ros node, and the master, rosbag
   # play and Python clients its tests use
   librosbag-dev libsensor-msgs-dev python3-rosbag python3-sensor-msgs
