@@ -187,8 +187,9 @@ std::string ShardJson(const EvalReport& r) {
          ",\n  \"partials\": " + partials.dump();
 }
 
-Result<EvalReport> MergeShards(const std::vector<ShardFile>& shards) {
-  if (shards.empty()) return Status::Error("no shard given");
+namespace {
+
+Result<EvalReport> Merge(const std::vector<ShardFile>& shards) {
   for (const char* key : {"count", "list_sha256", "units"}) {
     if (Status same = SameEverywhere(shards, "shard", key); !same.ok()) return same;
   }
@@ -238,6 +239,22 @@ Result<EvalReport> MergeShards(const std::vector<ShardFile>& shards) {
   const std::string depth = shards[0].json["provenance"]["options"].value("depth", "gt");
   r.depth = depth == "stereo" ? DepthSource::kStereo : DepthSource::kGroundTruth;
   return r;
+}
+
+}  // namespace
+
+Result<EvalReport> MergeShards(const std::vector<ShardFile>& shards) {
+  if (shards.empty()) return Status::Error("no shard given");
+  // A file that is JSON but not a shard's (a key missing or of another type) is refused, not a
+  // crash.
+  try {
+    return Merge(shards);
+  } catch (const nlohmann::json::exception& e) {
+    std::string files;
+    for (const ShardFile& s : shards) files += (files.empty() ? "" : ", ") + s.file;
+    return Status::Error("a shard's JSON is not what sfrt eval --shard writes (" + files +
+                         "): " + e.what());
+  }
 }
 
 }  // namespace sfrt::eval

@@ -5,7 +5,8 @@ of their --json files (given in any order) write the single run's --json byte fo
 its tables. --shard auto reads a Slurm array task (SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of
 SLURM_ARRAY_TASK_COUNT) and a Kubernetes Indexed Job (JOB_COMPLETION_INDEX of --shard-count).
 Each shard writes JSON.status. sfrt merge refuses a missing shard, a shard given twice, shards of
-different options (naming the option) or models, each naming the file and the field.
+different options (naming the option) or models, each naming the file and the field, and a JSON
+file that is not a shard's (without crashing).
 
 usage: check_shards.py --sfrt BIN --model M --other-model M2 --work DIR
 """
@@ -101,7 +102,14 @@ def main():
     model = os.path.join(a.work, "model.json")
     run([a.sfrt, "eval", "--model", a.other_model, "--dataset", flows, "--json", model, "--quiet",
          "--shard", "1/3", "--size", "96x128", "--allow-camera-mismatch"])
+    broken = os.path.join(a.work, "broken.json")
+    with open(parts[0]) as f:
+        doc = json.load(f)
+    doc["image_size"] = "96x128"  # JSON, but not what a shard writes: refused, not a crash
+    with open(broken, "w") as f:
+        json.dump(doc, f)
     refusals = [
+        ([broken, parts[1], parts[2]], "is not what sfrt eval --shard writes"),
         ([parts[0], parts[2]], "shard 1 of 3 is missing"),
         ([parts[0], parts[1], parts[1], parts[2]], "shard 1 of 3 is given twice"),
         ([parts[0], other, parts[2]], "other.json: provenance.options.thresholds is \"relative\""),
