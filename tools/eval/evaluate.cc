@@ -239,9 +239,7 @@ void DefaultModelSize(const ModelMetadata& meta, int* height, int* width) {
   }
 }
 
-Result<EvalReport> RunEvaluation(const EvalOptions& options,
-                                 const std::function<void(const EvalProgress&)>& progress) {
-  if (IsKittiLayout(options.dataset)) return RunKittiEvaluation(options, progress);
+EvalReport NewReport(const EvalOptions& options) {
   EvalReport report;
   report.thresholds = options.thresholds;
   for (MetricsAccumulator& m : report.overall) m = MetricsAccumulator(options.thresholds);
@@ -249,6 +247,23 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
   report.model_path = options.model_path;
   report.has_model = !options.model_path.empty() || options.model != nullptr;
   report.has_classical = options.classical;
+  report.depth = options.depth;
+  return report;
+}
+
+void MergeSequences(EvalReport* report) {
+  for (const SequenceResult& seq : report->sequences) {
+    for (int m = 0; m < kMethodCount; ++m) {
+      report->overall[m].Merge(seq.methods[m]);
+      report->kitti_counts[m].Merge(seq.kitti[m]);
+    }
+  }
+}
+
+Result<EvalReport> RunEvaluation(const EvalOptions& options,
+                                 const std::function<void(const EvalProgress&)>& progress) {
+  if (IsKittiLayout(options.dataset)) return RunKittiEvaluation(options, progress);
+  EvalReport report = NewReport(options);
 
   if (Status complete = synth::CheckDatasetComplete(options.dataset); !complete.ok()) {
     return complete;
@@ -350,9 +365,7 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
     ++seq.frames;
     ++report.frames;
   }
-  for (const SequenceResult& seq : report.sequences) {
-    for (int m = 0; m < kMethodCount; ++m) report.overall[m].Merge(seq.methods[m]);
-  }
+  MergeSequences(&report);
   if (runner) report.isa = IsaName(runner->isa());
   if (options.shard) {
     if (Status st = SetShardProvenance(options, &report); !st.ok()) return st;

@@ -144,6 +144,12 @@ Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameR
                                            double focal, double baseline, double cx, double cy,
                                            int* height, int* width);
 
+// A report with what the options set, before any frame (every evaluation starts from it).
+EvalReport NewReport(const EvalOptions& options);
+// The overall results: the sequences' accumulators and KITTI counts merged in their order (as
+// a single run and sfrt merge both do, so the sums are the same bit for bit).
+void MergeSequences(EvalReport* report);
+
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress = {});
 

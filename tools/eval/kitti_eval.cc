@@ -226,15 +226,8 @@ bool IsKittiLayout(const std::string& root) {
 
 Result<EvalReport> RunKittiEvaluation(const EvalOptions& options,
                                       const std::function<void(const EvalProgress&)>& progress) {
-  EvalReport report;
+  EvalReport report = NewReport(options);
   report.kitti = true;
-  report.depth = options.depth;
-  report.thresholds = options.thresholds;
-  for (MetricsAccumulator& m : report.overall) m = MetricsAccumulator(options.thresholds);
-  report.dataset = options.dataset;
-  report.model_path = options.model_path;
-  report.has_model = !options.model_path.empty() || options.model != nullptr;
-  report.has_classical = options.classical;
   const fs::path dir = KittiDir(options.dataset);
   Result<std::vector<std::string>> names = ListKittiScenes(dir);
   if (!names.ok()) return names.status();
@@ -275,12 +268,7 @@ Result<EvalReport> RunKittiEvaluation(const EvalOptions& options,
     report.sequences.push_back(std::move(seq));
     ++report.frames;
   }
-  for (const SequenceResult& seq : report.sequences) {
-    for (int m = 0; m < kMethodCount; ++m) {
-      report.overall[m].Merge(seq.methods[m]);
-      report.kitti_counts[m].Merge(seq.kitti[m]);
-    }
-  }
+  MergeSequences(&report);
   if (options.shard) {
     if (Status st = SetShardProvenance(options, &report); !st.ok()) return st;
   }

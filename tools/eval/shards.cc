@@ -229,13 +229,9 @@ Result<EvalReport> Merge(const std::vector<ShardFile>& shards) {
     auto found = by_unit.find(unit);
     if (found == by_unit.end()) continue;  // a unit max_frames left out
     r.sequences.push_back(found->second);
-    const SequenceResult& seq = r.sequences.back();
-    r.frames += seq.frames;
-    for (int m = 0; m < kMethodCount; ++m) {
-      r.overall[m].Merge(seq.methods[m]);
-      r.kitti_counts[m].Merge(seq.kitti[m]);
-    }
+    r.frames += found->second.frames;
   }
+  MergeSequences(&r);
   const std::string depth = shards[0].json["provenance"]["options"].value("depth", "gt");
   r.depth = depth == "stereo" ? DepthSource::kStereo : DepthSource::kGroundTruth;
   return r;
