@@ -62,10 +62,6 @@ struct FlowItem {
   std::vector<int64_t> step_ns;  // --profile: Session::Run's step end times (steps + 1)
 };
 
-json PercentilesJson(const profiling::Summary& p) {
-  return json{{"p50", p.p50}, {"p90", p.p90}, {"p99", p.p99}, {"max", p.max}, {"count", p.count}};
-}
-
 // --profile: each written window's stage and step times into the profiler's ring.
 class ProfilerSink final : public FlowSink {
  public:
@@ -110,6 +106,7 @@ class Runner {
   void Progress(bool final);
   // Builds the summary and hands it to every sink's Finished() (the caller's, then the file's).
   Status FinishSinks(PipelineResult* result);
+  json SamplesJson() const;  // PipelineOptions::summary_samples
   WindowItem MakeWindow() const;
   InputItem MakeInput() const;
   FlowItem MakeFlow() const;
@@ -181,6 +178,7 @@ class Runner {
   LatencyWindow e2e_ms_;
   LatencyWindow part_ms_[kLatencyParts];
   std::string last_stem_;
+  std::string last_sequence_;
   int64_t start_ns_ = 0;
   int64_t end_ns_ = 0;
   int64_t last_progress_ns_ = 0;
@@ -709,7 +707,7 @@ void Runner::OutputStage() {
       }
       log_.Write(LogLevel::kWarn, "warning", "window " + stem + " skipped: " + s.message());
       if (skipped_outputs_.size() < kMaxListedSkips) {
-        skipped_outputs_.push_back({stem, s.message()});
+        skipped_outputs_.push_back({stem, s.message(), m.window, m.sequence});
       }
       continue;
     }
@@ -730,6 +728,7 @@ void Runner::OutputStage() {
     }
     if (fallback_) UpdateFallback(m, miss);
     last_stem_ = stem;
+    last_sequence_ = m.sequence;
     {
       std::lock_guard<std::mutex> lock(mu_);
       ++frames_;
@@ -762,9 +761,29 @@ void Runner::Progress(bool final) {
   if (total)
     line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
                                                          : *total);
-  line += " frames, " + Fixed(wall > 0 ? frames_ / wall : 0.0, 1) + " fps, p50 " +
+  const double fps = wall > 0 ? static_cast<double>(frames_) / wall : 0.0;
+  line += " frames, " + Fixed(fps, 1) + " fps, p50 " +
           Fixed(profiling::Summarize(e2e_ms_.Values()).p50, 1) + " ms end to end";
+  if (total && !final && fps > 0) {  // replays: how long the rest takes at this rate
+    const int64_t limit = options_.max_frames > 0 ? std::min(*total, options_.max_frames) : *total;
+    line += ", ETA " + Fixed(static_cast<double>(std::max<int64_t>(0, limit - frames_)) / fps, 0) +
+            " s";
+  }
   log_.Progress(line, final);
+}
+
+json Runner::SamplesJson() const {
+  json stages = json::object();
+  for (int st = 0; st < config::kStageCount; ++st) stages[kStageNames[st]] = stage_ms_[st].Values();
+  json parts = json::object();
+  for (int p = 0; p < kLatencyParts; ++p) {
+    parts[LatencyPartName(static_cast<LatencyPart>(p))] = part_ms_[p].Values();
+  }
+  return {{"stages", stages},
+          {"end_to_end", e2e_ms_.Values()},
+          {"parts", parts},
+          {"pictures", queued_pictures_ != nullptr ? json(queued_pictures_->write_ms_values())
+                                                   : json(nullptr)}};
 }
 
 Status Runner::FinishSinks(PipelineResult* result) {
@@ -802,6 +821,7 @@ Status Runner::FinishSinks(PipelineResult* result) {
   json bad = json::array();
   for (const FrameSource::BadFrame& b : source_->bad_frames()) {
     bad.push_back({{"path", b.path}, {"reason", b.reason}});
+    if (!b.sequence.empty()) bad.back()["sequence"] = b.sequence;
   }
   j["bad_frames"] = bad;
   // The window rule (sfrt/camera/window_chain.h): pairs that opened no window, and why.
@@ -813,6 +833,7 @@ Status Runner::FinishSinks(PipelineResult* result) {
   json skipped = json::array();
   for (const FrameSource::BadFrame& b : skipped_outputs_) {
     skipped.push_back({{"window", b.path}, {"error", b.reason}});
+    if (!b.sequence.empty()) skipped.back()["sequence"] = b.sequence;
   }
   j["output_errors"] = {{"policy", vocabulary::FailurePolicyName(options_.on_output_error)},
                         {"count", output_errors_},
@@ -865,7 +886,8 @@ Status Runner::FinishSinks(PipelineResult* result) {
       {"png", options_.write_png},
       {"video", video_sink_ != nullptr && video_sink_->written() ? json(options_.video_path)
                                                                  : json(nullptr)},
-      {"last", last_stem_}};
+      {"last", last_stem_},
+      {"last_sequence", last_sequence_}};
   json sinks = json::array();
   for (const FlowSink* sink : sinks_) {
     json entry = {{"name", sink->name()}};
@@ -874,6 +896,8 @@ Status Runner::FinishSinks(PipelineResult* result) {
   }
   j["sinks"] = sinks;
   j["warnings"] = warnings_;
+  if (options_.summary_samples) j["latency_samples_ms"] = SamplesJson();
+  if (options_.annotate_summary) options_.annotate_summary(&j);
   Status first = Status::Ok();
   for (FlowSink* sink : options_.sinks) {
     if (Status s = sink->Finished(j); !s.ok() && first.ok()) {
@@ -974,6 +998,10 @@ PipelineResult Runner::Run() {
 }
 
 }  // namespace
+
+json PercentilesJson(const profiling::Summary& p) {
+  return json{{"p50", p.p50}, {"p90", p.p90}, {"p99", p.p99}, {"max", p.max}, {"count", p.count}};
+}
 
 LogSink& FrameSource::log() const { return log_ != nullptr ? *log_ : DefaultLog(); }
 

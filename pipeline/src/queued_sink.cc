@@ -193,6 +193,11 @@ profiling::Summary QueuedSink::write_ms() const {
   return profiling::Summarize(write_ms_.Values());
 }
 
+std::vector<double> QueuedSink::write_ms_values() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return write_ms_.Values();
+}
+
 void QueuedSink::ToJson(nlohmann::json* out) const {
   const profiling::Summary w = write_ms();
   std::lock_guard<std::mutex> lock(mu_);

@@ -141,6 +141,7 @@ class ReplaySource : public FrameSource {
         camera::DatasetOptions options;
         static_cast<camera::SourceOptions&>(options) = base;
         options.pass = spec_.pass;
+        options.sequences = spec_.sequences;
         auto info = camera::DetectDataset(spec_.root, options);
         if (!info.ok()) return info.status();
         const int64_t sequences = static_cast<int64_t>(info->sequences.size());

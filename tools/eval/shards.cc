@@ -32,35 +32,9 @@ Result<const json*> Member(const ShardFile& s, const char* object, const char* k
   return &s.json[object][key];
 }
 
-// Every shard has the first one's value of object.key; the refusal names the shard and field.
-Status SameEverywhere(const std::vector<ShardFile>& shards, const char* object, const char* key) {
-  Result<const json*> first = Member(shards[0], object, key);
-  if (!first.ok()) return first.status();
-  for (size_t i = 1; i < shards.size(); ++i) {
-    Result<const json*> v = Member(shards[i], object, key);
-    if (!v.ok()) return v.status();
-    if (**v == **first) continue;
-    std::string field = std::string(object) + "." + key;
-    const json* mine = *v;
-    const json* theirs = *first;
-    if (mine->is_object() && theirs->is_object()) {  // name the member that differs
-      for (const auto& [name, value] : mine->items()) {
-        if (theirs->contains(name) && (*theirs)[name] == value) continue;
-        field += "." + name;
-        mine = &value;
-        theirs = theirs->contains(name) ? &(*theirs)[name] : nullptr;
-        break;
-      }
-    }
-    return Status::Error(shards[i].file + ": " + field + " is " + mine->dump() + " but " +
-                         shards[0].file + " has " + (theirs ? theirs->dump() : "none") +
-                         " (the shards of one evaluation must agree)");
-  }
-  return Status::Ok();
-}
-
 // The shards in index order, each once, all N of them.
-Result<std::vector<const ShardFile*>> ByIndex(const std::vector<ShardFile>& shards, int count) {
+Result<std::vector<const ShardFile*>> ByIndex(const std::vector<ShardFile>& shards, int count,
+                                              const std::string& what) {
   std::vector<const ShardFile*> at(static_cast<size_t>(count), nullptr);
   for (const ShardFile& s : shards) {
     Result<const json*> index = Member(s, "shard", "index");
@@ -80,7 +54,7 @@ Result<std::vector<const ShardFile*>> ByIndex(const std::vector<ShardFile>& shar
   for (int i = 0; i < count; ++i) {
     if (at[static_cast<size_t>(i)] == nullptr) {
       return Status::Error("shard " + std::to_string(i) + " of " + std::to_string(count) +
-                           " is missing (give the --json of every shard)");
+                           " is missing (give " + what + " of every shard)");
     }
   }
   return at;
@@ -139,6 +113,45 @@ Result<SequenceResult> ReadPartial(const ShardFile& s, const json& p, Thresholds
 
 }  // namespace
 
+Status SameEverywhere(const std::vector<ShardFile>& shards, const char* object, const char* key) {
+  Result<const json*> first = Member(shards[0], object, key);
+  if (!first.ok()) return first.status();
+  for (size_t i = 1; i < shards.size(); ++i) {
+    Result<const json*> v = Member(shards[i], object, key);
+    if (!v.ok()) return v.status();
+    if (**v == **first) continue;
+    std::string field = std::string(object) + "." + key;
+    const json* mine = *v;
+    const json* theirs = *first;
+    if (mine->is_object() && theirs->is_object()) {  // name the member that differs
+      for (const auto& [name, value] : mine->items()) {
+        if (theirs->contains(name) && (*theirs)[name] == value) continue;
+        field += "." + name;
+        mine = &value;
+        theirs = theirs->contains(name) ? &(*theirs)[name] : nullptr;
+        break;
+      }
+    }
+    return Status::Error(shards[i].file + ": " + field + " is " + mine->dump() + " but " +
+                         shards[0].file + " has " + (theirs ? theirs->dump() : "none") +
+                         " (the shards of one job must agree)");
+  }
+  return Status::Ok();
+}
+
+Result<std::vector<const ShardFile*>> ShardsInOrder(const std::vector<ShardFile>& shards,
+                                                    const std::string& what) {
+  if (shards.empty()) return Status::Error("no shard given");
+  for (const char* key : {"count", "list_sha256", "units"}) {
+    if (Status same = SameEverywhere(shards, "shard", key); !same.ok()) return same;
+  }
+  const json& count = shards[0].json["shard"]["count"];
+  if (!count.is_number_integer() || count.get<int>() < 1) {
+    return Status::Error(shards[0].file + ": shard.count " + count.dump() + " is not a count");
+  }
+  return ByIndex(shards, count.get<int>(), what);
+}
+
 WorkList MakeWorkList(std::vector<std::string> units) {
   std::sort(units.begin(), units.end());
   Sha256 sha;
@@ -190,15 +203,11 @@ std::string ShardJson(const EvalReport& r) {
 namespace {
 
 Result<EvalReport> Merge(const std::vector<ShardFile>& shards) {
-  for (const char* key : {"count", "list_sha256", "units"}) {
-    if (Status same = SameEverywhere(shards, "shard", key); !same.ok()) return same;
-  }
+  Result<std::vector<const ShardFile*>> ordered = ShardsInOrder(shards, "the --json");
+  if (!ordered.ok()) return ordered.status();
   for (const char* key : {"model_sha256", "sfrt_version", "options", "model_training"}) {
     if (Status same = SameEverywhere(shards, "provenance", key); !same.ok()) return same;
   }
-  const int count = shards[0].json["shard"]["count"].get<int>();
-  Result<std::vector<const ShardFile*>> ordered = ByIndex(shards, count);
-  if (!ordered.ok()) return ordered.status();
   // One ISA among the shards that ran frames (float32 kernels round differently per ISA).
   std::string isa;
   for (const ShardFile* s : *ordered) {

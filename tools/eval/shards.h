@@ -43,6 +43,16 @@ struct ShardFile {
   nlohmann::json json;
 };
 
+// The N shards of one work list in index order, each once: refused (naming the file and field)
+// when they do not share shard.count, shard.list_sha256 and shard.units, when one is given twice
+// or one is missing. `what` names a shard's file in the refusal ("the --json").
+Result<std::vector<const ShardFile*>> ShardsInOrder(const std::vector<ShardFile>& shards,
+                                                    const std::string& what);
+
+// Every shard has the first one's value of object.key (refused naming the shard's file, the
+// field down to the member that differs, and both values).
+Status SameEverywhere(const std::vector<ShardFile>& shards, const char* object, const char* key);
+
 // The single run's report rebuilt from all N shards' JSON.
 Result<EvalReport> MergeShards(const std::vector<ShardFile>& shards);
 

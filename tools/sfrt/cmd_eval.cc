@@ -1,6 +1,7 @@
 // sfrt eval: scene-flow accuracy of a model against ground truth, beside two baselines (zero
 // flow and a classical OpenCV pipeline). See tools/eval/evaluate.h.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -17,6 +18,7 @@
 #include "sfrt/model.h"
 #include "sfrt/model_notes.h"
 #include "sfrt/pipeline/io/atomic_write.h"
+#include "sfrt/run_shards.h"
 #include "sfrt/session_environment.h"
 #include "sfrt/shard_args.h"
 #include "sfrt/vocabulary/names.h"
@@ -178,15 +180,39 @@ struct MergeArgs {
   std::string json;
 };
 
-// One shard's --json file, parsed; errors name the file.
+// One shard's --json file or summary.json, parsed; errors name the file.
 Result<eval::ShardFile> ReadShardFile(const std::string& path) {
   if (std::string problem = CheckInputFile(path, "shard result"); !problem.empty()) {
-    return Status::Error(problem + " (sfrt merge reads the --json files of sfrt eval --shard)");
+    return Status::Error(problem +
+                         " (sfrt merge reads the --json files of sfrt eval --shard, and the "
+                         "summary.json of sfrt run --shard or the --out folder holding them)");
   }
   std::ifstream in(path);
   eval::ShardFile shard{path, nlohmann::json::parse(in, nullptr, false)};
   if (shard.json.is_discarded()) return Status::Error(path + ": not a JSON file");
   return shard;
+}
+
+// sfrt merge of sfrt run --shard summaries: the single run's console summary and summary.json.
+int MergeRuns(const std::vector<eval::ShardFile>& shards, const std::string& json_path) {
+  Result<nlohmann::json> merged = MergeRunShards(shards);
+  if (!merged.ok()) return ReportError("merge", merged.message(), kExitFailure);
+  PrintRunResult((*merged)["source"].value("description", ""), ResultFromSummary(*merged));
+  std::cout << "merged      " << shards.size()
+            << " shard(s): " << (*merged)["frames"]["written"].get<int64_t>() << " frames of "
+            << (*merged)["merged"]["units"].size() << " sequence(s), list "
+            << (*merged)["merged"]["list_sha256"].get<std::string>().substr(0, 12) << "\n";
+  if (!json_path.empty()) {
+    const std::string text = merged->dump(2) + "\n";
+    if (Status written = io::WriteFileAtomically(
+            json_path,
+            std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+        !written.ok()) {
+      return ReportError("merge", written.message(), kExitFailure);
+    }
+    std::cout << "wrote       " << json_path << "\n";
+  }
+  return kExitOk;
 }
 
 int RunMerge(const MergeArgs& args) {
@@ -196,11 +222,27 @@ int RunMerge(const MergeArgs& args) {
     }
   }
   std::vector<eval::ShardFile> shards;
-  for (const std::string& path : args.inputs) {
-    Result<eval::ShardFile> shard = ReadShardFile(path);
-    if (!shard.ok()) return ReportError("merge", shard.message(), kExitFailure);
-    shards.push_back(std::move(shard).value());
+  for (const std::string& input : args.inputs) {
+    const std::vector<std::string> files = FindRunShardSummaries(input);
+    if (files.empty()) {
+      return ReportError("merge",
+                         input + ": a folder without summary.json or shard-I-of-N/summary.json",
+                         kExitFailure);
+    }
+    for (const std::string& path : files) {
+      Result<eval::ShardFile> shard = ReadShardFile(path);
+      if (!shard.ok()) return ReportError("merge", shard.message(), kExitFailure);
+      shards.push_back(std::move(shard).value());
+    }
   }
+  const size_t runs = static_cast<size_t>(std::count_if(
+      shards.begin(), shards.end(), [](const eval::ShardFile& s) { return IsRunSummary(s.json); }));
+  if (runs > 0 && runs < shards.size()) {
+    return ReportError("merge",
+                       "the files mix sfrt run shards' summaries with sfrt eval shards' --json",
+                       kExitFailure);
+  }
+  if (runs > 0) return MergeRuns(shards, args.json);
   Result<eval::EvalReport> merged = eval::MergeShards(shards);
   if (!merged.ok()) return ReportError("merge", merged.message(), kExitFailure);
   PrintReport(*merged);
@@ -221,18 +263,24 @@ int RunMerge(const MergeArgs& args) {
 Command AddMergeCommand(CLI::App& parent) {
   auto args = std::make_shared<MergeArgs>();
   CLI::App* cmd = parent.add_subcommand(
-      "merge", "Reduce the shards of a sharded sfrt eval to the single run's results");
-  cmd->add_option("shards", args->inputs, "Each shard's --json file (sfrt eval --shard I/N)")
+      "merge", "Reduce the shards of a sharded sfrt eval or sfrt run to the single run's results");
+  cmd->add_option("shards", args->inputs,
+                  "Each shard's --json file (sfrt eval --shard I/N); or each shard's summary.json "
+                  "or folder, or the --out holding the shard-I-of-N folders (sfrt run --shard)")
       ->required();
   cmd->add_option("--json", args->json,
                   "Also write the merged results as JSON: the keys and values of a single run's "
-                  "--json (replaced atomically)");
+                  "--json or summary.json (replaced atomically)");
   cmd->footer(
       "Checks that all N shards of one work list are there, none twice, with one model (its\n"
       "SHA-256), sfrt version, ISA and option set (a refusal names the shard's file and the\n"
       "field), then merges each unit's raw sums and counts in the list's order, as a single run\n"
       "merges its sequences: every metric, count and median equals the single run's, and the\n"
       "tables are those sfrt eval prints.\n"
+      "Shards of sfrt run: counters are summed, bad frames and skipped outputs listed in the\n"
+      "dataset's order, and every percentile is computed again from all shards' latency samples\n"
+      "(the percentiles of all their windows); wall_s is the shards' wall times summed and fps\n"
+      "the frames over it, and \"merged\" lists each shard's folder, frames and wall time.\n"
       "Exit codes: 0 success, 1 failure (a refusal included), 2 usage error.");
   return Command{cmd, [args] { return RunMerge(*args); }};
 }

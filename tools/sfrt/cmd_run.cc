@@ -33,8 +33,11 @@
 #include "sfrt/ros2/bag_sink.h"
 #endif
 #include "sfrt/run_config.h"
+#include "sfrt/run_shards.h"
 #include "sfrt/session_environment.h"
+#include "sfrt/sha256.h"
 #include "sfrt/shapes.h"
+#include "sfrt/shard_args.h"
 #include "sfrt/vocabulary/failure_policy.h"
 
 namespace sfrt::tools {
@@ -113,6 +116,8 @@ struct RunArgs {
   int picture_queue = -1;  // -1: the pipeline's default (2 for cameras, 0 for replays)
   std::string progress = "auto";
   int progress_every = 10;
+  std::string shard;    // --shard I/N or auto
+  int shard_count = 0;  // --shard-count (Kubernetes Indexed Jobs)
 };
 
 // --record-bag: a ROS 1 bag for a ".bag" path, else a rosbag2 bag (a .mcap file or a new
@@ -170,12 +175,6 @@ std::vector<std::string> SplitComma(const std::string& text) {
   return out;
 }
 
-std::string Fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
-
 // What the command line says about the source, checked (ParseSourceFlags).
 struct SourceFlags {
   bool live = false;                 // --camera or --sbs-camera
@@ -185,6 +184,7 @@ struct SourceFlags {
   int cam_w = 0;
   uint32_t fourcc = 0;  // --format; 0: auto
   camera::BadFramePolicy on_bad = camera::BadFramePolicy::kStop;
+  std::optional<ShardSpec> shard;  // --shard
 };
 
 // The source flags: exactly one source, its devices, sizes, format and bad-frame policy. A usage
@@ -206,6 +206,17 @@ std::string ParseSourceFlags(const RunArgs& args, SourceFlags* flags) {
   }
   if (!args.replay_bag.empty() && args.loop != 1) {
     return "--loop: passes over a bag are not supported; give --loop 1";
+  }
+  if (!args.shard.empty()) {
+    if (args.replay.empty()) {
+      return "--shard splits a dataset's sequences between machines: it needs --replay DATASET";
+    }
+    if (args.loop != 1) return "--loop: a shard passes over its sequences once; give --loop 1";
+    Result<ShardSpec> shard = ParseShardFlag(args.shard, args.shard_count);
+    if (!shard.ok()) return shard.message();
+    flags->shard = *shard;
+  } else if (args.shard_count != 0) {
+    return "--shard-count goes with --shard auto";
   }
   if (flags->plain && (args.replay_left.empty() || args.replay_right.empty())) {
     return "--replay-left and --replay-right go together";
@@ -393,6 +404,7 @@ struct RunSource {
   std::optional<pipeline::ReplaySpec> replay;
   std::optional<pipeline::BagReplaySpec> bag;
   BagFormat bag_format;
+  std::optional<RunShardPlan> shard;  // --shard: the units this shard reads, where it writes
 };
 
 // Opens the source the flags name (cameras, a bag, or files), each probed first. kExitOk, or the
@@ -453,6 +465,12 @@ int OpenRunSource(const RunArgs& args, const SourceFlags& flags, RunSource* out)
       if (!std::filesystem::exists(spec.root, ec)) {
         return ReportError(kName, "--replay: dataset root '" + spec.root + "' does not exist",
                            kExitFailure);
+      }
+      if (flags.shard) {
+        Result<RunShardPlan> plan = PlanRunShard(spec.root, args.pass, *flags.shard, args.out);
+        if (!plan.ok()) return ReportError(kName, "--replay: " + plan.message(), kExitUsage);
+        spec.sequences = plan->mine;
+        out->shard = std::move(plan).value();
       }
     } else if (flags.plain) {
       spec.kind = pipeline::ReplaySpec::Kind::kPlain;
@@ -528,46 +546,34 @@ int CheckRunIsa(const RunArgs& args, const Model& model, pipeline::PipelineOptio
   return kExitOk;
 }
 
-// The console summary of a run that started: frames, throughput, stage and end-to-end latency
-// and its parts, pictures, the summary file.
-void PrintRunResult(const pipeline::FrameSource& source, const pipeline::PipelineResult& result) {
-  std::cout << "source      " << source.Describe() << "\n"
-            << "frames      " << result.frames << " (stopped by " << result.stopped_by << ")\n";
-  if (result.chain.breaks() > 0) {
-    std::cout << "windows     " << result.chain.breaks() << " pair(s) opened no window (lost frame "
-              << result.chain.broken_by_loss << ", stamp gap " << result.chain.skipped_for_gap
-              << ", stamps going back " << result.chain.stream_restarts << ")\n";
-  }
-  std::cout << "throughput  " << Fixed(result.fps, 2) << " fps"
-            << (result.paced ? "" : " (unpaced replay: this is its measure)") << "\n";
-  for (int st = 0; st < config::kStageCount; ++st) {
-    const std::string name = config::kStageNames[st];
-    std::cout << "p50 " << name << std::string(11 - name.size(), ' ')
-              << Fixed(result.stage[st].p50, 2) << " ms\n";
-  }
-  std::cout << "end to end  p50 " << Fixed(result.end_to_end.p50, 2) << " ms, p99 "
-            << Fixed(result.end_to_end.p99, 2) << " ms, max " << Fixed(result.end_to_end.max, 2)
-            << " ms"
-            << (result.paced ? " (capture to output: the latency)\n"
-                             : " (not a latency: windows of an unpaced replay wait in the queues; "
-                               "--replay-fps N paces it like a camera)\n");
-  // Where the end to end went: consecutive parts of each window's latency (they add up to it).
-  std::cout << "end to end, by part (p50 / p99 ms):\n";
-  double p50_sum = 0;
-  for (int p = 0; p < pipeline::kLatencyParts; ++p) {
-    const std::string name = pipeline::LatencyPartName(static_cast<pipeline::LatencyPart>(p));
-    std::cout << "  " << name << std::string(20 - name.size(), ' ') << Fixed(result.parts[p].p50, 2)
-              << " / " << Fixed(result.parts[p].p99, 2) << "\n";
-    p50_sum += result.parts[p].p50;
-  }
-  std::cout << "  sum of p50s         " << Fixed(p50_sum, 2) << " (end to end p50 "
-            << Fixed(result.end_to_end.p50, 2) << ")\n";
-  if (result.pictures_queued) {
-    std::cout << "pictures    encoded off the output stage: p50 "
-              << Fixed(result.pictures_ms.p50, 2) << " ms, p99 " << Fixed(result.pictures_ms.p99, 2)
-              << " ms per window, " << result.pictures_dropped << " dropped to keep up\n";
-  }
-  if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
+// --shard: the shard's folder, every latency sample and the shard's record in its summary (so
+// that sfrt merge gives the single run's), its status file, and a line saying what it reads.
+// kExitOk, or the exit code after reporting.
+int SetShardOptions(const RunArgs& args, const RunShardPlan& plan,
+                    const pipeline::FrameSource* source, std::optional<ShardProgress>* progress,
+                    pipeline::PipelineOptions* options) {
+  Result<std::string> sha = Sha256OfFile(args.model);
+  if (!sha.ok()) return ReportError(kName, args.model + ": " + sha.message(), kExitFailure);
+  std::error_code ec;
+  std::filesystem::create_directories(plan.dir, ec);  // before the status file is written in it
+  options->out_dir = plan.dir;
+  options->summary_samples = true;
+  options->annotate_summary = [plan, sha = *sha](nlohmann::json* summary) {
+    AnnotateRunShard(plan, sha, summary);
+  };
+  const std::string name = ShardName(plan.shard.index, plan.shard.count);
+  progress->emplace(name, /*quiet=*/true,
+                    (std::filesystem::path(plan.dir) / "status.json").string());
+  options->after_window = [progress, source, written = 0](const pipeline::FrameMeta& m) mutable {
+    ++written;
+    const int total = static_cast<int>(source->total_windows().value_or(0));
+    (*progress)->Update(written, total, pipeline::OutputStem(m));
+  };
+  std::cout << "shard       " << name << ": " << plan.mine.size() << " of "
+            << plan.list.units.size() << " sequence(s) (list " << plan.list.sha256.substr(0, 12)
+            << "), written to " << plan.dir << " (sfrt merge " << plan.out << " gives the run's "
+            << "summary)\n";
+  return kExitOk;
 }
 
 int RunRun(const RunArgs& args, RunConfigState* rc) {
@@ -589,13 +595,21 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   RunSource run_source;
   if (int code = OpenRunSource(args, flags, &run_source); code != kExitOk) return code;
   std::unique_ptr<pipeline::FrameSource>& source = run_source.source;
+  SetRunOptions(args, &options);
+  std::optional<ShardProgress> shard_progress;
+  if (run_source.shard) {
+    if (int code =
+            SetShardOptions(args, *run_source.shard, source.get(), &shard_progress, &options);
+        code != kExitOk) {
+      return code;
+    }
+  }
   std::error_code ec;
-  std::filesystem::create_directories(args.out, ec);
-  if (!std::filesystem::is_directory(args.out, ec)) {
-    return ReportError(kName, "--out: cannot create the output directory '" + args.out + "'",
+  std::filesystem::create_directories(options.out_dir, ec);
+  if (!std::filesystem::is_directory(options.out_dir, ec)) {
+    return ReportError(kName, "--out: cannot create the output directory '" + options.out_dir + "'",
                        kExitFailure);
   }
-  SetRunOptions(args, &options);
   options.stop = stop_signals.stop;
   pipeline::StderrLog log("sfrt run");  // the library's warnings, notes and progress
   options.log = &log;
@@ -632,8 +646,12 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
     return ReportError(kName, result.status.message(),
                        result.usage_error ? kExitUsage : kExitFailure);
   }
-  PrintRunResult(*source, result);
+  PrintRunResult(source->Describe(), result);
   PrintRunConfigReport(*rc, result, std::cout);
+  if (shard_progress) {
+    if (result.status.ok()) shard_progress->Done(static_cast<int>(result.frames));
+    if (!result.status.ok()) shard_progress->Failed(result.status.message());
+  }
   if (!result.status.ok()) return ReportError(kName, result.status.message(), kExitFailure);
   if (rc->profile_write_failed) {  // asked for and measured, but lost: not a success
     return ReportError(kName, "--profile: " + rc->profile_error, kExitFailure);
@@ -829,6 +847,16 @@ void AddRunOptions(CLI::App* cmd, RunArgs* args) {
   cmd->add_option("--progress-every", args->progress_every,
                   "With line progress: one line every this many frames")
       ->capture_default_str();
+  cmd->add_option("--shard", args->shard,
+                  "--replay only: replay shard I of N (I/N, 0-based) of the dataset's sorted "
+                  "sequences (KITTI scenes; sequence k to shard k mod N, never split), or auto: "
+                  "the scheduler's index (SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of "
+                  "SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX of --shard-count). Its files "
+                  "go to <out>/shard-I-of-N/, whose summary.json also holds the work list, the "
+                  "model's SHA-256 and every latency sample, and status.json its progress; "
+                  "sfrt merge <out> gives the single run's summary");
+  cmd->add_option("--shard-count", args->shard_count,
+                  "--shard auto with JOB_COMPLETION_INDEX (Kubernetes Indexed Jobs set no count)");
 }
 
 Command AddRunCommand(CLI::App& parent) {

@@ -230,22 +230,23 @@ class FileListSource final : public StereoSource {
       const Entry& e = entries_[next_++];
       BadFrame bad;
       bad.index = index;
+      bad.sequence = e.sequence;
       if (!e.missing_reason.empty()) {
         const bool left_side = e.missing_reason.rfind("left:", 0) == 0;
         bad.path = left_side ? e.left_path : e.right_path;
         bad.reason = e.missing_reason.substr(e.missing_reason.find(':') + 1);
       } else if (std::string why = ReadImage(e.left_path, &pair->left, &images_decoded_);
                  !why.empty()) {
-        bad = {e.left_path, why, index};
+        bad = {e.left_path, why, index, e.sequence};
       } else if (std::string why_r = ReadImage(e.right_path, &pair->right, &images_decoded_);
                  !why_r.empty()) {
-        bad = {e.right_path, why_r, index};
+        bad = {e.right_path, why_r, index, e.sequence};
       } else if (pair->left.size() != pair->right.size()) {
         bad = {e.right_path,
                "is " + std::to_string(pair->right.rows) + "x" + std::to_string(pair->right.cols) +
                    " (HxW) but its left frame " + e.left_path + " is " +
                    std::to_string(pair->left.rows) + "x" + std::to_string(pair->left.cols),
-               index};
+               index, e.sequence};
       }
       if (!bad.path.empty()) {
         if (options_.on_bad_frame == BadFramePolicy::kStop) {
@@ -283,7 +284,27 @@ struct Detected {
   std::vector<Entry> entries;
 };
 
-Result<Detected> Detect(const std::string& root, const DatasetOptions& options) {
+// Keeps the sequences `wanted` names (all when empty), in the dataset's order; the counts before
+// the selection go to all_sequences and all_pairs.
+Status SelectSequences(const std::vector<std::string>& wanted, Detected* d) {
+  d->info.all_sequences = d->info.sequences.size();
+  d->info.all_pairs = static_cast<int64_t>(d->entries.size());
+  d->info.pairs = d->info.all_pairs;
+  if (wanted.empty()) return Status::Ok();
+  const std::set<std::string> keep(wanted.begin(), wanted.end());
+  for (const std::string& name : keep) {
+    if (std::find(d->info.sequences.begin(), d->info.sequences.end(), name) ==
+        d->info.sequences.end()) {
+      return Status::Error("dataset root '" + d->info.root + "' has no sequence '" + name + "'");
+    }
+  }
+  std::erase_if(d->info.sequences, [&](const std::string& s) { return !keep.count(s); });
+  std::erase_if(d->entries, [&](const Entry& e) { return !keep.count(e.sequence); });
+  d->info.pairs = static_cast<int64_t>(d->entries.size());
+  return Status::Ok();
+}
+
+Result<Detected> DetectAll(const std::string& root, const DatasetOptions& options) {
   if (!IsDir(root)) return Status::Error("dataset root '" + root + "' is not a directory");
   if (options.pass != "clean" && options.pass != "final") {
     return Status::Error("dataset pass '" + options.pass + "' is neither clean nor final");
@@ -311,7 +332,6 @@ Result<Detected> Detect(const std::string& root, const DatasetOptions& options) 
     if (d.entries.empty()) {
       return Status::Error(root + ": KITTI layout (image_2, image_3) but no image files in it");
     }
-    d.info.pairs = static_cast<int64_t>(d.entries.size());
     return d;
   }
 
@@ -348,7 +368,13 @@ Result<Detected> Detect(const std::string& root, const DatasetOptions& options) 
         "': no known layout (no image_2/ + image_3/ for KITTI, and no directory within 8 levels "
         "holding left/ and right/ with image files)");
   }
-  d.info.pairs = static_cast<int64_t>(d.entries.size());
+  return d;
+}
+
+Result<Detected> Detect(const std::string& root, const DatasetOptions& options) {
+  Result<Detected> d = DetectAll(root, options);
+  if (!d.ok()) return d;
+  if (Status s = SelectSequences(options.sequences, &*d); !s.ok()) return s;
   return d;
 }
 
@@ -381,15 +407,22 @@ Result<std::unique_ptr<StereoSource>> OpenDatasetSource(const std::string& root,
                                                         const DatasetOptions& options) {
   Result<Detected> d = Detect(root, options);
   if (!d.ok()) return d.status();
-  std::string description = std::string(DatasetLayoutName(d->info.layout)) + " dataset " + root;
-  description += " (";
-  if (!d->info.pass.empty()) description += "frames_" + d->info.pass + ", ";
-  description += std::to_string(d->info.sequences.size()) + " sequence" +
-                 (d->info.sequences.size() == 1 ? "" : "s") + ", " + std::to_string(d->info.pairs) +
-                 " pairs)";
+  std::string description = DescribeDataset(d->info);
   std::unique_ptr<StereoSource> source = std::make_unique<FileListSource>(
       std::move(d->entries), std::move(description), static_cast<const SourceOptions&>(options));
   return source;
+}
+
+std::string DescribeDataset(const DatasetInfo& info) {
+  const size_t n = info.sequences.size();
+  const bool selected = n != info.all_sequences;
+  std::string d = std::string(DatasetLayoutName(info.layout)) + " dataset " + info.root + " (";
+  if (!info.pass.empty()) d += "frames_" + info.pass + ", ";
+  d += std::to_string(n) + (selected ? " of " + std::to_string(info.all_sequences) : "") +
+       " sequence" + ((selected ? info.all_sequences : n) == 1 ? "" : "s") + ", " +
+       std::to_string(info.pairs) + (selected ? " of " + std::to_string(info.all_pairs) : "") +
+       " pairs)";
+  return d;
 }
 
 Result<DatasetInfo> DetectDataset(const std::string& root) {

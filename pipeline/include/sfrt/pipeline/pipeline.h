@@ -244,6 +244,14 @@ struct PipelineOptions {
   // A SummaryFileSink (output_sinks.h) after the caller's sinks; false: no summary.json
   // (outputs.summary: false), the caller's sinks still get the summary.
   bool write_summary = true;
+  // Also put every latency sample behind the summary's percentiles in it ("latency_samples_ms":
+  // {"stages": {stage: [...]}, "end_to_end", "parts": {part: [...]}, "pictures"}, the latest
+  // LatestValues::kDefaultCapacity of each), so the summaries of runs over disjoint parts of one
+  // replay merge into the percentiles of all their windows exactly (sfrt run --shard, sfrt merge).
+  bool summary_samples = false;
+  // Called with the summary's document before the sinks and summary.json get it, to add the
+  // caller's members (sfrt run --shard: the shard, its work list and provenance).
+  std::function<void(nlohmann::json* summary)> annotate_summary;
   // The visualisation encoders (PNG, video) on a thread of their own behind a queue of this many
   // windows (queued_sink.h: the end to end ends before them; their time is measured apart, and
   // for a live or paced source (source_fps > 0) a picture that cannot keep up is dropped and
@@ -251,10 +259,11 @@ struct PipelineOptions {
   // stage, all or nothing with the window's flow file. Default: 2 for live and paced sources, 0
   // for unpaced replays (a throughput job that keeps every picture).
   std::optional<size_t> picture_queue;
-  // Test seams (null in the product). `miss_verdict` decides whether a written window counts as
-  // a deadline miss, given the budget's verdict (end to end > budget_ms), so a test need not
+  // `miss_verdict` (a test seam, null in the product) decides whether a written window counts
+  // as a deadline miss, given the budget's verdict (end to end > budget_ms), so a test need not
   // depend on wall-clock speed. `after_window` is called by the output stage once it is done
-  // with a written window (after the on-miss state has changed), e.g. to pace a fake source.
+  // with a written window (after the on-miss state has changed), e.g. to pace a fake source in
+  // a test, or for a shard's status file (sfrt run --shard).
   std::function<bool(const FrameMeta& meta, bool over_budget)> miss_verdict;
   std::function<void(const FrameMeta& meta)> after_window;
   // `--profile` (profiler.h): per-frame stage and step timestamps into this preallocated ring.
@@ -320,6 +329,9 @@ struct InputSizeChoice {
 };
 Result<InputSizeChoice> ChooseInputSize(const PipelineOptions& options, const ModelMetadata& model,
                                         int source_height, int source_width);
+
+// {"p50", "p90", "p99", "max", "count"}: a series as summary.json's latencies give it.
+nlohmann::json PercentilesJson(const profiling::Summary& summary);
 
 // Output file stem of a window: "<sequence with '/' as '_'>_<frame0, 6 digits>", or
 // "frame_<frame0>" when the sequence is empty.

@@ -57,7 +57,8 @@ class QueuedSink final : public FlowSink {
   void ToJson(nlohmann::json* out) const override;
 
   uint64_t dropped() const;
-  profiling::Summary write_ms() const;  // after Stop()
+  profiling::Summary write_ms() const;          // after Stop()
+  std::vector<double> write_ms_values() const;  // the samples behind write_ms()
 
  private:
   struct Slot {

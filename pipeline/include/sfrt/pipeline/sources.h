@@ -16,6 +16,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "sfrt/camera/stereo_source.h"
 #include "sfrt/camera/v4l2/stereo.h"
@@ -31,6 +32,8 @@ struct ReplaySpec {
   std::string right;  // kPlain
   std::string video;  // kVideo: side-by-side video file
   std::string pass = "clean";
+  // kDataset: only these sequences (camera::DatasetOptions::sequences; empty: all).
+  std::vector<std::string> sequences;
   bool video_left_first = true;
   camera::BadFramePolicy on_bad_frame = camera::BadFramePolicy::kStop;
   // Passes over the files (>= 1). Each pass reopens the source and delivers the same windows

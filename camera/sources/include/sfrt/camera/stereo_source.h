@@ -60,9 +60,10 @@ struct FramePair {
 using BadFramePolicy = vocabulary::FailurePolicy;  // kSkip, kStop
 
 struct BadFrame {
-  std::string path;    // the file at fault (for a left/right size mismatch: the right file)
-  std::string reason;  // one line, e.g. "missing", "could not be decoded as an image"
-  int64_t index = -1;  // FramePair::index the bad pair would have had
+  std::string path;        // the file at fault (for a left/right size mismatch: the right file)
+  std::string reason;      // one line, e.g. "missing", "could not be decoded as an image"
+  int64_t index = -1;      // FramePair::index the bad pair would have had
+  std::string sequence{};  // FramePair::sequence of the bad pair ("" for single-sequence sources)
 };
 
 // "skip" / "stop" (as `--on-bad-frame` and profiles' `on_bad_frame` spell them); the error
@@ -118,6 +119,10 @@ struct DatasetOptions : SourceOptions {
   // Scene Flow: which rendering pass to read when both frames_cleanpass and frames_finalpass
   // exist ("clean" or "final"). When only one exists, it is used whatever this says.
   std::string pass = "clean";
+  // Only these sequences (names as DatasetInfo::sequences spells them), in the dataset's own
+  // order; empty: all. A name the dataset does not have is an error naming it. A shard of a
+  // sharded run (`sfrt run --shard`) reads its units this way.
+  std::vector<std::string> sequences;
 };
 
 // What DetectDataset found under a root: the layout and the sequences in enumeration order.
@@ -127,7 +132,14 @@ struct DatasetInfo {
   std::string pass;  // kSceneFlow: "cleanpass" or "finalpass"; otherwise empty
   std::vector<std::string> sequences;
   int64_t pairs = 0;  // frame pairs over all sequences (union of left and right names)
+  // With DatasetOptions::sequences: the dataset's own counts, before the selection.
+  size_t all_sequences = 0;
+  int64_t all_pairs = 0;
 };
+
+// One line for logs: "Scene Flow dataset ROOT (frames_cleanpass, 4 sequences, 40 pairs)", with
+// "2 of 4 sequences, 20 of 40 pairs" for a selection. The sources' Describe() says this.
+std::string DescribeDataset(const DatasetInfo& info);
 
 // Detection rules, in order:
 //  1. root (or root/training, root/testing) holds image_2/ and image_3/  -> kKitti. Files are
