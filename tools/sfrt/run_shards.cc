@@ -456,8 +456,6 @@ void AnnotateRunShard(const RunShardPlan& plan, const std::string& model_sha256,
 std::vector<std::string> FindRunShardSummaries(const std::string& path) {
   std::error_code ec;
   if (!fs::is_directory(path, ec)) return {path};
-  const fs::path own = fs::path(path) / "summary.json";
-  if (fs::is_regular_file(own, ec)) return {own.string()};
   std::vector<std::string> found;
   for (const fs::directory_entry& e : fs::directory_iterator(path, ec)) {
     const std::string name = e.path().filename().string();
@@ -470,6 +468,9 @@ std::vector<std::string> FindRunShardSummaries(const std::string& path) {
     }
   }
   std::sort(found.begin(), found.end());
+  // A shard's own folder (or any run's): its summary.json.
+  const fs::path own = fs::path(path) / "summary.json";
+  if (found.empty() && fs::is_regular_file(own, ec)) found.push_back(own.string());
   return found;
 }
 

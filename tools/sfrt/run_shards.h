@@ -59,9 +59,10 @@ Result<RunShardPlan> PlanRunShard(const std::string& root, const std::string& pa
 void AnnotateRunShard(const RunShardPlan& plan, const std::string& model_sha256,
                       nlohmann::json* summary);
 
-// A shard's summary.json as `sfrt merge` finds it: `path` is a summary.json, a shard's folder
-// (its summary.json), or the --out the shards share (the summary.json of each shard-I-of-N
-// folder in it). Empty when `path` is none of these.
+// The shards' summary.json files as `sfrt merge` finds them: `path` is a summary.json, the --out
+// the shards share (the summary.json of each shard-I-of-N folder in it, a merged summary.json
+// beside them ignored), or a shard's folder (its summary.json). Empty when `path` is a folder
+// with none of these.
 std::vector<std::string> FindRunShardSummaries(const std::string& path);
 
 // True when `json` is a summary.json of sfrt run (a shard's, or another that MergeRunShards

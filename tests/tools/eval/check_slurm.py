@@ -1,11 +1,14 @@
 #!/usr/bin/python3
-"""A sharded sfrt eval on a real Slurm, as examples/slurm/ runs it, merges into the local run.
+"""A sharded sfrt eval and sfrt run on a real Slurm, as examples/slurm/ runs them, merge into the
+local runs.
 
 Starts a single-node Slurm (Debian's slurm-wlm 22.05: slurmctld and slurmd in the foreground,
 AuthType=auth/none and CredType=cred/none, so no munge; ports chosen free on loopback; state, spool
 and logs in a temporary folder), submits examples/slurm/submit.sh's 3-task array over a synthesised
 dataset and its merge job (--dependency=afterok), waits for both, and checks that the merged --json
-is the local single run's byte for byte and that every array task saw its own index. Stops both
+is the local single run's byte for byte and that every array task saw its own index; then the same
+with JOB=run (a replay: the merged summary has the local run's counts and the shards wrote its
+flow files, byte for byte). Stops both
 daemons by PID (SIGTERM), also on failure, and prints their logs when something fails.
 
 usage: check_slurm.py --sfrt BIN --model M --examples DIR --work DIR
@@ -129,6 +132,54 @@ class Slurm:
         return text
 
 
+def flow_files(folders):
+    """name -> bytes of the .pfm flow files in `folders`."""
+    out = {}
+    for folder in folders:
+        for name in os.listdir(folder):
+            if name.endswith(".pfm"):
+                with open(os.path.join(folder, name), "rb") as f:
+                    out[name] = f.read()
+    return out
+
+
+def check_replay(a, slurm, data, failed):
+    """JOB=run: the 3 array tasks replay the dataset into replay/shard-I-of-3/ and the merge job
+    writes the summary of the local single run: the same frames, windows, source line and last
+    window; the shards' flow files are the single run's, byte for byte."""
+    model = os.path.abspath(a.model)
+    local = os.path.join(a.work, "replay_single")
+    run([a.sfrt, "run", "--model", model, "--replay", data, "--out", local, "--progress", "off"])
+    out = os.path.join(a.work, "out_run")
+    start = time.monotonic()
+    env = dict(slurm.env, SFRT=os.path.abspath(a.sfrt), MODEL=model, DATASET=data, OUT=out,
+               SHARDS="3", JOB="run")
+    jobs = run(["bash", os.path.join(a.examples, "submit.sh")], env=env).split()
+    wait_for("the replay array and its merge", lambda: slurm.finished([jobs[1], jobs[3]]), 240)
+    states = slurm.states(jobs[1]) + slurm.states(jobs[3])
+    if states != ["COMPLETED"] * 4:
+        failed.append("replay job states %s; expected 3 completed tasks and the merge" % states)
+        return
+    with open(os.path.join(local, "summary.json")) as f:
+        single = json.load(f)
+    with open(os.path.join(out, "merged.json")) as f:
+        merged = json.load(f)
+    for key in ("frames", "windows", "drops", "preprocess", "bad_frames"):
+        if single[key] != merged[key]:
+            failed.append("replay: merged %s %s, the local run's %s" % (key, merged[key],
+                                                                      single[key]))
+    for key in ("description", "images_decoded", "windows_expected"):
+        if single["source"][key] != merged["source"][key]:
+            failed.append("replay: merged source.%s differs from the local run's" % key)
+    if single["outputs"]["last"] != merged["outputs"]["last"]:
+        failed.append("replay: merged outputs.last %s" % merged["outputs"]["last"])
+    shards = [os.path.join(out, "replay", "shard-%d-of-3" % i) for i in range(3)]
+    if flow_files([local]) != flow_files(shards):
+        failed.append("replay: the shards' flow files are not the local run's")
+    print("slurm: replay array of 3 and merge done in %.1f s, %d windows as the local run's" % (
+        time.monotonic() - start, merged["frames"]["written"]))
+
+
 def main():
     ap = argparse.ArgumentParser()
     for flag in ("--sfrt", "--model", "--examples", "--work"):
@@ -179,6 +230,7 @@ def main():
                 failed.append("shard_%d.json says shard %s/%s" % (i, shard["index"],
                                                                 shard["count"]))
         print("slurm: node idle after %.1f s; array of 3 and merge done in %.1f s" % (up, done))
+        check_replay(a, slurm, data, failed)
     except (RuntimeError, OSError, ValueError, IndexError) as e:
         failed.append(str(e))
     finally:
@@ -193,7 +245,8 @@ def main():
                     print("--- %s\n%s" % (name, f.read()[-2000:]))
         sys.exit(1)
     shutil.rmtree(t, ignore_errors=True)
-    print("PASS: the merged --json of 3 Slurm array tasks is the single run's, byte for byte")
+    print("PASS: the merged --json of 3 Slurm array tasks is the single run's, byte for byte; "
+          "the merged replay is the single run's")
 
 
 if __name__ == "__main__":
