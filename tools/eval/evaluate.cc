@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -256,9 +258,194 @@ void MergeSequences(EvalReport* report) {
     for (int m = 0; m < kMethodCount; ++m) {
       report->overall[m].Merge(seq.methods[m]);
       report->kitti_counts[m].Merge(seq.kitti[m]);
+      report->conventions[m].Merge(seq.conventions[m]);
     }
   }
 }
+
+MaskInputs FrameMasks::View() const {
+  MaskInputs view;
+  for (size_t i = 0; i < kMaskInputs; ++i) {
+    view.values[i] = values[i].empty() ? nullptr : values[i].data();
+    view.missing[i] = missing[i];
+  }
+  return view;
+}
+
+namespace {
+
+// One mask input's PFM: absent (empty, `missing` set), or read and checked against the frame.
+Result<std::optional<io::PfmImage>> ReadMaskFile(const std::string& root, const std::string& path,
+                                                 int channels, int height, int width,
+                                                 std::string* missing) {
+  if (!IsFile(path)) {
+    std::error_code ec;
+    const fs::path relative = fs::relative(path, root, ec);
+    *missing = "no " + (ec || relative.empty() ? path : relative.generic_string());
+    return std::optional<io::PfmImage>();
+  }
+  Result<io::PfmImage> image = io::ReadPfm(path);
+  if (!image.ok()) return image.status();
+  if (image->channels < channels || image->height != height || image->width != width) {
+    return Status::Error(path + ": " + std::to_string(image->height) + "x" +
+                         std::to_string(image->width) + " with " + std::to_string(image->channels) +
+                         " channel(s); the frame is " + std::to_string(height) + "x" +
+                         std::to_string(width) + " and needs " + std::to_string(channels));
+  }
+  return std::optional<io::PfmImage>(std::move(image).value());
+}
+
+// f B / d, +infinity where d is not positive (no depth: every depth bound drops the pixel).
+double DepthOf(double fb, double disparity) {
+  return disparity > 0 && std::isfinite(disparity) ? fb / disparity
+                                                   : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+Result<FrameMasks> LoadMaskInputs(const std::string& root, const FrameRef& frame, double focal,
+                                  double baseline, int height, int width) {
+  const GtInputs in = GtInputPaths(root, frame);
+  std::string no_disparity, no_change, no_flow;
+  Result<std::optional<io::PfmImage>> d0 =
+      ReadMaskFile(root, in.disparity, 1, height, width, &no_disparity);
+  if (!d0.ok()) return d0.status();
+  Result<std::optional<io::PfmImage>> change =
+      ReadMaskFile(root, in.change, 1, height, width, &no_change);
+  if (!change.ok()) return change.status();
+  Result<std::optional<io::PfmImage>> flow =
+      ReadMaskFile(root, in.flow, 2, height, width, &no_flow);
+  if (!flow.ok()) return flow.status();
+  FrameMasks masks;
+  const size_t pixels = static_cast<size_t>(height) * width;
+  const double fb = focal * baseline;
+  auto& [depth, next_depth, flow2d] = masks.values;
+  masks.missing = {no_disparity, no_disparity.empty() ? no_change : no_disparity, no_flow};
+  if (*d0) {
+    depth.resize(pixels);
+    for (size_t p = 0; p < pixels; ++p) depth[p] = DepthOf(fb, (*d0)->data[p]);
+  }
+  if (*d0 && *change) {
+    next_depth.resize(pixels);
+    for (size_t p = 0; p < pixels; ++p) {
+      next_depth[p] = DepthOf(
+          fb, static_cast<double>((*d0)->data[p]) + static_cast<double>((*change)->data[p]));
+    }
+  }
+  if (*flow) {
+    const size_t c = static_cast<size_t>((*flow)->channels);
+    flow2d.resize(pixels);
+    for (size_t p = 0; p < pixels; ++p) {
+      flow2d[p] = std::hypot(static_cast<double>((*flow)->data[c * p]),
+                             static_cast<double>((*flow)->data[c * p + 1]));
+    }
+  }
+  return masks;
+}
+
+namespace {
+
+// One frame's inputs: the ground truth, the four images (t left, t right, t+1 left, t+1 right)
+// and the conventions' mask inputs.
+struct FrameData {
+  std::vector<float> truth;
+  int height = 0, width = 0;
+  std::string paths[4];
+  cv::Mat images[4];
+  FrameMasks masks;
+};
+
+Result<FrameData> LoadFrame(const std::string& root, const synth::Intrinsics& camera,
+                            const FrameRef& f) {
+  FrameData d;
+  Result<std::vector<float>> gt = LoadGroundTruth(root, f, camera.focal, camera.baseline, camera.cx,
+                                                  camera.cy, &d.height, &d.width);
+  if (!gt.ok()) return gt.status();
+  d.truth = std::move(gt).value();
+  const std::string paths[4] = {Image(root, f.sequence, "left", f.frame),
+                                Image(root, f.sequence, "right", f.frame),
+                                Image(root, f.sequence, "left", f.next_frame),
+                                Image(root, f.sequence, "right", f.next_frame)};
+  for (int k = 0; k < 4; ++k) {
+    d.paths[k] = paths[k];
+    Result<cv::Mat> image = ReadImage(paths[k]);
+    if (!image.ok()) return image.status();
+    if (image->rows != d.height || image->cols != d.width) {
+      return Status::Error(paths[k] + ": image is " + std::to_string(image->rows) + "x" +
+                           std::to_string(image->cols) + " but its ground truth is " +
+                           std::to_string(d.height) + "x" + std::to_string(d.width));
+    }
+    d.images[k] = std::move(image).value();
+  }
+  Result<FrameMasks> masks =
+      LoadMaskInputs(root, f, camera.focal, camera.baseline, d.height, d.width);
+  if (!masks.ok()) return masks.status();
+  d.masks = std::move(masks).value();
+  return d;
+}
+
+// The model's runner, created at the first frame, with the camera check against the dataset's.
+Result<std::unique_ptr<ModelRunner>> StartModel(const EvalOptions& options,
+                                                const synth::Intrinsics& camera,
+                                                const std::string& camera_json, int width,
+                                                EvalReport* report) {
+  Result<std::unique_ptr<ModelRunner>> created =
+      ModelRunner::Create(options.model_path, report->model_height, report->model_width, options);
+  if (!created.ok()) return created.status();
+  const ModelMetadata& meta = (*created)->metadata();
+  report->model_name = meta.name;
+  report->model_training = meta.training;
+  // The camera the model sees is the dataset's scaled to the model's input size.
+  const double sx = static_cast<double>(report->model_width) / width;
+  const std::string mismatch =
+      CompareCameras(meta.camera, camera.focal * sx, camera.baseline, report->model_height,
+                     report->model_width, camera_json);
+  if (!mismatch.empty()) {
+    if (!options.allow_camera_mismatch) {
+      return Status::Error(mismatch +
+                           "; evaluate on data from the model's camera, or pass "
+                           "--allow-camera-mismatch to score it anyway");
+    }
+    report->camera_note = mismatch + ": its predictions are in its own camera's units";
+  }
+  return created;
+}
+
+// The first frame sets the report's sizes; every other must have them.
+Status CheckFrameSize(const EvalOptions& options, const FrameData& d, bool first,
+                      EvalReport* report) {
+  if (first) {
+    report->height = d.height;
+    report->width = d.width;
+    report->model_height = options.model_height > 0 ? options.model_height : d.height;
+    report->model_width = options.model_width > 0 ? options.model_width : d.width;
+  } else if (d.height != report->height || d.width != report->width) {
+    return Status::Error(d.paths[0] + ": frame is " + std::to_string(d.height) + "x" +
+                         std::to_string(d.width) + " but the first frame is " +
+                         std::to_string(report->height) + "x" + std::to_string(report->width) +
+                         " (one image size per dataset)");
+  }
+  return Status::Ok();
+}
+
+// One method's prediction of one frame (nullptr: zero flow), scored over every pixel and under
+// each convention.
+void Score(SequenceResult* seq, int method, const float* pred, const FrameData& d) {
+  const size_t pixels = static_cast<size_t>(d.height) * d.width;
+  seq->methods[method].Add(pred, d.truth.data(), pixels);
+  seq->conventions[method].Add(pred, d.truth.data(), d.masks.View(), pixels);
+}
+
+SequenceResult& SequenceOf(const FrameRef& f, Thresholds thresholds, EvalReport* report) {
+  if (report->sequences.empty() || report->sequences.back().name != f.sequence) {
+    report->sequences.push_back(SequenceResult{f.sequence, 0, {}, {}, {}});
+    for (MetricsAccumulator& m : report->sequences.back().methods)
+      m = MetricsAccumulator(thresholds);
+  }
+  return report->sequences.back();
+}
+
+}  // namespace
 
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress) {
@@ -290,77 +477,27 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
   for (size_t i = 0; i < frames.size(); ++i) {
     const FrameRef& f = frames[i];
     if (progress) progress(EvalProgress{static_cast<int>(i), static_cast<int>(frames.size()), &f});
-    int h = 0;
-    int w = 0;
-    Result<std::vector<float>> gt = LoadGroundTruth(
-        options.dataset, f, camera->focal, camera->baseline, camera->cx, camera->cy, &h, &w);
-    if (!gt.ok()) return gt.status();
-    cv::Mat images[4];
-    const std::string paths[4] = {Image(options.dataset, f.sequence, "left", f.frame),
-                                  Image(options.dataset, f.sequence, "right", f.frame),
-                                  Image(options.dataset, f.sequence, "left", f.next_frame),
-                                  Image(options.dataset, f.sequence, "right", f.next_frame)};
-    for (int k = 0; k < 4; ++k) {
-      Result<cv::Mat> image = ReadImage(paths[k]);
-      if (!image.ok()) return image.status();
-      if (image->rows != h || image->cols != w) {
-        return Status::Error(paths[k] + ": image is " + std::to_string(image->rows) + "x" +
-                             std::to_string(image->cols) + " but its ground truth is " +
-                             std::to_string(h) + "x" + std::to_string(w));
-      }
-      images[k] = std::move(image).value();
-    }
-    if (i == 0) {
-      report.height = h;
-      report.width = w;
-      report.model_height = options.model_height > 0 ? options.model_height : h;
-      report.model_width = options.model_width > 0 ? options.model_width : w;
-    } else if (h != report.height || w != report.width) {
-      return Status::Error(paths[0] + ": frame is " + std::to_string(h) + "x" + std::to_string(w) +
-                           " but the first frame is " + std::to_string(report.height) + "x" +
-                           std::to_string(report.width) + " (one image size per dataset)");
-    }
+    Result<FrameData> d = LoadFrame(options.dataset, *camera, f);
+    if (!d.ok()) return d.status();
+    if (Status size = CheckFrameSize(options, *d, i == 0, &report); !size.ok()) return size;
     if (report.has_model && !runner) {
-      Result<std::unique_ptr<ModelRunner>> created =
-          ModelRunner::Create(options.model_path, report.model_height, report.model_width, options);
-      if (!created.ok()) return created.status();
-      runner = std::move(created).value();
-      const ModelMetadata& meta = runner->metadata();
-      report.model_name = meta.name;
-      report.model_training = meta.training;
-      // The camera the model sees is the dataset's scaled to the model's input size.
-      const double sx = static_cast<double>(report.model_width) / w;
-      const std::string mismatch =
-          CompareCameras(meta.camera, camera->focal * sx, camera->baseline, report.model_height,
-                         report.model_width, camera_json);
-      if (!mismatch.empty()) {
-        if (!options.allow_camera_mismatch) {
-          return Status::Error(mismatch +
-                               "; evaluate on data from the model's camera, or pass "
-                               "--allow-camera-mismatch to score it anyway");
-        }
-        report.camera_note = mismatch + ": its predictions are in its own camera's units";
-      }
+      Result<std::unique_ptr<ModelRunner>> started =
+          StartModel(options, *camera, camera_json, d->width, &report);
+      if (!started.ok()) return started.status();
+      runner = std::move(started).value();
     }
-    if (report.sequences.empty() || report.sequences.back().name != f.sequence) {
-      report.sequences.push_back(SequenceResult{f.sequence, 0, {}, {}});
-      for (MetricsAccumulator& m : report.sequences.back().methods) {
-        m = MetricsAccumulator(options.thresholds);
-      }
-    }
-    SequenceResult& seq = report.sequences.back();
-    const size_t pixels = static_cast<size_t>(h) * w;
+    SequenceResult& seq = SequenceOf(f, options.thresholds, &report);
     if (runner) {
-      const cv::Mat* ptrs[4] = {&images[0], &images[1], &images[2], &images[3]};
+      const cv::Mat* ptrs[4] = {&d->images[0], &d->images[1], &d->images[2], &d->images[3]};
       Result<std::vector<float>> pred = runner->Run(ptrs);
-      if (!pred.ok()) return Status::Error(paths[0] + ": model run failed: " + pred.message());
-      seq.methods[0].Add(pred->data(), gt->data(), pixels);
+      if (!pred.ok()) return Status::Error(d->paths[0] + ": model run failed: " + pred.message());
+      Score(&seq, 0, pred->data(), *d);
     }
-    seq.methods[1].Add(nullptr, gt->data(), pixels);
+    Score(&seq, 1, nullptr, *d);
     if (options.classical) {
       std::vector<float> classical =
-          ClassicalSceneFlow(images[0], images[1], images[2], images[3], rig);
-      seq.methods[2].Add(classical.data(), gt->data(), pixels);
+          ClassicalSceneFlow(d->images[0], d->images[1], d->images[2], d->images[3], rig);
+      Score(&seq, 2, classical.data(), *d);
     }
     ++seq.frames;
     ++report.frames;
@@ -388,6 +525,73 @@ std::string Row(const std::string& scope, const char* method, const FlowMetrics&
   return line;
 }
 
+// A share's cell: "-" where the paper reports no such share.
+std::string Share(double v) {
+  if (std::isnan(v)) return "      -";
+  char cell[16];
+  std::snprintf(cell, sizeof(cell), "%7.4f", v);
+  return cell;
+}
+
+// Each convention's overall metrics per method (eval/conventions.h); availability depends on the
+// dataset only, so zero flow's (always scored) says it.
+std::string ConventionsTable(const EvalReport& r) {
+  char line[200];
+  std::string out =
+      "FlyingThings3D conventions (each paper's mask and share rules; sfrt eval --help):\n";
+  std::snprintf(line, sizeof(line), "%-10s %-10s %8s %7s %7s %8s %10s %6s\n", "convention",
+                "method", "EPE3D", "ACC.05", "ACC.10", "outliers", "pixels", "frames");
+  out += line;
+  for (int c = 0; c < kConventionCount; ++c) {
+    const char* key = kConventions[c].key;
+    const ConventionMetrics any = r.conventions[1][c].Metrics();
+    if (!any.available) {
+      out += std::string(key) + std::string(std::max<size_t>(1, 11 - std::strlen(key)), ' ') +
+             "unavailable: " + any.unavailable + "\n";
+      continue;
+    }
+    for (int m = 0; m < kMethodCount; ++m) {
+      if (!MethodShown(r, m)) continue;
+      const ConventionMetrics cm = r.conventions[m][c].Metrics();
+      std::snprintf(line, sizeof(line), "%-10s %-10s %8.4f %s %s  %s %10llu %6llu\n", key,
+                    kMethodNames[m], cm.epe3d, Share(cm.shares[0]).c_str(),
+                    Share(cm.shares[1]).c_str(), Share(cm.shares[2]).c_str(),
+                    static_cast<unsigned long long>(cm.valid_pixels),
+                    static_cast<unsigned long long>(cm.frames));
+      out += line;
+    }
+  }
+  return out;
+}
+
+std::string ConventionJson(const Convention& c, const ConventionMetrics& m,
+                           const std::string& indent) {
+  std::ostringstream o;
+  o << "{\n"
+    << indent << "  \"name\": " << JsonString(c.name) << ",\n"
+    << indent << "  \"mask\": " << JsonString(c.MaskWords()) << ",\n"
+    << indent << "  \"available\": " << (m.available ? "true" : "false") << ",\n";
+  if (!m.available) o << indent << "  \"reason\": " << JsonString(m.unavailable) << ",\n";
+  const auto number = [&](double v) { return m.available ? JsonNumber(v) : std::string("null"); };
+  o << indent << "  \"epe3d\": " << number(m.epe3d) << ",\n";
+  for (int s = 0; s < kConventionShares; ++s) {
+    o << indent << "  " << JsonString(kShareRules[s].key) << ": " << number(m.shares[s]) << ",\n";
+  }
+  o << indent << "  \"valid_pixels\": " << m.valid_pixels << ",\n"
+    << indent << "  \"frames\": " << m.frames << "\n"
+    << indent << "}";
+  return o.str();
+}
+
+std::string ConventionsJson(const EvalReport& r, int method, const std::string& indent) {
+  std::string out = "{";
+  for (int c = 0; c < kConventionCount; ++c) {
+    out += (c == 0 ? "\n" : ",\n") + indent + "  " + JsonString(kConventions[c].key) + ": " +
+           ConventionJson(kConventions[c], r.conventions[method][c].Metrics(), indent + "  ");
+  }
+  return out + "\n" + indent + "}";
+}
+
 }  // namespace
 
 std::string FormatTable(const EvalReport& r) {
@@ -406,6 +610,7 @@ std::string FormatTable(const EvalReport& r) {
     if (MethodShown(r, m)) out += Row("overall", kMethodNames[m], r.overall[m].Metrics());
   }
   if (r.kitti) out += "\n" + FormatKittiTable(r);
+  if (!r.kitti) out += "\n" + ConventionsTable(r);
   return out;
 }
 
@@ -427,6 +632,14 @@ std::string FormatJson(const EvalReport& r) {
   for (const ShareRule& rule : kShareRules) {
     o << ", " << JsonString(rule.key) << ": " << JsonString(rule.Definition(r.thresholds));
   }
+  if (!r.kitti) {
+    o << ", \"conventions\": {";
+    for (int c = 0; c < kConventionCount; ++c) {
+      o << (c == 0 ? "" : ", ") << JsonString(kConventions[c].key) << ": "
+        << JsonString(kConventions[c].Definition());
+    }
+    o << "}";
+  }
   o << "},\n";
   o << "  \"thresholds\": " << JsonString(ThresholdsName(r.thresholds)) << ",\n";
   o << "  \"layout\": " << (r.kitti ? "\"kitti\"" : "\"scene flow\"") << ",\n";
@@ -437,6 +650,7 @@ std::string FormatJson(const EvalReport& r) {
       << "\": " << MetricsJson(r.overall[m].Metrics(), r.frames, "  ");
     if (r.kitti)
       o << ",\n    \"kitti\": " << KittiJson(r.kitti_counts[m], DepthLabel(r, m), "    ");
+    if (!r.kitti) o << ",\n    \"conventions\": " << ConventionsJson(r, m, "    ");
     o << ",\n    \"sequences\": {";
     for (size_t s = 0; s < r.sequences.size(); ++s) {
       const SequenceResult& seq = r.sequences[s];

@@ -14,6 +14,11 @@
 //              resized back bilinearly (its values are 3D displacements: not rescaled)
 //   zero_flow  (0, 0, 0) everywhere: its mean EPE is the mean ground-truth magnitude
 //   classical  eval/classical.h at the dataset's resolution, with the dataset's camera
+//
+// Beside the metrics over every pixel, each method is scored under the FlyingThings3D papers'
+// conventions (eval/conventions.h: their masks of depth and 2D flow magnitude, their share rules),
+// from the dataset's disparity/, disparity_change/ and optical_flow/ where it has them; a
+// convention whose mask needs a file the dataset lacks is reported unavailable, with the reason.
 #pragma once
 
 #include <array>
@@ -24,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "eval/conventions.h"
 #include "eval/kitti.h"
 #include "eval/metrics.h"
 #include "sfrt/isa.h"
@@ -98,6 +104,7 @@ struct SequenceResult {
   int frames = 0;
   MetricsAccumulator methods[kMethodCount];
   KittiCounts kitti[kMethodCount];  // the KITTI layout's counts (a sequence is one scene there)
+  ConventionSet conventions[kMethodCount];  // the Scene Flow layout's (eval/conventions.h)
 };
 
 struct EvalReport {
@@ -115,6 +122,7 @@ struct EvalReport {
   std::vector<SequenceResult> sequences;
   Thresholds thresholds = Thresholds::kAbsolute;
   MetricsAccumulator overall[kMethodCount];
+  ConventionSet conventions[kMethodCount];  // overall, per method (not for the KITTI layout)
   // The KITTI layout (eval/kitti_eval.h): its outlier counts per method, and the depth the model's
   // and zero flow's 3D flow was projected with (the classical baseline uses its own stereo).
   bool kitti = false;
@@ -144,6 +152,19 @@ Result<std::vector<float>> LoadGroundTruth(const std::string& root, const FrameR
                                            double focal, double baseline, double cx, double cy,
                                            int* height, int* width);
 
+// The conventions' mask inputs of one frame (eval/conventions.h), H*W doubles each: the depth at
+// t, f B / d from disparity/<seq>/left/NNNN.pfm (+infinity where d <= 0); the same point's depth
+// at t+1, f B / (d + change) with disparity_change/; |(u, v)| from optical_flow/. An input whose
+// file is not there is left empty with `missing` naming the file (relative to the root); a file
+// that is there but unreadable, or not height x width, fails.
+struct FrameMasks {
+  std::array<std::vector<double>, kMaskInputs> values;
+  std::array<std::string, kMaskInputs> missing;
+  MaskInputs View() const;
+};
+Result<FrameMasks> LoadMaskInputs(const std::string& root, const FrameRef& frame, double focal,
+                                  double baseline, int height, int width);
+
 // A report with what the options set, before any frame (every evaluation starts from it).
 EvalReport NewReport(const EvalOptions& options);
 // The overall results: the sequences' accumulators and KITTI counts merged in their order (as
@@ -153,7 +174,8 @@ void MergeSequences(EvalReport* report);
 Result<EvalReport> RunEvaluation(const EvalOptions& options,
                                  const std::function<void(const EvalProgress&)>& progress = {});
 
-// The report as a table (per sequence and overall, one row per method).
+// The report as a table (per sequence and overall, one row per method), and for the Scene Flow
+// layout a second one: each convention's metrics per method (or why it is unavailable).
 std::string FormatTable(const EvalReport& report);
 
 // The report as JSON: top-level keys "sfrt" (only with a model), "zero_flow", "classical"
@@ -161,6 +183,10 @@ std::string FormatTable(const EvalReport& report);
 // "valid_pixels", "frames", "sequences": {"<seq>": {the same metrics}}}, plus "dataset",
 // "model", "camera", "image_size", "model_size", "frames", "units", "definitions", "thresholds"
 // ("absolute" or "relative") and "gt_median_motion" (the ground truth's median |g|).
+// The Scene Flow layout adds, per method, "conventions": {"<key>": {"name", "mask" (words),
+// "available", "reason" (only when unavailable), "epe3d", "acc05", "acc10", "outliers" (null
+// where the paper reports no such share, all null when unavailable), "valid_pixels", "frames"}}
+// (overall only), and "definitions"."conventions": {"<key>": the definition in words}.
 std::string FormatJson(const EvalReport& report);
 
 }  // namespace sfrt::eval

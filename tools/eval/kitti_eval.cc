@@ -262,7 +262,7 @@ Result<EvalReport> RunKittiEvaluation(const EvalOptions& options,
     if (progress) progress(EvalProgress{static_cast<int>(i), static_cast<int>(mine.size()), &ref});
     Result<KittiScene> scene = ReadKittiScene(dir, mine[i]);
     if (!scene.ok()) return scene.status();
-    SequenceResult seq{mine[i], 1, {}, {}};
+    SequenceResult seq{mine[i], 1, {}, {}, {}};
     for (MetricsAccumulator& m : seq.methods) m = MetricsAccumulator(options.thresholds);
     if (Status st = ScoreScene(options, *scene, runner.get(), &seq); !st.ok()) return st;
     report.sequences.push_back(std::move(seq));

@@ -72,15 +72,12 @@ void MetricsAccumulator::Merge(const MetricsAccumulator& other) {
   for (size_t b = 0; b < gt_bins_.size(); ++b) gt_bins_[b] += other.gt_bins_[b];
 }
 
-namespace {
-
 std::string ExactDouble(double v) {
   char buf[40];
   std::snprintf(buf, sizeof(buf), "%a", v);
   return buf;
 }
 
-// A double written by ExactDouble, or an error naming `key`.
 Result<double> ReadExactDouble(const nlohmann::json& value, const std::string& key) {
   if (!value.is_string()) return Status::Error(key + ": expected a hexadecimal float string");
   const std::string text = value.get<std::string>();
@@ -96,8 +93,6 @@ Result<uint64_t> ReadCount(const nlohmann::json& state, const char* key) {
   }
   return state[key].get<uint64_t>();
 }
-
-}  // namespace
 
 nlohmann::json MetricsAccumulator::State() const {
   nlohmann::json s;

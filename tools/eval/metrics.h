@@ -8,9 +8,12 @@
 //   acc05     = share of pixels with EPE < 0.05 OR relative < 5%
 //   acc10     = share of pixels with EPE < 0.1  OR relative < 10%
 //   outliers  = share of pixels with EPE > 0.3  OR relative > 10%
-// (the usual scene-flow definitions, FlowNet3D's (Liu et al., CVPR 2019): one of the two
-// conditions is enough). The thresholds are the ShareRule table below, which the metric, the
-// `sfrt eval --help` text and the JSON's "definitions" all read.
+// (the usual scene-flow definitions: one of the two conditions is enough; ACC as FlowNet3D's
+// (Liu et al., CVPR 2019), whose code compares with <=, and the outliers as HPLFlowNet's (Gu et
+// al., CVPR 2019), whose code writes all three with < and >, as here). They apply to every pixel
+// with ground truth; eval/conventions.h scores each paper's own mask and rules. The thresholds
+// are the ShareRule table below, which the metric, the `sfrt eval --help` text and the JSON's
+// "definitions" all read.
 // Thresholds are absolute, in scene units: they assume the FlyingThings3D scale (baseline 1).
 // A robot's metric data moves far less per frame (the default model's scenes: about 0.02 m), so
 // there zero flow passes ACC.05 and ACC.10 whatever its error: Thresholds::kRelative
@@ -108,5 +111,11 @@ class MetricsAccumulator {
   static constexpr int kBins = 18 * kBinsPerDecade + 2;  // 1e-9 .. 1e9, and the two ends
   std::array<uint64_t, kBins> gt_bins_{};
 };
+
+// A shard's partial sums written exactly: a double as a hexadecimal float ("%a", infinities
+// included), read back bit for bit; a count. The readers' errors name `key`.
+std::string ExactDouble(double v);
+Result<double> ReadExactDouble(const nlohmann::json& value, const std::string& key);
+Result<uint64_t> ReadCount(const nlohmann::json& state, const char* key);
 
 }  // namespace sfrt::eval

@@ -101,6 +101,14 @@ Result<SequenceResult> ReadPartial(const ShardFile& s, const json& p, Thresholds
                            acc.message());
     }
     seq.methods[m] = *acc;
+    if (p.contains("conventions") && p["conventions"].contains(kMethodNames[m])) {
+      Result<ConventionSet> set = ConventionSet::FromState(p["conventions"][kMethodNames[m]]);
+      if (!set.ok()) {
+        return Status::Error(s.file + ": partials " + seq.name + " " + kMethodNames[m] + ": " +
+                             set.message());
+      }
+      seq.conventions[m] = *set;
+    }
     if (p.contains("kitti") && p["kitti"].contains(kMethodNames[m])) {
       Result<KittiCounts> counts = KittiCounts::FromState(p["kitti"][kMethodNames[m]]);
       if (!counts.ok())
@@ -193,6 +201,7 @@ std::string ShardJson(const EvalReport& r) {
       if ((m == 0 && !r.has_model) || (m == 2 && !r.has_classical)) continue;
       p["methods"][kMethodNames[m]] = seq.methods[m].State();
       if (r.kitti) p["kitti"][kMethodNames[m]] = seq.kitti[m].State();
+      if (!r.kitti) p["conventions"][kMethodNames[m]] = seq.conventions[m].State();
     }
     partials.push_back(p);
   }

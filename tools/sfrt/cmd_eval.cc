@@ -258,6 +258,23 @@ int RunMerge(const MergeArgs& args) {
   return kExitOk;
 }
 
+// The FlyingThings3D conventions' lines of the help, from their table (eval/conventions.h).
+std::string ConventionsHelp() {
+  std::string conventions;
+  for (const eval::Convention& c : eval::kConventions) {
+    conventions +=
+        "  " + std::string(c.key) + ": " + c.name + "\n      pixels with " + c.MaskWords() + ";";
+    for (int s = 0; s < eval::kConventionShares; ++s) {
+      conventions += std::string(s == 0 ? "" : ";") + "\n      " + eval::kShareRules[s].key +
+                     " = " + c.shares[static_cast<size_t>(s)].Definition(c.relative_epsilon);
+    }
+    conventions += c.averaging == eval::Averaging::kPerFrame
+                       ? ";\n      each frame's means averaged over the frames\n"
+                       : ";\n      means over all kept pixels\n";
+  }
+  return conventions;
+}
+
 }  // namespace
 
 Command AddMergeCommand(CLI::App& parent) {
@@ -339,6 +356,7 @@ Command AddEvalCommand(CLI::App& parent) {
     std::snprintf(line, sizeof(line), "  %-9s %s\n", rule.label, rule.Definition().c_str());
     share_metrics += line;
   }
+  const std::string conventions = ConventionsHelp();
   cmd->footer(
       "Frames: DIR/frames_cleanpass/<seq>/{left,right}/NNNN.png with frame NNNN+1 present;\n"
       "ground truth DIR/scene_flow/<seq>/into_future/left/NNNN.pfm, or else computed from\n"
@@ -356,12 +374,22 @@ Command AddEvalCommand(CLI::App& parent) {
       "Metrics over pixels with finite ground truth, in the dataset's scene units:\n"
       "  EPE3D     mean |pred - gt|;  EPE_X/Y/Z mean |pred_c - gt_c|\n" +
       share_metrics +
-      "(one of the two conditions is enough: the usual definitions, FlowNet3D's; with\n"
-      "--thresholds relative only the EPE/|gt| one). When the ground truth's median motion\n"
+      "(one of the two conditions is enough, as FlowNet3D's ACC and HPLFlowNet's outliers;\n"
+      "with --thresholds relative only the EPE/|gt| one). When the ground truth's median motion\n"
       "is below 0.05 a note says the absolute thresholds do not suit the data's scale.\n"
       "Per sequence and overall. JSON: keys sfrt, zero_flow, classical, each with epe3d,\n"
       "epe_x, epe_y, epe_z, acc05, acc10, outliers, valid_pixels, frames and sequences;\n"
       "thresholds and gt_median_motion.\n"
+      "FlyingThings3D conventions (Scene Flow layout; not changed by --thresholds): each method\n"
+      "is also scored as these papers' code scores FlyingThings3D, over the pixels their mask\n"
+      "keeps (depth = f B / disparity in scene units, from disparity/ and disparity_change/;\n"
+      "2D flow from optical_flow/, px), overall, in a second table and in each method's JSON\n"
+      "\"conventions\" (name, mask, available, epe3d, acc05, acc10, outliers: null where the\n"
+      "paper has no such share, valid_pixels, frames); definitions.conventions words them:\n" +
+      conventions +
+      "A convention whose mask needs a file the dataset lacks is reported unavailable, naming\n"
+      "the file. Not reproduced: the papers' occlusion masks (this layout has no occlusion\n"
+      "maps) and their 8192-point samples (the mean over every kept pixel is their expectation).\n"
       "KITTI Scene Flow 2015 layout (detected): each scene's 3D flow is projected into\n"
       "disparities at t and t+1 and optical flow with the --depth disparity at t, filled as\n"
       "the devkit fills missing values, and scored as the devkit scores it: D1, D2, Fl and SF\n"

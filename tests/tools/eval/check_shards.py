@@ -6,7 +6,8 @@ its tables. --shard auto reads a Slurm array task (SLURM_ARRAY_TASK_ID - SLURM_A
 SLURM_ARRAY_TASK_COUNT) and a Kubernetes Indexed Job (JOB_COMPLETION_INDEX of --shard-count).
 Each shard writes JSON.status. sfrt merge refuses a missing shard, a shard given twice, shards of
 different options (naming the option) or models, each naming the file and the field, and a JSON
-file that is not a shard's (without crashing).
+file that is not a shard's (without crashing). A tree whose units lack some of the files the
+FlyingThings3D conventions' masks need merges into the single run too, naming the same file.
 
 usage: check_shards.py --sfrt BIN --model M --other-model M2 --work DIR
 """
@@ -80,6 +81,26 @@ def main():
     failed = []
     check_merge(a, kitti, ["--depth", "stereo"], 2, failed)
     parts = check_merge(a, flows, [], 3, failed)
+
+    # The FlyingThings3D conventions when some units lack the files their masks need: unavailable
+    # in every shard that met the gap, and the merge names the first such file in list order, as
+    # the single run does (sequence 0000 lacks its 2D flow, 0001 its disparities).
+    gaps = os.path.join(a.work, "gaps")
+    shutil.copytree(flows, gaps)
+    shutil.rmtree(os.path.join(gaps, "optical_flow", "0000"))
+    shutil.rmtree(os.path.join(gaps, "disparity", "0001"))
+    check_merge(a, gaps, [], 3, failed)
+    with open(os.path.join(a.work, "merged.json")) as f:
+        conventions = json.load(f)["sfrt"]["conventions"]
+    reasons = {k: v.get("reason") for k, v in conventions.items()}
+    expected = {
+        "raft3d": "its mask needs the |2D optical flow|: no "
+                  "optical_flow/0000/into_future/left/OpticalFlowIntoFuture_0000_L.pfm",
+        "flownet3d": "its mask needs the depth at t: no disparity/0001/left/0000.pfm",
+    }
+    for key, reason in expected.items():
+        if reasons.get(key) != reason:
+            failed.append("gaps: %s's reason is %r, expected %r" % (key, reasons.get(key), reason))
 
     # --shard auto, from the scheduler's environment.
     cases = [({"SLURM_ARRAY_TASK_ID": "7", "SLURM_ARRAY_TASK_MIN": "5",
