@@ -200,7 +200,7 @@ int MergeRuns(const std::vector<eval::ShardFile>& shards, const std::string& jso
   PrintRunResult((*merged)["source"].value("description", ""), ResultFromSummary(*merged));
   std::cout << "merged      " << shards.size()
             << " shard(s): " << (*merged)["frames"]["written"].get<int64_t>() << " frames of "
-            << (*merged)["merged"]["units"].size() << " sequence(s), list "
+            << (*merged)["merged"]["units"].size() << " units, list "
             << (*merged)["merged"]["list_sha256"].get<std::string>().substr(0, 12) << "\n";
   if (!json_path.empty()) {
     const std::string text = merged->dump(2) + "\n";

@@ -3,6 +3,7 @@
 #include <linux/videodev2.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -24,6 +25,7 @@
 #include "sfrt/pipeline/io/atomic_write.h"
 #include "sfrt/pipeline/log.h"
 #include "sfrt/pipeline/pipeline.h"
+#include "sfrt/pipeline/source_chain.h"
 #include "sfrt/pipeline/sources.h"
 #if SFRT_HAVE_ROS
 #include "sfrt/ros/bag_sink.h"
@@ -78,6 +80,7 @@ struct RunArgs {
   std::string replay_right;
   std::string replay_video;
   std::string replay_bag;
+  std::string replay_bags;  // a folder of bags, each a unit
   std::string left_topic = "left/image_rect";
   std::string right_topic = "right/image_rect";
   std::string record_bag;
@@ -196,20 +199,23 @@ std::string ParseSourceFlags(const RunArgs& args, SourceFlags* flags) {
     return "--model and --out are required (or a --config profile)";
   }
   const int sources = !args.camera.empty() + !args.sbs_camera.empty() + !args.replay.empty() +
-                      flags->plain + !args.replay_video.empty() + !args.replay_bag.empty();
+                      flags->plain + !args.replay_video.empty() + !args.replay_bag.empty() +
+                      !args.replay_bags.empty();
   if (sources != 1) {
     return sources == 0 ? "no source: give one of --camera, --sbs-camera, --replay, "
-                          "--replay-left/--replay-right, --replay-video, --replay-bag"
+                          "--replay-left/--replay-right, --replay-video, --replay-bag, "
+                          "--replay-bags"
                         : "give exactly one source (--camera, --sbs-camera, "
                           "--replay, --replay-left/--replay-right, --replay-video, "
-                          "--replay-bag)";
+                          "--replay-bag, --replay-bags)";
   }
-  if (!args.replay_bag.empty() && args.loop != 1) {
+  if ((!args.replay_bag.empty() || !args.replay_bags.empty()) && args.loop != 1) {
     return "--loop: passes over a bag are not supported; give --loop 1";
   }
   if (!args.shard.empty()) {
-    if (args.replay.empty()) {
-      return "--shard splits a dataset's sequences between machines: it needs --replay DATASET";
+    if (args.replay.empty() && args.replay_bags.empty()) {
+      return "--shard splits a dataset's sequences or a folder's bags between machines: it "
+             "needs --replay DATASET or --replay-bags FOLDER";
     }
     if (args.loop != 1) return "--loop: a shard passes over its sequences once; give --loop 1";
     Result<ShardSpec> shard = ParseShardFlag(args.shard, args.shard_count);
@@ -405,7 +411,84 @@ struct RunSource {
   std::optional<pipeline::BagReplaySpec> bag;
   BagFormat bag_format;
   std::optional<RunShardPlan> shard;  // --shard: the units this shard reads, where it writes
+  // --replay-bags: a fresh chain of the same bags (for --profile-overhead's second run).
+  std::function<std::unique_ptr<pipeline::FrameSource>()> remake;
 };
+
+// --replay-bag's spec for the bag at `path`.
+pipeline::BagReplaySpec BagSpec(const RunArgs& args, const SourceFlags& flags,
+                                const std::string& path) {
+  pipeline::BagReplaySpec spec;
+  spec.path = path;
+  spec.left_topic = args.left_topic;
+  spec.right_topic = args.right_topic;
+  spec.pair_tolerance_ms = args.pair_tolerance_ms > 0 ? args.pair_tolerance_ms : 8.0;
+  spec.on_bad_frame = flags.on_bad;
+  return spec;
+}
+
+// The bags directly in `folder`, sorted by name: .mcap, .db3 and .bag files, and folders holding
+// a rosbag2 metadata.yaml.
+Result<std::vector<std::string>> ListBags(const std::string& folder) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    return Status::Error("'" + folder + "' is not a folder");
+  }
+  std::vector<std::string> bags;
+  for (const auto& entry : std::filesystem::directory_iterator(folder, ec)) {
+    const std::filesystem::path& p = entry.path();
+    const std::string ext = p.extension().string();
+    const bool file =
+        entry.is_regular_file(ec) && (ext == ".mcap" || ext == ".db3" || ext == ".bag");
+    if (file || std::filesystem::is_regular_file(p / "metadata.yaml", ec)) {
+      bags.push_back(p.filename().string());
+    }
+  }
+  if (ec) return Status::Error("'" + folder + "': " + ec.message());
+  if (bags.empty()) {
+    return Status::Error("'" + folder +
+                         "' holds no bag (.mcap, .db3 or .bag files, or rosbag2 "
+                         "folders with metadata.yaml)");
+  }
+  std::sort(bags.begin(), bags.end());
+  return bags;
+}
+
+// --replay-bags: the folder's bags (this shard's with --shard), each probed, replayed one after
+// another as units named by their file names. kExitOk, or the exit code after reporting.
+int OpenBagFolder(const RunArgs& args, const SourceFlags& flags, RunSource* out) {
+  Result<std::vector<std::string>> bags = ListBags(args.replay_bags);
+  if (!bags.ok()) return ReportError(kName, "--replay-bags: " + bags.message(), kExitUsage);
+  const std::string topics = "(" + pipeline::AbsoluteTopic(args.left_topic) + ", " +
+                             pipeline::AbsoluteTopic(args.right_topic) + ")";
+  std::string description =
+      std::to_string(bags->size()) + " bag(s) in " + args.replay_bags + " " + topics;
+  std::vector<std::string> units = *bags;
+  if (flags.shard) {
+    Result<RunShardPlan> plan = PlanRunShard(*bags, description, "bag", *flags.shard, args.out);
+    if (!plan.ok()) return ReportError(kName, "--replay-bags: " + plan.message(), kExitUsage);
+    units = plan->mine;
+    description = std::to_string(units.size()) + " of " + std::to_string(bags->size()) +
+                  " bag(s) in " + args.replay_bags + " " + topics;
+    out->shard = std::move(plan).value();
+  }
+  std::vector<pipeline::SourceUnit> chain;
+  for (const std::string& unit : units) {
+    const pipeline::BagReplaySpec spec =
+        BagSpec(args, flags, (std::filesystem::path(args.replay_bags) / unit).string());
+    Result<BagFormat> format = BagFormatOf(spec.path);
+    if (!format.ok()) return ReportError(kName, "--replay-bags: " + format.message(), kExitUsage);
+    if (Result<pipeline::BagProbe> probe = format->probe(spec); !probe.ok()) {
+      return ReportError(kName, "--replay-bags: " + probe.message(), kExitUsage);
+    }
+    chain.push_back({unit, [spec, make = format->make] { return make(spec); }});
+  }
+  out->remake = [chain, description] {
+    return pipeline::MakeSourceChain(chain, description, "replay-bags");
+  };
+  out->source = out->remake();
+  return kExitOk;
+}
 
 // Opens the source the flags name (cameras, a bag, or files), each probed first. kExitOk, or the
 // exit code after reporting.
@@ -437,13 +520,10 @@ int OpenRunSource(const RunArgs& args, const SourceFlags& flags, RunSource* out)
     config.sbs_left_first = !args.right_first;
     config.timeout_ms = args.camera_timeout_ms;
     out->source = pipeline::MakeCameraSource(config, flags.on_bad);
+  } else if (!args.replay_bags.empty()) {
+    return OpenBagFolder(args, flags, out);
   } else if (!args.replay_bag.empty()) {
-    pipeline::BagReplaySpec spec;
-    spec.path = args.replay_bag;
-    spec.left_topic = args.left_topic;
-    spec.right_topic = args.right_topic;
-    spec.pair_tolerance_ms = args.pair_tolerance_ms > 0 ? args.pair_tolerance_ms : 8.0;
-    spec.on_bad_frame = flags.on_bad;
+    const pipeline::BagReplaySpec spec = BagSpec(args, flags, args.replay_bag);
     if (!std::filesystem::is_directory(spec.path, ec)) {
       if (std::string problem = CheckInputFile(spec.path, "--replay-bag file"); !problem.empty()) {
         return ReportError(kName, problem, kExitFailure);
@@ -467,7 +547,7 @@ int OpenRunSource(const RunArgs& args, const SourceFlags& flags, RunSource* out)
                            kExitFailure);
       }
       if (flags.shard) {
-        Result<RunShardPlan> plan = PlanRunShard(spec.root, args.pass, *flags.shard, args.out);
+        Result<RunShardPlan> plan = PlanDatasetShard(spec.root, args.pass, *flags.shard, args.out);
         if (!plan.ok()) return ReportError(kName, "--replay: " + plan.message(), kExitUsage);
         spec.sequences = plan->mine;
         out->shard = std::move(plan).value();
@@ -570,7 +650,7 @@ int SetShardOptions(const RunArgs& args, const RunShardPlan& plan,
     (*progress)->Update(written, total, pipeline::OutputStem(m));
   };
   std::cout << "shard       " << name << ": " << plan.mine.size() << " of "
-            << plan.list.units.size() << " sequence(s) (list " << plan.list.sha256.substr(0, 12)
+            << plan.list.units.size() << " units (list " << plan.list.sha256.substr(0, 12)
             << "), written to " << plan.dir << " (sfrt merge " << plan.out << " gives the run's "
             << "summary)\n";
   return kExitOk;
@@ -633,6 +713,7 @@ int RunRun(const RunArgs& args, RunConfigState* rc) {
   if (run_source.bag) {
     again = [&run_source] { return run_source.bag_format.make(*run_source.bag); };
   }
+  if (run_source.remake) again = run_source.remake;
   // Every check has passed: the note belongs to a run that starts.
   if (std::string notice = UntrainedNotice(args.model, model->metadata().training);
       !notice.empty()) {
@@ -700,9 +781,15 @@ void AddSourceOptions(CLI::App* cmd, RunArgs* args) {
       "PNG) on --left-topic and --right-topic, paired by header stamp within "
       "--pair-tolerance-ms (default 8); unpaired frames are counted in the summary. ROS 1 bags "
       "need a build with librosbag");
-  cmd->add_option("--left-topic", args->left_topic, "--replay-bag: the left image topic")
+  cmd->add_option(
+      "--replay-bags", args->replay_bags,
+      "A folder of bags (.mcap, .db3 and .bag files, and rosbag2 folders with metadata.yaml), "
+      "replayed one after another in name order as --replay-bag replays one; each bag is a "
+      "sequence of its own (no window spans two; outputs <bag>_<frame>), and the unit of "
+      "--shard. Their images must have one size");
+  cmd->add_option("--left-topic", args->left_topic, "--replay-bag(s): the left image topic")
       ->capture_default_str();
-  cmd->add_option("--right-topic", args->right_topic, "--replay-bag: the right image topic")
+  cmd->add_option("--right-topic", args->right_topic, "--replay-bag(s): the right image topic")
       ->capture_default_str();
   cmd->add_option("--record-bag", args->record_bag,
                   "Also write the flow as a bag: rosbag2 for a .mcap file or a new folder (MCAP, "

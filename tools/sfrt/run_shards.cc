@@ -52,6 +52,7 @@ constexpr FieldRule kFieldRules[] = {
     {"source.windows_expected", Rule::kSum},
     {"source.images_decoded", Rule::kSum},
     {"source.images_listed", Rule::kSum},
+    {"source.units", Rule::kInUnitOrder},
     {"sinks[].windows", Rule::kSum},
     {"sinks[].dropped", Rule::kSum},
     {"sinks[].write_ms", Rule::kRebuilt},
@@ -410,34 +411,39 @@ std::string Fixed(double v, int digits) {
 
 }  // namespace
 
-Result<RunShardPlan> PlanRunShard(const std::string& root, const std::string& pass,
-                                  const ShardSpec& shard, const std::string& out) {
-  camera::DatasetOptions options;
-  options.pass = pass;
-  camera::Result<camera::DatasetInfo> info = camera::DetectDataset(root, options);
-  if (!info.ok()) return Status::Error(info.message());
+Result<RunShardPlan> PlanRunShard(std::vector<std::string> order, std::string description,
+                                  const std::string& what, const ShardSpec& shard,
+                                  const std::string& out) {
   RunShardPlan plan;
   plan.shard = shard;
-  plan.order = info->sequences;
-  plan.description = camera::DescribeDataset(*info);
-  plan.list = eval::MakeWorkList(info->sequences);
+  plan.list = eval::MakeWorkList(order);
+  plan.order = std::move(order);
+  plan.description = std::move(description);
   for (size_t k = 0; k < plan.list.units.size(); ++k) {
     if (eval::InShard(k, eval::ShardSpec{shard.index, shard.count})) {
       plan.mine.push_back(plan.list.units[k]);
     }
   }
   if (plan.mine.empty()) {
-    return Status::Error("shard " + ShardName(shard.index, shard.count) + " has no unit: " + root +
-                         " holds " + std::to_string(plan.list.units.size()) +
-                         " sequence(s), fewer than the " + std::to_string(shard.count) +
-                         " shards; split it into at most " +
-                         std::to_string(plan.list.units.size()));
+    const std::string n = std::to_string(plan.list.units.size());
+    return Status::Error("shard " + ShardName(shard.index, shard.count) + " has no unit: " +
+                         plan.description + " has " + n + " " + what + "(s), fewer than the " +
+                         std::to_string(shard.count) + " shards; split it into at most " + n);
   }
   plan.out = out;
   plan.dir = (fs::path(out) /
               ("shard-" + std::to_string(shard.index) + "-of-" + std::to_string(shard.count)))
                  .string();
   return plan;
+}
+
+Result<RunShardPlan> PlanDatasetShard(const std::string& root, const std::string& pass,
+                                      const ShardSpec& shard, const std::string& out) {
+  camera::DatasetOptions options;
+  options.pass = pass;
+  camera::Result<camera::DatasetInfo> info = camera::DetectDataset(root, options);
+  if (!info.ok()) return Status::Error(info.message());
+  return PlanRunShard(info->sequences, camera::DescribeDataset(*info), "sequence", shard, out);
 }
 
 void AnnotateRunShard(const RunShardPlan& plan, const std::string& model_sha256,

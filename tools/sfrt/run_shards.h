@@ -2,11 +2,11 @@
 // Kubernetes Indexed Job), and `sfrt merge` of the shards' summaries into the summary one
 // machine's run writes.
 //
-// The units are the dataset's sequences (KITTI: its scenes), sorted (eval::MakeWorkList, the
-// list `sfrt eval --shard` splits too); unit k goes to shard k mod N and is never split, so no
-// window is lost or doubled at a shard's edge. A shard writes its files under
-// <out>/shard-I-of-N/ (no two shards write one file), and its summary.json holds, beside the
-// run's own keys:
+// The units are the dataset's sequences (KITTI: its scenes) or the bags of a folder
+// (--replay-bags), sorted (eval::MakeWorkList, the list `sfrt eval --shard` splits too); unit k
+// goes to shard k mod N and is never split, so no window is lost or doubled at a shard's edge. A
+// shard writes its files under <out>/shard-I-of-N/ (no two shards write one file), and its
+// summary.json holds, beside the run's own keys:
 //   "shard":      {"index", "count", "units" (the whole list), "list_sha256", "mine" (its
 //                  units), "order" (the dataset's own order of the units), "description" (the
 //                  whole dataset's source line), "out" (its --out; the merge's outputs.dir
@@ -50,10 +50,16 @@ struct RunShardPlan {
   std::string dir;                 // <out>/shard-I-of-N
 };
 
-// The plan for shard `shard` of the dataset at `root` (rendering pass `pass`). Refused when the
-// dataset cannot be read, or when the shard would have no unit (more shards than units).
-Result<RunShardPlan> PlanRunShard(const std::string& root, const std::string& pass,
-                                  const ShardSpec& shard, const std::string& out);
+// The plan for shard `shard` of the units `order` (in the source's own order: a dataset's
+// sequences, a folder's bags), whose source line is `description`; `what` names a unit in the
+// refusal ("sequence", "bag"). Refused when the shard would have no unit (more shards than units).
+Result<RunShardPlan> PlanRunShard(std::vector<std::string> order, std::string description,
+                                  const std::string& what, const ShardSpec& shard,
+                                  const std::string& out);
+// The same for the dataset at `root` (rendering pass `pass`): its sequences; refused also when
+// the dataset cannot be read.
+Result<RunShardPlan> PlanDatasetShard(const std::string& root, const std::string& pass,
+                                      const ShardSpec& shard, const std::string& out);
 
 // The members a shard adds to its summary ("shard", "provenance").
 void AnnotateRunShard(const RunShardPlan& plan, const std::string& model_sha256,

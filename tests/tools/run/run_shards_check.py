@@ -10,8 +10,10 @@ another run's: the latencies, wall_s and fps are checked against the shards' own
 wall times instead. --shard auto reads Slurm's and Kubernetes' variables; each shard's
 status.json says done. Refused, each naming the file and field: a missing shard, one given twice,
 shards of different options or models, a shard with no unit, a summary that is not a shard's.
+With --bags: the same for a folder of 3 rosbag2 bags (recorded by sfrt run --record-bag), each
+bag a unit of --replay-bags.
 
-usage: run_shards_check.py --sfrt BIN --model M --other-model M2 --work DIR
+usage: run_shards_check.py --sfrt BIN --model M --other-model M2 --work DIR [--bags]
 """
 import argparse
 import glob
@@ -121,10 +123,69 @@ def check_files(single_dir, shard_dirs, failed):
     return len(flows)
 
 
+def check_sharded(a, base, work, count, failed):
+    """The single run and `count` shards of `base` (an sfrt run command line without --out):
+    the merged summary and the shards' files against the single run's. Returns the shards'
+    summaries."""
+    single_dir = os.path.join(work, "single")
+    single_text = run(base + ["--out", single_dir])
+    out = os.path.join(work, "sharded")
+    for i in reversed(range(count)):
+        run(base + ["--out", out, "--shard", "%d/%d" % (i, count)])
+    shard_dirs = [os.path.join(out, "shard-%d-of-%d" % (i, count)) for i in range(count)]
+    shards = []
+    for i, d in enumerate(shard_dirs):
+        with open(os.path.join(d, "status.json")) as f:
+            status = json.load(f)
+        if status["state"] != "done" or status["shard"] != "%d/%d" % (i, count):
+            failed.append("%s: status %s" % (d, status))
+        with open(os.path.join(d, "summary.json")) as f:
+            shards.append(json.load(f))
+    merged_path = os.path.join(work, "merged.json")
+    merged_text = run([a.sfrt, "merge", out, "--json", merged_path])
+    with open(os.path.join(single_dir, "summary.json")) as f:
+        single = json.load(f)
+    with open(merged_path) as f:
+        merged = json.load(f)
+    failed += differences(single, merged)
+    series = check_latencies(shards, merged, failed)
+    files = check_files(single_dir, shard_dirs, failed)
+    if merged["frames"]["written"] != sum(s["frames"]["written"] for s in shards):
+        failed.append("merged frames are not the shards' sum")
+    first = [l for l in single_text.splitlines() if l.startswith(("source", "frames"))]
+    again = [l for l in merged_text.splitlines() if l.startswith(("source", "frames"))]
+    if first != again:
+        failed.append("sfrt merge printed %s, sfrt run %s" % (again, first))
+    print("%d units in %d shards: %d flow files as the single run's, summary equal but for "
+          "timing, %d latency series the percentiles of the shards' %d samples" % (
+              len(shards[0]["shard"]["units"]), count, files, series,
+              merged["latency_ms"]["end_to_end"]["count"]))
+    return single, shards, shard_dirs
+
+
+def check_bags(a, data, failed):
+    """Three bags recorded from the dataset's sequences, replayed as --replay-bags units."""
+    work = os.path.join(a.work, "bags")
+    folder = os.path.join(work, "drives")
+    os.makedirs(folder)
+    for seq in ("0000", "0001", "0002"):
+        frames = os.path.join(data, "frames_cleanpass", seq)
+        run([a.sfrt, "run", "--model", a.model, "--replay-left", os.path.join(frames, "left"),
+             "--replay-right", os.path.join(frames, "right"), "--out",
+             os.path.join(work, "rec" + seq), "--flow-format", "none", "--no-png",
+             "--progress", "off", "--record-bag", os.path.join(folder, "drive_%s.mcap" % seq)])
+    base = [a.sfrt, "run", "--model", a.model, "--replay-bags", folder, "--threads", "1",
+            "--progress", "off"]
+    single, _, _ = check_sharded(a, base, work, 2, failed)
+    if [u["sequence"] for u in single["source"]["units"]] != sorted(os.listdir(folder)):
+        failed.append("--replay-bags units %s" % single["source"]["units"])
+
+
 def main():
     ap = argparse.ArgumentParser()
     for flag in ("--sfrt", "--model", "--other-model", "--work"):
         ap.add_argument(flag, required=True)
+    ap.add_argument("--bags", action="store_true", help="also shard a folder of bags")
     a = ap.parse_args()
     shutil.rmtree(a.work, ignore_errors=True)
     os.makedirs(a.work)
@@ -135,42 +196,12 @@ def main():
     os.remove(lost)
     base = [a.sfrt, "run", "--model", a.model, "--replay", data, "--threads", "1",
             "--progress", "off", "--on-bad-frame", "skip"]
-    single_dir = os.path.join(a.work, "single")
-    single_text = run(base + ["--out", single_dir])
-    out = os.path.join(a.work, "sharded")
-    for i in (2, 0, 1):
-        run(base + ["--out", out, "--shard", "%d/3" % i])
-    shard_dirs = [os.path.join(out, "shard-%d-of-3" % i) for i in range(3)]
     failed = []
-    shards = []
-    for i, d in enumerate(shard_dirs):
-        with open(os.path.join(d, "status.json")) as f:
-            status = json.load(f)
-        if status["state"] != "done" or status["shard"] != "%d/3" % i:
-            failed.append("%s: status %s" % (d, status))
-        with open(os.path.join(d, "summary.json")) as f:
-            shards.append(json.load(f))
-    merged_path = os.path.join(a.work, "merged.json")
-    merged_text = run([a.sfrt, "merge", out, "--json", merged_path])
-    with open(os.path.join(single_dir, "summary.json")) as f:
-        single = json.load(f)
-    with open(merged_path) as f:
-        merged = json.load(f)
-    failed += differences(single, merged)
+    single, shards, shard_dirs = check_sharded(a, base, a.work, 3, failed)
     if not single["bad_frames"] or single["windows"]["broken_by_lost_frame"] < 1:
         failed.append("the lost frame made no bad frame or break: %s" % single["bad_frames"])
-    series = check_latencies(shards, merged, failed)
-    files = check_files(single_dir, shard_dirs, failed)
-    if merged["frames"]["written"] != sum(s["frames"]["written"] for s in shards):
-        failed.append("merged frames are not the shards' sum")
-    first = [l for l in single_text.splitlines() if l.startswith(("source", "frames"))]
-    again = [l for l in merged_text.splitlines() if l.startswith(("source", "frames"))]
-    if first != again:
-        failed.append("sfrt merge printed %s, sfrt run %s" % (again, first))
-    units = shards[0]["shard"]["units"]
-    print("%d sequences in 3 shards: %d flow files as the single run's, summary equal but for "
-          "timing, %d latency series the percentiles of the shards' %d samples" % (
-              len(units), files, series, merged["latency_ms"]["end_to_end"]["count"]))
+    if a.bags:
+        check_bags(a, data, failed)
 
     # --shard auto, from the scheduler's environment.
     cases = [({"SLURM_ARRAY_TASK_ID": "6", "SLURM_ARRAY_TASK_MIN": "5",
@@ -203,9 +234,9 @@ def main():
         ([d0, d1, d1, d2], "shard 1 of 3 is given twice"),
         ([d0, os.path.join(other, "shard-1-of-3"), d2],
          "shard-1-of-3/summary.json: outputs.flow_format is \"npy\""),
-        ([d0, os.path.join(model, "shard-1-of-3"), d2], "model"),
+        ([d0, os.path.join(model, "shard-1-of-3"), d2], "model."),
         ([broken, d1, d2], "frames"),
-        ([single_dir], "not the summary of sfrt run --shard"),
+        ([os.path.join(a.work, "single")], "not the summary of sfrt run --shard"),
     ]
     for inputs, message in refusals:
         text = run([a.sfrt, "merge"] + inputs, expect=1)
@@ -215,7 +246,7 @@ def main():
     text = run(base + ["--out", os.path.join(a.work, "none"), "--shard", "5/6"], expect=2)
     if "shard 5/6 has no unit" not in text:
         failed.append("a shard without a unit: %s" % text)
-    text = run([a.sfrt, "run", "--model", a.model, "--replay-left", lost, "--replay-right", lost,
+    text = run([a.sfrt, "run", "--model", a.model, "--replay-video", lost,
                 "--out", os.path.join(a.work, "none"), "--shard", "0/2"], expect=2)
     if "--shard splits a dataset" not in text:
         failed.append("--shard without --replay: %s" % text)
