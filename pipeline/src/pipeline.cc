@@ -107,6 +107,8 @@ class Runner {
   // Builds the summary and hands it to every sink's Finished() (the caller's, then the file's).
   Status FinishSinks(PipelineResult* result);
   json SamplesJson() const;  // PipelineOptions::summary_samples
+  void AddEventsJson(json* out) const;
+  void AddLatencyJson(const PipelineResult& result, json* out) const;
   WindowItem MakeWindow() const;
   InputItem MakeInput() const;
   FlowItem MakeFlow() const;
@@ -786,6 +788,75 @@ json Runner::SamplesJson() const {
                                                    : json(nullptr)}};
 }
 
+// summary.json's bad frames, window breaks, output errors and deadline events.
+void Runner::AddEventsJson(json* out) const {
+  json& j = *out;
+  json bad = json::array();
+  for (const FrameSource::BadFrame& b : source_->bad_frames()) {
+    bad.push_back({{"path", b.path}, {"reason", b.reason}});
+    if (!b.sequence.empty()) bad.back()["sequence"] = b.sequence;
+  }
+  j["bad_frames"] = bad;
+  // The window rule (sfrt/camera/window_chain.h): pairs that opened no window, and why.
+  const camera::ChainCounts chain = source_->chain_counts();
+  j["windows"] = {{"formed", chain.windows},
+                  {"broken_by_lost_frame", chain.broken_by_loss},
+                  {"skipped_for_gap", chain.skipped_for_gap},
+                  {"stream_restarts", chain.stream_restarts}};
+  json skipped = json::array();
+  for (const FrameSource::BadFrame& b : skipped_outputs_) {
+    skipped.push_back({{"window", b.path}, {"error", b.reason}});
+    if (!b.sequence.empty()) skipped.back()["sequence"] = b.sequence;
+  }
+  j["output_errors"] = {{"policy", vocabulary::FailurePolicyName(options_.on_output_error)},
+                        {"count", output_errors_},
+                        {"skipped", skipped}};
+  j["deadline"] = {
+      {"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
+      {"misses", misses_},
+      {"on_miss", config::MissActionName(options_.on_miss)},
+      {"skipped_after_miss", skipped_after_miss_},
+      {"fallback_size", fallback_ ? json::array({fb_height_, fb_width_}) : json(nullptr)},
+      {"recover_after_frames", fallback_ ? json(options_.recover_after) : json(nullptr)},
+      {"fallback_entries", fallback_entries_},
+      {"recoveries", recoveries_},
+      {"frames_at_fallback_size", frames_at_fallback_}};
+}
+
+// summary.json's latencies: per stage, end to end, its parts, and whether it is a latency.
+void Runner::AddLatencyJson(const PipelineResult& result, json* out) const {
+  json& j = *out;
+  json lat;
+  for (int st = 0; st < config::kStageCount; ++st)
+    lat[kStageNames[st]] = PercentilesJson(result.stage[st]);
+  lat["end_to_end"] = PercentilesJson(result.end_to_end);
+  j["latency_ms"] = lat;
+  // Each pair is rectified once: pair t of a window that continues the one before is its pair
+  // t+1, already rectified (fallback-size windows are not counted).
+  j["preprocess"] = {{"pairs_rectified", pairs_rectified_}, {"pairs_reused", pairs_reused_}};
+  // The end to end split into consecutive parts (LatencyPart); the per-window parts add up to
+  // the window's end to end, their p50s need not add up to its p50.
+  json parts = json::object();
+  double p50_sum = 0;
+  for (int p = 0; p < kLatencyParts; ++p) {
+    parts[LatencyPartName(static_cast<LatencyPart>(p))] = PercentilesJson(result.parts[p]);
+    p50_sum += result.parts[p].p50;
+  }
+  j["latency_attribution_ms"] = {
+      {"parts", parts}, {"sum_of_p50", p50_sum}, {"end_to_end_p50", result.end_to_end.p50}};
+  // An unpaced replay reads windows as fast as the pipeline takes them, so they wait in the
+  // queues: its end to end includes that wait and measures throughput, not latency.
+  const bool paced = Paced();
+  j["timing"] = {
+      {"paced", paced},
+      {"end_to_end_is_latency", paced},
+      {"note", paced
+                   ? "windows arrive at the source's rate: end to end is capture-to-output latency"
+                   : "unpaced replay: windows queue for the pipeline, so end to end includes "
+                     "that wait and measures throughput (fps); pace it (--replay-fps) to "
+                     "measure latency"}};
+}
+
 Status Runner::FinishSinks(PipelineResult* result) {
   json j;
   const ModelMetadata& meta = model_->metadata();
@@ -818,65 +889,8 @@ Status Runner::FinishSinks(PipelineResult* result) {
                 {"infer", q2_ ? q2_->drops() : 0},
                 {"output", q3_ ? q3_->drops() : 0},
                 {"discarded_at_stop", discarded}};
-  json bad = json::array();
-  for (const FrameSource::BadFrame& b : source_->bad_frames()) {
-    bad.push_back({{"path", b.path}, {"reason", b.reason}});
-    if (!b.sequence.empty()) bad.back()["sequence"] = b.sequence;
-  }
-  j["bad_frames"] = bad;
-  // The window rule (sfrt/camera/window_chain.h): pairs that opened no window, and why.
-  const camera::ChainCounts chain = source_->chain_counts();
-  j["windows"] = {{"formed", chain.windows},
-                  {"broken_by_lost_frame", chain.broken_by_loss},
-                  {"skipped_for_gap", chain.skipped_for_gap},
-                  {"stream_restarts", chain.stream_restarts}};
-  json skipped = json::array();
-  for (const FrameSource::BadFrame& b : skipped_outputs_) {
-    skipped.push_back({{"window", b.path}, {"error", b.reason}});
-    if (!b.sequence.empty()) skipped.back()["sequence"] = b.sequence;
-  }
-  j["output_errors"] = {{"policy", vocabulary::FailurePolicyName(options_.on_output_error)},
-                        {"count", output_errors_},
-                        {"skipped", skipped}};
-  j["deadline"] = {
-      {"budget_ms", options_.budget_ms > 0 ? json(options_.budget_ms) : json(nullptr)},
-      {"misses", misses_},
-      {"on_miss", config::MissActionName(options_.on_miss)},
-      {"skipped_after_miss", skipped_after_miss_},
-      {"fallback_size", fallback_ ? json::array({fb_height_, fb_width_}) : json(nullptr)},
-      {"recover_after_frames", fallback_ ? json(options_.recover_after) : json(nullptr)},
-      {"fallback_entries", fallback_entries_},
-      {"recoveries", recoveries_},
-      {"frames_at_fallback_size", frames_at_fallback_}};
-  json lat;
-  for (int st = 0; st < config::kStageCount; ++st)
-    lat[kStageNames[st]] = PercentilesJson(result->stage[st]);
-  lat["end_to_end"] = PercentilesJson(result->end_to_end);
-  j["latency_ms"] = lat;
-  // Each pair is rectified once: pair t of a window that continues the one before is its pair
-  // t+1, already rectified (fallback-size windows are not counted).
-  j["preprocess"] = {{"pairs_rectified", pairs_rectified_}, {"pairs_reused", pairs_reused_}};
-  // The end to end split into consecutive parts (LatencyPart); the per-window parts add up to
-  // the window's end to end, their p50s need not add up to its p50.
-  json parts = json::object();
-  double p50_sum = 0;
-  for (int p = 0; p < kLatencyParts; ++p) {
-    parts[LatencyPartName(static_cast<LatencyPart>(p))] = PercentilesJson(result->parts[p]);
-    p50_sum += result->parts[p].p50;
-  }
-  j["latency_attribution_ms"] = {
-      {"parts", parts}, {"sum_of_p50", p50_sum}, {"end_to_end_p50", result->end_to_end.p50}};
-  // An unpaced replay reads windows as fast as the pipeline takes them, so they wait in the
-  // queues: its end to end includes that wait and measures throughput, not latency.
-  const bool paced = Paced();
-  j["timing"] = {
-      {"paced", paced},
-      {"end_to_end_is_latency", paced},
-      {"note", paced
-                   ? "windows arrive at the source's rate: end to end is capture-to-output latency"
-                   : "unpaced replay: windows queue for the pipeline, so end to end includes "
-                     "that wait and measures throughput (fps); pace it (--replay-fps) to "
-                     "measure latency"}};
+  AddEventsJson(&j);
+  AddLatencyJson(*result, &j);
   j["wall_s"] = static_cast<double>(end_ns_ - start_ns_) / 1e9;
   j["fps"] = result->fps;
   j["clock"] = "CLOCK_MONOTONIC";
