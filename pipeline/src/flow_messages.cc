@@ -1,5 +1,7 @@
 #include "sfrt/pipeline/flow_messages.h"
 
+#include <chrono>
+
 #include "clock.h"
 
 namespace sfrt::pipeline {
@@ -109,6 +111,9 @@ class RecordingSource final : public FrameSource {
   Result<Fetch> Next(WindowItem* item, const std::atomic<bool>& stop) override {
     Result<Fetch> fetch = source_->Next(item, stop);
     if (!fetch.ok() || *fetch != Fetch::kWindow) return fetch;
+    if (!source_->live() && item->meta.stamp_ns[0] == 0 && item->meta.stamp_ns[1] == 0) {
+      StampOnFixedClock(&item->meta);
+    }
     if (Status s = recorder_->RecordInputs(*item); !s.ok()) {
       return Status::Error("recording the input images: " + s.message());
     }
@@ -124,8 +129,24 @@ class RecordingSource final : public FrameSource {
   camera::ChainCounts chain_counts() const override { return source_->chain_counts(); }
 
  private:
+  // Files: pair t+1 one period after pair t; pair t the last window's pair t+1 when the window
+  // continues it, else a break after it (kRecordedBreakNs).
+  void StampOnFixedClock(FrameMeta* m) {
+    if (last_stamp_ns_ == 0) {
+      last_stamp_ns_ = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::system_clock::now().time_since_epoch())
+                           .count();
+      m->stamp_ns[0] = last_stamp_ns_;
+    } else {
+      m->stamp_ns[0] = m->continues ? last_stamp_ns_ : last_stamp_ns_ + kRecordedBreakNs;
+    }
+    m->stamp_ns[1] = m->stamp_ns[0] + kRecordedFramePeriodNs;
+    last_stamp_ns_ = m->stamp_ns[1];
+  }
+
   std::unique_ptr<FrameSource> source_;
   InputRecorder* recorder_;
+  int64_t last_stamp_ns_ = 0;  // pair t+1 of the last window, on the fixed clock
 };
 
 }  // namespace

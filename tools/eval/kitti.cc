@@ -102,6 +102,23 @@ Result<std::array<double, 12>> ReadMatrix(const std::string& path, const std::st
   return Status::Error(path + ": no " + key + " line (a KITTI calib_cam_to_cam file has one)");
 }
 
+// One value through the devkit's encodings and back (what a PNG holds and the devkit reads).
+uint16_t EncodeDisparity(float d) {
+  return d > 0 && std::isfinite(d) ? ToUint16(std::max(d * 256.0, 1.0)) : 0;
+}
+float DecodeDisparity(uint16_t v) { return v == 0 ? kNoDisparity : static_cast<float>(v / 256.0); }
+// (u, v, valid) <-> the PNG's B, G, R as OpenCV holds them: valid, v, u.
+cv::Vec3w EncodeFlow(const cv::Vec3f& f) {
+  const bool valid = f[2] > 0 && std::isfinite(f[0]) && std::isfinite(f[1]);
+  return valid ? cv::Vec3w(1, ToUint16(f[1] * 64.0 + 32768.0), ToUint16(f[0] * 64.0 + 32768.0))
+               : cv::Vec3w(0, 0, 0);
+}
+cv::Vec3f DecodeFlow(const cv::Vec3w& bgr) {
+  return bgr[0] > 0 ? cv::Vec3f(static_cast<float>((bgr[2] - 32768.0) / 64.0),
+                                static_cast<float>((bgr[1] - 32768.0) / 64.0), 1.0f)
+                    : cv::Vec3f(0, 0, 0);
+}
+
 }  // namespace
 
 Result<cv::Mat> ReadKittiDisparity(const std::string& path) {
@@ -110,8 +127,7 @@ Result<cv::Mat> ReadKittiDisparity(const std::string& path) {
   cv::Mat d(png->size(), CV_32F);
   for (int y = 0; y < d.rows; ++y) {
     for (int x = 0; x < d.cols; ++x) {
-      const uint16_t v = png->at<uint16_t>(y, x);
-      d.at<float>(y, x) = v == 0 ? kNoDisparity : static_cast<float>(v / 256.0);
+      d.at<float>(y, x) = DecodeDisparity(png->at<uint16_t>(y, x));
     }
   }
   return d;
@@ -121,8 +137,7 @@ Status WriteKittiDisparity(const std::string& path, const cv::Mat& disparity) {
   cv::Mat png(disparity.size(), CV_16UC1);
   for (int y = 0; y < png.rows; ++y) {
     for (int x = 0; x < png.cols; ++x) {
-      const float d = disparity.at<float>(y, x);
-      png.at<uint16_t>(y, x) = d > 0 && std::isfinite(d) ? ToUint16(std::max(d * 256.0, 1.0)) : 0;
+      png.at<uint16_t>(y, x) = EncodeDisparity(disparity.at<float>(y, x));
     }
   }
   return WritePng(path, png);
@@ -134,12 +149,7 @@ Result<cv::Mat> ReadKittiFlow(const std::string& path) {
   cv::Mat flow(png->size(), CV_32FC3);
   for (int y = 0; y < flow.rows; ++y) {
     for (int x = 0; x < flow.cols; ++x) {
-      const cv::Vec3w bgr = png->at<cv::Vec3w>(y, x);
-      const bool valid = bgr[0] > 0;
-      flow.at<cv::Vec3f>(y, x) =
-          valid ? cv::Vec3f(static_cast<float>((bgr[2] - 32768.0) / 64.0),
-                            static_cast<float>((bgr[1] - 32768.0) / 64.0), 1.0f)
-                : cv::Vec3f(0, 0, 0);
+      flow.at<cv::Vec3f>(y, x) = DecodeFlow(png->at<cv::Vec3w>(y, x));
     }
   }
   return flow;
@@ -149,14 +159,19 @@ Status WriteKittiFlow(const std::string& path, const cv::Mat& flow) {
   cv::Mat png(flow.size(), CV_16UC3);
   for (int y = 0; y < png.rows; ++y) {
     for (int x = 0; x < png.cols; ++x) {
-      const cv::Vec3f f = flow.at<cv::Vec3f>(y, x);
-      const bool valid = f[2] > 0 && std::isfinite(f[0]) && std::isfinite(f[1]);
-      png.at<cv::Vec3w>(y, x) =
-          valid ? cv::Vec3w(1, ToUint16(f[1] * 64.0 + 32768.0), ToUint16(f[0] * 64.0 + 32768.0))
-                : cv::Vec3w(0, 0, 0);
+      png.at<cv::Vec3w>(y, x) = EncodeFlow(flow.at<cv::Vec3f>(y, x));
     }
   }
   return WritePng(path, png);
+}
+
+KittiEstimate AsSubmitted(const KittiEstimate& e) {
+  KittiEstimate out{e.disparity0.clone(), e.disparity1.clone(), e.flow.clone()};
+  for (cv::Mat* d : {&out.disparity0, &out.disparity1}) {
+    d->forEach<float>([](float& v, const int*) { v = DecodeDisparity(EncodeDisparity(v)); });
+  }
+  out.flow.forEach<cv::Vec3f>([](cv::Vec3f& f, const int*) { f = DecodeFlow(EncodeFlow(f)); });
+  return out;
 }
 
 Result<cv::Mat> ReadKittiObjectMap(const std::string& path) {

@@ -66,6 +66,11 @@ struct KittiEstimate {
 };
 KittiEstimate ProjectSceneFlow(const cv::Mat& disparity0, const float* scene_flow,
                                const PinholeStereo& camera);
+// The estimate as a submission holds it and the devkit reads it back: every value through its
+// PNG encoding (disparity truncated to 1/256 px and at least 1/256, flow truncated to 1/64 px,
+// both clamped to the 16-bit range). sfrt eval scores this, so its counts are the devkit's on
+// the files --write-submission writes.
+KittiEstimate AsSubmitted(const KittiEstimate& estimate);
 
 // The 3D scene flow the ground truth means (for EPE3D beside the KITTI metrics): P0 from d0 at
 // (x, y), P1 from d1 at (x + u, y + v); NaN where any of the three has no value.

@@ -121,6 +121,8 @@ Result<KittiScene> ReadKittiScene(const fs::path& dir, const std::string& name) 
 }
 
 // The estimate filled as the devkit fills it, then counted.
+// The estimate with the devkit's filling of missing values (a submission holds a value at every
+// pixel); it is scored as the devkit reads it back (AsSubmitted).
 KittiEstimate Filled(KittiEstimate e) {
   InterpolateDisparity(&e.disparity0);
   InterpolateDisparity(&e.disparity1);
@@ -191,7 +193,7 @@ Status ScoreScene(const EvalOptions& options, const KittiScene& s, ModelRunner* 
     if (!pred.ok()) return Status::Error(s.name + ": model run failed: " + pred.message());
     seq->methods[0].Add(pred->data(), truth.data(), pixels);
     const KittiEstimate e = Filled(ProjectSceneFlow(depth, pred->data(), s.camera));
-    seq->kitti[0].Add(s.d0, s.d1, s.flow, s.objects, e);
+    seq->kitti[0].Add(s.d0, s.d1, s.flow, s.objects, AsSubmitted(e));
     if (!options.submission_dir.empty()) {
       if (Status st = WriteSubmission(options.submission_dir, s.name, e); !st.ok()) return st;
     }
@@ -199,13 +201,13 @@ Status ScoreScene(const EvalOptions& options, const KittiScene& s, ModelRunner* 
   const std::vector<float> zero(pixels * 3, 0.0f);
   seq->methods[1].Add(nullptr, truth.data(), pixels);
   seq->kitti[1].Add(s.d0, s.d1, s.flow, s.objects,
-                    Filled(ProjectSceneFlow(depth, zero.data(), s.camera)));
+                    AsSubmitted(Filled(ProjectSceneFlow(depth, zero.data(), s.camera))));
   if (options.classical) {
     const std::vector<float> flow =
         ClassicalSceneFlow(s.images[0], s.images[1], s.images[2], s.images[3], s.camera);
     seq->methods[2].Add(flow.data(), truth.data(), pixels);
     seq->kitti[2].Add(s.d0, s.d1, s.flow, s.objects,
-                      Filled(ProjectSceneFlow(own, flow.data(), s.camera)));
+                      AsSubmitted(Filled(ProjectSceneFlow(own, flow.data(), s.camera))));
   }
   return Status::Ok();
 }

@@ -95,6 +95,14 @@ class FlowRecorder {
 // `source` whose every window is also handed to `recorder` (not owned; it must outlive the
 // source) as it is read, before the pipeline sees it. A recorder's error ends the run as a source
 // error does. Everything else is `source`'s own.
+// Recorded files (a replay that is not live and has no stamps of its own) get stamps on a fixed
+// clock (FrameMeta::stamp_ns, which the flow messages carry too): the time they were read depends
+// on the machine's load, and a bag stamped with it would replay into other windows (a slow read
+// looks like a lost frame). Pairs are kRecordedFramePeriodNs apart from the recording's start on
+// the wall clock, with kRecordedBreakNs more where the replay's chain broke (another sequence, a
+// lost frame), so the bag replays into the same windows.
+inline constexpr int64_t kRecordedFramePeriodNs = 100'000'000;  // 10 frames a second
+inline constexpr int64_t kRecordedBreakNs = 1'000'000'000;
 std::unique_ptr<FrameSource> MakeRecordingSource(std::unique_ptr<FrameSource> source,
                                                  InputRecorder* recorder);
 
