@@ -81,6 +81,43 @@ TEST(KittiFiles, FlowRoundTripsWithin1Over64AndReadsBlueAsValid) {
   EXPECT_EQ(one->at<cv::Vec3f>(0, 0), cv::Vec3f(-3, 2, 1));
 }
 
+// What sfrt eval scores is what the devkit reads from the written submission, value for value.
+TEST(KittiFiles, AsSubmittedIsExactlyWhatTheWrittenSubmissionReadsBackAs) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> disparity(-2.0f, 300.0f);
+  std::uniform_real_distribution<float> motion(-600.0f, 600.0f);
+  KittiEstimate e{cv::Mat(9, 11, CV_32F), cv::Mat(9, 11, CV_32F), cv::Mat(9, 11, CV_32FC3)};
+  for (int y = 0; y < 9; ++y) {
+    for (int x = 0; x < 11; ++x) {
+      e.disparity0.at<float>(y, x) = disparity(rng);
+      e.disparity1.at<float>(y, x) = disparity(rng);
+      e.flow.at<cv::Vec3f>(y, x) = {motion(rng), motion(rng), (x + y) % 5 == 0 ? 0.0f : 1.0f};
+    }
+  }
+  e.disparity0.at<float>(0, 0) = kNoDisparity;
+  e.disparity0.at<float>(0, 1) = 0.001f;                     // below 1/256: kept as 1/256
+  e.disparity1.at<float>(0, 0) = 1000.0f;                    // beyond the 16-bit range: clamped
+  e.flow.at<cv::Vec3f>(0, 0) = {std::nanf(""), 1.0f, 1.0f};  // not finite: no value
+  const KittiEstimate scored = AsSubmitted(e);
+  const std::string d0 = TempPath("as_submitted_d0.png");
+  const std::string d1 = TempPath("as_submitted_d1.png");
+  const std::string flow = TempPath("as_submitted_flow.png");
+  ASSERT_TRUE(WriteKittiDisparity(d0, e.disparity0).ok());
+  ASSERT_TRUE(WriteKittiDisparity(d1, e.disparity1).ok());
+  ASSERT_TRUE(WriteKittiFlow(flow, e.flow).ok());
+  Result<cv::Mat> back_d0 = ReadKittiDisparity(d0);
+  Result<cv::Mat> back_d1 = ReadKittiDisparity(d1);
+  Result<cv::Mat> back_flow = ReadKittiFlow(flow);
+  ASSERT_TRUE(back_d0.ok() && back_d1.ok() && back_flow.ok());
+  EXPECT_EQ(cv::norm(scored.disparity0, *back_d0, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(scored.disparity1, *back_d1, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(scored.flow, *back_flow, cv::NORM_INF), 0.0);
+  EXPECT_EQ(scored.disparity0.at<float>(0, 1), 1.0f / 256);
+  EXPECT_EQ(scored.disparity1.at<float>(0, 0), 65535.0f / 256);
+  EXPECT_EQ(scored.flow.at<cv::Vec3f>(0, 0)[2], 0.0f);
+  EXPECT_EQ(e.disparity0.at<float>(0, 1), 0.001f);  // the estimate itself is left as it was
+}
+
 TEST(KittiFiles, CalibrationGivesFocalCentreAndBaselineAndNamesMissingKeys) {
   const std::string path = TempPath("calib.txt");
   {
