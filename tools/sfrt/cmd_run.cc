@@ -435,12 +435,14 @@ Result<std::vector<std::string>> ListBags(const std::string& folder) {
     return Status::Error("'" + folder + "' is not a folder");
   }
   std::vector<std::string> bags;
-  for (const auto& entry : std::filesystem::directory_iterator(folder, ec)) {
-    const std::filesystem::path& p = entry.path();
+  std::filesystem::directory_iterator it(folder, ec);
+  for (; !ec && it != std::filesystem::directory_iterator(); it.increment(ec)) {
+    const std::filesystem::path& p = it->path();
     const std::string ext = p.extension().string();
+    std::error_code not_a_bag;  // e.g. a plain file has no metadata.yaml under it
     const bool file =
-        entry.is_regular_file(ec) && (ext == ".mcap" || ext == ".db3" || ext == ".bag");
-    if (file || std::filesystem::is_regular_file(p / "metadata.yaml", ec)) {
+        it->is_regular_file(not_a_bag) && (ext == ".mcap" || ext == ".db3" || ext == ".bag");
+    if (file || std::filesystem::is_regular_file(p / "metadata.yaml", not_a_bag)) {
       bags.push_back(p.filename().string());
     }
   }

@@ -174,10 +174,13 @@ def check_bags(a, data, failed):
              "--replay-right", os.path.join(frames, "right"), "--out",
              os.path.join(work, "rec" + seq), "--flow-format", "none", "--no-png",
              "--progress", "off", "--record-bag", os.path.join(folder, "drive_%s.mcap" % seq)])
+    bags = sorted(os.listdir(folder))
+    with open(os.path.join(folder, "README.txt"), "w") as f:  # not a bag: passed over
+        f.write("drives of 2026-12-06\n")
     base = [a.sfrt, "run", "--model", a.model, "--replay-bags", folder, "--threads", "1",
             "--progress", "off"]
     single, _, _ = check_sharded(a, base, work, 2, failed)
-    if [u["sequence"] for u in single["source"]["units"]] != sorted(os.listdir(folder)):
+    if [u["sequence"] for u in single["source"]["units"]] != bags:
         failed.append("--replay-bags units %s" % single["source"]["units"])
 
 
