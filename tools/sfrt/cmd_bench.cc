@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "profiling/peak_bandwidth.h"
 #include "profiling/peak_dot.h"
 #include "profiling/peak_fma.h"
 #include "profiling/system_info.h"
@@ -239,6 +240,32 @@ bool RunPeakDot(const BenchArgs& args, const std::vector<int>& thread_counts, Js
   return true;
 }
 
+// `sfrt bench --peak`, memory: the read bandwidth per thread count (the roof of memory-bound
+// steps). False after reporting an error.
+bool RunPeakBandwidth(const BenchArgs& args, const std::vector<int>& thread_counts, Json* json) {
+  std::printf("\npeak read bandwidth: fastest of 20 windows over about %.2f s each\n",
+              args.peak_seconds);
+  std::printf("%-7s %7s %10s %11s  %s\n", "memory", "threads", "GB/s", "per thread", "loop");
+  Json rows = Json::array();
+  for (int threads : thread_counts) {
+    Result<prof::PeakBandwidth> peak = prof::MeasureReadBandwidth(threads, args.peak_seconds);
+    if (!peak.ok()) {
+      ReportError(kName, peak.message(), kExitFailure);
+      return false;
+    }
+    std::printf("%-7s %7d %10s %11s  %s\n", "read", threads,
+                Fixed(peak->gbytes_per_second, 1).c_str(),
+                Fixed(peak->gbytes_per_second / threads, 1).c_str(), peak->kernel.c_str());
+    rows.push_back(Json{{"threads", threads},
+                        {"gbytes_per_second", peak->gbytes_per_second},
+                        {"gbytes_per_second_per_thread", peak->gbytes_per_second / threads},
+                        {"buffer_mib", peak->buffer_bytes >> 20},
+                        {"kernel", peak->kernel}});
+  }
+  (*json)["peak_read_bandwidth"] = rows;
+  return true;
+}
+
 // `sfrt bench --peak`: the microbenchmarks alone.
 int RunPeak(const BenchArgs& args, const std::vector<Isa>& isas,
             const std::vector<int>& thread_counts) {
@@ -262,6 +289,7 @@ int RunPeak(const BenchArgs& args, const std::vector<Isa>& isas,
   }
   Json json{{"peak", results}};
   if (!RunPeakDot(args, thread_counts, &json)) return kExitFailure;
+  if (!RunPeakBandwidth(args, thread_counts, &json)) return kExitFailure;
   if (!args.json.empty()) {
     json["build"] = BuildJson();
     json["cpu"] = CpuJson();
@@ -780,7 +808,7 @@ Command AddBenchCommand(CLI::App& parent) {
                   "a number in (0, 100]");
   cmd->add_flag("--peak", args->peak,
                 "Run only the peak microbenchmarks: fp32 FMA for --isa and --threads, int8, "
-                "int16 and bf16 dot products for --threads");
+                "int16 and bf16 dot products and the memory read bandwidth for --threads");
   cmd->add_option("--peak-seconds", args->peak_seconds,
                   "Time per peak measurement (default 0.2; 0 skips the FMA peak in a model run)");
   cmd->add_option("--json", args->json,
@@ -813,8 +841,12 @@ Command AddBenchCommand(CLI::App& parent) {
       "GMAC/s), and the AMX peaks amx_int8 (tdpbusd) and amx_bf16 (tdpbf16ps) on 6 C tiles, each\n"
       "only where CPUID and XCR0 (and, for AMX, the tile palette and Linux's arch_prctl\n"
       "permission) say the CPU and OS run it, else 'not available (<why>)'; and 'amx: available'\n"
-      "or 'amx: not available (<the check that failed>)'. --json gets peak, peak_int8, peak_bf16,\n"
-      "peak_amx_int8, peak_amx_bf16 and peak_unavailable (the reasons).\n"
+      "or 'amx: not available (<the check that failed>)'; last, for each --threads, the memory\n"
+      "read bandwidth (GB/s: each thread sums its slice of a 512 MiB buffer it touched first, "
+      "four\n"
+      "64-byte accumulators), the roof of memory-bound steps. --json gets peak, peak_int8,\n"
+      "peak_bf16, peak_amx_int8, peak_amx_bf16, peak_unavailable (the reasons) and\n"
+      "peak_read_bandwidth.\n"
       "Exit codes: 0 success (and every budget met), 1 model fails to load, plan or run, 2 usage\n"
       "error, 3 --budget-ms missed: some configuration's --budget-percentile exceeds the budget\n"
       "(each miss is printed as 'budget MISSED: <isa> x<threads> threads <percentile> ...').");

@@ -6,7 +6,8 @@ usage: bench_peak_json_check.py --sfrt BIN --work DIR
 Checks: one fp32 row per ISA and thread count; peak_int8, peak_int16, peak_bf16 and the AMX types
 have one row per thread count with positive rates, GMAC/s = half the ops and the instruction
 named, or none and a reason in peak_unavailable;
-peak_unavailable names amx with a reason unless AMX could run; build and cpu metadata.
+peak_unavailable names amx with a reason unless AMX could run; peak_read_bandwidth has one row
+per thread count with a positive rate over a buffer of at least 256 MiB; build and cpu metadata.
 """
 import argparse
 import json
@@ -76,6 +77,16 @@ def main():
               "amx: reason not printed")
     else:
         check("amx: available" in proc.stdout, "amx: neither available nor a reason")
+    # The read bandwidth: one row per thread count, a positive rate over the whole buffer.
+    bandwidth = j.get("peak_read_bandwidth", [])
+    check([r["threads"] for r in bandwidth] == [1, 2], "peak_read_bandwidth: a row per thread count")
+    for r in bandwidth:
+        check(r["gbytes_per_second"] > 0 and math.isfinite(r["gbytes_per_second"]),
+              "peak_read_bandwidth: rate not positive")
+        check(math.isclose(r["gbytes_per_second_per_thread"], r["gbytes_per_second"] / r["threads"]),
+              "peak_read_bandwidth: per thread != rate / threads")
+        check(r["buffer_mib"] >= 256, "peak_read_bandwidth: buffer below 256 MiB")
+    check("peak read bandwidth" in proc.stdout, "read bandwidth table not printed")
     check(j["cpu"]["model"] != "", "cpu.model empty")
     for f in failures:
         print("FAIL: " + f)
