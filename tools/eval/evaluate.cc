@@ -384,33 +384,6 @@ Result<FrameData> LoadFrame(const std::string& root, const synth::Intrinsics& ca
   return d;
 }
 
-// The model's runner, created at the first frame, with the camera check against the dataset's.
-Result<std::unique_ptr<ModelRunner>> StartModel(const EvalOptions& options,
-                                                const synth::Intrinsics& camera,
-                                                const std::string& camera_json, int width,
-                                                EvalReport* report) {
-  Result<std::unique_ptr<ModelRunner>> created =
-      ModelRunner::Create(options.model_path, report->model_height, report->model_width, options);
-  if (!created.ok()) return created.status();
-  const ModelMetadata& meta = (*created)->metadata();
-  report->model_name = meta.name;
-  report->model_training = meta.training;
-  // The camera the model sees is the dataset's scaled to the model's input size.
-  const double sx = static_cast<double>(report->model_width) / width;
-  const std::string mismatch =
-      CompareCameras(meta.camera, camera.focal * sx, camera.baseline, report->model_height,
-                     report->model_width, camera_json);
-  if (!mismatch.empty()) {
-    if (!options.allow_camera_mismatch) {
-      return Status::Error(mismatch +
-                           "; evaluate on data from the model's camera, or pass "
-                           "--allow-camera-mismatch to score it anyway");
-    }
-    report->camera_note = mismatch + ": its predictions are in its own camera's units";
-  }
-  return created;
-}
-
 // The first frame sets the report's sizes; every other must have them.
 Status CheckFrameSize(const EvalOptions& options, const FrameData& d, bool first,
                       EvalReport* report) {
@@ -481,8 +454,8 @@ Result<EvalReport> RunEvaluation(const EvalOptions& options,
     if (!d.ok()) return d.status();
     if (Status size = CheckFrameSize(options, *d, i == 0, &report); !size.ok()) return size;
     if (report.has_model && !runner) {
-      Result<std::unique_ptr<ModelRunner>> started =
-          StartModel(options, *camera, camera_json, d->width, &report);
+      Result<std::unique_ptr<ModelRunner>> started = StartModelRunner(
+          options, camera->focal, camera->baseline, d->width, camera_json, &report);
       if (!started.ok()) return started.status();
       runner = std::move(started).value();
     }

@@ -158,24 +158,10 @@ Status StartModel(const EvalOptions& options, const KittiScene& s, EvalReport* r
                   std::unique_ptr<ModelRunner>* runner) {
   report->model_height = options.model_height > 0 ? options.model_height : s.images[0].rows;
   report->model_width = options.model_width > 0 ? options.model_width : s.images[0].cols;
-  Result<std::unique_ptr<ModelRunner>> created =
-      ModelRunner::Create(options.model_path, report->model_height, report->model_width, options);
+  Result<std::unique_ptr<ModelRunner>> created = StartModelRunner(
+      options, s.camera.focal, s.camera.baseline, s.images[0].cols, s.calibration, report);
   if (!created.ok()) return created.status();
   *runner = std::move(created).value();
-  const ModelMetadata& meta = (*runner)->metadata();
-  report->model_name = meta.name;
-  report->model_training = meta.training;
-  const double sx = static_cast<double>(report->model_width) / s.images[0].cols;
-  const std::string mismatch =
-      CompareCameras(meta.camera, s.camera.focal * sx, s.camera.baseline, report->model_height,
-                     report->model_width, s.calibration);
-  if (mismatch.empty()) return Status::Ok();
-  if (!options.allow_camera_mismatch) {
-    return Status::Error(mismatch +
-                         "; evaluate on data from the model's camera, or pass "
-                         "--allow-camera-mismatch to score it anyway");
-  }
-  report->camera_note = mismatch + ": its predictions are in its own camera's units";
   return Status::Ok();
 }
 

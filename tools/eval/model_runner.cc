@@ -94,6 +94,29 @@ Result<std::vector<float>> ModelRunner::Run(const cv::Mat* images[4]) {
   return std::vector<float>(big.ptr<float>(0), big.ptr<float>(0) + big.total() * 3);
 }
 
+Result<std::unique_ptr<ModelRunner>> StartModelRunner(const EvalOptions& options, double focal,
+                                                      double baseline, int image_width,
+                                                      const std::string& source,
+                                                      EvalReport* report) {
+  Result<std::unique_ptr<ModelRunner>> created =
+      ModelRunner::Create(options.model_path, report->model_height, report->model_width, options);
+  if (!created.ok()) return created.status();
+  const ModelMetadata& meta = (*created)->metadata();
+  report->model_name = meta.name;
+  report->model_training = meta.training;
+  const double sx = static_cast<double>(report->model_width) / image_width;
+  const std::string mismatch = CompareCameras(meta.camera, focal * sx, baseline,
+                                              report->model_height, report->model_width, source);
+  if (mismatch.empty()) return created;
+  if (!options.allow_camera_mismatch) {
+    return Status::Error(mismatch +
+                         "; evaluate on data from the model's camera, or pass "
+                         "--allow-camera-mismatch to score it anyway");
+  }
+  report->camera_note = mismatch + ": its predictions are in its own camera's units";
+  return created;
+}
+
 std::string CompareCameras(const CameraDesc& model, double focal, double baseline, int height,
                            int width, const std::string& source) {
   auto relative = [](double a, double b) { return std::fabs(a - b) / std::fabs(b); };

@@ -43,4 +43,14 @@ class ModelRunner {
 std::string CompareCameras(const CameraDesc& model, double focal, double baseline, int height,
                            int width, const std::string& source);
 
+// The model's runner at the report's model size (every evaluation's first frame makes it), with
+// the camera check: the dataset's camera (`focal` px at `image_width`, `baseline`, read from
+// `source`) scaled to the model's width against the model's training camera (CompareCameras). A
+// mismatch is an error naming both, or with options.allow_camera_mismatch report->camera_note.
+// Sets the report's model_name and model_training.
+Result<std::unique_ptr<ModelRunner>> StartModelRunner(const EvalOptions& options, double focal,
+                                                      double baseline, int image_width,
+                                                      const std::string& source,
+                                                      EvalReport* report);
+
 }  // namespace sfrt::eval
