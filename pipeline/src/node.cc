@@ -129,11 +129,7 @@ bool ParseHxW(const std::string& text, int* h, int* w) {
          *h > 0 && *w > 0;
 }
 
-std::string Fixed(double v, int digits) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
+using profiling::FormatFixed;
 
 // Checks camera_info against the model's training camera once both sides have arrived: the left
 // focal length scaled to the model's input width, and the baseline from the right projection
@@ -167,22 +163,23 @@ class CameraInfoCheck {
     if (trained_.focal_px > 0 && differs(fx, trained_.focal_px)) {
       agree = false;
       io_->Log(NodeLogLevel::kWarn,
-               "camera_info: focal length " + Fixed(fx, 2) + " px (P[0] " + Fixed(l.p[0], 2) +
-                   " at " + std::to_string(l.width) + " px wide, scaled to the model's " +
-                   Fixed(width, 0) + " px input) differs from the model's training camera (" +
-                   Fixed(trained_.focal_px, 2) + " px); the flow's scale may be off");
+               "camera_info: focal length " + FormatFixed(fx, 2) + " px (P[0] " +
+                   FormatFixed(l.p[0], 2) + " at " + std::to_string(l.width) +
+                   " px wide, scaled to the model's " + FormatFixed(width, 0) +
+                   " px input) differs from the model's training camera (" +
+                   FormatFixed(trained_.focal_px, 2) + " px); the flow's scale may be off");
     }
     if (trained_.baseline > 0 && baseline > 0 && differs(baseline, trained_.baseline)) {
       agree = false;
       io_->Log(NodeLogLevel::kWarn,
-               "camera_info: baseline " + Fixed(baseline, 4) +
+               "camera_info: baseline " + FormatFixed(baseline, 4) +
                    " (from the right projection matrix) differs from the model's training "
                    "camera (" +
-                   Fixed(trained_.baseline, 4) + "); the flow's scale may be off");
+                   FormatFixed(trained_.baseline, 4) + "); the flow's scale may be off");
     }
     if (agree) {
-      io_->Log(NodeLogLevel::kInfo, "camera_info: focal length " + Fixed(fx, 2) +
-                                        " px and baseline " + Fixed(baseline, 4) +
+      io_->Log(NodeLogLevel::kInfo, "camera_info: focal length " + FormatFixed(fx, 2) +
+                                        " px and baseline " + FormatFixed(baseline, 4) +
                                         " match the model's training camera");
     }
   }
@@ -254,7 +251,7 @@ int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
   opts->allow_aspect_change = s.allow_aspect_change;
   if (s.budget_ms < 0) {
     return Fail(io, kExitUsage,
-                io.ParamName("budget_ms") + " must be >= 0, got " + Fixed(s.budget_ms, 3));
+                io.ParamName("budget_ms") + " must be >= 0, got " + FormatFixed(s.budget_ms, 3));
   }
   opts->budget_ms = s.budget_ms;
   // The parameter, or without one what the profile set (ApplyProfile).
@@ -278,11 +275,11 @@ int ToOptions(NodeIo& io, const NodeSettings& s, PipelineOptions* opts) {
   }
   if (s.slop_ms <= 0)
     return Fail(io, kExitUsage,
-                io.ParamName("slop_ms") + " must be > 0, got " + Fixed(s.slop_ms, 3));
+                io.ParamName("slop_ms") + " must be > 0, got " + FormatFixed(s.slop_ms, 3));
   if (s.frame_interval_ms < 0) {
-    return Fail(
-        io, kExitUsage,
-        io.ParamName("frame_interval_ms") + " must be >= 0, got " + Fixed(s.frame_interval_ms, 3));
+    return Fail(io, kExitUsage,
+                io.ParamName("frame_interval_ms") + " must be >= 0, got " +
+                    FormatFixed(s.frame_interval_ms, 3));
   }
   if (s.input_queue < 1 || s.queue_size < 1) {
     return Fail(
@@ -305,8 +302,8 @@ int ReportResult(NodeIo& io, const NodeIdentity& identity, const PipelineResult&
   if (!result.status.ok()) return Fail(io, kExitFailure, result.status.message());
   io.Log(NodeLogLevel::kInfo,
          identity.name + ": " + std::to_string(result.frames) + " windows published, stopped by " +
-             result.stopped_by + ", end to end p50 " + Fixed(result.end_to_end.p50, 2) +
-             " ms, p99 " + Fixed(result.end_to_end.p99, 2) + " ms" +
+             result.stopped_by + ", end to end p50 " + FormatFixed(result.end_to_end.p50, 2) +
+             " ms, p99 " + FormatFixed(result.end_to_end.p99, 2) + " ms" +
              (result.summary_path.empty() ? std::string() : ", summary " + result.summary_path));
   return kExitOk;
 }
@@ -430,7 +427,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
   io.Log(NodeLogLevel::kInfo,
          identity.name + ": model " + s.model + " (" + PrecisionSummary(md) + "), isa " +
              IsaName(isa) + ", " + std::to_string(opts.threads) + " thread(s), budget " +
-             (s.budget_ms > 0 ? Fixed(s.budget_ms, 1) + " ms" : std::string("none")) +
+             (s.budget_ms > 0 ? FormatFixed(s.budget_ms, 1) + " ms" : std::string("none")) +
              ", publishing " + sink_opts.topics.flow);
 
   PipelineResult result;

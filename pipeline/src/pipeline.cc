@@ -39,11 +39,7 @@ using detail::NowNs;
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
-std::string Fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
+using profiling::FormatFixed;
 
 // The latest 65,536 latencies of one kind (stats.h): percentiles in the summary describe these
 // latest windows, in a constant resident size.
@@ -263,8 +259,8 @@ Status Runner::Setup() {
       return std::fabs(a - b) > rel * std::max(std::fabs(a), std::fabs(b));
     };
     auto warn = [&](const std::string& what, double got, double want) {
-      warnings_.push_back("rectified camera " + what + " " + Fixed(got, 4) +
-                          " differs from the model's training camera (" + Fixed(want, 4) +
+      warnings_.push_back("rectified camera " + what + " " + FormatFixed(got, 4) +
+                          " differs from the model's training camera (" + FormatFixed(want, 4) +
                           "); the flow's scale may be off");
     };
     if (trained.focal_px > 0 && differs(cam.fx, trained.focal_px, 0.01)) {
@@ -275,9 +271,9 @@ Status Runner::Setup() {
     }
     if (trained.focal_px > 0 &&
         (std::fabs(cam.cx - trained.cx) > 2.0 || std::fabs(cam.cy - trained.cy) > 2.0)) {
-      warnings_.push_back("rectified principal point (" + Fixed(cam.cx, 1) + ", " +
-                          Fixed(cam.cy, 1) + ") differs from the training camera's (" +
-                          Fixed(trained.cx, 1) + ", " + Fixed(trained.cy, 1) + ")");
+      warnings_.push_back("rectified principal point (" + FormatFixed(cam.cx, 1) + ", " +
+                          FormatFixed(cam.cy, 1) + ") differs from the training camera's (" +
+                          FormatFixed(trained.cx, 1) + ", " + FormatFixed(trained.cy, 1) + ")");
     }
   } else {
     auto rect = camera::StereoRectifier::CreateResizeOnly(source_size_, model_size);
@@ -764,12 +760,12 @@ void Runner::Progress(bool final) {
     line += "/" + std::to_string(options_.max_frames > 0 ? std::min(*total, options_.max_frames)
                                                          : *total);
   const double fps = wall > 0 ? static_cast<double>(frames_) / wall : 0.0;
-  line += " frames, " + Fixed(fps, 1) + " fps, p50 " +
-          Fixed(profiling::Summarize(e2e_ms_.Values()).p50, 1) + " ms end to end";
+  line += " frames, " + FormatFixed(fps, 1) + " fps, p50 " +
+          FormatFixed(profiling::Summarize(e2e_ms_.Values()).p50, 1) + " ms end to end";
   if (total && !final && fps > 0) {  // replays: how long the rest takes at this rate
     const int64_t limit = options_.max_frames > 0 ? std::min(*total, options_.max_frames) : *total;
-    line += ", ETA " + Fixed(static_cast<double>(std::max<int64_t>(0, limit - frames_)) / fps, 0) +
-            " s";
+    line += ", ETA " +
+            FormatFixed(static_cast<double>(std::max<int64_t>(0, limit - frames_)) / fps, 0) + " s";
   }
   log_.Progress(line, final);
 }

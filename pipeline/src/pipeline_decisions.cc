@@ -14,11 +14,7 @@ namespace {
 
 double Ms(int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
-std::string Fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
+using profiling::FormatFixed;
 
 // "a,b,c".
 std::string JoinSlots(const std::vector<std::string>& slots) {
@@ -75,7 +71,7 @@ Result<camera::PreprocessParams> PreprocessFromMetadata(const InputDesc& input) 
   for (int c = 0; c < 3; ++c) {
     if (!(input.std[c] != 0) || !std::isfinite(input.std[c])) {
       return Status::Error("the model's std[" + std::to_string(c) + "] is " +
-                           Fixed(input.std[c], 6) + "; cannot normalise");
+                           FormatFixed(input.std[c], 6) + "; cannot normalise");
     }
     p.mean[c] = input.mean[c];
     p.std[c] = input.std[c];
@@ -147,8 +143,8 @@ Result<InputSizeChoice> ChooseInputSize(const PipelineOptions& options, const Mo
                          " (HxW)? (--allow-aspect-change if it is meant)");
   }
   c.aspect_note = "the input size " + size + " has another aspect than the " + source +
-                  " (HxW) frames: the images are stretched " + Fixed(100 * off(asked, frames), 0) +
-                  "% to fit";
+                  " (HxW) frames: the images are stretched " +
+                  FormatFixed(100 * off(asked, frames), 0) + "% to fit";
   return c;
 }
 

@@ -20,11 +20,7 @@ using nlohmann::json;
 constexpr const char* kFormat = "sfrt-profile";
 constexpr int kFormatVersion = 1;
 
-std::string Fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
+using profiling::FormatFixed;
 
 std::string Pad(std::string s, size_t width, bool right = false) {
   if (s.size() >= width) return s;
@@ -101,7 +97,7 @@ double TickStep(double range, int count) {
 
 std::string TickLabel(double v, double step) {
   const int digits = step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step)));
-  return Fixed(v, std::min(digits, 4));
+  return FormatFixed(v, std::min(digits, 4));
 }
 
 void Text(cv::Mat* img, const std::string& s, cv::Point at, double scale = 0.5,
@@ -176,8 +172,9 @@ cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms,
   const int top = *std::max_element(count.begin(), count.end());
   const Axes a{lo, hi, 0, top * 1.1 + 1, false, true};
   DrawAxes(&img, a,
-           "end-to-end latency, " + std::to_string(e2e.size()) + " frames: p50 " + Fixed(p.p50, 2) +
-               " ms, p99 " + Fixed(p.p99, 2) + " ms, max " + Fixed(p.max, 2) + " ms",
+           "end-to-end latency, " + std::to_string(e2e.size()) + " frames: p50 " +
+               FormatFixed(p.p50, 2) + " ms, p99 " + FormatFixed(p.p99, 2) + " ms, max " +
+               FormatFixed(p.max, 2) + " ms",
            subtitle, "end-to-end latency (ms)", "frames");
   for (int b = 0; b < kBins; ++b) {
     if (count[b] == 0) continue;
@@ -189,11 +186,11 @@ cv::Mat HistogramPlot(const std::vector<double>& e2e, double budget_ms,
     if (budget_ms <= hi) {
       cv::line(img, {a.X(budget_ms), kTop}, {a.X(budget_ms), kPlotH - kBottom},
                cv::Scalar(30, 30, 220), 2);
-      const std::string label = "budget " + Fixed(budget_ms, 1) + " ms";
+      const std::string label = "budget " + FormatFixed(budget_ms, 1) + " ms";
       DrawLabel(&img, label, LabelBesideVerticalLine(label, a.X(budget_ms), 2, PlotArea()),
                 cv::Scalar(30, 30, 220));
     } else {
-      Text(&img, "budget " + Fixed(budget_ms, 1) + " ms (beyond the axis)",
+      Text(&img, "budget " + FormatFixed(budget_ms, 1) + " ms (beyond the axis)",
            {kPlotW - kRight - 300, kTop + 18}, 0.5, cv::Scalar(30, 30, 220));
     }
   }
@@ -225,11 +222,11 @@ cv::Mat SeriesPlot(const std::vector<double>& e2e, const std::vector<double>& in
     if (budget_ms <= hi) {
       cv::line(img, {kLeft, a.Y(budget_ms)}, {kPlotW - kRight, a.Y(budget_ms)},
                cv::Scalar(30, 30, 220), 2);
-      const std::string label = "budget " + Fixed(budget_ms, 1) + " ms";
+      const std::string label = "budget " + FormatFixed(budget_ms, 1) + " ms";
       DrawLabel(&img, label, LabelBesideHorizontalLine(label, a.Y(budget_ms), 2, PlotArea()),
                 cv::Scalar(30, 30, 220));
     } else {
-      Text(&img, "budget " + Fixed(budget_ms, 1) + " ms (above the axis)",
+      Text(&img, "budget " + FormatFixed(budget_ms, 1) + " ms (above the axis)",
            {kPlotW - kRight - 300, kTop + 18}, 0.5, cv::Scalar(30, 30, 220));
     }
   }
@@ -491,14 +488,14 @@ std::string FramesCsv(const FrameProfiler& prof) {
       csv += "," + std::to_string(f.stage_ns[st][0]) + "," + std::to_string(f.stage_ns[st][1]);
     }
     for (int st = 0; st < kProfileStages; ++st) {
-      csv += "," + Fixed(Ms(f.stage_ns[st][1] - f.stage_ns[st][0]), 4);
+      csv += "," + FormatFixed(Ms(f.stage_ns[st][1] - f.stage_ns[st][0]), 4);
     }
-    csv += "," + Fixed(Ms(f.end_ns(config::Stage::kOutput) - f.capture_ns), 4) +
+    csv += "," + FormatFixed(Ms(f.end_ns(config::Stage::kOutput) - f.capture_ns), 4) +
            (f.miss ? ",1" : ",0");
     csv += "," + std::to_string(f.input_height) + "," + std::to_string(f.input_width);
     std::span<const int64_t> t = prof.step_end_ns(i);
     for (size_t k = 0; k < prof.steps().size(); ++k) {
-      csv += f.has_steps ? "," + Fixed(Ms(t[k + 1] - t[k]), 4) : std::string(",");
+      csv += f.has_steps ? "," + FormatFixed(Ms(t[k + 1] - t[k]), 4) : std::string(",");
     }
     csv += "\n";
   }
@@ -520,35 +517,38 @@ std::string ConsoleTable(const FrameProfiler& prof, const ProfileReportInfo& inf
   t += "  " + Pad("stage", 14) + Pad("p50 ms", 10, true) + Pad("p90 ms", 10, true) +
        Pad("p99 ms", 10, true) + Pad("max ms", 10, true) + "\n";
   auto row = [&](const std::string& name, const Summary& st) {
-    t += "  " + Pad(name, 14) + Pad(Fixed(st.p50, 3), 10, true) + Pad(Fixed(st.p90, 3), 10, true) +
-         Pad(Fixed(st.p99, 3), 10, true) + Pad(Fixed(st.max, 3), 10, true) + "\n";
+    t += "  " + Pad(name, 14) + Pad(FormatFixed(st.p50, 3), 10, true) +
+         Pad(FormatFixed(st.p90, 3), 10, true) + Pad(FormatFixed(st.p99, 3), 10, true) +
+         Pad(FormatFixed(st.max, 3), 10, true) + "\n";
   };
   for (int st = 0; st < kProfileStages; ++st) row(kStageNames[st], stage_stats[st]);
   row("end to end", e2e);
   if (info.budget_ms > 0) {
-    t += "  budget " + Fixed(info.budget_ms, 2) + " ms: " + std::to_string(s.misses) + " of " +
-         std::to_string(prof.size()) + " frames over\n";
+    t += "  budget " + FormatFixed(info.budget_ms, 2) + " ms: " + std::to_string(s.misses) +
+         " of " + std::to_string(prof.size()) + " frames over\n";
   }
   const std::vector<profiling::StepRow> top = profiling::TopSteps(step_rows, 5);
   if (!top.empty()) {
     t += "  slowest steps (p50 ms): ";
     for (size_t r = 0; r < top.size(); ++r) {
-      t += (r ? ", " : "") + top[r].label.name + " " + Fixed(top[r].ms.p50, 3);
+      t += (r ? ", " : "") + top[r].label.name + " " + FormatFixed(top[r].ms.p50, 3);
     }
     t += "\n";
   }
-  t += "  overhead    estimated " + Fixed(prof.overhead_ns_per_frame() / 1000, 2) +
+  t += "  overhead    estimated " + FormatFixed(prof.overhead_ns_per_frame() / 1000, 2) +
        " us per frame (" + std::to_string(prof.steps().size() + 1) + " clock reads of " +
-       Fixed(prof.clock_read_ns(), 1) + " ns + record " + Fixed(prof.record_ns_mean(), 0) +
-       " ns) = " + Fixed(oh["estimated_percent_of_e2e_p50"].get<double>(), 3) +
+       FormatFixed(prof.clock_read_ns(), 1) + " ns + record " +
+       FormatFixed(prof.record_ns_mean(), 0) +
+       " ns) = " + FormatFixed(oh["estimated_percent_of_e2e_p50"].get<double>(), 3) +
        "% of the end-to-end p50\n";
   if (info.ab) {
     t += "  overhead    A/B in this process: end-to-end p50 " +
-         Fixed(info.ab->e2e_p50_without_ms, 3) + " ms without, " +
-         Fixed(info.ab->e2e_p50_with_ms, 3) + " ms with (" +
-         Fixed(oh["ab"]["e2e_p50_change_percent"].get<double>(), 2) + "%); infer p50 " +
-         Fixed(info.ab->infer_p50_without_ms, 3) + " / " + Fixed(info.ab->infer_p50_with_ms, 3) +
-         " ms (" + Fixed(oh["ab"]["infer_p50_change_percent"].get<double>(), 2) + "%)\n";
+         FormatFixed(info.ab->e2e_p50_without_ms, 3) + " ms without, " +
+         FormatFixed(info.ab->e2e_p50_with_ms, 3) + " ms with (" +
+         FormatFixed(oh["ab"]["e2e_p50_change_percent"].get<double>(), 2) + "%); infer p50 " +
+         FormatFixed(info.ab->infer_p50_without_ms, 3) + " / " +
+         FormatFixed(info.ab->infer_p50_with_ms, 3) + " ms (" +
+         FormatFixed(oh["ab"]["infer_p50_change_percent"].get<double>(), 2) + "%)\n";
   }
   return t;
 }
@@ -653,12 +653,14 @@ Result<std::string> CompareProfileFiles(const std::string& a_path, const std::st
          Pad("B p50 ms", 11, true) + Pad("change ms", 11, true) + Pad("change %", 10, true) + "\n";
   for (const Row& r : rows) {
     out += Pad(r.kind, 7) + Pad(r.name, name_w);
-    out += Pad(r.a ? Fixed(*r.a, 3) : "-", 11, true) + Pad(r.b ? Fixed(*r.b, 3) : "-", 11, true);
+    out += Pad(r.a ? FormatFixed(*r.a, 3) : "-", 11, true) +
+           Pad(r.b ? FormatFixed(*r.b, 3) : "-", 11, true);
     if (r.a && r.b) {
       const double d = *r.b - *r.a;
-      out += Pad((d >= 0 ? "+" : "") + Fixed(d, 3), 11, true);
-      out += Pad(*r.a > 0 ? (d >= 0 ? "+" : "") + Fixed(d / *r.a * 100, 1) : std::string("n/a"), 10,
-                 true);
+      out += Pad((d >= 0 ? "+" : "") + FormatFixed(d, 3), 11, true);
+      out +=
+          Pad(*r.a > 0 ? (d >= 0 ? "+" : "") + FormatFixed(d / *r.a * 100, 1) : std::string("n/a"),
+              10, true);
     } else {
       out += Pad(r.a ? "only in A" : "only in B", 21, true);
     }

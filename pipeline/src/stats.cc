@@ -71,6 +71,12 @@ double RunningStats::variance() const {
 
 double RunningStats::stddev() const { return std::sqrt(variance()); }
 
+std::string FormatFixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
+  return buf;
+}
+
 bool ParsePercentile(std::string_view text, double* percent) {
   if (text == "max") {
     *percent = 100;
@@ -100,12 +106,6 @@ std::string PercentileLabel(double percent) {
 // ---------------------------------------------------------------------------- planned steps
 
 namespace {
-
-std::string Fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
 
 std::string Pad(std::string s, size_t width) {
   if (s.size() < width) s.append(width - s.size(), ' ');
@@ -231,8 +231,9 @@ std::string FormatStepTable(std::span<const StepRow> rows) {
   for (const StepRow& r : rows) {
     out += PadLeft(std::to_string(r.step), 4) + "  " + Pad(r.label.name, name_w) + "  " +
            Pad(r.label.op, op_w) + "  " + Pad(r.label.kernel, kernel_w) + "  " +
-           PadLeft(Fixed(r.ms.p50, 3), 10) + PadLeft(Fixed(r.ms.p99, 3), 10) +
-           PadLeft(Fixed(r.ms.max, 3), 10) + PadLeft(Fixed(100.0 * r.share, 1) + "%", 8) + "\n";
+           PadLeft(FormatFixed(r.ms.p50, 3), 10) + PadLeft(FormatFixed(r.ms.p99, 3), 10) +
+           PadLeft(FormatFixed(r.ms.max, 3), 10) +
+           PadLeft(FormatFixed(100.0 * r.share, 1) + "%", 8) + "\n";
   }
   return out;
 }
@@ -244,8 +245,8 @@ std::string FormatOpTable(std::span<const OpRow> rows) {
                     PadLeft("mean ms", 10) + PadLeft("share", 8) + "\n";
   for (const OpRow& r : rows) {
     out += Pad(r.op, op_w) + PadLeft(std::to_string(r.steps), 7) +
-           PadLeft(Fixed(r.median_ms, 3), 11) + PadLeft(Fixed(r.mean_ms, 3), 10) +
-           PadLeft(Fixed(100.0 * r.share, 1) + "%", 8) + "\n";
+           PadLeft(FormatFixed(r.median_ms, 3), 11) + PadLeft(FormatFixed(r.mean_ms, 3), 10) +
+           PadLeft(FormatFixed(100.0 * r.share, 1) + "%", 8) + "\n";
   }
   return out;
 }

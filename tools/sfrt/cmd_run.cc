@@ -649,7 +649,7 @@ int SetShardOptions(const RunArgs& args, const RunShardPlan& plan,
   options->after_window = [progress, source, written = 0](const pipeline::FrameMeta& m) mutable {
     ++written;
     const int total = static_cast<int>(source->total_windows().value_or(0));
-    (*progress)->Update(written, total, pipeline::OutputStem(m));
+    (*progress)->Update(written, total, m.sequence);  // no allocation on the output stage
   };
   std::cout << "shard       " << name << ": " << plan.mine.size() << " of "
             << plan.list.units.size() << " units (list " << plan.list.sha256.substr(0, 12)

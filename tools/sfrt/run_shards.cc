@@ -403,11 +403,7 @@ profiling::Summary SummaryFromJson(const json& p) {
   return s;
 }
 
-std::string Fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
+using profiling::FormatFixed;
 
 }  // namespace
 
@@ -534,16 +530,16 @@ void PrintRunResult(const std::string& source_description, const pipeline::Pipel
               << result.chain.broken_by_loss << ", stamp gap " << result.chain.skipped_for_gap
               << ", stamps going back " << result.chain.stream_restarts << ")\n";
   }
-  std::cout << "throughput  " << Fixed(result.fps, 2) << " fps"
+  std::cout << "throughput  " << FormatFixed(result.fps, 2) << " fps"
             << (result.paced ? "" : " (unpaced replay: this is its measure)") << "\n";
   for (int st = 0; st < config::kStageCount; ++st) {
     const std::string name = config::kStageNames[st];
     std::cout << "p50 " << name << std::string(11 - name.size(), ' ')
-              << Fixed(result.stage[st].p50, 2) << " ms\n";
+              << FormatFixed(result.stage[st].p50, 2) << " ms\n";
   }
-  std::cout << "end to end  p50 " << Fixed(result.end_to_end.p50, 2) << " ms, p99 "
-            << Fixed(result.end_to_end.p99, 2) << " ms, max " << Fixed(result.end_to_end.max, 2)
-            << " ms"
+  std::cout << "end to end  p50 " << FormatFixed(result.end_to_end.p50, 2) << " ms, p99 "
+            << FormatFixed(result.end_to_end.p99, 2) << " ms, max "
+            << FormatFixed(result.end_to_end.max, 2) << " ms"
             << (result.paced ? " (capture to output: the latency)\n"
                              : " (not a latency: windows of an unpaced replay wait in the queues; "
                                "--replay-fps N paces it like a camera)\n");
@@ -552,16 +548,18 @@ void PrintRunResult(const std::string& source_description, const pipeline::Pipel
   double p50_sum = 0;
   for (int p = 0; p < pipeline::kLatencyParts; ++p) {
     const std::string name = pipeline::LatencyPartName(static_cast<pipeline::LatencyPart>(p));
-    std::cout << "  " << name << std::string(20 - name.size(), ' ') << Fixed(result.parts[p].p50, 2)
-              << " / " << Fixed(result.parts[p].p99, 2) << "\n";
+    std::cout << "  " << name << std::string(20 - name.size(), ' ')
+              << FormatFixed(result.parts[p].p50, 2) << " / " << FormatFixed(result.parts[p].p99, 2)
+              << "\n";
     p50_sum += result.parts[p].p50;
   }
-  std::cout << "  sum of p50s         " << Fixed(p50_sum, 2) << " (end to end p50 "
-            << Fixed(result.end_to_end.p50, 2) << ")\n";
+  std::cout << "  sum of p50s         " << FormatFixed(p50_sum, 2) << " (end to end p50 "
+            << FormatFixed(result.end_to_end.p50, 2) << ")\n";
   if (result.pictures_queued) {
     std::cout << "pictures    encoded off the output stage: p50 "
-              << Fixed(result.pictures_ms.p50, 2) << " ms, p99 " << Fixed(result.pictures_ms.p99, 2)
-              << " ms per window, " << result.pictures_dropped << " dropped to keep up\n";
+              << FormatFixed(result.pictures_ms.p50, 2) << " ms, p99 "
+              << FormatFixed(result.pictures_ms.p99, 2) << " ms per window, "
+              << result.pictures_dropped << " dropped to keep up\n";
   }
   if (!result.summary_path.empty()) std::cout << "summary     " << result.summary_path << "\n";
 }

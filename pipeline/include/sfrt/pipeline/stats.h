@@ -87,6 +87,9 @@ class RunningStats {
   double m2_ = 0;
 };
 
+// `v` with `digits` decimals, as printf's %.*f: FormatFixed(3.14159, 2) == "3.14".
+std::string FormatFixed(double v, int digits);
+
 // Parses a percentile as a user writes it: "p99", "p99.9", "99", "p50", "median", "max"
 // (= 100). Writes percent in (0, 100]; false for anything else.
 bool ParsePercentile(std::string_view text, double* percent);
