@@ -32,6 +32,7 @@
 #include "eval/conventions.h"
 #include "eval/kitti.h"
 #include "eval/metrics.h"
+#include "eval/shard_spec.h"
 #include "sfrt/isa.h"
 #include "sfrt/model.h"
 #include "sfrt/session.h"
@@ -52,11 +53,6 @@ inline constexpr double kCameraTolerance = 0.05;
 enum class DepthSource { kGroundTruth, kStereo };
 inline constexpr std::array<const char*, 2> kDepthSourceNames = {"gt", "stereo"};
 
-// Shard `index` of `count` of a sharded evaluation (eval/shards.h).
-struct ShardSpec {
-  int index = 0;
-  int count = 1;
-};
 // The units of a dataset (sequences, KITTI scenes), sorted, and the SHA-256 of their names.
 struct WorkList {
   std::vector<std::string> units;

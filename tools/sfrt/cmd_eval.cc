@@ -79,7 +79,7 @@ std::string OptionsFromArgs(const EvalArgs& args, eval::EvalOptions* options, in
   if (!args.shard.empty()) {
     Result<ShardSpec> shard = ParseShardFlag(args.shard, args.shard_count);
     if (!shard.ok()) return shard.message();
-    options->shard = eval::ShardSpec{shard->index, shard->count};
+    options->shard = *shard;
     if (args.json.empty()) return "--shard: a shard's results are its --json file; give --json";
   }
   *code = kExitFailure;

@@ -416,7 +416,7 @@ Result<RunShardPlan> PlanRunShard(std::vector<std::string> order, std::string de
   plan.order = std::move(order);
   plan.description = std::move(description);
   for (size_t k = 0; k < plan.list.units.size(); ++k) {
-    if (eval::InShard(k, eval::ShardSpec{shard.index, shard.count})) {
+    if (eval::InShard(k, shard)) {
       plan.mine.push_back(plan.list.units[k]);
     }
   }

@@ -1,18 +1,16 @@
-// --shard I/N and --shard auto (sfrt eval, later sfrt run), and a shard's progress: a line every
+// --shard I/N and --shard auto (sfrt eval, sfrt run), and a shard's progress: a line every
 // few frames on the console and a small status file a scheduler's log can show.
 #pragma once
 
 #include <chrono>
 #include <string>
 
+#include "eval/shard_spec.h"
 #include "sfrt/status.h"
 
 namespace sfrt::tools {
 
-struct ShardSpec {
-  int index = 0;
-  int count = 1;
-};
+using eval::ShardSpec;
 
 // "I/N" (0 <= I < N), or "auto": SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN (0 when unset) of
 // SLURM_ARRAY_TASK_COUNT (a Slurm array job), else JOB_COMPLETION_INDEX of `shard_count` (a
