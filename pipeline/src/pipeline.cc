@@ -47,8 +47,9 @@ using LatencyWindow = profiling::LatestValues;
 
 struct InputItem {
   FrameMeta meta;
-  cv::Mat left_vis;          // rectified left image at t, model size (for the visualisation)
-  std::vector<float> input;  // height x width x 12
+  cv::Mat left_vis;               // rectified left image at t, model size (for the visualisation)
+  std::vector<float> input;       // height x width x 12, or empty on the uint8 input path
+  std::vector<uint8_t> input_u8;  // the uint8 input path's (PipelineOptions::quantized_input)
 };
 
 struct FlowItem {
@@ -107,6 +108,10 @@ class Runner {
   void AddLatencyJson(const PipelineResult& result, json* out) const;
   WindowItem MakeWindow() const;
   InputItem MakeInput() const;
+  // The window's network input into `in` at `pre`'s size (its start when smaller): float32, or
+  // uint8 on the uint8 input path.
+  camera::Status Preprocess(const camera::Preprocessor& pre, const cv::Mat& l0, const cv::Mat& r0,
+                            const cv::Mat& l1, const cv::Mat& r1, InputItem& in) const;
   FlowItem MakeFlow() const;
 
   std::shared_ptr<const Model> model_;
@@ -123,6 +128,11 @@ class Runner {
   int out_channels_ = 0;
   std::unique_ptr<Session> session_;
   std::optional<camera::Preprocessor> preprocessor_;
+  // The uint8 input path (PipelineOptions::quantized_input, where the session takes it): the
+  // quantised value of each value preprocessing feeds (the fallback size's preprocessor has the
+  // same parameters, so the same table).
+  bool quantized_input_ = false;
+  camera::Preprocessor::QuantizedTable input_table_{};
   std::optional<camera::StereoRectifier> rectifier_;
   // latency.on_miss: smaller-input (fallback_ = on): the fallback size's rectifier and
   // preprocessor, made at setup; use_fallback_ is set and cleared by the output stage and read
@@ -195,8 +205,21 @@ WindowItem Runner::MakeWindow() const {
 InputItem Runner::MakeInput() const {
   InputItem in;
   in.left_vis.create(height_, width_, CV_8UC3);
-  in.input.resize(preprocessor_->output_floats());
+  if (quantized_input_) {
+    in.input_u8.resize(session_->QuantizedInputBytes(height_, width_));
+  } else {
+    in.input.resize(preprocessor_->output_floats());
+  }
   return in;
+}
+
+camera::Status Runner::Preprocess(const camera::Preprocessor& pre, const cv::Mat& l0,
+                                  const cv::Mat& r0, const cv::Mat& l1, const cv::Mat& r1,
+                                  InputItem& in) const {
+  if (quantized_input_) {
+    return pre.RunQuantized(l0, r0, l1, r1, input_table_, in.input_u8.data(), pre.output_floats());
+  }
+  return pre.Run(l0, r0, l1, r1, in.input.data(), pre.output_floats());
 }
 
 FlowItem Runner::MakeFlow() const {
@@ -295,6 +318,11 @@ Status Runner::Setup() {
                          std::to_string(width_) + ": " + session.message());
   }
   session_ = std::move(session).value();
+  if (const std::optional<QuantParams> q = session_->InputQuantization();
+      q && options_.quantized_input) {
+    quantized_input_ = true;
+    input_table_ = preprocessor_->Tabulate([q](float v) { return QuantizeInput(v, *q); });
+  }
   Result<TensorShape> shape = session_->OutputShape(height_, width_);
   if (!shape.ok()) return shape.status();
   out_channels_ = shape->channels;
@@ -503,10 +531,7 @@ void Runner::PreprocessStage() {
       // The input buffer is sized for the model input size; the fallback input fills its start.
       s = fb_rectifier_->Apply(w.left0, w.right0, &fl0, &fr0);
       if (s.ok()) s = fb_rectifier_->Apply(w.left1, w.right1, &fl1, &fr1);
-      if (s.ok()) {
-        s = fb_preprocessor_->Run(fl0, fr0, fl1, fr1, in.input.data(),
-                                  fb_preprocessor_->output_floats());
-      }
+      if (s.ok()) s = Preprocess(*fb_preprocessor_, fl0, fr0, fl1, fr1, in);
     } else {
       const bool reuse =
           w.meta.continues && rectified_window >= 0 && w.meta.window == rectified_window + 1;
@@ -520,7 +545,7 @@ void Runner::PreprocessStage() {
       }
       if (s.ok()) s = rectifier_->Apply(w.left1, w.right1, &l1, &r1);
       ++pairs_rectified_;
-      if (s.ok()) s = preprocessor_->Run(l0, r0, l1, r1, in.input.data(), in.input.size());
+      if (s.ok()) s = Preprocess(*preprocessor_, l0, r0, l1, r1, in);
     }
     rectified_window = s.ok() && !small ? w.meta.window : -1;
     if (!s.ok()) {
@@ -549,8 +574,9 @@ void Runner::InferStage() {
   while (q2_->Pop(&in)) {
     in.meta.start_ns(config::Stage::kInfer) = NowNs();
     const int h = in.meta.input_height, w = in.meta.input_width;  // the size it was prepared at
-    Status s = out.step_ns.empty() ? session_->Run(in.input, h, w, out.flow)
-                                   : session_->Run(in.input, h, w, out.flow, out.step_ns);
+    Status s = quantized_input_ ? session_->RunQuantized(in.input_u8, h, w, out.flow, out.step_ns)
+               : out.step_ns.empty() ? session_->Run(in.input, h, w, out.flow)
+                                     : session_->Run(in.input, h, w, out.flow, out.step_ns);
     if (!s.ok()) {
       Fail(s, true);
       break;
@@ -862,6 +888,8 @@ Status Runner::FinishSinks(PipelineResult* result) {
                 {"input_size_from", size_reason_},
                 {"output_channels", out_channels_}};
   j["isa"] = session_ ? IsaName(session_->isa()) : "";
+  // The network input's type: uint8 on the uint8 input path, preprocessed straight from pixels.
+  j["input_type"] = quantized_input_ ? "uint8" : "float32";
   j["threads"] = session_ ? session_->threads() : options_.threads;
   json src;
   src["kind"] = source_->kind();

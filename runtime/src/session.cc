@@ -112,7 +112,48 @@ Status Session::Plan() {
   const size_t gather = PlanSteps();
   if (options_.tuning.concat_in_place) PlaceConcatInputs();
   if (Status s = PackWeights(); !s.ok()) return s;
-  return PlanTensors(gather);
+  if (Status s = PlanTensors(gather); !s.ok()) return s;
+  FindInputQuantizeStep();
+  return Status::Ok();
+}
+
+// 4. The uint8 input path: the step that quantises the model input, when it is the input's only
+// reader.
+void Session::FindInputQuantizeStep() {
+  input_quantize_step_ = -1;
+  const auto layers = model_->layers();
+  for (size_t k = 0; k < steps_.size(); ++k) {
+    const LayerDesc& first = layers[static_cast<size_t>(steps_[k].first_layer)];
+    bool reads_input = false;
+    for (int t : first.inputs) reads_input = reads_input || t == kModelInput;
+    if (!reads_input) continue;
+    const Step::Kind kind = steps_[k].kind;
+    if (kind == Step::Kind::kInt8Conv || kind == Step::Kind::kUpsampleU8 ||
+        kind == Step::Kind::kConcatU8) {
+      continue;  // reads the quantised input
+    }
+    if (kind != Step::Kind::kQuantize || input_quantize_step_ >= 0) {
+      input_quantize_step_ = -1;  // a float32 reader, or a second quantisation
+      return;
+    }
+    input_quantize_step_ = static_cast<int>(k);
+  }
+}
+
+std::optional<QuantParams> Session::InputQuantization() const {
+  if (input_quantize_step_ < 0) return std::nullopt;
+  return steps_[static_cast<size_t>(input_quantize_step_)].quant;
+}
+
+size_t Session::QuantizedInputBytes(int height, int width) const {
+  const int channels = model_->metadata().input.channels;
+  const size_t elements =
+      static_cast<size_t>(height) * static_cast<size_t>(width) * static_cast<size_t>(channels);
+  return elements + (channels % 4 != 0 ? kQuantizedInputSlack : 0);
+}
+
+uint8_t QuantizeInput(float value, const QuantParams& q) {
+  return Int8Quantize(value, 1.0f / q.scale, q.zero_point);
 }
 
 // 1. The steps, as the fusion rules give them. Returns the most inputs a step gathers.

@@ -1,6 +1,7 @@
 // Session::Run: one walk over the planned steps (Session::StepRun), with no allocation, lock or
 // I/O (session.h); the steps' jobs and how their rows spread over the pool.
 #include <chrono>
+#include <cstdint>
 #include <cstring>
 #include <string>
 
@@ -112,23 +113,38 @@ PlaneView<T> OutputPlane(T* data, int h, int w, int c, const TensorShape* whole)
 }  // namespace
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output) {
-  return Execute(input, height, width, output, {}, nullptr);
+  return Execute(input, nullptr, height, width, output, {}, nullptr);
 }
 
 Status Session::Run(std::span<const float> input, int height, int width, std::span<float> output,
                     std::span<int64_t> step_end_ns) {
-  return Execute(input, height, width, output, step_end_ns, nullptr);
+  return Execute(input, nullptr, height, width, output, step_end_ns, nullptr);
+}
+
+Status Session::RunQuantized(std::span<const uint8_t> input, int height, int width,
+                             std::span<float> output, std::span<int64_t> step_end_ns) {
+  if (input_quantize_step_ < 0) {
+    return Status::Error(
+        "this session takes no quantised input: the model input is not read by int8 "
+        "convolutions alone (Session::InputQuantization is empty)");
+  }
+  if (height > 0 && width > 0 && input.size() < QuantizedInputBytes(height, width)) {
+    return Status::Error("quantised input buffer holds " + std::to_string(input.size()) +
+                         " bytes; " + std::to_string(height) + "x" + std::to_string(width) +
+                         " needs " + std::to_string(QuantizedInputBytes(height, width)));
+  }
+  return Execute({}, input.data(), height, width, output, step_end_ns, nullptr);
 }
 
 Status Session::RunObserved(std::span<const float> input, int height, int width,
                             std::span<float> output, const LayerObserver& observer) {
-  if (!observer) return Execute(input, height, width, output, {}, nullptr);
+  if (!observer) return Execute(input, nullptr, height, width, output, {}, nullptr);
   if (observation_ == nullptr) {
     observation_ = std::make_unique<Observation>();
     observation_->quant.resize(model_->layers().size() + 1);
   }
   observation_->observer = &observer;
-  const Status s = Execute(input, height, width, output, {}, observation_.get());
+  const Status s = Execute(input, nullptr, height, width, output, {}, observation_.get());
   observation_->observer = nullptr;
   return s;
 }
@@ -498,8 +514,8 @@ void Session::StepRun::WriteF32(const Step& step, size_t at) {
   views.f32[dst_slot] = out;
 }
 
-Status Session::Execute(std::span<const float> input, int height, int width,
-                        std::span<float> output, std::span<int64_t> step_end_ns,
+Status Session::Execute(std::span<const float> input, const uint8_t* input_u8, int height,
+                        int width, std::span<float> output, std::span<int64_t> step_end_ns,
                         Observation* observation) {
   if (!step_end_ns.empty() && step_end_ns.size() < steps_.size() + 1) {
     return Status::Error("step timestamp buffer holds " + std::to_string(step_end_ns.size()) +
@@ -520,7 +536,7 @@ Status Session::Execute(std::span<const float> input, int height, int width,
   if (Status s = InferGeometry(*model_, height, width, geometry_); !s.ok()) return s;
   const TensorShape in_shape = geometry_.front().input;
   const TensorShape out_shape = geometry_.back().output;
-  if (input.size() < in_shape.elements()) {
+  if (input_u8 == nullptr && input.size() < in_shape.elements()) {
     return Status::Error("input buffer holds " + std::to_string(input.size()) + " floats; " +
                          std::to_string(height) + "x" + std::to_string(width) + "x" +
                          std::to_string(in_shape.channels) + " needs " +
@@ -535,11 +551,17 @@ Status Session::Execute(std::span<const float> input, int height, int width,
   const TensorShape& in = geometry_.front().input;
   views_->f32[layers.size()] = {input.data(), in.height, in.width, in.channels,
                                 static_cast<ptrdiff_t>(in.width) * in.channels};
+  // The quantised input is what the quantise step would have written.
+  const size_t skipped = input_u8 != nullptr ? static_cast<size_t>(input_quantize_step_) : SIZE_MAX;
+  if (input_u8 != nullptr) {
+    views_->u8[layers.size()] = {input_u8, in.height, in.width, in.channels,
+                                 static_cast<ptrdiff_t>(in.width) * in.channels};
+  }
   StepRun run{*this, output};
   if (timed) stamp(0);
   for (size_t k = 0; k < steps_.size(); ++k) {
     const Step& step = steps_[k];
-    run.Do(step, k);
+    if (k != skipped) run.Do(step, k);
     // After the step: its timestamp, and what RunObserved shows.
     if (timed) stamp(k + 1);
     if (observation != nullptr) {

@@ -193,6 +193,33 @@ TEST_F(PipelineTest, ReplayWritesEveryWindowAndMatchesDirectInference) {
   }
 }
 
+// An int8 model: the preprocess stage writes the uint8 input straight from the pixels and the
+// infer stage runs it (Session::RunQuantized); every window's flow is the float32 input's, bit
+// for bit (DirectFlow quantises a float32 input in the session), and the summary says which.
+TEST_F(PipelineTest, AnInt8ModelIsFedUint8StraightFromThePixelsWithTheFloatInputsFlow) {
+  auto loaded =
+      Model::LoadFile(std::string(SFRT_SOURCE_DIR) + "/models/sceneednet-default-int8.sfrt");
+  ASSERT_TRUE(loaded.ok()) << loaded.message();
+  const std::shared_ptr<const Model> model = *loaded;
+  for (bool quantized : {true, false}) {
+    SCOPED_TRACE(quantized ? "uint8 input" : "float32 input");
+    options_.quantized_input = quantized;
+    options_.height = kH;  // the model records its traced size; run at the fake frames'
+    options_.width = kW;
+    FakeSource source(3);
+    PipelineResult r = RunPipeline(model, &source, options_);
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    EXPECT_EQ(Summary()["input_type"], quantized ? "uint8" : "float32");
+    for (int k = 0; k < 3; ++k) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "seq_%06d.pfm", k);
+      auto written = io::ReadPfm((dir_ / name).string());
+      ASSERT_TRUE(written.ok()) << written.message();
+      EXPECT_EQ(written->data, DirectFlow(model, k)) << name;
+    }
+  }
+}
+
 TEST_F(PipelineTest, NewestWinsNeverGoesBackInTimeAndAccountsForEveryWindow) {
   auto model = DemoModel();
   ASSERT_TRUE(model);

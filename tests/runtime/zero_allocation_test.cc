@@ -63,6 +63,38 @@ TEST(ZeroAllocation, RunAllocatesNothingAtAnySizeUpToTheMaximum) {
   }
 }
 
+// The uint8 input path (RunQuantized), timed and not, on every ISA, with and without a pool.
+TEST(ZeroAllocation, RunQuantizedAllocatesNothingAtAnySizeUpToTheMaximum) {
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
+  for (Isa isa : SupportedIsas()) {
+    for (int threads : {1, 2}) {
+      SCOPED_TRACE(std::string(IsaName(isa)) + ", " + std::to_string(threads) + " threads");
+      SessionOptions options;
+      options.max_height = 96;
+      options.max_width = 128;
+      options.isa = isa;
+      options.threads = threads;
+      auto session = Session::Create(model, options);
+      ASSERT_TRUE(session.ok()) << session.message();
+      ASSERT_TRUE((*session)->InputQuantization().has_value());
+      std::vector<uint8_t> input((*session)->QuantizedInputBytes(96, 128), 100);
+      std::vector<float> output(96 * 128 * 3);
+      std::vector<int64_t> step_end_ns((*session)->steps().size() + 1);
+      for (auto [h, w] : {std::pair{96, 128}, {67, 121}, {1, 1}, {96, 128}}) {
+        for (bool timed : {false, true}) {
+          const long before = sfrt::testing::AllocationCount();
+          const Status s = timed ? (*session)->RunQuantized(input, h, w, output, step_end_ns)
+                                 : (*session)->RunQuantized(input, h, w, output);
+          const long allocated = sfrt::testing::AllocationCount() - before;
+          ASSERT_TRUE(s.ok()) << s.message();
+          EXPECT_EQ(allocated, 0) << "RunQuantized(" << h << "x" << w << (timed ? ", timed" : "")
+                                  << ") allocated " << allocated << " times";
+        }
+      }
+    }
+  }
+}
+
 // Graphs (SceneEDNet-U with a residual Add, in float32, int8 and bf16; a decoder of transposed
 // convolutions) and a chain of every float32-only layer kind (pooling, dilated and grouped
 // convolutions, ChannelAffine, Resize): skip tensors, Concat, Add, ConvTranspose2D, Pool2D,

@@ -3,13 +3,13 @@
 // work slows every configuration alike). Reports per configuration: p50/p90/p99/p99.9/max and
 // standard deviation, effective GFLOP/s (2 x the model's nominal multiply-accumulates / median
 // time, so exact shortcuts that skip arithmetic count as speed) and its share of the measured
-// peak FMA throughput, the time of each planned step (run order, top N, by op type), and per
-// run the page faults, context switches and CPU migrations that explain spikes; with
-// --budget-ms, whether a percentile meets a latency budget (exit 3 when it does not).
-// `sfrt bench --peak` runs only the peak microbenchmarks: fp32 FMA per ISA, int8 (AVX-512 VNNI,
-// AMX), int16 (AVX-512 VNNI) and bf16 (AVX512_BF16, AMX) dot products, and reports whether AMX
-// could run. Statistics and
-// counters live in tools/profiling/.
+// peak FMA throughput, the time of each planned step (run order, top N, by op type) and its
+// place on the roofline (bench_roofline.h), and per run the page faults, context switches and
+// CPU migrations that explain spikes; with --budget-ms, whether a percentile meets a latency
+// budget (exit 3 when it does not). `sfrt bench --peak` runs only the peak microbenchmarks: fp32
+// FMA per ISA, int8 (AVX-512 VNNI, AMX), int16 (AVX-512 VNNI) and bf16 (AVX512_BF16, AMX) dot
+// products, the read bandwidth, and reports whether AMX could run. Statistics and counters live
+// in tools/profiling/.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <charconv>
@@ -30,6 +30,7 @@
 #include "profiling/peak_dot.h"
 #include "profiling/peak_fma.h"
 #include "profiling/system_info.h"
+#include "sfrt/bench_roofline.h"
 #include "sfrt/commands.h"
 #include "sfrt/config/limits.h"
 #include "sfrt/isa.h"
@@ -69,6 +70,7 @@ struct BenchArgs {
   std::string budget_percentile = "p99";
   bool peak = false;
   double peak_seconds = 0.2;
+  bool quantized_input = false;  // time RunQuantized on the input quantised once beforehand
 };
 
 // Per-run process counters of one configuration.
@@ -92,6 +94,8 @@ struct Config {
   RunCounters counters;
   double peak_gflops = 0;  // 0: not measured
   std::string peak_kernel;
+  bool placed = false;  // `roofline` holds the steps' roofline (the peaks were measured)
+  prof::Roofline roofline;
 };
 
 std::vector<std::string> SplitList(const std::string& text) {
@@ -419,6 +423,7 @@ struct BenchInput {
   int height = 0;
   int width = 0;
   std::vector<float> input;
+  std::vector<uint8_t> input_u8;  // --quantized-input: `input` as each session quantises it
   std::vector<float> output;
 };
 
@@ -432,7 +437,10 @@ bool TimeRuns(const BenchArgs& args, BenchInput& in, prof::MigrationCounter& mig
     const prof::ResourceUsage u0 = prof::ReadResourceUsage();
     const int64_t m0 = migrations.Read();
     const auto t0 = Clock::now();
-    const Status s = c.session->Run(in.input, in.height, in.width, in.output, c.stamps);
+    const Status s =
+        args.quantized_input
+            ? c.session->RunQuantized(in.input_u8, in.height, in.width, in.output, c.stamps)
+            : c.session->Run(in.input, in.height, in.width, in.output, c.stamps);
     const auto t1 = Clock::now();
     const int64_t m1 = migrations.Read();
     const prof::ResourceUsage du = prof::ReadResourceUsage() - u0;
@@ -515,6 +523,7 @@ Json ResultJson(const Config& c, const prof::Summary& s, double gflops, double p
               {"steps", StepsJson(rows)},
               {"top_steps", top},
               {"by_op", by_op},
+              {"roofline", c.placed ? RooflineJson(c.roofline, s.p50) : Json(nullptr)},
               {"per_run", per_run}};
 }
 
@@ -594,7 +603,33 @@ void PrintStepTables(const BenchArgs& args, const std::vector<Config>& configs) 
     }
     std::printf("by op type:\n");
     std::fputs(prof::FormatOpTable(prof::ByOp(rows)).c_str(), stdout);
+    if (c.placed) {
+      std::printf(
+          "roofline (median per step against the roof of the unit it runs on, peaks measured "
+          "in this process after the runs):\n");
+      std::fputs(
+          FormatRoofline(rows, c.roofline, prof::Percentile(c.counters.wall_ms, 0.5)).c_str(),
+          stdout);
+    }
   }
+}
+
+// Each configuration's steps on the roofline: the peaks its kernels' units need at its thread
+// count (each measured once), after the timed runs. False after reporting an error.
+bool PlaceConfigs(const BenchArgs& args, int height, int width, std::vector<Config>& configs) {
+  prof::PeakCache cache(args.peak_seconds);
+  for (Config& c : configs) {
+    const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
+    Result<prof::Roofline> roofline =
+        PlaceSessionSteps(*c.session, rows, height, width, c.peak_gflops, &cache);
+    if (!roofline.ok()) {
+      ReportError(kName, roofline.message(), kExitFailure);
+      return false;
+    }
+    c.roofline = std::move(roofline).value();
+    c.placed = true;
+  }
+  return true;
 }
 
 // --budget-ms: each configuration's chosen percentile against the budget, printed and put in
@@ -691,6 +726,20 @@ int RunBench(const BenchArgs& args) {
   std::uniform_real_distribution<float> dist(0.0f, 255.0f);
   for (float& v : in.input) v = dist(rng);
   in.output.resize(geometry->back().output.elements());
+  if (args.quantized_input) {
+    // Every configuration plans the same input quantisation (the model's); quantised once here,
+    // as a camera's preprocessing would (camera::Preprocessor::RunQuantized).
+    const std::optional<QuantParams> q = configs.front().session->InputQuantization();
+    if (!q) {
+      return ReportError(kName,
+                         "--quantized-input: " + args.model +
+                             " takes no uint8 input (its input is not read by int8 convolutions "
+                             "alone)",
+                         kExitUsage);
+    }
+    in.input_u8.resize(configs.front().session->QuantizedInputBytes(height, width));
+    for (size_t i = 0; i < in.input.size(); ++i) in.input_u8[i] = QuantizeInput(in.input[i], *q);
+  }
 
   // Three significant digits: a small model's 0.0217 GMAC is not "0.02 GMAC (0.0 GFLOP)".
   std::printf("model  %s at %dx%d (%s): %.3g GMAC (%.3g GFLOP) per run\n", args.model.c_str(),
@@ -715,6 +764,7 @@ int RunBench(const BenchArgs& args) {
       c.peak_gflops = peak->gflops;
       c.peak_kernel = peak->kernel;
     }
+    if (!PlaceConfigs(args, height, width, configs)) return kExitFailure;
   }
 
   const Json results = PrintSummaryTable(args, configs, macs, migrations);
@@ -809,12 +859,16 @@ Command AddBenchCommand(CLI::App& parent) {
   cmd->add_flag("--peak", args->peak,
                 "Run only the peak microbenchmarks: fp32 FMA for --isa and --threads, int8, "
                 "int16 and bf16 dot products and the memory read bandwidth for --threads");
+  cmd->add_flag("--quantized-input", args->quantized_input,
+                "Time Session::RunQuantized on the input quantised beforehand, as sfrt run feeds "
+                "an int8 model (no quantise step); a usage error for a model that takes no uint8 "
+                "input");
   cmd->add_option("--peak-seconds", args->peak_seconds,
                   "Time per peak measurement (default 0.2; 0 skips the FMA peak in a model run)");
   cmd->add_option("--json", args->json,
                   "Also write the results as JSON (per configuration median_ms, p90_ms, p99_ms, "
                   "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, steps, "
-                  "by_op, per_run counters; build, cpu, budget)");
+                  "by_op, roofline, per_run counters; build, cpu, budget)");
   cmd->footer(
       "Every configuration (ISA x threads) gets its own session, planned once; rounds run each\n"
       "configuration once, in turn, on the same seeded random input. Times are steady_clock\n"
@@ -826,7 +880,15 @@ Command AddBenchCommand(CLI::App& parent) {
       "(--peak-seconds each; 'ref' is measured with the baseline ISA's 128-bit vectors).\n"
       "'vs first' is median / the first configuration's median.\n"
       "Per step (Session::Run's step timestamps): median, p99, max and share of the steps' mean\n"
-      "total, in run order, the --top N slowest, and summed by op type. Per run: minor/major page\n"
+      "total, in run order, the --top N slowest, and summed by op type. Roofline (unless\n"
+      "--peak-seconds 0): each step's median against the roof of the unit its kernel runs on\n"
+      "(amx int8/bf16, int8 vnni, bf16 avx512, fma; memory for a step that only moves data):\n"
+      "its actual MACs (a fused upsample-conv's phase pixels at 4 taps of 9) and least bytes\n"
+      "moved (Session::Work), roof = min(the unit's peak, MACs/byte x read bandwidth), both\n"
+      "measured in this process after the runs, the share reached and which roof binds; then\n"
+      "the floors (every step at its roof; all MACs at the main unit's peak). Scalar int8/bf16,\n"
+      "the AMX emulation and NEON dot products are 'unmeasured' (no peak loop).\n"
+      "Per run: minor/major page\n"
       "faults and voluntary/involuntary context switches (getrusage, whole process) and CPU\n"
       "migrations (perf_event_open; 'unavailable' with the reason where the kernel refuses).\n"
       "Also printed: compiler and version, build type and flags, each ISA's kernel flags, sfrt\n"

@@ -112,9 +112,8 @@ Result<Preprocessor> Preprocessor::Create(const PreprocessParams& params, int he
   return p;
 }
 
-Status Preprocessor::Run(const cv::Mat& left0, const cv::Mat& right0, const cv::Mat& left1,
-                         const cv::Mat& right1, float* dst, size_t dst_floats) const {
-  const cv::Mat* images[4] = {&left0, &right0, &left1, &right1};
+Status Preprocessor::Check(const cv::Mat* const (&images)[4], size_t dst_elements,
+                           const char* unit) const {
   for (int i = 0; i < 4; ++i) {
     const cv::Mat& m = *images[i];
     if (m.type() != CV_8UC3 || m.rows != height_ || m.cols != width_) {
@@ -126,22 +125,29 @@ Status Preprocessor::Run(const cv::Mat& left0, const cv::Mat& right0, const cv::
           " (HxW)");
     }
   }
-  if (dst == nullptr || dst_floats != output_floats()) {
-    return Status::Error("preprocessing: destination holds " + std::to_string(dst_floats) +
-                         " floats, expected " + std::to_string(output_floats()) + " (" +
+  if (dst_elements != output_floats()) {
+    return Status::Error("preprocessing: destination holds " + std::to_string(dst_elements) + " " +
+                         unit + ", expected " + std::to_string(output_floats()) + " (" +
                          std::to_string(height_) + " x " + std::to_string(width_) + " x 12)");
   }
+  return Status::Ok();
+}
+
+// Every image into its 3 channels of dst through the per-channel tables: the only per-pixel work.
+template <typename T>
+void Preprocessor::Fill(const cv::Mat* const (&images)[4],
+                        const std::array<std::array<T, 256>, 3>& lut, T* dst) const {
   const int s0 = source_channel_[0];
   const int s1 = source_channel_[1];
   const int s2 = source_channel_[2];
-  const float* lut0 = lut_[0].data();
-  const float* lut1 = lut_[1].data();
-  const float* lut2 = lut_[2].data();
+  const T* lut0 = lut[0].data();
+  const T* lut1 = lut[1].data();
+  const T* lut2 = lut[2].data();
   for (int g = 0; g < 4; ++g) {
     const cv::Mat& image = *images[static_cast<int>(params_.image_order[g])];
     for (int y = 0; y < height_; ++y) {
       const uint8_t* src = image.ptr<uint8_t>(y);
-      float* out = dst + static_cast<size_t>(y) * width_ * kChannels + 3 * g;
+      T* out = dst + static_cast<size_t>(y) * width_ * kChannels + 3 * g;
       for (int x = 0; x < width_; ++x, src += 3, out += kChannels) {
         out[0] = lut0[src[s0]];
         out[1] = lut1[src[s1]];
@@ -149,6 +155,22 @@ Status Preprocessor::Run(const cv::Mat& left0, const cv::Mat& right0, const cv::
       }
     }
   }
+}
+
+Status Preprocessor::Run(const cv::Mat& left0, const cv::Mat& right0, const cv::Mat& left1,
+                         const cv::Mat& right1, float* dst, size_t dst_floats) const {
+  const cv::Mat* const images[4] = {&left0, &right0, &left1, &right1};
+  if (Status s = Check(images, dst == nullptr ? 0 : dst_floats, "floats"); !s.ok()) return s;
+  Fill(images, lut_, dst);
+  return Status::Ok();
+}
+
+Status Preprocessor::RunQuantized(const cv::Mat& left0, const cv::Mat& right0, const cv::Mat& left1,
+                                  const cv::Mat& right1, const QuantizedTable& table, uint8_t* dst,
+                                  size_t dst_bytes) const {
+  const cv::Mat* const images[4] = {&left0, &right0, &left1, &right1};
+  if (Status s = Check(images, dst == nullptr ? 0 : dst_bytes, "bytes"); !s.ok()) return s;
+  Fill(images, table, dst);
   return Status::Ok();
 }
 

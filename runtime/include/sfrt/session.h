@@ -34,6 +34,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -107,6 +108,29 @@ struct PlannedTensor {
   bool is_bf16 = false;    // bf16 (a bf16 convolution's input); float32 when neither
 };
 
+// The int8 runtime's quantisation of a float32 value to uint8 (kernels/int8_job.h): round half
+// to even of value / q.scale (as value * (1 / q.scale), clamped to +-512 first), plus the zero
+// point, clamped to 0..255; NaN gives 0. What the quantise step computes, so a
+// table of it lets a caller feed RunQuantized() bit for bit.
+uint8_t QuantizeInput(float value, const QuantParams& q);
+
+// Bytes past the end of a quantised input RunQuantized() may read (Session::QuantizedInputBytes).
+inline constexpr size_t kQuantizedInputSlack = 64;
+
+// The work one planned step does at one input size, for rooflines (`sfrt bench`): what its
+// algorithm computes and the bytes it must move at least (each tensor and weight once).
+struct StepWork {
+  // Multiply-accumulates, counted as a direct convolution would do them, except that a fused
+  // upsample->3x3 convolution with phase kernels counts its interior pixels at their 4 taps
+  // (4/9 of the nominal work; the exact shortcut the kernels take). A Winograd step counts the
+  // direct convolution's (its transforms save multiplies). 0 for a step that only moves data.
+  uint64_t macs = 0;
+  uint64_t bytes_read = 0;     // activations read, in the type the step reads them
+  uint64_t bytes_written = 0;  // activations written, in the type the step writes
+  uint64_t weight_bytes = 0;   // weights in the step's precision (phase kernels included)
+  uint64_t bytes() const { return bytes_read + bytes_written + weight_bytes; }
+};
+
 class Session {
  public:
   static Result<std::unique_ptr<Session>> Create(std::shared_ptr<const Model> model,
@@ -133,6 +157,23 @@ class Session {
   Status Run(std::span<const float> input, int height, int width, std::span<float> output,
              std::span<int64_t> step_end_ns);
 
+  // The uint8 input path: camera pixels are 8-bit already, so a caller can write the network's
+  // input as the uint8 its first int8 convolutions read (camera::Preprocessor tabulates it) and
+  // skip the float32 round trip and the quantise step. Set when the model input is read only by
+  // one step that quantises it (every layer that reads the input is int8, with one input
+  // quantisation): the quantisation that step applies, value -> QuantizeInput(value, it).
+  std::optional<QuantParams> InputQuantization() const;
+  // The bytes RunQuantized() reads at height x width: the input's elements, and
+  // kQuantizedInputSlack more when its channel count is not a multiple of 4 (the kernels read
+  // four channels at a time; the extra bytes multiply zero weights).
+  size_t QuantizedInputBytes(int height, int width) const;
+  // As Run(), from the input quantised with InputQuantization() (height x width x channels
+  // uint8, NHWC, QuantizedInputBytes() long): the quantise step does nothing (its timestamp is
+  // still taken), and the output is Run()'s, bit for bit, on any float input that quantises to
+  // these bytes. Allocates nothing on success; fails when InputQuantization() is empty.
+  Status RunQuantized(std::span<const uint8_t> input, int height, int width,
+                      std::span<float> output, std::span<int64_t> step_end_ns = {});
+
   // As Run(), and shows `observer` the output of each step's last layer after the step, in
   // step order, on the calling thread (sfrt/layer_observer.h): the tensor as this session holds
   // it (a uint8 tensor dequantised with the quantisation it was written with, a bf16 one
@@ -144,6 +185,10 @@ class Session {
   // allocates (the dequantised copies, kept for the next call), unlike Run().
   Status RunObserved(std::span<const float> input, int height, int width, std::span<float> output,
                      const LayerObserver& observer);
+
+  // One entry per steps() for an input of height x width (at most the planned maximum). For
+  // profiling: it allocates, so keep it off the per-frame path.
+  Result<std::vector<StepWork>> Work(int height, int width) const;
 
   const Model& model() const { return *model_; }
   const SessionOptions& options() const { return options_; }
@@ -160,9 +205,12 @@ class Session {
   struct Step;
   struct Views;
   struct Observation;
-  struct StepRun;  // one Run() over the steps
-  Status Execute(std::span<const float> input, int height, int width, std::span<float> output,
-                 std::span<int64_t> step_end_ns, Observation* observation);
+  struct StepRun;      // one Run() over the steps
+  struct WorkCounter;  // Work()'s accounting (step_work.cc)
+  // The input is `input`, or, when `input_u8` is not null, the quantised input (RunQuantized).
+  Status Execute(std::span<const float> input, const uint8_t* input_u8, int height, int width,
+                 std::span<float> output, std::span<int64_t> step_end_ns, Observation* observation);
+  void FindInputQuantizeStep();  // Plan, step 4: input_quantize_step_
   void Observe(const Step& step, size_t src_slot, Observation& observation) const;
   class Pool;
   Session() = default;
@@ -185,6 +233,7 @@ class Session {
   int threads_ = 1;
   std::vector<Step> steps_;
   std::vector<PlannedStep> step_info_;
+  int input_quantize_step_ = -1;  // the one step that reads the model input, quantising it
   size_t packed_bytes_ = 0;
   float* packed_ = nullptr;  // 64-byte aligned packed weights
   size_t packed8_bytes_ = 0;

@@ -69,6 +69,47 @@ TEST(Preprocessor, OrderColourScaleMeanStdExactly) {
   }
 }
 
+// The uint8 path: each byte is the caller's quantiser applied to the float Run() writes there
+// (here a plain rounding of the normalised value to 1/64 steps around 128), and a destination
+// of the wrong size is refused in bytes.
+TEST(Preprocessor, RunQuantizedWritesTheQuantisedValueOfEveryFloatRunWrites) {
+  std::mt19937 rng(99);
+  const cv::Mat images[4] = {RandomImage(&rng), RandomImage(&rng), RandomImage(&rng),
+                             RandomImage(&rng)};
+  PreprocessParams params;
+  params.color_order = ColorOrder::kRGB;
+  params.scale = 1.0f / 255.0f;
+  const float mean[3] = {0.485f, 0.456f, 0.406f};
+  const float std[3] = {0.229f, 0.224f, 0.225f};
+  std::memcpy(params.mean, mean, sizeof(mean));
+  std::memcpy(params.std, std, sizeof(std));
+  Result<Preprocessor> p = Preprocessor::Create(params, kH, kW);
+  ASSERT_TRUE(p.ok()) << p.message();
+  auto quantize = [](float v) {
+    const float q = std::nearbyint(v * 64.0f) + 128.0f;
+    return static_cast<uint8_t>(q < 0 ? 0 : q > 255 ? 255 : q);
+  };
+  const Preprocessor::QuantizedTable table = p->Tabulate(quantize);
+  std::vector<float> floats(p->output_floats());
+  ASSERT_TRUE(
+      p->Run(images[0], images[1], images[2], images[3], floats.data(), floats.size()).ok());
+  std::vector<uint8_t> bytes(p->output_floats(), 7);
+  Status s = p->RunQuantized(images[0], images[1], images[2], images[3], table, bytes.data(),
+                             bytes.size());
+  ASSERT_TRUE(s.ok()) << s.message();
+  int clamped = 0;
+  for (size_t i = 0; i < floats.size(); ++i) {
+    ASSERT_EQ(bytes[i], quantize(floats[i])) << "element " << i;
+    clamped += bytes[i] == 0 || bytes[i] == 255;
+  }
+  EXPECT_LT(clamped, static_cast<int>(floats.size()) / 2);  // the values spread over the range
+  s = p->RunQuantized(images[0], images[1], images[2], images[3], table, bytes.data(),
+                      bytes.size() - 1);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("destination holds 419 bytes, expected 420"), std::string::npos)
+      << s.message();
+}
+
 TEST(Preprocessor, HandComputedValuesAndStridedImages) {
   // A 1x1 ROI inside a larger image (non-contiguous rows are fine; here 2x2 for a real stride).
   cv::Mat big(4, 4, CV_8UC3, cv::Scalar(0, 0, 0));

@@ -7,6 +7,11 @@ Checks: the keys tools/bench/compare_ort.sh reads; per configuration, one step e
 step whose mean times add up to the mean of the per-run step totals (the same timestamps, summed
 two ways) and never exceed the mean wall time around Run(); shares add up to 1; by-op rows
 account for every step; per-run counter arrays have one entry per run; build and cpu metadata.
+The roofline (per configuration, and again on the int8 model): one entry per step, whose
+multiply-accumulates add up to its total (never above the model's nominal work; below it where
+phase kernels run), a unit for every step that agrees with its kernel's name, memory steps with
+no MACs, achieved rates that are the step's work over its median, the roof the lower of the
+unit's peak and intensity x bandwidth, the floors the work at the roofs.
 """
 import argparse
 import json
@@ -16,11 +21,101 @@ import subprocess
 import sys
 
 
+def run(cmd):
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    print("$ " + " ".join(cmd))
+    print(proc.stdout, end="")
+    print(proc.stderr, end="", file=sys.stderr)
+    return proc
+
+
+# The unit each kernel family runs on (profiling/roofline.cc's table, restated).
+def expected_unit(kernel, macs):
+    if macs == 0:
+        return "memory"
+    for part, unit in (("__amx_emulated", "unmeasured"), ("u8s8__avx512amx", "amx int8"),
+                       ("bf16__avx512amx", "amx bf16"), ("u8s8__avx512vnni", "int8 vnni"),
+                       ("bf16__avx512bf16", "bf16 avx512"), ("_f32__", "fma"),
+                       ("winograd", "fma")):
+        if part in kernel:
+            return unit
+    if kernel.startswith("ref::"):
+        return "unmeasured" if ("Int8" in kernel or "Bf16" in kernel) else "fma"
+    return "unmeasured"
+
+
+PEAK_OF_UNIT = {"fma": "fma_gmacs", "int8 vnni": "int8_vnni_gmacs",
+                "bf16 avx512": "bf16_avx512_gmacs", "amx int8": "amx_int8_gmacs",
+                "amx bf16": "amx_bf16_gmacs"}
+
+
+def close(a, b, rel=1e-6):
+    return abs(a - b) <= rel * max(abs(a), abs(b), 1e-12)
+
+
+def check_roofline(r, nominal_macs, name, check):
+    roof = r.get("roofline")
+    check(roof is not None, f"{name}: no roofline")
+    if roof is None:
+        return
+    steps, points = r["steps"], roof["steps"]
+    check(len(points) == len(steps), f"{name}: roofline steps {len(points)} != {len(steps)}")
+    check(sum(p["macs"] for p in points) == roof["macs"], f"{name}: roofline MACs do not add up")
+    check(0 < roof["macs"] <= nominal_macs, f"{name}: actual MACs {roof['macs']} vs nominal")
+    if any(s["kernel"].startswith("upconv") for s in steps):
+        check(roof["macs"] < nominal_macs, f"{name}: phase kernels ran but no MACs were saved")
+    bandwidth = roof["peaks"]["read_gbytes"]
+    check(bandwidth is not None and bandwidth > 0, f"{name}: no read bandwidth")
+    floor = 0.0
+    for s, p in zip(steps, points):
+        what = f"{name} step {s['step']} {s['kernel']}"
+        check(p["unit"] == expected_unit(s["kernel"], p["macs"]), f"{what}: unit {p['unit']}")
+        moved = p["bytes_read"] + p["bytes_written"] + p["weight_bytes"]
+        seconds = s["median_ms"] * 1e-3
+        if seconds > 0 and p["achieved_gbytes"] is not None:
+            check(close(p["achieved_gbytes"], moved / seconds * 1e-9),
+                  f"{what}: achieved GB/s is not its bytes over its median")
+        if p["unit"] == "memory":
+            check(p["achieved_gmacs"] is None and p["bound"] == "memory", f"{what}: memory step")
+            if moved == 0:  # a view
+                check(p["share_of_roof"] is None and p["achieved_gbytes"] is None,
+                      f"{what}: a view has no rate")
+            elif seconds > 0:
+                check(close(p["share_of_roof"], p["achieved_gbytes"] / bandwidth),
+                      f"{what}: share is not its bandwidth over the read bandwidth")
+            floor += moved / (bandwidth * 1e9) * 1e3
+            continue
+        check(moved > 0, f"{what}: computes on nothing")
+        if p["unit"] == "unmeasured":
+            check(p["roof_gmacs"] is None and p["share_of_roof"] is None, f"{what}: unmeasured")
+            floor = math.nan
+            continue
+        peak = roof["peaks"][PEAK_OF_UNIT[p["unit"]]]
+        check(peak is not None and peak > 0 and close(p["peak_gmacs"], peak),
+              f"{what}: peak of its unit")
+        want_roof = min(peak, p["macs"] / moved * bandwidth)
+        check(close(p["roof_gmacs"], want_roof), f"{what}: roof {p['roof_gmacs']} != {want_roof}")
+        check(p["bound"] == ("memory" if want_roof < peak else "compute"), f"{what}: bound")
+        if seconds > 0:
+            check(close(p["achieved_gmacs"], p["macs"] / seconds * 1e-9), f"{what}: achieved")
+            check(close(p["share_of_roof"], p["achieved_gmacs"] / want_roof), f"{what}: share")
+        floor += p["macs"] / (want_roof * 1e9) * 1e3
+    if not math.isnan(floor):
+        check(close(roof["floor_ms"], floor, 1e-5), f"{name}: floor {roof['floor_ms']} != {floor}")
+        check(close(roof["median_over_floor"], r["median_ms"] / floor, 1e-5),
+              f"{name}: median over floor")
+    main_peak = roof["peaks"][PEAK_OF_UNIT.get(roof["main_unit"], "fma_gmacs")]
+    if roof["main_unit"] in PEAK_OF_UNIT and main_peak:
+        check(close(roof["main_floor_ms"], roof["macs"] / (main_peak * 1e6), 1e-9),
+              f"{name}: main floor")
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--sfrt", required=True)
     p.add_argument("--model", required=True)
     p.add_argument("--work", required=True)
+    p.add_argument("--int8-model", help="also check the roofline of this int8 model's run")
     args = p.parse_args()
     os.makedirs(args.work, exist_ok=True)
     out = os.path.join(args.work, "bench.json")
@@ -30,10 +125,7 @@ def main():
     cmd = [args.sfrt, "bench", "--model", args.model, "--size", "35x61", "--isa", "all",
            "--threads", "1,2", "--runs", str(runs), "--top", "3", "--peak-seconds", "0.01",
            "--json", out]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-    print("$ " + " ".join(cmd))
-    print(proc.stdout, end="")
-    print(proc.stderr, end="", file=sys.stderr)
+    proc = run(cmd)
     failures = []
 
     def check(cond, what):
@@ -99,6 +191,18 @@ def main():
             check(pr["cpu_migrations"] is None and j["cpu_migrations"]["reason"] != "",
                   f"{name}: migrations unavailable without a reason")
         check(sorted(pr["wall_ms"])[0] == r["min_ms"], f"{name}: min_ms is not the fastest run")
+        check_roofline(r, j["macs"], name, check)
+    if args.int8_model:
+        out8 = os.path.join(args.work, "bench-int8.json")
+        cmd = [args.sfrt, "bench", "--model", args.int8_model, "--runs", "2", "--warmup", "0",
+               "--peak-seconds", "0.01", "--json", out8]
+        proc = run(cmd)
+        check(proc.returncode == 0, f"int8 run: exit code {proc.returncode}")
+        if proc.returncode == 0:
+            j8 = json.load(open(out8))
+            for r in j8["results"]:
+                check_roofline(r, j8["macs"], f'int8 {r["isa"]} x{r["threads"]}', check)
+            check("roofline (median per step" in proc.stdout, "int8 run: no roofline table")
     for f in failures:
         print("FAIL: " + f)
     if not failures:

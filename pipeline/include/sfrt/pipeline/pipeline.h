@@ -206,6 +206,11 @@ struct PipelineOptions {
   Isa isa = Isa::kAuto;
   int threads = 1;
   KernelTuning tuning{};  // the session's optimised-path switches (defaults: the fastest)
+  // An int8 model whose input only int8 convolutions read (Session::InputQuantization): the
+  // preprocess stage writes the network's uint8 input straight from the camera's pixels
+  // (camera::Preprocessor::RunQuantized) and the infer stage runs it (Session::RunQuantized):
+  // no float32 input, no quantise step, the same flow bit for bit. false: the float32 input.
+  bool quantized_input = true;
   std::optional<QueuePolicy> policy;  // default: kNewestWins for live sources, kBlock otherwise
   size_t queue_capacity = 1;
   std::optional<camera::StereoCalibration> calibration;  // rectify with it (else resize only)

@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -55,12 +56,36 @@ class Preprocessor {
   Status Run(const cv::Mat& left0, const cv::Mat& right0, const cv::Mat& left1,
              const cv::Mat& right1, float* dst, size_t dst_floats) const;
 
+  // The uint8 input path (an int8 model's first convolutions read uint8, sfrt::Session's
+  // RunQuantized): `quantize` applied to each of the 3 x 256 values Run() can feed, so that
+  // RunQuantized() writes quantize(what Run() would write), bit for bit. camera/ knows no
+  // runtime: the caller passes the runtime's quantiser (sfrt::QuantizeInput with the session's
+  // InputQuantization).
+  using QuantizedTable = std::array<std::array<uint8_t, 256>, 3>;
+  template <typename Quantize>
+  QuantizedTable Tabulate(Quantize quantize) const {
+    QuantizedTable table{};
+    for (size_t c = 0; c < 3; ++c) {
+      for (size_t v = 0; v < 256; ++v) table[c][v] = quantize(lut_[c][v]);
+    }
+    return table;
+  }
+  // As Run(), writing the quantised values through `table` (Tabulate) into dst: height*width*12
+  // bytes, owned by the caller; dst_bytes is checked against output_floats().
+  Status RunQuantized(const cv::Mat& left0, const cv::Mat& right0, const cv::Mat& left1,
+                      const cv::Mat& right1, const QuantizedTable& table, uint8_t* dst,
+                      size_t dst_bytes) const;
+
   size_t output_floats() const { return static_cast<size_t>(height_) * width_ * kChannels; }
   int height() const { return height_; }
   int width() const { return width_; }
 
  private:
   Preprocessor() = default;
+  Status Check(const cv::Mat* const (&images)[4], size_t dst_elements, const char* unit) const;
+  template <typename T>
+  void Fill(const cv::Mat* const (&images)[4], const std::array<std::array<T, 256>, 3>& lut,
+            T* dst) const;
 
   PreprocessParams params_;
   int height_ = 0;
