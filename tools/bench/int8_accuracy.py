@@ -1,0 +1,295 @@
+#!/usr/bin/python3
+"""sfrt's int8 and bf16 error against its peers' on the same network, calibration and input
+(issue 43, item 5): the bar is "no worse than the best peer", measured, not a fixed number.
+
+usage: int8_accuracy.py MODEL.onnx --sfrt BIN [--calibration CAL.npy] [--size HxW]
+                        [--threads N] [--peers LIST] [--engine E] [--json FILE] [--keep DIR]
+
+MODEL.onnx: a float SceneEDNet export (tests/fixtures/gen_sceneednet.py, any width divisor).
+Every engine runs the same input: ort_bench.mjs's seeded values in [0, 255) at --size (default
+the ONNX file's fixed size, else 96x128), NCHW (1, 12, H, W) (torch_bench.lcg_input). The error of each is
+  max_rel = max |out - ref| / max |ref|   and   rms_rel = RMS(out - ref) / RMS(ref)
+against the float32 network: PyTorch's SceneEDNet.forward on the ONNX file's weights (sfrt
+int8, sfrt bf16, torch-int8, torch-bf16), or ONNX Runtime's float32 run of the same file for
+ort-int8 (ort_bench.mjs --reference: ORT's own float32, which agrees with PyTorch's to ~1e-6).
+
+Engines:
+- sfrt int8: `sfrt export --precision int8 --calibration CAL` (int8 weights per output
+  channel, uint8 activations), `sfrt infer --input-npy`; sfrt bf16: `--precision bf16`.
+- torch-int8: PyTorch's post-training static quantisation in eager mode on --engine (default
+  onednn where this PyTorch has it, else x86/fbgemm): int8 weights per output channel
+  (get_default_qconfig(engine)), uint8 activations observed over the same calibration frames,
+  quantised convolutions, LeakyReLU, pads, upsamplings and the crop on the quantised tensors.
+- ort-int8: make_qdq_onnx.py's QDQ model (int8 weights per channel, uint8 activations from the
+  same frames) in ONNX Runtime (npm onnxruntime-node; installed on first use as
+  compare_peers.sh does), QLinearConv.
+- torch-bf16: the network and input in bfloat16 in PyTorch (oneDNN).
+--peers: any of torch-int8, ort-int8, torch-bf16 (default all three).
+--calibration: float32 .npy (N,H,W,12), as `sfrt export --calibration` reads it; default 2
+seeded frames of integers 0..255 at 96x128 (compare_peers.sh's).
+Prints a table and the verdicts: sfrt int8's max_rel against the best int8 peer's, sfrt bf16's
+against torch-bf16's; exit 0 when both hold (or have no peer to hold against), 3 when one
+does not, 1 on an error. --json: the same as a document. Needs Debian's /usr/bin/python3 with
+python3-torch, python3-onnx, python3-numpy; node for ort-int8.
+"""
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+import numpy as np  # noqa: E402
+import torch_bench  # noqa: E402  (read_onnx, lcg_input; imports torch and sceneednet)
+import torch  # noqa: E402
+import torch.ao.quantization as tq  # noqa: E402
+from sceneednet import SceneEDNet  # noqa: E402
+
+torch_bench.PROG = "int8_accuracy.py"
+fail = torch_bench.fail
+PEERS = ("torch-int8", "ort-int8", "torch-bf16")
+EXIT_BAR_MISSED = 3
+
+
+def errors(out, ref):
+    """max |out - ref| / max |ref| and RMS(out - ref) / RMS(ref), in float64."""
+    out = np.asarray(out, np.float64)
+    ref = np.asarray(ref, np.float64)
+    diff = out - ref
+    return {"max_rel": float(np.abs(diff).max() / np.abs(ref).max()),
+            "rms_rel": float(np.sqrt((diff ** 2).mean() / (ref ** 2).mean()))}
+
+
+def run(cmd, what, **kwargs):
+    proc = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
+    if proc.returncode != 0:
+        sys.stderr.write(proc.stdout[-2000:] + proc.stderr[-2000:])
+        fail(f"{what} failed (exit {proc.returncode}): {' '.join(cmd)}")
+    return proc
+
+
+def sfrt_output(args, work, precision, x_nhwc_path, height, width):
+    """sfrt's output (1, 3, H, W) for the model exported in `precision`."""
+    model = os.path.join(work, f"model-{precision}.sfrt")
+    cmd = [args.sfrt, "export", args.model, "-o", model, "--precision", precision]
+    if precision == "int8":
+        cmd += ["--calibration", args.calibration]
+    run(cmd, f"sfrt export --precision {precision}")
+    out = os.path.join(work, f"out-{precision}.npy")
+    run([args.sfrt, "infer", "--model", model, "--input-npy", x_nhwc_path, "-o", out],
+        f"sfrt infer ({precision})")
+    y = np.load(out)
+    if y.shape != (height, width, 3):
+        fail(f"sfrt infer ({precision}) wrote {y.shape}, expected ({height}, {width}, 3)")
+    return y.transpose(2, 0, 1)[None]
+
+
+class QuantNet(SceneEDNet):
+    """SceneEDNet between a quantise and a dequantise stub (PyTorch's eager-mode quantisation
+    replaces every nn.Conv2d by its quantised form; the rest runs on quantised tensors)."""
+
+    def __init__(self, width_div, padding):
+        super().__init__(width_div, padding)
+        self.quant = tq.QuantStub()
+        self.dequant = tq.DeQuantStub()
+
+    def forward(self, x):
+        return self.dequant(SceneEDNet.forward(self, self.quant(x)))
+
+
+def torch_int8_output(state, width_div, padding, engine, frames, x):
+    torch.backends.quantized.engine = engine
+    net = QuantNet(width_div, padding)
+    net.load_state_dict(state, strict=True)
+    net.eval()
+    net.qconfig = tq.get_default_qconfig(engine)
+    observers = {"activation": type(net.qconfig.activation()).__name__,
+                 "weight": type(net.qconfig.weight()).__name__}
+    tq.prepare(net, inplace=True)
+    with torch.inference_mode():
+        for frame in frames:
+            net(frame)
+    tq.convert(net, inplace=True)
+    convs = [m for m in net.modules() if isinstance(m, torch.ao.nn.quantized.Conv2d)]
+    if len(convs) != 11:
+        fail(f"torch-int8: {len(convs)} quantised convolutions, expected 11")
+    per_channel = all(c.weight().qscheme() == torch.per_channel_symmetric
+                      or c.weight().qscheme() == torch.per_channel_affine for c in convs)
+    with torch.inference_mode():
+        return net(x).numpy(), {"engine": engine, "weights_per_channel": per_channel,
+                                "observers": observers}
+
+
+def ort_int8_errors(args, work, height, width):
+    """make_qdq_onnx.py's QDQ model in ONNX Runtime: its errors against ORT's float32 run."""
+    if shutil.which("node") is None:
+        return None, "node not found (apt-get install nodejs npm)"
+    if not os.path.isdir(os.path.join(HERE, "node_modules", "onnxruntime-node")):
+        print("int8_accuracy.py: installing onnxruntime-node (npm) as compare_peers.sh does",
+              file=sys.stderr)
+        env = dict(os.environ, ONNXRUNTIME_NODE_INSTALL="skip")
+        proc = subprocess.run(["npm", "install", "--no-audit", "--no-fund"], cwd=HERE, env=env,
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            return None, f"npm install onnxruntime-node failed: {proc.stderr.strip()[-300:]}"
+    qdq = os.path.join(work, "model-qdq.onnx")
+    run([sys.executable, os.path.join(HERE, "make_qdq_onnx.py"), args.model, "-o", qdq,
+         "--calibration", args.calibration], "make_qdq_onnx.py")
+    proc = run(["node", os.path.join(HERE, "ort_bench.mjs"), f"--reference={args.model}",
+                f"--profile={os.path.join(work, 'ort-profile')}", qdq, str(height), str(width),
+                str(args.threads), "1", "0"], "ort_bench.mjs")
+    line = json.loads(proc.stdout.strip().splitlines()[-1])
+    float_convs = [op for op in line.get("ops", {}) if op in ("Conv", "FusedConv")]
+    if float_convs or "QLinearConv" not in line.get("ops", {}):
+        fail(f"ort-int8: ONNX Runtime ran {', '.join(float_convs) or 'no QLinearConv'}")
+    ref = line["vs_reference"]
+    return {"max_rel": ref["max_rel"], "rms_rel": ref["rms_rel"]}, ""
+
+
+def onnx_input_size(path):
+    """(H, W) of the ONNX file's input when both are fixed, else None."""
+    import onnx  # noqa: PLC0415  (torch_bench imported it already)
+    dims = onnx.load(path, load_external_data=False).graph.input[0].type.tensor_type.shape.dim
+    if len(dims) == 4 and all(d.HasField("dim_value") for d in dims[2:]):
+        return dims[2].dim_value, dims[3].dim_value
+    return None
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="int8_accuracy.py",
+                                description="sfrt int8/bf16 error against its peers'.")
+    p.add_argument("model")
+    p.add_argument("--sfrt", required=True, help="the sfrt binary")
+    p.add_argument("--calibration", help="float32 .npy (N,H,W,12) calibration frames")
+    p.add_argument("--size", help="input HxW (default: the ONNX file's, when fixed; else "
+                   "96x128)")
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--peers", default=",".join(PEERS), help="any of " + ", ".join(PEERS))
+    p.add_argument("--engine", help="PyTorch quantised engine (default onednn, else x86)")
+    p.add_argument("--json", help="also write the results here")
+    p.add_argument("--keep", help="keep the exported models and outputs in this folder")
+    args = p.parse_args(argv)
+    fixed = onnx_input_size(args.model) if os.path.isfile(args.model) else None
+    if args.size is None:
+        args.size = f"{fixed[0]}x{fixed[1]}" if fixed else "96x128"
+    try:
+        height, width = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        p.error(f"--size: expected HxW, got {args.size!r}")
+    if fixed and (height, width) != fixed:
+        p.error(f"--size: {args.model} takes a fixed {fixed[0]}x{fixed[1]} input (ONNX Runtime "
+                f"runs it at no other size), not {args.size}")
+    if height < 8 or width < 8:
+        p.error(f"--size: {args.size} is too small (at least 8x8)")
+    args.peer_list = [q for q in args.peers.split(",") if q]
+    for q in args.peer_list:
+        if q not in PEERS:
+            p.error(f"--peers: unknown peer {q!r} (known: {', '.join(PEERS)})")
+    engines = torch.backends.quantized.supported_engines
+    if args.engine is None:
+        args.engine = next((e for e in ("onednn", "x86", "fbgemm") if e in engines), None)
+    if "torch-int8" in args.peer_list and args.engine not in engines:
+        p.error(f"--engine: {args.engine!r} is not one of this PyTorch's {engines}")
+    for path, what in ((args.model, "MODEL"), (args.sfrt, "--sfrt")):
+        if not os.path.isfile(path):
+            p.error(f"{what}: no file {path!r}")
+    return args, height, width
+
+
+def verdicts(results):
+    """sfrt int8 against the best int8 peer, sfrt bf16 against torch-bf16: (lines, all held)."""
+    lines, held = [], True
+    for precision, peers in (("int8", ("torch-int8", "ort-int8")), ("bf16", ("torch-bf16",))):
+        ours = results.get(f"sfrt-{precision}")
+        measured = [(results[q]["max_rel"], q) for q in peers if q in results]
+        if ours is None or not measured:
+            lines.append(f"sfrt {precision}: no peer measured, no verdict")
+            continue
+        best, name = min(measured)
+        ok = ours["max_rel"] <= best
+        held = held and ok
+        lines.append(f"sfrt {precision}: max_rel {ours['max_rel']:.3e} "
+                     f"{'<=' if ok else '>'} best peer {name} {best:.3e}: "
+                     f"{'no worse' if ok else 'WORSE'}")
+    return lines, held
+
+
+def main(argv):
+    args, height, width = parse_args(argv)
+    torch.set_num_threads(args.threads)
+    work = args.keep or tempfile.mkdtemp(prefix="sfrt-int8-accuracy-")
+    os.makedirs(work, exist_ok=True)
+    try:
+        if args.calibration is None:
+            args.calibration = os.path.join(work, "calibration.npy")
+            rng = np.random.default_rng(20240601)
+            np.save(args.calibration,
+                    rng.integers(0, 256, size=(2, 96, 128, 12)).astype(np.float32))
+        frames = np.load(args.calibration).astype(np.float32)
+        if frames.ndim == 3:
+            frames = frames[None]
+        frames_nchw = [torch.from_numpy(np.ascontiguousarray(f.transpose(2, 0, 1)))[None]
+                       for f in frames]
+        state, width_div, padding = torch_bench.read_onnx(args.model)
+        x = torch_bench.lcg_input(height, width)
+        reference_net = SceneEDNet(width_div, padding)
+        reference_net.load_state_dict(state, strict=True)
+        reference_net.eval()
+        with torch.inference_mode():
+            ref = reference_net(x).numpy()
+        x_path = os.path.join(work, "input.npy")
+        np.save(x_path, x.numpy()[0].transpose(1, 2, 0))
+
+        results, notes = {}, {}
+        for precision in ("int8", "bf16"):
+            y = sfrt_output(args, work, precision, x_path, height, width)
+            results[f"sfrt-{precision}"] = errors(y, ref)
+        if "torch-int8" in args.peer_list:
+            y, facts = torch_int8_output(state, width_div, padding, args.engine, frames_nchw, x)
+            results["torch-int8"] = errors(y, ref)
+            notes["torch-int8"] = facts
+        if "ort-int8" in args.peer_list:
+            err, why = ort_int8_errors(args, work, height, width)
+            if err is None:
+                notes["ort-int8"] = {"unavailable": why}
+                print(f"int8_accuracy.py: ort-int8 not measured: {why}", file=sys.stderr)
+            else:
+                results["ort-int8"] = err
+        if "torch-bf16" in args.peer_list:
+            net = SceneEDNet(width_div, padding)
+            net.load_state_dict(state, strict=True)
+            net = net.eval().to(torch.bfloat16)
+            with torch.inference_mode():
+                results["torch-bf16"] = errors(net(x.to(torch.bfloat16)).float().numpy(), ref)
+    finally:
+        if not args.keep:
+            shutil.rmtree(work, ignore_errors=True)
+
+    print(f"model {args.model} (1/{width_div} width, {padding} padding) at {height}x{width}, "
+          f"calibration {frames.shape[0]} frame(s) {frames.shape[1]}x{frames.shape[2]}")
+    print(f"{'engine':<12} {'max_rel':>10} {'rms_rel':>10}  against")
+    for name, e in results.items():
+        against = "ONNX Runtime float32" if name == "ort-int8" else "PyTorch float32"
+        print(f"{name:<12} {e['max_rel']:>10.3e} {e['rms_rel']:>10.3e}  {against}")
+    for name, facts in notes.items():
+        print(f"{name}: {facts}")
+    lines, held = verdicts(results)
+    for line in lines:
+        print(line)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"model": args.model, "height": height, "width": width,
+                       "width_div": width_div, "calibration": args.calibration,
+                       "results": results, "notes": notes, "verdicts": lines, "held": held},
+                      f, indent=2)
+    return 0 if held else EXIT_BAR_MISSED
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
