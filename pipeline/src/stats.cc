@@ -77,6 +77,10 @@ std::string FormatFixed(double v, int digits) {
   return buf;
 }
 
+std::string FormatCell(double v, int digits) {
+  return std::isfinite(v) ? FormatFixed(v, digits) : "-";
+}
+
 bool ParsePercentile(std::string_view text, double* percent) {
   if (text == "max") {
     *percent = 100;

@@ -10,12 +10,7 @@ namespace {
 namespace prof = sfrt::profiling;
 using Json = nlohmann::ordered_json;
 
-std::string Cell(double v, int digits) {
-  if (!std::isfinite(v)) return "-";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
+std::string Cell(double v, int digits) { return prof::FormatCell(v, digits); }
 
 // Four significant digits: 19.33, 0.001234.
 std::string Significant(double v) {
@@ -140,6 +135,7 @@ Json RooflineJson(const prof::Roofline& r, double median_run_ms) {
                              {"read_gbytes", peak(k.read_gbytes)}}},
               {"macs", r.macs},
               {"main_unit", prof::ComputeUnitName(r.main_unit)},
+              {"main_peak_gmacs", peak(r.peaks.Of(r.main_unit))},
               {"main_floor_ms", Nullable(r.main_floor_ms)},
               {"median_over_main_floor", Nullable(median_run_ms / r.main_floor_ms)},
               {"floor_ms", Nullable(r.floor_ms)},

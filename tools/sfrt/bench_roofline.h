@@ -26,7 +26,7 @@ Result<profiling::Roofline> PlaceSessionSteps(const Session& session,
 std::string FormatRoofline(const std::vector<profiling::StepRow>& rows,
                            const profiling::Roofline& roofline, double median_run_ms);
 
-// The same for --json: peaks, floors, and per step (index-aligned with "steps") the work and
+// The same for --json: peaks, the main unit and its peak, floors, and per step (index-aligned with "steps") the work and
 // its point. Unmeasured rates are null.
 nlohmann::ordered_json RooflineJson(const profiling::Roofline& roofline, double median_run_ms);
 

@@ -108,12 +108,7 @@ std::vector<std::string> SplitList(const std::string& text) {
   return out;
 }
 
-std::string Fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "-";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
-  return buf;
-}
+std::string Fixed(double v, int digits) { return prof::FormatCell(v, digits); }
 
 // A budget as given, without rounding or exponent for ordinary values: 1000000, 12.5, 1e-06.
 std::string Milliseconds(double v) {

@@ -105,6 +105,8 @@ def check_roofline(r, nominal_macs, name, check):
         check(close(roof["median_over_floor"], r["median_ms"] / floor, 1e-5),
               f"{name}: median over floor")
     main_peak = roof["peaks"][PEAK_OF_UNIT.get(roof["main_unit"], "fma_gmacs")]
+    if roof["main_unit"] in PEAK_OF_UNIT:
+        check(roof["main_peak_gmacs"] == main_peak, f"{name}: main_peak_gmacs")
     if roof["main_unit"] in PEAK_OF_UNIT and main_peak:
         check(close(roof["main_floor_ms"], roof["macs"] / (main_peak * 1e6), 1e-9),
               f"{name}: main floor")

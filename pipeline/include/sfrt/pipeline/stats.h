@@ -89,6 +89,8 @@ class RunningStats {
 
 // `v` with `digits` decimals, as printf's %.*f: FormatFixed(3.14159, 2) == "3.14".
 std::string FormatFixed(double v, int digits);
+// As FormatFixed, and "-" for a value that is not finite (a rate nothing measured): tables' cells.
+std::string FormatCell(double v, int digits);
 
 // Parses a percentile as a user writes it: "p99", "p99.9", "99", "p50", "median", "max"
 // (= 100). Writes percent in (0, 100]; false for anything else.
