@@ -235,8 +235,10 @@ def flow_through_the_node(a, master, transport, bag_args, left_dir, right_dir, w
                  % node.stderr()):
         node.interrupt()
         return
-    # Half speed: the header stamps keep their 30 fps spacing.
-    p = run(["rosbag", "play", "-q", "-r", "0.5", bag])
+    # Half speed: the header stamps keep their 30 fps spacing. -d 3: after advertising, rosbag
+    # waits 3 s before the first message, so the node's subscriptions (listed by the master
+    # above) have connected to it; with its default 0.2 s a loaded machine lost the first pairs.
+    p = run(["rosbag", "play", "-q", "-d", "3", "-r", "0.5", bag])
     check(p.returncode == 0, what + "rosbag play exit %d: %s" % (p.returncode, p.stderr))
     wait_for(lambda: len(col.get("/flow")) >= 5 and len(col.get("/flow_vis")) >= 5, 120)
     time.sleep(0.5)  # nothing more should come
