@@ -4,6 +4,7 @@
 #include <string>
 
 #include "session_steps.h"
+#include "winograd_run.h"
 
 namespace sfrt {
 namespace {
@@ -58,8 +59,8 @@ ElementSizes Session::WorkCounter::SizesOf(const Step& step) {
 // Whether the step's fused upsample-conv computes its interior through phase kernels.
 bool Session::WorkCounter::HasPhases(const Step& step) {
   switch (step.kind) {
-    case Kind::kUpConv:
-      return step.packed.phase_weights != nullptr;
+    case Kind::kUpConv:  // direct phase kernels, or the phases through Winograd
+      return step.packed.phase_weights != nullptr || step.upwinograd != nullptr;
     case Kind::kInt8Conv:
       return step.upsampled && step.packed8.phase_weights_hwio != nullptr;
     case Kind::kBf16Conv:
@@ -117,13 +118,34 @@ Result<std::vector<StepWork>> Session::Work(int height, int width) const {
                              static_cast<uint64_t>(p.out_channels);
     const uint64_t taps = static_cast<uint64_t>(p.kernel_h) * static_cast<uint64_t>(p.kernel_w);
     w.weight_bytes = taps * per_tap * WeightElementBytes(step.precision);
+    if (step.kind == Kind::kWinograd) {  // the products of every m x m tile: alpha^2 points
+      const PackedWinograd& wp = step.wpacked;
+      const uint64_t tiles = static_cast<uint64_t>(WinogradTiles(g.output.height, wp.m)) *
+                             static_cast<uint64_t>(WinogradTiles(g.output.width, wp.m));
+      w.macs = tiles * static_cast<uint64_t>(wp.alpha * wp.alpha) * per_tap;
+      w.weight_bytes = static_cast<uint64_t>(wp.alpha * wp.alpha) * per_tap * sizeof(float);
+      continue;
+    }
     if (!WorkCounter::HasPhases(step)) continue;
     const LayerGeometry& c =
         geometry[static_cast<size_t>(step.crop_layer >= 0 ? step.crop_layer : step.first_layer)];
     const uint64_t interior = InteriorExtent(g.output.height, c.output.height, g.pads.top) *
                               InteriorExtent(g.output.width, c.output.width, g.pads.left);
     w.macs -= interior * (taps - 4) * per_tap;  // those pixels take the 4 taps of their phase
-    w.weight_bytes += 4 * 4 * per_tap * WeightElementBytes(step.precision);
+    if (step.upwinograd == nullptr) {
+      w.weight_bytes += 4 * 4 * per_tap * WeightElementBytes(step.precision);
+    } else {  // the interior through F(2x2, 2x2) on the phases instead
+      w.weight_bytes += static_cast<uint64_t>(step.wpacked.alpha * step.wpacked.alpha) * 4 *
+                        per_tap * sizeof(float);
+      const int crop_top = step.crop_layer >= 0 ? c.crop.top : 0;
+      const int crop_left = step.crop_layer >= 0 ? c.crop.left : 0;
+      const UpGrid u = UpGridOf(g.output.height, g.output.width, g.pads, c.output.height,
+                                c.output.width, crop_top, crop_left);
+      const PackedWinograd& wp = step.wpacked;
+      w.macs -= interior * 4 * per_tap;
+      w.macs += static_cast<uint64_t>(u.tiles_h) * static_cast<uint64_t>(u.tiles_w) *
+                static_cast<uint64_t>(wp.alpha * wp.alpha) * 4 * per_tap;  // the 4 phases' products
+    }
   }
   return work;
 }

@@ -24,7 +24,7 @@ namespace sfrt::profiling {
 
 enum class ComputeUnit {
   kMemory,      // moves data only: the roof is the read bandwidth
-  kFma,         // fp32 FMA of the session's ISA (Winograd included, counted as direct MACs)
+  kFma,         // fp32 FMA of the session's ISA (Winograd included: its products)
   kInt8Dot,     // vpdpbusd, AVX-512 VNNI
   kBf16Dot,     // vdpbf16ps, AVX512_BF16
   kAmxInt8,     // tdpbusd

@@ -120,10 +120,12 @@ inline constexpr size_t kQuantizedInputSlack = 64;
 // The work one planned step does at one input size, for rooflines (`sfrt bench`): what its
 // algorithm computes and the bytes it must move at least (each tensor and weight once).
 struct StepWork {
-  // Multiply-accumulates, counted as a direct convolution would do them, except that a fused
+  // Multiply-accumulates the step's algorithm does: a direct convolution's, except that a fused
   // upsample->3x3 convolution with phase kernels counts its interior pixels at their 4 taps
-  // (4/9 of the nominal work; the exact shortcut the kernels take). A Winograd step counts the
-  // direct convolution's (its transforms save multiplies). 0 for a step that only moves data.
+  // (4/9 of the nominal work; the exact shortcut the kernels take), and a Winograd step counts
+  // its transformed products (alpha^2 per m x m tile and channel pair: F(2x2, 3x3) 16 for 4
+  // pixels, the phases' F(2x2, 2x2) 9 per phase tile), not its transforms' additions. 0 for a
+  // step that only moves data.
   uint64_t macs = 0;
   uint64_t bytes_read = 0;     // activations read, in the type the step reads them
   uint64_t bytes_written = 0;  // activations written, in the type the step writes
