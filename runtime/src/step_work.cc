@@ -75,7 +75,7 @@ bool Session::WorkCounter::IsConvolution(Kind kind) {
          kind == Kind::kInt8Conv || kind == Kind::kBf16Conv || kind == Kind::kRows;
 }
 
-Result<std::vector<StepWork>> Session::Work(int height, int width) const {
+Result<std::vector<StepWork>> Session::Work(int height, int width, bool quantized_input) const {
   if (height > options_.max_height || width > options_.max_width) {
     return Status::Error("input " + std::to_string(height) + "x" + std::to_string(width) +
                          " exceeds the session's maximum " + std::to_string(options_.max_height) +
@@ -98,6 +98,7 @@ Result<std::vector<StepWork>> Session::Work(int height, int width) const {
     StepWork& w = work[k];
     uint64_t read = 0;
     for (int t : first.inputs) read += tensor_elements(t);
+    if (quantized_input && static_cast<int>(k) == input_quantize_step_) continue;  // skipped
     if (step.kind == Kind::kQuantize || step.kind == Kind::kToBf16) {
       w.bytes_read = read * size.in;  // converts its input in place of the layer reading it
       w.bytes_written = read * size.out;

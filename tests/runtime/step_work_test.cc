@@ -232,6 +232,32 @@ TEST(SessionWork, TheReferencePlanDoesTheNominalWork) {
   EXPECT_EQ((*work)[0].bytes_read, uint64_t{96} * 128 * 12 * 4);
 }
 
+// RunQuantized's work: the input's quantise step moves nothing; every other step is Run()'s.
+TEST(SessionWork, TheQuantisedInputsWorkLeavesOutTheInputsQuantiseStep) {
+  auto model = testing::LoadOrDie(testing::Int8Spec(exporter::SceneEdNetSpec(16)));
+  ASSERT_NE(model, nullptr);
+  auto session = MakeSession(model, BestIsa(), 48, 64);
+  ASSERT_NE(session, nullptr);
+  auto run = session->Work(48, 64);
+  auto quantized = session->Work(48, 64, true);
+  ASSERT_TRUE(run.ok() && quantized.ok());
+  int skipped = 0;
+  for (size_t k = 0; k < run->size(); ++k) {
+    const StepWork& a = (*run)[k];
+    const StepWork& b = (*quantized)[k];
+    if (k == 0) {
+      ASSERT_TRUE(session->steps()[0].quantize);
+      EXPECT_EQ(a.bytes_read, uint64_t{48} * 64 * 12 * 4);
+      EXPECT_EQ(b.bytes(), 0u);
+      ++skipped;
+      continue;
+    }
+    EXPECT_EQ(a.macs, b.macs) << k;
+    EXPECT_EQ(a.bytes(), b.bytes()) << k;
+  }
+  EXPECT_EQ(skipped, 1);
+}
+
 TEST(SessionWork, ASizeBeyondThePlannedMaximumIsRefusedNamingBoth) {
   auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(16));
   ASSERT_NE(model, nullptr);

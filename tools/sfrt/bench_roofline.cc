@@ -45,8 +45,9 @@ std::string PeaksLine(const prof::Roofline& r) {
 
 Result<prof::Roofline> PlaceSessionSteps(const Session& session,
                                          const std::vector<prof::StepRow>& rows, int height,
-                                         int width, double fma_gflops, prof::PeakCache* cache) {
-  Result<std::vector<StepWork>> work = session.Work(height, width);
+                                         int width, bool quantized_input, double fma_gflops,
+                                         prof::PeakCache* cache) {
+  Result<std::vector<StepWork>> work = session.Work(height, width, quantized_input);
   if (!work.ok()) return Status::Error(work.message());
   std::vector<std::string> kernels;
   std::vector<double> median_ms;

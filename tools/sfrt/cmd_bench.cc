@@ -615,8 +615,8 @@ bool PlaceConfigs(const BenchArgs& args, int height, int width, std::vector<Conf
   prof::PeakCache cache(args.peak_seconds);
   for (Config& c : configs) {
     const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
-    Result<prof::Roofline> roofline =
-        PlaceSessionSteps(*c.session, rows, height, width, c.peak_gflops, &cache);
+    Result<prof::Roofline> roofline = PlaceSessionSteps(
+        *c.session, rows, height, width, args.quantized_input, c.peak_gflops, &cache);
     if (!roofline.ok()) {
       ReportError(kName, roofline.message(), kExitFailure);
       return false;

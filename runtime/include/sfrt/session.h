@@ -188,9 +188,10 @@ class Session {
   Status RunObserved(std::span<const float> input, int height, int width, std::span<float> output,
                      const LayerObserver& observer);
 
-  // One entry per steps() for an input of height x width (at most the planned maximum). For
-  // profiling: it allocates, so keep it off the per-frame path.
-  Result<std::vector<StepWork>> Work(int height, int width) const;
+  // One entry per steps() for an input of height x width (at most the planned maximum), as
+  // Run() does it, or, with `quantized_input`, as RunQuantized() does (the input's quantise step
+  // then does nothing). For profiling: it allocates, so keep it off the per-frame path.
+  Result<std::vector<StepWork>> Work(int height, int width, bool quantized_input = false) const;
 
   const Model& model() const { return *model_; }
   const SessionOptions& options() const { return options_; }
