@@ -662,34 +662,77 @@ bool CheckBudget(const BenchArgs& args, double budget_percent, const std::vector
   return budget_met;
 }
 
-int RunBench(const BenchArgs& args) {
-  std::vector<Isa> isas;
-  std::vector<int> thread_counts;
-  if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
-    return ReportError(kName, problem, kExitUsage);
-  }
-  // Found out now, not after the measurements: where --json goes must take a file.
-  if (!args.json.empty()) {
-    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
-      return ReportError(kName, problem, kExitFailure);
-    }
-  }
-  if (args.peak_seconds < 0 || (args.peak && args.peak_seconds <= 0)) {
-    return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
-  }
-  if (args.peak) {
-    if (!args.model.empty() || args.budget_given) {
-      return ReportError(kName,
-                         "--peak runs only the peak microbenchmarks; it takes no --model or "
-                         "--budget-ms (a model run measures the peak by itself)",
-                         kExitUsage);
-    }
-    return RunPeak(args, isas, thread_counts);
-  }
-  if (args.model.empty()) {
-    return ReportError(kName, "--model is required (or --peak for the peak microbenchmarks)",
+// The seeded input every configuration runs on (and, for --quantized-input, its uint8 form as
+// the sessions quantise it) and the output buffer. kExitOk, or the exit code after reporting.
+int MakeBenchInput(const BenchArgs& args, const Model& model, const std::vector<Config>& configs,
+                   int height, int width, size_t output_elements, BenchInput* in) {
+  in->height = height;
+  in->width = width;
+  const int channels = model.metadata().input.channels;
+  in->input.resize(static_cast<size_t>(height) * width * channels);
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> dist(0.0f, 255.0f);
+  for (float& v : in->input) v = dist(rng);
+  in->output.resize(output_elements);
+  if (!args.quantized_input) return kExitOk;
+  // Every configuration plans the same input quantisation (the model's); quantised once here,
+  // as a camera's preprocessing would (camera::Preprocessor::RunQuantized).
+  const std::optional<QuantParams> q = configs.front().session->InputQuantization();
+  if (!q) {
+    return ReportError(kName,
+                       "--quantized-input: " + args.model +
+                           " takes no uint8 input (its input is not read by int8 convolutions "
+                           "alone)",
                        kExitUsage);
   }
+  in->input_u8.resize(configs.front().session->QuantizedInputBytes(height, width));
+  for (size_t i = 0; i < in->input.size(); ++i) in->input_u8[i] = QuantizeInput(in->input[i], *q);
+  return kExitOk;
+}
+
+// After the timed runs: the peak FMA throughput per configuration and each one's roofline.
+// kExitOk, or the exit code after reporting.
+int MeasurePeaks(const BenchArgs& args, int height, int width, std::vector<Config>& configs) {
+  for (Config& c : configs) {
+    Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
+    if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
+    c.peak_gflops = peak->gflops;
+    c.peak_kernel = peak->kernel;
+  }
+  return PlaceConfigs(args, height, width, configs) ? kExitOk : kExitFailure;
+}
+
+// The peaks '% peak' divides by, once per (ISA, threads).
+void PrintPeakNotes(const std::vector<Config>& configs) {
+  std::printf(
+      "%% peak: GFLOP/s / the peak FMA throughput of the same ISA and threads, measured "
+      "in this process after the runs:\n");
+  std::map<std::pair<Isa, int>, bool> shown;
+  for (const Config& c : configs) {
+    if (shown[{c.isa, c.threads}]) continue;
+    shown[{c.isa, c.threads}] = true;
+    std::printf("  %-6s x%d: %.1f GFLOP/s (%s)\n", IsaName(c.isa), c.threads, c.peak_gflops,
+                c.peak_kernel.c_str());
+  }
+}
+
+void PrintResidentMemory(const prof::ResourceUsage& usage, size_t sessions) {
+  if (sessions == 1) {
+    std::printf(
+        "peak resident memory %.1f MiB (this process: the model, one session, input and "
+        "output)\n",
+        static_cast<double>(usage.max_rss_kib) / 1024.0);
+  } else {
+    std::printf(
+        "peak resident memory %.1f MiB (all %zu sessions together; time one "
+        "configuration alone for one session's)\n",
+        static_cast<double>(usage.max_rss_kib) / 1024.0, sessions);
+  }
+}
+
+// `sfrt bench --model`: the configurations timed, their tables, --json and the budget's verdict.
+int RunModelBench(const BenchArgs& args, const std::vector<Isa>& isas,
+                  const std::vector<int>& thread_counts) {
   int height = 0, width = 0;
   double budget_percent = 99;
   if (std::string problem = CheckModelRunFlags(args, &height, &width, &budget_percent);
@@ -713,27 +756,10 @@ int RunBench(const BenchArgs& args) {
     return code;
   }
   BenchInput in;
-  in.height = height;
-  in.width = width;
-  const int channels = (*model)->metadata().input.channels;
-  in.input.resize(static_cast<size_t>(height) * width * channels);
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<float> dist(0.0f, 255.0f);
-  for (float& v : in.input) v = dist(rng);
-  in.output.resize(geometry->back().output.elements());
-  if (args.quantized_input) {
-    // Every configuration plans the same input quantisation (the model's); quantised once here,
-    // as a camera's preprocessing would (camera::Preprocessor::RunQuantized).
-    const std::optional<QuantParams> q = configs.front().session->InputQuantization();
-    if (!q) {
-      return ReportError(kName,
-                         "--quantized-input: " + args.model +
-                             " takes no uint8 input (its input is not read by int8 convolutions "
-                             "alone)",
-                         kExitUsage);
-    }
-    in.input_u8.resize(configs.front().session->QuantizedInputBytes(height, width));
-    for (size_t i = 0; i < in.input.size(); ++i) in.input_u8[i] = QuantizeInput(in.input[i], *q);
+  if (int code = MakeBenchInput(args, **model, configs, height, width,
+                                geometry->back().output.elements(), &in);
+      code != kExitOk) {
+    return code;
   }
 
   // Three significant digits: a small model's 0.0217 GMAC is not "0.02 GMAC (0.0 GFLOP)".
@@ -750,46 +776,15 @@ int RunBench(const BenchArgs& args) {
 
   if (!TimeRuns(args, in, migrations, configs)) return kExitFailure;
   const prof::ResourceUsage usage = prof::ReadResourceUsage();
-
-  // Peak FMA throughput per distinct (ISA, threads), measured after the timed runs.
   if (args.peak_seconds > 0) {
-    for (Config& c : configs) {
-      Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
-      if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
-      c.peak_gflops = peak->gflops;
-      c.peak_kernel = peak->kernel;
-    }
-    if (!PlaceConfigs(args, height, width, configs)) return kExitFailure;
+    if (int code = MeasurePeaks(args, height, width, configs); code != kExitOk) return code;
   }
-
   const Json results = PrintSummaryTable(args, configs, macs, migrations);
-  if (args.peak_seconds > 0) {
-    std::printf(
-        "%% peak: GFLOP/s / the peak FMA throughput of the same ISA and threads, measured "
-        "in this process after the runs:\n");
-    std::map<std::pair<Isa, int>, bool> shown;
-    for (const Config& c : configs) {
-      if (shown[{c.isa, c.threads}]) continue;
-      shown[{c.isa, c.threads}] = true;
-      std::printf("  %-6s x%d: %.1f GFLOP/s (%s)\n", IsaName(c.isa), c.threads, c.peak_gflops,
-                  c.peak_kernel.c_str());
-    }
-  }
-
+  if (args.peak_seconds > 0) PrintPeakNotes(configs);
   PrintProcessCounters(configs, migrations);
   PrintStepTables(args, configs);
   std::printf("\n");
-  if (configs.size() == 1) {
-    std::printf(
-        "peak resident memory %.1f MiB (this process: the model, one session, input and "
-        "output)\n",
-        static_cast<double>(usage.max_rss_kib) / 1024.0);
-  } else {
-    std::printf(
-        "peak resident memory %.1f MiB (all %zu sessions together; time one "
-        "configuration alone for one session's)\n",
-        static_cast<double>(usage.max_rss_kib) / 1024.0, configs.size());
-  }
+  PrintResidentMemory(usage, configs.size());
 
   bool budget_met = true;
   Json budget_json;
@@ -821,6 +816,37 @@ int RunBench(const BenchArgs& args) {
     return kExitBudgetMissed;
   }
   return kExitOk;
+}
+
+int RunBench(const BenchArgs& args) {
+  std::vector<Isa> isas;
+  std::vector<int> thread_counts;
+  if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
+  }
+  // Found out now, not after the measurements: where --json goes must take a file.
+  if (!args.json.empty()) {
+    if (std::string problem = CheckOutputFile(args.json, "--json"); !problem.empty()) {
+      return ReportError(kName, problem, kExitFailure);
+    }
+  }
+  if (args.peak_seconds < 0 || (args.peak && args.peak_seconds <= 0)) {
+    return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
+  }
+  if (args.peak) {
+    if (!args.model.empty() || args.budget_given) {
+      return ReportError(kName,
+                         "--peak runs only the peak microbenchmarks; it takes no --model or "
+                         "--budget-ms (a model run measures the peak by itself)",
+                         kExitUsage);
+    }
+    return RunPeak(args, isas, thread_counts);
+  }
+  if (args.model.empty()) {
+    return ReportError(kName, "--model is required (or --peak for the peak microbenchmarks)",
+                       kExitUsage);
+  }
+  return RunModelBench(args, isas, thread_counts);
 }
 
 }  // namespace
