@@ -23,7 +23,8 @@ Engines:
 - ort-int8: make_qdq_onnx.py's QDQ model (int8 weights per channel, uint8 activations from the
   same frames) in ONNX Runtime (npm onnxruntime-node; installed on first use as
   compare_peers.sh does), QLinearConv.
-- torch-bf16: the network and input in bfloat16 in PyTorch (oneDNN).
+- torch-bf16: the network and input in bfloat16, channels_last, in PyTorch (oneDNN), as
+  compare_peers.sh times it (torch_bench.py's network).
 --peers: any of torch-int8, ort-int8, torch-bf16 (default all three).
 --calibration: float32 .npy (N,H,W,12), as `sfrt export --calibration` reads it; default 2
 seeded frames of integers 0..255 at 96x128 (compare_peers.sh's).
@@ -261,12 +262,13 @@ def main(argv):
                 print(f"int8_accuracy.py: ort-int8 not measured: {why}", file=sys.stderr)
             else:
                 results["ort-int8"] = err
-        if "torch-bf16" in args.peer_list:
-            net = SceneEDNet(width_div, padding)
+        if "torch-bf16" in args.peer_list:  # as compare_peers.sh times it (torch_bench.py)
+            net = torch_bench.BenchNet(width_div, padding)
             net.load_state_dict(state, strict=True)
-            net = net.eval().to(torch.bfloat16)
+            net = net.eval().to(dtype=torch.bfloat16, memory_format=torch.channels_last)
+            xb = x.to(torch.bfloat16).contiguous(memory_format=torch.channels_last)
             with torch.inference_mode():
-                results["torch-bf16"] = errors(net(x.to(torch.bfloat16)).float().numpy(), ref)
+                results["torch-bf16"] = errors(net(xb).float().numpy(), ref)
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
