@@ -93,7 +93,8 @@ RooflinePoint PlaceStep(const StepWork& work, ComputeUnit unit, double median_ms
   const double peak = peaks.Of(unit);
   p.peak_gmacs = peak > 0 ? peak : kNaN;
   const double memory_roof = p.intensity * bandwidth;
-  // Both roofs known: the lower; one known: that one (a NaN compares false either way).
+  // The lower of the two roofs; without the unit's peak the roof is unknown, without the
+  // bandwidth it is the peak (a NaN compares false either way, so memory_bound stays false).
   p.memory_bound = memory_roof < p.peak_gmacs;
   p.roof_gmacs = std::isnan(memory_roof)    ? p.peak_gmacs
                  : std::isnan(p.peak_gmacs) ? kNaN  // no peak: the roof is not known
