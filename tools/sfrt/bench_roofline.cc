@@ -10,7 +10,7 @@ namespace {
 namespace prof = sfrt::profiling;
 using Json = nlohmann::ordered_json;
 
-std::string Cell(double v, int digits) { return prof::FormatCell(v, digits); }
+using prof::FormatCell;
 
 // Four significant digits: 19.33, 0.001234.
 std::string Significant(double v) {
@@ -21,7 +21,7 @@ std::string Significant(double v) {
 
 // A rate with its unit: "587.2 GMAC/s", "15.0 GB/s", "-".
 std::string Rate(double v, const char* unit) {
-  return std::isfinite(v) ? Cell(v, 1) + " " + unit : "-";
+  return std::isfinite(v) ? prof::FormatFixed(v, 1) + " " + unit : "-";
 }
 
 Json Nullable(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
@@ -88,20 +88,22 @@ std::string FormatRoofline(const std::vector<prof::StepRow>& rows, const prof::R
     std::snprintf(line, sizeof(line), "%4zu  %-28s %-11s %8s %8s %7s %8s %13s %13s %6s  %s\n", k,
                   name.c_str(), prof::ComputeUnitName(p.unit),
                   memory ? "-" : Significant(static_cast<double>(w.macs) * 1e-9).c_str(),
-                  Cell(static_cast<double>(w.bytes()) * 1e-6, 2).c_str(),
-                  memory ? "-" : Cell(p.intensity, 1).c_str(), Cell(rows[k].ms.p50, 3).c_str(),
-                  achieved.c_str(), roof.c_str(), Cell(100 * p.share, 1).c_str(), bound);
+                  FormatCell(static_cast<double>(w.bytes()) * 1e-6, 2).c_str(),
+                  memory ? "-" : FormatCell(p.intensity, 1).c_str(),
+                  FormatCell(rows[k].ms.p50, 3).c_str(), achieved.c_str(), roof.c_str(),
+                  FormatCell(100 * p.share, 1).c_str(), bound);
     out += line;
   }
   std::snprintf(line, sizeof(line),
                 "floor: every step at its roof %s ms; the median run %s ms is %sx it\n",
-                Cell(r.floor_ms, 3).c_str(), Cell(median_run_ms, 3).c_str(),
-                Cell(median_run_ms / r.floor_ms, 2).c_str());
+                FormatCell(r.floor_ms, 3).c_str(), FormatCell(median_run_ms, 3).c_str(),
+                FormatCell(median_run_ms / r.floor_ms, 2).c_str());
   out += line;
-  std::snprintf(
-      line, sizeof(line), "floor: all %s GMAC at the %s peak %s ms; the median run is %sx it\n",
-      Significant(static_cast<double>(r.macs) * 1e-9).c_str(), prof::ComputeUnitName(r.main_unit),
-      Cell(r.main_floor_ms, 3).c_str(), Cell(median_run_ms / r.main_floor_ms, 2).c_str());
+  std::snprintf(line, sizeof(line),
+                "floor: all %s GMAC at the %s peak %s ms; the median run is %sx it\n",
+                Significant(static_cast<double>(r.macs) * 1e-9).c_str(),
+                prof::ComputeUnitName(r.main_unit), FormatCell(r.main_floor_ms, 3).c_str(),
+                FormatCell(median_run_ms / r.main_floor_ms, 2).c_str());
   return out + line;
 }
 
