@@ -93,6 +93,13 @@ Counts Since(const Counts& before) {
           now.syscalls - before.syscalls, now.futex_calls - before.futex_calls};
 }
 
+// Steady-state runs per case on the SIMD paths: 100 natively. Under qemu or the sanitizers, where
+// a run is 10-50x slower, 25: a lock or system call taken at every run, or every few, still shows
+// there, and the native run of the same test covers the rarer ones.
+constexpr int kSteadyRuns = SFRT_TEST_EMULATED || SFRT_TEST_SANITIZED ? 25 : 100;
+// The scalar reference is ~50x slower than the SIMD paths: fewer runs there.
+constexpr int kSteadyRunsOfReference = 10;
+
 class NoLock : public ::testing::Test {
  protected:
   // Runs `runs` frames at 96x128 after `warm_up` frames; returns what was called meanwhile.
@@ -158,11 +165,11 @@ TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
       options.isa = isa;
       options.threads = 2;
       options.spin_us = -1;  // never sleep: the steady state of a busy pipeline, made certain
-      // 100 runs on the SIMD paths; the scalar reference is ~50x slower, so fewer there.
-      // The bf16 reference kernel sums in double: slower still, so fewer runs where it runs.
+      // The bf16 reference kernel sums in double: as slow as the reference wherever it runs.
       const bool slow =
           isa == Isa::kRef || (precision == Precision::kBFloat16 && !Bf16KernelsAvailable(isa));
-      const Counts c = CountDuringRuns(options, 5, slow ? 10 : 100, precision);
+      const Counts c =
+          CountDuringRuns(options, 5, slow ? kSteadyRunsOfReference : kSteadyRuns, precision);
       EXPECT_EQ(c.mutex_locks, 0);
       EXPECT_EQ(c.cond_waits, 0);
       EXPECT_EQ(c.futex_calls, 0);
@@ -175,8 +182,9 @@ TEST_F(NoLock, RunAtTwoThreadsTakesNoLockAndMakesNoSystemCallInSteadyState) {
     options.isa = isa;
     options.threads = 2;
     options.spin_us = -1;
-    const Counts c = CountDuringRuns(options, 5, isa == Isa::kRef ? 10 : 100, Precision::kFloat32,
-                                     /*graph=*/true);
+    const Counts c = CountDuringRuns(
+        options, 5, isa == Isa::kRef ? kSteadyRunsOfReference : kSteadyRuns, Precision::kFloat32,
+        /*graph=*/true);
     EXPECT_EQ(c.mutex_locks, 0);
     EXPECT_EQ(c.cond_waits, 0);
     EXPECT_EQ(c.futex_calls, 0);
@@ -191,7 +199,7 @@ TEST_F(NoLock, RunAtTwoThreadsWithTheDefaultSpinTakesNoMutex) {
   options.max_height = 96;
   options.max_width = 128;
   options.threads = 2;
-  const Counts c = CountDuringRuns(options, 5, 100);
+  const Counts c = CountDuringRuns(options, 5, kSteadyRuns);
   EXPECT_EQ(c.mutex_locks, 0);
   EXPECT_EQ(c.cond_waits, 0);
 }
