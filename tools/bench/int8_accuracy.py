@@ -3,11 +3,13 @@
 (issue 43, item 5): the bar is "no worse than the best peer", measured, not a fixed number.
 
 usage: int8_accuracy.py MODEL.onnx --sfrt BIN [--calibration CAL.npy] [--size HxW]
-                        [--threads N] [--peers LIST] [--engine E] [--json FILE] [--keep DIR]
+                        [--inputs N] [--threads N] [--peers LIST] [--engine E] [--json FILE]
+                        [--keep DIR]
 
 MODEL.onnx: a float SceneEDNet export (tests/fixtures/gen_sceneednet.py, any width divisor).
-Every engine runs the same input: ort_bench.mjs's seeded values in [0, 255) at --size (default
-the ONNX file's fixed size, else 96x128), NCHW (1, 12, H, W) (torch_bench.lcg_input). The error of each is
+Every engine runs the same --inputs inputs (default 8): ort_bench.mjs's seeded values in [0, 255)
+from seeds 1..N at --size (default the ONNX file's fixed size, else 96x128), NCHW (1, 12, H, W)
+(torch_bench.lcg_input). The error of each engine on each input is
   max_rel = max |out - ref| / max |ref|   and   rms_rel = RMS(out - ref) / RMS(ref)
 against the float32 network: PyTorch's SceneEDNet.forward on the ONNX file's weights (sfrt
 int8, sfrt bf16, torch-int8, torch-bf16), or ONNX Runtime's float32 run of the same file for
@@ -28,16 +30,23 @@ Engines:
 --peers: any of torch-int8, ort-int8, torch-bf16 (default all three).
 --calibration: float32 .npy (N,H,W,12), as `sfrt export --calibration` reads it; default 2
 seeded frames of integers 0..255 at 96x128 (compare_peers.sh's).
-Prints a table and the verdicts: sfrt int8's max_rel against the best int8 peer's, sfrt bf16's
-against torch-bf16's; exit 0 when both hold (or have no peer to hold against), 3 when one
-does not, 1 on an error. --json: the same as a document. Needs Debian's /usr/bin/python3 with
+Prints a table (each engine's errors on the first input and their means over all) and the
+verdicts: sfrt int8's max_rel against the best int8 peer's (the lowest mean), sfrt bf16's against
+torch-bf16's. One input is one draw of where the roundings fall: two engines rounding at
+different points differ by 10-20% on one input and swap places on the next, so the verdict is
+paired over the inputs: sfrt is WORSE when its mean max_rel exceeds the peer's by more than twice
+the standard error of the per-input differences (with one input: when it exceeds it at all).
+Exit 0 when both hold (or have no peer to hold against), 3 when one does not, 1 on an error.
+--json: the same as a document, with every input's errors. Needs Debian's /usr/bin/python3 with
 python3-torch, python3-onnx, python3-numpy; node for ort-int8.
 """
 
 import argparse
 import json
+import math
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -75,14 +84,19 @@ def run(cmd, what, **kwargs):
     return proc
 
 
-def sfrt_output(args, work, precision, x_nhwc_path, height, width):
-    """sfrt's output (1, 3, H, W) for the model exported in `precision`."""
+def sfrt_export(args, work, precision):
+    """The model exported in `precision`: its path."""
     model = os.path.join(work, f"model-{precision}.sfrt")
     cmd = [args.sfrt, "export", args.model, "-o", model, "--precision", precision]
     if precision == "int8":
         cmd += ["--calibration", args.calibration]
     run(cmd, f"sfrt export --precision {precision}")
-    out = os.path.join(work, f"out-{precision}.npy")
+    return model
+
+
+def sfrt_output(args, work, model, precision, index, x_nhwc_path, height, width):
+    """sfrt's output (1, 3, H, W) for the exported `model` on input `index`."""
+    out = os.path.join(work, f"out-{precision}-{index}.npy")
     run([args.sfrt, "infer", "--model", model, "--input-npy", x_nhwc_path, "-o", out],
         f"sfrt infer ({precision})")
     y = np.load(out)
@@ -104,7 +118,8 @@ class QuantNet(SceneEDNet):
         return self.dequant(SceneEDNet.forward(self, self.quant(x)))
 
 
-def torch_int8_output(state, width_div, padding, engine, frames, x):
+def torch_int8_net(state, width_div, padding, engine, frames):
+    """PyTorch's quantised network, calibrated on `frames`, and what it is (engine, observers)."""
     torch.backends.quantized.engine = engine
     net = QuantNet(width_div, padding)
     net.load_state_dict(state, strict=True)
@@ -122,13 +137,12 @@ def torch_int8_output(state, width_div, padding, engine, frames, x):
         fail(f"torch-int8: {len(convs)} quantised convolutions, expected 11")
     per_channel = all(c.weight().qscheme() == torch.per_channel_symmetric
                       or c.weight().qscheme() == torch.per_channel_affine for c in convs)
-    with torch.inference_mode():
-        return net(x).numpy(), {"engine": engine, "weights_per_channel": per_channel,
-                                "observers": observers}
+    return net, {"engine": engine, "weights_per_channel": per_channel, "observers": observers}
 
 
 def ort_int8_errors(args, work, height, width):
-    """make_qdq_onnx.py's QDQ model in ONNX Runtime: its errors against ORT's float32 run."""
+    """make_qdq_onnx.py's QDQ model in ONNX Runtime: its errors against ORT's float32 run on each
+    input (seeds 1..--inputs), or None and why it could not run."""
     if shutil.which("node") is None:
         return None, "node not found (apt-get install nodejs npm)"
     if not os.path.isdir(os.path.join(HERE, "node_modules", "onnxruntime-node")):
@@ -142,15 +156,21 @@ def ort_int8_errors(args, work, height, width):
     qdq = os.path.join(work, "model-qdq.onnx")
     run([sys.executable, os.path.join(HERE, "make_qdq_onnx.py"), args.model, "-o", qdq,
          "--calibration", args.calibration], "make_qdq_onnx.py")
-    proc = run(["node", os.path.join(HERE, "ort_bench.mjs"), f"--reference={args.model}",
-                f"--profile={os.path.join(work, 'ort-profile')}", qdq, str(height), str(width),
-                str(args.threads), "1", "0"], "ort_bench.mjs")
-    line = json.loads(proc.stdout.strip().splitlines()[-1])
-    float_convs = [op for op in line.get("ops", {}) if op in ("Conv", "FusedConv")]
-    if float_convs or "QLinearConv" not in line.get("ops", {}):
-        fail(f"ort-int8: ONNX Runtime ran {', '.join(float_convs) or 'no QLinearConv'}")
-    ref = line["vs_reference"]
-    return {"max_rel": ref["max_rel"], "rms_rel": ref["rms_rel"]}, ""
+    per_input = []
+    for seed in range(1, args.inputs + 1):
+        # The profile (first input only) shows which kernels ran.
+        profile = [f"--profile={os.path.join(work, 'ort-profile')}"] if seed == 1 else []
+        proc = run(["node", os.path.join(HERE, "ort_bench.mjs"), f"--reference={args.model}",
+                    f"--seed={seed}", *profile, qdq, str(height), str(width), str(args.threads),
+                    "1", "0"], "ort_bench.mjs")
+        line = json.loads(proc.stdout.strip().splitlines()[-1])
+        if seed == 1:
+            float_convs = [op for op in line.get("ops", {}) if op in ("Conv", "FusedConv")]
+            if float_convs or "QLinearConv" not in line.get("ops", {}):
+                fail(f"ort-int8: ONNX Runtime ran {', '.join(float_convs) or 'no QLinearConv'}")
+        ref = line["vs_reference"]
+        per_input.append({"max_rel": ref["max_rel"], "rms_rel": ref["rms_rel"]})
+    return per_input, ""
 
 
 def onnx_input_size(path):
@@ -170,6 +190,8 @@ def parse_args(argv):
     p.add_argument("--calibration", help="float32 .npy (N,H,W,12) calibration frames")
     p.add_argument("--size", help="input HxW (default: the ONNX file's, when fixed; else "
                    "96x128)")
+    p.add_argument("--inputs", type=int, default=8,
+                   help="inputs every engine runs (seeds 1..N; default 8)")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--peers", default=",".join(PEERS), help="any of " + ", ".join(PEERS))
     p.add_argument("--engine", help="PyTorch quantised engine (default onednn, else x86)")
@@ -186,6 +208,8 @@ def parse_args(argv):
     if fixed and (height, width) != fixed:
         p.error(f"--size: {args.model} takes a fixed {fixed[0]}x{fixed[1]} input (ONNX Runtime "
                 f"runs it at no other size), not {args.size}")
+    if args.inputs < 1:
+        p.error(f"--inputs: at least 1, got {args.inputs}")
     if height < 8 or width < 8:
         p.error(f"--size: {args.size} is too small (at least 8x8)")
     args.peer_list = [q for q in args.peers.split(",") if q]
@@ -203,22 +227,80 @@ def parse_args(argv):
     return args, height, width
 
 
+def mean_of(per_input, key):
+    return sum(e[key] for e in per_input) / len(per_input)
+
+
+def paired_difference(ours, peer):
+    """sfrt's max_rel minus the peer's, input by input: (mean, twice its standard error or None
+    with one input, the inputs where sfrt's is the lower)."""
+    d = [a["max_rel"] - b["max_rel"] for a, b in zip(ours, peer)]
+    two_se = 2 * statistics.stdev(d) / math.sqrt(len(d)) if len(d) > 1 else None
+    return sum(d) / len(d), two_se, sum(x < 0 for x in d)
+
+
 def verdicts(results):
-    """sfrt int8 against the best int8 peer, sfrt bf16 against torch-bf16: (lines, all held)."""
+    """sfrt int8 against the best int8 peer, sfrt bf16 against torch-bf16, paired over the
+    inputs: (lines, all held)."""
     lines, held = [], True
     for precision, peers in (("int8", ("torch-int8", "ort-int8")), ("bf16", ("torch-bf16",))):
         ours = results.get(f"sfrt-{precision}")
-        measured = [(results[q]["max_rel"], q) for q in peers if q in results]
+        measured = [(mean_of(results[q], "max_rel"), q) for q in peers if q in results]
         if ours is None or not measured:
             lines.append(f"sfrt {precision}: no peer measured, no verdict")
             continue
         best, name = min(measured)
-        ok = ours["max_rel"] <= best
+        n = min(len(ours), len(results[name]))
+        diff, two_se, lower = paired_difference(ours[:n], results[name][:n])
+        ok = diff <= (two_se if two_se is not None else 0.0)
         held = held and ok
-        lines.append(f"sfrt {precision}: max_rel {ours['max_rel']:.3e} "
-                     f"{'<=' if ok else '>'} best peer {name} {best:.3e}: "
-                     f"{'no worse' if ok else 'WORSE'}")
+        word = "no worse" if diff <= 0 else "no worse within the inputs' spread" if ok else "WORSE"
+        spread = f", 2 s.e. {two_se:.2e}" if two_se is not None else ""
+        lines.append(f"sfrt {precision}: mean max_rel {mean_of(ours, 'max_rel'):.3e} against "
+                     f"best peer {name} {best:.3e} (x{mean_of(ours, 'max_rel') / best:.3f}; "
+                     f"sfrt lower on {lower} of {n} inputs; difference {diff:+.2e}{spread}): "
+                     f"{word}")
     return lines, held
+
+
+def run_engines(args, work, state, width_div, padding, frames_nchw, height, width):
+    """Every engine on every input: ({engine: [errors per input]}, {engine: notes})."""
+    inputs = [torch_bench.lcg_input(height, width, seed) for seed in range(1, args.inputs + 1)]
+    reference_net = SceneEDNet(width_div, padding)
+    reference_net.load_state_dict(state, strict=True)
+    reference_net.eval()
+    with torch.inference_mode():
+        refs = [reference_net(x).numpy() for x in inputs]
+    results, notes = {}, {}
+    for precision in ("int8", "bf16"):
+        model = sfrt_export(args, work, precision)
+        results[f"sfrt-{precision}"] = []
+        for i, (x, ref) in enumerate(zip(inputs, refs)):
+            x_path = os.path.join(work, f"input-{i + 1}.npy")
+            np.save(x_path, x.numpy()[0].transpose(1, 2, 0))
+            y = sfrt_output(args, work, model, precision, i + 1, x_path, height, width)
+            results[f"sfrt-{precision}"].append(errors(y, ref))
+    if "torch-int8" in args.peer_list:
+        net, notes["torch-int8"] = torch_int8_net(state, width_div, padding, args.engine,
+                                                  frames_nchw)
+        with torch.inference_mode():
+            results["torch-int8"] = [errors(net(x).numpy(), ref) for x, ref in zip(inputs, refs)]
+    if "ort-int8" in args.peer_list:
+        per_input, why = ort_int8_errors(args, work, height, width)
+        if per_input is None:
+            notes["ort-int8"] = {"unavailable": why}
+            print(f"int8_accuracy.py: ort-int8 not measured: {why}", file=sys.stderr)
+        else:
+            results["ort-int8"] = per_input
+    if "torch-bf16" in args.peer_list:  # as compare_peers.sh times it (torch_bench.py)
+        net = torch_bench.BenchNet(width_div, padding)
+        net.load_state_dict(state, strict=True)
+        net = net.eval().to(dtype=torch.bfloat16, memory_format=torch.channels_last)
+        with torch.inference_mode():
+            results["torch-bf16"] = [
+                errors(net(x.to(torch.bfloat16).contiguous(memory_format=torch.channels_last))
+                       .float().numpy(), ref) for x, ref in zip(inputs, refs)]
+    return results, notes
 
 
 def main(argv):
@@ -238,58 +320,38 @@ def main(argv):
         frames_nchw = [torch.from_numpy(np.ascontiguousarray(f.transpose(2, 0, 1)))[None]
                        for f in frames]
         state, width_div, padding = torch_bench.read_onnx(args.model)
-        x = torch_bench.lcg_input(height, width)
-        reference_net = SceneEDNet(width_div, padding)
-        reference_net.load_state_dict(state, strict=True)
-        reference_net.eval()
-        with torch.inference_mode():
-            ref = reference_net(x).numpy()
-        x_path = os.path.join(work, "input.npy")
-        np.save(x_path, x.numpy()[0].transpose(1, 2, 0))
-
-        results, notes = {}, {}
-        for precision in ("int8", "bf16"):
-            y = sfrt_output(args, work, precision, x_path, height, width)
-            results[f"sfrt-{precision}"] = errors(y, ref)
-        if "torch-int8" in args.peer_list:
-            y, facts = torch_int8_output(state, width_div, padding, args.engine, frames_nchw, x)
-            results["torch-int8"] = errors(y, ref)
-            notes["torch-int8"] = facts
-        if "ort-int8" in args.peer_list:
-            err, why = ort_int8_errors(args, work, height, width)
-            if err is None:
-                notes["ort-int8"] = {"unavailable": why}
-                print(f"int8_accuracy.py: ort-int8 not measured: {why}", file=sys.stderr)
-            else:
-                results["ort-int8"] = err
-        if "torch-bf16" in args.peer_list:  # as compare_peers.sh times it (torch_bench.py)
-            net = torch_bench.BenchNet(width_div, padding)
-            net.load_state_dict(state, strict=True)
-            net = net.eval().to(dtype=torch.bfloat16, memory_format=torch.channels_last)
-            xb = x.to(torch.bfloat16).contiguous(memory_format=torch.channels_last)
-            with torch.inference_mode():
-                results["torch-bf16"] = errors(net(xb).float().numpy(), ref)
+        results, notes = run_engines(args, work, state, width_div, padding, frames_nchw, height,
+                                     width)
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
 
     print(f"model {args.model} (1/{width_div} width, {padding} padding) at {height}x{width}, "
-          f"calibration {frames.shape[0]} frame(s) {frames.shape[1]}x{frames.shape[2]}")
-    print(f"{'engine':<12} {'max_rel':>10} {'rms_rel':>10}  against")
-    for name, e in results.items():
+          f"calibration {frames.shape[0]} frame(s) {frames.shape[1]}x{frames.shape[2]}, "
+          f"{args.inputs} input(s)")
+    print(f"{'engine':<12} {'max_rel':>10} {'rms_rel':>10} {'mean max':>10} {'mean rms':>10}  "
+          f"against")
+    for name, per_input in results.items():
         against = "ONNX Runtime float32" if name == "ort-int8" else "PyTorch float32"
-        print(f"{name:<12} {e['max_rel']:>10.3e} {e['rms_rel']:>10.3e}  {against}")
+        print(f"{name:<12} {per_input[0]['max_rel']:>10.3e} {per_input[0]['rms_rel']:>10.3e} "
+              f"{mean_of(per_input, 'max_rel'):>10.3e} {mean_of(per_input, 'rms_rel'):>10.3e}  "
+              f"{against}")
+    print("(max_rel, rms_rel: the first input, seed 1; mean: over the inputs)")
     for name, facts in notes.items():
         print(f"{name}: {facts}")
     lines, held = verdicts(results)
     for line in lines:
         print(line)
     if args.json:
+        summary = {name: {"max_rel": e[0]["max_rel"], "rms_rel": e[0]["rms_rel"],
+                          "mean_max_rel": mean_of(e, "max_rel"),
+                          "mean_rms_rel": mean_of(e, "rms_rel"), "per_input": e}
+                   for name, e in results.items()}
         with open(args.json, "w") as f:
             json.dump({"model": args.model, "height": height, "width": width,
                        "width_div": width_div, "calibration": args.calibration,
-                       "results": results, "notes": notes, "verdicts": lines, "held": held},
-                      f, indent=2)
+                       "inputs": args.inputs, "results": summary, "notes": notes,
+                       "verdicts": lines, "held": held}, f, indent=2)
     return 0 if held else EXIT_BAR_MISSED
 
 

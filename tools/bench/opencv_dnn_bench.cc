@@ -30,12 +30,12 @@ int ParsePositive(const char* text, const char* what) {
   return static_cast<int>(v);
 }
 
-// ort_bench.mjs: seed = (seed * 1103515245 + 12345) >>> 0 in IEEE doubles; value = seed/2^32*255.
+// ort_bench.mjs's input: seed = seed * 1103515245 + 12345 mod 2^32 (exact, in uint32_t) from
+// seed 1; value = seed / 2^32 * 255 in double.
 void FillLikeOrtBench(float* data, size_t n) {
   uint32_t seed = 1;
   for (size_t i = 0; i < n; ++i) {
-    const double next = static_cast<double>(seed) * 1103515245.0 + 12345.0;
-    seed = static_cast<uint32_t>(static_cast<uint64_t>(std::fmod(next, 4294967296.0)));
+    seed = seed * 1103515245u + 12345u;
     data[i] = static_cast<float>(static_cast<double>(seed) / 4294967296.0 * 255.0);
   }
 }

@@ -1,9 +1,11 @@
 // Times an ONNX file with ONNX Runtime (npm onnxruntime-node, CPU execution provider) the way
 // `sfrt bench` times a .sfrt: warm-up, then N runs, median / p90 / min, printed as one JSON line.
 // Install once: cd tools/bench && ONNXRUNTIME_NODE_INSTALL=skip npm install
-// Usage: node tools/bench/ort_bench.mjs [--profile=PREFIX] [--reference=FLOAT.onnx]
+// Usage: node tools/bench/ort_bench.mjs [--profile=PREFIX] [--reference=FLOAT.onnx] [--seed=N]
 //          MODEL.onnx HEIGHT WIDTH [THREADS=1] [RUNS=5] [WARMUP=1]
-// The input is float32 NCHW (1, 12, H, W), seeded values in [0, 255).
+// The input is float32 NCHW (1, 12, H, W), seeded values in [0, 255): the generator
+// seed = seed * 1103515245 + 12345 mod 2^32 from --seed (default 1), each value seed / 2^32 * 255,
+// as torch_bench.py's lcg_input makes it.
 // --profile: ORT's profiler on (enableProfiling; it slows the runs); the profile is written to
 //   PREFIX_<date>.json and the JSON line gets "ops": per node type ran, the nodes and their
 //   kernel time (ms, all runs), e.g. QLinearConv (int8) rather than Conv / FusedConv (float).
@@ -18,11 +20,11 @@ const require = createRequire(import.meta.url);
 const ort = require('onnxruntime-node');
 
 const usage = 'usage: node ort_bench.mjs [--profile=PREFIX] [--reference=FLOAT.onnx] ' +
-  'MODEL.onnx HEIGHT WIDTH [THREADS] [RUNS] [WARMUP]';
+  '[--seed=N] MODEL.onnx HEIGHT WIDTH [THREADS] [RUNS] [WARMUP]';
 const flags = {};
 const positional = [];
 for (const arg of process.argv.slice(2)) {
-  const m = /^--(profile|reference)=(.+)$/.exec(arg);
+  const m = /^--(profile|reference|seed)=(.+)$/.exec(arg);
   if (m) flags[m[1]] = m[2];
   else if (arg.startsWith('--')) {
     console.error(`ort_bench.mjs: unknown option ${arg}\n${usage}`);
@@ -46,9 +48,15 @@ const session = await ort.InferenceSession.create(model, {
   ...(flags.profile ? { enableProfiling: true, profileFilePrefix: flags.profile } : {}),
 });
 const data = new Float32Array(12 * height * width);
-let seed = 1;
+if (!/^[0-9]+$/.test(flags.seed ?? '1') || Number(flags.seed ?? 1) >= 2 ** 32) {
+  console.error(`ort_bench.mjs: --seed must be an integer in [0, 2^32), got ${flags.seed}`);
+  process.exit(2);
+}
+let seed = Number(flags.seed ?? 1);
 for (let i = 0; i < data.length; ++i) {
-  seed = (seed * 1103515245 + 12345) >>> 0;
+  // Math.imul: the product's low 32 bits exactly (a double product past 2^53 would lose them,
+  // and the sequence would fall into a short cycle).
+  seed = (Math.imul(seed, 1103515245) + 12345) >>> 0;
   data[i] = (seed / 4294967296) * 255;
 }
 const feeds = { [session.inputNames[0]]: new ort.Tensor('float32', data, [1, 12, height, width]) };

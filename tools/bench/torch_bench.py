@@ -98,14 +98,13 @@ def read_onnx(path):
     return state, width_div, padding
 
 
-def lcg_input(height, width):
-    """ort_bench.mjs's input: seed = seed * 1103515245 + 12345 mod 2^32 from seed 1, each value
-    seed / 2^32 * 255 in double, stored as float32; NCHW (1, 12, H, W)."""
+def lcg_input(height, width, seed=1):
+    """ort_bench.mjs's input (its --seed): seed = seed * 1103515245 + 12345 mod 2^32 from `seed`,
+    each value seed / 2^32 * 255 in double, stored as float32; NCHW (1, 12, H, W)."""
     n = IN_CHANNELS * height * width
     a, c, mask = 1103515245, 12345, 0xFFFFFFFF
     k = 4096  # values per row; each row is the previous one advanced k steps at once
     first = np.empty(k, np.uint64)
-    seed = 1
     for i in range(k):
         seed = (seed * a + c) & mask
         first[i] = seed
