@@ -271,15 +271,15 @@ def run_engines(args, work, state, width_div, padding, frames_nchw, height, widt
     reference_net.eval()
     with torch.inference_mode():
         refs = [reference_net(x).numpy() for x in inputs]
+    x_paths = [os.path.join(work, f"input-{i + 1}.npy") for i in range(len(inputs))]
+    for x, x_path in zip(inputs, x_paths):
+        np.save(x_path, x.numpy()[0].transpose(1, 2, 0))  # NHWC, as sfrt infer reads it
     results, notes = {}, {}
     for precision in ("int8", "bf16"):
         model = sfrt_export(args, work, precision)
-        results[f"sfrt-{precision}"] = []
-        for i, (x, ref) in enumerate(zip(inputs, refs)):
-            x_path = os.path.join(work, f"input-{i + 1}.npy")
-            np.save(x_path, x.numpy()[0].transpose(1, 2, 0))
-            y = sfrt_output(args, work, model, precision, i + 1, x_path, height, width)
-            results[f"sfrt-{precision}"].append(errors(y, ref))
+        results[f"sfrt-{precision}"] = [
+            errors(sfrt_output(args, work, model, precision, i + 1, x_path, height, width), ref)
+            for i, (x_path, ref) in enumerate(zip(x_paths, refs))]
     if "torch-int8" in args.peer_list:
         net, notes["torch-int8"] = torch_int8_net(state, width_div, padding, args.engine,
                                                   frames_nchw)

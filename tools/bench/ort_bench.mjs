@@ -48,11 +48,12 @@ const session = await ort.InferenceSession.create(model, {
   ...(flags.profile ? { enableProfiling: true, profileFilePrefix: flags.profile } : {}),
 });
 const data = new Float32Array(12 * height * width);
-if (!/^[0-9]+$/.test(flags.seed ?? '1') || Number(flags.seed ?? 1) >= 2 ** 32) {
-  console.error(`ort_bench.mjs: --seed must be an integer in [0, 2^32), got ${flags.seed}`);
+const seedText = flags.seed ?? '1';
+if (!/^[0-9]+$/.test(seedText) || Number(seedText) >= 2 ** 32) {
+  console.error(`ort_bench.mjs: --seed must be an integer in [0, 2^32), got ${seedText}`);
   process.exit(2);
 }
-let seed = Number(flags.seed ?? 1);
+let seed = Number(seedText);
 for (let i = 0; i < data.length; ++i) {
   // Math.imul: the product's low 32 bits exactly (a double product past 2^53 would lose them,
   // and the sequence would fall into a short cycle).
