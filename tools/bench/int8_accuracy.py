@@ -2,11 +2,13 @@
 """sfrt's int8 and bf16 error against its peers' on the same network, calibration and input
 (issue 43, item 5): the bar is "no worse than the best peer", measured, not a fixed number.
 
-usage: int8_accuracy.py MODEL.onnx --sfrt BIN [--calibration CAL.npy] [--size HxW]
-                        [--inputs N] [--threads N] [--peers LIST] [--engine E] [--json FILE]
-                        [--keep DIR]
+usage: int8_accuracy.py MODEL.onnx [MODEL.onnx ...] --sfrt BIN [--calibration CAL.npy]
+                        [--size HxW] [--inputs N] [--threads N] [--peers LIST] [--engine E]
+                        [--json FILE] [--keep DIR]
 
-MODEL.onnx: a float SceneEDNet export (tests/fixtures/gen_sceneednet.py, any width divisor).
+MODEL.onnx: a float SceneEDNet export (tests/fixtures/gen_sceneednet.py, any width divisor);
+several: the same measurement on each network (gen_sceneednet.py --seed S makes one network per
+seed), and the verdicts pooled over the networks (below).
 Every engine runs the same --inputs inputs (default 8): ort_bench.mjs's seeded values in [0, 255)
 from seeds 1..N at --size (default the ONNX file's fixed size, else 96x128), NCHW (1, 12, H, W)
 (torch_bench.lcg_input). The error of each engine on each input is
@@ -36,8 +38,12 @@ torch-bf16's. One input is one draw of where the roundings fall: two engines rou
 different points differ by 10-20% on one input and swap places on the next, so the verdict is
 paired over the inputs: sfrt is WORSE when its mean max_rel exceeds the peer's by more than twice
 the standard error of the per-input differences (with one input: when it exceeds it at all).
+The inputs share one network, and so one draw of where the weights' roundings fall: on the
+full-width fixture (seed 0) sfrt bf16 is x1.07 torch-bf16 over 8 inputs, on the network of seed 1
+x0.85. With several networks the verdict is paired over the networks instead: each network's
+mean difference over its inputs, WORSE when their mean exceeds twice their standard error.
 Exit 0 when both hold (or have no peer to hold against), 3 when one does not, 1 on an error.
---json: the same as a document, with every input's errors. Needs Debian's /usr/bin/python3 with
+--json: the same as a document (one entry per network in "models"), with every input's errors. Needs Debian's /usr/bin/python3 with
 python3-torch, python3-onnx, python3-numpy; node for ort-int8.
 """
 
@@ -84,10 +90,10 @@ def run(cmd, what, **kwargs):
     return proc
 
 
-def sfrt_export(args, work, precision):
+def sfrt_export(args, onnx_path, work, precision):
     """The model exported in `precision`: its path."""
     model = os.path.join(work, f"model-{precision}.sfrt")
-    cmd = [args.sfrt, "export", args.model, "-o", model, "--precision", precision]
+    cmd = [args.sfrt, "export", onnx_path, "-o", model, "--precision", precision]
     if precision == "int8":
         cmd += ["--calibration", args.calibration]
     run(cmd, f"sfrt export --precision {precision}")
@@ -140,7 +146,7 @@ def torch_int8_net(state, width_div, padding, engine, frames):
     return net, {"engine": engine, "weights_per_channel": per_channel, "observers": observers}
 
 
-def ort_int8_errors(args, work, height, width):
+def ort_int8_errors(args, onnx_path, work, height, width):
     """make_qdq_onnx.py's QDQ model in ONNX Runtime: its errors against ORT's float32 run on each
     input (seeds 1..--inputs), or None and why it could not run."""
     if shutil.which("node") is None:
@@ -154,13 +160,13 @@ def ort_int8_errors(args, work, height, width):
         if proc.returncode != 0:
             return None, f"npm install onnxruntime-node failed: {proc.stderr.strip()[-300:]}"
     qdq = os.path.join(work, "model-qdq.onnx")
-    run([sys.executable, os.path.join(HERE, "make_qdq_onnx.py"), args.model, "-o", qdq,
+    run([sys.executable, os.path.join(HERE, "make_qdq_onnx.py"), onnx_path, "-o", qdq,
          "--calibration", args.calibration], "make_qdq_onnx.py")
     per_input = []
     for seed in range(1, args.inputs + 1):
         # The profile (first input only) shows which kernels ran.
         profile = [f"--profile={os.path.join(work, 'ort-profile')}"] if seed == 1 else []
-        proc = run(["node", os.path.join(HERE, "ort_bench.mjs"), f"--reference={args.model}",
+        proc = run(["node", os.path.join(HERE, "ort_bench.mjs"), f"--reference={onnx_path}",
                     f"--seed={seed}", *profile, qdq, str(height), str(width), str(args.threads),
                     "1", "0"], "ort_bench.mjs")
         line = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -185,7 +191,8 @@ def onnx_input_size(path):
 def parse_args(argv):
     p = argparse.ArgumentParser(prog="int8_accuracy.py",
                                 description="sfrt int8/bf16 error against its peers'.")
-    p.add_argument("model")
+    p.add_argument("models", nargs="+", metavar="MODEL.onnx",
+                   help="one or more float SceneEDNet ONNX files")
     p.add_argument("--sfrt", required=True, help="the sfrt binary")
     p.add_argument("--calibration", help="float32 .npy (N,H,W,12) calibration frames")
     p.add_argument("--size", help="input HxW (default: the ONNX file's, when fixed; else "
@@ -198,20 +205,14 @@ def parse_args(argv):
     p.add_argument("--json", help="also write the results here")
     p.add_argument("--keep", help="keep the exported models and outputs in this folder")
     args = p.parse_args(argv)
-    fixed = onnx_input_size(args.model) if os.path.isfile(args.model) else None
-    if args.size is None:
-        args.size = f"{fixed[0]}x{fixed[1]}" if fixed else "96x128"
-    try:
-        height, width = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        p.error(f"--size: expected HxW, got {args.size!r}")
-    if fixed and (height, width) != fixed:
-        p.error(f"--size: {args.model} takes a fixed {fixed[0]}x{fixed[1]} input (ONNX Runtime "
-                f"runs it at no other size), not {args.size}")
+    for path in args.models + [args.sfrt]:
+        if not os.path.isfile(path):
+            p.error(f"{'--sfrt' if path == args.sfrt else 'MODEL'}: no file {path!r}")
+    if len(set(args.models)) != len(args.models):
+        p.error("MODEL: a file is given twice (the verdict pairs distinct networks)")
+    args.sizes = [model_size(p, args.size, path) for path in args.models]
     if args.inputs < 1:
         p.error(f"--inputs: at least 1, got {args.inputs}")
-    if height < 8 or width < 8:
-        p.error(f"--size: {args.size} is too small (at least 8x8)")
     args.peer_list = [q for q in args.peers.split(",") if q]
     for q in args.peer_list:
         if q not in PEERS:
@@ -221,50 +222,74 @@ def parse_args(argv):
         args.engine = next((e for e in ("onednn", "x86", "fbgemm") if e in engines), None)
     if "torch-int8" in args.peer_list and args.engine not in engines:
         p.error(f"--engine: {args.engine!r} is not one of this PyTorch's {engines}")
-    for path, what in ((args.model, "MODEL"), (args.sfrt, "--sfrt")):
-        if not os.path.isfile(path):
-            p.error(f"{what}: no file {path!r}")
-    return args, height, width
+    return args
+
+
+def model_size(p, size, path):
+    """(H, W) the engines run `path` at: --size, else its fixed input size, else 96x128."""
+    fixed = onnx_input_size(path)
+    if size is None:
+        size = f"{fixed[0]}x{fixed[1]}" if fixed else "96x128"
+    try:
+        height, width = (int(v) for v in size.lower().split("x"))
+    except ValueError:
+        p.error(f"--size: expected HxW, got {size!r}")
+    if fixed and (height, width) != fixed:
+        p.error(f"--size: {path} takes a fixed {fixed[0]}x{fixed[1]} input (ONNX Runtime runs "
+                f"it at no other size), not {size}")
+    if height < 8 or width < 8:
+        p.error(f"--size: {size} is too small (at least 8x8)")
+    return height, width
 
 
 def mean_of(per_input, key):
     return sum(e[key] for e in per_input) / len(per_input)
 
 
-def paired_difference(ours, peer):
-    """sfrt's max_rel minus the peer's, input by input: (mean, twice its standard error or None
-    with one input, the inputs where sfrt's is the lower)."""
-    d = [a["max_rel"] - b["max_rel"] for a, b in zip(ours, peer)]
+def paired_difference(d):
+    """The mean of the differences d (sfrt's minus the peer's), twice its standard error (None
+    for one difference), and how many are below 0."""
     two_se = 2 * statistics.stdev(d) / math.sqrt(len(d)) if len(d) > 1 else None
     return sum(d) / len(d), two_se, sum(x < 0 for x in d)
 
 
-def verdicts(results):
-    """sfrt int8 against the best int8 peer, sfrt bf16 against torch-bf16, paired over the
-    inputs: (lines, all held)."""
+def verdicts(measured):
+    """sfrt int8 against the best int8 peer, sfrt bf16 against torch-bf16 (the best: the lowest
+    mean max_rel over every network's inputs), paired over the inputs of one network or over the
+    networks: (lines, all held)."""
     lines, held = [], True
     for precision, peers in (("int8", ("torch-int8", "ort-int8")), ("bf16", ("torch-bf16",))):
-        ours = results.get(f"sfrt-{precision}")
-        measured = [(mean_of(results[q], "max_rel"), q) for q in peers if q in results]
-        if ours is None or not measured:
+        ours = f"sfrt-{precision}"
+        pooled = {q: [e for m in measured for e in m["results"].get(q, [])]
+                  for q in (ours,) + peers}
+        candidates = [(mean_of(pooled[q], "max_rel"), q) for q in peers
+                      if all(q in m["results"] for m in measured)]
+        if not pooled[ours] or not candidates:
             lines.append(f"sfrt {precision}: no peer measured, no verdict")
             continue
-        best, name = min(measured)
-        n = min(len(ours), len(results[name]))
-        diff, two_se, lower = paired_difference(ours[:n], results[name][:n])
+        best, name = min(candidates)
+        # Per input of the one network, or per network (the mean over its inputs).
+        per_unit = [[a["max_rel"] - b["max_rel"]
+                     for a, b in zip(m["results"][ours], m["results"][name])] for m in measured]
+        units = per_unit[0] if len(measured) == 1 else [sum(d) / len(d) for d in per_unit]
+        unit = "inputs" if len(measured) == 1 else "networks"
+        diff, two_se, lower = paired_difference(units)
         ok = diff <= (two_se if two_se is not None else 0.0)
         held = held and ok
-        word = "no worse" if diff <= 0 else "no worse within the inputs' spread" if ok else "WORSE"
+        word = ("no worse" if diff <= 0 else f"no worse within the {unit}' spread" if ok
+                else "WORSE")
         spread = f", 2 s.e. {two_se:.2e}" if two_se is not None else ""
-        lines.append(f"sfrt {precision}: mean max_rel {mean_of(ours, 'max_rel'):.3e} against "
-                     f"best peer {name} {best:.3e} (x{mean_of(ours, 'max_rel') / best:.3f}; "
-                     f"sfrt lower on {lower} of {n} inputs; difference {diff:+.2e}{spread}): "
-                     f"{word}")
+        mean = mean_of(pooled[ours], "max_rel")
+        lines.append(f"sfrt {precision}: mean max_rel {mean:.3e} against best peer {name} "
+                     f"{best:.3e} (x{mean / best:.3f}; sfrt lower on {lower} of {len(units)} "
+                     f"{unit}; difference {diff:+.2e}{spread}): {word}")
     return lines, held
 
 
-def run_engines(args, work, state, width_div, padding, frames_nchw, height, width):
-    """Every engine on every input: ({engine: [errors per input]}, {engine: notes})."""
+def run_engines(args, onnx_path, work, frames_nchw, height, width):
+    """Every engine on every input of one network: {model, height, width, width_div, padding,
+    results: {engine: [errors per input]}, notes: {engine: notes}}."""
+    state, width_div, padding = torch_bench.read_onnx(onnx_path)
     inputs = [torch_bench.lcg_input(height, width, seed) for seed in range(1, args.inputs + 1)]
     reference_net = SceneEDNet(width_div, padding)
     reference_net.load_state_dict(state, strict=True)
@@ -276,7 +301,7 @@ def run_engines(args, work, state, width_div, padding, frames_nchw, height, widt
         np.save(x_path, x.numpy()[0].transpose(1, 2, 0))  # NHWC, as sfrt infer reads it
     results, notes = {}, {}
     for precision in ("int8", "bf16"):
-        model = sfrt_export(args, work, precision)
+        model = sfrt_export(args, onnx_path, work, precision)
         results[f"sfrt-{precision}"] = [
             errors(sfrt_output(args, work, model, precision, i + 1, x_path, height, width), ref)
             for i, (x_path, ref) in enumerate(zip(x_paths, refs))]
@@ -286,7 +311,7 @@ def run_engines(args, work, state, width_div, padding, frames_nchw, height, widt
         with torch.inference_mode():
             results["torch-int8"] = [errors(net(x).numpy(), ref) for x, ref in zip(inputs, refs)]
     if "ort-int8" in args.peer_list:
-        per_input, why = ort_int8_errors(args, work, height, width)
+        per_input, why = ort_int8_errors(args, onnx_path, work, height, width)
         if per_input is None:
             notes["ort-int8"] = {"unavailable": why}
             print(f"int8_accuracy.py: ort-int8 not measured: {why}", file=sys.stderr)
@@ -300,14 +325,32 @@ def run_engines(args, work, state, width_div, padding, frames_nchw, height, widt
             results["torch-bf16"] = [
                 errors(net(x.to(torch.bfloat16).contiguous(memory_format=torch.channels_last))
                        .float().numpy(), ref) for x, ref in zip(inputs, refs)]
-    return results, notes
+    return {"model": onnx_path, "height": height, "width": width, "width_div": width_div,
+            "padding": padding, "results": results, "notes": notes}
+
+
+def print_table(m, frames, inputs):
+    print(f"model {m['model']} (1/{m['width_div']} width, {m['padding']} padding) at "
+          f"{m['height']}x{m['width']}, calibration {frames.shape[0]} frame(s) "
+          f"{frames.shape[1]}x{frames.shape[2]}, {inputs} input(s)")
+    print(f"{'engine':<12} {'max_rel':>10} {'rms_rel':>10} {'mean max':>10} {'mean rms':>10}  "
+          f"against")
+    for name, per_input in m["results"].items():
+        against = "ONNX Runtime float32" if name == "ort-int8" else "PyTorch float32"
+        print(f"{name:<12} {per_input[0]['max_rel']:>10.3e} {per_input[0]['rms_rel']:>10.3e} "
+              f"{mean_of(per_input, 'max_rel'):>10.3e} {mean_of(per_input, 'rms_rel'):>10.3e}  "
+              f"{against}")
+    print("(max_rel, rms_rel: the first input, seed 1; mean: over the inputs)")
+    for name, facts in m["notes"].items():
+        print(f"{name}: {facts}")
 
 
 def main(argv):
-    args, height, width = parse_args(argv)
+    args = parse_args(argv)
     torch.set_num_threads(args.threads)
     work = args.keep or tempfile.mkdtemp(prefix="sfrt-int8-accuracy-")
     os.makedirs(work, exist_ok=True)
+    measured = []
     try:
         if args.calibration is None:
             args.calibration = os.path.join(work, "calibration.npy")
@@ -319,39 +362,29 @@ def main(argv):
             frames = frames[None]
         frames_nchw = [torch.from_numpy(np.ascontiguousarray(f.transpose(2, 0, 1)))[None]
                        for f in frames]
-        state, width_div, padding = torch_bench.read_onnx(args.model)
-        results, notes = run_engines(args, work, state, width_div, padding, frames_nchw, height,
-                                     width)
+        for i, (path, (height, width)) in enumerate(zip(args.models, args.sizes)):
+            net_work = os.path.join(work, f"network-{i + 1}")
+            os.makedirs(net_work, exist_ok=True)
+            measured.append(run_engines(args, path, net_work, frames_nchw, height, width))
+            print_table(measured[-1], frames, args.inputs)  # one network at a time: progress
+            if len(args.models) > 1:
+                print(f"({i + 1} of {len(args.models)} networks)\n", flush=True)
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
 
-    print(f"model {args.model} (1/{width_div} width, {padding} padding) at {height}x{width}, "
-          f"calibration {frames.shape[0]} frame(s) {frames.shape[1]}x{frames.shape[2]}, "
-          f"{args.inputs} input(s)")
-    print(f"{'engine':<12} {'max_rel':>10} {'rms_rel':>10} {'mean max':>10} {'mean rms':>10}  "
-          f"against")
-    for name, per_input in results.items():
-        against = "ONNX Runtime float32" if name == "ort-int8" else "PyTorch float32"
-        print(f"{name:<12} {per_input[0]['max_rel']:>10.3e} {per_input[0]['rms_rel']:>10.3e} "
-              f"{mean_of(per_input, 'max_rel'):>10.3e} {mean_of(per_input, 'rms_rel'):>10.3e}  "
-              f"{against}")
-    print("(max_rel, rms_rel: the first input, seed 1; mean: over the inputs)")
-    for name, facts in notes.items():
-        print(f"{name}: {facts}")
-    lines, held = verdicts(results)
+    lines, held = verdicts(measured)
     for line in lines:
         print(line)
     if args.json:
-        summary = {name: {"max_rel": e[0]["max_rel"], "rms_rel": e[0]["rms_rel"],
-                          "mean_max_rel": mean_of(e, "max_rel"),
-                          "mean_rms_rel": mean_of(e, "rms_rel"), "per_input": e}
-                   for name, e in results.items()}
+        for m in measured:
+            m["results"] = {name: {"max_rel": e[0]["max_rel"], "rms_rel": e[0]["rms_rel"],
+                                   "mean_max_rel": mean_of(e, "max_rel"),
+                                   "mean_rms_rel": mean_of(e, "rms_rel"), "per_input": e}
+                            for name, e in m["results"].items()}
         with open(args.json, "w") as f:
-            json.dump({"model": args.model, "height": height, "width": width,
-                       "width_div": width_div, "calibration": args.calibration,
-                       "inputs": args.inputs, "results": summary, "notes": notes,
-                       "verdicts": lines, "held": held}, f, indent=2)
+            json.dump({"models": measured, "calibration": args.calibration,
+                       "inputs": args.inputs, "verdicts": lines, "held": held}, f, indent=2)
     return 0 if held else EXIT_BAR_MISSED
 
 
