@@ -592,10 +592,14 @@ void Bf16Kernels::CheckAmxBlocking() {
       Conv(4, 40, 32, 70, 1, 1),
       Conv(6, 80, 32, 33, 2, 5),
       Conv(3, 70, 32, 70, 1),
+      // The 2 x 2 blocking's halves of 32 channels with one channel tile in the last (40:
+      // 2 + 1 C tiles) and a block of one half (20), rows of an odd number of pixel tiles.
+      Conv(3, 40, 64, 40, 1),
+      Conv(4, 33, 32, 20, 1),
   };
   for (Bf16Shape up :
        {UpConv(4, 20, 32, 64), UpConv(3, 24, 32, 130, 1, 1), UpConv(3, 19, 50, 64, 0, 1),
-        UpConv(4, 37, 64, 3, 4, 0), UpConv(2, 17, 32, 64, 1, 0)}) {
+        UpConv(4, 37, 64, 3, 4, 0), UpConv(2, 17, 32, 64, 1, 0), UpConv(3, 20, 32, 100, 0, 1)}) {
     up.phases = true;
     shapes.push_back(up);
   }

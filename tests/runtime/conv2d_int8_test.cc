@@ -787,6 +787,10 @@ void Int8Kernels::CheckAmxBlocking() {
       {4, 40, 64, 70, 1, 1, SameUpper(4, 40, 1, 1)},
       {6, 80, 64, 33, 5, 2, SameUpper(6, 80, 5, 2)},
       Conv(3, 70, 64, 70, 1),
+      // The 2 x 2 blocking's halves of 32 channels with one channel tile in the last (40:
+      // 2 + 1 C tiles) and a block of one half (20), rows of an odd number of pixel tiles.
+      Conv(3, 40, 128, 40, 1),
+      Conv(4, 33, 64, 20, 1),
   };
   Int8Shape padded = Conv(6, 37, 40, 64, 1);
   padded.pads = {0, 2, 2, 0};
@@ -802,7 +806,7 @@ void Int8Kernels::CheckAmxBlocking() {
   }
   for (Int8Shape up :
        {UpConv(4, 20, 64, 64), UpConv(3, 24, 64, 130, 1, 1), UpConv(3, 19, 100, 64, 0, 1),
-        UpConv(4, 37, 128, 3, 4, 0), UpConv(2, 17, 64, 64, 1, 0)}) {
+        UpConv(4, 37, 128, 3, 4, 0), UpConv(2, 17, 64, 64, 1, 0), UpConv(3, 20, 64, 100, 0, 1)}) {
     up.phases = true;
     shapes.push_back(up);
   }
@@ -954,12 +958,21 @@ TEST(AmxTiles, ConfigurationFitsPalette1ForEveryChannelCount) {
       EXPECT_LE(c.rows[t], 16) << groups;
       EXPECT_LE(c.colsb[t], 64) << groups;
     }
+    EXPECT_EQ(simd::AmxPairs(groups), groups >= 16 && groups % 16 == 0) << groups;
+    if (simd::AmxPairs(groups)) {
+      // The 2 x 2 blocking: A tiles 4, 5 and B tiles 6, 7 of 16 groups each.
+      for (int t = 4; t < 8; ++t) {
+        EXPECT_EQ(c.rows[t], 16) << groups;
+        EXPECT_EQ(c.colsb[t], 64) << groups;
+      }
+      continue;
+    }
     // A's bytes per row are 4x B's rows (tdpbusd's K), for the full chunks and for the tail.
     EXPECT_EQ(c.colsb[4], 4 * c.rows[5]) << groups;
     EXPECT_EQ(c.colsb[6], 4 * c.rows[7]) << groups;
     const int full = c.rows[5], tail = c.rows[7];
     EXPECT_EQ(groups / full * full + tail, groups) << "every group in one chunk";
-    EXPECT_EQ(tail == 0, groups <= 16 || groups % 16 == 0) << groups;
+    EXPECT_EQ(tail == 0, groups <= 16) << groups;
   }
 }
 

@@ -27,6 +27,25 @@ namespace {
   if constexpr (T == n) {       \
     stmt;                       \
   }
+// Every (C, A, B) of simd::AmxDpOperands: the 1 x 4 blocking's C tiles 0-3 with A/B 4/5 and 6/7,
+// the 2 x 2 blocking's C 2 * i + j with A 4 + i and B 6 + j.
+#define SFRT_DP_CASE(op, c, a, b)             \
+  if constexpr (C == c && A == a && B == b) { \
+    op(c, a, b);                              \
+  }
+#define SFRT_DP_CASES(op)   \
+  SFRT_DP_CASE(op, 0, 4, 5) \
+  SFRT_DP_CASE(op, 1, 4, 5) \
+  SFRT_DP_CASE(op, 2, 4, 5) \
+  SFRT_DP_CASE(op, 3, 4, 5) \
+  SFRT_DP_CASE(op, 0, 6, 7) \
+  SFRT_DP_CASE(op, 1, 6, 7) \
+  SFRT_DP_CASE(op, 2, 6, 7) \
+  SFRT_DP_CASE(op, 3, 6, 7) \
+  SFRT_DP_CASE(op, 0, 4, 6) \
+  SFRT_DP_CASE(op, 1, 4, 7) \
+  SFRT_DP_CASE(op, 2, 5, 6) \
+  SFRT_DP_CASE(op, 3, 5, 7)
 struct HardwareTiles {
   static void Configure(const simd::AmxTileConfig& c) { _tile_loadconfig(&c); }
   static void Release() { _tile_release(); }
@@ -60,31 +79,13 @@ struct HardwareTiles {
   }
   template <int C, int A, int B>
   static void DpBusd() {
-    static_assert(C >= 0 && C < 4 && ((A == 4 && B == 5) || (A == 6 && B == 7)),
-                  "C tiles 0-3 with A/B 4/5 or 6/7");
-    constexpr int T = C * 2 + (A == 6 ? 1 : 0);
-    SFRT_TILE_CASE(0, _tile_dpbusd(0, 4, 5))
-    SFRT_TILE_CASE(1, _tile_dpbusd(0, 6, 7))
-    SFRT_TILE_CASE(2, _tile_dpbusd(1, 4, 5))
-    SFRT_TILE_CASE(3, _tile_dpbusd(1, 6, 7))
-    SFRT_TILE_CASE(4, _tile_dpbusd(2, 4, 5))
-    SFRT_TILE_CASE(5, _tile_dpbusd(2, 6, 7))
-    SFRT_TILE_CASE(6, _tile_dpbusd(3, 4, 5))
-    SFRT_TILE_CASE(7, _tile_dpbusd(3, 6, 7))
+    static_assert(simd::AmxDpOperands(C, A, B), "a tile triple the kernels do not use");
+    SFRT_DP_CASES(_tile_dpbusd)
   }
   template <int C, int A, int B>
   static void DpBf16ps() {
-    static_assert(C >= 0 && C < 4 && ((A == 4 && B == 5) || (A == 6 && B == 7)),
-                  "C tiles 0-3 with A/B 4/5 or 6/7");
-    constexpr int T = C * 2 + (A == 6 ? 1 : 0);
-    SFRT_TILE_CASE(0, _tile_dpbf16ps(0, 4, 5))
-    SFRT_TILE_CASE(1, _tile_dpbf16ps(0, 6, 7))
-    SFRT_TILE_CASE(2, _tile_dpbf16ps(1, 4, 5))
-    SFRT_TILE_CASE(3, _tile_dpbf16ps(1, 6, 7))
-    SFRT_TILE_CASE(4, _tile_dpbf16ps(2, 4, 5))
-    SFRT_TILE_CASE(5, _tile_dpbf16ps(2, 6, 7))
-    SFRT_TILE_CASE(6, _tile_dpbf16ps(3, 4, 5))
-    SFRT_TILE_CASE(7, _tile_dpbf16ps(3, 6, 7))
+    static_assert(simd::AmxDpOperands(C, A, B), "a tile triple the kernels do not use");
+    SFRT_DP_CASES(_tile_dpbf16ps)
   }
   // The epilogue of one stored tile (int8: plus init, the zero-point correction), pixel by pixel
   // on the VNNI and AVX512_BF16 kernels' code, over the vectors that hold valid channels.
@@ -129,6 +130,8 @@ struct HardwareTiles {
   }
 };
 #undef SFRT_TILE_CASE
+#undef SFRT_DP_CASE
+#undef SFRT_DP_CASES
 
 // What the tiles leave goes to the AVX-512 VNNI / AVX512_BF16 kernels of the same kind.
 Int8ConvRowsFn g_vnni_conv = nullptr;

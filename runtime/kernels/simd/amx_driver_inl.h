@@ -13,25 +13,30 @@
 // out, out_step), the epilogue of one stored 16 x 64 tile (AmxFinishScalar's arithmetic).
 //
 // Blocking, on the packed layouts of the AVX-512 kernels (nr 64: weights [block][tap][group][64]
-// [one 32-bit group: 4 int8 or 2 bf16]): one output-channel block of 64 is four C tiles (tmm0-3)
-// of 16 pixels x 16 32-bit channels. For each tap and each chunk of up to 16 groups, the A tile
-// (tmm4; tmm6 for a last, shorter chunk) holds 16 output pixels' inputs (rows a fixed number of
-// bytes apart in the input: one tileloadd), and the B tile (tmm5; tmm7) one C tile's 16 channels
-// of the chunk's groups: rows of 64 bytes at a stride of 256 in the packed weights, so the
-// AVX-512 layouts serve AMX unchanged; only the C tiles (and B tiles) of channels the block has
-// are used. The C tiles start from zero; the int8 epilogue adds -in_zero_point times the sum of
-// the taps' tap_sums.
+// [one 32-bit group: 4 int8 or 2 bf16]). An A tile holds 16 output pixels' inputs for one tap and
+// one chunk of up to 16 groups (rows a fixed number of bytes apart in the input: one tileloadd); a
+// B tile 16 output channels of the chunk's groups (rows of 64 bytes at a stride of 256 in the
+// packed weights, so the AVX-512 layouts serve AMX unchanged); a C tile 16 pixels x 16 32-bit
+// channels, summed over every tap and chunk before it is stored.
+// - 2 x 2 (AmxPairs: input channels a multiple of 64, which every large layer of SceneEDNet is):
+//   two pixel tiles (A: tmm4, tmm5) times two channel tiles (B: tmm6, tmm7) into four C tiles
+//   (tmm0-3), a block of 64 channels in two halves of 32. Each tile loaded serves two products,
+//   and each weight tile loaded from L2 serves 32 pixels, where the 1 x 4 blocking's serves 16.
+// - 1 x 4 otherwise: one pixel tile (tmm4; tmm6 for a last, shorter chunk) times the block's four
+//   channel tiles, loaded one after the other into tmm5 (tmm7), into C tiles tmm0-3.
+// Only the C tiles (and B tiles) of channels the block has are used. The C tiles start from zero;
+// the int8 epilogue adds -in_zero_point times the sum of the taps' tap_sums.
 //
-// Plain convolutions: 16 consecutive output pixels of a row, their inputs sw pixels apart, one
-// tap after the other. The fused upsample -> 3x3 convolution (a.upsampled, with phase kernels):
-// per column phase, 16 of every second output pixel, whose inputs are consecutive pixels of the
-// low-resolution map, over the phase's 2x2 kernel (4 taps; dot_driver_inl.h's DotPhaseRow). The
-// tiles take every pixel of a row whose window lies inside the map (the row's last tile may
-// overlap the one before it), on rows whose window lies inside the map, where the row has at
-// least 16 such pixels (per phase); every other pixel goes to `fallback` with a column range
-// (Args::col_begin/col_end), and whole calls go to it where the tiles would do little: fewer
-// than 16 groups of input channels, a fused upsample without phase kernels, calls that ask for a
-// column range themselves.
+// Plain convolutions: a pixel tile is 16 consecutive output pixels of a row, their inputs sw
+// pixels apart (the 2 x 2 blocking takes a row's tiles two by two). The fused upsample -> 3x3
+// convolution (a.upsampled, with phase kernels): per column phase, a tile is 16 of every second
+// output pixel, whose inputs are consecutive pixels of the low-resolution map, over the phase's
+// 2x2 kernel (4 taps; dot_driver_inl.h's DotPhaseRow). The tiles take every pixel of a row whose
+// window lies inside the map (the row's last tile may overlap the one before it), on rows whose
+// window lies inside the map, where the row has at least 16 such pixels (per phase); every other
+// pixel goes to `fallback` with a column range (Args::col_begin/col_end), and whole calls go to
+// it where the tiles would do little: fewer than 16 groups of input channels, a fused upsample
+// without phase kernels, calls that ask for a column range themselves.
 #pragma once
 
 #include <cstddef>
@@ -60,7 +65,12 @@ inline constexpr int kAmxRows = 16;      // palette 1: rows per tile
 inline constexpr int kAmxRowBytes = 64;  // palette 1: bytes per row
 inline constexpr int kAmxPixels = 16;    // output pixels per C tile (its rows)
 
-// The tile shapes for `groups` groups of 4 input channels: C tiles 0-3 of 16 x 64 bytes; A (4)
+// Whether a layer of `groups` groups of 4 input channels takes the 2 x 2 blocking (AmxPairBlock):
+// whole chunks of 16 groups only, so that tiles 4-7 can all be 16 x 64 bytes.
+inline bool AmxPairs(int groups) { return groups >= kAmxRows && groups % kAmxRows == 0; }
+
+// The tile shapes for `groups` groups of 4 input channels: C tiles 0-3 of 16 x 64 bytes. Under
+// AmxPairs, A tiles 4 and 5 and B tiles 6 and 7, all 16 x 64 bytes (16 groups). Otherwise A (4)
 // and B (5) for full chunks of min(16, groups) groups; A (6) and B (7) for a last chunk of
 // groups % 16 when groups > 16 and that is not 0.
 inline AmxTileConfig AmxConfigFor(int groups) {
@@ -68,6 +78,13 @@ inline AmxTileConfig AmxConfigFor(int groups) {
   for (int t = 0; t < 4; ++t) {
     c.rows[t] = kAmxPixels;
     c.colsb[t] = kAmxRowBytes;
+  }
+  if (AmxPairs(groups)) {
+    for (int t = 4; t < 8; ++t) {
+      c.rows[t] = kAmxRows;
+      c.colsb[t] = kAmxRowBytes;
+    }
+    return c;
   }
   const int full = groups < kAmxRows ? groups : kAmxRows;
   c.rows[4] = kAmxPixels;
@@ -84,9 +101,29 @@ inline AmxTileConfig AmxConfigFor(int groups) {
   return c;
 }
 
+// The (C, A, B) tile triples the kernels multiply: the 1 x 4 blocking's C tiles with A/B 4/5
+// (full chunks) or 6/7 (the tail), and the 2 x 2 blocking's C tile 2 * i + j with A 4 + i and
+// B 6 + j. The hardware's tile numbers must be literals, so T spells out each of these.
+constexpr bool AmxDpOperands(int c, int a, int b) {
+  if (c < 0 || c > 3) return false;
+  if ((a == 4 && b == 5) || (a == 6 && b == 7)) return true;
+  return a == 4 + c / 2 && b == 6 + c % 2;
+}
+
+// c += a . b: tdpbusd (quantized) or tdpbf16ps.
+template <typename T, bool kQuantized, int C, int A, int B>
+inline void AmxDp() {
+  static_assert(AmxDpOperands(C, A, B), "a tile triple the kernels do not use");
+  if constexpr (kQuantized) {
+    T::template DpBusd<C, A, B>();
+  } else {
+    T::template DpBf16ps<C, A, B>();
+  }
+}
+
 // One chunk's products: A (16 pixels' inputs) with the first NT B tiles of the block's 64
 // channels (rows of 64 bytes, 256 apart in the packed weights), NT being the C tiles that hold
-// valid channels. Quantized: tdpbusd; bf16: tdpbf16ps.
+// valid channels.
 template <typename T, bool kQuantized, int NT, int A, int B>
 inline void AmxChunk(const void* x, ptrdiff_t x_stride, const uint8_t* w) {
   T::template Load<A>(x, x_stride);
@@ -94,11 +131,7 @@ inline void AmxChunk(const void* x, ptrdiff_t x_stride, const uint8_t* w) {
     constexpr int C = decltype(c)::value;
     if constexpr (C < NT) {
       T::template Load<B>(w + 64 * C, 256);
-      if constexpr (kQuantized) {
-        T::template DpBusd<C, A, B>();
-      } else {
-        T::template DpBf16ps<C, A, B>();
-      }
+      AmxDp<T, kQuantized, C, A, B>();
     }
   };
   dot(std::integral_constant<int, 0>{});
@@ -147,6 +180,7 @@ struct AmxJob {
   int full = 0;    // groups per chunk (tiles 4 and 5)
   int chunks = 0;  // chunks of `full` groups, then the tail (tiles 6 and 7)
   int tail = 0;
+  bool pairs = false;       // AmxPairs: the 2 x 2 blocking
   ptrdiff_t tap_bytes = 0;  // packed weights of one tap of one block
   ptrdiff_t out_pixel = 0;  // bytes between output pixels
 
@@ -218,6 +252,110 @@ inline int AmxTileStart(int tile, int n) {
 }
 inline int AmxTileCount(int n) { return (n + kAmxPixels - 1) / kAmxPixels; }
 
+// Up to two 16-pixel tiles that share their taps' weights: tile i's first pixel reads xs[i][t] at
+// tap t (its other pixels x_stride bytes apart) and writes out[i] (its block's first channel;
+// its other pixels out_step bytes apart). The taps go row by row of the kernel, taps_w a row.
+struct AmxPixelTiles {
+  int count = 0;
+  const uint8_t* xs[2][kMaxInt8Taps] = {};
+  void* out[2] = {};
+  ptrdiff_t x_stride = 0;
+  ptrdiff_t out_step = 0;
+  int taps = 0;
+  int taps_w = 0;
+};
+
+// One chunk of the 2 x 2 blocking: MT pixel tiles (A tiles 4, 5) times NB channel tiles (B
+// tiles 6, 7: rows of 64 bytes, 256 apart in the packed weights) into C tiles 2 * i + j. Each
+// A and B tile loaded serves NB and MT products: four loads for four products, where the 1 x 4
+// blocking loads five, four of them weights.
+template <typename T, bool kQuantized, int MT, int NB>
+inline void AmxPairChunk(const uint8_t* x0, const uint8_t* x1, ptrdiff_t x_stride,
+                         const uint8_t* w) {
+  T::template Load<4>(x0, x_stride);
+  T::template Load<6>(w, 256);
+  if constexpr (MT > 1) T::template Load<5>(x1, x_stride);
+  if constexpr (NB > 1) T::template Load<7>(w + 64, 256);
+  AmxDp<T, kQuantized, 0, 4, 6>();
+  if constexpr (NB > 1) AmxDp<T, kQuantized, 1, 4, 7>();
+  if constexpr (MT > 1) AmxDp<T, kQuantized, 2, 5, 6>();
+  if constexpr (MT > 1 && NB > 1) AmxDp<T, kQuantized, 3, 5, 7>();
+}
+
+// The 2 x 2 blocking (AmxPairs: whole chunks of 16 groups): the MT (= tiles.count) pixel tiles
+// times the block's channels [32 * half, 32 * half + 16 * NB) over the taps, ws[t] the tap's
+// packed weights of the block; C tiles from zero, then T's epilogue of each pixel tile with init
+// and e's channels of this half. The sums go by kernel row, chunk, then the row's taps, so that
+// the taps of a row, whose pixels overlap but for one, read one chunk of the inputs from L1.
+template <typename T, typename Conv, int MT, int NB>
+inline void AmxPairBlock(const AmxJob<Conv>& j, const AmxPixelTiles& tiles,
+                         const uint8_t* const* ws, int half, const int32_t* init,
+                         const DotEpilogue& e) {
+  constexpr bool kQuantized = DotTraits<Conv>::kQuantized;
+  constexpr ptrdiff_t kChunkWeights = kAmxRows * 256;  // one chunk of 16 groups x 64 channels
+  T::template Zero<0>();
+  if constexpr (NB > 1) T::template Zero<1>();
+  if constexpr (MT > 1) T::template Zero<2>();
+  if constexpr (MT > 1 && NB > 1) T::template Zero<3>();
+  const ptrdiff_t w_half = 128 * half;  // the half's first channel: 32 channels x 4 bytes
+  for (int row = 0; row < tiles.taps; row += tiles.taps_w) {
+    for (int c = 0; c < j.chunks; ++c) {
+      const ptrdiff_t x_off = c * kAmxRowBytes;
+      const ptrdiff_t w_off = c * kChunkWeights + w_half;
+      for (int t = row; t < row + tiles.taps_w; ++t) {
+        AmxPairChunk<T, kQuantized, MT, NB>(tiles.xs[0][t] + x_off,
+                                            MT > 1 ? tiles.xs[1][t] + x_off : nullptr,
+                                            tiles.x_stride, ws[t] + w_off);
+      }
+    }
+  }
+  constexpr int kTile = kAmxPixels * 16;  // 32-bit sums per C tile
+  alignas(64) int32_t sums[2][2 * kTile];
+  T::template Store<0>(sums[0], 64);
+  if constexpr (NB > 1) T::template Store<1>(sums[0] + kTile, 64);
+  if constexpr (MT > 1) T::template Store<2>(sums[1], 64);
+  if constexpr (MT > 1 && NB > 1) T::template Store<3>(sums[1] + kTile, 64);
+  DotEpilogue eh = e;
+  eh.bias += 32 * half;
+  if constexpr (kQuantized) eh.multiplier += 32 * half;
+  eh.valid = e.valid - 32 * half < 32 ? e.valid - 32 * half : 32;
+  const ptrdiff_t out_half =
+      32 * half *
+      static_cast<ptrdiff_t>(e.out_float ? sizeof(float) : sizeof(typename DotTraits<Conv>::Elem));
+  for (int m = 0; m < MT; ++m) {
+    T::template Finish<kQuantized>(sums[m], init + 32 * half, eh,
+                                   static_cast<char*>(tiles.out[m]) + out_half, tiles.out_step);
+  }
+}
+
+// The pixel tiles times the block's nt C tiles of valid channels (nt in [1, 4]): by halves of
+// 32 channels under AmxPairs, else one 16-pixel tile at a time with the 1 x 4 blocking.
+template <typename T, typename Conv>
+inline void AmxBlockTiles(const AmxJob<Conv>& j, const AmxPixelTiles& tiles, int nt,
+                          const uint8_t* const* ws, const int32_t* init, const DotEpilogue& e) {
+  if (!j.pairs) {
+    for (int m = 0; m < tiles.count; ++m) {
+      AmxTileFor<T>(nt, j, tiles.xs[m], tiles.x_stride, ws, tiles.taps, init, e, tiles.out[m],
+                    tiles.out_step);
+    }
+    return;
+  }
+  for (int half = 0; 2 * half < nt; ++half) {
+    const bool two_b = nt - 2 * half >= 2;
+    if (tiles.count == 2) {
+      if (two_b) {
+        AmxPairBlock<T, Conv, 2, 2>(j, tiles, ws, half, init, e);
+      } else {
+        AmxPairBlock<T, Conv, 2, 1>(j, tiles, ws, half, init, e);
+      }
+    } else if (two_b) {
+      AmxPairBlock<T, Conv, 1, 2>(j, tiles, ws, half, init, e);
+    } else {
+      AmxPairBlock<T, Conv, 1, 1>(j, tiles, ws, half, init, e);
+    }
+  }
+}
+
 // What the epilogue adds to a channel block's sums: int8, -z * the sum of the given taps' tap_sums
 // (interior pixels read every tap); bf16, nothing (zeros, unread).
 template <typename Conv>
@@ -243,137 +381,224 @@ struct AmxBlocks {
   static constexpr int kNr = 64;
 };
 
+// What one call's rows share beyond AmxJob: the map the convolution reads (C when upsampled),
+// its interior columns, and the weights the tiles read.
+template <typename Conv>
+struct AmxCall {
+  using Traits = DotTraits<Conv>;
+  using Fallback = void (*)(const typename Traits::Args&, int, int, int, int);
+  AmxJob<Conv> j;
+  Fallback fallback = nullptr;
+  int out_w = 0;
+  int src_h = 0;
+  ColumnRange inside;
+  int interior = 0;
+  bool wide = false;  // a row has enough interior pixels for the tiles
+  int taps = 0;       // the plain kernel's, or the phases' 4
+  const uint8_t* weights = nullptr;
+  ptrdiff_t phase_bytes = 0;  // one phase's packed weights
+  ptrdiff_t in_pixel = 0;     // bytes between input pixels
+};
+
+// Whether the tiles take the call (else the fallback computes it whole): not for a column range,
+// nor for few input channels (under 16 groups a tile product does less than a quarter of its
+// work, and the epilogue per tile outweighs it), nor for an upsample without phase kernels. Few
+// output channels are fine: only the C tiles with valid channels are computed.
+template <typename Conv>
+bool AmxTakes(const typename DotTraits<Conv>::Args& a, int out_w) {
+  const Conv& p = *a.conv;
+  const bool tiles = p.nr == 64 && DotTraits<Conv>::Groups(p) >= kAmxRows &&
+                     p.kernel_h * p.kernel_w <= kMaxInt8Taps && a.col_begin <= 0 &&
+                     a.col_end >= out_w;
+  if (!a.upsampled) return tiles;
+  return tiles && p.phase_weights != nullptr && p.kernel_h == 3 && p.kernel_w == 3 &&
+         p.stride_h == 1 && p.stride_w == 1;
+}
+
+template <typename Conv>
+AmxCall<Conv> AmxCallFor(const typename DotTraits<Conv>::Args& a, int out_w,
+                         typename AmxCall<Conv>::Fallback fallback) {
+  using Traits = DotTraits<Conv>;
+  const Conv& p = *a.conv;
+  const int groups = Traits::Groups(p);
+  AmxCall<Conv> c;
+  c.fallback = fallback;
+  c.out_w = out_w;
+  c.j.a = &a;
+  c.j.full = groups < kAmxRows ? groups : kAmxRows;
+  c.j.chunks = groups / c.j.full;
+  c.j.tail = groups - c.j.chunks * c.j.full;
+  c.j.pairs = AmxPairs(groups);
+  c.j.tap_bytes = static_cast<ptrdiff_t>(groups) * 4 * 64;
+  const ptrdiff_t elem = sizeof(typename Traits::Elem);
+  c.j.out_pixel = p.out_float ? static_cast<ptrdiff_t>(a.out_f32.channels) * sizeof(float)
+                              : Traits::LowOut(a).stride() * elem;
+  c.in_pixel = a.in.stride() * elem;
+  c.src_h = a.upsampled ? a.c_height : a.in.height;
+  const int src_w = a.upsampled ? a.c_width : a.in.width;
+  c.inside = InsideColumns(out_w, src_w, p.kernel_w, p.stride_w, a.pads.left);
+  c.interior = c.inside.hi > c.inside.lo ? c.inside.hi - c.inside.lo : 0;
+  // Upsampled: each column phase has about half the interior; both need 16.
+  c.wide = a.upsampled ? c.interior >= 2 * kAmxPixels + 1 : c.interior >= kAmxPixels;
+  c.taps = a.upsampled ? 4 : p.kernel_h * p.kernel_w;
+  c.weights = reinterpret_cast<const uint8_t*>(a.upsampled ? p.phase_weights : p.weights);
+  c.phase_bytes = static_cast<ptrdiff_t>(p.blocks) * 4 * c.j.tap_bytes;
+  return c;
+}
+
+// One block's epilogue and zero-point terms: the plain kernel's (index 0), or each phase's.
+struct AmxBlockTerms {
+  DotEpilogue e[4];
+  int nt = 0;  // C tiles with valid channels
+  alignas(64) int32_t init[4][64];
+};
+
+template <typename Conv>
+void AmxTermsFor(const AmxCall<Conv>& c, int blk, AmxBlockTerms* terms) {
+  const Conv& p = *c.j.a->conv;
+  const DotEpilogue e = BlockEpilogue<AmxBlocks<Conv>>(p, blk);
+  terms->nt = (e.valid + 15) / 16;
+  for (int ph = 0; ph < 4; ++ph) terms->e[ph] = e;
+  if (!c.j.a->upsampled) {
+    const int32_t* sums = nullptr;
+    if constexpr (DotTraits<Conv>::kQuantized) {
+      sums = p.tap_sums + static_cast<ptrdiff_t>(blk) * c.taps * 64;
+    }
+    AmxInit(p, sums, c.taps, terms->init[0]);
+    return;
+  }
+  for (int ph = 0; ph < 4; ++ph) {
+    const int32_t* sums = nullptr;
+    if constexpr (DotTraits<Conv>::kQuantized) {
+      sums = p.phase_tap_sums + (static_cast<ptrdiff_t>(ph) * p.blocks + blk) * 4 * 64;
+      terms->e[ph].multiplier = p.phase_multiplier + (ph * p.blocks + blk) * 64;
+    }
+    AmxInit(p, sums, 4, terms->init[ph]);
+  }
+}
+
+// The `count` 16-pixel tiles of one row and block, two at a time: fill(i, xs) sets tile i's
+// inputs per tap and returns its output; `tiles` comes with its strides and taps.
+template <typename T, typename Conv, typename Fill>
+void AmxRowTiles(const AmxJob<Conv>& j, int count, AmxPixelTiles& tiles, const uint8_t* const* ws,
+                 const int32_t* init, const DotEpilogue& e, int nt, Fill fill) {
+  for (int i = 0; i < count; i += 2) {
+    tiles.count = i + 1 < count ? 2 : 1;
+    for (int m = 0; m < tiles.count; ++m) tiles.out[m] = fill(i + m, tiles.xs[m]);
+    AmxBlockTiles<T>(j, tiles, nt, ws, init, e);
+  }
+}
+
+// The interior pixels of plain output row oy (first input row iy0) of block blk.
+template <typename T, typename Conv>
+void AmxPlainRow(const AmxCall<Conv>& c, const AmxBlockTerms& terms, int blk, int oy, int iy0) {
+  const auto& a = *c.j.a;
+  const Conv& p = *a.conv;
+  const uint8_t* ws[kMaxInt8Taps];
+  const uint8_t* wblk = c.weights + static_cast<ptrdiff_t>(blk) * c.taps * c.j.tap_bytes;
+  for (int t = 0; t < c.taps; ++t) ws[t] = wblk + t * c.j.tap_bytes;
+  const ptrdiff_t x_stride = static_cast<ptrdiff_t>(p.stride_w) * c.in_pixel;
+  auto fill = [&](int i, const uint8_t** xs) {
+    const int ox0 = c.inside.lo + AmxTileStart(i, c.interior);
+    const int ix0 = ox0 * p.stride_w - a.pads.left;
+    for (int ky = 0; ky < p.kernel_h; ++ky) {
+      for (int kx = 0; kx < p.kernel_w; ++kx) {
+        xs[ky * p.kernel_w + kx] = reinterpret_cast<const uint8_t*>(a.in.pixel(iy0 + ky, ix0 + kx));
+      }
+    }
+    return c.j.Out(oy, ox0, blk);
+  };
+  AmxPixelTiles tiles;
+  tiles.x_stride = x_stride;
+  tiles.out_step = c.j.out_pixel;
+  tiles.taps = c.taps;
+  tiles.taps_w = p.kernel_w;
+  AmxRowTiles<T>(c.j, AmxTileCount(c.interior), tiles, ws, terms.init[0], terms.e[0], terms.nt,
+                 fill);
+}
+
+// The interior pixels of fused-upsample output row oy (first row iy0 of C) of block blk: per
+// column phase, every second pixel from the phase's 2x2 kernel over consecutive low-resolution
+// pixels (dot_driver_inl.h's DotPhaseRow).
+template <typename T, typename Conv>
+void AmxPhaseRow(const AmxCall<Conv>& c, const AmxBlockTerms& terms, int blk, int oy, int iy0) {
+  const auto& a = *c.j.a;
+  const int ay = iy0 + a.crop_top;
+  const int by = ay >> 1;
+  const uint8_t* ws[4];
+  AmxPixelTiles tiles;
+  tiles.x_stride = c.in_pixel;
+  tiles.out_step = 2 * c.j.out_pixel;
+  tiles.taps = 4;
+  tiles.taps_w = 2;
+  for (int px = 0; px < 2; ++px) {
+    const int first = c.inside.lo + ((c.inside.lo - a.pads.left + a.crop_left + px) & 1);
+    const int n = (c.inside.hi - first + 1) / 2;  // this phase's interior pixels
+    const int ph = (ay & 1) * 2 + px;
+    const uint8_t* pw =
+        c.weights + ph * c.phase_bytes + static_cast<ptrdiff_t>(blk) * 4 * c.j.tap_bytes;
+    for (int t = 0; t < 4; ++t) ws[t] = pw + t * c.j.tap_bytes;
+    auto fill = [&](int i, const uint8_t** xs) {
+      const int ox0 = first + 2 * AmxTileStart(i, n);
+      const int bx = (ox0 - a.pads.left + a.crop_left) >> 1;
+      for (int t = 0; t < 4; ++t) {
+        xs[t] = reinterpret_cast<const uint8_t*>(a.in.pixel(by + t / 2, bx + t % 2));
+      }
+      return c.j.Out(oy, ox0, blk);
+    };
+    AmxRowTiles<T>(c.j, AmxTileCount(n), tiles, ws, terms.init[ph], terms.e[ph], terms.nt, fill);
+  }
+}
+
+// Output row oy of block blk: the tiles take its interior pixels where its window rows lie inside
+// the map and it has enough of them; the fallback the rest.
+template <typename T, typename Conv>
+void AmxRow(const AmxCall<Conv>& c, const AmxBlockTerms& terms, int blk, int oy) {
+  const auto& a = *c.j.a;
+  const Conv& p = *a.conv;
+  const int iy0 = oy * (a.upsampled ? 1 : p.stride_h) - a.pads.top;
+  typename DotTraits<Conv>::Args rest = a;
+  if (iy0 < 0 || iy0 + p.kernel_h > c.src_h || !c.wide) {
+    c.fallback(rest, oy, oy + 1, blk, blk + 1);
+    return;
+  }
+  if (c.inside.lo > 0) {
+    rest.col_begin = 0;
+    rest.col_end = c.inside.lo;
+    c.fallback(rest, oy, oy + 1, blk, blk + 1);
+  }
+  if (c.inside.hi < c.out_w) {
+    rest.col_begin = c.inside.hi;
+    rest.col_end = c.out_w;
+    c.fallback(rest, oy, oy + 1, blk, blk + 1);
+  }
+  if (a.upsampled) {
+    AmxPhaseRow<T>(c, terms, blk, oy, iy0);
+  } else {
+    AmxPlainRow<T>(c, terms, blk, oy, iy0);
+  }
+}
+
 // Rows [row_begin, row_end) of blocks [blk_begin, blk_end) of an int8 or bf16 convolution
 // (Conv: PackedInt8Conv or PackedBf16Conv) packed with nr 64, plain or (a.upsampled) the fused
 // upsample's through its phase kernels; `fallback` (same arguments) computes what the tiles do
 // not: rows whose window leaves the input, the border columns, rows with fewer than 16 interior
-// pixels (per column phase when upsampled), and the layers the tiles leave whole.
+// pixels (per column phase when upsampled), and the layers the tiles leave whole (AmxTakes).
 template <typename T, typename Conv>
 void AmxConvRows(const typename DotTraits<Conv>::Args& a, int row_begin, int row_end, int blk_begin,
-                 int blk_end,
-                 void (*fallback)(const typename DotTraits<Conv>::Args&, int, int, int, int)) {
+                 int blk_end, typename AmxCall<Conv>::Fallback fallback) {
   using Traits = DotTraits<Conv>;
-  using Elem = typename Traits::Elem;
-  const Conv& p = *a.conv;
-  const int out_w = p.out_float ? a.out_f32.width : Traits::LowOut(a).width;
-  const int groups = Traits::Groups(p);
-  // Calls for a column range go to the fallback whole, as do the layers the tiles leave: few
-  // input channels (under 16 groups a tile product does less than a quarter of its work, and
-  // the epilogue per tile outweighs it), the upsample without phase kernels. Few output
-  // channels are fine: only the C tiles with valid channels are computed.
-  bool tiles = p.nr == 64 && groups >= 16 && p.kernel_h * p.kernel_w <= kMaxInt8Taps &&
-               a.col_begin <= 0 && a.col_end >= out_w;
-  if (a.upsampled) {
-    tiles = tiles && p.phase_weights != nullptr && p.kernel_h == 3 && p.kernel_w == 3 &&
-            p.stride_h == 1 && p.stride_w == 1;
-  }
-  if (!tiles) {
+  const int out_w = a.conv->out_float ? a.out_f32.width : Traits::LowOut(a).width;
+  if (!AmxTakes<Conv>(a, out_w)) {
     fallback(a, row_begin, row_end, blk_begin, blk_end);
     return;
   }
-  AmxJob<Conv> j;
-  j.a = &a;
-  j.full = groups < kAmxRows ? groups : kAmxRows;
-  j.chunks = groups / j.full;
-  j.tail = groups - j.chunks * j.full;
-  j.tap_bytes = static_cast<ptrdiff_t>(groups) * 4 * 64;
-  j.out_pixel = p.out_float ? static_cast<ptrdiff_t>(a.out_f32.channels) * sizeof(float)
-                            : Traits::LowOut(a).stride() * static_cast<ptrdiff_t>(sizeof(Elem));
-  const ptrdiff_t in_pixel = a.in.stride() * static_cast<ptrdiff_t>(sizeof(Elem));
-  // The map the convolution reads (C when upsampled) and its interior columns.
-  const int src_h = a.upsampled ? a.c_height : a.in.height;
-  const int src_w = a.upsampled ? a.c_width : a.in.width;
-  const ColumnRange inside = InsideColumns(out_w, src_w, p.kernel_w, p.stride_w, a.pads.left);
-  const int interior = inside.hi > inside.lo ? inside.hi - inside.lo : 0;
-  // Upsampled: each column phase has about half the interior; both need 16.
-  const bool wide = a.upsampled ? interior >= 2 * kAmxPixels + 1 : interior >= kAmxPixels;
-  const int taps = a.upsampled ? 4 : p.kernel_h * p.kernel_w;
-  const uint8_t* weights =
-      reinterpret_cast<const uint8_t*>(a.upsampled ? p.phase_weights : p.weights);
-  const ptrdiff_t phase_bytes = static_cast<ptrdiff_t>(p.blocks) * 4 * j.tap_bytes;
-
-  T::Configure(AmxConfigFor(groups));
-  alignas(64) int32_t init[64];
-  alignas(64) int32_t phase_init[4][64];
-  const uint8_t* xs[kMaxInt8Taps];
-  const uint8_t* ws[kMaxInt8Taps];
+  const AmxCall<Conv> c = AmxCallFor<Conv>(a, out_w, fallback);
+  T::Configure(AmxConfigFor(Traits::Groups(*a.conv)));
+  AmxBlockTerms terms;
   for (int blk = blk_begin; blk < blk_end; ++blk) {
-    const DotEpilogue e = BlockEpilogue<AmxBlocks<Conv>>(p, blk);
-    const int nt = (e.valid + 15) / 16;
-    DotEpilogue phase_e[4] = {e, e, e, e};
-    if (a.upsampled) {
-      for (int ph = 0; ph < 4; ++ph) {
-        const int32_t* sums = nullptr;
-        if constexpr (Traits::kQuantized) {
-          sums = p.phase_tap_sums + (static_cast<ptrdiff_t>(ph) * p.blocks + blk) * 4 * 64;
-          phase_e[ph].multiplier = p.phase_multiplier + (ph * p.blocks + blk) * 64;
-        }
-        AmxInit(p, sums, 4, phase_init[ph]);
-      }
-    } else {
-      const int32_t* sums = nullptr;
-      if constexpr (Traits::kQuantized) {
-        sums = p.tap_sums + static_cast<ptrdiff_t>(blk) * taps * 64;
-      }
-      AmxInit(p, sums, taps, init);
-    }
-    for (int oy = row_begin; oy < row_end; ++oy) {
-      const int iy0 = oy * (a.upsampled ? 1 : p.stride_h) - a.pads.top;
-      const bool rows_inside = iy0 >= 0 && iy0 + p.kernel_h <= src_h;
-      typename Traits::Args rest = a;
-      if (!rows_inside || !wide) {
-        fallback(rest, oy, oy + 1, blk, blk + 1);
-        continue;
-      }
-      if (inside.lo > 0) {
-        rest.col_begin = 0;
-        rest.col_end = inside.lo;
-        fallback(rest, oy, oy + 1, blk, blk + 1);
-      }
-      if (inside.hi < out_w) {
-        rest.col_begin = inside.hi;
-        rest.col_end = out_w;
-        fallback(rest, oy, oy + 1, blk, blk + 1);
-      }
-      if (!a.upsampled) {
-        const uint8_t* wblk = weights + static_cast<ptrdiff_t>(blk) * taps * j.tap_bytes;
-        for (int t = 0; t < taps; ++t) ws[t] = wblk + t * j.tap_bytes;
-        const ptrdiff_t x_stride = static_cast<ptrdiff_t>(p.stride_w) * in_pixel;
-        for (int i = 0; i < AmxTileCount(interior); ++i) {
-          const int ox0 = inside.lo + AmxTileStart(i, interior);
-          const int ix0 = ox0 * p.stride_w - a.pads.left;
-          for (int ky = 0; ky < p.kernel_h; ++ky) {
-            for (int kx = 0; kx < p.kernel_w; ++kx) {
-              xs[ky * p.kernel_w + kx] =
-                  reinterpret_cast<const uint8_t*>(a.in.pixel(iy0 + ky, ix0 + kx));
-            }
-          }
-          AmxTileFor<T>(nt, j, xs, x_stride, ws, taps, init, e, j.Out(oy, ox0, blk), j.out_pixel);
-        }
-        continue;
-      }
-      // The fused upsample: per column phase, every second interior pixel from the phase's 2x2
-      // kernel over consecutive low-resolution pixels (dot_driver_inl.h's DotPhaseRow).
-      const int ay = iy0 + a.crop_top;
-      const int by = ay >> 1;
-      for (int px = 0; px < 2; ++px) {
-        const int first = inside.lo + ((inside.lo - a.pads.left + a.crop_left + px) & 1);
-        const int n = (inside.hi - first + 1) / 2;  // this phase's interior pixels
-        const int ph = (ay & 1) * 2 + px;
-        const uint8_t* pw =
-            weights + ph * phase_bytes + static_cast<ptrdiff_t>(blk) * 4 * j.tap_bytes;
-        for (int t = 0; t < 4; ++t) ws[t] = pw + t * j.tap_bytes;
-        for (int i = 0; i < AmxTileCount(n); ++i) {
-          const int ox0 = first + 2 * AmxTileStart(i, n);
-          const int bx = (ox0 - a.pads.left + a.crop_left) >> 1;
-          for (int t = 0; t < 4; ++t) {
-            xs[t] = reinterpret_cast<const uint8_t*>(a.in.pixel(by + t / 2, bx + t % 2));
-          }
-          AmxTileFor<T>(nt, j, xs, in_pixel, ws, 4, phase_init[ph], phase_e[ph],
-                        j.Out(oy, ox0, blk), 2 * j.out_pixel);
-        }
-      }
-    }
+    AmxTermsFor(c, blk, &terms);
+    for (int oy = row_begin; oy < row_end; ++oy) AmxRow<T>(c, terms, blk, oy);
   }
   T::Release();
 }
