@@ -156,14 +156,24 @@ uint8_t QuantizeInput(float value, const QuantParams& q) {
   return Int8Quantize(value, 1.0f / q.scale, q.zero_point);
 }
 
-// 1. The steps, as the fusion rules give them. Returns the most inputs a step gathers.
-// 2. Packed weights for the SIMD steps, in one 64-byte-aligned allocation.
+// 2. Packed weights for the SIMD steps (one 64-byte-aligned allocation for the float32 ones,
+// one for the int8 and bf16 ones) and the steps' kernels. (1, the steps: step_planner.cc.)
 Status Session::PackWeights() {
+  if (Status s = PackFloatWeights(); !s.ok()) return s;
+  if (Status s = PackReducedWeights(); !s.ok()) return s;
+  for (const Step& step : steps_) {
+    step_info_.push_back({step.first_layer, step.last_layer, step.kernel, step.precision,
+                          step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16});
+  }
+  return Status::Ok();
+}
+
+// 2a. The float32 convolutions' packings (Winograd's, the few-output kernel's, the SIMD
+// kernels'), and each step's float32 kernel.
+Status Session::PackFloatWeights() {
   const auto layers = model_->layers();
   const IsaConvKernels* kernels = ConvKernelsFor(isa_);
   const KernelTuning& tuning = options_.tuning;
-  const IsaInt8Kernels* kernels8 = Int8KernelsFor(isa_);
-  const IsaBf16Kernels* kernels16 = Bf16KernelsFor(isa_);
   auto variant_for = [&](const ConvParams& p) -> const ConvKernelVariant& {
     return PickConvVariant(*kernels, p.out_channels);
   };
@@ -232,9 +242,17 @@ Status Session::PackWeights() {
     step.fn = phases ? v.upconv : v.conv;
     step.kernel = phases ? v.upconv_name : v.conv_name;
   }
-  // Int8 and bf16 packings (the reference layout, and the SIMD one when the step has SIMD
-  // kernels). A bf16 convolution that reads an upsampling 2x with a 3x3 stride-1 kernel gets
-  // its phase kernels.
+  return Status::Ok();
+}
+
+// 2b. Int8 and bf16 packings (the reference layout, and the SIMD one when the step has SIMD
+// kernels). A bf16 convolution that reads an upsampling 2x with a 3x3 stride-1 kernel gets its
+// phase kernels.
+Status Session::PackReducedWeights() {
+  const auto layers = model_->layers();
+  const KernelTuning& tuning = options_.tuning;
+  const IsaInt8Kernels* kernels8 = Int8KernelsFor(isa_);
+  const IsaBf16Kernels* kernels16 = Bf16KernelsFor(isa_);
   auto nr8 = [&](const Step& step) { return step.fn8 == ref::Conv2dInt8Rows ? 0 : kernels8->nr; };
   auto nr16 = [&](const Step& step) {
     return step.fn16 == ref::Conv2dBf16Rows ? 0 : kernels16->nr;
@@ -269,143 +287,152 @@ Status Session::PackWeights() {
     }
     cursor8 += reduced_bytes(step);
   }
-  for (const Step& step : steps_) {
-    step_info_.push_back({step.first_layer, step.last_layer, step.kernel, step.precision,
-                          step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16});
-  }
   return Status::Ok();
 }
 
-// 3. The arena: where each tensor lives.
-Status Session::PlanTensors(size_t gather) {
-  const auto layers = model_->layers();
-  // 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is
-  // a view of its input. Times are layer indices: a tensor is born with the last layer of the
-  // step that writes it (a converting step's, with the tensor it converts) and lives until the
-  // last step that reads it, directly or through crops' views. A uint8 or bf16 tensor gets
-  // kInt8TensorSlack or kBf16TensorSlack spare bytes that kernels may read.
-  views_ = std::make_unique<Views>();
-  views_->gather.resize(gather);
-  views_->gather8.resize(gather);
-  views_->gather16.resize(gather);
-  views_->f32.resize(layers.size() + 1);
-  views_->u8.resize(layers.size() + 1);
-  views_->bf16.resize(layers.size() + 1);
-  std::vector<BufferRequest> requests;
-  std::vector<int> producers;
-  const size_t m = steps_.size();
-  tensor_of_step_.assign(m, -1);
-  // Per tensor slot (a layer's output; the model input last) and element type, the request
-  // that holds it (-1: none, or the caller's input).
-  auto slot_of = [&](int t) { return t == kModelInput ? layers.size() : static_cast<size_t>(t); };
-  std::vector<int> holder_f(layers.size() + 1, -1);
-  std::vector<int> holder_u8(layers.size() + 1, -1);
-  std::vector<int> holder_bf16(layers.size() + 1, -1);
-  std::vector<int> concat_request(steps_.size(), -1);  // per in-place Concat step
-  auto holders = [&](const Step& step) -> std::vector<int>& {
-    return step.out_u8 ? holder_u8 : step.out_bf16 ? holder_bf16 : holder_f;
-  };
-  auto read = [&](int request, int time) {
-    if (request >= 0) {
-      BufferRequest& r = requests[static_cast<size_t>(request)];
-      r.last_use = std::max(r.last_use, time);
+// 3. The arena. Every step but the last writes a tensor of its own, except a crop, which is a
+// view of its input. Times are layer indices: a tensor is born with the last layer of the step
+// that writes it (a converting step's, with the tensor it converts) and lives until the last
+// step that reads it, directly or through crops' views. A uint8 or bf16 tensor gets
+// kInt8TensorSlack or kBf16TensorSlack spare bytes that kernels may read. TensorLifetimes turns
+// the steps, in order, into the arena's requests.
+class Session::TensorLifetimes {
+ public:
+  explicit TensorLifetimes(Session& s)
+      : s_(s),
+        layers_(s.model_->layers()),
+        holder_f_(layers_.size() + 1, -1),
+        holder_u8_(layers_.size() + 1, -1),
+        holder_bf16_(layers_.size() + 1, -1),
+        concat_request_(s.steps_.size(), -1) {}
+
+  // Step k: the tensors it reads live until its time; the tensor it writes (its own, its slice
+  // of an in-place Concat's, none for a crop or the last step) is requested.
+  void Add(size_t k) {
+    const Step& step = s_.steps_[k];
+    const size_t src = SlotOf(layers_[step.first_layer].inputs[0]);
+    ReadInputs(step, src);
+    if (step.kind == Step::Kind::kCrop || k + 1 == s_.steps_.size()) return;
+    const int born = Converts(step) ? step.first_layer - 1 : step.last_layer;
+    if (step.in_place || step.slice_of >= 0) {
+      AddConcatSlice(k, born);
+    } else {
+      AddTensor(k, src, born);
     }
-  };
-  for (size_t k = 0; k < m; ++k) {
-    const Step& step = steps_[k];
-    const LayerDesc& first = layers[step.first_layer];
-    const size_t src = slot_of(first.inputs[0]);
-    const bool convert = step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
+  }
+
+  std::vector<BufferRequest> requests;
+  std::vector<int> producers;  // per request: the time its tensor is born
+
+ private:
+  static bool Converts(const Step& step) {
+    return step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
+  }
+  // Per tensor slot (a layer's output; the model input last) and element type, the request that
+  // holds it (-1: none, or the caller's input).
+  size_t SlotOf(int t) const { return t == kModelInput ? layers_.size() : static_cast<size_t>(t); }
+  std::vector<int>& Holders(const Step& step) {
+    return step.out_u8 ? holder_u8_ : step.out_bf16 ? holder_bf16_ : holder_f_;
+  }
+  void Read(int request, int time) {
+    if (request < 0) return;
+    BufferRequest& r = requests[static_cast<size_t>(request)];
+    r.last_use = std::max(r.last_use, time);
+  }
+  void ReadInputs(const Step& step, size_t src) {
     const int time = step.last_layer;
+    const LayerDesc& first = layers_[step.first_layer];
     switch (step.kind) {
       case Step::Kind::kRows:
-        for (int t : first.inputs) read(holder_f[slot_of(t)], time);
+        for (int t : first.inputs) Read(holder_f_[SlotOf(t)], time);
         break;
       case Step::Kind::kConcatU8:
-        for (int t : first.inputs) read(holder_u8[slot_of(t)], time);
+        for (int t : first.inputs) Read(holder_u8_[SlotOf(t)], time);
         break;
       case Step::Kind::kConcatBf16:
-        for (int t : first.inputs) read(holder_bf16[slot_of(t)], time);
+        for (int t : first.inputs) Read(holder_bf16_[SlotOf(t)], time);
         break;
       case Step::Kind::kInt8Conv:
       case Step::Kind::kUpsampleU8:
-        read(holder_u8[src], time);
+        Read(holder_u8_[src], time);
         break;
       case Step::Kind::kBf16Conv:
       case Step::Kind::kUpsampleBf16:
-        read(holder_bf16[src], time);
+        Read(holder_bf16_[src], time);
         break;
       case Step::Kind::kCrop:  // a view: what reads it reads the same memory
-        read(holders(step)[src], time);
-        holders(step)[static_cast<size_t>(step.last_layer)] = holders(step)[src];
+        Read(Holders(step)[src], time);
+        Holders(step)[static_cast<size_t>(step.last_layer)] = Holders(step)[src];
         break;
       default:  // the float32 readers: converting steps, float32 convolutions, upsamplings
-        read(holder_f[src], time);
+        Read(holder_f_[src], time);
         break;
     }
-    if (step.kind == Step::Kind::kCrop || k + 1 == m) continue;  // the last writes the output
-    const int born = convert ? step.first_layer - 1 : step.last_layer;
-    if (step.in_place || step.slice_of >= 0) {
-      // The Concat's tensor, born with the first step that writes a slice of it.
-      const size_t cat = step.in_place ? k : static_cast<size_t>(step.slice_of);
-      int& request = concat_request[cat];
-      if (request < 0) {
-        request = static_cast<int>(requests.size());
-        const size_t elements = geometry_[steps_[cat].last_layer].output.elements();
-        const size_t bytes = step.out_u8 ? elements + kInt8TensorSlack
-                                         : elements * sizeof(uint16_t) + kBf16TensorSlack;
-        requests.push_back({bytes, born, born});
-        producers.push_back(born);
-      }
-      tensor_of_step_[k] = request;
-      holders(step)[static_cast<size_t>(step.last_layer)] = request;
-      continue;
+  }
+  // The Concat's tensor, born with the first step that writes a slice of it.
+  void AddConcatSlice(size_t k, int born) {
+    const Step& step = s_.steps_[k];
+    const size_t cat = step.in_place ? k : static_cast<size_t>(step.slice_of);
+    int& request = concat_request_[cat];
+    if (request < 0) {
+      request = static_cast<int>(requests.size());
+      const size_t elements = s_.geometry_[s_.steps_[cat].last_layer].output.elements();
+      const size_t bytes = step.out_u8 ? elements + kInt8TensorSlack
+                                       : elements * sizeof(uint16_t) + kBf16TensorSlack;
+      requests.push_back({bytes, born, born});
+      producers.push_back(born);
     }
-    const TensorShape shape = !convert               ? geometry_[step.last_layer].output
-                              : src == layers.size() ? geometry_[0].input
-                                                     : geometry_[src].output;
+    s_.tensor_of_step_[k] = request;
+    Holders(step)[static_cast<size_t>(step.last_layer)] = request;
+  }
+  void AddTensor(size_t k, size_t src, int born) {
+    const Step& step = s_.steps_[k];
+    const bool convert = Converts(step);
+    const TensorShape shape = !convert                ? s_.geometry_[step.last_layer].output
+                              : src == layers_.size() ? s_.geometry_[0].input
+                                                      : s_.geometry_[src].output;
     const size_t bytes = step.out_u8     ? shape.elements() + kInt8TensorSlack
                          : step.out_bf16 ? shape.elements() * sizeof(uint16_t) + kBf16TensorSlack
                                          : shape.elements() * sizeof(float);
-    tensor_of_step_[k] = static_cast<int>(requests.size());
+    s_.tensor_of_step_[k] = static_cast<int>(requests.size());
     // A converting step's tensor is the converted form of its input's slot.
-    holders(step)[convert ? src : static_cast<size_t>(step.last_layer)] =
+    Holders(step)[convert ? src : static_cast<size_t>(step.last_layer)] =
         static_cast<int>(requests.size());
     requests.push_back({bytes, born, born});
     producers.push_back(born);
   }
-  // Winograd scratch (v and m) lives during its own step only, so it reuses memory that the
-  // tensors of other steps need; it is not a tensor (plan() lists tensors only).
-  const size_t tensors = requests.size();
-  auto has_scratch = [](const Step& step) {
-    return step.kind == Step::Kind::kWinograd || step.upwinograd != nullptr;
-  };
-  for (Step& step : steps_) {
-    if (!has_scratch(step)) continue;
-    const LayerGeometry& g = geometry_[step.last_layer];
-    size_t floats_needed = 0;
-    if (step.kind == Step::Kind::kWinograd) {
-      step.band_rows = WinogradBandRows(step.wpacked, g.output.height, g.output.width);
-      floats_needed = WinogradBandScratchFloats(step.wpacked, step.band_rows, g.output.width);
-    } else {
-      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
-      const UpGrid u =
-          UpGridOf(g.output.height, g.output.width, g.pads, c.output.height, c.output.width,
-                   step.crop_layer >= 0 ? c.crop.top : 0, step.crop_layer >= 0 ? c.crop.left : 0);
-      step.band_rows = UpWinogradBandRows(step.wpacked, u.tiles_h, u.tiles_w);
-      floats_needed = UpWinogradScratchFloats(step.wpacked, step.band_rows, u.tiles_w);
-    }
-    requests.push_back({floats_needed * sizeof(float), step.last_layer, step.last_layer});
-  }
-  const ArenaPlan plan = PlanArena(requests);
+
+  Session& s_;
+  std::span<const LayerDesc> layers_;
+  std::vector<int> holder_f_, holder_u8_, holder_bf16_;
+  std::vector<int> concat_request_;  // per in-place Concat step
+};
+
+// 3. The arena: where each tensor lives.
+Status Session::PlanTensors(size_t gather) {
+  const size_t slots = model_->layers().size() + 1;
+  views_ = std::make_unique<Views>();
+  views_->gather.resize(gather);
+  views_->gather8.resize(gather);
+  views_->gather16.resize(gather);
+  views_->f32.resize(slots);
+  views_->u8.resize(slots);
+  views_->bf16.resize(slots);
+  tensor_of_step_.assign(steps_.size(), -1);
+  TensorLifetimes lifetimes(*this);
+  for (size_t k = 0; k < steps_.size(); ++k) lifetimes.Add(k);
+  const size_t tensors = lifetimes.requests.size();
+  RequestScratch(lifetimes.requests);
+  const ArenaPlan plan = PlanArena(lifetimes.requests);
   for (size_t t = tensors, k = 0; k < steps_.size(); ++k) {
-    if (has_scratch(steps_[k])) steps_[k].scratch_offset = plan.offsets[t++];
+    if (HasScratch(steps_[k])) steps_[k].scratch_offset = plan.offsets[t++];
   }
   plan_.resize(tensors);
   for (size_t t = 0; t < tensors; ++t) {
-    plan_[t] = {producers[t], requests[t].last_use, plan.offsets[t], requests[t].bytes};
+    plan_[t] = {lifetimes.producers[t], lifetimes.requests[t].last_use, plan.offsets[t],
+                lifetimes.requests[t].bytes};
   }
-  for (size_t k = 0; k < m; ++k) {
+  for (size_t k = 0; k < steps_.size(); ++k) {
     if (tensor_of_step_[k] >= 0) {
       plan_[static_cast<size_t>(tensor_of_step_[k])].is_u8 = steps_[k].out_u8;
       plan_[static_cast<size_t>(tensor_of_step_[k])].is_bf16 = steps_[k].out_bf16;
@@ -421,6 +448,33 @@ Status Session::PlanTensors(size_t gather) {
     }
   }
   return Status::Ok();
+}
+
+// 3b. Winograd scratch (v and m) lives during its own step only, so it reuses memory that the
+// tensors of other steps need; it is not a tensor (plan() lists tensors only). One request per
+// step that has it, after the tensors', in step order.
+bool Session::HasScratch(const Step& step) {
+  return step.kind == Step::Kind::kWinograd || step.upwinograd != nullptr;
+}
+
+void Session::RequestScratch(std::vector<BufferRequest>& requests) {
+  for (Step& step : steps_) {
+    if (!HasScratch(step)) continue;
+    const LayerGeometry& g = geometry_[step.last_layer];
+    size_t floats_needed = 0;
+    if (step.kind == Step::Kind::kWinograd) {
+      step.band_rows = WinogradBandRows(step.wpacked, g.output.height, g.output.width);
+      floats_needed = WinogradBandScratchFloats(step.wpacked, step.band_rows, g.output.width);
+    } else {
+      const LayerGeometry& c = geometry_[step.crop_layer >= 0 ? step.crop_layer : step.first_layer];
+      const UpGrid u =
+          UpGridOf(g.output.height, g.output.width, g.pads, c.output.height, c.output.width,
+                   step.crop_layer >= 0 ? c.crop.top : 0, step.crop_layer >= 0 ? c.crop.left : 0);
+      step.band_rows = UpWinogradBandRows(step.wpacked, u.tiles_h, u.tiles_w);
+      floats_needed = UpWinogradScratchFloats(step.wpacked, step.band_rows, u.tiles_w);
+    }
+    requests.push_back({floats_needed * sizeof(float), step.last_layer, step.last_layer});
+  }
 }
 
 // 1b. Concats in place. A uint8 (bf16) Concat whose every input is written by an int8 (bf16)

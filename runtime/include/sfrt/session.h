@@ -46,6 +46,8 @@
 
 namespace sfrt {
 
+struct BufferRequest;  // runtime/src/memory_planner.h
+
 // Switches for the optimised paths, for A/B measurements and tests; the defaults are the fastest
 // measured. Every combination computes the same function (within the kernels' tolerances).
 // The library reads no environment variable: the `sfrt` tool maps SFRT_WINOGRAD=off|f2|f4,
@@ -222,7 +224,12 @@ class Session {
   size_t PlanSteps();                 // Plan, step 1 (step_planner.cc)
   void PlaceConcatInputs();           // Plan, step 1b
   Status PackWeights();               // Plan, step 2
+  Status PackFloatWeights();          // Plan, step 2a
+  Status PackReducedWeights();        // Plan, step 2b: int8 and bf16
   Status PlanTensors(size_t gather);  // Plan, step 3
+  class TensorLifetimes;              // Plan, step 3: the tensors' arena requests
+  static bool HasScratch(const Step& step);
+  void RequestScratch(std::vector<BufferRequest>& requests);  // Plan, step 3b
   std::shared_ptr<const Model> model_;
   SessionOptions options_;
   std::vector<PlannedTensor> plan_;      // one per layer output, except the last and crops
