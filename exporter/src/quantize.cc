@@ -790,10 +790,9 @@ std::string CalibrationDataSha256(const CalibrationSet& data) {
   return sha.FinishHex();
 }
 
-Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& data,
-                                const QuantizeOptions& options) {
-  Result<CalibrationMethod> method = ParseCalibrationMethod(options.method);
-  if (!method.ok()) return method.status();
+namespace {
+
+Status CheckQuantizeOptions(const QuantizeOptions& options) {
   if (options.threads < 1) {
     return Status::Error("calibration threads " + std::to_string(options.threads) +
                          ": must be at least 1");
@@ -808,9 +807,21 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
         "bias correction is for int8 quantisation (every convolution int8), "
         "not the auto mode");
   }
-  std::vector<int> conv_layers;
+  return Status::Ok();
+}
+
+bool Reduced(Precision p) { return p != Precision::kFloat32; }
+
+// The model's convolutions: their layer indices, names and first precisions (int8 where it can
+// be, float32 otherwise: ReducibleConv).
+struct ConvList {
+  std::vector<int> layers;
   std::vector<std::string> names;
-  std::vector<Precision> precision;  // int8 where it can be, float32 otherwise (ReducibleConv)
+  std::vector<Precision> precision;
+};
+
+Result<ConvList> ListConvs(const ModelSpec& model) {
+  ConvList convs;
   for (size_t i = 0; i < model.layers.size(); ++i) {
     const auto* c = std::get_if<ConvSpec>(&model.layers[i]);
     if (c == nullptr) continue;
@@ -819,57 +830,142 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
                            PrecisionName(c->precision) +
                            "; quantisation starts from a float32 model");
     }
-    conv_layers.push_back(static_cast<int>(i));
-    names.push_back(c->name);
-    precision.push_back(ReducibleConv(*c) ? Precision::kInt8 : Precision::kFloat32);
+    convs.layers.push_back(static_cast<int>(i));
+    convs.names.push_back(c->name);
+    convs.precision.push_back(ReducibleConv(*c) ? Precision::kInt8 : Precision::kFloat32);
   }
-  auto reduced = [](Precision p) { return p != Precision::kFloat32; };
-  if (std::none_of(precision.begin(), precision.end(), reduced)) {
+  if (std::none_of(convs.precision.begin(), convs.precision.end(), Reduced)) {
     return Status::Error(
         "model '" + model.name + "' has no convolution to quantise" +
-        (conv_layers.empty() ? std::string() : " (dilated and grouped ones run in fp32 only)"));
+        (convs.layers.empty() ? std::string() : " (dilated and grouped ones run in fp32 only)"));
   }
+  return convs;
+}
+
+// Each convolution's input and output ranges; the inputs of a group of convolutions that read
+// the same values share one range (QuantizeOptions::shared_scales, SharedScaleGroups).
+struct Ranges {
+  std::vector<int> group;
+  std::vector<QuantParams> input, output;
+};
+
+Ranges RangesOf(const Calibrator& calibrator, const Model& fp32, const ConvList& convs,
+                const QuantizeOptions& options, double percentile) {
+  Ranges r;
+  r.group.resize(convs.layers.size());
+  if (options.shared_scales) {
+    r.group = SharedScaleGroups(fp32.layers(), convs.layers);
+  } else {
+    std::iota(r.group.begin(), r.group.end(), 0);
+  }
+  for (size_t j = 0; j < convs.layers.size(); ++j) {
+    std::vector<size_t> members;
+    for (size_t k = 0; k < convs.layers.size(); ++k) {
+      if (r.group[k] == r.group[j]) members.push_back(k);
+    }
+    r.input.push_back(calibrator.InputQuant(members, percentile));
+    r.output.push_back(calibrator.OutputQuant(j, percentile));
+  }
+  return r;
+}
+
+// The int8 weights (and phase kernels, where a convolution reads a 2x upsampling) of the
+// convolutions that may be reduced.
+std::vector<QuantizedWeights> WeightsOf(const ModelSpec& model, const Model& fp32,
+                                        const ConvList& convs) {
+  std::vector<QuantizedWeights> weights(convs.layers.size());
+  for (size_t j = 0; j < convs.layers.size(); ++j) {
+    if (!Reduced(convs.precision[j])) continue;
+    const auto& c = std::get<ConvSpec>(model.layers[static_cast<size_t>(convs.layers[j])]);
+    QuantizeWeights(c.weights_hwio, c.out_channels, &weights[j].q, &weights[j].scales);
+    if (ReadsUpsampling(fp32.layers(), static_cast<size_t>(convs.layers[j]))) {
+      QuantizePhaseWeights(c.weights_hwio, c.in_channels, c.out_channels, &weights[j].phase_q,
+                           &weights[j].phase_scales);
+    }
+  }
+  return weights;
+}
+
+// The auto mode's step: the int8 or bf16 convolution whose error, in the budget's metric, rose
+// most over its input's (with max: a range that clips a few values shows in the largest error
+// only) goes one rung up the ladder (int8 -> bf16 where the ladder has it, then -> fp32).
+// Returns the line that records it.
+std::string RaiseWorstLayer(const Errors& errors, const QuantizeOptions& options,
+                            const std::vector<std::string>& names,
+                            std::vector<Precision>& precision) {
+  const bool max = options.accuracy_metric == AccuracyMetric::kMax;
+  const std::vector<double>& layer_error = max ? errors.relative_max : errors.relative_rms;
+  size_t worst = 0;
+  double worst_rise = -kInf;
+  for (size_t j = 0; j < precision.size(); ++j) {
+    if (!Reduced(precision[j])) continue;
+    const double rise = layer_error[j] - (j == 0 ? 0.0 : layer_error[j - 1]);
+    if (rise > worst_rise) {
+      worst = j;
+      worst_rise = rise;
+    }
+  }
+  const bool to_bf16 = precision[worst] == Precision::kInt8 && options.auto_bf16;
+  precision[worst] = to_bf16 ? Precision::kBFloat16 : Precision::kFloat32;
+  const double error = max ? errors.output_max_rel : errors.output_rms_rel;
+  return names[worst] + (to_bf16 ? " to bf16" : " back to fp32") + ": output " +
+         (max ? "max " : "rms ") + Sci(error) + " > budget " + Sci(options.accuracy_budget) +
+         "; its relative " + (max ? "max " : "rms ") + Sci(layer_error[worst]) + " rose " +
+         Sci(worst_rise) + " over its input's";
+}
+
+// What the model file records of the calibration.
+CalibrationDesc DescribeCalibration(const CalibrationMethod& method, const QuantizeOptions& options,
+                                    const CalibrationSet& data, const std::vector<int>& group,
+                                    const ConvList& convs, const Errors& errors) {
+  CalibrationDesc cal;
+  // Where a group has more than one member, the ranges are shared, and the record says so.
+  std::vector<int> sorted_groups = group;
+  std::sort(sorted_groups.begin(), sorted_groups.end());
+  const bool shared =
+      std::adjacent_find(sorted_groups.begin(), sorted_groups.end()) != sorted_groups.end();
+  cal.method = method.text + (shared ? ", shared scales" : "") +
+               (options.bias_correction ? ", bias correction" : "");
+  cal.data_sha256 = CalibrationDataSha256(data);
+  cal.frames = data.frames;
+  cal.height = data.height;
+  cal.width = data.width;
+  cal.output_max_rel = static_cast<float>(errors.output_max_rel);
+  cal.output_rms_rel = static_cast<float>(errors.output_rms_rel);
+  for (size_t j = 0; j < convs.layers.size(); ++j) {
+    cal.layers.push_back(
+        {convs.names[j], convs.precision[j], static_cast<float>(errors.relative_rms[j])});
+  }
+  return cal;
+}
+
+}  // namespace
+
+Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& data,
+                                const QuantizeOptions& options) {
+  Result<CalibrationMethod> method = ParseCalibrationMethod(options.method);
+  if (!method.ok()) return method.status();
+  if (Status s = CheckQuantizeOptions(options); !s.ok()) return s;
+  Result<ConvList> listed = ListConvs(model);
+  if (!listed.ok()) return listed.status();
+  ConvList& convs = *listed;
   if (Status s = CheckCalibrationSet(data, model.input.channels); !s.ok()) return s;
 
   ModelSpec fp32_spec = model;
   fp32_spec.calibration.reset();
   Result<std::shared_ptr<const Model>> fp32 = Load(fp32_spec, "the float32 model");
   if (!fp32.ok()) return fp32.status();
-  Calibrator calibrator(data, options, *fp32, conv_layers);
+  Calibrator calibrator(data, options, *fp32, convs.layers);
   if (Status s = calibrator.Prepare(); !s.ok()) return s;
   if (Status s = calibrator.Observe(); !s.ok()) return s;
-
-  std::vector<int> group(conv_layers.size());
-  if (options.shared_scales) {
-    group = SharedScaleGroups((*fp32)->layers(), conv_layers);
-  } else {
-    std::iota(group.begin(), group.end(), 0);
-  }
-  std::vector<QuantParams> input_quant, output_quant;
-  for (size_t j = 0; j < conv_layers.size(); ++j) {
-    std::vector<size_t> members;
-    for (size_t k = 0; k < conv_layers.size(); ++k) {
-      if (group[k] == group[j]) members.push_back(k);
-    }
-    input_quant.push_back(calibrator.InputQuant(members, method->percentile));
-    output_quant.push_back(calibrator.OutputQuant(j, method->percentile));
-  }
-  std::vector<QuantizedWeights> weights(conv_layers.size());
-  for (size_t j = 0; j < conv_layers.size(); ++j) {
-    if (!reduced(precision[j])) continue;
-    const auto& c = std::get<ConvSpec>(model.layers[static_cast<size_t>(conv_layers[j])]);
-    QuantizeWeights(c.weights_hwio, c.out_channels, &weights[j].q, &weights[j].scales);
-    if (ReadsUpsampling((*fp32)->layers(), static_cast<size_t>(conv_layers[j]))) {
-      QuantizePhaseWeights(c.weights_hwio, c.in_channels, c.out_channels, &weights[j].phase_q,
-                           &weights[j].phase_scales);
-    }
-  }
+  const Ranges ranges = RangesOf(calibrator, **fp32, convs, options, method->percentile);
+  const std::vector<QuantizedWeights> weights = WeightsOf(model, **fp32, convs);
 
   // The float32 model the quantised ones are built from: its biases corrected, or as given.
   ModelSpec base = fp32_spec;
   if (options.bias_correction) {
-    if (Status s = CorrectBiases(calibrator, *fp32, conv_layers, precision, input_quant,
-                                 output_quant, weights, &base);
+    if (Status s = CorrectBiases(calibrator, *fp32, convs.layers, convs.precision, ranges.input,
+                                 ranges.output, weights, &base);
         !s.ok()) {
       return s;
     }
@@ -877,7 +973,7 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
   QuantizeResult result;
   Errors errors;
   while (true) {
-    result.spec = BuildSpec(base, precision, input_quant, output_quant, weights);
+    result.spec = BuildSpec(base, convs.precision, ranges.input, ranges.output, weights);
     Result<std::shared_ptr<const Model>> quantised = Load(result.spec, "the quantised model");
     if (!quantised.ok()) return quantised.status();
     Result<Errors> measured = calibrator.Measure(*quantised);
@@ -886,50 +982,15 @@ Result<QuantizeResult> Quantize(const ModelSpec& model, const CalibrationSet& da
     const bool max = options.accuracy_metric == AccuracyMetric::kMax;
     const double error = max ? errors.output_max_rel : errors.output_rms_rel;
     if (options.mode == QuantizeMode::kInt8 || error <= options.accuracy_budget ||
-        std::none_of(precision.begin(), precision.end(), reduced)) {
+        std::none_of(convs.precision.begin(), convs.precision.end(), Reduced)) {
       break;
     }
-    // The int8 or bf16 convolution whose error, in the budget's metric, rose most over its
-    // input's (with max: a range that clips a few values shows in the largest error only).
-    const std::vector<double>& layer_error = max ? errors.relative_max : errors.relative_rms;
-    size_t worst = 0;
-    double worst_rise = -kInf;
-    for (size_t j = 0; j < precision.size(); ++j) {
-      if (!reduced(precision[j])) continue;
-      const double rise = layer_error[j] - (j == 0 ? 0.0 : layer_error[j - 1]);
-      if (rise > worst_rise) {
-        worst = j;
-        worst_rise = rise;
-      }
-    }
-    // int8 -> bf16 where the ladder has it, then -> fp32.
-    const bool to_bf16 = precision[worst] == Precision::kInt8 && options.auto_bf16;
-    precision[worst] = to_bf16 ? Precision::kBFloat16 : Precision::kFloat32;
-    result.auto_steps.push_back(names[worst] + (to_bf16 ? " to bf16" : " back to fp32") +
-                                ": output " + (max ? "max " : "rms ") + Sci(error) + " > budget " +
-                                Sci(options.accuracy_budget) + "; its relative " +
-                                (max ? "max " : "rms ") + Sci(layer_error[worst]) + " rose " +
-                                Sci(worst_rise) + " over its input's");
+    result.auto_steps.push_back(RaiseWorstLayer(errors, options, convs.names, convs.precision));
   }
-
-  CalibrationDesc& cal = result.calibration;
-  // Where a group has more than one member, the ranges are shared, and the record says so.
-  std::vector<int> sorted_groups = group;
-  std::sort(sorted_groups.begin(), sorted_groups.end());
-  const bool shared =
-      std::adjacent_find(sorted_groups.begin(), sorted_groups.end()) != sorted_groups.end();
-  cal.method = method->text + (shared ? ", shared scales" : "") +
-               (options.bias_correction ? ", bias correction" : "");
-  cal.data_sha256 = CalibrationDataSha256(data);
-  cal.frames = data.frames;
-  cal.height = data.height;
-  cal.width = data.width;
-  cal.output_max_rel = static_cast<float>(errors.output_max_rel);
-  cal.output_rms_rel = static_cast<float>(errors.output_rms_rel);
-  for (size_t j = 0; j < conv_layers.size(); ++j) {
-    cal.layers.push_back({names[j], precision[j], static_cast<float>(errors.relative_rms[j])});
+  result.calibration = DescribeCalibration(*method, options, data, ranges.group, convs, errors);
+  if (std::any_of(convs.precision.begin(), convs.precision.end(), Reduced)) {
+    result.spec.calibration = result.calibration;
   }
-  if (std::any_of(precision.begin(), precision.end(), reduced)) result.spec.calibration = cal;
   return result;
 }
 
