@@ -86,6 +86,12 @@ class Runner {
 
  private:
   Status Setup();
+  Status SetupInputSize();
+  Status SetupRectifier();
+  void WarnOfCameraChange();
+  Status SetupSession();
+  Status CheckOutputShapes();
+  Status SetupRun();
   void SourceStage();
   void PreprocessStage();
   void InferStage();
@@ -244,6 +250,16 @@ void Runner::Fail(const Status& status, bool discard) {
 }
 
 Status Runner::Setup() {
+  if (Status s = SetupInputSize(); !s.ok()) return s;
+  if (Status s = SetupRectifier(); !s.ok()) return s;
+  if (Status s = SetupFallback(); !s.ok()) return s;
+  if (Status s = SetupSession(); !s.ok()) return s;
+  if (Status s = CheckOutputShapes(); !s.ok()) return s;
+  return SetupRun();
+}
+
+// Opens the source and chooses the network's input size (ChooseInputSize).
+Status Runner::SetupInputSize() {
   source_->set_log(&log_);
   Result<cv::Size> size = source_->Open();
   if (!size.ok()) return size.status();
@@ -262,7 +278,12 @@ Status Runner::Setup() {
                  " (HxW): " + chosen->reason;
   }
   if (!chosen->aspect_note.empty()) warnings_.push_back(chosen->aspect_note);
+  return Status::Ok();
+}
 
+// The preprocessor and the rectifier at the input size: the calibration's, warning where its
+// rectified camera differs from the one the model was trained on, or a plain resize.
+Status Runner::SetupRectifier() {
   Result<camera::PreprocessParams> params = PreprocessFromMetadata(model_->metadata().input);
   if (!params.ok()) return params.status();
   auto pre = camera::Preprocessor::Create(*params, height_, width_);
@@ -275,37 +296,43 @@ Status Runner::Setup() {
                                                 camera::RectifyOptions{model_size});
     if (!rect.ok()) return rect.status();
     rectifier_.emplace(std::move(rect).value());
-    // The network was trained on one camera; a different rectified camera scales its output.
-    const CameraDesc& trained = model_->metadata().camera;
-    const camera::RectifiedCamera& cam = rectifier_->camera();
-    auto differs = [](double a, double b, double rel) {
-      return std::fabs(a - b) > rel * std::max(std::fabs(a), std::fabs(b));
-    };
-    auto warn = [&](const std::string& what, double got, double want) {
-      warnings_.push_back("rectified camera " + what + " " + FormatFixed(got, 4) +
-                          " differs from the model's training camera (" + FormatFixed(want, 4) +
-                          "); the flow's scale may be off");
-    };
-    if (trained.focal_px > 0 && differs(cam.fx, trained.focal_px, 0.01)) {
-      warn("focal length (px)", cam.fx, trained.focal_px);
-    }
-    if (trained.baseline > 0 && differs(cam.baseline, trained.baseline, 0.01)) {
-      warn("baseline", cam.baseline, trained.baseline);
-    }
-    if (trained.focal_px > 0 &&
-        (std::fabs(cam.cx - trained.cx) > 2.0 || std::fabs(cam.cy - trained.cy) > 2.0)) {
-      warnings_.push_back("rectified principal point (" + FormatFixed(cam.cx, 1) + ", " +
-                          FormatFixed(cam.cy, 1) + ") differs from the training camera's (" +
-                          FormatFixed(trained.cx, 1) + ", " + FormatFixed(trained.cy, 1) + ")");
-    }
+    WarnOfCameraChange();
   } else {
     auto rect = camera::StereoRectifier::CreateResizeOnly(source_size_, model_size);
     if (!rect.ok()) return rect.status();
     rectifier_.emplace(std::move(rect).value());
   }
+  return Status::Ok();
+}
 
-  if (Status s = SetupFallback(); !s.ok()) return s;
+// The network was trained on one camera; a different rectified camera scales its output.
+void Runner::WarnOfCameraChange() {
+  const CameraDesc& trained = model_->metadata().camera;
+  const camera::RectifiedCamera& cam = rectifier_->camera();
+  auto differs = [](double a, double b, double rel) {
+    return std::fabs(a - b) > rel * std::max(std::fabs(a), std::fabs(b));
+  };
+  auto warn = [&](const std::string& what, double got, double want) {
+    warnings_.push_back("rectified camera " + what + " " + FormatFixed(got, 4) +
+                        " differs from the model's training camera (" + FormatFixed(want, 4) +
+                        "); the flow's scale may be off");
+  };
+  if (trained.focal_px > 0 && differs(cam.fx, trained.focal_px, 0.01)) {
+    warn("focal length (px)", cam.fx, trained.focal_px);
+  }
+  if (trained.baseline > 0 && differs(cam.baseline, trained.baseline, 0.01)) {
+    warn("baseline", cam.baseline, trained.baseline);
+  }
+  if (trained.focal_px > 0 &&
+      (std::fabs(cam.cx - trained.cx) > 2.0 || std::fabs(cam.cy - trained.cy) > 2.0)) {
+    warnings_.push_back("rectified principal point (" + FormatFixed(cam.cx, 1) + ", " +
+                        FormatFixed(cam.cy, 1) + ") differs from the training camera's (" +
+                        FormatFixed(trained.cx, 1) + ", " + FormatFixed(trained.cy, 1) + ")");
+  }
+}
 
+// The session at the input size, and the uint8 input path where the model and options take it.
+Status Runner::SetupSession() {
   SessionOptions so;
   so.max_height = height_;
   so.max_width = width_;
@@ -323,6 +350,12 @@ Status Runner::Setup() {
     quantized_input_ = true;
     input_table_ = preprocessor_->Tabulate([q](float v) { return QuantizeInput(v, *q); });
   }
+  return Status::Ok();
+}
+
+// The pipeline needs flow at the input size (the fallback's too), in channels the flow files
+// hold.
+Status Runner::CheckOutputShapes() {
   Result<TensorShape> shape = session_->OutputShape(height_, width_);
   if (!shape.ok()) return shape.status();
   out_channels_ = shape->channels;
@@ -351,7 +384,12 @@ Status Runner::Setup() {
     return Status::Error("the model outputs " + std::to_string(out_channels_) +
                          " channels; PFM holds 1 or 3 (use --flow-format npy)");
   }
+  return Status::Ok();
+}
 
+// What runs the windows: the paged-in session, the profiler, the sinks, the queues and the
+// progress display.
+Status Runner::SetupRun() {
   if (options_.prefault) {  // page in the arena and packed weights before the first frame
     std::vector<float> zeros(preprocessor_->output_floats(), 0.0f);
     std::vector<float> flow(static_cast<size_t>(height_) * width_ * out_channels_);
