@@ -308,6 +308,67 @@ int ReportResult(NodeIo& io, const NodeIdentity& identity, const PipelineResult&
   return kExitOk;
 }
 
+// The flow topics' sink: its topics, frame, diagnostics and the facts its status reports.
+TopicSinkOptions SinkOptionsFor(NodeIo& io, const NodeSettings& s, const ModelMetadata& md,
+                                const PipelineOptions& opts, Isa isa) {
+  TopicSinkOptions o;
+  o.topics = {io.Resolve("flow"), io.Resolve("flow_t1"), io.Resolve("flow_vis")};
+  o.frame_id = s.frame_id;
+  o.diagnostics_period_s = s.diagnostics_period;
+  o.hardware_id = md.name;
+  o.facts = {{"isa", IsaName(isa)},
+             {"precision", PrecisionSummary(md)},
+             {"threads", std::to_string(opts.threads)},
+             {"model", s.model},
+             {"input size",
+              s.size.empty() ? "the size a trained model records, else the images'" : s.size},
+             {"on_miss", config::MissActionName(opts.on_miss)}};
+  o.budget_ms = s.budget_ms;
+  o.received = [&io](int side) { return io.received(side); };
+  return o;
+}
+
+// The summary's directory, made and checked now, not found unwritable at shutdown. 0, or the
+// exit code after logging why.
+int PrepareOutDir(NodeIo& io, const std::string& out) {
+  if (out.empty()) return 0;
+  if (std::string e = io::CheckWritableDirectory(out, io.ParamName("out")); !e.empty()) {
+    return Fail(io, kExitUsage, e);
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(out, ec);
+  if (!std::filesystem::is_directory(out, ec)) {
+    return Fail(io, kExitUsage,
+                io.ParamName("out") + " '" + out + "': cannot create the directory" +
+                    (ec ? " (" + ec.message() + ")" : std::string()));
+  }
+  return 0;
+}
+
+// The pipeline on its own thread until it ends, while this one turns ROS shutdown or SIGTERM
+// into a stop and publishes the diagnostics when no window does.
+PipelineResult RunUntilStopped(NodeIo& io, const std::shared_ptr<const Model>& model,
+                               TopicSource* source, const PipelineOptions& opts,
+                               FlowTopicSink& sink, std::atomic<bool>& stop,
+                               std::atomic<int>& stop_signal) {
+  PipelineResult result;
+  std::atomic<bool> done{false};
+  std::thread runner([&] {
+    result = RunPipeline(model, source, opts);
+    done = true;
+  });
+  while (!done.load()) {
+    if (!stop.load() && (!io.Ok() || g_sigterm.load())) {
+      stop_signal = g_sigterm.load() ? SIGTERM : SIGINT;
+      stop = true;
+    }
+    sink.PublishIfIdle(detail::NowNs());
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  runner.join();
+  return result;
+}
+
 }  // namespace
 
 int RunNode(NodeIo& io, const NodeIdentity& identity) {
@@ -350,22 +411,8 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
   TopicSource source(src_opts);
   CameraInfoCheck info_check(md.camera, opts.width, &io);
 
-  TopicSinkOptions sink_opts;
-  sink_opts.topics = {io.Resolve("flow"), io.Resolve("flow_t1"), io.Resolve("flow_vis")};
-  sink_opts.frame_id = s.frame_id;
-  sink_opts.diagnostics_period_s = s.diagnostics_period;
-  sink_opts.hardware_id = md.name;
   const Isa isa = opts.isa == Isa::kAuto ? BestIsa() : opts.isa;
-  sink_opts.facts = {{"isa", IsaName(isa)},
-                     {"precision", PrecisionSummary(md)},
-                     {"threads", std::to_string(opts.threads)},
-                     {"model", s.model},
-                     {"input size", s.size.empty() ? "the size a trained model records, else the "
-                                                     "images'"
-                                                   : s.size},
-                     {"on_miss", config::MissActionName(opts.on_miss)}};
-  sink_opts.budget_ms = s.budget_ms;
-  sink_opts.received = [&io](int side) { return io.received(side); };
+  const TopicSinkOptions sink_opts = SinkOptionsFor(io, s, md, opts, isa);
   FlowTopicSink sink(
       sink_opts, &io, &source, [&io] { return io.NowNs(); },
       [&io](const std::vector<DiagnosticReport>& r) { io.PublishDiagnostics(r); });
@@ -385,19 +432,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
     return Fail(io, kExitUsage, e);
   }
 
-  // The summary's directory is made and checked now, not found unwritable at shutdown.
-  if (!s.out.empty()) {
-    if (std::string e = io::CheckWritableDirectory(s.out, io.ParamName("out")); !e.empty()) {
-      return Fail(io, kExitUsage, e);
-    }
-    std::error_code ec;
-    std::filesystem::create_directories(s.out, ec);
-    if (!std::filesystem::is_directory(s.out, ec)) {
-      return Fail(io, kExitUsage,
-                  io.ParamName("out") + " '" + s.out + "': cannot create the directory" +
-                      (ec ? " (" + ec.message() + ")" : std::string()));
-    }
-  }
+  if (int code = PrepareOutDir(io, s.out); code != 0) return code;
   opts.out_dir = s.out;
   opts.write_flow = false;
   opts.write_png = false;
@@ -430,21 +465,7 @@ int RunNode(NodeIo& io, const NodeIdentity& identity) {
              (s.budget_ms > 0 ? FormatFixed(s.budget_ms, 1) + " ms" : std::string("none")) +
              ", publishing " + sink_opts.topics.flow);
 
-  PipelineResult result;
-  std::atomic<bool> done{false};
-  std::thread runner([&] {
-    result = RunPipeline(*model, &source, opts);
-    done = true;
-  });
-  while (!done.load()) {
-    if (!stop.load() && (!io.Ok() || g_sigterm.load())) {
-      stop_signal = g_sigterm.load() ? SIGTERM : SIGINT;
-      stop = true;
-    }
-    sink.PublishIfIdle(detail::NowNs());
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  runner.join();
+  const PipelineResult result = RunUntilStopped(io, *model, &source, opts, sink, stop, stop_signal);
   for (const std::string& w : result.warnings) log.Write(LogLevel::kWarn, "warning", w);
   const int code = ReportResult(io, identity, result, stop_signal.load() != 0);
   io.Shutdown();
