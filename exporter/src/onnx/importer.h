@@ -186,6 +186,19 @@ class Importer {
   Status ProcessPad(int idx, GraphOp& op);
   Status ProcessBatchNorm(int idx, GraphOp& op);
   Status ProcessResize(int idx, GraphOp& op);
+  // Resize's (Upsample's) attributes as given.
+  struct ResizeAttrs {
+    std::string mode;
+    std::string ctm = "asymmetric";
+    std::string nearest_mode = "floor";  // Upsample: in[floor(y / scale)]
+    float cubic_a = -0.75f;
+    int64_t exclude_outside = 0;
+    float extrapolation_value = 0.0f;
+  };
+  Result<ResizeAttrs> ReadResizeAttrs(int idx, bool is_resize);
+  Status ReadResizeInputs(int idx, bool is_resize, std::vector<double>* scales,
+                          std::vector<int64_t>* sizes);
+  Status ResizeParamsOf(int idx, const ResizeAttrs& a, ResizeParams& r);
   Status ResizeRegionOfInterest(int idx, float extrapolation_value, ResizeParams& r);
   Status ResizeScales(int idx, const GraphOp& op, const std::vector<double>& scales,
                       const std::vector<int64_t>& sizes, int64_t num[2], int64_t den[2]);

@@ -504,52 +504,11 @@ Status Importer::ResizeScales(int idx, const GraphOp& op, const std::vector<doub
 }
 
 Status Importer::ProcessResize(int idx, GraphOp& op) {
-  const onnx::NodeProto& n = graph().node(idx);
-  const bool is_resize = n.op_type() == "Resize";
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string mode, StringAttr(idx, "mode", "nearest"));
-  if (mode != "nearest" && mode != "linear" && mode != "cubic") {
-    return NodeError(
-        idx, "attribute 'mode' = " + Quote(mode) + " is not supported (nearest, linear, cubic)");
-  }
-  std::string ctm = "asymmetric";
-  std::string nearest_mode = "floor";  // Upsample: in[floor(y / scale)]
-  float cubic_a = -0.75f;
-  int64_t exclude_outside = 0;
-  float extrapolation_value = 0.0f;
-  if (is_resize) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(ctm,
-                               StringAttr(idx, "coordinate_transformation_mode", "half_pixel"));
-    SFRT_ONNX_ASSIGN_OR_RETURN(nearest_mode, StringAttr(idx, "nearest_mode", "round_prefer_floor"));
-    SFRT_ONNX_ASSIGN_OR_RETURN(cubic_a, FloatAttr(idx, "cubic_coeff_a", -0.75f));
-    SFRT_ONNX_ASSIGN_OR_RETURN(exclude_outside, IntAttr(idx, "exclude_outside", 0));
-    SFRT_ONNX_ASSIGN_OR_RETURN(extrapolation_value, FloatAttr(idx, "extrapolation_value", 0.0f));
-  } else if (mode == "cubic") {
-    return NodeError(idx, "attribute 'mode' = 'cubic' is not an Upsample mode (nearest, linear)");
-  }
-  // Scales or sizes.
+  const bool is_resize = graph().node(idx).op_type() == "Resize";
+  SFRT_ONNX_ASSIGN_OR_RETURN(const ResizeAttrs attrs, ReadResizeAttrs(idx, is_resize));
   std::vector<double> scales;
   std::vector<int64_t> sizes;
-  if (is_resize) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> s, GetOptionalConst(idx, 2));
-    SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> z, GetOptionalConst(idx, 3));
-    if (s.has_value() && s->size() > 0) {
-      for (size_t i = 0; i < s->size(); ++i) scales.push_back(s->Real(i));
-    }
-    if (z.has_value() && z->size() > 0) {
-      if (z->is_real()) return NodeError(idx, "input 'sizes' must be integers");
-      sizes = z->ints;
-    }
-    if (scales.empty() == sizes.empty()) {
-      return NodeError(idx, "exactly one of the inputs 'scales' and 'sizes' must be given");
-    }
-  } else if (n.input_size() > 1 && !n.input(1).empty()) {
-    SFRT_ONNX_ASSIGN_OR_RETURN(const Const s, GetConst(idx, 1));
-    for (size_t i = 0; i < s.size(); ++i) scales.push_back(s.Real(i));
-  } else if (const auto* a = FindAttr(idx, "scales"); a != nullptr) {
-    scales.assign(a->floats().begin(), a->floats().end());
-  } else {
-    return NodeError(idx, "no scales given");
-  }
+  SFRT_ONNX_RETURN_IF_ERROR(ReadResizeInputs(idx, is_resize, &scales, &sizes));
   int64_t num[2] = {1, 1};
   int64_t den[2] = {1, 1};
   SFRT_ONNX_RETURN_IF_ERROR(ResizeScales(idx, op, scales, sizes, num, den));
@@ -559,23 +518,84 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
     return NodeError(
         idx, "resizes " + ShapeText(op.in_shape) + " to an empty " + ShapeText(op.out_shape));
   }
-
   // Nearest upsampling by integer factors that is in[floor(y / f)] stays an Upsample, which the
   // runtime fuses into the convolution after it.
-  if (mode == "nearest" && den[0] == 1 && den[1] == 1 &&
-      NearestIsFloorOfQuotient(ctm, nearest_mode, num[0]) &&
-      NearestIsFloorOfQuotient(ctm, nearest_mode, num[1])) {
+  if (attrs.mode == "nearest" && den[0] == 1 && den[1] == 1 &&
+      NearestIsFloorOfQuotient(attrs.ctm, attrs.nearest_mode, num[0]) &&
+      NearestIsFloorOfQuotient(attrs.ctm, attrs.nearest_mode, num[1])) {
     op.kind = GraphOp::Kind::kUpsample;
     op.factor_h = static_cast<int>(num[0]);
     op.factor_w = static_cast<int>(num[1]);
     return Status::Ok();
   }
-
-  ResizeParams& r = op.resize;
   op.kind = GraphOp::Kind::kResize;
-  r.mode = mode == "nearest"  ? ResizeMode::kNearest
-           : mode == "linear" ? ResizeMode::kLinear
-                              : ResizeMode::kCubic;
+  SFRT_ONNX_RETURN_IF_ERROR(ResizeParamsOf(idx, attrs, op.resize));
+  ResizeParams& r = op.resize;
+  r.scale_num_h = num[0];
+  r.scale_den_h = den[0];
+  r.scale_num_w = num[1];
+  r.scale_den_w = den[1];
+  return Status::Ok();
+}
+
+// Resize's attributes (Upsample has only 'mode', and the rest as it behaves: asymmetric
+// coordinates, in[floor(y / scale)]).
+Result<Importer::ResizeAttrs> Importer::ReadResizeAttrs(int idx, bool is_resize) {
+  ResizeAttrs a;
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.mode, StringAttr(idx, "mode", "nearest"));
+  if (a.mode != "nearest" && a.mode != "linear" && a.mode != "cubic") {
+    return NodeError(
+        idx, "attribute 'mode' = " + Quote(a.mode) + " is not supported (nearest, linear, cubic)");
+  }
+  if (!is_resize) {
+    if (a.mode == "cubic") {
+      return NodeError(idx, "attribute 'mode' = 'cubic' is not an Upsample mode (nearest, linear)");
+    }
+    return a;
+  }
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.ctm,
+                             StringAttr(idx, "coordinate_transformation_mode", "half_pixel"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.nearest_mode, StringAttr(idx, "nearest_mode", "round_prefer_floor"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.cubic_a, FloatAttr(idx, "cubic_coeff_a", -0.75f));
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.exclude_outside, IntAttr(idx, "exclude_outside", 0));
+  SFRT_ONNX_ASSIGN_OR_RETURN(a.extrapolation_value, FloatAttr(idx, "extrapolation_value", 0.0f));
+  return a;
+}
+
+// The scales or the sizes: Resize's inputs 2 and 3 (exactly one given); Upsample's input 1 or,
+// before opset 9, its attribute 'scales'.
+Status Importer::ReadResizeInputs(int idx, bool is_resize, std::vector<double>* scales,
+                                  std::vector<int64_t>* sizes) {
+  const onnx::NodeProto& n = graph().node(idx);
+  if (is_resize) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> s, GetOptionalConst(idx, 2));
+    SFRT_ONNX_ASSIGN_OR_RETURN(const std::optional<Const> z, GetOptionalConst(idx, 3));
+    if (s.has_value() && s->size() > 0) {
+      for (size_t i = 0; i < s->size(); ++i) scales->push_back(s->Real(i));
+    }
+    if (z.has_value() && z->size() > 0) {
+      if (z->is_real()) return NodeError(idx, "input 'sizes' must be integers");
+      *sizes = z->ints;
+    }
+    if (scales->empty() == sizes->empty()) {
+      return NodeError(idx, "exactly one of the inputs 'scales' and 'sizes' must be given");
+    }
+  } else if (n.input_size() > 1 && !n.input(1).empty()) {
+    SFRT_ONNX_ASSIGN_OR_RETURN(const Const s, GetConst(idx, 1));
+    for (size_t i = 0; i < s.size(); ++i) scales->push_back(s.Real(i));
+  } else if (const auto* a = FindAttr(idx, "scales"); a != nullptr) {
+    scales->assign(a->floats().begin(), a->floats().end());
+  } else {
+    return NodeError(idx, "no scales given");
+  }
+  return Status::Ok();
+}
+
+// A general resize's mode, coordinates, rounding and cubic parameters (not its scales).
+Status Importer::ResizeParamsOf(int idx, const ResizeAttrs& a, ResizeParams& r) {
+  r.mode = a.mode == "nearest"  ? ResizeMode::kNearest
+           : a.mode == "linear" ? ResizeMode::kLinear
+                                : ResizeMode::kCubic;
   static const std::pair<const char*, ResizeCoordinates> kCoordinates[] = {
       {"half_pixel", ResizeCoordinates::kHalfPixel},
       {"pytorch_half_pixel", ResizeCoordinates::kPytorchHalfPixel},
@@ -585,18 +605,18 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
       {"tf_crop_and_resize", ResizeCoordinates::kTfCropAndResize}};
   bool known = false;
   for (const auto& [name, value] : kCoordinates) {
-    if (ctm == name) {
+    if (a.ctm == name) {
       r.coordinates = value;
       known = true;
     }
   }
   if (!known) {
-    return NodeError(idx, "attribute 'coordinate_transformation_mode' = " + Quote(ctm) +
+    return NodeError(idx, "attribute 'coordinate_transformation_mode' = " + Quote(a.ctm) +
                               " is not supported (half_pixel, pytorch_half_pixel, align_corners, "
                               "asymmetric, tf_half_pixel_for_nn, tf_crop_and_resize)");
   }
   if (r.coordinates == ResizeCoordinates::kTfCropAndResize) {
-    SFRT_ONNX_RETURN_IF_ERROR(ResizeRegionOfInterest(idx, extrapolation_value, r));
+    SFRT_ONNX_RETURN_IF_ERROR(ResizeRegionOfInterest(idx, a.extrapolation_value, r));
   }
   static const std::pair<const char*, NearestRounding> kRounding[] = {
       {"round_prefer_floor", NearestRounding::kRoundPreferFloor},
@@ -605,26 +625,22 @@ Status Importer::ProcessResize(int idx, GraphOp& op) {
       {"ceil", NearestRounding::kCeil}};
   known = false;
   for (const auto& [name, value] : kRounding) {
-    if (nearest_mode == name) {
+    if (a.nearest_mode == name) {
       r.nearest = value;
       known = true;
     }
   }
   if (!known) {
-    return NodeError(idx, "attribute 'nearest_mode' = " + Quote(nearest_mode) +
+    return NodeError(idx, "attribute 'nearest_mode' = " + Quote(a.nearest_mode) +
                               " is not supported (round_prefer_floor, round_prefer_ceil, floor, "
                               "ceil)");
   }
-  if (!std::isfinite(cubic_a)) {
+  if (!std::isfinite(a.cubic_a)) {
     return NodeError(idx,
-                     "attribute 'cubic_coeff_a' = " + FormatDouble(cubic_a) + " is not finite");
+                     "attribute 'cubic_coeff_a' = " + FormatDouble(a.cubic_a) + " is not finite");
   }
-  r.scale_num_h = num[0];
-  r.scale_den_h = den[0];
-  r.scale_num_w = num[1];
-  r.scale_den_w = den[1];
-  r.cubic_coeff_a = cubic_a;
-  r.exclude_outside = exclude_outside != 0;
+  r.cubic_coeff_a = a.cubic_a;
+  r.exclude_outside = a.exclude_outside != 0;
   return Status::Ok();
 }
 
