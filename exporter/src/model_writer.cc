@@ -77,8 +77,9 @@ Status UpdateFileChecksum(std::span<uint8_t> file) {
   return Status::Ok();
 }
 
-Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
-                                            const SerializeOptions& options) {
+namespace {
+
+Status CheckSpec(const ModelSpec& spec, const SerializeOptions& options) {
   if (options.schema_minor < 0 || options.schema_minor > kSchemaVersionMinor) {
     return Status::Error("schema version 1." + std::to_string(options.schema_minor) +
                          " cannot be written; this exporter writes 1.0 to 1." +
@@ -88,15 +89,23 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
   if (spec.input.channels <= 0) {
     return Status::Error("input.channels is " + std::to_string(spec.input.channels));
   }
-  writers::TensorWriter w(spec.weight_type);
-  auto& b = w.builder();
+  return Status::Ok();
+}
 
-  // Tensors are written in layer order, weights then bias, which defines the checksum order.
+struct WrittenLayers {
   std::vector<flatbuffers::Offset<fb::Layer>> layers;
+  int channels = 0;  // the last layer's output channels
+};
+
+// The layers, each by its kind's writer (writers/), in order: tensors are written in layer
+// order, weights then bias, which defines the checksum order.
+Result<WrittenLayers> WriteLayers(writers::TensorWriter& w, const ModelSpec& spec,
+                                  const SerializeOptions& options) {
+  auto& b = w.builder();
+  WrittenLayers out;
   // Output channels by tensor name; the previous layer's under "" (what an empty `inputs` reads).
   std::map<std::string, int> channels_of{{spec.input.name, spec.input.channels},
                                          {"", spec.input.channels}};
-  int channels = spec.input.channels;
   for (size_t i = 0; i < spec.layers.size(); ++i) {
     const LayerSpec& ls = spec.layers[i];
     const std::string& layer_name =
@@ -118,37 +127,38 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
       read.push_back(found->second);
     }
     const auto names = inputs.empty() ? 0 : b.CreateVectorOfStrings(inputs);
-    writers::LayerWriting out{w,      options.schema_minor, where, read, inputs.size(), names, 0,
-                              read[0]};
-    if (Status st = std::visit([&out](const auto& l) { return writers::Write(l, out); }, ls);
+    writers::LayerWriting lw{w,      options.schema_minor, where, read, inputs.size(), names, 0,
+                             read[0]};
+    if (Status st = std::visit([&lw](const auto& l) { return writers::Write(l, lw); }, ls);
         !st.ok()) {
       return st;
     }
-    layers.push_back(out.layer);
-    channels = out.channels;
-    channels_of[layer_name] = channels;
-    channels_of[""] = channels;
+    out.layers.push_back(lw.layer);
+    out.channels = lw.channels;
+    channels_of[layer_name] = lw.channels;
+    channels_of[""] = lw.channels;
   }
-  if (spec.output.channels != channels) {
-    return Status::Error("output.channels is " + std::to_string(spec.output.channels) +
+  return out;
+}
+
+Status CheckOutput(const OutputSpec& output, int channels) {
+  if (output.channels != channels) {
+    return Status::Error("output.channels is " + std::to_string(output.channels) +
                          " but the last layer produces " + std::to_string(channels));
   }
-  if (!spec.output.channel_names.empty() &&
-      static_cast<int>(spec.output.channel_names.size()) != channels) {
-    return Status::Error("output.channel_names has " +
-                         std::to_string(spec.output.channel_names.size()) +
+  if (!output.channel_names.empty() && static_cast<int>(output.channel_names.size()) != channels) {
+    return Status::Error("output.channel_names has " + std::to_string(output.channel_names.size()) +
                          " names for an output of " + std::to_string(channels) +
                          " channels; give one per channel or none");
   }
+  return Status::Ok();
+}
 
-  const auto layers_offset = b.CreateVector(layers);
-  const ProducerSpec& ps = spec.producer;
-  const auto producer = fb::CreateProducer(
-      b, b.CreateString(ps.exporter_version.empty() ? ExporterVersion() : ps.exporter_version),
-      b.CreateString(ps.source_format), b.CreateString(ps.source_file),
-      b.CreateString(ps.source_sha256));
+Result<flatbuffers::Offset<fb::InputDesc>> WriteInput(flatbuffers::FlatBufferBuilder& b,
+                                                      const InputSpec& in,
+                                                      const SerializeOptions& options) {
   std::vector<fb::ImageSlot> order;
-  for (ImageSlot s : spec.input.image_order) {
+  for (ImageSlot s : in.image_order) {
     if (vocabulary::IsRgbdSlot(s) && options.schema_minor < 11) {
       return Status::Error("input: RGB-D frames (image slot " +
                            std::string(vocabulary::ImageSlotName(s)) +
@@ -156,21 +166,57 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
     }
     order.push_back(ToSchema(s));
   }
-  const auto input = fb::CreateInputDesc(
-      b, b.CreateString(spec.input.name), spec.input.channels, b.CreateVector(order),
-      spec.input.color_order == ColorOrder::kBGR ? fb::ColorOrder::BGR : fb::ColorOrder::RGB,
-      spec.input.scale, b.CreateVector(spec.input.mean.data(), 3),
-      b.CreateVector(spec.input.std.data(), 3), spec.input.traced_height, spec.input.traced_width,
-      spec.input.depth_mean, spec.input.depth_std, spec.input.depth_invalid);
+  return fb::CreateInputDesc(
+      b, b.CreateString(in.name), in.channels, b.CreateVector(order),
+      in.color_order == ColorOrder::kBGR ? fb::ColorOrder::BGR : fb::ColorOrder::RGB, in.scale,
+      b.CreateVector(in.mean.data(), 3), b.CreateVector(in.std.data(), 3), in.traced_height,
+      in.traced_width, in.depth_mean, in.depth_std, in.depth_invalid);
+}
+
+flatbuffers::Offset<fb::OutputDesc> WriteOutput(flatbuffers::FlatBufferBuilder& b,
+                                                const OutputSpec& out,
+                                                const SerializeOptions& options) {
   std::vector<flatbuffers::Offset<flatbuffers::String>> names;
-  for (const auto& n : spec.output.channel_names) names.push_back(b.CreateString(n));
+  for (const auto& n : out.channel_names) names.push_back(b.CreateString(n));
   // Before 1.2 the field held a fixed text, which 1.0 files keep.
   const std::string units = options.schema_minor < 2 ? "training-camera scene units (baseline = 1)"
-                            : spec.output.units.empty() ? "unknown"
-                                                        : spec.output.units;
-  const auto output =
-      fb::CreateOutputDesc(b, b.CreateString(spec.output.name), spec.output.channels,
-                           b.CreateVector(names), b.CreateString(units));
+                            : out.units.empty()      ? "unknown"
+                                                     : out.units;
+  return fb::CreateOutputDesc(b, b.CreateString(out.name), out.channels, b.CreateVector(names),
+                              b.CreateString(units));
+}
+
+fb::TrainingState TrainingStateOf(const ModelSpec& spec, const SerializeOptions& options) {
+  if (options.schema_minor < 2) return fb::TrainingState::Unknown;
+  if (spec.training == TrainingState::kTrained) return fb::TrainingState::Trained;
+  if (spec.training == TrainingState::kUntrained) return fb::TrainingState::Untrained;
+  return fb::TrainingState::Unknown;
+}
+
+}  // namespace
+
+Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
+                                            const SerializeOptions& options) {
+  if (Status s = CheckSpec(spec, options); !s.ok()) return s;
+  writers::TensorWriter w(spec.weight_type);
+  auto& b = w.builder();
+  Result<WrittenLayers> written = WriteLayers(w, spec, options);
+  if (!written.ok()) return written.status();
+  if (Status s = CheckOutput(spec.output, written->channels); !s.ok()) return s;
+
+  const auto layers_offset = b.CreateVector(written->layers);
+  const ProducerSpec& ps = spec.producer;
+  const auto producer = fb::CreateProducer(
+      b, b.CreateString(ps.exporter_version.empty() ? ExporterVersion() : ps.exporter_version),
+      b.CreateString(ps.source_format), b.CreateString(ps.source_file),
+      b.CreateString(ps.source_sha256));
+  Result<flatbuffers::Offset<fb::InputDesc>> input = WriteInput(b, spec.input, options);
+  if (!input.ok()) return input.status();
+  if (spec.calibration && options.schema_minor < 3) {
+    return Status::Error("a calibration record needs schema 1.3; writing 1." +
+                         std::to_string(options.schema_minor));
+  }
+  const auto output = WriteOutput(b, spec.output, options);
   const auto camera = fb::CreateCamera(b, spec.camera.focal_px, spec.camera.baseline,
                                        spec.camera.cx, spec.camera.cy);
   const fb::Version version(static_cast<uint16_t>(kSchemaVersionMajor),
@@ -178,19 +224,10 @@ Result<std::vector<uint8_t>> SerializeModel(const ModelSpec& spec,
   // 1.1: file_crc32c is written with a non-default placeholder (so that the field is stored) and
   // patched once the buffer is finished.
   const bool file_checksum = options.schema_minor >= 1;
-  const fb::TrainingState training =
-      options.schema_minor < 2                     ? fb::TrainingState::Unknown
-      : spec.training == TrainingState::kTrained   ? fb::TrainingState::Trained
-      : spec.training == TrainingState::kUntrained ? fb::TrainingState::Untrained
-                                                   : fb::TrainingState::Unknown;
-  if (spec.calibration && options.schema_minor < 3) {
-    return Status::Error("a calibration record needs schema 1.3; writing 1." +
-                         std::to_string(options.schema_minor));
-  }
   const auto calibration = spec.calibration ? AddCalibration(b, *spec.calibration) : 0;
-  const auto model = fb::CreateModel(b, &version, b.CreateString(spec.name), producer, input,
-                                     output, camera, layers_offset, w.crc(),
-                                     file_checksum ? 0xFFFFFFFFu : 0u, training, calibration);
+  const auto model = fb::CreateModel(
+      b, &version, b.CreateString(spec.name), producer, *input, output, camera, layers_offset,
+      w.crc(), file_checksum ? 0xFFFFFFFFu : 0u, TrainingStateOf(spec, options), calibration);
   fb::FinishModelBuffer(b, model);
   std::vector<uint8_t> file(b.GetBufferPointer(), b.GetBufferPointer() + b.GetSize());
   if (file_checksum) {
