@@ -174,6 +174,10 @@ class Importer {
   // Add, Sub, Mul or Div of the runtime tensor it reads (op.inputs[0]) and a per-channel constant.
   Status ProcessElementwise(int idx, GraphOp& op);
   Status ProcessConv(int idx, GraphOp& op);
+  Status CheckConvSizes(int idx, const GraphOp& op, const Dims& wdims, int64_t group,
+                        const std::vector<int64_t>& strides);
+  Status ConvPads(int idx, const GraphOp& op, int64_t extent_h, int64_t extent_w,
+                  const std::vector<int64_t>& strides, Pads* out, PaddingRule* rule);
   Status ProcessConvTranspose(int idx, GraphOp& op);
   Status ConvTransposePads(int idx, const GraphOp& op, std::array<int64_t, 2> kernel,
                            const std::vector<int64_t>& dilations,

@@ -150,62 +150,14 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   if (strides.size() != 2 || strides[0] < 1 || strides[1] < 1) {
     return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) + " is not supported");
   }
-  if (in_ch != op.in_shape[1]) {
-    return NodeError(idx, "weight " + Quote(n.input(1)) + " with group " + std::to_string(group) +
-                              " expects " + std::to_string(in_ch) +
-                              " input channels, the input tensor " + Quote(op.inputs[0]) + " has " +
-                              std::to_string(op.in_shape[1]));
-  }
-  if (out_ch < 1 || kh < 1 || kw < 1) {
-    return NodeError(idx, "weight " + Quote(n.input(1)) + " has an empty shape " + JoinInts(wdims));
-  }
-  if (kh > model_limits::kMaxKernel || kw > model_limits::kMaxKernel) {
-    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts({kh, kw}) +
-                              " exceeds the largest kernel side " +
-                              std::to_string(model_limits::kMaxKernel));
-  }
-  if (strides[0] > model_limits::kMaxStride || strides[1] > model_limits::kMaxStride) {
-    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) +
-                              " exceeds the largest stride " +
-                              std::to_string(model_limits::kMaxStride));
-  }
-  if (out_ch > model_limits::kMaxChannels) {
-    return NodeError(idx, "weight " + Quote(n.input(1)) + " has " + std::to_string(out_ch) +
-                              " output channels; at most " +
-                              std::to_string(model_limits::kMaxChannels) + " are supported");
-  }
-  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
-  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
+  SFRT_ONNX_RETURN_IF_ERROR(CheckConvSizes(idx, op, wdims, group, strides));
   const int64_t in_h = op.in_shape[2];
   const int64_t in_w = op.in_shape[3];
   const int64_t extent_h = (kh - 1) * dilations[0] + 1;  // the window's rows
   const int64_t extent_w = (kw - 1) * dilations[1] + 1;
   Pads p;
   PaddingRule rule = PaddingRule::kExplicit;
-  if (auto_pad == "NOTSET") {
-    if (pads.empty()) pads = {0, 0, 0, 0};
-    if (pads.size() != 4) {
-      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
-    }
-    for (int64_t v : pads) {
-      if (v < 0 || v > std::numeric_limits<int32_t>::max()) {
-        return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " is not supported");
-      }
-    }
-    p = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
-             static_cast<int>(pads[3])};
-  } else if (auto_pad == "VALID") {
-    p = Pads{};
-  } else if (auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER") {
-    // SAME_UPPER is found again from the pads with the rest of the network's convolutions;
-    // SAME_LOWER keeps its own rule.
-    if (auto_pad == "SAME_LOWER") rule = PaddingRule::kSameLower;
-    p = SamePads(rule, in_h, in_w, static_cast<int>(extent_h), static_cast<int>(extent_w),
-                 static_cast<int>(strides[0]), static_cast<int>(strides[1]));
-  } else {
-    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
-                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
-  }
+  SFRT_ONNX_RETURN_IF_ERROR(ConvPads(idx, op, extent_h, extent_w, strides, &p, &rule));
   const int64_t padded_h = in_h + p.top + p.bottom;
   const int64_t padded_w = in_w + p.left + p.right;
   if (padded_h < extent_h || padded_w < extent_w) {
@@ -236,6 +188,75 @@ Status Importer::ProcessConv(int idx, GraphOp& op) {
   // OIHW with I the inputs per group -> HWIO with the same I: the output index stays global.
   c.weights_hwio = ToHwio(w, group_in, out_ch, kh, kw, /*outputs_first=*/true);
   return ReadBias(idx, out_ch, &c.bias);
+}
+
+// A Conv's channels against its input, and its kernel, stride and channels within
+// model_limits.
+Status Importer::CheckConvSizes(int idx, const GraphOp& op, const Dims& wdims, int64_t group,
+                                const std::vector<int64_t>& strides) {
+  const onnx::NodeProto& n = graph().node(idx);
+  const int64_t out_ch = wdims[0], kh = wdims[2], kw = wdims[3];
+  const int64_t in_ch = wdims[1] * group;
+  if (in_ch != op.in_shape[1]) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " with group " + std::to_string(group) +
+                              " expects " + std::to_string(in_ch) +
+                              " input channels, the input tensor " + Quote(op.inputs[0]) + " has " +
+                              std::to_string(op.in_shape[1]));
+  }
+  if (out_ch < 1 || kh < 1 || kw < 1) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has an empty shape " + JoinInts(wdims));
+  }
+  if (kh > model_limits::kMaxKernel || kw > model_limits::kMaxKernel) {
+    return NodeError(idx, "attribute 'kernel_shape' = " + JoinInts({kh, kw}) +
+                              " exceeds the largest kernel side " +
+                              std::to_string(model_limits::kMaxKernel));
+  }
+  if (strides[0] > model_limits::kMaxStride || strides[1] > model_limits::kMaxStride) {
+    return NodeError(idx, "attribute 'strides' = " + JoinInts(strides) +
+                              " exceeds the largest stride " +
+                              std::to_string(model_limits::kMaxStride));
+  }
+  if (out_ch > model_limits::kMaxChannels) {
+    return NodeError(idx, "weight " + Quote(n.input(1)) + " has " + std::to_string(out_ch) +
+                              " output channels; at most " +
+                              std::to_string(model_limits::kMaxChannels) + " are supported");
+  }
+  return Status::Ok();
+}
+
+// A Conv's padding: 'pads' as given (auto_pad NOTSET), none (VALID), or SAME_UPPER/SAME_LOWER's
+// for a window of extent_h x extent_w.
+Status Importer::ConvPads(int idx, const GraphOp& op, int64_t extent_h, int64_t extent_w,
+                          const std::vector<int64_t>& strides, Pads* out, PaddingRule* rule) {
+  SFRT_ONNX_ASSIGN_OR_RETURN(const std::string auto_pad, StringAttr(idx, "auto_pad", "NOTSET"));
+  SFRT_ONNX_ASSIGN_OR_RETURN(std::vector<int64_t> pads, IntsAttr(idx, "pads"));
+  Pads& p = *out;
+  if (auto_pad == "NOTSET") {
+    if (pads.empty()) pads = {0, 0, 0, 0};
+    if (pads.size() != 4) {
+      return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " must have 4 values");
+    }
+    for (int64_t v : pads) {
+      if (v < 0 || v > std::numeric_limits<int32_t>::max()) {
+        return NodeError(idx, "attribute 'pads' = " + JoinInts(pads) + " is not supported");
+      }
+    }
+    p = Pads{static_cast<int>(pads[0]), static_cast<int>(pads[1]), static_cast<int>(pads[2]),
+             static_cast<int>(pads[3])};
+  } else if (auto_pad == "VALID") {
+    p = Pads{};
+  } else if (auto_pad == "SAME_UPPER" || auto_pad == "SAME_LOWER") {
+    // SAME_UPPER is found again from the pads with the rest of the network's convolutions;
+    // SAME_LOWER keeps its own rule.
+    if (auto_pad == "SAME_LOWER") *rule = PaddingRule::kSameLower;
+    p = SamePads(*rule, op.in_shape[2], op.in_shape[3], static_cast<int>(extent_h),
+                 static_cast<int>(extent_w), static_cast<int>(strides[0]),
+                 static_cast<int>(strides[1]));
+  } else {
+    return NodeError(idx, "attribute 'auto_pad' = " + Quote(auto_pad) +
+                              " is not supported (NOTSET, SAME_UPPER, SAME_LOWER, VALID)");
+  }
+  return Status::Ok();
 }
 
 // ONNX ConvTranspose (opsets 1-17): weights (C_in, C_out, kH, kW), each input pixel scattered
