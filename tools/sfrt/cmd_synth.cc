@@ -69,14 +69,11 @@ int WriteKitti(const synth::DatasetOptions& options, const SynthArgs& args, Seco
   return kExitOk;
 }
 
-int RunSynth(const SynthArgs& args) {
-  int height = 0;
-  int width = 0;
-  if (!ParseSize(args.size, &height, &width)) {
-    return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
-                       kExitUsage);
-  }
-  if (std::string problem = config::CheckSize(config::kFrameSide, "--size", height, width);
+// The flags' values that are not the output directory's, each checked: 0, or the exit code after
+// reporting the first that is wrong.
+int CheckSynthArgs(const SynthArgs& args, const synth::Camera& camera) {
+  if (std::string problem =
+          config::CheckSize(config::kFrameSide, "--size", camera.height, camera.width);
       !problem.empty()) {
     return ReportError(kName, problem, kExitUsage);
   }
@@ -89,34 +86,32 @@ int RunSynth(const SynthArgs& args) {
     return std::string(flag) + ": must be from " + FormatFloat(lo) + " to " + FormatFloat(hi) +
            ", got " + FormatFloat(value);
   };
-  const double focal = args.focal_opt->count() > 0 ? args.focal : 1050.0 * width / 960.0;
-  const double cx = args.cx_opt->count() > 0 ? args.cx : (width - 1) / 2.0;
-  const double cy = args.cy_opt->count() > 0 ? args.cy : (height - 1) / 2.0;
-  const int threads = config::ResolveThreads(args.threads);
   for (const std::string& problem :
        {range("--frames", args.frames, 1, 9999), range("--sequences", args.sequences, 1, 9999),
-        range("--objects", args.objects, 0, 200), range("--focal", focal, 1e-3, 1e7),
-        range("--baseline", args.baseline, 1e-6, 1e6), range("--cx", cx, -1e6, 1e6),
-        range("--cy", cy, -1e6, 1e6), range("--noise", args.noise, 0, 255),
+        range("--objects", args.objects, 0, 200), range("--focal", camera.focal, 1e-3, 1e7),
+        range("--baseline", args.baseline, 1e-6, 1e6), range("--cx", camera.cx, -1e6, 1e6),
+        range("--cy", camera.cy, -1e6, 1e6), range("--noise", args.noise, 0, 255),
         range("--blur", args.blur, 0, 50), range("--pitch-rate", args.pitch_rate, 0, 0.2),
         range("--max-speed", args.max_speed, 0, 1)}) {
     if (!problem.empty()) return ReportError(kName, problem, kExitUsage);
   }
+  return 0;
+}
 
-  // The output directory: new, empty, or (--force) a data set sfrt synth wrote earlier.
+// The output directory: new, empty, or (--force) a data set sfrt synth wrote earlier. 0, or the
+// exit code after reporting why not.
+int CheckDestination(const SynthArgs& args) {
   switch (synth::ClassifyDestination(args.out)) {
     case synth::Destination::kAbsent:
     case synth::Destination::kEmptyDirectory:
-      break;
+      return 0;
     case synth::Destination::kSynthDataset:
-      if (!args.force) {
-        return ReportError(kName,
-                           "--out '" + args.out +
-                               "' is not empty (use --force to replace the data set in it once "
-                               "the new one is complete)",
-                           kExitFailure);
-      }
-      break;
+      if (args.force) return 0;
+      return ReportError(kName,
+                         "--out '" + args.out +
+                             "' is not empty (use --force to replace the data set in it once "
+                             "the new one is complete)",
+                         kExitFailure);
     case synth::Destination::kOtherDirectory:
       return ReportError(kName,
                          "--out '" + args.out +
@@ -128,6 +123,11 @@ int RunSynth(const SynthArgs& args) {
       return ReportError(kName, "--out '" + args.out + "' exists and is not a directory",
                          kExitFailure);
   }
+  return 0;
+}
+
+// The flags that need another: the robot rig's, and --textures' folder. 0, or the exit code.
+int CheckSceneArgs(const SynthArgs& args) {
   for (const CLI::Option* robot_only : {args.pitch_rate_opt, args.max_speed_opt}) {
     if (robot_only->count() > 0 && args.scene != "robot") {
       return ReportError(kName,
@@ -141,11 +141,14 @@ int RunSynth(const SynthArgs& args) {
     Result<std::vector<std::string>> files = synth::ListTextureImages(args.textures);
     if (!files.ok()) return ReportError(kName, "--textures: " + files.message(), kExitFailure);
   }
+  return 0;
+}
 
+synth::DatasetOptions DatasetOptionsOf(const SynthArgs& args, const synth::Camera& camera) {
   synth::DatasetOptions options;
   options.scene.preset =
       args.scene == "robot" ? synth::ScenePreset::kRobot : synth::ScenePreset::kRoom;
-  options.scene.camera = synth::Camera{focal, args.baseline, cx, cy, width, height};
+  options.scene.camera = camera;
   options.scene.frames = args.frames;
   options.scene.objects = args.objects;
   options.scene.max_pitch_rate = args.pitch_rate;
@@ -155,23 +158,15 @@ int RunSynth(const SynthArgs& args) {
   options.texture_dir = args.textures;
   options.noise_sigma = args.noise;
   options.blur_sigma = args.blur;
-  options.threads = threads;
+  options.threads = config::ResolveThreads(args.threads);
   // Ctrl-C or SIGTERM: the writer stops between frames and removes its partial tree.
   options.stop = CatchStopSignals().stop;
+  return options;
+}
 
-  std::cout << "camera    f " << FormatFloat(focal) << " px, baseline "
-            << FormatFloat(args.baseline) << ", cx " << FormatFloat(cx) << ", cy "
-            << FormatFloat(cy) << ", " << height << "x" << width << "\n"
-            << "scenes    " << args.sequences << " sequence(s) x " << args.frames
-            << " frame(s), seed " << args.seed << ", scene " << args.scene << ", " << args.objects
-            << " objects, textures "
-            << (args.textures.empty() ? std::string("procedural") : args.textures) << "\n"
-            << std::flush;
-  const auto start = std::chrono::steady_clock::now();
-  auto seconds = [&] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
-  if (args.layout == "kitti") return WriteKitti(options, args, seconds);
+// The Scene Flow layout, with a progress line per 1% of the frames.
+template <typename Seconds>
+int WriteSceneFlow(const synth::DatasetOptions& options, const SynthArgs& args, Seconds seconds) {
   const int total = args.sequences * args.frames;
   const int every = std::max(1, total / 100);
   Status status =
@@ -191,6 +186,38 @@ int RunSynth(const SynthArgs& args) {
                 args.out.c_str(), s, s > 0 ? total / s : 0.0);
   std::cout << line << "\n";
   return kExitOk;
+}
+
+int RunSynth(const SynthArgs& args) {
+  int height = 0;
+  int width = 0;
+  if (!ParseSize(args.size, &height, &width)) {
+    return ReportError(kName, "--size: expected HxW (e.g. 540x960), got '" + args.size + "'",
+                       kExitUsage);
+  }
+  const double focal = args.focal_opt->count() > 0 ? args.focal : 1050.0 * width / 960.0;
+  const double cx = args.cx_opt->count() > 0 ? args.cx : (width - 1) / 2.0;
+  const double cy = args.cy_opt->count() > 0 ? args.cy : (height - 1) / 2.0;
+  const synth::Camera camera{focal, args.baseline, cx, cy, width, height};
+  if (int code = CheckSynthArgs(args, camera); code != 0) return code;
+  if (int code = CheckDestination(args); code != 0) return code;
+  if (int code = CheckSceneArgs(args); code != 0) return code;
+  const synth::DatasetOptions options = DatasetOptionsOf(args, camera);
+
+  std::cout << "camera    f " << FormatFloat(focal) << " px, baseline "
+            << FormatFloat(args.baseline) << ", cx " << FormatFloat(cx) << ", cy "
+            << FormatFloat(cy) << ", " << height << "x" << width << "\n"
+            << "scenes    " << args.sequences << " sequence(s) x " << args.frames
+            << " frame(s), seed " << args.seed << ", scene " << args.scene << ", " << args.objects
+            << " objects, textures "
+            << (args.textures.empty() ? std::string("procedural") : args.textures) << "\n"
+            << std::flush;
+  const auto start = std::chrono::steady_clock::now();
+  auto seconds = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  if (args.layout == "kitti") return WriteKitti(options, args, seconds);
+  return WriteSceneFlow(options, args, seconds);
 }
 
 }  // namespace
