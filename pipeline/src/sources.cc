@@ -279,92 +279,10 @@ class CameraSource : public FrameSource {
       }
       if (s.kind() == camera::ErrorKind::kCancelled) break;  // stop requested
       if (!s.ok()) {
-        const bool lost = cap_.left().disconnected() || (!sbs() && cap_.right().disconnected());
-        switch (s.kind()) {
-          case camera::ErrorKind::kDisconnected:
-            ++(Unplugs() > unplugs_before ? disconnects_ : reopen_failures_);
-            chain_.Lose();
-            Log(s.message());
-            continue;
-          case camera::ErrorKind::kTimeout:
-            ++timeouts_;
-            Log(s.message());
-            continue;
-          case camera::ErrorKind::kIo:
-            ++io_errors_;
-            continue;
-          case camera::ErrorKind::kFrameError:
-            ++frame_errors_;
-            bad_.push_back(
-                {config_.left.device + (sbs() ? "" : "," + config_.right.device), s.message()});
-            if (policy_ == camera::BadFramePolicy::kStop) {
-              return Status::Error("bad frame: " + s.message() + " (--on-bad-frame stop)");
-            }
-            chain_.Lose();  // the window would skip a frame
-            continue;
-          default:
-            if (lost) {  // reopening after an unplug: keep trying with the back-off
-              ++reopen_failures_;
-              Log(s.message());
-              continue;
-            }
-            return s;
-        }
+        if (Status fatal = CountError(s, unplugs_before); !fatal.ok()) return fatal;
+        continue;
       }
-      const v4l2::Frame& l = pair_.left;
-      const v4l2::Frame& r = pair_.right;
-      for (int i = 0; i < 2; ++i) {
-        const uint32_t seq = i == 0 ? l.sequence : r.sequence;
-        if (!have_seq_) first_seq_[i] = seq;
-        last_seq_[i] = seq;
-      }
-      have_seq_ = true;
-      const cv::Mat lm(l.height, l.width, CV_8UC3, const_cast<uint8_t*>(l.bgr.data()));
-      const cv::Mat rm(r.height, r.width, CV_8UC3, const_cast<uint8_t*>(r.bgr.data()));
-      const int64_t ts = std::max(l.timestamp_ns, r.timestamp_ns);
-      // A sequence number that skips is a frame the driver dropped, one this process passed over
-      // for a newer one, or one left without its partner: the window would span it.
-      if (have_prev_ &&
-          (l.sequence != prev_seq_[0] + 1 || (!sbs() && r.sequence != prev_seq_[1] + 1))) {
-        chain_.Lose();
-      }
-      // A pair t of another size (a device reopened with a new format) starts a new stream.
-      if (have_prev_ && (prev_size_[0] != lm.size() || prev_size_[1] != rm.size())) {
-        chain_.Restart();
-      }
-      const bool emit = chain_.Offer(ts) == camera::ChainLink::kWindow;
-      if (emit) {
-        const cv::Mat pl(prev_size_[0], CV_8UC3, prev_bgr_[0].data());
-        const cv::Mat pr(prev_size_[1], CV_8UC3, prev_bgr_[1].data());
-        pl.copyTo(item->left0);
-        pr.copyTo(item->right0);
-        lm.copyTo(item->left1);
-        rm.copyTo(item->right1);
-        FrameMeta& m = item->meta;
-        m.sequence.clear();
-        m.frame0 = prev_seq_[0];
-        m.frame1 = l.sequence;
-        m.left0_path.clear();
-        m.capture_ns[0] = prev_ts_;
-        m.capture_ns[1] = ts;
-        m.start_ns(config::Stage::kSource) = start;
-        m.dequeue_ns = l.timestamp_ns >= r.timestamp_ns ? l.dequeue_ns : r.dequeue_ns;
-        m.paired_ns = pair_.paired_ns;
-        m.converted_ns = pair_.converted_ns;
-        m.continues = prev_was_emitted_;  // pair t was the last window's pair t+1
-      }
-      prev_was_emitted_ = emit;
-      // Pair t+1 becomes the next window's pair t by swapping buffers, not copying; the next
-      // conversion writes into the old pair t's (same size: no allocation).
-      std::swap(prev_bgr_[0], pair_.left.bgr);
-      std::swap(prev_bgr_[1], pair_.right.bgr);
-      prev_size_[0] = lm.size();
-      prev_size_[1] = rm.size();
-      prev_seq_[0] = l.sequence;
-      prev_seq_[1] = r.sequence;
-      prev_ts_ = ts;
-      have_prev_ = true;
-      if (emit) return Fetch::kWindow;
+      if (TakePair(item, start)) return Fetch::kWindow;
     }
     return Fetch::kEnd;
   }
@@ -453,6 +371,101 @@ class CameraSource : public FrameSource {
     return n;
   }
   void Log(const std::string& message) const { log().Write(LogLevel::kWarn, "camera", message); }
+  // A capture error, counted (and logged where the console should see it): Ok where capture
+  // goes on (a timeout, an unplug and its reopening, a bad frame skipped), else the error that
+  // ends the run.
+  Status CountError(const camera::Status& s, uint64_t unplugs_before) {
+    const bool lost = cap_.left().disconnected() || (!sbs() && cap_.right().disconnected());
+    switch (s.kind()) {
+      case camera::ErrorKind::kDisconnected:
+        ++(Unplugs() > unplugs_before ? disconnects_ : reopen_failures_);
+        chain_.Lose();
+        Log(s.message());
+        return Status::Ok();
+      case camera::ErrorKind::kTimeout:
+        ++timeouts_;
+        Log(s.message());
+        return Status::Ok();
+      case camera::ErrorKind::kIo:
+        ++io_errors_;
+        return Status::Ok();
+      case camera::ErrorKind::kFrameError:
+        ++frame_errors_;
+        bad_.push_back(
+            {config_.left.device + (sbs() ? "" : "," + config_.right.device), s.message()});
+        if (policy_ == camera::BadFramePolicy::kStop) {
+          return Status::Error("bad frame: " + s.message() + " (--on-bad-frame stop)");
+        }
+        chain_.Lose();  // the window would skip a frame
+        return Status::Ok();
+      default:
+        if (lost) {  // reopening after an unplug: keep trying with the back-off
+          ++reopen_failures_;
+          Log(s.message());
+          return Status::Ok();
+        }
+        return s;
+    }
+  }
+
+  // The pair just captured as pair t+1: whether it ends a window (then written into `item`,
+  // with pair t); either way it becomes the next window's pair t.
+  bool TakePair(WindowItem* item, int64_t start) {
+    const v4l2::Frame& l = pair_.left;
+    const v4l2::Frame& r = pair_.right;
+    for (int i = 0; i < 2; ++i) {
+      const uint32_t seq = i == 0 ? l.sequence : r.sequence;
+      if (!have_seq_) first_seq_[i] = seq;
+      last_seq_[i] = seq;
+    }
+    have_seq_ = true;
+    const cv::Mat lm(l.height, l.width, CV_8UC3, const_cast<uint8_t*>(l.bgr.data()));
+    const cv::Mat rm(r.height, r.width, CV_8UC3, const_cast<uint8_t*>(r.bgr.data()));
+    const int64_t ts = std::max(l.timestamp_ns, r.timestamp_ns);
+    // A sequence number that skips is a frame the driver dropped, one this process passed over
+    // for a newer one, or one left without its partner: the window would span it.
+    if (have_prev_ &&
+        (l.sequence != prev_seq_[0] + 1 || (!sbs() && r.sequence != prev_seq_[1] + 1))) {
+      chain_.Lose();
+    }
+    // A pair t of another size (a device reopened with a new format) starts a new stream.
+    if (have_prev_ && (prev_size_[0] != lm.size() || prev_size_[1] != rm.size())) {
+      chain_.Restart();
+    }
+    const bool emit = chain_.Offer(ts) == camera::ChainLink::kWindow;
+    if (emit) {
+      const cv::Mat pl(prev_size_[0], CV_8UC3, prev_bgr_[0].data());
+      const cv::Mat pr(prev_size_[1], CV_8UC3, prev_bgr_[1].data());
+      pl.copyTo(item->left0);
+      pr.copyTo(item->right0);
+      lm.copyTo(item->left1);
+      rm.copyTo(item->right1);
+      FrameMeta& m = item->meta;
+      m.sequence.clear();
+      m.frame0 = prev_seq_[0];
+      m.frame1 = l.sequence;
+      m.left0_path.clear();
+      m.capture_ns[0] = prev_ts_;
+      m.capture_ns[1] = ts;
+      m.start_ns(config::Stage::kSource) = start;
+      m.dequeue_ns = l.timestamp_ns >= r.timestamp_ns ? l.dequeue_ns : r.dequeue_ns;
+      m.paired_ns = pair_.paired_ns;
+      m.converted_ns = pair_.converted_ns;
+      m.continues = prev_was_emitted_;  // pair t was the last window's pair t+1
+    }
+    prev_was_emitted_ = emit;
+    // Pair t+1 becomes the next window's pair t by swapping buffers, not copying; the next
+    // conversion writes into the old pair t's (same size: no allocation).
+    std::swap(prev_bgr_[0], pair_.left.bgr);
+    std::swap(prev_bgr_[1], pair_.right.bgr);
+    prev_size_[0] = lm.size();
+    prev_size_[1] = rm.size();
+    prev_seq_[0] = l.sequence;
+    prev_seq_[1] = r.sequence;
+    prev_ts_ = ts;
+    have_prev_ = true;
+    return emit;
+  }
 
   v4l2::StereoConfig config_;
   camera::BadFramePolicy policy_;
