@@ -232,6 +232,8 @@ class Importer {
   // A Conv2DTranspose reading `in_channels`, with its weights, activation and TensorFlow's
   // output size as pads and output padding.
   Result<ConvTransposeSpec> ReadConvTranspose(const ChainLayer& l, int in_channels);
+  Status ReadConvTransposeShape(const ChainLayer& l, ConvTransposeSpec* out);
+  Status ReadConvTransposeWeights(const ChainLayer& l, ConvTransposeSpec* out);
   Status Build(const ChainModel& model, ModelSpec* spec);
 
   // What each Keras layer's output is in the spec while Build runs: its size at the built size

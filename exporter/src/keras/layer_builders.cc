@@ -59,10 +59,40 @@ Result<std::string> Importer::SameOrValid(const ChainLayer& l) const {
 // ((in - 1) * stride + e rows) then loses `top` rows at the top and what exceeds L at the
 // bottom, or gains zero rows (bias only) there up to L. Neither amount depends on `in`.
 Result<ConvTransposeSpec> Importer::ReadConvTranspose(const ChainLayer& l, int in_channels) {
-  const json& cfg = *l.config;
   ConvTransposeSpec d;
   d.name = l.name;
   d.in_channels = in_channels;
+  if (Status s = ReadConvTransposeShape(l, &d); !s.ok()) return s;
+  if (Status s = ReadConvTransposeWeights(l, &d); !s.ok()) return s;
+  return d;
+}
+
+namespace {
+
+// Per axis of a Conv2DTranspose: the rows cropped at the top and bottom and added at the bottom,
+// from the output length at an input of one pixel (the amounts are the same at every length).
+struct Placement {
+  int top = 0, bottom = 0, added = 0;
+};
+
+Placement PlaceTransposed(int k, int s, int dil, bool same, bool has_output_padding, int out_pad) {
+  const int e = DilatedExtent(k, dil);
+  const int length = !has_output_padding ? s + (same ? 0 : std::max(e - s, 0))
+                                         : e - 2 * (same ? e / 2 : 0) + out_pad;
+  Placement p;
+  p.top = same ? std::max(e - length, 0) / 2 : 0;
+  const int rest = e - p.top;  // full rows after the top crop
+  p.bottom = std::max(rest - length, 0);
+  p.added = std::max(length - rest, 0);
+  return p;
+}
+
+}  // namespace
+
+// Filters, kernel, strides, dilation and the placement of a Conv2DTranspose's output.
+Status Importer::ReadConvTransposeShape(const ChainLayer& l, ConvTransposeSpec* out) {
+  const json& cfg = *l.config;
+  ConvTransposeSpec& d = *out;
   if (!GetInt(Find(cfg, "filters"), 1, model_limits::kMaxChannels, &d.out_channels)) {
     return LayerFail(l, "'filters' is missing or not an integer in 1.." +
                             std::to_string(model_limits::kMaxChannels));
@@ -99,24 +129,10 @@ Result<ConvTransposeSpec> Importer::ReadConvTranspose(const ChainLayer& l, int i
   d.dilation_h = dilation[0];
   d.dilation_w = dilation[1];
   const bool same = *padding == "same";
-  // Per axis: the rows cropped at the top and bottom and added at the bottom, from the output
-  // length at an input of one pixel (the amounts are the same at every length).
-  struct Placement {
-    int top = 0, bottom = 0, added = 0;
-  };
-  auto place = [&](int k, int s, int dil, int out_pad) {
-    const int e = DilatedExtent(k, dil);
-    const int length = !has_output_padding ? s + (same ? 0 : std::max(e - s, 0))
-                                           : e - 2 * (same ? e / 2 : 0) + out_pad;
-    Placement p;
-    p.top = same ? std::max(e - length, 0) / 2 : 0;
-    const int rest = e - p.top;  // full rows after the top crop
-    p.bottom = std::max(rest - length, 0);
-    p.added = std::max(length - rest, 0);
-    return p;
-  };
-  const Placement ph = place(d.kernel_h, d.stride_h, d.dilation_h, output_padding[0]);
-  const Placement pw = place(d.kernel_w, d.stride_w, d.dilation_w, output_padding[1]);
+  const Placement ph = PlaceTransposed(d.kernel_h, d.stride_h, d.dilation_h, same,
+                                       has_output_padding, output_padding[0]);
+  const Placement pw = PlaceTransposed(d.kernel_w, d.stride_w, d.dilation_w, same,
+                                       has_output_padding, output_padding[1]);
   if (ph.added >= d.stride_h || pw.added >= d.stride_w) {
     return LayerFail(l, "its output gains " + std::to_string(std::max(ph.added, pw.added)) +
                             " zero rows or columns beyond the kernel's reach; the model format "
@@ -125,6 +141,13 @@ Result<ConvTransposeSpec> Importer::ReadConvTranspose(const ChainLayer& l, int i
   d.pads = Pads{ph.top, pw.top, ph.bottom, pw.bottom};
   d.output_padding_h = ph.added;
   d.output_padding_w = pw.added;
+  return Status::Ok();
+}
+
+// A Conv2DTranspose's activation, kernel (as HWIO) and bias.
+Status Importer::ReadConvTransposeWeights(const ChainLayer& l, ConvTransposeSpec* out) {
+  const json& cfg = *l.config;
+  ConvTransposeSpec& d = *out;
   bool use_bias = true;
   if (const json* b = Find(cfg, "use_bias")) {
     if (!b->is_boolean()) return LayerFail(l, "use_bias " + JsonText(*b) + " is not a bool");
@@ -141,7 +164,7 @@ Result<ConvTransposeSpec> Importer::ReadConvTranspose(const ChainLayer& l, int i
   Result<std::vector<std::string>> paths = WeightPaths(l, use_bias ? 2 : 1);
   if (!paths.ok()) return paths.status();
   const auto kh = static_cast<size_t>(d.kernel_h), kw = static_cast<size_t>(d.kernel_w);
-  const auto ci = static_cast<size_t>(in_channels), co = static_cast<size_t>(d.out_channels);
+  const auto ci = static_cast<size_t>(d.in_channels), co = static_cast<size_t>(d.out_channels);
   auto kernel_values =
       ReadDataset(l, (*paths)[0], {kh, kw, co, ci},
                   "(kernel_size " + std::to_string(kh) + "x" + std::to_string(kw) + ", filters " +
@@ -163,7 +186,7 @@ Result<ConvTransposeSpec> Importer::ReadConvTranspose(const ChainLayer& l, int i
   } else {
     d.bias.assign(co, 0.0f);
   }
-  return d;
+  return Status::Ok();
 }
 
 // Every layer a layer reads is computed before it, and a ZeroPadding2D is read only by the
