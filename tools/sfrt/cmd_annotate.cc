@@ -30,36 +30,27 @@ struct AnnotateArgs {
   CLI::Option* cy_opt = nullptr;
 };
 
-int RunAnnotate(const AnnotateArgs& args) {
-  synth::ConventionKind convention;
-  if (args.convention == "formula") {
-    convention = synth::ConventionKind::kFormula;
-  } else if (args.convention == "authors-published") {
-    convention = synth::ConventionKind::kAuthorsPublished;
-  } else {
-    return ReportError(
-        kName,
-        "--convention: expected 'formula' or 'authors-published', got '" + args.convention + "'",
-        kExitUsage);
-  }
+// The camera the disparities were rendered with: --subset's, the flags', or the tree's
+// camera.json (sfrt synth's). 0, or the exit code after reporting why there is none.
+int CameraOf(const AnnotateArgs& args, synth::Intrinsics* k, std::string* camera_source) {
   const bool explicit_camera = args.focal_opt->count() > 0 || args.cx_opt->count() > 0 ||
                                args.cy_opt->count() > 0 || args.baseline_opt->count() > 0;
-  synth::Intrinsics k;
-  std::string camera_source;
   if (!args.subset.empty()) {
     if (explicit_camera) {
       return ReportError(kName, "give either --subset or --focal/--baseline/--cx/--cy, not both",
                          kExitUsage);
     }
-    if (!synth::SubsetIntrinsics(args.subset, &k)) {
+    if (!synth::SubsetIntrinsics(args.subset, k)) {
       return ReportError(kName,
                          "--subset: expected driving15mm, driving35mm, flyingthings3d or monkaa, "
                          "got '" +
                              args.subset + "'",
                          kExitUsage);
     }
-    camera_source = "--subset " + args.subset;
-  } else if (explicit_camera) {
+    *camera_source = "--subset " + args.subset;
+    return 0;
+  }
+  if (explicit_camera) {
     if (args.focal_opt->count() == 0 || args.cx_opt->count() == 0 || args.cy_opt->count() == 0) {
       return ReportError(kName,
                          "--focal, --cx and --cy must be given together (--baseline "
@@ -72,44 +63,27 @@ int RunAnnotate(const AnnotateArgs& args) {
                              " and " + FormatFloat(args.baseline),
                          kExitUsage);
     }
-    k = synth::Intrinsics{args.focal, args.baseline, args.cx, args.cy};
-    camera_source = "command line";
-  } else {
-    const std::string json = (std::filesystem::path(args.root) / "camera.json").string();
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(json, ec)) {
-      return ReportError(kName,
-                         "no camera: give --subset or --focal --cx --cy (there is no " + json +
-                             " as `sfrt synth` writes)",
-                         kExitUsage);
-    }
-    Result<synth::Intrinsics> read = synth::ReadCameraJson(json);
-    if (!read.ok()) return ReportError(kName, read.message(), kExitFailure);
-    k = *read;
-    camera_source = json;
+    *k = synth::Intrinsics{args.focal, args.baseline, args.cx, args.cy};
+    *camera_source = "command line";
+    return 0;
   }
+  const std::string json = (std::filesystem::path(args.root) / "camera.json").string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(json, ec)) {
+    return ReportError(kName,
+                       "no camera: give --subset or --focal --cx --cy (there is no " + json +
+                           " as `sfrt synth` writes)",
+                       kExitUsage);
+  }
+  Result<synth::Intrinsics> read = synth::ReadCameraJson(json);
+  if (!read.ok()) return ReportError(kName, read.message(), kExitFailure);
+  *k = *read;
+  *camera_source = json;
+  return 0;
+}
 
-  std::cout << "camera    f " << FormatFloat(k.focal) << " px, baseline " << FormatFloat(k.baseline)
-            << ", cx " << FormatFloat(k.cx) << ", cy " << FormatFloat(k.cy) << " (" << camera_source
-            << ")\n"
-            << "formula   "
-            << (convention == synth::ConventionKind::kFormula
-                    ? "spec: d1 = d0 + disparity_change, (col, u) with cx, (row, v) with cy"
-                    : "authors-published: d1 = disparity of frame t+1 at the same pixel, (row, "
-                      "u) with cx, (col, v) with cy")
-            << "\n"
-            << std::flush;
-  int printed_every = 0;
-  Result<synth::AnnotateSummary> summary = synth::AnnotateTree(
-      args.root, args.out, k, convention, [&](const synth::AnnotateFrameInfo& f) {
-        if (printed_every == 0) printed_every = std::max(1, f.total / 100);
-        if ((f.index + 1) % printed_every != 0 && f.index + 1 != f.total) return;
-        std::cout << "frame     " << f.index + 1 << "/" << f.total << "  " << f.output << "  ("
-                  << GroupDigits(f.invalid) << " invalid)\n"
-                  << std::flush;
-      });
-  if (!summary.ok()) return ReportError(kName, summary.message(), kExitFailure);
-  const synth::AnnotateSummary& s = *summary;
+// What was written (an error where nothing was), and the invalid pixels and skipped frames.
+int ReportAnnotated(const AnnotateArgs& args, const synth::AnnotateSummary& s) {
   if (s.frames_found == 0) {
     return ReportError(kName,
                        "no disparity file <dir>/left/NNNN.pfm under '" +
@@ -134,6 +108,45 @@ int RunAnnotate(const AnnotateArgs& args) {
               << " frame(s) with missing inputs (first: " << s.first_skipped << ")\n";
   }
   return kExitOk;
+}
+
+int RunAnnotate(const AnnotateArgs& args) {
+  synth::ConventionKind convention;
+  if (args.convention == "formula") {
+    convention = synth::ConventionKind::kFormula;
+  } else if (args.convention == "authors-published") {
+    convention = synth::ConventionKind::kAuthorsPublished;
+  } else {
+    return ReportError(
+        kName,
+        "--convention: expected 'formula' or 'authors-published', got '" + args.convention + "'",
+        kExitUsage);
+  }
+  synth::Intrinsics k;
+  std::string camera_source;
+  if (int code = CameraOf(args, &k, &camera_source); code != 0) return code;
+
+  std::cout << "camera    f " << FormatFloat(k.focal) << " px, baseline " << FormatFloat(k.baseline)
+            << ", cx " << FormatFloat(k.cx) << ", cy " << FormatFloat(k.cy) << " (" << camera_source
+            << ")\n"
+            << "formula   "
+            << (convention == synth::ConventionKind::kFormula
+                    ? "spec: d1 = d0 + disparity_change, (col, u) with cx, (row, v) with cy"
+                    : "authors-published: d1 = disparity of frame t+1 at the same pixel, (row, "
+                      "u) with cx, (col, v) with cy")
+            << "\n"
+            << std::flush;
+  int printed_every = 0;
+  Result<synth::AnnotateSummary> summary = synth::AnnotateTree(
+      args.root, args.out, k, convention, [&](const synth::AnnotateFrameInfo& f) {
+        if (printed_every == 0) printed_every = std::max(1, f.total / 100);
+        if ((f.index + 1) % printed_every != 0 && f.index + 1 != f.total) return;
+        std::cout << "frame     " << f.index + 1 << "/" << f.total << "  " << f.output << "  ("
+                  << GroupDigits(f.invalid) << " invalid)\n"
+                  << std::flush;
+      });
+  if (!summary.ok()) return ReportError(kName, summary.message(), kExitFailure);
+  return ReportAnnotated(args, *summary);
 }
 
 }  // namespace
