@@ -592,7 +592,6 @@ int FakeV4l2System::Ioctl(int fd, unsigned long request, void* arg) {
   if (file.generation != file.dev->generation_) return Fail(ENODEV);
   if (arg == nullptr) return Fail(EFAULT);
   FakeDevice* dev = file.dev;
-  const FakeDeviceConfig& cfg = dev->config_;
   if (dev->faults_.eintr_every_ioctl) {
     const bool retry = dev->interrupted_fd_ == fd && dev->interrupted_request_ == request;
     dev->interrupted_fd_ = retry ? -1 : fd;
@@ -603,240 +602,295 @@ int FakeV4l2System::Ioctl(int fd, unsigned long request, void* arg) {
     }
   }
 
-  switch (request) {
-    case VIDIOC_QUERYCAP: {
-      auto* cap = static_cast<v4l2_capability*>(arg);
-      *cap = v4l2_capability{};
-      std::snprintf(reinterpret_cast<char*>(cap->driver), sizeof cap->driver, "sfrt_fake");
-      std::snprintf(reinterpret_cast<char*>(cap->card), sizeof cap->card, "%s", cfg.card.c_str());
-      std::snprintf(reinterpret_cast<char*>(cap->bus_info), sizeof cap->bus_info, "platform:%s",
-                    cfg.path.c_str());
-      cap->version = (6u << 16) | (1u << 8);
-      cap->device_caps = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING;
-      cap->capabilities = cap->device_caps | V4L2_CAP_DEVICE_CAPS;
-      return 0;
-    }
-    case VIDIOC_ENUM_FMT: {
-      auto* d = static_cast<v4l2_fmtdesc*>(arg);
-      if (d->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || d->index >= cfg.formats.size()) {
-        return Fail(EINVAL);
-      }
-      const uint32_t index = d->index;
-      *d = v4l2_fmtdesc{};
-      d->index = index;
-      d->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-      d->pixelformat = cfg.formats[index];
-      d->flags = IsJpeg(d->pixelformat) ? V4L2_FMT_FLAG_COMPRESSED : 0;
-      std::snprintf(reinterpret_cast<char*>(d->description), sizeof d->description, "%c%c%c%c",
-                    d->pixelformat & 0xff, (d->pixelformat >> 8) & 0xff,
-                    (d->pixelformat >> 16) & 0xff, d->pixelformat >> 24);
-      return 0;
-    }
-    case VIDIOC_G_FMT: {
-      auto* f = static_cast<v4l2_format*>(arg);
-      if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-      f->fmt.pix = dev->fmt_;
-      return 0;
-    }
-    case VIDIOC_S_FMT:
-    case VIDIOC_TRY_FMT: {
-      auto* f = static_cast<v4l2_format*>(arg);
-      if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-      if (request == VIDIOC_S_FMT) {
-        if (dev->faults_.busy_on_s_fmt) return Fail(EBUSY);
-        if (!dev->bufs_.empty() || dev->streaming_) return Fail(EBUSY);
-      }
-      v4l2_pix_format p = f->fmt.pix;
-      if (std::find(cfg.formats.begin(), cfg.formats.end(), p.pixelformat) == cfg.formats.end()) {
-        p.pixelformat = cfg.formats.empty() ? V4L2_PIX_FMT_YUYV : cfg.formats[0];
-      }
-      p.width = static_cast<uint32_t>(
-          std::clamp(static_cast<int>(p.width), cfg.min_width, cfg.max_width) & ~1);
-      p.height = static_cast<uint32_t>(
-          std::clamp(static_cast<int>(p.height), cfg.min_height, cfg.max_height) & ~1);
-      p.field = V4L2_FIELD_NONE;
-      p.colorspace = V4L2_COLORSPACE_SMPTE170M;
-      const uint32_t row = MinRow(p.pixelformat, p.width);
-      if (row != 0) {
-        p.bytesperline = RoundUp(row, static_cast<uint32_t>(cfg.bytesperline_align));
-        p.sizeimage = p.bytesperline * p.height;
-        if (p.pixelformat == V4L2_PIX_FMT_NV12) p.sizeimage = p.bytesperline * p.height * 3 / 2;
-      } else {
-        p.bytesperline = 0;
-        p.sizeimage = static_cast<uint32_t>(
-            tjBufSize(static_cast<int>(p.width), static_cast<int>(p.height), TJSAMP_444));
-      }
-      f->fmt.pix = p;
-      if (request == VIDIOC_S_FMT) dev->fmt_ = p;
-      return 0;
-    }
-    case VIDIOC_G_PARM:
-    case VIDIOC_S_PARM: {
-      auto* parm = static_cast<v4l2_streamparm*>(arg);
-      if (parm->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-      if (request == VIDIOC_S_PARM) {
-        const v4l2_fract t = parm->parm.capture.timeperframe;
-        if (t.numerator != 0 && t.denominator != 0) {
-          const double want = static_cast<double>(t.denominator) / t.numerator;
-          dev->fps_ = std::round(std::clamp(want, cfg.min_fps, cfg.max_fps));
-        }
-      }
-      parm->parm.capture = v4l2_captureparm{};
-      parm->parm.capture.capability = V4L2_CAP_TIMEPERFRAME;
-      parm->parm.capture.timeperframe.numerator = 1000;
-      parm->parm.capture.timeperframe.denominator =
-          static_cast<uint32_t>(std::lround(dev->fps_ * 1000));
-      parm->parm.capture.readbuffers = 2;
-      return 0;
-    }
-    case VIDIOC_REQBUFS: {
-      auto* req = static_cast<v4l2_requestbuffers*>(arg);
-      if (req->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || req->memory != V4L2_MEMORY_MMAP) {
-        return Fail(EINVAL);
-      }
-      if (dev->owner_fd_ >= 0 && dev->owner_fd_ != fd) return Fail(EBUSY);
-      if (dev->streaming_) return Fail(EBUSY);
-      for (const auto& b : dev->bufs_) {
-        if (b.mappings > 0) return Fail(EBUSY);  // strict: unmap before freeing
-      }
-      dev->FreeBuffers();
-      req->capabilities = V4L2_BUF_CAP_SUPPORTS_MMAP;
-      if (req->count == 0) {
-        dev->owner_fd_ = -1;
-        return 0;
-      }
-      const uint32_t count = std::clamp(req->count, cfg.min_buffers, cfg.max_buffers);
-      const uint32_t page = static_cast<uint32_t>(sysconf(_SC_PAGESIZE));
-      dev->buf_stride_ = RoundUp(dev->fmt_.sizeimage, page);
-      dev->mem_size_ = static_cast<size_t>(dev->buf_stride_) * count;
-      dev->memfd_ = memfd_create("sfrt-fake-v4l2", MFD_CLOEXEC);
-      if (dev->memfd_ < 0 || ftruncate(dev->memfd_, static_cast<off_t>(dev->mem_size_)) != 0) {
-        const int err = errno;
-        dev->FreeBuffers();
-        return Fail(err == 0 ? ENOMEM : err);
-      }
-      void* mem =
-          RawMmap(nullptr, dev->mem_size_, PROT_READ | PROT_WRITE, MAP_SHARED, dev->memfd_, 0);
-      if (mem == MAP_FAILED) {
-        dev->FreeBuffers();
-        return Fail(ENOMEM);
-      }
-      dev->mem_ = static_cast<uint8_t*>(mem);
-      dev->bufs_.resize(count);
-      for (uint32_t i = 0; i < count; ++i) dev->bufs_[i].offset = i * dev->buf_stride_;
-      dev->owner_fd_ = fd;
-      req->count = count;
-      return 0;
-    }
-    case VIDIOC_QUERYBUF: {
-      auto* b = static_cast<v4l2_buffer*>(arg);
-      if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->index >= dev->bufs_.size()) {
-        return Fail(EINVAL);
-      }
-      const FakeDevice::Buf& buf = dev->bufs_[b->index];
-      const uint32_t index = b->index;
-      *b = buf.state == FakeDevice::Buf::kDone ? buf.meta : v4l2_buffer{};
-      b->index = index;
-      b->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-      b->memory = V4L2_MEMORY_MMAP;
-      b->length = dev->fmt_.sizeimage;
-      b->m.offset = buf.offset;
-      b->flags &= ~(V4L2_BUF_FLAG_QUEUED | V4L2_BUF_FLAG_DONE | V4L2_BUF_FLAG_MAPPED);
-      if (buf.mappings > 0) b->flags |= V4L2_BUF_FLAG_MAPPED;
-      if (buf.state == FakeDevice::Buf::kQueued) b->flags |= V4L2_BUF_FLAG_QUEUED;
-      if (buf.state == FakeDevice::Buf::kDone) b->flags |= V4L2_BUF_FLAG_DONE;
-      return 0;
-    }
-    case VIDIOC_QBUF: {
-      auto* b = static_cast<v4l2_buffer*>(arg);
-      if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_MMAP ||
-          b->index >= dev->bufs_.size()) {
-        return Fail(EINVAL);
-      }
-      if (dev->owner_fd_ != fd) return Fail(EBUSY);
-      FakeDevice::Buf& buf = dev->bufs_[b->index];
-      if (buf.state != FakeDevice::Buf::kDequeued) return Fail(EINVAL);
-      buf.state = FakeDevice::Buf::kQueued;
-      dev->queued_.push_back(b->index);
-      b->flags = V4L2_BUF_FLAG_QUEUED | (buf.mappings > 0 ? V4L2_BUF_FLAG_MAPPED : 0);
-      return 0;
-    }
-    case VIDIOC_DQBUF: {
-      auto* b = static_cast<v4l2_buffer*>(arg);
-      if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_MMAP) {
-        return Fail(EINVAL);
-      }
-      if (dev->owner_fd_ != fd) return Fail(EBUSY);
-      if (!dev->streaming_) return Fail(EINVAL);
-      CatchUp(dev);
-      while (dev->done_.empty()) {
-        if (file.nonblocking || dev->faults_.stalled) return Fail(EAGAIN);
-        // Blocking fd: wait for the next frame.
-        const int64_t due = dev->FrameDue(dev->slot_);
-        if (mode_ == ClockMode::kVirtual) {
-          virtual_now_ = std::max(virtual_now_, due);
-        } else {
-          const int64_t wait = due - NowLocked();
-          lock.unlock();
-          RawPoll(nullptr, 0, std::max<int64_t>(wait, 0));
-          lock.lock();
-          if (file.generation != dev->generation_) return Fail(ENODEV);
-          if (!dev->streaming_) return Fail(EINVAL);
-        }
-        CatchUp(dev);
-      }
-      const uint32_t index = dev->done_.front();
-      dev->done_.pop_front();
-      FakeDevice::Buf& buf = dev->bufs_[index];
-      buf.state = FakeDevice::Buf::kDequeued;
-      UpdateReadable(dev);
-      if (dev->faults_.eio_next_dqbuf > 0) {
-        // As the kernel may: the buffer left the queue but the caller is not told which.
-        --dev->faults_.eio_next_dqbuf;
-        return Fail(EIO);
-      }
-      *b = buf.meta;
-      if (buf.mappings > 0) b->flags |= V4L2_BUF_FLAG_MAPPED;
-      ++dev->stats_.frames_dequeued;
-      if (dev->faults_.unplug_after_dqbufs > 0 && --dev->faults_.unplug_after_dqbufs == 0) {
-        // The caller's mapping of this buffer stays valid; its QBUF will fail with ENODEV.
-        dev->UnplugLocked();
-        const int64_t after = dev->faults_.replug_after_ns;
-        dev->replug_at_ = after < 0 ? -1 : NowLocked() + after;
-      }
-      return 0;
-    }
-    case VIDIOC_STREAMON:
-    case VIDIOC_STREAMOFF: {
-      const int type = *static_cast<int*>(arg);
-      if (type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-      if (dev->owner_fd_ != fd) return Fail(dev->owner_fd_ < 0 ? EINVAL : EBUSY);
-      if (request == VIDIOC_STREAMON) {
-        if (dev->streaming_) return 0;
-        if (dev->bufs_.empty()) return Fail(EINVAL);
-        if (dev->faults_.nospc_on_streamon) return Fail(ENOSPC);
-        dev->streaming_ = true;
-        dev->stream_t0_ = NowLocked();
-        if (cfg.align_to_epoch) {
-          const int64_t period = std::llround(1e9 / dev->fps_);
-          dev->stream_t0_ -= dev->stream_t0_ % period;
-        }
-        dev->slot_ = 0;
-        dev->sequence_ = cfg.first_sequence;
-        ++dev->stats_.streamons;
-        return 0;
-      }
-      // STREAMOFF: every buffer returns to the dequeued state.
-      dev->streaming_ = false;
-      for (auto& b : dev->bufs_) b.state = FakeDevice::Buf::kDequeued;
-      dev->queued_.clear();
-      dev->done_.clear();
-      UpdateReadable(dev);
-      return 0;
-    }
-    default:
-      return Fail(ENOTTY);
+  // One handler per request.
+  static constexpr std::pair<unsigned long, int (FakeV4l2System::*)(IoctlCall&)> kHandlers[] = {
+      {VIDIOC_QUERYCAP, &FakeV4l2System::QueryCap},
+      {VIDIOC_ENUM_FMT, &FakeV4l2System::EnumFormat},
+      {VIDIOC_G_FMT, &FakeV4l2System::GetFormat},
+      {VIDIOC_S_FMT, &FakeV4l2System::SetFormat},
+      {VIDIOC_TRY_FMT, &FakeV4l2System::SetFormat},
+      {VIDIOC_G_PARM, &FakeV4l2System::StreamParm},
+      {VIDIOC_S_PARM, &FakeV4l2System::StreamParm},
+      {VIDIOC_REQBUFS, &FakeV4l2System::RequestBuffers},
+      {VIDIOC_QUERYBUF, &FakeV4l2System::QueryBuffer},
+      {VIDIOC_QBUF, &FakeV4l2System::QueueBuffer},
+      {VIDIOC_DQBUF, &FakeV4l2System::DequeueBuffer},
+      {VIDIOC_STREAMON, &FakeV4l2System::Stream},
+      {VIDIOC_STREAMOFF, &FakeV4l2System::Stream}};
+  IoctlCall call{fd, request, arg, file, dev, lock};
+  for (const auto& [known, handler] : kHandlers) {
+    if (known == request) return (this->*handler)(call);
   }
+  return Fail(ENOTTY);
+}
+
+// VIDIOC_QUERYCAP: a capture device that streams.
+int FakeV4l2System::QueryCap(IoctlCall& c) {
+  const FakeDeviceConfig& cfg = c.dev->config_;
+  auto* cap = static_cast<v4l2_capability*>(c.arg);
+  *cap = v4l2_capability{};
+  std::snprintf(reinterpret_cast<char*>(cap->driver), sizeof cap->driver, "sfrt_fake");
+  std::snprintf(reinterpret_cast<char*>(cap->card), sizeof cap->card, "%s", cfg.card.c_str());
+  std::snprintf(reinterpret_cast<char*>(cap->bus_info), sizeof cap->bus_info, "platform:%s",
+                cfg.path.c_str());
+  cap->version = (6u << 16) | (1u << 8);
+  cap->device_caps = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING;
+  cap->capabilities = cap->device_caps | V4L2_CAP_DEVICE_CAPS;
+  return 0;
+}
+
+// VIDIOC_ENUM_FMT: the configured formats.
+int FakeV4l2System::EnumFormat(IoctlCall& c) {
+  const FakeDeviceConfig& cfg = c.dev->config_;
+  auto* d = static_cast<v4l2_fmtdesc*>(c.arg);
+  if (d->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || d->index >= cfg.formats.size()) {
+    return Fail(EINVAL);
+  }
+  const uint32_t index = d->index;
+  *d = v4l2_fmtdesc{};
+  d->index = index;
+  d->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  d->pixelformat = cfg.formats[index];
+  d->flags = IsJpeg(d->pixelformat) ? V4L2_FMT_FLAG_COMPRESSED : 0;
+  std::snprintf(reinterpret_cast<char*>(d->description), sizeof d->description, "%c%c%c%c",
+                d->pixelformat & 0xff, (d->pixelformat >> 8) & 0xff, (d->pixelformat >> 16) & 0xff,
+                d->pixelformat >> 24);
+  return 0;
+}
+
+// VIDIOC_G_FMT.
+int FakeV4l2System::GetFormat(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  auto* f = static_cast<v4l2_format*>(c.arg);
+  if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
+  f->fmt.pix = dev->fmt_;
+  return 0;
+}
+
+// VIDIOC_S_FMT and VIDIOC_TRY_FMT: the nearest format the configuration allows.
+int FakeV4l2System::SetFormat(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  const FakeDeviceConfig& cfg = c.dev->config_;
+  const unsigned long request = c.request;
+  auto* f = static_cast<v4l2_format*>(c.arg);
+  if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
+  if (request == VIDIOC_S_FMT) {
+    if (dev->faults_.busy_on_s_fmt) return Fail(EBUSY);
+    if (!dev->bufs_.empty() || dev->streaming_) return Fail(EBUSY);
+  }
+  v4l2_pix_format p = f->fmt.pix;
+  if (std::find(cfg.formats.begin(), cfg.formats.end(), p.pixelformat) == cfg.formats.end()) {
+    p.pixelformat = cfg.formats.empty() ? V4L2_PIX_FMT_YUYV : cfg.formats[0];
+  }
+  p.width = static_cast<uint32_t>(
+      std::clamp(static_cast<int>(p.width), cfg.min_width, cfg.max_width) & ~1);
+  p.height = static_cast<uint32_t>(
+      std::clamp(static_cast<int>(p.height), cfg.min_height, cfg.max_height) & ~1);
+  p.field = V4L2_FIELD_NONE;
+  p.colorspace = V4L2_COLORSPACE_SMPTE170M;
+  const uint32_t row = MinRow(p.pixelformat, p.width);
+  if (row != 0) {
+    p.bytesperline = RoundUp(row, static_cast<uint32_t>(cfg.bytesperline_align));
+    p.sizeimage = p.bytesperline * p.height;
+    if (p.pixelformat == V4L2_PIX_FMT_NV12) p.sizeimage = p.bytesperline * p.height * 3 / 2;
+  } else {
+    p.bytesperline = 0;
+    p.sizeimage = static_cast<uint32_t>(
+        tjBufSize(static_cast<int>(p.width), static_cast<int>(p.height), TJSAMP_444));
+  }
+  f->fmt.pix = p;
+  if (request == VIDIOC_S_FMT) dev->fmt_ = p;
+  return 0;
+}
+
+// VIDIOC_G_PARM and VIDIOC_S_PARM: the frame rate, clamped to the configuration.
+int FakeV4l2System::StreamParm(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  const FakeDeviceConfig& cfg = c.dev->config_;
+  const unsigned long request = c.request;
+  auto* parm = static_cast<v4l2_streamparm*>(c.arg);
+  if (parm->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
+  if (request == VIDIOC_S_PARM) {
+    const v4l2_fract t = parm->parm.capture.timeperframe;
+    if (t.numerator != 0 && t.denominator != 0) {
+      const double want = static_cast<double>(t.denominator) / t.numerator;
+      dev->fps_ = std::round(std::clamp(want, cfg.min_fps, cfg.max_fps));
+    }
+  }
+  parm->parm.capture = v4l2_captureparm{};
+  parm->parm.capture.capability = V4L2_CAP_TIMEPERFRAME;
+  parm->parm.capture.timeperframe.numerator = 1000;
+  parm->parm.capture.timeperframe.denominator =
+      static_cast<uint32_t>(std::lround(dev->fps_ * 1000));
+  parm->parm.capture.readbuffers = 2;
+  return 0;
+}
+
+// VIDIOC_REQBUFS: the buffers in one memfd, mapped by the caller; count 0 frees them.
+int FakeV4l2System::RequestBuffers(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  const FakeDeviceConfig& cfg = c.dev->config_;
+  const int fd = c.fd;
+  auto* req = static_cast<v4l2_requestbuffers*>(c.arg);
+  if (req->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || req->memory != V4L2_MEMORY_MMAP) {
+    return Fail(EINVAL);
+  }
+  if (dev->owner_fd_ >= 0 && dev->owner_fd_ != fd) return Fail(EBUSY);
+  if (dev->streaming_) return Fail(EBUSY);
+  for (const auto& b : dev->bufs_) {
+    if (b.mappings > 0) return Fail(EBUSY);  // strict: unmap before freeing
+  }
+  dev->FreeBuffers();
+  req->capabilities = V4L2_BUF_CAP_SUPPORTS_MMAP;
+  if (req->count == 0) {
+    dev->owner_fd_ = -1;
+    return 0;
+  }
+  const uint32_t count = std::clamp(req->count, cfg.min_buffers, cfg.max_buffers);
+  const uint32_t page = static_cast<uint32_t>(sysconf(_SC_PAGESIZE));
+  dev->buf_stride_ = RoundUp(dev->fmt_.sizeimage, page);
+  dev->mem_size_ = static_cast<size_t>(dev->buf_stride_) * count;
+  dev->memfd_ = memfd_create("sfrt-fake-v4l2", MFD_CLOEXEC);
+  if (dev->memfd_ < 0 || ftruncate(dev->memfd_, static_cast<off_t>(dev->mem_size_)) != 0) {
+    const int err = errno;
+    dev->FreeBuffers();
+    return Fail(err == 0 ? ENOMEM : err);
+  }
+  void* mem = RawMmap(nullptr, dev->mem_size_, PROT_READ | PROT_WRITE, MAP_SHARED, dev->memfd_, 0);
+  if (mem == MAP_FAILED) {
+    dev->FreeBuffers();
+    return Fail(ENOMEM);
+  }
+  dev->mem_ = static_cast<uint8_t*>(mem);
+  dev->bufs_.resize(count);
+  for (uint32_t i = 0; i < count; ++i) dev->bufs_[i].offset = i * dev->buf_stride_;
+  dev->owner_fd_ = fd;
+  req->count = count;
+  return 0;
+}
+
+// VIDIOC_QUERYBUF.
+int FakeV4l2System::QueryBuffer(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  auto* b = static_cast<v4l2_buffer*>(c.arg);
+  if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->index >= dev->bufs_.size()) {
+    return Fail(EINVAL);
+  }
+  const FakeDevice::Buf& buf = dev->bufs_[b->index];
+  const uint32_t index = b->index;
+  *b = buf.state == FakeDevice::Buf::kDone ? buf.meta : v4l2_buffer{};
+  b->index = index;
+  b->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  b->memory = V4L2_MEMORY_MMAP;
+  b->length = dev->fmt_.sizeimage;
+  b->m.offset = buf.offset;
+  b->flags &= ~(V4L2_BUF_FLAG_QUEUED | V4L2_BUF_FLAG_DONE | V4L2_BUF_FLAG_MAPPED);
+  if (buf.mappings > 0) b->flags |= V4L2_BUF_FLAG_MAPPED;
+  if (buf.state == FakeDevice::Buf::kQueued) b->flags |= V4L2_BUF_FLAG_QUEUED;
+  if (buf.state == FakeDevice::Buf::kDone) b->flags |= V4L2_BUF_FLAG_DONE;
+  return 0;
+}
+
+// VIDIOC_QBUF.
+int FakeV4l2System::QueueBuffer(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  const int fd = c.fd;
+  auto* b = static_cast<v4l2_buffer*>(c.arg);
+  if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_MMAP ||
+      b->index >= dev->bufs_.size()) {
+    return Fail(EINVAL);
+  }
+  if (dev->owner_fd_ != fd) return Fail(EBUSY);
+  FakeDevice::Buf& buf = dev->bufs_[b->index];
+  if (buf.state != FakeDevice::Buf::kDequeued) return Fail(EINVAL);
+  buf.state = FakeDevice::Buf::kQueued;
+  dev->queued_.push_back(b->index);
+  b->flags = V4L2_BUF_FLAG_QUEUED | (buf.mappings > 0 ? V4L2_BUF_FLAG_MAPPED : 0);
+  return 0;
+}
+
+// VIDIOC_DQBUF: the oldest done buffer; on a blocking fd, waits for the next frame.
+int FakeV4l2System::DequeueBuffer(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  File& file = c.file;
+  std::unique_lock<std::mutex>& lock = c.lock;
+  const int fd = c.fd;
+  auto* b = static_cast<v4l2_buffer*>(c.arg);
+  if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_MMAP) {
+    return Fail(EINVAL);
+  }
+  if (dev->owner_fd_ != fd) return Fail(EBUSY);
+  if (!dev->streaming_) return Fail(EINVAL);
+  CatchUp(dev);
+  while (dev->done_.empty()) {
+    if (file.nonblocking || dev->faults_.stalled) return Fail(EAGAIN);
+    // Blocking fd: wait for the next frame.
+    const int64_t due = dev->FrameDue(dev->slot_);
+    if (mode_ == ClockMode::kVirtual) {
+      virtual_now_ = std::max(virtual_now_, due);
+    } else {
+      const int64_t wait = due - NowLocked();
+      lock.unlock();
+      RawPoll(nullptr, 0, std::max<int64_t>(wait, 0));
+      lock.lock();
+      if (file.generation != dev->generation_) return Fail(ENODEV);
+      if (!dev->streaming_) return Fail(EINVAL);
+    }
+    CatchUp(dev);
+  }
+  const uint32_t index = dev->done_.front();
+  dev->done_.pop_front();
+  FakeDevice::Buf& buf = dev->bufs_[index];
+  buf.state = FakeDevice::Buf::kDequeued;
+  UpdateReadable(dev);
+  if (dev->faults_.eio_next_dqbuf > 0) {
+    // As the kernel may: the buffer left the queue but the caller is not told which.
+    --dev->faults_.eio_next_dqbuf;
+    return Fail(EIO);
+  }
+  *b = buf.meta;
+  if (buf.mappings > 0) b->flags |= V4L2_BUF_FLAG_MAPPED;
+  ++dev->stats_.frames_dequeued;
+  if (dev->faults_.unplug_after_dqbufs > 0 && --dev->faults_.unplug_after_dqbufs == 0) {
+    // The caller's mapping of this buffer stays valid; its QBUF will fail with ENODEV.
+    dev->UnplugLocked();
+    const int64_t after = dev->faults_.replug_after_ns;
+    dev->replug_at_ = after < 0 ? -1 : NowLocked() + after;
+  }
+  return 0;
+}
+
+// VIDIOC_STREAMON and VIDIOC_STREAMOFF.
+int FakeV4l2System::Stream(IoctlCall& c) {
+  FakeDevice* dev = c.dev;
+  const FakeDeviceConfig& cfg = c.dev->config_;
+  const int fd = c.fd;
+  const unsigned long request = c.request;
+  const int type = *static_cast<int*>(c.arg);
+  if (type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
+  if (dev->owner_fd_ != fd) return Fail(dev->owner_fd_ < 0 ? EINVAL : EBUSY);
+  if (request == VIDIOC_STREAMON) {
+    if (dev->streaming_) return 0;
+    if (dev->bufs_.empty()) return Fail(EINVAL);
+    if (dev->faults_.nospc_on_streamon) return Fail(ENOSPC);
+    dev->streaming_ = true;
+    dev->stream_t0_ = NowLocked();
+    if (cfg.align_to_epoch) {
+      const int64_t period = std::llround(1e9 / dev->fps_);
+      dev->stream_t0_ -= dev->stream_t0_ % period;
+    }
+    dev->slot_ = 0;
+    dev->sequence_ = cfg.first_sequence;
+    ++dev->stats_.streamons;
+    return 0;
+  }
+  // STREAMOFF: every buffer returns to the dequeued state.
+  dev->streaming_ = false;
+  for (auto& b : dev->bufs_) b.state = FakeDevice::Buf::kDequeued;
+  dev->queued_.clear();
+  dev->done_.clear();
+  UpdateReadable(dev);
+  return 0;
 }
 
 }  // namespace sfrt::v4l2::testing

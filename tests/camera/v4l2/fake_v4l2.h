@@ -217,6 +217,25 @@ class FakeV4l2System final : public V4l2Syscalls {
     uint32_t index = 0;
     size_t length = 0;
   };
+  // One ioctl on a fake device, as its handler sees it (Ioctl finds the handler in one table).
+  struct IoctlCall {
+    int fd;
+    unsigned long request;
+    void* arg;
+    File& file;
+    FakeDevice* dev;
+    std::unique_lock<std::mutex>& lock;  // DQBUF on a blocking fd waits without it
+  };
+  int QueryCap(IoctlCall& c);
+  int EnumFormat(IoctlCall& c);
+  int GetFormat(IoctlCall& c);
+  int SetFormat(IoctlCall& c);   // and TRY_FMT
+  int StreamParm(IoctlCall& c);  // G_PARM and S_PARM
+  int RequestBuffers(IoctlCall& c);
+  int QueryBuffer(IoctlCall& c);
+  int QueueBuffer(IoctlCall& c);
+  int DequeueBuffer(IoctlCall& c);
+  int Stream(IoctlCall& c);  // STREAMON and STREAMOFF
   int64_t NowLocked();
   void CatchUp(FakeDevice* dev);
   void ProduceSlot(FakeDevice* dev, int64_t due);
