@@ -153,73 +153,77 @@ int64_t FakeDevice::FrameDue(uint64_t slot) const {
 // Rows of the pattern depend on y / 8 only (test_pattern.h), so a packed format renders the first
 // row of each 8-row block and copies it: the same bytes at a fraction of the cost, which the
 // capture thread pays while it polls (a real driver fills buffers by DMA).
+namespace {
+
+// The packed formats' rows: each 8-row block's first row written by write_row(y, row) over
+// padding bytes of 0xAB, the other rows copies of it (the pattern is flat over 8-row blocks).
+template <typename WriteRow>
+void FillBlockRows(uint8_t* dst, size_t bpl, int h, WriteRow write_row) {
+  for (int y = 0; y < h; ++y) {
+    uint8_t* row = dst + y * bpl;
+    if (y % 8 != 0) {
+      std::memcpy(row, row - bpl, bpl);
+      continue;
+    }
+    std::memset(row, 0xAB, bpl);
+    write_row(y, row);
+  }
+}
+
+uint8_t Grey(const uint8_t* c) {
+  return static_cast<uint8_t>((29 * c[0] + 150 * c[1] + 77 * c[2] + 128) >> 8);
+}
+
+}  // namespace
+
+// Pixel (x, y) of frame `seq` in BGR: one camera's pattern, or a side-by-side frame's halves.
+void FakeDevice::PatternAt(int x, int y, uint32_t seq, uint8_t* bgr) const {
+  if (!config_.side_by_side) {
+    PatternBgr(x, y, seq, config_.side, bgr);
+    return;
+  }
+  const int half = static_cast<int>(fmt_.width) / 2;
+  if (x < half) {
+    PatternBgr(x, y, seq, 0, bgr);
+  } else {
+    PatternBgr(x - half, y, seq, 1, bgr);
+  }
+}
+
 void FakeDevice::Render(uint8_t* dst, uint32_t seq, v4l2_buffer* meta) {
   const int w = static_cast<int>(fmt_.width);
   const int h = static_cast<int>(fmt_.height);
   const size_t bpl = fmt_.bytesperline;
-  auto pixel = [&](int x, int y, uint8_t* bgr) {
-    if (config_.side_by_side) {
-      const int half = w / 2;
-      if (x < half) {
-        PatternBgr(x, y, seq, 0, bgr);
-      } else {
-        PatternBgr(x - half, y, seq, 1, bgr);
-      }
-    } else {
-      PatternBgr(x, y, seq, config_.side, bgr);
-    }
-  };
-  auto grey = [](const uint8_t* c) {
-    return static_cast<uint8_t>((29 * c[0] + 150 * c[1] + 77 * c[2] + 128) >> 8);
-  };
   uint8_t c[3], c2[3];
   switch (fmt_.pixelformat) {
     case V4L2_PIX_FMT_BGR24:
     case V4L2_PIX_FMT_RGB24: {
       const bool rgb = fmt_.pixelformat == V4L2_PIX_FMT_RGB24;
-      for (int y = 0; y < h; ++y) {
-        uint8_t* row = dst + y * bpl;
-        if (y % 8 != 0) {  // the pattern is flat over 8-row blocks: the row above, exactly
-          std::memcpy(row, row - bpl, bpl);
-          continue;
-        }
-        std::memset(row, 0xAB, bpl);
+      FillBlockRows(dst, bpl, h, [&](int y, uint8_t* row) {
         for (int x = 0; x < w; ++x) {
-          pixel(x, y, c);
+          PatternAt(x, y, seq, c);
           row[3 * x] = rgb ? c[2] : c[0];
           row[3 * x + 1] = c[1];
           row[3 * x + 2] = rgb ? c[0] : c[2];
         }
-      }
+      });
       meta->bytesused = static_cast<uint32_t>(bpl * h);
-      break;
+      return;
     }
     case V4L2_PIX_FMT_GREY:
-      for (int y = 0; y < h; ++y) {
-        uint8_t* row = dst + y * bpl;
-        if (y % 8 != 0) {
-          std::memcpy(row, row - bpl, bpl);
-          continue;
-        }
-        std::memset(row, 0xAB, bpl);
+      FillBlockRows(dst, bpl, h, [&](int y, uint8_t* row) {
         for (int x = 0; x < w; ++x) {
-          pixel(x, y, c);
-          row[x] = grey(c);
+          PatternAt(x, y, seq, c);
+          row[x] = Grey(c);
         }
-      }
+      });
       meta->bytesused = static_cast<uint32_t>(bpl * h);
-      break;
+      return;
     case V4L2_PIX_FMT_YUYV:
-      for (int y = 0; y < h; ++y) {
-        uint8_t* row = dst + y * bpl;
-        if (y % 8 != 0) {
-          std::memcpy(row, row - bpl, bpl);
-          continue;
-        }
-        std::memset(row, 0xAB, bpl);
+      FillBlockRows(dst, bpl, h, [&](int y, uint8_t* row) {
         for (int x = 0; x + 1 < w; x += 2) {
-          pixel(x, y, c);
-          pixel(x + 1, y, c2);
+          PatternAt(x, y, seq, c);
+          PatternAt(x + 1, y, seq, c2);
           int y0, cb0, cr0, y1, cb1, cr1;
           BgrToYuv601(c, &y0, &cb0, &cr0);
           BgrToYuv601(c2, &y1, &cb1, &cr1);
@@ -229,59 +233,76 @@ void FakeDevice::Render(uint8_t* dst, uint32_t seq, v4l2_buffer* meta) {
           g[2] = static_cast<uint8_t>(y1);
           g[3] = static_cast<uint8_t>((cr0 + cr1 + 1) / 2);
         }
-      }
+      });
       meta->bytesused = static_cast<uint32_t>(bpl * h);
-      break;
-    case V4L2_PIX_FMT_NV12: {
-      uint8_t* uv_plane = dst + bpl * h;
-      for (int y = 0; y < h; ++y) {
-        uint8_t* row = dst + y * bpl;
-        std::memset(row, 0xAB, bpl);
-        for (int x = 0; x < w; ++x) {
-          pixel(x, y, c);
-          int yy, cb, cr;
-          BgrToYuv601(c, &yy, &cb, &cr);
-          row[x] = static_cast<uint8_t>(yy);
-        }
-      }
-      for (int y = 0; y < h / 2; ++y) {
-        uint8_t* row = uv_plane + y * bpl;
-        std::memset(row, 0xAB, bpl);
-        for (int x = 0; x + 1 < w; x += 2) {
-          int sum_cb = 0, sum_cr = 0;
-          for (int k = 0; k < 4; ++k) {
-            pixel(x + k % 2, 2 * y + k / 2, c);
-            int yy, cb, cr;
-            BgrToYuv601(c, &yy, &cb, &cr);
-            sum_cb += cb;
-            sum_cr += cr;
-          }
-          row[x] = static_cast<uint8_t>((sum_cb + 2) / 4);
-          row[x + 1] = static_cast<uint8_t>((sum_cr + 2) / 4);
-        }
-      }
-      meta->bytesused = static_cast<uint32_t>(bpl * h * 3 / 2);
-      break;
-    }
+      return;
+    case V4L2_PIX_FMT_NV12:
+      meta->bytesused = RenderNv12(dst, seq);
+      return;
     case V4L2_PIX_FMT_MJPEG:
-    case V4L2_PIX_FMT_JPEG: {
-      scratch_.resize(static_cast<size_t>(w) * h * 3);
-      for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) pixel(x, y, &scratch_[(static_cast<size_t>(y) * w + x) * 3]);
-      }
-      if (jpeg_ == nullptr) jpeg_ = tjInitCompress();
-      unsigned char* out = dst;
-      unsigned long size = fmt_.sizeimage;
-      if (tjCompress2(static_cast<tjhandle>(jpeg_), scratch_.data(), w, 0, h, TJPF_BGR, &out, &size,
-                      TJSAMP_444, config_.jpeg_quality, TJFLAG_NOREALLOC) != 0) {
-        size = 0;
-      }
-      meta->bytesused = static_cast<uint32_t>(size);
-      break;
-    }
+    case V4L2_PIX_FMT_JPEG:
+      meta->bytesused = RenderJpeg(dst, seq);
+      return;
     default:
       meta->bytesused = 0;
   }
+}
+
+// NV12: the Y plane, then the interleaved Cb, Cr plane at half resolution (each the rounded
+// mean of its 2x2 pixels'). Returns the bytes used.
+uint32_t FakeDevice::RenderNv12(uint8_t* dst, uint32_t seq) {
+  const int w = static_cast<int>(fmt_.width);
+  const int h = static_cast<int>(fmt_.height);
+  const size_t bpl = fmt_.bytesperline;
+  uint8_t c[3];
+  uint8_t* uv_plane = dst + bpl * h;
+  for (int y = 0; y < h; ++y) {
+    uint8_t* row = dst + y * bpl;
+    std::memset(row, 0xAB, bpl);
+    for (int x = 0; x < w; ++x) {
+      PatternAt(x, y, seq, c);
+      int yy, cb, cr;
+      BgrToYuv601(c, &yy, &cb, &cr);
+      row[x] = static_cast<uint8_t>(yy);
+    }
+  }
+  for (int y = 0; y < h / 2; ++y) {
+    uint8_t* row = uv_plane + y * bpl;
+    std::memset(row, 0xAB, bpl);
+    for (int x = 0; x + 1 < w; x += 2) {
+      int sum_cb = 0, sum_cr = 0;
+      for (int k = 0; k < 4; ++k) {
+        PatternAt(x + k % 2, 2 * y + k / 2, seq, c);
+        int yy, cb, cr;
+        BgrToYuv601(c, &yy, &cb, &cr);
+        sum_cb += cb;
+        sum_cr += cr;
+      }
+      row[x] = static_cast<uint8_t>((sum_cb + 2) / 4);
+      row[x + 1] = static_cast<uint8_t>((sum_cr + 2) / 4);
+    }
+  }
+  return static_cast<uint32_t>(bpl * h * 3 / 2);
+}
+
+// MJPEG / JPEG: the frame compressed by TurboJPEG (4:4:4) into the buffer. Returns the bytes
+// used (0 where it does not fit).
+uint32_t FakeDevice::RenderJpeg(uint8_t* dst, uint32_t seq) {
+  const int w = static_cast<int>(fmt_.width);
+  const int h = static_cast<int>(fmt_.height);
+  scratch_.resize(static_cast<size_t>(w) * h * 3);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x)
+      PatternAt(x, y, seq, &scratch_[(static_cast<size_t>(y) * w + x) * 3]);
+  }
+  if (jpeg_ == nullptr) jpeg_ = tjInitCompress();
+  unsigned char* out = dst;
+  unsigned long size = fmt_.sizeimage;
+  if (tjCompress2(static_cast<tjhandle>(jpeg_), scratch_.data(), w, 0, h, TJPF_BGR, &out, &size,
+                  TJSAMP_444, config_.jpeg_quality, TJFLAG_NOREALLOC) != 0) {
+    size = 0;
+  }
+  return static_cast<uint32_t>(size);
 }
 
 void FakeDevice::Unplug() {

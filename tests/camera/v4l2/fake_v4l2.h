@@ -141,6 +141,9 @@ class FakeDevice {
   void UnplugLocked();
   int64_t FrameDue(uint64_t slot) const;
   void Render(uint8_t* dst, uint32_t seq, v4l2_buffer* meta);
+  void PatternAt(int x, int y, uint32_t seq, uint8_t* bgr) const;
+  uint32_t RenderNv12(uint8_t* dst, uint32_t seq);
+  uint32_t RenderJpeg(uint8_t* dst, uint32_t seq);
 
   FakeV4l2System* sys_;
   FakeDeviceConfig config_;
