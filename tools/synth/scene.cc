@@ -247,6 +247,138 @@ bool InsideBox(Vec3 p, Vec3 centre, Vec3 half) {
 
 // The kRobot family (see scene.h). World frame: OpenCV axes at the left camera's start (y down);
 // the floor is the plane y = camera height.
+// The next texture for `obj`, kept with the scene.
+Status AddTexture(Rng& rng, TextureSource& textures, Scene& scene, SceneObject& obj) {
+  Result<std::shared_ptr<const Texture>> tex = textures.Next(rng);
+  if (!tex.ok()) return tex.status();
+  obj.texture = static_cast<int>(scene.textures.size());
+  scene.textures.push_back(std::move(tex).value());
+  return Status::Ok();
+}
+
+// The robot scene's room (metres): the rig starts `behind` m from the wall behind it, `ahead` m
+// from the one in front, inside the width and at `height` m above the floor.
+struct RobotRoom {
+  Vec3 half;    // half sizes
+  Vec3 centre;  // in the rig's first frame
+  double ahead = 0;
+};
+
+RobotRoom DrawRobotRoom(Rng& rng) {
+  const double height = rng.Uniform(0.3, 1.2);
+  const double room_height = rng.Uniform(2.4, 3.4);
+  const double room_width = rng.Uniform(3.5, 8.0);
+  const double ahead = rng.Uniform(3.0, 7.0);
+  const double behind = rng.Uniform(1.0, 3.0);
+  RobotRoom room;
+  room.half = {room_width / 2, room_height / 2, (ahead + behind) / 2};
+  room.centre = {rng.Uniform(-0.5, 0.5) * (room.half.x - 0.8), height - room.half.y,
+                 (ahead - behind) / 2};
+  room.ahead = ahead;
+  return room;
+}
+
+// The rig's pose per frame.
+struct RigPath {
+  std::vector<Quat> q;
+  std::vector<Vec3> c;
+};
+
+// Ego-motion: constant body-frame velocity and turn rates (a robot driving an arc, slightly
+// pitching and rolling); the velocity reverses where the rig would come within 0.6 m of a wall.
+RigPath DriveRig(Rng& rng, const SceneOptions& options, const RobotRoom& room, int poses) {
+  RigPath path;
+  Quat q = Normalized(AxisRotation(1, rng.Uniform(-0.2, 0.2)) *
+                      AxisRotation(0, rng.Uniform(-0.05, 0.05)) *
+                      AxisRotation(2, rng.Uniform(-0.02, 0.02)));
+  const double speed = rng.Uniform() < 0.15
+                           ? rng.Uniform(0.0, 0.01)
+                           : rng.Uniform(0.01, std::max(0.01, options.max_speed));  // m/frame
+  Vec3 v{speed * rng.Uniform(-0.15, 0.15), speed * rng.Uniform(-0.05, 0.05), speed};
+  // AxisRotation takes sin(angle / 2); angle / 2 is that within 1e-5 relative here.
+  const double pitch = options.max_pitch_rate / 2;
+  const Quat turn = Normalized(AxisRotation(1, rng.Uniform(-0.015, 0.015)) *
+                               AxisRotation(0, rng.Uniform(-pitch, pitch)) *
+                               AxisRotation(2, rng.Uniform(-0.002, 0.002)));
+  const Vec3 margin{room.half.x - 0.6, room.half.y - 0.2, room.half.z - 0.6};
+  Vec3 c{0, 0, 0};
+  for (int t = 0; t < poses; ++t) {
+    path.q.push_back(q);
+    path.c.push_back(c);
+    Vec3 next = c + ToMatrix(q) * v;
+    if (!InsideBox(next, room.centre, margin)) {
+      v = -1.0 * v;
+      next = c + ToMatrix(q) * v;
+    }
+    c = next;
+    q = Normalized(q * turn);
+  }
+  return path;
+}
+
+// A sphere, box or card of 0.12-0.45 m, its shape and gain drawn.
+SceneObject DrawRobotShape(Rng& rng) {
+  SceneObject obj;
+  const int kind = rng.Below(3);
+  obj.kind = kind == 0 ? ShapeKind::kSphere : (kind == 1 ? ShapeKind::kBox : ShapeKind::kCard);
+  const double radius = rng.Uniform(0.12, 0.45);
+  if (obj.kind == ShapeKind::kSphere) {
+    obj.size = {radius * 0.8, 0, 0};
+  } else if (obj.kind == ShapeKind::kBox) {
+    obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
+                radius * rng.Uniform(0.4, 0.8)};
+  } else {
+    obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
+  }
+  obj.gain = rng.Uniform(0.8, 1.2);
+  return obj;
+}
+
+// Places `obj` in the first view at 0.8-5 m, 35% of them static, the others moving at up to
+// 0.08 m per frame (mostly horizontally) and spinning. A place where the object would come
+// within 0.3 m of the rig or leave the room is drawn again (up to 20 times): false when none
+// fits.
+bool PlaceRobotObject(Rng& rng, const Camera& cam, const RobotRoom& room, const RigPath& rig,
+                      SceneObject& obj) {
+  const double bound = BoundingRadius(obj);
+  const Vec3 room_margin{room.half.x - bound, room.half.y - bound, room.half.z - bound};
+  const int poses = static_cast<int>(rig.q.size());
+  bool placed = false;
+  for (int attempt = 0; attempt < 20 && !placed; ++attempt) {
+    const double z = rng.Uniform(0.8, std::min(5.0, room.ahead));
+    const double col = rng.Uniform(0.05, 0.95) * cam.width;
+    const double row = rng.Uniform(0.05, 0.95) * cam.height;
+    const Vec3 in_view{(col - cam.cx) * z / cam.focal, (row - cam.cy) * z / cam.focal, z};
+    Vec3 t = rig.c[0] + ToMatrix(rig.q[0]) * in_view;
+    Quat q = RandomOrientation(rng);
+    const bool moving = rng.Uniform() >= 0.35;
+    Vec3 v;
+    Quat spin;
+    if (moving) {
+      const Vec3 dir = RandomDirection(rng);
+      const double speed = rng.Uniform(0.01, 0.08);
+      v = speed * Vec3{dir.x, 0.25 * dir.y, dir.z};
+      spin = SmallRotation(rng, rng.Uniform(0.004, 0.03));
+    }
+    obj.texel_size = rng.Uniform(0.4, 1.2) * z / cam.focal;
+    obj.poses.clear();
+    placed = InsideBox(t, room.centre, room_margin);
+    for (int f = 0; f < poses && placed; ++f) {
+      const auto fi = static_cast<size_t>(f);
+      if (Norm(t - rig.c[fi]) < bound + 0.3) placed = false;
+      obj.poses.push_back(CameraSpacePose(rig.q[fi], rig.c[fi], q, t));
+      Vec3 next = t + v;
+      if (!InsideBox(next, room.centre, room_margin)) {
+        v = -1.0 * v;
+        next = t + v;
+      }
+      t = next;
+      q = Normalized(spin * q);
+    }
+  }
+  return placed;
+}
+
 Result<Scene> MakeRobotScene(const SceneOptions& options, uint64_t seed, int sequence,
                              TextureSource& textures) {
   const Camera& cam = options.camera;
@@ -258,125 +390,23 @@ Result<Scene> MakeRobotScene(const SceneOptions& options, uint64_t seed, int seq
   scene.light = RandomDirection(rng);
   if (scene.light.z > 0) scene.light.z = -scene.light.z;
   scene.ambient = rng.Uniform(0.3, 0.6);
-  auto add_texture = [&](SceneObject& obj) -> Status {
-    Result<std::shared_ptr<const Texture>> tex = textures.Next(rng);
-    if (!tex.ok()) return tex.status();
-    obj.texture = static_cast<int>(scene.textures.size());
-    scene.textures.push_back(std::move(tex).value());
-    return Status::Ok();
-  };
-  auto texel_at = [&](double z, double px) { return px * z / cam.focal; };
-
-  // The room (metres): the rig starts `behind` m from the wall behind it, `ahead` m from the one
-  // in front, inside the width and at `height` m above the floor.
-  const double height = rng.Uniform(0.3, 1.2);
-  const double room_height = rng.Uniform(2.4, 3.4);
-  const double room_width = rng.Uniform(3.5, 8.0);
-  const double ahead = rng.Uniform(3.0, 7.0);
-  const double behind = rng.Uniform(1.0, 3.0);
-  const Vec3 half{room_width / 2, room_height / 2, (ahead + behind) / 2};
-  const Vec3 centre{rng.Uniform(-0.5, 0.5) * (half.x - 0.8), height - half.y, (ahead - behind) / 2};
-
-  // Ego-motion: constant body-frame velocity and turn rates (a robot driving an arc, slightly
-  // pitching and rolling); the velocity reverses where the rig would come within 0.6 m of a wall.
-  std::vector<Quat> cam_q(static_cast<size_t>(pose_count));
-  std::vector<Vec3> cam_c(static_cast<size_t>(pose_count));
-  {
-    Quat q = Normalized(AxisRotation(1, rng.Uniform(-0.2, 0.2)) *
-                        AxisRotation(0, rng.Uniform(-0.05, 0.05)) *
-                        AxisRotation(2, rng.Uniform(-0.02, 0.02)));
-    const double speed = rng.Uniform() < 0.15
-                             ? rng.Uniform(0.0, 0.01)
-                             : rng.Uniform(0.01, std::max(0.01, options.max_speed));  // m/frame
-    Vec3 v{speed * rng.Uniform(-0.15, 0.15), speed * rng.Uniform(-0.05, 0.05), speed};
-    // AxisRotation takes sin(angle / 2); angle / 2 is that within 1e-5 relative here.
-    const double pitch = options.max_pitch_rate / 2;
-    const Quat turn = Normalized(AxisRotation(1, rng.Uniform(-0.015, 0.015)) *
-                                 AxisRotation(0, rng.Uniform(-pitch, pitch)) *
-                                 AxisRotation(2, rng.Uniform(-0.002, 0.002)));
-    const Vec3 margin{half.x - 0.6, half.y - 0.2, half.z - 0.6};
-    Vec3 c{0, 0, 0};
-    for (int t = 0; t < pose_count; ++t) {
-      cam_q[static_cast<size_t>(t)] = q;
-      cam_c[static_cast<size_t>(t)] = c;
-      Vec3 next = c + ToMatrix(q) * v;
-      if (!InsideBox(next, centre, margin)) {
-        v = -1.0 * v;
-        next = c + ToMatrix(q) * v;
-      }
-      c = next;
-      q = Normalized(q * turn);
-    }
+  const RobotRoom room = DrawRobotRoom(rng);
+  const RigPath rig = DriveRig(rng, options, room, pose_count);
+  SceneObject walls;
+  walls.kind = ShapeKind::kRoom;
+  walls.size = room.half;
+  walls.gain = rng.Uniform(0.8, 1.1);
+  walls.texel_size = rng.Uniform(0.5, 1.5) * (0.6 * room.ahead) / cam.focal;
+  if (Status s = AddTexture(rng, textures, scene, walls); !s.ok()) return s;
+  for (int t = 0; t < pose_count; ++t) {
+    const auto ti = static_cast<size_t>(t);
+    walls.poses.push_back(CameraSpacePose(rig.q[ti], rig.c[ti], Quat{}, room.centre));
   }
-  {
-    SceneObject room;
-    room.kind = ShapeKind::kRoom;
-    room.size = half;
-    room.gain = rng.Uniform(0.8, 1.1);
-    room.texel_size = texel_at(0.6 * ahead, rng.Uniform(0.5, 1.5));
-    if (Status s = add_texture(room); !s.ok()) return s;
-    for (int t = 0; t < pose_count; ++t) {
-      room.poses.push_back(CameraSpacePose(cam_q[static_cast<size_t>(t)],
-                                           cam_c[static_cast<size_t>(t)], Quat{}, centre));
-    }
-    scene.objects.push_back(std::move(room));
-  }
-
-  // Objects: placed in the first view at 0.8-5 m; 35% static, the others moving at up to
-  // 0.08 m per frame (mostly horizontally) and spinning. An object that would come within
-  // 0.3 m of the rig or leave the room is drawn again (up to 20 times, then left out).
+  scene.objects.push_back(std::move(walls));
   for (int i = 0; i < options.objects; ++i) {
-    SceneObject obj;
-    const int kind = rng.Below(3);
-    obj.kind = kind == 0 ? ShapeKind::kSphere : (kind == 1 ? ShapeKind::kBox : ShapeKind::kCard);
-    const double radius = rng.Uniform(0.12, 0.45);
-    if (obj.kind == ShapeKind::kSphere) {
-      obj.size = {radius * 0.8, 0, 0};
-    } else if (obj.kind == ShapeKind::kBox) {
-      obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
-                  radius * rng.Uniform(0.4, 0.8)};
-    } else {
-      obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
-    }
-    const double bound = BoundingRadius(obj);
-    obj.gain = rng.Uniform(0.8, 1.2);
-    const Vec3 room_margin{half.x - bound, half.y - bound, half.z - bound};
-    bool placed = false;
-    for (int attempt = 0; attempt < 20 && !placed; ++attempt) {
-      const double z = rng.Uniform(0.8, std::min(5.0, ahead));
-      const double col = rng.Uniform(0.05, 0.95) * cam.width;
-      const double row = rng.Uniform(0.05, 0.95) * cam.height;
-      const Vec3 in_view{(col - cam.cx) * z / cam.focal, (row - cam.cy) * z / cam.focal, z};
-      Vec3 t = cam_c[0] + ToMatrix(cam_q[0]) * in_view;
-      Quat q = RandomOrientation(rng);
-      const bool moving = rng.Uniform() >= 0.35;
-      Vec3 v;
-      Quat spin;
-      if (moving) {
-        const Vec3 dir = RandomDirection(rng);
-        const double speed = rng.Uniform(0.01, 0.08);
-        v = speed * Vec3{dir.x, 0.25 * dir.y, dir.z};
-        spin = SmallRotation(rng, rng.Uniform(0.004, 0.03));
-      }
-      obj.texel_size = texel_at(z, rng.Uniform(0.4, 1.2));
-      obj.poses.clear();
-      placed = InsideBox(t, centre, room_margin);
-      for (int f = 0; f < pose_count && placed; ++f) {
-        const Vec3 to_rig = t - cam_c[static_cast<size_t>(f)];
-        if (Norm(to_rig) < bound + 0.3) placed = false;
-        obj.poses.push_back(
-            CameraSpacePose(cam_q[static_cast<size_t>(f)], cam_c[static_cast<size_t>(f)], q, t));
-        Vec3 next = t + v;
-        if (!InsideBox(next, centre, room_margin)) {
-          v = -1.0 * v;
-          next = t + v;
-        }
-        t = next;
-        q = Normalized(spin * q);
-      }
-    }
-    if (!placed) continue;
-    if (Status s = add_texture(obj); !s.ok()) return s;
+    SceneObject obj = DrawRobotShape(rng);
+    if (!PlaceRobotObject(rng, cam, room, rig, obj)) continue;  // left out
+    if (Status s = AddTexture(rng, textures, scene, obj); !s.ok()) return s;
     scene.objects.push_back(std::move(obj));
   }
   return scene;
@@ -433,6 +463,95 @@ Result<std::shared_ptr<const Texture>> TextureSource::Next(Rng& rng) {
   return std::shared_ptr<const Texture>(tex);
 }
 
+namespace {
+
+// What the room scene's draws share: the camera and its half fields of view as slopes (|x| / z
+// at the image border).
+struct RoomView {
+  const Camera& cam;
+  double fb = 0;  // focal x baseline
+  double x_slope = 0;
+  double y_slope = 0;
+};
+
+// The room: back wall where the disparity is about 1.2% of the width, side walls seen near the
+// image borders. Its motion stands in for the camera's ego-motion.
+Status AddRandomRoom(Rng& rng, const RoomView& v, int poses, TextureSource& textures,
+                     Scene& scene) {
+  const double w = v.cam.width;
+  SceneObject room;
+  room.kind = ShapeKind::kRoom;
+  const double back = v.fb / (0.012 * w) * rng.Uniform(0.8, 1.2);
+  room.size = {back * v.x_slope * rng.Uniform(0.6, 1.0), back * v.y_slope * rng.Uniform(0.6, 1.0),
+               back};
+  room.gain = rng.Uniform(0.8, 1.1);
+  room.texel_size = rng.Uniform(0.8, 2.0) * (back * 0.6) / v.cam.focal;
+  if (Status s = AddTexture(rng, textures, scene, room); !s.ok()) return s;
+  Bounds bounds;
+  bounds.x_abs = 0.1 * room.size.x;
+  bounds.y_abs = 0.1 * room.size.y;
+  bounds.z_max = 0.1 * back;
+  const Vec3 t0{rng.Uniform(-0.5, 0.5) * bounds.x_abs, rng.Uniform(-0.5, 0.5) * bounds.y_abs,
+                rng.Uniform(-0.5, 0.5) * bounds.z_max};
+  const Quat q0 = Normalized(SmallRotation(rng, rng.Uniform(0.0, 0.03)));
+  const double speed = back * rng.Uniform(0.002, 0.008);
+  const Vec3 velocity = speed * RandomDirection(rng);
+  const Quat spin = SmallRotation(rng, rng.Uniform(0.0005, 0.003));
+  const double max_half_angle_sin = 0.06;  // net rotation of at most about 7 degrees
+  room.poses = MakePoses(t0, q0, velocity, spin, bounds,
+                         std::sqrt(1.0 - max_half_angle_sin * max_half_angle_sin), poses);
+  scene.objects.push_back(std::move(room));
+  return Status::Ok();
+}
+
+// An object at a disparity between 2.5% and 15% of the width, its image moving 0.5% to 4% of
+// the width per frame and its depth up to 4% per frame.
+Status AddRandomObject(Rng& rng, const RoomView& v, int poses, TextureSource& textures,
+                       Scene& scene) {
+  const Camera& cam = v.cam;
+  const double w = cam.width;
+  const double h = cam.height;
+  const double z_near = v.fb / (0.15 * w);
+  const double z_far = v.fb / (0.025 * w);
+  SceneObject obj;
+  const int kind = rng.Below(3);
+  obj.kind = kind == 0 ? ShapeKind::kSphere : (kind == 1 ? ShapeKind::kBox : ShapeKind::kCard);
+  const double disparity = rng.Uniform(v.fb / z_far, v.fb / z_near);
+  const double z = v.fb / disparity;
+  const double radius = rng.Uniform(0.04, 0.15) * w * z / cam.focal;
+  if (obj.kind == ShapeKind::kSphere) {
+    obj.size = {radius * 0.8, 0, 0};
+  } else if (obj.kind == ShapeKind::kBox) {
+    obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
+                radius * rng.Uniform(0.4, 0.8)};
+  } else {
+    obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
+  }
+  obj.gain = rng.Uniform(0.8, 1.2);
+  obj.texel_size = rng.Uniform(0.7, 2.0) * z / cam.focal;
+  if (Status s = AddTexture(rng, textures, scene, obj); !s.ok()) return s;
+
+  const double col = rng.Uniform(0.05, 0.95) * w;
+  const double row = rng.Uniform(0.05, 0.95) * h;
+  const Vec3 t0{(col - cam.cx) * z / cam.focal, (row - cam.cy) * z / cam.focal, z};
+  Bounds bounds;
+  bounds.z_min = std::min(z, std::max(v.fb / (0.2 * w), 2.0 * BoundingRadius(obj)));
+  bounds.z_max = std::max(z, v.fb / (0.02 * w));
+  bounds.x_slope = v.x_slope;
+  bounds.y_slope = v.y_slope;
+  const Vec3 dir = RandomDirection(rng);
+  const double px_speed = rng.Uniform(0.005, 0.04) * w;
+  const double planar = std::sqrt(dir.x * dir.x + dir.y * dir.y) + 1e-12;
+  const Vec3 velocity{dir.x / planar * px_speed * z / cam.focal,
+                      dir.y / planar * px_speed * z / cam.focal, z * rng.Uniform(-0.04, 0.04)};
+  const Quat spin = SmallRotation(rng, rng.Uniform(0.004, 0.05));
+  obj.poses = MakePoses(t0, RandomOrientation(rng), velocity, spin, bounds, 0.0, poses);
+  scene.objects.push_back(std::move(obj));
+  return Status::Ok();
+}
+
+}  // namespace
+
 Result<Scene> MakeRandomScene(const SceneOptions& options, uint64_t seed, int sequence,
                               TextureSource& textures) {
   if (options.preset == ScenePreset::kRobot) {
@@ -444,93 +563,17 @@ Result<Scene> MakeRandomScene(const SceneOptions& options, uint64_t seed, int se
   scene.camera = cam;
   scene.frames = options.frames;
   const int pose_count = options.frames + 1;
-  const double fb = cam.focal * cam.baseline;
   const double w = cam.width;
   const double h = cam.height;
-  // Half fields of view as slopes (|x| / z at the image border).
-  const double x_slope = std::max(cam.cx + 0.5, w - 0.5 - cam.cx) / cam.focal;
-  const double y_slope = std::max(cam.cy + 0.5, h - 0.5 - cam.cy) / cam.focal;
-
+  const RoomView view{cam, cam.focal * cam.baseline,
+                      std::max(cam.cx + 0.5, w - 0.5 - cam.cx) / cam.focal,
+                      std::max(cam.cy + 0.5, h - 0.5 - cam.cy) / cam.focal};
   scene.light = RandomDirection(rng);
   if (scene.light.z > 0) scene.light.z = -scene.light.z;  // light from the camera's side
   scene.ambient = rng.Uniform(0.3, 0.6);
-
-  auto add_texture = [&](SceneObject& obj) -> Status {
-    Result<std::shared_ptr<const Texture>> tex = textures.Next(rng);
-    if (!tex.ok()) return tex.status();
-    obj.texture = static_cast<int>(scene.textures.size());
-    scene.textures.push_back(std::move(tex).value());
-    return Status::Ok();
-  };
-  // Texels of about `px` image pixels at depth z.
-  auto texel_at = [&](double z, double px) { return px * z / cam.focal; };
-
-  // The room: back wall where the disparity is about 1.2% of the width, side walls seen near
-  // the image borders. Its motion stands in for the camera's ego-motion.
-  {
-    SceneObject room;
-    room.kind = ShapeKind::kRoom;
-    const double back = fb / (0.012 * w) * rng.Uniform(0.8, 1.2);
-    room.size = {back * x_slope * rng.Uniform(0.6, 1.0), back * y_slope * rng.Uniform(0.6, 1.0),
-                 back};
-    room.gain = rng.Uniform(0.8, 1.1);
-    room.texel_size = texel_at(back * 0.6, rng.Uniform(0.8, 2.0));
-    if (Status s = add_texture(room); !s.ok()) return s;
-    Bounds bounds;
-    bounds.x_abs = 0.1 * room.size.x;
-    bounds.y_abs = 0.1 * room.size.y;
-    bounds.z_max = 0.1 * back;
-    const Vec3 t0{rng.Uniform(-0.5, 0.5) * bounds.x_abs, rng.Uniform(-0.5, 0.5) * bounds.y_abs,
-                  rng.Uniform(-0.5, 0.5) * bounds.z_max};
-    const Quat q0 = Normalized(SmallRotation(rng, rng.Uniform(0.0, 0.03)));
-    const double speed = back * rng.Uniform(0.002, 0.008);
-    const Vec3 velocity = speed * RandomDirection(rng);
-    const Quat spin = SmallRotation(rng, rng.Uniform(0.0005, 0.003));
-    const double max_half_angle_sin = 0.06;  // net rotation of at most about 7 degrees
-    room.poses = MakePoses(t0, q0, velocity, spin, bounds,
-                           std::sqrt(1.0 - max_half_angle_sin * max_half_angle_sin), pose_count);
-    scene.objects.push_back(std::move(room));
-  }
-
-  // Objects: disparity between 2.5% and 15% of the width.
-  const double z_near = fb / (0.15 * w);
-  const double z_far = fb / (0.025 * w);
+  if (Status s = AddRandomRoom(rng, view, pose_count, textures, scene); !s.ok()) return s;
   for (int i = 0; i < options.objects; ++i) {
-    SceneObject obj;
-    const int kind = rng.Below(3);
-    obj.kind = kind == 0 ? ShapeKind::kSphere : (kind == 1 ? ShapeKind::kBox : ShapeKind::kCard);
-    const double disparity = rng.Uniform(fb / z_far, fb / z_near);
-    const double z = fb / disparity;
-    const double radius = rng.Uniform(0.04, 0.15) * w * z / cam.focal;
-    if (obj.kind == ShapeKind::kSphere) {
-      obj.size = {radius * 0.8, 0, 0};
-    } else if (obj.kind == ShapeKind::kBox) {
-      obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
-                  radius * rng.Uniform(0.4, 0.8)};
-    } else {
-      obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
-    }
-    obj.gain = rng.Uniform(0.8, 1.2);
-    obj.texel_size = texel_at(z, rng.Uniform(0.7, 2.0));
-    if (Status s = add_texture(obj); !s.ok()) return s;
-
-    const double col = rng.Uniform(0.05, 0.95) * w;
-    const double row = rng.Uniform(0.05, 0.95) * h;
-    const Vec3 t0{(col - cam.cx) * z / cam.focal, (row - cam.cy) * z / cam.focal, z};
-    Bounds bounds;
-    bounds.z_min = std::min(z, std::max(fb / (0.2 * w), 2.0 * BoundingRadius(obj)));
-    bounds.z_max = std::max(z, fb / (0.02 * w));
-    bounds.x_slope = x_slope;
-    bounds.y_slope = y_slope;
-    // Image motion of 0.5% to 4% of the width per frame, depth change up to 4% per frame.
-    const Vec3 dir = RandomDirection(rng);
-    const double px_speed = rng.Uniform(0.005, 0.04) * w;
-    const double planar = std::sqrt(dir.x * dir.x + dir.y * dir.y) + 1e-12;
-    const Vec3 velocity{dir.x / planar * px_speed * z / cam.focal,
-                        dir.y / planar * px_speed * z / cam.focal, z * rng.Uniform(-0.04, 0.04)};
-    const Quat spin = SmallRotation(rng, rng.Uniform(0.004, 0.05));
-    obj.poses = MakePoses(t0, RandomOrientation(rng), velocity, spin, bounds, 0.0, pose_count);
-    scene.objects.push_back(std::move(obj));
+    if (Status s = AddRandomObject(rng, view, pose_count, textures, scene); !s.ok()) return s;
   }
   return scene;
 }
