@@ -256,6 +256,19 @@ Status AddTexture(Rng& rng, TextureSource& textures, Scene& scene, SceneObject& 
   return Status::Ok();
 }
 
+// The size of a sphere, box or card (obj.kind) of about `radius`: a box's sides 0.4-0.8 and a
+// card's 0.6-1.0 of it, drawn.
+void SizeShape(Rng& rng, double radius, SceneObject& obj) {
+  if (obj.kind == ShapeKind::kSphere) {
+    obj.size = {radius * 0.8, 0, 0};
+  } else if (obj.kind == ShapeKind::kBox) {
+    obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
+                radius * rng.Uniform(0.4, 0.8)};
+  } else {
+    obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
+  }
+}
+
 // The robot scene's room (metres): the rig starts `behind` m from the wall behind it, `ahead` m
 // from the one in front, inside the width and at `height` m above the floor.
 struct RobotRoom {
@@ -322,14 +335,7 @@ SceneObject DrawRobotShape(Rng& rng) {
   const int kind = rng.Below(3);
   obj.kind = kind == 0 ? ShapeKind::kSphere : (kind == 1 ? ShapeKind::kBox : ShapeKind::kCard);
   const double radius = rng.Uniform(0.12, 0.45);
-  if (obj.kind == ShapeKind::kSphere) {
-    obj.size = {radius * 0.8, 0, 0};
-  } else if (obj.kind == ShapeKind::kBox) {
-    obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
-                radius * rng.Uniform(0.4, 0.8)};
-  } else {
-    obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
-  }
+  SizeShape(rng, radius, obj);
   obj.gain = rng.Uniform(0.8, 1.2);
   return obj;
 }
@@ -519,14 +525,7 @@ Status AddRandomObject(Rng& rng, const RoomView& v, int poses, TextureSource& te
   const double disparity = rng.Uniform(v.fb / z_far, v.fb / z_near);
   const double z = v.fb / disparity;
   const double radius = rng.Uniform(0.04, 0.15) * w * z / cam.focal;
-  if (obj.kind == ShapeKind::kSphere) {
-    obj.size = {radius * 0.8, 0, 0};
-  } else if (obj.kind == ShapeKind::kBox) {
-    obj.size = {radius * rng.Uniform(0.4, 0.8), radius * rng.Uniform(0.4, 0.8),
-                radius * rng.Uniform(0.4, 0.8)};
-  } else {
-    obj.size = {radius * rng.Uniform(0.6, 1.0), radius * rng.Uniform(0.6, 1.0), 0};
-  }
+  SizeShape(rng, radius, obj);
   obj.gain = rng.Uniform(0.8, 1.2);
   obj.texel_size = rng.Uniform(0.7, 2.0) * z / cam.focal;
   if (Status s = AddTexture(rng, textures, scene, obj); !s.ok()) return s;
