@@ -43,8 +43,9 @@ full-width fixture (seed 0) sfrt bf16 is x1.07 torch-bf16 over 8 inputs, on the 
 x0.85. With several networks the verdict is paired over the networks instead: each network's
 mean difference over its inputs, WORSE when their mean exceeds twice their standard error.
 Exit 0 when both hold (or have no peer to hold against), 3 when one does not, 1 on an error.
---json: the same as a document (one entry per network in "models"), with every input's errors. Needs Debian's /usr/bin/python3 with
-python3-torch, python3-onnx, python3-numpy; node for ort-int8.
+--json: the same as a document (one entry per network in "models"), with every input's errors.
+Needs Debian's /usr/bin/python3 with python3-torch, python3-onnx, python3-numpy; node for
+ort-int8.
 """
 
 import argparse
