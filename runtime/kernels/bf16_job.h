@@ -96,6 +96,8 @@ struct PackedBf16Conv {
   // otherwise.
   const uint16_t* few_weights = nullptr;
   int few_ci_stride = 0;
+  // AMX: the 1 x 4 tile blocking even where the 2 x 2 applies (KernelTuning::amx_pairs false).
+  bool amx_1x4 = false;
 };
 inline constexpr int kBf16FewOutChannels = 4;
 inline constexpr int kBf16FewOutMinInputs = 16;

@@ -123,6 +123,8 @@ struct PackedInt8Conv {
   // inputs and 4 outputs, int8_packing.h's Int8NarrowConv; nr > 0) and KernelTuning::few_out
   // allows it.
   bool narrow = false;
+  // AMX: the 1 x 4 tile blocking even where the 2 x 2 applies (KernelTuning::amx_pairs false).
+  bool amx_1x4 = false;
 };
 inline constexpr int kInt8FewOutChannels = 4;
 inline constexpr int kInt8FewOutMinInputs = 16;

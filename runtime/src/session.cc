@@ -281,9 +281,11 @@ Status Session::PackReducedWeights() {
       step.packed8 = PackInt8Conv(p, nr8(step), step.out_u8 ? &step.quant : nullptr, cursor8);
       if (!tuning.few_out) step.packed8.few_weights = nullptr;  // the tiles compute it
       step.packed8.narrow = nr8(step) > 0 && Int8Narrow(tuning, kernels8, p, step.upsampled);
+      step.packed8.amx_1x4 = !tuning.amx_pairs;
     } else if (step.kind == Step::Kind::kBf16Conv) {
       step.packed16 = PackBf16Conv(p, nr16(step), phases16(step), !step.out_bf16, cursor8);
       if (!tuning.few_out) step.packed16.few_weights = nullptr;
+      step.packed16.amx_1x4 = !tuning.amx_pairs;
     }
     cursor8 += reduced_bytes(step);
   }

@@ -301,8 +301,9 @@ class Bf16Kernels : public ::testing::Test {
     const Output want = RunReference(pr);
     const bool phases = pr.shape.phases;
     Aligned packed(PackedBf16Bytes(pr.params, kernels_->nr, phases));
-    const PackedBf16Conv conv =
+    PackedBf16Conv conv =
         PackBf16Conv(pr.params, kernels_->nr, phases, pr.shape.out_float, packed.data);
+    conv.amx_1x4 = amx_1x4_;
     const Output got =
         RunConv(pr, conv, pr.shape.up ? kernels_->upconv : kernels_->conv, conv.blocks);
     return ExpectClose(pr, got, want);
@@ -315,6 +316,7 @@ class Bf16Kernels : public ::testing::Test {
   void CheckColumnRanges();
 
   const IsaBf16Kernels* kernels_ = nullptr;
+  bool amx_1x4_ = false;  // PackedBf16Conv::amx_1x4
 };
 
 class Bf16Avx512 : public Bf16Kernels {
@@ -648,11 +650,19 @@ TEST_F(Bf16Neon, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
 TEST_F(Bf16AmxEmulated, ColumnRangesComposeTheWholeRow) { CheckColumnRanges(); }
 TEST_F(Bf16AmxEmulated, MatchesTheReferenceOnEdgeShapes) { CheckEdgeShapes(); }
 TEST_F(Bf16AmxEmulated, MatchesTheReferenceWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Bf16AmxEmulated, The1x4BlockingMatchesTheReferenceWhereThe2x2WouldRun) {
+  amx_1x4_ = true;  // KernelTuning::amx_pairs false
+  CheckAmxBlocking();
+}
 TEST_F(Bf16AmxEmulated, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
   CheckRowAndBlockRanges();
 }
 TEST_F(Bf16Amx, MatchesTheReferenceOnEveryModelLayer) { CheckEveryModelLayer(); }
 TEST_F(Bf16Amx, MatchesTheReferenceWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Bf16Amx, The1x4BlockingMatchesTheReferenceWhereThe2x2WouldRun) {
+  amx_1x4_ = true;
+  CheckAmxBlocking();
+}
 TEST_F(Bf16Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
   EXPECT_EQ(std::string(kernels_->conv_name), "conv2d_bf16__avx512amx_16x64");
   EXPECT_EQ(std::string(kernels_->upconv_name), "upconv2d_bf16__avx512amx_16x64");

@@ -406,7 +406,8 @@ class Int8Kernels : public ::testing::Test {
     for (const IsaInt8Kernels* kernels : tables_) {
       SCOPED_TRACE(pr.shape.up ? kernels->upconv_name : kernels->conv_name);
       AlignedBytes packed(PackedInt8Bytes(pr.params, kernels->nr));
-      const PackedInt8Conv conv = PackFor(pr, kernels, packed.data);
+      PackedInt8Conv conv = PackFor(pr, kernels, packed.data);
+      conv.amx_1x4 = amx_1x4_;
       Output got(pr);
       const Int8ConvArgs args = ArgsFor(pr, &conv, &got);
       const Int8ConvRowsFn fn = pr.shape.up ? kernels->upconv : kernels->conv;
@@ -452,6 +453,7 @@ class Int8Kernels : public ::testing::Test {
   void CheckSlices();
 
   // The tables under test (set by the ISA's fixture; the reference runs once for all of them).
+  bool amx_1x4_ = false;  // PackedInt8Conv::amx_1x4 for the kernels under test
   std::vector<const IsaInt8Kernels*> tables_;
 };
 
@@ -978,11 +980,19 @@ TEST(AmxTiles, ConfigurationFitsPalette1ForEveryChannelCount) {
 
 TEST_F(Int8AmxEmulated, MatchesReferenceBitForBitOnEdgeShapes) { CheckEdgeShapes(); }
 TEST_F(Int8AmxEmulated, MatchesReferenceBitForBitWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Int8AmxEmulated, The1x4BlockingMatchesReferenceBitForBitWhereThe2x2WouldRun) {
+  amx_1x4_ = true;  // KernelTuning::amx_pairs false
+  CheckAmxBlocking();
+}
 TEST_F(Int8AmxEmulated, RowAndBlockRangesCalledSeparatelyComposeTheWholeOutput) {
   CheckRowAndBlockRanges();
 }
 TEST_F(Int8Amx, MatchesReferenceBitForBitOnEveryModelLayer) { CheckEveryModelLayer(); }
 TEST_F(Int8Amx, MatchesReferenceBitForBitWhereTheTilesDoTheWork) { CheckAmxBlocking(); }
+TEST_F(Int8Amx, The1x4BlockingMatchesReferenceBitForBitWhereThe2x2WouldRun) {
+  amx_1x4_ = true;
+  CheckAmxBlocking();
+}
 TEST_F(Int8Amx, KernelNamesCarryIsaAndTileAndTheSessionGetsThem) {
   EXPECT_EQ(std::string(tables_.front()->conv_name), "conv2d_u8s8__avx512amx_16x64");
   EXPECT_EQ(std::string(tables_.front()->upconv_name), "upconv2d_u8s8__avx512amx_16x64");

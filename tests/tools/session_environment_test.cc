@@ -1,6 +1,6 @@
-// The `sfrt` tool's mapping of SFRT_ISA, SFRT_WINOGRAD, SFRT_WINOGRAD_UPCONV, SFRT_FEWOUT and
-// SFRT_CONCAT_IN_PLACE onto SessionOptions (tools/sfrt/session_environment.h); the runtime itself
-// reads none of them.
+// The `sfrt` tool's mapping of SFRT_ISA, SFRT_WINOGRAD, SFRT_WINOGRAD_UPCONV, SFRT_FEWOUT,
+// SFRT_CONCAT_IN_PLACE and SFRT_AMX_PAIRS onto SessionOptions (tools/sfrt/session_environment.h);
+// the runtime itself reads none of them.
 #include "sfrt/session_environment.h"
 
 #include <gtest/gtest.h>
@@ -19,7 +19,7 @@ using testing::ScopedEnv;
 
 TEST(SessionEnvironment, NoVariablesLeaveTheDefaults) {
   ScopedEnv a("SFRT_ISA", nullptr), b("SFRT_WINOGRAD", nullptr), c("SFRT_WINOGRAD_UPCONV", nullptr),
-      d("SFRT_FEWOUT", nullptr), e("SFRT_CONCAT_IN_PLACE", nullptr);
+      d("SFRT_FEWOUT", nullptr), e("SFRT_CONCAT_IN_PLACE", nullptr), f("SFRT_AMX_PAIRS", nullptr);
   SessionOptions options;
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
   EXPECT_EQ(options.isa, Isa::kAuto);
@@ -27,6 +27,7 @@ TEST(SessionEnvironment, NoVariablesLeaveTheDefaults) {
   EXPECT_TRUE(options.tuning.winograd_upconv);
   EXPECT_TRUE(options.tuning.few_out);
   EXPECT_TRUE(options.tuning.concat_in_place);
+  EXPECT_TRUE(options.tuning.amx_pairs);
 }
 
 TEST(SessionEnvironment, SfrtIsaChoosesThePathWhenOptionsSayAutoAndAFlagWins) {
@@ -42,13 +43,14 @@ TEST(SessionEnvironment, SfrtIsaChoosesThePathWhenOptionsSayAutoAndAFlagWins) {
 
 TEST(SessionEnvironment, KernelSwitchesMapOntoTheTuningFields) {
   ScopedEnv a("SFRT_WINOGRAD", "f4"), b("SFRT_WINOGRAD_UPCONV", "off"), c("SFRT_FEWOUT", "off"),
-      d("SFRT_CONCAT_IN_PLACE", "off");
+      d("SFRT_CONCAT_IN_PLACE", "off"), e("SFRT_AMX_PAIRS", "off");
   SessionOptions options;
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
   EXPECT_EQ(options.tuning.winograd_tile, 4);
   EXPECT_FALSE(options.tuning.winograd_upconv);
   EXPECT_FALSE(options.tuning.few_out);
   EXPECT_FALSE(options.tuning.concat_in_place);
+  EXPECT_FALSE(options.tuning.amx_pairs);
   ScopedEnv off("SFRT_WINOGRAD", "off");
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
   EXPECT_EQ(options.tuning.winograd_tile, 0);
@@ -63,7 +65,8 @@ TEST(SessionEnvironment, AnUnknownValueIsAnErrorNamingTheVariableAndTheAcceptedV
                {"SFRT_WINOGRAD", "f3", "off, f2, f4"},
                {"SFRT_WINOGRAD_UPCONV", "no", "off, on"},
                {"SFRT_FEWOUT", "0", "off, on"},
-               {"SFRT_CONCAT_IN_PLACE", "yes", "off, on"}};
+               {"SFRT_CONCAT_IN_PLACE", "yes", "off, on"},
+               {"SFRT_AMX_PAIRS", "1x4", "off, on"}};
   for (const auto& c : cases) {
     ScopedEnv env(c.name, c.value);
     SessionOptions options;

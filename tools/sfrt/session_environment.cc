@@ -57,7 +57,8 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
     return s;
   }
   if (Status s = ApplySwitch("SFRT_FEWOUT", tuning.few_out); !s.ok()) return s;
-  return ApplySwitch("SFRT_CONCAT_IN_PLACE", tuning.concat_in_place);
+  if (Status s = ApplySwitch("SFRT_CONCAT_IN_PLACE", tuning.concat_in_place); !s.ok()) return s;
+  return ApplySwitch("SFRT_AMX_PAIRS", tuning.amx_pairs);
 }
 
 }  // namespace sfrt::tools

@@ -4,6 +4,7 @@
 //   SFRT_WINOGRAD_UPCONV=off|on          KernelTuning::winograd_upconv
 //   SFRT_FEWOUT=off|on                   KernelTuning::few_out
 //   SFRT_CONCAT_IN_PLACE=off|on          KernelTuning::concat_in_place
+//   SFRT_AMX_PAIRS=off|on                KernelTuning::amx_pairs
 // The runtime library reads no environment (libraries take options); the `sfrt` tool and the
 // kernel benchmarks call ApplySessionEnvironment wherever they build SessionOptions.
 #pragma once

@@ -51,7 +51,8 @@ struct BufferRequest;  // runtime/src/memory_planner.h
 // Switches for the optimised paths, for A/B measurements and tests; the defaults are the fastest
 // measured. Every combination computes the same function (within the kernels' tolerances).
 // The library reads no environment variable: the `sfrt` tool maps SFRT_WINOGRAD=off|f2|f4,
-// SFRT_WINOGRAD_UPCONV=off and SFRT_FEWOUT=off onto these fields.
+// SFRT_WINOGRAD_UPCONV=off, SFRT_FEWOUT=off, SFRT_CONCAT_IN_PLACE=off and SFRT_AMX_PAIRS=off
+// onto these fields.
 struct KernelTuning {
   // Winograd tile side for the stride-1 3x3 convolutions it suits: 0 (off), 2 (F(2x2,3x3)) or
   // 4 (F(4x4,3x3)). Other values fail Create().
@@ -65,6 +66,9 @@ struct KernelTuning {
   // whole tensor lives from its first input's producer on, so the arena can grow (SceneEDNet-U's
   // decoder halves are reserved through the encoder). false: every Concat copies.
   bool concat_in_place = true;
+  // The AMX kernels' 2 x 2 tile blocking where a convolution's input channels are a multiple of
+  // 64 (kernels/simd/amx_driver_inl.h). false: the 1 x 4 blocking everywhere, as before it.
+  bool amx_pairs = true;
 };
 
 struct SessionOptions {

@@ -428,7 +428,7 @@ AmxCall<Conv> AmxCallFor(const typename DotTraits<Conv>::Args& a, int out_w,
   c.j.full = groups < kAmxRows ? groups : kAmxRows;
   c.j.chunks = groups / c.j.full;
   c.j.tail = groups - c.j.chunks * c.j.full;
-  c.j.pairs = AmxPairs(groups);
+  c.j.pairs = AmxPairs(groups) && !p.amx_1x4;
   c.j.tap_bytes = static_cast<ptrdiff_t>(groups) * 4 * 64;
   const ptrdiff_t elem = sizeof(typename Traits::Elem);
   c.j.out_pixel = p.out_float ? static_cast<ptrdiff_t>(a.out_f32.channels) * sizeof(float)
