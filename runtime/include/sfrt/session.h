@@ -67,7 +67,8 @@ struct KernelTuning {
   // decoder halves are reserved through the encoder). false: every Concat copies.
   bool concat_in_place = true;
   // The AMX kernels' 2 x 2 tile blocking where a convolution's input channels are a multiple of
-  // 64 (kernels/simd/amx_driver_inl.h). false: the 1 x 4 blocking everywhere, as before it.
+  // 64 (kernels/simd/amx_driver_inl.h). false: the 1 x 4 blocking everywhere, as before it. The
+  // one default here not yet measured to be the faster: it awaits an AMX CPU (issue 43).
   bool amx_pairs = true;
 };
 
