@@ -162,8 +162,8 @@ Status Session::PackWeights() {
   if (Status s = PackFloatWeights(); !s.ok()) return s;
   if (Status s = PackReducedWeights(); !s.ok()) return s;
   for (const Step& step : steps_) {
-    step_info_.push_back({step.first_layer, step.last_layer, step.kernel, step.precision,
-                          step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16});
+    step_info_.push_back(
+        {step.first_layer, step.last_layer, step.kernel, step.precision, step.converts()});
   }
   return Status::Ok();
 }
@@ -315,7 +315,7 @@ class Session::TensorLifetimes {
     const size_t src = SlotOf(layers_[step.first_layer].inputs[0]);
     ReadInputs(step, src);
     if (step.kind == Step::Kind::kCrop || k + 1 == s_.steps_.size()) return;
-    const int born = Converts(step) ? step.first_layer - 1 : step.last_layer;
+    const int born = step.converts() ? step.first_layer - 1 : step.last_layer;
     if (step.in_place || step.slice_of >= 0) {
       AddConcatSlice(k, born);
     } else {
@@ -327,9 +327,6 @@ class Session::TensorLifetimes {
   std::vector<int> producers;  // per request: the time its tensor is born
 
  private:
-  static bool Converts(const Step& step) {
-    return step.kind == Step::Kind::kQuantize || step.kind == Step::Kind::kToBf16;
-  }
   // Per tensor slot (a layer's output; the model input last) and element type, the request that
   // holds it (-1: none, or the caller's input).
   size_t SlotOf(int t) const { return t == kModelInput ? layers_.size() : static_cast<size_t>(t); }
@@ -389,7 +386,7 @@ class Session::TensorLifetimes {
   }
   void AddTensor(size_t k, size_t src, int born) {
     const Step& step = s_.steps_[k];
-    const bool convert = Converts(step);
+    const bool convert = step.converts();
     const TensorShape shape = !convert                ? s_.geometry_[step.last_layer].output
                               : src == layers_.size() ? s_.geometry_[0].input
                                                       : s_.geometry_[src].output;

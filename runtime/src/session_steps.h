@@ -41,6 +41,8 @@ struct Session::Step {
     kConcatBf16,    // ref::ConcatRows on bf16 tensors (likewise)
   };
   Kind kind = Kind::kRows;
+  // A converting step: the float32 tensor a reduced-precision step reads, to uint8 or bf16.
+  bool converts() const { return kind == Kind::kQuantize || kind == Kind::kToBf16; }
   int first_layer = 0;
   int last_layer = 0;
   int crop_layer = -1;  // kUpConv: the crop between upsample and convolution, if any

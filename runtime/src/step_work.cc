@@ -99,7 +99,7 @@ Result<std::vector<StepWork>> Session::Work(int height, int width, bool quantize
     uint64_t read = 0;
     for (int t : first.inputs) read += tensor_elements(t);
     if (quantized_input && static_cast<int>(k) == input_quantize_step_) continue;  // skipped
-    if (step.kind == Kind::kQuantize || step.kind == Kind::kToBf16) {
+    if (step.converts()) {
       w.bytes_read = read * size.in;  // converts its input in place of the layer reading it
       w.bytes_written = read * size.out;
       continue;

@@ -257,7 +257,7 @@ inline int AmxTileCount(int n) { return (n + kAmxPixels - 1) / kAmxPixels; }
 // its other pixels out_step bytes apart). The taps go row by row of the kernel, taps_w a row.
 struct AmxPixelTiles {
   int count = 0;
-  const uint8_t* xs[2][kMaxInt8Taps] = {};
+  const uint8_t* xs[2][kMaxInt8Taps];  // set by AmxRowTiles' fill per tile, not zeroed per row
   void* out[2] = {};
   ptrdiff_t x_stride = 0;
   ptrdiff_t out_step = 0;

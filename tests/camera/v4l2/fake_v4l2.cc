@@ -692,10 +692,9 @@ int FakeV4l2System::GetFormat(IoctlCall& c) {
 int FakeV4l2System::SetFormat(IoctlCall& c) {
   FakeDevice* dev = c.dev;
   const FakeDeviceConfig& cfg = c.dev->config_;
-  const unsigned long request = c.request;
   auto* f = static_cast<v4l2_format*>(c.arg);
   if (f->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-  if (request == VIDIOC_S_FMT) {
+  if (c.request == VIDIOC_S_FMT) {
     if (dev->faults_.busy_on_s_fmt) return Fail(EBUSY);
     if (!dev->bufs_.empty() || dev->streaming_) return Fail(EBUSY);
   }
@@ -720,7 +719,7 @@ int FakeV4l2System::SetFormat(IoctlCall& c) {
         tjBufSize(static_cast<int>(p.width), static_cast<int>(p.height), TJSAMP_444));
   }
   f->fmt.pix = p;
-  if (request == VIDIOC_S_FMT) dev->fmt_ = p;
+  if (c.request == VIDIOC_S_FMT) dev->fmt_ = p;
   return 0;
 }
 
@@ -728,10 +727,9 @@ int FakeV4l2System::SetFormat(IoctlCall& c) {
 int FakeV4l2System::StreamParm(IoctlCall& c) {
   FakeDevice* dev = c.dev;
   const FakeDeviceConfig& cfg = c.dev->config_;
-  const unsigned long request = c.request;
   auto* parm = static_cast<v4l2_streamparm*>(c.arg);
   if (parm->type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-  if (request == VIDIOC_S_PARM) {
+  if (c.request == VIDIOC_S_PARM) {
     const v4l2_fract t = parm->parm.capture.timeperframe;
     if (t.numerator != 0 && t.denominator != 0) {
       const double want = static_cast<double>(t.denominator) / t.numerator;
@@ -751,12 +749,11 @@ int FakeV4l2System::StreamParm(IoctlCall& c) {
 int FakeV4l2System::RequestBuffers(IoctlCall& c) {
   FakeDevice* dev = c.dev;
   const FakeDeviceConfig& cfg = c.dev->config_;
-  const int fd = c.fd;
   auto* req = static_cast<v4l2_requestbuffers*>(c.arg);
   if (req->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || req->memory != V4L2_MEMORY_MMAP) {
     return Fail(EINVAL);
   }
-  if (dev->owner_fd_ >= 0 && dev->owner_fd_ != fd) return Fail(EBUSY);
+  if (dev->owner_fd_ >= 0 && dev->owner_fd_ != c.fd) return Fail(EBUSY);
   if (dev->streaming_) return Fail(EBUSY);
   for (const auto& b : dev->bufs_) {
     if (b.mappings > 0) return Fail(EBUSY);  // strict: unmap before freeing
@@ -785,7 +782,7 @@ int FakeV4l2System::RequestBuffers(IoctlCall& c) {
   dev->mem_ = static_cast<uint8_t*>(mem);
   dev->bufs_.resize(count);
   for (uint32_t i = 0; i < count; ++i) dev->bufs_[i].offset = i * dev->buf_stride_;
-  dev->owner_fd_ = fd;
+  dev->owner_fd_ = c.fd;
   req->count = count;
   return 0;
 }
@@ -815,13 +812,12 @@ int FakeV4l2System::QueryBuffer(IoctlCall& c) {
 // VIDIOC_QBUF.
 int FakeV4l2System::QueueBuffer(IoctlCall& c) {
   FakeDevice* dev = c.dev;
-  const int fd = c.fd;
   auto* b = static_cast<v4l2_buffer*>(c.arg);
   if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_MMAP ||
       b->index >= dev->bufs_.size()) {
     return Fail(EINVAL);
   }
-  if (dev->owner_fd_ != fd) return Fail(EBUSY);
+  if (dev->owner_fd_ != c.fd) return Fail(EBUSY);
   FakeDevice::Buf& buf = dev->bufs_[b->index];
   if (buf.state != FakeDevice::Buf::kDequeued) return Fail(EINVAL);
   buf.state = FakeDevice::Buf::kQueued;
@@ -835,12 +831,11 @@ int FakeV4l2System::DequeueBuffer(IoctlCall& c) {
   FakeDevice* dev = c.dev;
   File& file = c.file;
   std::unique_lock<std::mutex>& lock = c.lock;
-  const int fd = c.fd;
   auto* b = static_cast<v4l2_buffer*>(c.arg);
   if (b->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || b->memory != V4L2_MEMORY_MMAP) {
     return Fail(EINVAL);
   }
-  if (dev->owner_fd_ != fd) return Fail(EBUSY);
+  if (dev->owner_fd_ != c.fd) return Fail(EBUSY);
   if (!dev->streaming_) return Fail(EINVAL);
   CatchUp(dev);
   while (dev->done_.empty()) {
@@ -885,12 +880,10 @@ int FakeV4l2System::DequeueBuffer(IoctlCall& c) {
 int FakeV4l2System::Stream(IoctlCall& c) {
   FakeDevice* dev = c.dev;
   const FakeDeviceConfig& cfg = c.dev->config_;
-  const int fd = c.fd;
-  const unsigned long request = c.request;
   const int type = *static_cast<int*>(c.arg);
   if (type != V4L2_BUF_TYPE_VIDEO_CAPTURE) return Fail(EINVAL);
-  if (dev->owner_fd_ != fd) return Fail(dev->owner_fd_ < 0 ? EINVAL : EBUSY);
-  if (request == VIDIOC_STREAMON) {
+  if (dev->owner_fd_ != c.fd) return Fail(dev->owner_fd_ < 0 ? EINVAL : EBUSY);
+  if (c.request == VIDIOC_STREAMON) {
     if (dev->streaming_) return 0;
     if (dev->bufs_.empty()) return Fail(EINVAL);
     if (dev->faults_.nospc_on_streamon) return Fail(ENOSPC);
