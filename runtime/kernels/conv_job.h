@@ -33,7 +33,8 @@ struct PackedConv {
   int blocks = 0;  // ceil(out_channels / nr)
   // Input channels summed per pass (cache blocking): the kernels walk output-channel block ->
   // input-channel block of this many channels -> rows -> register tiles, so one block's
-  // weights (taps x cin_block x nr floats) stay in L2 while every row of the range uses them.
+  // weights (taps x cin_block x nr floats) stay in L2 while every row of the range uses them
+  // (with ConvArgs::rows_first, each row in turn goes through that walk).
   // Passes after the first add to the partial sums already in the output; the last applies
   // the activation. Any value from 1 to in_channels is correct (tests use odd ones).
   int cin_block = 0;
@@ -64,6 +65,11 @@ struct ConvArgs {
   // Fused upsample-conv: leave the interior pixels (whose 3x3 window lies inside C) untouched,
   // computing only the border; set when the Winograd phase path writes the interior.
   bool skip_interior = false;
+  // Plain convolutions: each output row through every block of the call before the next row
+  // (the row's inputs read once, the blocks' weights once per row unless they stay in cache)
+  // instead of each block through every row (its weights read once, the inputs once per
+  // block). The session sets it where it reads fewer bytes (conv_packing.h, ConvRowsFirst).
+  bool rows_first = false;
 };
 
 // Computes output rows [row_begin, row_end) of args.out, output-channel blocks

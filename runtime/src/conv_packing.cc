@@ -151,4 +151,13 @@ PackedConv PackConv(const ConvParams& p, int nr, bool with_phases, float* dst) {
   return out;
 }
 
+bool ConvRowsFirst(const PackedConv& p, const ConstTensorView& in, int out_rows) {
+  if (p.blocks < 2) return false;
+  const double input = static_cast<double>(in.height) * in.width * in.channels * sizeof(float);
+  const double weights = static_cast<double>(p.blocks) * p.nr * p.kernel_h * p.kernel_w *
+                         p.in_channels * sizeof(float);
+  const double weight_reads = weights <= kRowsFirstWeightBytes ? weights : weights * out_rows;
+  return input + weight_reads < input * p.blocks + weights;
+}
+
 }  // namespace sfrt

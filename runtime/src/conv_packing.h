@@ -43,4 +43,15 @@ inline constexpr size_t kConvWeightBlockBytes = 256 * 1024;
 // split evenly across the passes; in_channels when they all fit.
 int DefaultCinBlock(const ConvParams& params, int nr, bool with_phases);
 
+// The weights (of every block) beyond which they are taken not to stay in cache from one output
+// row to the next (about half an L2: 1 MiB on Zen 4 and 5, 2 MiB on Sapphire Rapids).
+inline constexpr double kRowsFirstWeightBytes = 512.0 * 1024.0;
+
+// Whether a plain convolution over `in` with `out_rows` output rows reads fewer bytes rows
+// first (ConvArgs::rows_first): then the input once and the weights once per output row (once
+// in all where they fit kRowsFirstWeightBytes); else the weights once and the input once per
+// block. Never for one block. (SceneEDNet's conv1 at 540x960 with blocks of 16 channels: 33 MB
+// of input for each of 8 blocks against 0.3 MB of weights in all.)
+bool ConvRowsFirst(const PackedConv& p, const ConstTensorView& in, int out_rows);
+
 }  // namespace sfrt

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <string>
 
+#include "conv_packing.h"
 #include "kernels/ref/conv2d_bf16_ref.h"
 #include "kernels/ref/conv2d_int8_ref.h"
 #include "kernels/ref/merge_ref.h"
@@ -42,6 +43,12 @@ void BlockedConvTrampoline(void* ctx, int begin, int end) {
     job->fn(*job->args, r0, r1, blk, blk + 1);
     item = blk * job->chunks + last_chunk;
   }
+}
+
+// A float32 convolution with ConvArgs::rows_first: items are output rows, each call every block.
+void RowsFirstTrampoline(void* ctx, int begin, int end) {
+  const ConvJob* job = static_cast<const ConvJob*>(ctx);
+  job->fn(*job->args, begin, end, 0, job->args->conv->blocks);
 }
 
 // Row ranges per output-channel block: about four items per thread.
@@ -461,8 +468,14 @@ void Session::StepRun::WriteF32(const Step& step, size_t at) {
             [this](int rows, ThreadPool::Fn fn, void* ctx) { ParallelRows(rows, fn, ctx); });
         args.skip_interior = true;
       }
+      if (step.kind == Step::Kind::kConv) {
+        args.rows_first = ConvRowsFirst(step.packed, cur, out.height);
+      }
       if (s.pool_ == nullptr) {
         step.fn(args, 0, out.height, 0, step.packed.blocks);
+      } else if (args.rows_first) {
+        ConvJob job{step.fn, &args, out.height, 1};
+        s.pool_->ParallelFor(out.height, RowsFirstTrampoline, &job);
       } else {
         ConvJob job{step.fn, &args, out.height,
                     ConvChunks(step.packed.blocks, out.height, s.threads_)};

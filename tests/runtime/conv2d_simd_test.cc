@@ -34,6 +34,17 @@ double MaxRelativeError(const std::vector<float>& got, const std::vector<float>&
   return testing::RelativeMaxError(got, want, 1.0);
 }
 
+// A kernel call of `pc` over `in` with `pads`, writing `got` as a dense out_h x out_w x cout map.
+ConvArgs CallInto(const PackedConv& pc, const ConstTensorView& in, const Padding& pads,
+                  std::vector<float>& got, int out_h, int out_w, int cout) {
+  ConvArgs args;
+  args.conv = &pc;
+  args.in = in;
+  args.out = DenseView(got.data(), out_h, out_w, cout);
+  args.pads = pads;
+  return args;
+}
+
 class Conv2dSimd : public ::testing::TestWithParam<Isa> {
  protected:
   void SetUp() override {
@@ -79,6 +90,33 @@ const std::vector<ConvShape>& ConvCases() {
   return cases;
 }
 
+// The session's loop order for a plain convolution (ConvArgs::rows_first): rows first where
+// reading the input once per block would cost more than reading the weights once per row.
+TEST(ConvRowsFirst, GoesRowsFirstWhereTheInputPerBlockOutweighsTheWeightsPerRow) {
+  auto conv = [](int cin, int cout, int nr) {
+    PackedConv p;
+    p.in_channels = cin;
+    p.out_channels = cout;
+    p.kernel_h = p.kernel_w = 3;
+    p.nr = nr;
+    p.blocks = (cout + nr - 1) / nr;
+    return p;
+  };
+  auto map = [](int h, int w, int c) {
+    return ConstTensorView{nullptr, h, w, c, static_cast<ptrdiff_t>(w) * c};
+  };
+  // SceneEDNet at 540x960. conv1 (stride 2): 33 MB of input for each of 8 blocks of 16, or
+  // each of 2 blocks of 64, against 0.3 MB of weights that stay in cache.
+  EXPECT_TRUE(ConvRowsFirst(conv(64, 128, 16), map(270, 480, 64), 135));
+  EXPECT_TRUE(ConvRowsFirst(conv(64, 128, 64), map(270, 480, 64), 135));
+  // conv3 in blocks of 64: 8 x 8.4 MB of input against 34 rows x 4.7 MB of weights.
+  EXPECT_FALSE(ConvRowsFirst(conv(256, 512, 64), map(68, 120, 256), 34));
+  // conv5 computed directly: 64 x 8.4 MB against 34 x 37.7 MB.
+  EXPECT_FALSE(ConvRowsFirst(conv(1024, 1024, 16), map(34, 60, 1024), 34));
+  // One block: the orders are the same.
+  EXPECT_FALSE(ConvRowsFirst(conv(64, 16, 16), map(270, 480, 64), 135));
+}
+
 // Profiles and `sfrt bench` name kernels by these strings: each names its ISA and ends with
 // its register tile's output channels (nr), e.g. conv2d_f32__avx512_6x64.
 TEST_P(Conv2dSimd, VariantNamesCarryIsaAndOutputChannelBlock) {
@@ -102,25 +140,26 @@ TEST_P(Conv2dSimd, MatchesReferenceOnEveryShapeOfTheTable) {
     const std::vector<float>& want = pr.want;
 
     // Every tile shape of this ISA, each with its default input-channel block and with blocks
-    // that leave a tail (cin not a multiple of the block) or sum one channel per pass.
+    // that leave a tail (cin not a multiple of the block) or sum one channel per pass, blocks
+    // first and rows first.
     for (const ConvKernelVariant* v : Variants()) {
       AlignedFloats packed(PackedConvFloats(p, v->nr, false));
       PackedConv pc = PackConv(p, v->nr, false, packed.data);
       for (int cin_block : {pc.cin_block, 1, 5, 16}) {
-        SCOPED_TRACE(std::string(v->conv_name) + " cin_block " + std::to_string(cin_block));
-        pc.cin_block = cin_block;
-        std::vector<float> got(want.size(), NAN);
-        ConvArgs args;
-        args.conv = &pc;
-        args.in = pr.in;
-        args.out = DenseView(got.data(), out_h, out_w, c.cout);
-        args.pads = c.pads;
-        // As two threads would call it: two row ranges, and the blocks split in two.
-        const int half_blocks = pc.blocks / 2;
-        v->conv(args, 0, out_h / 2, 0, pc.blocks);
-        v->conv(args, out_h / 2, out_h, 0, half_blocks);
-        v->conv(args, out_h / 2, out_h, half_blocks, pc.blocks);
-        EXPECT_LE(MaxRelativeError(got, want), kTolerance);
+        for (const bool rows_first : {false, true}) {
+          SCOPED_TRACE(std::string(v->conv_name) + " cin_block " + std::to_string(cin_block) +
+                       (rows_first ? " rows first" : " blocks first"));
+          pc.cin_block = cin_block;
+          std::vector<float> got(want.size(), NAN);
+          ConvArgs args = CallInto(pc, pr.in, c.pads, got, out_h, out_w, c.cout);
+          args.rows_first = rows_first;
+          // As two threads would call it: two row ranges, and the blocks split in two.
+          const int half_blocks = pc.blocks / 2;
+          v->conv(args, 0, out_h / 2, 0, pc.blocks);
+          v->conv(args, out_h / 2, out_h, 0, half_blocks);
+          v->conv(args, out_h / 2, out_h, half_blocks, pc.blocks);
+          EXPECT_LE(MaxRelativeError(got, want), kTolerance);
+        }
       }
     }
   }
@@ -155,11 +194,7 @@ TEST_P(Conv2dSimd, FewOutputKernelMatchesReference) {
     AlignedFloats packed(PackedConvFewOutFloats(pr.params));
     const PackedConv pc = PackConvFewOut(pr.params, packed.data);
     std::vector<float> got(want.size(), NAN);
-    ConvArgs args;
-    args.conv = &pc;
-    args.in = pr.in;
-    args.out = DenseView(got.data(), out_h, out_w, c.cout);
-    args.pads = c.pads;
+    const ConvArgs args = CallInto(pc, pr.in, c.pads, got, out_h, out_w, c.cout);
     kernels_->few_out(args, 0, out_h / 2, 0, 1);
     kernels_->few_out(args, out_h / 2, out_h, 0, 1);
     EXPECT_LE(MaxRelativeError(got, want), kTolerance);
@@ -197,11 +232,7 @@ TEST_P(Conv2dSimd, FusedUpsampleConvMatchesUpsampleCropConvReference) {
         SCOPED_TRACE(std::string(v->upconv_name) + " cin_block " + std::to_string(cin_block));
         pc.cin_block = cin_block;
         std::vector<float> got(want.size(), NAN);
-        ConvArgs args;
-        args.conv = &pc;
-        args.in = pr.low_view;
-        args.out = DenseView(got.data(), out_h, out_w, c.cout);
-        args.pads = c.pads;
+        ConvArgs args = CallInto(pc, pr.low_view, c.pads, got, out_h, out_w, c.cout);
         args.crop_top = c.crop_top;
         args.crop_left = c.crop_left;
         args.c_height = pr.cropped.height;

@@ -18,7 +18,9 @@
 // kernel function pointers. Run() walks that list. With threads > 1, Create() starts a fixed
 // pool and Run() splits each step over it: SIMD convolutions into (output-channel block x row
 // range) items, block-major, so the threads share a block's weights in cache and write disjoint
-// outputs; other steps by output rows.
+// outputs, except float32 ones that read fewer bytes rows first (a large input, small weights:
+// kernels/conv_job.h, ConvArgs::rows_first), split by output rows with every block in each
+// item; other steps by output rows.
 //
 // Precision: each convolution runs in the precision its model file gives it (sfrt/model.h,
 // Precision). Int8 convolutions run on the ISA's int8 kernels where it has them (AVX-512 VNNI,

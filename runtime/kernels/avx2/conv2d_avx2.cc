@@ -11,6 +11,7 @@ namespace {
 struct V {
   using Reg = __m256;
   static constexpr int kLanes = 8;
+  static constexpr int kRegs = 16;
   static Reg Load(const float* p) { return _mm256_loadu_ps(p); }
   static Reg LoadPartial(const float* p, int n) {
     const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);

@@ -13,6 +13,7 @@ namespace {
 struct V {
   using Reg = __m512;
   static constexpr int kLanes = 16;
+  static constexpr int kRegs = 32;
   static Reg Load(const float* p) { return _mm512_loadu_ps(p); }
   static Reg LoadPartial(const float* p, int n) {
     return _mm512_maskz_loadu_ps(static_cast<__mmask16>((1u << n) - 1u), p);
@@ -52,6 +53,7 @@ struct V {
 struct V8 {
   using Reg = __m256;
   static constexpr int kLanes = 8;
+  static constexpr int kRegs = 32;  // AVX-512VL: ymm0-31
   static Reg Load(const float* p) { return _mm256_loadu_ps(p); }
   static Reg LoadPartial(const float* p, int n) {
     return _mm256_maskz_loadu_ps(static_cast<__mmask8>((1u << n) - 1u), p);

@@ -11,6 +11,7 @@ namespace {
 struct V {
   using Reg = float32x4_t;
   static constexpr int kLanes = 4;
+  static constexpr int kRegs = 32;
   static Reg Load(const float* p) { return vld1q_f32(p); }
   static Reg LoadPartial(const float* p, int n) {
     float tmp[4] = {0.0f, 0.0f, 0.0f, 0.0f};

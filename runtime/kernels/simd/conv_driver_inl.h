@@ -4,14 +4,16 @@
 // have internal linkage and can never be merged across translation units built with different
 // flags. No standard-library calls for the same reason.
 //
-// V provides: Reg, kLanes, Load(const float*), LoadPartial(const float*, n) (other lanes 0),
-// Broadcast(const float*), Fma(a, b, acc) = a*b+acc, Store(float*, Reg),
-// StorePartial(float*, Reg, n), Leaky(Reg, slope), Relu(Reg).
+// V provides: Reg, kLanes, kRegs (the vector registers there are), Load(const float*),
+// LoadPartial(const float*, n) (other lanes 0), Broadcast(const float*), Fma(a, b, acc) = a*b+acc,
+// Store(float*, Reg), StorePartial(float*, Reg, n), Leaky(Reg, slope), Relu(Reg).
 //
 // The register tile: MR output pixels x NV vectors of output channels, accumulated in registers
 // while input values are broadcast and the packed weights of one channel block are loaded once
-// per input channel. Pixels whose window leaves the image go through the same tile with MR = 1
-// and only the taps that fall inside (zero padding adds nothing). Input channels are summed in
+// per input channel. Pixels whose window leaves the image use only the taps that fall inside
+// (zero padding adds nothing), in the same tiles where a run of pixels shares those taps (a
+// plain convolution's top and bottom rows; the fused upsample's border rows and columns, every
+// second pixel), else one at a time with MR = 1. Input channels are summed in
 // blocks of PackedConv::cin_block (conv_job.h): the first block starts from the bias, later ones
 // from the partial sums in the output, and only the last applies the activation.
 #pragma once
@@ -112,18 +114,19 @@ static inline int FloorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1
 // The output columns [lo, hi) of a kw-wide, stride-sw convolution with pl columns of left padding
 // whose whole window lies inside an in_w-wide input (ox * sw - pl >= 0 and
 // ox * sw - pl + kw <= in_w), so they need no bounds checks; lo == hi when there are none.
-struct ColumnRange {
-  int lo = 0;
-  int hi = 0;
+struct ColumnRange {  // trivial (no member initialisers): no code to share between ISAs
+  int lo;
+  int hi;
 };
 static inline ColumnRange InsideColumns(int out_w, int in_w, int kw, int sw, int pl) {
   const int lo = MinOf(out_w, (pl + sw - 1) / sw);
   return {lo, MaxOf(lo, MinOf(out_w, FloorDiv(in_w - kw + pl, sw) + 1))};
 }
 
-// Plain convolution, any kernel size up to kMaxConvTaps taps, any stride.
+// Plain convolution, any kernel size up to kMaxConvTaps taps, any stride: each block through
+// the rows [row_begin, row_end).
 template <typename V, int MR, int NV>
-void ConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
+void ConvBlockRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
   const PackedConv& p = *a.conv;
   constexpr int kNr = NV * V::kLanes;
   const int cin = p.in_channels;
@@ -209,6 +212,171 @@ void ConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, int 
   }
 }
 
+// What the tiles of one pass share: one block of output channels over one block of kc input
+// channels (first: start from the bias; last: apply the activation). Trivial (no member
+// initialisers), as UpConvPass, so it has no code that translation units built with different
+// flags could share.
+struct TilePass {
+  int kc;
+  const float* bias;
+  int valid;
+  bool first;
+  bool last;
+  Activation act;
+  float slope;
+};
+
+// `count` pixels, their inputs x_step floats and their outputs out_step floats apart, MR at a
+// time (the leftovers in one narrower tile), over the n taps xs (advanced here) and ws.
+template <typename V, int MR, int NV>
+inline void ConvTiles(int count, const float** xs, const float* const* ws, int n, ptrdiff_t x_step,
+                      float* out, ptrdiff_t out_step, const TilePass& t) {
+  int i = 0;
+  for (; i + MR <= count; i += MR) {
+    ConvTile<V, MR, NV>(xs, ws, n, x_step, t.kc, t.bias, out + i * out_step, out_step, t.valid,
+                        t.first, t.last, t.act, t.slope);
+    for (int k = 0; k < n; ++k) xs[k] += MR * x_step;
+  }
+  if (i < count) {
+    ConvTileUpTo<V, MR - 1, NV>(count - i, xs, ws, n, x_step, t.kc, t.bias, out + i * out_step,
+                                out_step, t.valid, t.first, t.last, t.act, t.slope);
+  }
+}
+
+// The plain convolution's ConvRowsFn: rows outer and blocks inner where a.rows_first.
+template <typename V, int MR, int NV>
+void ConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, int blk_end) {
+  if (!a.rows_first) {
+    ConvBlockRows<V, MR, NV>(a, row_begin, row_end, blk_begin, blk_end);
+    return;
+  }
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    ConvBlockRows<V, MR, NV>(a, oy, oy + 1, blk_begin, blk_end);
+  }
+}
+
+// The fused upsample -> conv (UpConvRows below): what one call's pixels share, for one block of
+// outputs and one block of input channels.
+struct UpConvPass {
+  const ConvArgs* a;
+  const float* wb;       // the block's 3x3 weights from input channel c0 on
+  const float* pw;       // the block's phase weights from input channel c0 on (phase 0), or null
+  ptrdiff_t tap_floats;  // weights per tap
+  ptrdiff_t phase_floats;
+  int c0;
+  int blk_off;  // the block's first output channel
+  TilePass tile;
+};
+
+// The 3x3 taps of output pixel (oy, ox) that fall inside C, each at its low-resolution pixel
+// (channels from c0 on), into xs and ws; returns how many. Output pixels two columns (rows)
+// further read, for every such tap, the low-resolution pixel one column (row) further.
+// static: internal linkage in every ISA's translation unit.
+static inline int UpConvTaps(const UpConvPass& u, int oy, int ox, const float** xs,
+                             const float** ws) {
+  const ConvArgs& a = *u.a;
+  const int cy0 = oy - a.pads.top, cx0 = ox - a.pads.left;
+  int n = 0;
+  for (int ky = 0; ky < 3; ++ky) {
+    const int cy = cy0 + ky;
+    if (cy < 0 || cy >= a.c_height) continue;
+    for (int kx = 0; kx < 3; ++kx) {
+      const int cx = cx0 + kx;
+      if (cx < 0 || cx >= a.c_width) continue;
+      xs[n] = a.in.pixel((cy + a.crop_top) >> 1, (cx + a.crop_left) >> 1) + u.c0;
+      ws[n] = u.wb + (ky * 3 + kx) * u.tap_floats;
+      ++n;
+    }
+  }
+  return n;
+}
+
+// Columns [x_lo, x_hi) of output row oy whose window lies inside C: per column phase, every
+// second pixel through the phase's 2x2 kernel over consecutive low-resolution pixels.
+template <typename V, int MR, int NV>
+void UpConvInteriorRow(const UpConvPass& u, int oy, int x_lo, int x_hi) {
+  const ConvArgs& a = *u.a;
+  const int cin = a.conv->in_channels, cout = a.conv->out_channels;
+  const int ay = oy - a.pads.top + a.crop_top;  // upsampled row of the window's first tap
+  const int py = ay & 1, by = ay >> 1;
+  float* orow = a.out.pixel(oy, 0) + u.blk_off;
+  const float* xs[4];
+  const float* ws[4];
+  for (int px = 0; px < 2; ++px) {
+    // First interior column of this phase: (ox - pl + crop_left) & 1 == px.
+    const int ox = x_lo + ((x_lo - a.pads.left + a.crop_left + px) & 1);
+    if (ox >= x_hi) continue;
+    const float* pw = u.pw + (py * 2 + px) * u.phase_floats;
+    for (int t = 0; t < 4; ++t) ws[t] = pw + t * u.tap_floats;
+    const int bx = (ox - a.pads.left + a.crop_left) >> 1;
+    xs[0] = a.in.pixel(by, bx) + u.c0;
+    xs[1] = a.in.pixel(by, bx + 1) + u.c0;
+    xs[2] = a.in.pixel(by + 1, bx) + u.c0;
+    xs[3] = a.in.pixel(by + 1, bx + 1) + u.c0;
+    ConvTiles<V, MR, NV>((x_hi - ox + 1) / 2, xs, ws, 4, cin,
+                         orow + static_cast<ptrdiff_t>(ox) * cout, 2 * static_cast<ptrdiff_t>(cout),
+                         u.tile);
+  }
+}
+
+// Every second pixel of the run from (oy, ox): `count` pixels two columns (along_row) or two rows
+// apart, their windows alike in which taps fall inside C (a border row's interior columns, a
+// border column's interior rows), MR at a time over those taps.
+template <typename V, int MR, int NV>
+void UpConvBorderRun(const UpConvPass& u, int oy, int ox, int count, bool along_row) {
+  if (count <= 0) return;
+  const ConvArgs& a = *u.a;
+  const float* xs[9];
+  const float* ws[9];
+  const int n = UpConvTaps(u, oy, ox, xs, ws);
+  const ptrdiff_t x_step = along_row ? a.in.channels : a.in.row_stride;
+  const ptrdiff_t out_step = 2 * (along_row ? a.conv->out_channels : a.out.row_stride);
+  ConvTiles<V, MR, NV>(count, xs, ws, n, x_step, a.out.pixel(oy, ox) + u.blk_off, out_step, u.tile);
+}
+
+// One output pixel over the taps that fall inside C (the corners).
+template <typename V, int NV>
+void UpConvSingle(const UpConvPass& u, int oy, int ox) {
+  const float* xs[9];
+  const float* ws[9];
+  const int n = UpConvTaps(u, oy, ox, xs, ws);
+  const TilePass& t = u.tile;
+  ConvTile<V, 1, NV>(xs, ws, n, 0, t.kc, t.bias, u.a->out.pixel(oy, ox) + u.blk_off, 0, t.valid,
+                     t.first, t.last, t.act, t.slope);
+}
+
+// Rows [row_begin, row_end) of one pass. The interior rows' interior columns through the phase
+// kernels (unless a.skip_interior); the border rows' interior columns and the border columns'
+// interior rows in runs of every second pixel through the tiles; the corners one by one.
+template <typename V, int MR, int NV>
+void UpConvPassRows(const UpConvPass& u, int row_begin, int row_end) {
+  const ConvArgs& a = *u.a;
+  const int pt = a.pads.top, pl = a.pads.left, out_w = a.out.width;
+  // Interior columns: ox - pl >= 0 and ox - pl + 3 <= cw; rows likewise.
+  const int x_lo = MinOf(out_w, MaxOf(0, pl));
+  const int x_hi = MaxOf(x_lo, MinOf(out_w, a.c_width - 3 + pl + 1));
+  const int y_lo = MinOf(row_end, MaxOf(row_begin, pt));
+  const int y_hi = MaxOf(y_lo, MinOf(row_end, a.c_height - 3 + pt + 1));
+  for (int oy = row_begin; oy < row_end; ++oy) {
+    if (oy >= y_lo && oy < y_hi) {
+      if (!a.skip_interior) UpConvInteriorRow<V, MR, NV>(u, oy, x_lo, x_hi);
+      continue;
+    }
+    for (int ox = 0; ox < x_lo; ++ox) UpConvSingle<V, NV>(u, oy, ox);
+    for (int ox = x_hi; ox < out_w; ++ox) UpConvSingle<V, NV>(u, oy, ox);
+    for (int start = x_lo; start < x_lo + 2; ++start) {
+      UpConvBorderRun<V, MR, NV>(u, oy, start, (x_hi - start + 1) / 2, true);
+    }
+  }
+  auto border_column = [&](int ox) {
+    for (int start = y_lo; start < y_lo + 2; ++start) {
+      UpConvBorderRun<V, MR, NV>(u, start, ox, (y_hi - start + 1) / 2, false);
+    }
+  };
+  for (int ox = 0; ox < x_lo; ++ox) border_column(ox);
+  for (int ox = x_hi; ox < out_w; ++ox) border_column(ox);
+}
+
 // Fused nearest-2x upsample -> crop -> 3x3 stride-1 convolution (see conv_job.h). Output pixels
 // whose 3x3 window lies inside C use the 2x2 phase kernels on the low-resolution map; the
 // others (the padding border) use the 3x3 weights, each tap mapped to its low-resolution pixel.
@@ -218,86 +386,26 @@ void UpConvRows(const ConvArgs& a, int row_begin, int row_end, int blk_begin, in
   constexpr int kNr = NV * V::kLanes;
   const int cin = p.in_channels;
   const int kc_max = p.cin_block > 0 ? MinOf(p.cin_block, cin) : cin;
-  const int cout = p.out_channels;
-  const Activation act = p.activation;
-  const float slope = p.leaky_slope;
-  const ptrdiff_t tap_floats = static_cast<ptrdiff_t>(cin) * kNr;
-  const ptrdiff_t block_floats = 9 * tap_floats;
-  const ptrdiff_t phase_block_floats = 4 * tap_floats;
-  const ptrdiff_t phase_floats = p.blocks * phase_block_floats;
-  const int pt = a.pads.top, pl = a.pads.left;
-  const int ch = a.c_height, cw = a.c_width, out_w = a.out.width;
-  // Interior columns: ox - pl >= 0 and ox - pl + 3 <= cw.
-  const int x_lo = MinOf(out_w, MaxOf(0, pl));
-  const int x_hi = MaxOf(x_lo, MinOf(out_w, cw - 3 + pl + 1));
-  const float* xs[9];
-  const float* ws[9];
-
+  UpConvPass u{};
+  u.a = &a;
+  u.tap_floats = static_cast<ptrdiff_t>(cin) * kNr;
+  u.phase_floats = p.blocks * 4 * u.tap_floats;
+  u.tile.act = p.activation;
+  u.tile.slope = p.leaky_slope;
   for (int blk = blk_begin; blk < blk_end; ++blk) {
-    const float* bias = p.bias + blk * kNr;
-    const int valid = MinOf(kNr, cout - blk * kNr);
+    u.blk_off = blk * kNr;
+    u.tile.bias = p.bias + blk * kNr;
+    u.tile.valid = MinOf(kNr, p.out_channels - blk * kNr);
     for (int c0 = 0; c0 < cin; c0 += kc_max) {
-      const int kc = MinOf(kc_max, cin - c0);
-      const bool first = c0 == 0, last = c0 + kc == cin;
-      const float* wb = p.weights + blk * block_floats + static_cast<ptrdiff_t>(c0) * kNr;
-      for (int oy = row_begin; oy < row_end; ++oy) {
-        const int cy0 = oy - pt;
-        const bool row_inside = cy0 >= 0 && cy0 + 3 <= ch;
-        float* orow = a.out.pixel(oy, 0) + blk * kNr;
-        auto single = [&](int ox) {
-          int n = 0;
-          const int cx0 = ox - pl;
-          for (int ky = 0; ky < 3; ++ky) {
-            const int cy = cy0 + ky;
-            if (cy < 0 || cy >= ch) continue;
-            for (int kx = 0; kx < 3; ++kx) {
-              const int cx = cx0 + kx;
-              if (cx < 0 || cx >= cw) continue;
-              xs[n] = a.in.pixel((cy + a.crop_top) >> 1, (cx + a.crop_left) >> 1) + c0;
-              ws[n] = wb + (ky * 3 + kx) * tap_floats;
-              ++n;
-            }
-          }
-          ConvTile<V, 1, NV>(xs, ws, n, 0, kc, bias, orow + static_cast<ptrdiff_t>(ox) * cout, 0,
-                             valid, first, last, act, slope);
-        };
-        if (!row_inside) {
-          for (int ox = 0; ox < out_w; ++ox) single(ox);
-          continue;
-        }
-        for (int ox = 0; ox < x_lo; ++ox) single(ox);
-        for (int ox = x_hi; ox < out_w; ++ox) single(ox);
-        if (a.skip_interior) continue;
-        const int ay = cy0 + a.crop_top;  // upsampled row of the window's first tap
-        const int py = ay & 1, by = ay >> 1;
-        for (int px = 0; px < 2; ++px) {
-          // First interior column of this phase: (ox - pl + crop_left) & 1 == px.
-          int ox = x_lo + ((x_lo - pl + a.crop_left + px) & 1);
-          if (ox >= x_hi) continue;
-          const float* pw = p.phase_weights + (py * 2 + px) * phase_floats +
-                            blk * phase_block_floats + static_cast<ptrdiff_t>(c0) * kNr;
-          for (int t = 0; t < 4; ++t) ws[t] = pw + t * tap_floats;
-          auto taps_at = [&](int x) {
-            const int bx = (x - pl + a.crop_left) >> 1;
-            xs[0] = a.in.pixel(by, bx) + c0;
-            xs[1] = a.in.pixel(by, bx + 1) + c0;
-            xs[2] = a.in.pixel(by + 1, bx) + c0;
-            xs[3] = a.in.pixel(by + 1, bx + 1) + c0;
-          };
-          for (; ox + 2 * (MR - 1) < x_hi; ox += 2 * MR) {
-            taps_at(ox);
-            ConvTile<V, MR, NV>(xs, ws, 4, cin, kc, bias, orow + static_cast<ptrdiff_t>(ox) * cout,
-                                2 * static_cast<ptrdiff_t>(cout), valid, first, last, act, slope);
-          }
-          if (ox < x_hi) {
-            taps_at(ox);
-            ConvTileUpTo<V, MR - 1, NV>((x_hi - ox + 1) / 2, xs, ws, 4, cin, kc, bias,
-                                        orow + static_cast<ptrdiff_t>(ox) * cout,
-                                        2 * static_cast<ptrdiff_t>(cout), valid, first, last, act,
-                                        slope);
-          }
-        }
-      }
+      u.c0 = c0;
+      u.tile.kc = MinOf(kc_max, cin - c0);
+      u.tile.first = c0 == 0;
+      u.tile.last = c0 + u.tile.kc == cin;
+      u.wb = p.weights + blk * 9 * u.tap_floats + static_cast<ptrdiff_t>(c0) * kNr;
+      u.pw = p.phase_weights == nullptr
+                 ? nullptr
+                 : p.phase_weights + blk * 4 * u.tap_floats + static_cast<ptrdiff_t>(c0) * kNr;
+      UpConvPassRows<V, MR, NV>(u, row_begin, row_end);
     }
   }
 }

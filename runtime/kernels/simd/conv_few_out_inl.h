@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstddef>
+#include <type_traits>
 
 #include "kernels/conv_job.h"
 #include "kernels/simd/conv_driver_inl.h"
@@ -26,22 +27,31 @@ inline void FewOutTile(const float* const* xs, const float* const* ws, int taps,
 #pragma GCC unroll 4
     for (int co = 0; co < CO; ++co) acc[m][co] = V::Set(0.0f);
   }
-  for (int t = 0; t < taps; ++t) {
-    const float* x = xs[t];
-    const float* w = ws[t];
-    for (int c = 0; c < cin; c += kL) {
-      const int n = cin - c;
-      Reg wv[CO];
+  // One chunk of kL input channels (the last one partial: n < kL lanes, the rest loaded as 0).
+  auto chunk = [&](const float* x, const float* w, int c, auto partial, int n) {
+    Reg wv[CO];
 #pragma GCC unroll 4
-      for (int co = 0; co < CO; ++co) wv[co] = V::Load(w + co * ci_stride + c);
+    for (int co = 0; co < CO; ++co) wv[co] = V::Load(w + co * ci_stride + c);
 #pragma GCC unroll 8
-      for (int m = 0; m < R; ++m) {
-        const float* src = x + m * x_step + c;
-        const Reg xv = n >= kL ? V::Load(src) : V::LoadPartial(src, n);
-#pragma GCC unroll 4
-        for (int co = 0; co < CO; ++co) acc[m][co] = V::Fma(xv, wv[co], acc[m][co]);
+    for (int m = 0; m < R; ++m) {
+      const float* src = x + m * x_step + c;
+      Reg xv;
+      if constexpr (decltype(partial)::value) {
+        xv = V::LoadPartial(src, n);
+      } else {
+        xv = V::Load(src);
       }
+#pragma GCC unroll 4
+      for (int co = 0; co < CO; ++co) acc[m][co] = V::Fma(xv, wv[co], acc[m][co]);
     }
+  };
+  // The full chunks in a loop of their own: with the partial load's mask inside it, R x CO
+  // accumulators + CO weights + 1 input that fill the registers exactly (AVX2's 4 x 3 of 16)
+  // spilled an accumulator, a load-FMA-store chain through the stack on every chunk.
+  const int full = cin - cin % kL;
+  for (int t = 0; t < taps; ++t) {
+    for (int c = 0; c < full; c += kL) chunk(xs[t], ws[t], c, std::false_type{}, kL);
+    if (full < cin) chunk(xs[t], ws[t], full, std::true_type{}, cin - full);
   }
 #pragma GCC unroll 8
   for (int m = 0; m < R; ++m) {
@@ -130,21 +140,30 @@ void FewOutRows(const ConvArgs& a, int row_begin, int row_end) {
   }
 }
 
-// ConvRowsFn for 1..kFewOutChannels output channels.
+// Pixels per tile for CO outputs: at most MR, and no more than the R x CO accumulators, CO
+// weights and one input that fit V's registers (a spilled accumulator costs a store and a
+// reload on every chunk of every tap).
+template <typename V, int MR, int CO>
+constexpr int FewOutPixels() {
+  constexpr int fit = (V::kRegs - CO - 1) / CO;
+  return fit < MR ? fit : MR;
+}
+
+// ConvRowsFn for 1..kFewOutChannels output channels, up to MR pixels a tile.
 template <typename V, int MR>
 void FewOutConvRows(const ConvArgs& a, int row_begin, int row_end, int, int) {
   switch (a.conv->out_channels) {
     case 1:
-      FewOutRows<V, MR, 1>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 1>(), 1>(a, row_begin, row_end);
       break;
     case 2:
-      FewOutRows<V, MR, 2>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 2>(), 2>(a, row_begin, row_end);
       break;
     case 3:
-      FewOutRows<V, MR, 3>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 3>(), 3>(a, row_begin, row_end);
       break;
     default:
-      FewOutRows<V, MR, 4>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 4>(), 4>(a, row_begin, row_end);
       break;
   }
 }
