@@ -2,8 +2,12 @@
 // tdpbf16ps), written once over a tile-operation vocabulary `T`: the hardware's
 // (kernels/avx512/conv2d_avx512amx.cc: ldtilecfg, tileloadd, tdpbusd/tdpbf16ps, tilestored) and a
 // scalar emulation (src/amx_emulation.cc), so that the blocking and packing are tested on every
-// CPU. The int8 path is bit for bit equal to ref::Conv2dInt8Rows (exact int32 sums, int8_job.h's
-// epilogue); the bf16 path equals ref::Conv2dBf16Rows up to the order of the float32 sums.
+// CPU. The two are built with different flags, so nothing here may give them one shared function
+// (the linker keeps one copy of it, maybe the AVX-512 one): everything is a template on T (each
+// file's own tile type, in an anonymous namespace) or static, and the structs are trivial
+// (tests/runtime/check_kernel_linkage.py). The int8 path is bit for bit equal to
+// ref::Conv2dInt8Rows (exact int32 sums, int8_job.h's epilogue); the bf16 path equals
+// ref::Conv2dBf16Rows up to the order of the float32 sums.
 //
 // T provides Configure(const AmxTileConfig&), Release(), and, for tile numbers known at compile
 // time, Zero<t>(), Load<t>(base, stride), Store<t>(base, stride), DpBusd<c, a, b>() (for each row m
@@ -53,11 +57,11 @@ namespace sfrt::simd {
 
 // LDTILECFG's 64-byte operand (palette 1).
 struct alignas(64) AmxTileConfig {
-  uint8_t palette = 1;
-  uint8_t start_row = 0;
-  uint8_t reserved[14] = {};
-  uint16_t colsb[16] = {};  // bytes per row of tile i
-  uint8_t rows[16] = {};
+  uint8_t palette;
+  uint8_t start_row;
+  uint8_t reserved[14];
+  uint16_t colsb[16];  // bytes per row of tile i
+  uint8_t rows[16];
 };
 static_assert(sizeof(AmxTileConfig) == 64, "LDTILECFG reads 64 bytes");
 
@@ -67,14 +71,15 @@ inline constexpr int kAmxPixels = 16;    // output pixels per C tile (its rows)
 
 // Whether a layer of `groups` groups of 4 input channels takes the 2 x 2 blocking (AmxPairBlock):
 // whole chunks of 16 groups only, so that tiles 4-7 can all be 16 x 64 bytes.
-inline bool AmxPairs(int groups) { return groups >= kAmxRows && groups % kAmxRows == 0; }
+static inline bool AmxPairs(int groups) { return groups >= kAmxRows && groups % kAmxRows == 0; }
 
 // The tile shapes for `groups` groups of 4 input channels: C tiles 0-3 of 16 x 64 bytes. Under
 // AmxPairs, A tiles 4 and 5 and B tiles 6 and 7, all 16 x 64 bytes (16 groups). Otherwise A (4)
 // and B (5) for full chunks of min(16, groups) groups; A (6) and B (7) for a last chunk of
 // groups % 16 when groups > 16 and that is not 0.
-inline AmxTileConfig AmxConfigFor(int groups) {
-  AmxTileConfig c;
+static inline AmxTileConfig AmxConfigFor(int groups) {
+  AmxTileConfig c{};
+  c.palette = 1;
   for (int t = 0; t < 4; ++t) {
     c.rows[t] = kAmxPixels;
     c.colsb[t] = kAmxRowBytes;
@@ -104,7 +109,7 @@ inline AmxTileConfig AmxConfigFor(int groups) {
 // The (C, A, B) tile triples the kernels multiply: the 1 x 4 blocking's C tiles with A/B 4/5
 // (full chunks) or 6/7 (the tail), and the 2 x 2 blocking's C tile 2 * i + j with A 4 + i and
 // B 6 + j. The hardware's tile numbers must be literals, so T spells out each of these.
-constexpr bool AmxDpOperands(int c, int a, int b) {
+static constexpr bool AmxDpOperands(int c, int a, int b) {
   if (c < 0 || c > 3) return false;
   if ((a == 4 && b == 5) || (a == 6 && b == 7)) return true;
   return a == 4 + c / 2 && b == 6 + c % 2;
@@ -147,8 +152,8 @@ inline void AmxChunk(const void* x, ptrdiff_t x_stride, const uint8_t* w) {
 // out + m * out_step. The emulated tiles' Finish; the hardware's is the same arithmetic in zmm
 // registers.
 template <bool kQuantized>
-inline void AmxFinishScalar(const int32_t* sums, const int32_t* init, const DotEpilogue& e,
-                            void* out, ptrdiff_t out_step) {
+static inline void AmxFinishScalar(const int32_t* sums, const int32_t* init, const DotEpilogue& e,
+                                   void* out, ptrdiff_t out_step) {
   for (int m = 0; m < kAmxPixels; ++m) {
     char* pixel = static_cast<char*>(out) + m * out_step;
     for (int o = 0; o < e.valid; ++o) {
@@ -176,19 +181,21 @@ inline void AmxFinishScalar(const int32_t* sums, const int32_t* init, const DotE
 template <typename Conv>
 struct AmxJob {
   using Traits = DotTraits<Conv>;
-  const typename Traits::Args* a = nullptr;
-  int full = 0;    // groups per chunk (tiles 4 and 5)
-  int chunks = 0;  // chunks of `full` groups, then the tail (tiles 6 and 7)
-  int tail = 0;
-  bool pairs = false;       // AmxPairs: the 2 x 2 blocking
-  ptrdiff_t tap_bytes = 0;  // packed weights of one tap of one block
-  ptrdiff_t out_pixel = 0;  // bytes between output pixels
-
-  void* Out(int oy, int ox, int blk) const {
-    if (a->conv->out_float) return a->out_f32.pixel(oy, ox) + blk * 64;
-    return Traits::LowOut(*a).pixel(oy, ox) + blk * 64;
-  }
+  const typename Traits::Args* a;
+  int full;    // groups per chunk (tiles 4 and 5)
+  int chunks;  // chunks of `full` groups, then the tail (tiles 6 and 7)
+  int tail;
+  bool pairs;           // AmxPairs: the 2 x 2 blocking
+  ptrdiff_t tap_bytes;  // packed weights of one tap of one block
+  ptrdiff_t out_pixel;  // bytes between output pixels
 };
+
+// Output pixel (oy, ox)'s first channel of block blk.
+template <typename Conv>
+static void* AmxOut(const AmxJob<Conv>& j, int oy, int ox, int blk) {
+  if (j.a->conv->out_float) return j.a->out_f32.pixel(oy, ox) + blk * 64;
+  return DotTraits<Conv>::LowOut(*j.a).pixel(oy, ox) + blk * 64;
+}
 
 // 16 output pixels x the e.valid channels of one block (NT C tiles) over `taps` taps: xs[t] the
 // first pixel's input at tap t (the others x_stride bytes apart), ws[t] the tap's packed weights;
@@ -246,23 +253,23 @@ inline void AmxTileFor(int nt, const AmxJob<Conv>& j, const uint8_t* const* xs, 
 // The first columns of the 16-pixel tiles that cover n >= 16 pixels: 0, 16, ..., and a last one
 // at n - 16 that may overlap the one before it (those pixels are computed again, to the same
 // bits: each pixel's sums do not depend on its place in the tile).
-inline int AmxTileStart(int tile, int n) {
+static inline int AmxTileStart(int tile, int n) {
   const int start = tile * kAmxPixels;
   return start + kAmxPixels <= n ? start : n - kAmxPixels;
 }
-inline int AmxTileCount(int n) { return (n + kAmxPixels - 1) / kAmxPixels; }
+static inline int AmxTileCount(int n) { return (n + kAmxPixels - 1) / kAmxPixels; }
 
 // Up to two 16-pixel tiles that share their taps' weights: tile i's first pixel reads xs[i][t] at
 // tap t (its other pixels x_stride bytes apart) and writes out[i] (its block's first channel;
 // its other pixels out_step bytes apart). The taps go row by row of the kernel, taps_w a row.
 struct AmxPixelTiles {
-  int count = 0;
-  const uint8_t* xs[2][kMaxInt8Taps];  // set by AmxRowTiles' fill per tile, not zeroed per row
-  void* out[2] = {};
-  ptrdiff_t x_stride = 0;
-  ptrdiff_t out_step = 0;
-  int taps = 0;
-  int taps_w = 0;
+  int count;
+  const uint8_t* xs[2][kMaxInt8Taps];  // set by AmxRowTiles' fill per tile
+  void* out[2];
+  ptrdiff_t x_stride;
+  ptrdiff_t out_step;
+  int taps;
+  int taps_w;
 };
 
 // One chunk of the 2 x 2 blocking: MT pixel tiles (A tiles 4, 5) times NB channel tiles (B
@@ -359,7 +366,7 @@ inline void AmxBlockTiles(const AmxJob<Conv>& j, const AmxPixelTiles& tiles, int
 // What the epilogue adds to a channel block's sums: int8, -z * the sum of the given taps' tap_sums
 // (interior pixels read every tap); bf16, nothing (zeros, unread).
 template <typename Conv>
-inline void AmxInit(const Conv& p, const int32_t* tap_sums, int taps, int32_t* init) {
+static inline void AmxInit(const Conv& p, const int32_t* tap_sums, int taps, int32_t* init) {
   if constexpr (DotTraits<Conv>::kQuantized) {
     for (int o = 0; o < 64; ++o) {
       int32_t s = 0;
@@ -388,16 +395,16 @@ struct AmxCall {
   using Traits = DotTraits<Conv>;
   using Fallback = void (*)(const typename Traits::Args&, int, int, int, int);
   AmxJob<Conv> j;
-  Fallback fallback = nullptr;
-  int out_w = 0;
-  int src_h = 0;
+  Fallback fallback;
+  int out_w;
+  int src_h;
   ColumnRange inside;
-  int interior = 0;
-  bool wide = false;  // a row has enough interior pixels for the tiles
-  int taps = 0;       // the plain kernel's, or the phases' 4
-  const uint8_t* weights = nullptr;
-  ptrdiff_t phase_bytes = 0;  // one phase's packed weights
-  ptrdiff_t in_pixel = 0;     // bytes between input pixels
+  int interior;
+  bool wide;  // a row has enough interior pixels for the tiles
+  int taps;   // the plain kernel's, or the phases' 4
+  const uint8_t* weights;
+  ptrdiff_t phase_bytes;  // one phase's packed weights
+  ptrdiff_t in_pixel;     // bytes between input pixels
 };
 
 // Whether the tiles take the call (else the fallback computes it whole): not for a column range,
@@ -405,7 +412,7 @@ struct AmxCall {
 // work, and the epilogue per tile outweighs it), nor for an upsample without phase kernels. Few
 // output channels are fine: only the C tiles with valid channels are computed.
 template <typename Conv>
-bool AmxTakes(const typename DotTraits<Conv>::Args& a, int out_w) {
+static bool AmxTakes(const typename DotTraits<Conv>::Args& a, int out_w) {
   const Conv& p = *a.conv;
   const bool tiles = p.nr == 64 && DotTraits<Conv>::Groups(p) >= kAmxRows &&
                      p.kernel_h * p.kernel_w <= kMaxInt8Taps && a.col_begin <= 0 &&
@@ -416,12 +423,12 @@ bool AmxTakes(const typename DotTraits<Conv>::Args& a, int out_w) {
 }
 
 template <typename Conv>
-AmxCall<Conv> AmxCallFor(const typename DotTraits<Conv>::Args& a, int out_w,
-                         typename AmxCall<Conv>::Fallback fallback) {
+static AmxCall<Conv> AmxCallFor(const typename DotTraits<Conv>::Args& a, int out_w,
+                                typename AmxCall<Conv>::Fallback fallback) {
   using Traits = DotTraits<Conv>;
   const Conv& p = *a.conv;
   const int groups = Traits::Groups(p);
-  AmxCall<Conv> c;
+  AmxCall<Conv> c{};
   c.fallback = fallback;
   c.out_w = out_w;
   c.j.a = &a;
@@ -449,12 +456,12 @@ AmxCall<Conv> AmxCallFor(const typename DotTraits<Conv>::Args& a, int out_w,
 // One block's epilogue and zero-point terms: the plain kernel's (index 0), or each phase's.
 struct AmxBlockTerms {
   DotEpilogue e[4];
-  int nt = 0;  // C tiles with valid channels
+  int nt;  // C tiles with valid channels
   alignas(64) int32_t init[4][64];
 };
 
 template <typename Conv>
-void AmxTermsFor(const AmxCall<Conv>& c, int blk, AmxBlockTerms* terms) {
+static void AmxTermsFor(const AmxCall<Conv>& c, int blk, AmxBlockTerms* terms) {
   const Conv& p = *c.j.a->conv;
   const DotEpilogue e = BlockEpilogue<AmxBlocks<Conv>>(p, blk);
   terms->nt = (e.valid + 15) / 16;
@@ -506,9 +513,9 @@ void AmxPlainRow(const AmxCall<Conv>& c, const AmxBlockTerms& terms, int blk, in
         xs[ky * p.kernel_w + kx] = reinterpret_cast<const uint8_t*>(a.in.pixel(iy0 + ky, ix0 + kx));
       }
     }
-    return c.j.Out(oy, ox0, blk);
+    return AmxOut(c.j, oy, ox0, blk);
   };
-  AmxPixelTiles tiles;
+  AmxPixelTiles tiles;  // count, out and xs set per tile by AmxRowTiles (no zeroing per row)
   tiles.x_stride = x_stride;
   tiles.out_step = c.j.out_pixel;
   tiles.taps = c.taps;
@@ -526,7 +533,7 @@ void AmxPhaseRow(const AmxCall<Conv>& c, const AmxBlockTerms& terms, int blk, in
   const int ay = iy0 + a.crop_top;
   const int by = ay >> 1;
   const uint8_t* ws[4];
-  AmxPixelTiles tiles;
+  AmxPixelTiles tiles;  // count, out and xs set per tile by AmxRowTiles (no zeroing per row)
   tiles.x_stride = c.in_pixel;
   tiles.out_step = 2 * c.j.out_pixel;
   tiles.taps = 4;
@@ -544,7 +551,7 @@ void AmxPhaseRow(const AmxCall<Conv>& c, const AmxBlockTerms& terms, int blk, in
       for (int t = 0; t < 4; ++t) {
         xs[t] = reinterpret_cast<const uint8_t*>(a.in.pixel(by + t / 2, bx + t % 2));
       }
-      return c.j.Out(oy, ox0, blk);
+      return AmxOut(c.j, oy, ox0, blk);
     };
     AmxRowTiles<T>(c.j, AmxTileCount(n), tiles, ws, terms.init[ph], terms.e[ph], terms.nt, fill);
   }
