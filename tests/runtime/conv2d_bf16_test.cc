@@ -375,7 +375,7 @@ TEST_F(Bf16Avx512, KernelNamesCarryIsaAndTile) {
     EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;
   }
   // Four pixels x four output channels.
-  EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_bf16__avx512bf16_4x4");
+  EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_bf16__avx512bf16_8x3");
 }
 
 TEST_F(Bf16Neon, KernelNamesCarryIsaAndTile) {
@@ -448,10 +448,11 @@ void Bf16Kernels::CheckEdgeShapes() {
       UpConv(2, 40, 32, 130, 0, 1),  //
   };
   for (size_t i = 5; i < shapes.size(); i += 2) shapes[i].phases = true;
-  // Few outputs (at most 4, at least 16 inputs): quads of pixels where the window is inside the
-  // input, single pixels elsewhere.
+  // Few outputs (at most 4, at least 16 inputs): tiles of 8 pixels (4 for 4 outputs), then of
+  // 4, where the window is inside the input, single pixels elsewhere.
   for (const Bf16Shape& few : {
-           Conv(6, 37, 64, 3, 1),     // the output layer's channels; a partial quad
+           Conv(6, 37, 64, 3, 1),     // the output layer's channels; 3 single pixels
+           Conv(5, 14, 64, 3, 1),     // 8 + 4 pixels inside each row
            Conv(5, 30, 35, 4, 2),     // odd cin past one load (a masked tail), stride 2
            Conv(7, 22, 16, 1, 1, 5),  // 5x5, one output
            Conv(4, 41, 130, 2, 1),    // five loads per tap

@@ -547,7 +547,7 @@ TEST_F(Int8Vnni, KernelNamesCarryIsaAndTile) {
     EXPECT_TRUE(name.ends_with("x" + std::to_string(kernels_->nr))) << name;
   }
   // Four pixels x four output channels; 16 pixels x four output channels.
-  EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_u8s8__avx512vnni_4x4");
+  EXPECT_EQ(std::string(kernels_->few_out_name), "conv2d_fewout_u8s8__avx512vnni_8x3");
   EXPECT_EQ(std::string(kernels_->narrow_name), "conv2d_narrow_u8s8__avx512vnni_16x4");
 }
 
@@ -634,9 +634,10 @@ void Int8Kernels::CheckEdgeShapes() {
       {6, 11, 28, 44, 3, 2, {1, 1, 1, 1}},  // cin 28: one 16-channel load and three groups
       {5, 12, 42, 13, 3, 1, {1, 1, 1, 1}},  // cin 42: two 16-channel loads, 3 groups, 2 junk
       {4, 23, 16, 12, 3, 1, {1, 1, 1, 1}},  // NEON 8x3 on long rows
-      // Few outputs (at most 4, at least 16 inputs): quads of pixels where the window is inside
-      // the input, single pixels elsewhere.
-      {6, 37, 64, 3, 3, 1, {1, 1, 1, 1}},   // the output layer's channels; a partial quad
+      // Few outputs (at most 4, at least 16 inputs): tiles of 8 pixels (4 for 4 outputs), then
+      // of 4, where the window is inside the input, single pixels elsewhere.
+      {6, 37, 64, 3, 3, 1, {1, 1, 1, 1}},   // the output layer's channels; 3 single pixels
+      {5, 14, 64, 3, 3, 1, {1, 1, 1, 1}},   // 8 + 4 pixels inside each row
       {5, 30, 70, 4, 3, 2, {1, 1, 1, 1}},   // cin 70 (a masked tail), stride 2
       {7, 22, 16, 1, 5, 1, {2, 2, 2, 2}},   // 5x5, one output
       {4, 41, 130, 2, 3, 1, {0, 0, 2, 2}},  // three loads per tap, pads at the bottom and right

@@ -203,7 +203,7 @@ const IsaBf16Kernels* Bf16Kernels() {
                                               simd::DotUpConvRows<V, 8, 8, 8, 6>,
                                               "conv2d_bf16__avx512bf16_6x64",
                                               "upconv2d_bf16__avx512bf16_6x64",
-                                              "conv2d_fewout_bf16__avx512bf16_4x4"};
+                                              "conv2d_fewout_bf16__avx512bf16_8x3"};
   const CpuFeatures& f = HostCpuFeatures();
   return f.avx512 && f.avx512_bf16 ? &kKernels : nullptr;
 }

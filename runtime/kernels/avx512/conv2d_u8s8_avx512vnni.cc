@@ -332,7 +332,7 @@ const IsaInt8Kernels* Int8Kernels() {
                                               simd::DotUpConvRows<V, 8, 8, 8, 6>,
                                               "conv2d_u8s8__avx512vnni_6x64",
                                               "upconv2d_u8s8__avx512vnni_6x64",
-                                              "conv2d_fewout_u8s8__avx512vnni_4x4",
+                                              "conv2d_fewout_u8s8__avx512vnni_8x3",
                                               "conv2d_narrow_u8s8__avx512vnni_16x4"};
   const CpuFeatures& f = HostCpuFeatures();
   return f.avx512 && f.avx512_vnni ? &kKernels : nullptr;

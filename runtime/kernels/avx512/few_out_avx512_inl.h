@@ -5,10 +5,10 @@
 // these vectorise over input channels instead: one 64-byte load of a pixel's channels per dot
 // product, one accumulator per (pixel, output channel), reduced across lanes at the end.
 //
-// Where a pixel's window lies inside the input, four pixels at a time (FewOutQuad): 16
-// accumulators (4 pixels x up to 4 channels), one reduction for all of them (SumEachVector),
-// lane 4 * j + o being pixel j's channel o, and a vector epilogue. Elsewhere one pixel at a
-// time (FewOutPixel) over the taps inside the input.
+// Where a pixel's window lies inside the input, eight pixels at a time for up to 3 channels, four
+// for 4 (FewOutTile): one accumulator per (pixel, channel), then per four pixels one reduction
+// of 16 vectors (SumEachVector), lane 4 * j + o being pixel j's channel o, and a vector
+// epilogue. Elsewhere one pixel at a time (FewOutPixel) over the taps inside the input.
 //
 // F provides: Conv and Args (the packed convolution and a kernel call), Elem and Weight (what
 // the input and few_weights hold), Acc (the accumulator vector), In (what a dot product takes),
@@ -31,8 +31,9 @@ namespace sfrt::avx512 {
 namespace {
 
 inline constexpr int kFewOutMaxChannels = 4;  // lanes 4 * pixel + channel of one vector
-// How far ahead of a quad's first pixel its input rows are prefetched.
-inline constexpr int kFewOutPrefetchBytes = 1024;
+// How far ahead of a tile's first pixel the last row of its window is prefetched (that row is the
+// one the output row above did not read: it comes from memory).
+inline constexpr int kFewOutPrefetchBytes = 8192;
 
 // Lane i of the result: the sum of v[i]'s 16 lanes, `add` being the lane-wise sum on the bits
 // (int32 or float32). The zero-masked shuffles for GCC 12, as in dot_epilogue_avx512_inl.h.
@@ -92,43 +93,71 @@ void FewOutPixel(const typename F::Args& a, int oy, int ox) {
   F::FinishPixel(a, oy, ox, acc, in);
 }
 
-// Pixels ox .. ox + 3 of row oy, every tap inside the input; CO output channels.
-template <typename F, int CO>
-void FewOutQuad(const typename F::Args& a, int oy, int ox, const typename F::Quad& quad) {
+// One input-channel chunk of FewOutTile at one tap: `left` channels from x (min(left,
+// kPerLoad)) of each of the P pixels, `next` elements apart, against CO weight rows from w.
+template <typename F, int CO, int P>
+inline void FewOutChunk(typename F::Acc (&acc)[P][CO], const typename F::Elem* x, ptrdiff_t next,
+                        const typename F::Weight* w, int w_stride, int left) {
+  typename F::In wv[CO];
+#pragma GCC unroll 4
+  for (int o = 0; o < CO; ++o) wv[o] = F::LoadW(w + o * w_stride);
+#pragma GCC unroll 8
+  for (int j = 0; j < P; ++j) {
+    const typename F::In xv = F::LoadX(x + j * next, left);
+#pragma GCC unroll 4
+    for (int o = 0; o < CO; ++o) acc[j][o] = F::Dot(acc[j][o], xv, wv[o]);
+  }
+}
+
+// Pixels ox .. ox + P - 1 of row oy (P a multiple of 4), every tap inside the input; CO output
+// channels. One base pointer per tap, the pixels at fixed distances from it; the input
+// channels in whole loads, then a masked one for what is left.
+template <typename F, int CO, int P>
+void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Quad& quad) {
+  static_assert(P % 4 == 0 && P * CO + CO + 1 <= 32, "the tile's registers: 32 zmm");
   const typename F::Conv& p = *a.conv;
-  const int cin = p.in_channels;
-  const ptrdiff_t row = static_cast<ptrdiff_t>(CO) * p.few_ci_stride;
-  const int iy0 = oy * p.stride_h - a.pads.top;
-  const int ix0 = ox * p.stride_w - a.pads.left;
-  const int ahead_bytes = 4 * p.stride_w * cin * static_cast<int>(sizeof(typename F::Elem));
-  typename F::Acc acc[16];  // [pixel * 4 + output]
-#pragma GCC unroll 16
-  for (int i = 0; i < 16; ++i) acc[i] = F::Zero();
-  for (int ky = 0; ky < p.kernel_h; ++ky) {
-    for (int kx = 0; kx < p.kernel_w; ++kx) {
-      const typename F::Elem* x[4];
+  const int cin = p.in_channels, w_stride = p.few_ci_stride;
+  const int whole = cin - cin % F::kPerLoad;          // channels in whole loads
+  const ptrdiff_t next = p.stride_w * a.in.stride();  // one pixel's window to the next's
+  const ptrdiff_t tap_weights = static_cast<ptrdiff_t>(CO) * w_stride;
+  const typename F::Elem* x_row =
+      a.in.pixel(oy * p.stride_h - a.pads.top, ox * p.stride_w - a.pads.left);
+  const typename F::Weight* w = p.few_weights;
+  typename F::Acc acc[P][CO];
+#pragma GCC unroll 8
+  for (int j = 0; j < P; ++j) {
 #pragma GCC unroll 4
-      for (int j = 0; j < 4; ++j) x[j] = a.in.pixel(iy0 + ky, ix0 + kx + j * p.stride_w);
-      const typename F::Weight* w = p.few_weights + (ky * p.kernel_w + kx) * row;
-      if (kx == 0) {
-        const char* ahead = reinterpret_cast<const char*>(x[0]) + kFewOutPrefetchBytes;
-        for (int b = 0; b < ahead_bytes; b += 64) _mm_prefetch(ahead + b, _MM_HINT_T0);
+    for (int o = 0; o < CO; ++o) acc[j][o] = F::Zero();
+  }
+  {
+    const char* ahead = reinterpret_cast<const char*>(x_row + (p.kernel_h - 1) * a.in.row_stride) +
+                        kFewOutPrefetchBytes;
+    const int bytes = static_cast<int>(P * next * sizeof(typename F::Elem));
+    for (int b = 0; b < bytes; b += 64) _mm_prefetch(ahead + b, _MM_HINT_T0);
+  }
+  for (int ky = 0; ky < p.kernel_h; ++ky, x_row += a.in.row_stride) {
+    const typename F::Elem* x = x_row;
+    for (int kx = 0; kx < p.kernel_w; ++kx, x += a.in.stride(), w += tap_weights) {
+      for (int c = 0; c < whole; c += F::kPerLoad) {
+        FewOutChunk<F, CO, P>(acc, x + c, next, w + c, w_stride, F::kPerLoad);
       }
-      for (int c = 0; c < cin; c += F::kPerLoad) {
-        typename F::In wv[CO];
-#pragma GCC unroll 4
-        for (int o = 0; o < CO; ++o) wv[o] = F::LoadW(w + o * p.few_ci_stride + c);
-#pragma GCC unroll 4
-        for (int j = 0; j < 4; ++j) {
-          const typename F::In xv = F::LoadX(x[j] + c, cin - c);
-#pragma GCC unroll 4
-          for (int o = 0; o < CO; ++o) acc[j * 4 + o] = F::Dot(acc[j * 4 + o], xv, wv[o]);
-        }
-      }
+      if (whole < cin)
+        FewOutChunk<F, CO, P>(acc, x + whole, next, w + whole, w_stride, cin - whole);
     }
   }
-  F::template FinishQuad<CO>(a, oy, ox, F::SumEachVector(acc), quad);
+#pragma GCC unroll 2
+  for (int q = 0; q < P / 4; ++q) {
+    typename F::Acc lanes[16];  // [pixel * 4 + output], the outputs from CO on zero
+#pragma GCC unroll 16
+    for (int i = 0; i < 16; ++i) lanes[i] = i % 4 < CO ? acc[4 * q + i / 4][i % 4] : F::Zero();
+    F::template FinishQuad<CO>(a, oy, ox + 4 * q, F::SumEachVector(lanes), quad);
+  }
 }
+
+// Pixels a tile of FewOutTile holds for CO output channels: as many as leave the tile's weights
+// and one input vector registers of their own.
+template <int CO>
+inline constexpr int kFewOutTilePixels = CO <= 3 ? 8 : 4;
 
 template <typename F, int CO>
 void FewOutRowsOf(const typename F::Args& a, int row_begin, int row_end) {
@@ -139,7 +168,8 @@ void FewOutRowsOf(const typename F::Args& a, int row_begin, int row_end) {
   const int inside_lo = (a.pads.left + p.stride_w - 1) / p.stride_w;
   const int last = a.in.width - p.kernel_w + a.pads.left;  // the last window's first column
   const int inside_hi = last < 0 ? inside_lo : simd::MaxOf(inside_lo, last / p.stride_w + 1);
-  const int quad_end = simd::MinOf(inside_hi, x_end);
+  const int tile_end = simd::MinOf(inside_hi, x_end);
+  constexpr int kPixels = kFewOutTilePixels<CO>;
   typename F::Quad quad;
   F::Prepare(p, quad);
   for (int oy = row_begin; oy < row_end; ++oy) {
@@ -147,8 +177,12 @@ void FewOutRowsOf(const typename F::Args& a, int row_begin, int row_end) {
     const bool rows_inside = iy0 >= 0 && iy0 + p.kernel_h <= a.in.height;
     int ox = x_begin;
     while (ox < x_end) {
-      if (rows_inside && ox >= inside_lo && ox + 4 <= quad_end) {
-        FewOutQuad<F, CO>(a, oy, ox, quad);
+      const bool inside = rows_inside && ox >= inside_lo;
+      if (inside && ox + kPixels <= tile_end) {
+        FewOutTile<F, CO, kPixels>(a, oy, ox, quad);
+        ox += kPixels;
+      } else if (inside && ox + 4 <= tile_end) {
+        FewOutTile<F, CO, 4>(a, oy, ox, quad);
         ox += 4;
       } else {
         FewOutPixel<F>(a, oy, ox);

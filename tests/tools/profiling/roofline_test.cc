@@ -25,10 +25,10 @@ TEST(Roofline, EveryKernelNameOfTheRuntimeMapsToTheUnitItRunsOn) {
       {"upconv2d_bf16__amx_emulated_16x64", ComputeUnit::kUnmeasured},
       {"conv2d_u8s8__avx512vnni_6x64", ComputeUnit::kInt8Dot},
       {"upconv2d_u8s8__avx512vnni_6x64", ComputeUnit::kInt8Dot},
-      {"conv2d_fewout_u8s8__avx512vnni_4x4", ComputeUnit::kInt8Dot},
+      {"conv2d_fewout_u8s8__avx512vnni_8x3", ComputeUnit::kInt8Dot},
       {"conv2d_narrow_u8s8__avx512vnni_16x4", ComputeUnit::kInt8Dot},
       {"conv2d_bf16__avx512bf16_6x64", ComputeUnit::kBf16Dot},
-      {"conv2d_fewout_bf16__avx512bf16_4x4", ComputeUnit::kBf16Dot},
+      {"conv2d_fewout_bf16__avx512bf16_8x3", ComputeUnit::kBf16Dot},
       {"upconv2d_bf16__avx512bf16_6x64", ComputeUnit::kBf16Dot},
       {"conv2d_f32__avx512_12x32", ComputeUnit::kFma},
       {"conv2d_fewout_f32__avx2_4xc", ComputeUnit::kFma},
@@ -123,7 +123,7 @@ TEST(Roofline, FloorsSumEachStepAtItsRoofAndAllMacsAtTheMainUnitsPeak) {
   peaks.int8_gmacs = 500;
   peaks.read_gbytes = 25;
   const std::vector<std::string> kernels = {"quantize_u8__avx512", "conv2d_u8s8__avx512vnni_6x64",
-                                            "conv2d_fewout_u8s8__avx512vnni_4x4"};
+                                            "conv2d_fewout_u8s8__avx512vnni_8x3"};
   const std::vector<double> ms = {4, 4, 8};
   const Roofline r = PlaceSteps({quantize, conv, out}, kernels, ms, peaks);
   ASSERT_EQ(r.points.size(), 3u);
