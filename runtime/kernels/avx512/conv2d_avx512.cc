@@ -89,7 +89,7 @@ const IsaConvKernels& ConvKernels() {
                                      "upconv2x_conv3x3_f32__avx512_6x64"),
       },
       4,
-      simd::FewOutConvRows<V, 8>,
+      simd::FewOutConvRows<V, 8, 0>,
       "conv2d_fewout_f32__avx512_8xc",
   };
   return kernels;

@@ -51,7 +51,7 @@ const IsaConvKernels& ConvKernels() {
           simd::ConvVariant<V, 6, 4>("conv2d_f32__neon_6x16", "upconv2x_conv3x3_f32__neon_6x16"),
       },
       3,
-      simd::FewOutConvRows<V, 6>,
+      simd::FewOutConvRows<V, 6, 0>,
       "conv2d_fewout_f32__neon_6xc",
   };
   return kernels;

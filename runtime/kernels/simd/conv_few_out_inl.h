@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <type_traits>
 
 #include "kernels/conv_job.h"
@@ -82,8 +83,18 @@ inline void FewOutTileUpTo(int r, const float* const* xs, const float* const* ws
   FewOutTile<V, R, CO>(xs, ws, taps, x_step, cin, ci_stride, bias, out, out_step, act, slope);
 }
 
+// Prefetches `bytes` from `ahead` bytes past `row` (an address only: past the end of the tensor
+// the prefetch is dropped, never read).
+inline void PrefetchAhead(const float* row, size_t ahead, size_t bytes) {
+  const uintptr_t from = reinterpret_cast<uintptr_t>(row) + ahead;
+  for (size_t b = 0; b < bytes; b += 64)
+    __builtin_prefetch(reinterpret_cast<const void*>(from + b));
+}
+
 // Output rows [row_begin, row_end) of a convolution with exactly CO output channels (one block).
-template <typename V, int MR, int CO>
+// With Ahead > 0, each tile first prefetches the last row of its window Ahead bytes ahead: the row
+// the output row above did not read, which comes from memory.
+template <typename V, int MR, int CO, size_t Ahead>
 void FewOutRows(const ConvArgs& a, int row_begin, int row_end) {
   const PackedConv& p = *a.conv;
   const int cin = p.in_channels, cs = p.few_ci_stride;
@@ -128,6 +139,9 @@ void FewOutRows(const ConvArgs& a, int row_begin, int row_end) {
       for (; ox < x_hi; ox += MR) {
         int t = 0;
         const int ix0 = ox * sw - pl;
+        if constexpr (Ahead > 0) {
+          PrefetchAhead(a.in.pixel(iy0 + ky_hi - 1, ix0), Ahead, MR * x_step * sizeof(float));
+        }
         for (int ky = ky_lo; ky < ky_hi; ++ky) {
           for (int kx = 0; kx < kw; ++kx) xs[t++] = a.in.pixel(iy0 + ky, ix0 + kx);
         }
@@ -149,21 +163,22 @@ constexpr int FewOutPixels() {
   return fit < MR ? fit : MR;
 }
 
-// ConvRowsFn for 1..kFewOutChannels output channels, up to MR pixels a tile.
-template <typename V, int MR>
+// ConvRowsFn for 1..kFewOutChannels output channels, up to MR pixels a tile, prefetching Ahead
+// bytes ahead (0: not at all; FewOutRows).
+template <typename V, int MR, size_t Ahead>
 void FewOutConvRows(const ConvArgs& a, int row_begin, int row_end, int, int) {
   switch (a.conv->out_channels) {
     case 1:
-      FewOutRows<V, FewOutPixels<V, MR, 1>(), 1>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 1>(), 1, Ahead>(a, row_begin, row_end);
       break;
     case 2:
-      FewOutRows<V, FewOutPixels<V, MR, 2>(), 2>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 2>(), 2, Ahead>(a, row_begin, row_end);
       break;
     case 3:
-      FewOutRows<V, FewOutPixels<V, MR, 3>(), 3>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 3>(), 3, Ahead>(a, row_begin, row_end);
       break;
     default:
-      FewOutRows<V, FewOutPixels<V, MR, 4>(), 4>(a, row_begin, row_end);
+      FewOutRows<V, FewOutPixels<V, MR, 4>(), 4, Ahead>(a, row_begin, row_end);
       break;
   }
 }
