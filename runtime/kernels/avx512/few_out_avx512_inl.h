@@ -129,11 +129,14 @@ void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Qua
 #pragma GCC unroll 4
     for (int o = 0; o < CO; ++o) acc[j][o] = F::Zero();
   }
-  {
-    const char* ahead = reinterpret_cast<const char*>(x_row + (p.kernel_h - 1) * a.in.row_stride) +
-                        kFewOutPrefetchBytes;
+  {  // an address only: past the end of the tensor the prefetch is dropped, never read
+    const uintptr_t ahead =
+        reinterpret_cast<uintptr_t>(x_row + (p.kernel_h - 1) * a.in.row_stride) +
+        kFewOutPrefetchBytes;
     const int bytes = static_cast<int>(P * next * sizeof(typename F::Elem));
-    for (int b = 0; b < bytes; b += 64) _mm_prefetch(ahead + b, _MM_HINT_T0);
+    for (int b = 0; b < bytes; b += 64) {
+      _mm_prefetch(reinterpret_cast<const char*>(ahead + b), _MM_HINT_T0);
+    }
   }
   for (int ky = 0; ky < p.kernel_h; ++ky, x_row += a.in.row_stride) {
     const typename F::Elem* x = x_row;
@@ -154,8 +157,9 @@ void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Qua
   }
 }
 
-// Pixels a tile of FewOutTile holds for CO output channels: as many as leave the tile's weights
-// and one input vector registers of their own.
+// Pixels a tile of FewOutTile holds for CO output channels: 8 for up to 3 (24 accumulators, 3
+// weight vectors and one input: 28 of the 32 zmm), 4 for 4 (a multiple of the four pixels that one
+// reduction takes).
 template <int CO>
 inline constexpr int kFewOutTilePixels = CO <= 3 ? 8 : 4;
 
