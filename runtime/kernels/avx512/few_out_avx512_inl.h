@@ -33,7 +33,7 @@ namespace {
 inline constexpr int kFewOutMaxChannels = 4;  // lanes 4 * pixel + channel of one vector
 // How far ahead of a tile's first pixel the last row of its window is prefetched (that row is the
 // one the output row above did not read: it comes from memory).
-inline constexpr int kFewOutPrefetchBytes = 8192;
+inline constexpr size_t kFewOutPrefetchBytes = 8192;
 
 // Lane i of the result: the sum of v[i]'s 16 lanes, `add` being the lane-wise sum on the bits
 // (int32 or float32). The zero-masked shuffles for GCC 12, as in dot_epilogue_avx512_inl.h.
@@ -129,15 +129,8 @@ void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Qua
 #pragma GCC unroll 4
     for (int o = 0; o < CO; ++o) acc[j][o] = F::Zero();
   }
-  {  // an address only: past the end of the tensor the prefetch is dropped, never read
-    const uintptr_t ahead =
-        reinterpret_cast<uintptr_t>(x_row + (p.kernel_h - 1) * a.in.row_stride) +
-        kFewOutPrefetchBytes;
-    const int bytes = static_cast<int>(P * next * sizeof(typename F::Elem));
-    for (int b = 0; b < bytes; b += 64) {
-      _mm_prefetch(reinterpret_cast<const char*>(ahead + b), _MM_HINT_T0);
-    }
-  }
+  simd::PrefetchAhead(x_row + (p.kernel_h - 1) * a.in.row_stride, kFewOutPrefetchBytes,
+                      P * next * sizeof(typename F::Elem));
   for (int ky = 0; ky < p.kernel_h; ++ky, x_row += a.in.row_stride) {
     const typename F::Elem* x = x_row;
     for (int kx = 0; kx < p.kernel_w; ++kx, x += a.in.stride(), w += tap_weights) {

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 #include "kernels/conv_job.h"
 
@@ -110,6 +111,14 @@ static inline int MinOf(int a, int b) { return a < b ? a : b; }
 static inline int MaxOf(int a, int b) { return a < b ? b : a; }
 // floor(a / b) for b > 0.
 static inline int FloorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+// Prefetches `bytes` from `ahead` bytes past `at`, a cache line at a time (an address only: past
+// the end of a tensor the prefetch is dropped, never read).
+static inline void PrefetchAhead(const void* at, size_t ahead, size_t bytes) {
+  const uintptr_t from = reinterpret_cast<uintptr_t>(at) + ahead;
+  for (size_t b = 0; b < bytes; b += 64) {
+    __builtin_prefetch(reinterpret_cast<const void*>(from + b));
+  }
+}
 
 // The output columns [lo, hi) of a kw-wide, stride-sw convolution with pl columns of left padding
 // whose whole window lies inside an in_w-wide input (ox * sw - pl >= 0 and

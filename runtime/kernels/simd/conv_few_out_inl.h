@@ -8,7 +8,6 @@
 #pragma once
 
 #include <cstddef>
-#include <cstdint>
 #include <type_traits>
 
 #include "kernels/conv_job.h"
@@ -81,14 +80,6 @@ inline void FewOutTileUpTo(int r, const float* const* xs, const float* const* ws
     }
   }
   FewOutTile<V, R, CO>(xs, ws, taps, x_step, cin, ci_stride, bias, out, out_step, act, slope);
-}
-
-// Prefetches `bytes` from `ahead` bytes past `row` (an address only: past the end of the tensor
-// the prefetch is dropped, never read).
-inline void PrefetchAhead(const float* row, size_t ahead, size_t bytes) {
-  const uintptr_t from = reinterpret_cast<uintptr_t>(row) + ahead;
-  for (size_t b = 0; b < bytes; b += 64)
-    __builtin_prefetch(reinterpret_cast<const void*>(from + b));
 }
 
 // Output rows [row_begin, row_end) of a convolution with exactly CO output channels (one block).
