@@ -117,11 +117,12 @@ struct FewOutBf16 {
   }
   static In LoadW(const uint16_t* w) { return reinterpret_cast<__m512bh>(_mm512_loadu_si512(w)); }
   static Acc Dot(Acc acc, In x, In w) { return _mm512_dpbf16_ps(acc, x, w); }
+  template <int K>
   static Acc SumEachVector(const Acc* v) {
-    __m512i bits[16];
+    __m512i bits[K];
 #pragma GCC unroll 16
-    for (int i = 0; i < 16; ++i) bits[i] = _mm512_castps_si512(v[i]);
-    return _mm512_castsi512_ps(SumEachVectorBits(bits, [](__m512i x, __m512i y) {
+    for (int i = 0; i < K; ++i) bits[i] = _mm512_castps_si512(v[i]);
+    return _mm512_castsi512_ps(SumEachVectorBits<K>(bits, [](__m512i x, __m512i y) {
       return _mm512_castps_si512(_mm512_add_ps(_mm512_castsi512_ps(x), _mm512_castsi512_ps(y)));
     }));
   }
@@ -143,30 +144,27 @@ struct FewOutBf16 {
     }
   }
 
-  // Four pixels: lane 4 * j + o is pixel j's output channel o.
-  struct Quad {
-    alignas(64) float bias[16] = {};
+  // A tile's values: value i is channel i % CO.
+  struct Values {
+    alignas(64) float bias[kFewOutValues] = {};
     simd::DotEpilogue e{};
   };
-  static void Prepare(const Conv& p, Quad& q) {
-    for (int i = 0; i < 16; ++i) {
-      if (i % 4 < p.out_channels) q.bias[i] = p.bias[i % 4];
-    }
-    q.e = {nullptr, q.bias, p.activation, p.leaky_slope, p.out_float, 0.0f, 0, 16};
+  static void Prepare(const Conv& p, Values& q) {
+    for (int i = 0; i < kFewOutValues; ++i) q.bias[i] = p.bias[i % p.out_channels];
+    q.e = {nullptr, q.bias, p.activation, p.leaky_slope, p.out_float, 0.0f, 0, kFewOutValues};
   }
   template <int CO>
-  static void FinishQuad(const Args& a, int oy, int ox, Acc sums, const Quad& q) {
-    const __m512 y = BiasActivation(sums, q.e, 0);
+  static void FinishValues(const Args& a, int oy, int ox, int chunk, int count, Acc sums,
+                           const Values& q) {
+    const __m512 y = BiasActivation(sums, q.e, chunk);
     if (a.conv->out_float) {
-      StoreQuadFloat<CO>(a.out_f32, oy, ox, y);
+      StoreValues<CO>(a.out_f32.pixel(oy, ox), a.out_f32.channels, chunk, count,
+                      [y](float* d, __mmask16 m) { _mm512_mask_storeu_ps(d, m, y); });
       return;
     }
-    constexpr __mmask16 kOutputs = (1u << CO) - 1u;
-#pragma GCC unroll 4
-    for (int j = 0; j < 4; ++j) {
-      const __m512 pixel = _mm512_maskz_compress_ps(static_cast<__mmask16>(0xFu << (4 * j)), y);
-      _mm256_mask_storeu_epi16(a.out_bf16.pixel(oy, ox + j), kOutputs, ToBf16x16(pixel));
-    }
+    const __m256i h = ToBf16x16(y);
+    StoreValues<CO>(a.out_bf16.pixel(oy, ox), a.out_bf16.stride(), chunk, count,
+                    [h](uint16_t* d, __mmask16 m) { _mm256_mask_storeu_epi16(d, m, h); });
   }
 };
 static_assert(kBf16FewOutChannels <= kFewOutMaxChannels);

@@ -107,8 +107,9 @@ struct FewOutU8s8 {
   }
   static In LoadW(const int8_t* w) { return _mm512_loadu_si512(w); }
   static Acc Dot(Acc acc, In x, In w) { return _mm512_dpbusd_epi32(acc, x, w); }
+  template <int K>
   static Acc SumEachVector(const Acc* v) {
-    return SumEachVectorBits(v, [](__m512i x, __m512i y) { return _mm512_add_epi32(x, y); });
+    return SumEachVectorBits<K>(v, [](__m512i x, __m512i y) { return _mm512_add_epi32(x, y); });
   }
 
   // One pixel: the zero-point correction of the taps inside, the scalar epilogue.
@@ -134,18 +135,17 @@ struct FewOutU8s8 {
     }
   }
 
-  // Four pixels: lane 4 * j + o is pixel j's output channel o.
-  struct Quad {
-    alignas(64) float multiplier[16] = {};
-    alignas(64) float bias[16] = {};
-    alignas(64) int32_t zero_fix[16] = {};  // -z * the sum of every tap's tap_sums
+  // A tile's values: value i is channel i % CO.
+  struct Values {
+    alignas(64) float multiplier[kFewOutValues] = {};
+    alignas(64) float bias[kFewOutValues] = {};
+    alignas(64) int32_t zero_fix[kFewOutValues] = {};  // -z * the sum of every tap's tap_sums
     simd::DotEpilogue e{};
   };
-  static void Prepare(const Conv& p, Quad& q) {
+  static void Prepare(const Conv& p, Values& q) {
     const int taps = p.kernel_h * p.kernel_w;
-    for (int i = 0; i < 16; ++i) {
-      const int o = i % 4;
-      if (o >= p.out_channels) continue;
+    for (int i = 0; i < kFewOutValues; ++i) {
+      const int o = i % p.out_channels;
       q.multiplier[i] = p.multiplier[o];
       q.bias[i] = p.bias[o];
       int32_t zsum = 0;
@@ -153,23 +153,22 @@ struct FewOutU8s8 {
       q.zero_fix[i] = -p.in_zero_point * zsum;
     }
     q.e = {q.multiplier, q.bias,          p.activation,     p.leaky_slope,
-           p.out_float,  p.out_inv_scale, p.out_zero_point, 16};
+           p.out_float,  p.out_inv_scale, p.out_zero_point, kFewOutValues};
   }
   template <int CO>
-  static void FinishQuad(const Args& a, int oy, int ox, Acc sums, const Quad& q) {
-    const __m512 y = DequantizeLanes(_mm512_add_epi32(sums, _mm512_load_si512(q.zero_fix)), q.e, 0);
+  static void FinishValues(const Args& a, int oy, int ox, int chunk, int count, Acc sums,
+                           const Values& q) {
+    const __m512i fixed = _mm512_add_epi32(sums, _mm512_load_si512(q.zero_fix + 16 * chunk));
+    const __m512 y = DequantizeLanes(fixed, q.e, chunk);
     if (a.conv->out_float) {
-      StoreQuadFloat<CO>(a.out_f32, oy, ox, y);
+      StoreValues<CO>(a.out_f32.pixel(oy, ox), a.out_f32.channels, chunk, count,
+                      [y](float* d, __mmask16 m) { _mm512_mask_storeu_ps(d, m, y); });
       return;
     }
     const __m512i bytes = QuantizeLanes(y, q.e);
-    constexpr __mmask16 kOutputs = (1u << CO) - 1u;
-#pragma GCC unroll 4
-    for (int j = 0; j < 4; ++j) {
-      _mm512_mask_cvtepi32_storeu_epi8(
-          a.out_u8.pixel(oy, ox + j), kOutputs,
-          _mm512_maskz_compress_epi32(static_cast<__mmask16>(0xFu << (4 * j)), bytes));
-    }
+    StoreValues<CO>(
+        a.out_u8.pixel(oy, ox), a.out_u8.stride(), chunk, count,
+        [bytes](uint8_t* d, __mmask16 m) { _mm512_mask_cvtepi32_storeu_epi8(d, m, bytes); });
   }
 };
 

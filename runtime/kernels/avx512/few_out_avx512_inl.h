@@ -6,17 +6,20 @@
 // product, one accumulator per (pixel, output channel), reduced across lanes at the end.
 //
 // Where a pixel's window lies inside the input, eight pixels at a time for up to 3 channels, four
-// for 4 (FewOutTile): one accumulator per (pixel, channel), then per four pixels one reduction
-// of 16 vectors (SumEachVector), lane 4 * j + o being pixel j's channel o, and a vector
-// epilogue. Elsewhere one pixel at a time (FewOutPixel) over the taps inside the input.
+// for 4 (FewOutTile): one accumulator per (pixel, channel), then the tile's P * CO values in
+// pixel-major order (value CO * j + o is pixel j's channel o, as the output stores them) reduced
+// 16 at a time (SumEachVector<K>, K = 16, 8 or 4 vectors), a vector epilogue over each 16 and one
+// store where the output's pixels are dense. Elsewhere one pixel at a time (FewOutPixel) over the
+// taps inside the input.
 //
 // F provides: Conv and Args (the packed convolution and a kernel call), Elem and Weight (what
 // the input and few_weights hold), Acc (the accumulator vector), In (what a dot product takes),
 // kPerLoad (channels per 64-byte load), OutWidth(a), Zero(), LoadX(x, left) (min(left,
-// kPerLoad) channels, the rest zero), LoadW(w), Dot(acc, x, w), SumEachVector(const Acc[16]),
-// FinishPixel(a, oy, ox, acc, inside) (the InsideTaps were the taps inside the input), a Quad
-// epilogue prepared once per call by Prepare(conv, quad), and FinishQuad<CO>(a, oy, ox, sums,
-// quad).
+// kPerLoad) channels, the rest zero), LoadW(w), Dot(acc, x, w), SumEachVector<K>(const Acc[K]),
+// FinishPixel(a, oy, ox, acc, inside) (the InsideTaps were the taps inside the input), and the
+// tile's epilogue: Values (the per-channel constants for kFewOutValues values, value i being
+// channel i % CO), prepared once per call by Prepare(conv, values), and FinishValues<CO>(a, oy,
+// ox, chunk, count, sums, values) for values 16 * chunk .. + count of the tile at (oy, ox).
 #pragma once
 
 #include <immintrin.h>
@@ -30,36 +33,46 @@
 namespace sfrt::avx512 {
 namespace {
 
-inline constexpr int kFewOutMaxChannels = 4;  // lanes 4 * pixel + channel of one vector
+inline constexpr int kFewOutMaxChannels = 4;  // the most output channels these kernels take
 // How far ahead of a tile's first pixel the last row of its window is prefetched (that row is the
 // one the output row above did not read: it comes from memory).
 inline constexpr size_t kFewOutPrefetchBytes = 8192;
 
-// Lane i of the result: the sum of v[i]'s 16 lanes, `add` being the lane-wise sum on the bits
-// (int32 or float32). The zero-masked shuffles for GCC 12, as in dot_epilogue_avx512_inl.h.
-template <typename AddFn>
+// The values a tile's epilogue covers: P * CO (up to 8 x 3).
+inline constexpr int kFewOutValues = 32;
+
+// Lane i of the result: the sum of v[i]'s 16 lanes, for K = 16, 8 or 4 vectors (the lanes from K
+// on repeat the first K), `add` being the lane-wise sum on the bits (int32 or float32). Every
+// K adds each vector's lanes in the same order. The zero-masked shuffles for GCC 12, as in
+// dot_epilogue_avx512_inl.h.
+template <int K, typename AddFn>
 inline __m512i SumEachVectorBits(const __m512i* v, AddFn add) {
+  static_assert(K == 16 || K == 8 || K == 4);
   constexpr __mmask8 kAll8 = 0xFF;
-  __m512i pairs[8];  // per 128-bit lane: v[2i] and v[2i+1], two partial sums each
+  __m512i pairs[K / 2];  // per 128-bit lane: v[2i] and v[2i+1], two partial sums each
 #pragma GCC unroll 8
-  for (int i = 0; i < 8; ++i) {
+  for (int i = 0; i < K / 2; ++i) {
     pairs[i] = add(_mm512_maskz_unpacklo_epi32(kAll, v[2 * i], v[2 * i + 1]),
                    _mm512_maskz_unpackhi_epi32(kAll, v[2 * i], v[2 * i + 1]));
   }
-  __m512i quads[4];  // per 128-bit lane: v[4i] .. v[4i + 3], one partial sum each
+  __m512i quads[K / 4];  // per 128-bit lane: v[4i] .. v[4i + 3], one partial sum each
 #pragma GCC unroll 4
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < K / 4; ++i) {
     quads[i] = add(_mm512_maskz_unpacklo_epi64(kAll8, pairs[2 * i], pairs[2 * i + 1]),
                    _mm512_maskz_unpackhi_epi64(kAll8, pairs[2 * i], pairs[2 * i + 1]));
   }
   // Then across the 128-bit lanes: even lanes plus odd lanes, twice.
   constexpr int kEven = 0x88, kOdd = 0xDD;
-  const __m512i low = add(_mm512_maskz_shuffle_i32x4(kAll, quads[0], quads[1], kEven),
-                          _mm512_maskz_shuffle_i32x4(kAll, quads[0], quads[1], kOdd));
-  const __m512i high = add(_mm512_maskz_shuffle_i32x4(kAll, quads[2], quads[3], kEven),
-                           _mm512_maskz_shuffle_i32x4(kAll, quads[2], quads[3], kOdd));
-  return add(_mm512_maskz_shuffle_i32x4(kAll, low, high, kEven),
-             _mm512_maskz_shuffle_i32x4(kAll, low, high, kOdd));
+  const auto across = [&](__m512i x, __m512i y) {
+    return add(_mm512_maskz_shuffle_i32x4(kAll, x, y, kEven),
+               _mm512_maskz_shuffle_i32x4(kAll, x, y, kOdd));
+  };
+  if constexpr (K == 16) {
+    return across(across(quads[0], quads[1]), across(quads[2], quads[3]));
+  } else {
+    const __m512i halves = across(quads[0], quads[K / 4 - 1]);
+    return across(halves, halves);
+  }
 }
 
 // The taps of one pixel's window that lie inside the input: [ky0, ky1) x [kx0, kx1).
@@ -109,12 +122,29 @@ inline void FewOutChunk(typename F::Acc (&acc)[P][CO], const typename F::Elem* x
   }
 }
 
-// Pixels ox .. ox + P - 1 of row oy (P a multiple of 4), every tap inside the input; CO output
-// channels. One base pointer per tap, the pixels at fixed distances from it; the input
-// channels in whole loads, then a masked one for what is left.
+// Values 16 * C .. 16 * C + 15 of a tile's P * CO (value CO * j + o: pixel j's channel o), those
+// that exist: reduced, then F's epilogue.
+template <typename F, int CO, int P, int C>
+inline void FewOutFinish(const typename F::Args& a, int oy, int ox, const typename F::Acc* sums,
+                         const typename F::Values& values) {
+  constexpr int kFirst = 16 * C, kCount = P * CO - kFirst < 16 ? P * CO - kFirst : 16;
+  constexpr int K = kCount > 8 ? 16 : kCount > 4 ? 8 : 4;
+  typename F::Acc lanes[K];
+#pragma GCC unroll 16
+  for (int i = 0; i < K; ++i) {
+    lanes[i] = i < kCount ? sums[kFirst + i] : F::Zero();
+  }
+  F::template FinishValues<CO>(a, oy, ox, C, kCount, F::template SumEachVector<K>(lanes), values);
+}
+
+// The sums of pixels ox .. ox + P - 1 of row oy, every tap inside the input, CO output channels,
+// into sums[CO * j + o] (pixel j, channel o). One base pointer per tap, the pixels at fixed
+// distances from it; the input channels in whole loads, then a masked one for what is left. Its
+// own function: inlined with the epilogue, GCC 12 spills the accumulators inside the loop.
 template <typename F, int CO, int P>
-void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Quad& quad) {
-  static_assert(P % 4 == 0 && P * CO + CO + 1 <= 32, "the tile's registers: 32 zmm");
+[[gnu::noinline]] void FewOutAccumulate(const typename F::Args& a, int oy, int ox,
+                                        typename F::Acc* sums) {
+  static_assert(P * CO + CO + 1 <= 32, "the tile's registers: 32 zmm");
   const typename F::Conv& p = *a.conv;
   const int cin = p.in_channels, w_stride = p.few_ci_stride;
   const int whole = cin - cin % F::kPerLoad;          // channels in whole loads
@@ -141,18 +171,26 @@ void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Qua
         FewOutChunk<F, CO, P>(acc, x + whole, next, w + whole, w_stride, cin - whole);
     }
   }
-#pragma GCC unroll 2
-  for (int q = 0; q < P / 4; ++q) {
-    typename F::Acc lanes[16];  // [pixel * 4 + output], the outputs from CO on zero
-#pragma GCC unroll 16
-    for (int i = 0; i < 16; ++i) lanes[i] = i % 4 < CO ? acc[4 * q + i / 4][i % 4] : F::Zero();
-    F::template FinishQuad<CO>(a, oy, ox + 4 * q, F::SumEachVector(lanes), quad);
+#pragma GCC unroll 8
+  for (int j = 0; j < P; ++j) {
+#pragma GCC unroll 4
+    for (int o = 0; o < CO; ++o) sums[CO * j + o] = acc[j][o];
   }
 }
 
+// Pixels ox .. ox + P - 1 of row oy (P a multiple of 4), every tap inside the input; CO output
+// channels.
+template <typename F, int CO, int P>
+void FewOutTile(const typename F::Args& a, int oy, int ox, const typename F::Values& values) {
+  static_assert(P % 4 == 0 && P * CO <= kFewOutValues);
+  typename F::Acc sums[P * CO];
+  FewOutAccumulate<F, CO, P>(a, oy, ox, sums);
+  FewOutFinish<F, CO, P, 0>(a, oy, ox, sums, values);
+  if constexpr (P * CO > 16) FewOutFinish<F, CO, P, 1>(a, oy, ox, sums, values);
+}
+
 // Pixels a tile of FewOutTile holds for CO output channels: 8 for up to 3 (24 accumulators, 3
-// weight vectors and one input: 28 of the 32 zmm), 4 for 4 (a multiple of the four pixels that one
-// reduction takes).
+// weight vectors and one input: 28 of the 32 zmm), 4 for 4 (16 values: one reduction).
 template <int CO>
 inline constexpr int kFewOutTilePixels = CO <= 3 ? 8 : 4;
 
@@ -167,8 +205,8 @@ void FewOutRowsOf(const typename F::Args& a, int row_begin, int row_end) {
   const int inside_hi = last < 0 ? inside_lo : simd::MaxOf(inside_lo, last / p.stride_w + 1);
   const int tile_end = simd::MinOf(inside_hi, x_end);
   constexpr int kPixels = kFewOutTilePixels<CO>;
-  typename F::Quad quad;
-  F::Prepare(p, quad);
+  typename F::Values values;
+  F::Prepare(p, values);
   for (int oy = row_begin; oy < row_end; ++oy) {
     const int iy0 = oy * p.stride_h - a.pads.top;
     const bool rows_inside = iy0 >= 0 && iy0 + p.kernel_h <= a.in.height;
@@ -176,10 +214,10 @@ void FewOutRowsOf(const typename F::Args& a, int row_begin, int row_end) {
     while (ox < x_end) {
       const bool inside = rows_inside && ox >= inside_lo;
       if (inside && ox + kPixels <= tile_end) {
-        FewOutTile<F, CO, kPixels>(a, oy, ox, quad);
+        FewOutTile<F, CO, kPixels>(a, oy, ox, values);
         ox += kPixels;
       } else if (inside && ox + 4 <= tile_end) {
-        FewOutTile<F, CO, 4>(a, oy, ox, quad);
+        FewOutTile<F, CO, 4>(a, oy, ox, values);
         ox += 4;
       } else {
         FewOutPixel<F>(a, oy, ox);
@@ -209,15 +247,22 @@ void FewOutRows(const typename F::Args& a, int row_begin, int row_end) {
   }
 }
 
-// Stores lanes 4 * j .. 4 * j + CO - 1 of y as pixel j's channels, for the 4 float32 pixels
-// from (oy, ox) of `out`.
-template <int CO, typename View>
-inline void StoreQuadFloat(const View& out, int oy, int ox, __m512 y) {
-  constexpr __mmask16 kOutputs = (1u << CO) - 1u;
-#pragma GCC unroll 4
-  for (int j = 0; j < 4; ++j) {
-    _mm512_mask_storeu_ps(out.pixel(oy, ox + j), kOutputs,
-                          _mm512_maskz_compress_ps(static_cast<__mmask16>(0xFu << (4 * j)), y));
+// Stores `count` lanes of a tile's values from value 16 * chunk, value i being pixel i / CO's
+// channel i % CO from `first` (the tile's first pixel), its pixels pixel_stride elements apart.
+// store(dst, mask) writes the lanes of `mask` from dst on, lane 0 at dst. One store where the
+// pixels are dense; else through a copy, lane by lane.
+template <int CO, typename T, typename StoreFn>
+inline void StoreValues(T* first, ptrdiff_t pixel_stride, int chunk, int count, StoreFn store) {
+  const __mmask16 lanes = count >= 16 ? kAll : static_cast<__mmask16>((1u << count) - 1u);
+  if (pixel_stride == CO) {
+    store(first + 16 * chunk, lanes);
+    return;
+  }
+  alignas(64) T copy[16];
+  store(copy, lanes);
+  for (int i = 0; i < count; ++i) {
+    const int v = 16 * chunk + i;
+    first[(v / CO) * pixel_stride + v % CO] = copy[i];
   }
 }
 
