@@ -634,6 +634,7 @@ void Int8Kernels::CheckEdgeShapes() {
       {6, 11, 28, 44, 3, 2, {1, 1, 1, 1}},  // cin 28: one 16-channel load and three groups
       {5, 12, 42, 13, 3, 1, {1, 1, 1, 1}},  // cin 42: two 16-channel loads, 3 groups, 2 junk
       {4, 23, 16, 12, 3, 1, {1, 1, 1, 1}},  // NEON 8x3 on long rows
+      {6, 19, 10, 56, 3, 1, {1, 1, 1, 1}},  // 4 vectors, the last partial (56 of 64 bytes)
       // Few outputs (at most 4, at least 16 inputs): tiles of 8 pixels (4 for 4 outputs), then
       // of 4, where the window is inside the input, single pixels elsewhere.
       {6, 37, 64, 3, 3, 1, {1, 1, 1, 1}},   // the output layer's channels; 3 single pixels
@@ -920,8 +921,9 @@ void Int8Kernels::CheckSlices() {
   std::vector<Int8Shape> shapes = {Conv(7, 19, 16, 24, 1),     Conv(5, 37, 64, 70, 1),
                                    Conv(9, 11, 12, 8, 2),      UpConv(4, 9, 32, 16, 1, 1),
                                    UpConv(5, 6, 8, 100, 0, 0), UpConv(3, 20, 64, 64, 1, 0),
-                                   Conv(5, 23, 64, 4, 1),  // few outputs
-                                   Conv(5, 37, 4, 4, 1)};  // narrow
+                                   Conv(5, 23, 64, 4, 1),    // few outputs
+                                   Conv(5, 37, 4, 4, 1),     // narrow
+                                   Conv(4, 21, 16, 56, 1)};  // 4 vectors, the last partial
   shapes[3].phases = shapes[5].phases = true;
   size_t values = 0;
   uint32_t seed = 4100;

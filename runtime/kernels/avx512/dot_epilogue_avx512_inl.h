@@ -43,8 +43,7 @@ inline __m512 BiasActivation(__m512 y, const simd::DotEpilogue& e, int v) {
     const __mmask16 negative = _mm512_cmp_ps_mask(y, zero, _CMP_LT_OQ);
     y = _mm512_mask_mul_ps(y, negative, y, _mm512_set1_ps(e.slope));
   } else if (e.act == Activation::kRelu) {
-    const __mmask16 positive = _mm512_cmp_ps_mask(y, zero, _CMP_GT_OQ);
-    y = _mm512_maskz_mov_ps(positive, y);
+    y = Max(y, zero);  // y > 0 ? y : +0 (vmaxps returns its second operand unless y is greater)
   }
   return y;
 }
@@ -66,21 +65,44 @@ inline __m512i QuantizeLanes(__m512 y, const simd::DotEpilogue& e) {
   return Min(q, _mm512_set1_epi32(255));
 }
 
+// Bytes v * 16 + i = lane i of q[v] for NV <= 4 vectors of int32 0..255 (the bytes from NV * 16
+// on zero): two packs (exact: the values fit) put q[v]'s lanes 4L..4L+3 at dword 4L + v, and a
+// dword permutation puts them at 4v + L.
+template <int NV>
+inline __m512i PackBytes(const __m512i* q) {
+  static_assert(NV >= 1 && NV <= 4);
+  const __m512i zero = _mm512_setzero_si512();
+  const __m512i q1 = NV > 1 ? q[1] : zero, q2 = NV > 2 ? q[2] : zero, q3 = NV > 3 ? q[3] : zero;
+  constexpr __mmask32 kAll32 = ~__mmask32{0};
+  constexpr __mmask64 kAll64 = ~__mmask64{0};
+  const __m512i bytes = _mm512_maskz_packus_epi16(
+      kAll64, _mm512_maskz_packs_epi32(kAll32, q[0], q1), _mm512_maskz_packs_epi32(kAll32, q2, q3));
+  const __m512i order = _mm512_setr_epi32(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15);
+  return _mm512_maskz_permutexvar_epi32(kAll, order, bytes);
+}
+
 // Int8Dequantize / Int8Quantize of one pixel's NV vectors of int32 sums into `out` (the pixel's
-// first channel of the block: float or uint8).
+// first channel of the block: float or uint8; uint8 in one store of its e.valid bytes).
 template <int NV>
 inline void FinishU8s8(const __m512i* acc, const simd::DotEpilogue& e, void* out) {
+  if (e.out_float) {
 #pragma GCC unroll 4
-  for (int v = 0; v < NV; ++v) {
-    const __mmask16 mask = ValidLanes(e, v);
-    const __m512 y = DequantizeLanes(acc[v], e, v);
-    if (e.out_float) {
-      _mm512_mask_storeu_ps(static_cast<float*>(out) + v * kEpilogueLanes, mask, y);
-    } else {
-      _mm512_mask_cvtepi32_storeu_epi8(static_cast<uint8_t*>(out) + v * kEpilogueLanes, mask,
-                                       QuantizeLanes(y, e));
+    for (int v = 0; v < NV; ++v) {
+      _mm512_mask_storeu_ps(static_cast<float*>(out) + v * kEpilogueLanes, ValidLanes(e, v),
+                            DequantizeLanes(acc[v], e, v));
     }
+    return;
   }
+  __m512i q[NV];
+#pragma GCC unroll 4
+  for (int v = 0; v < NV; ++v) q[v] = QuantizeLanes(DequantizeLanes(acc[v], e, v), e);
+  const __m512i packed = PackBytes<NV>(q);
+  if (NV == 4 && e.valid >= 64) {
+    _mm512_storeu_si512(out, packed);
+    return;
+  }
+  const int bytes = e.valid < NV * kEpilogueLanes ? e.valid : NV * kEpilogueLanes;
+  _mm512_mask_storeu_epi8(out, (__mmask64{1} << bytes) - 1, packed);
 }
 
 #ifdef __AVX512BF16__

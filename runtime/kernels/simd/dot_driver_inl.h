@@ -298,6 +298,9 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
   const ElemOf<V>* xs[kMaxInt8Taps * MR];
   const WeightOf<V>* ws[kMaxInt8Taps];
   const int32_t* ss[kMaxInt8Taps];
+  ptrdiff_t tap_offset[kMaxInt8Taps];  // without the upsample: tap n from a pixel's first tap
+  int taps_in = 0;
+  const ptrdiff_t pixel_step = j.sw * j.a->in.stride();  // one output pixel's window to the next
   typename V::Acc init[NV];
   for (int oy = row_begin; oy < row_end; ++oy) {
     const int iy0 = oy * j.sh - j.pt;
@@ -322,14 +325,23 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
       DotInit<V, NV>(ss, n, j.coefficient, one_init);
       DotTile<V, 1, NV>(xs, ws, n, j.groups, one_init, e, j.Out(oy, ox, blk), 0);
     };
-    // Pixels [ox, ox + r) of the interior: every kx, the rows inside.
+    // Pixels [ox, ox + r) of the interior: every kx, the rows inside. Without the upsample each
+    // tap lies at one distance from each pixel's first (offsets, computed once a row).
     auto tiles = [&](int ox, int r) {
       int t = 0;
-      for (int ky = ky_lo; ky < ky_hi; ++ky) {
-        for (int kx = 0; kx < j.kw; ++kx) {
-          for (int m = 0; m < r; ++m)
-            xs[t * r + m] = j.Source(iy0 + ky, (ox + m) * j.sw - j.pl + kx);
+      if (!j.up) {
+        const ElemOf<V>* first = j.Source(iy0 + ky_lo, ox * j.sw - j.pl);
+        for (int n = 0; n < taps_in; ++n) {
+          for (int m = 0; m < r; ++m) xs[t * r + m] = first + m * pixel_step + tap_offset[n];
           ++t;
+        }
+      } else {
+        for (int ky = ky_lo; ky < ky_hi; ++ky) {
+          for (int kx = 0; kx < j.kw; ++kx) {
+            for (int m = 0; m < r; ++m)
+              xs[t * r + m] = j.Source(iy0 + ky, (ox + m) * j.sw - j.pl + kx);
+            ++t;
+          }
         }
       }
       DotTileUpTo<V, MR, NV>(r, xs, ws, t, j.groups, init, e, j.Out(oy, ox, blk), j.out_pixel);
@@ -348,9 +360,11 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
         for (int kx = 0; kx < j.kw; ++kx) {
           ws[n] = wblk + (ky * j.kw + kx) * j.tap_elems;
           ss[n] = TapSums<V>(p, false, 0, blk, ky * j.kw + kx);
+          tap_offset[n] = (ky - ky_lo) * j.a->in.row_stride + kx * j.a->in.stride();
           ++n;
         }
       }
+      taps_in = n;
       DotInit<V, NV>(ss, n, j.coefficient, init);
       int ox = t_lo;
       for (; ox + MR <= t_hi; ox += MR) tiles(ox, MR);
