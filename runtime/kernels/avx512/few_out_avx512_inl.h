@@ -106,7 +106,7 @@ void FewOutPixel(const typename F::Args& a, int oy, int ox) {
   F::FinishPixel(a, oy, ox, acc, in);
 }
 
-// One input-channel chunk of FewOutTile at one tap: `left` channels from x (min(left,
+// One input-channel chunk of FewOutAccumulate at one tap: `left` channels from x (min(left,
 // kPerLoad)) of each of the P pixels, `next` elements apart, against CO weight rows from w.
 template <typename F, int CO, int P>
 inline void FewOutChunk(typename F::Acc (&acc)[P][CO], const typename F::Elem* x, ptrdiff_t next,
