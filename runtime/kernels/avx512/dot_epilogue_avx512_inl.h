@@ -54,20 +54,41 @@ inline __m512 DequantizeLanes(__m512i acc, const simd::DotEpilogue& e, int v) {
   return BiasActivation(y, e, v);
 }
 
-// Int8Quantize of 16 float32 lanes (as int32 0..255).
-inline __m512i QuantizeLanes(__m512 y, const simd::DotEpilogue& e) {
+// Int8Quantize of 16 float32 lanes before its clamp to 0..255 (int32 in -512 + zero_point ..
+// 512 + zero_point): for callers whose store saturates (PackBytes).
+inline __m512i QuantizeLanesUnclamped(__m512 y, const simd::DotEpilogue& e) {
   __m512 t = _mm512_mul_ps(y, _mm512_set1_ps(e.inv_scale));
   t = Max(t, _mm512_set1_ps(-512.0f));
   t = Min(t, _mm512_set1_ps(512.0f));
-  __m512i q = ToIntNearest(t);  // cvtps2dq: to nearest even under the default MXCSR
-  q = _mm512_add_epi32(q, _mm512_set1_epi32(e.zero_point));
-  q = Max(q, _mm512_setzero_si512());
-  return Min(q, _mm512_set1_epi32(255));
+  const __m512i q = ToIntNearest(t);  // cvtps2dq: to nearest even under the default MXCSR
+  return _mm512_add_epi32(q, _mm512_set1_epi32(e.zero_point));
 }
 
-// Bytes v * 16 + i = lane i of q[v] for NV <= 4 vectors of int32 0..255 (the bytes from NV * 16
-// on zero): two packs (exact: the values fit) put q[v]'s lanes 4L..4L+3 at dword 4L + v, and a
-// dword permutation puts them at 4v + L.
+// Int8Quantize of 16 float32 lanes (as int32 0..255).
+inline __m512i QuantizeLanes(__m512 y, const simd::DotEpilogue& e) {
+  return Min(Max(QuantizeLanesUnclamped(y, e), _mm512_setzero_si512()), _mm512_set1_epi32(255));
+}
+
+// Whether ReluQuantizeLanes gives Int8Dequantize's then QuantizeLanesUnclamped's values.
+inline bool ReluFolds(const simd::DotEpilogue& e) {
+  return e.act == Activation::kRelu && e.inv_scale > 0.0f;
+}
+
+// Int8Dequantize with ReLU then QuantizeLanesUnclamped, for ReluFolds(e): with inv_scale > 0,
+// y * inv_scale has y's sign, so ReLU's max(y, 0) and the clamp's max(t, -512) are one
+// max(y * inv_scale, 0), the same values (y <= 0, -0 and NaN give +0 as ReLU's +0 does).
+inline __m512i ReluQuantizeLanes(__m512i acc, const simd::DotEpilogue& e, int v) {
+  __m512 y = _mm512_mul_ps(ToFloat(acc), _mm512_loadu_ps(e.multiplier + v * kEpilogueLanes));
+  y = _mm512_add_ps(y, _mm512_loadu_ps(e.bias + v * kEpilogueLanes));
+  __m512 t = Max(_mm512_mul_ps(y, _mm512_set1_ps(e.inv_scale)), _mm512_setzero_ps());
+  t = Min(t, _mm512_set1_ps(512.0f));
+  return _mm512_add_epi32(ToIntNearest(t), _mm512_set1_epi32(e.zero_point));
+}
+
+// Bytes v * 16 + i = lane i of q[v], clamped to 0..255, for NV <= 4 vectors of int32 in
+// -32768..32767 (the bytes from NV * 16 on zero): two saturating packs (int32 to int16, exact
+// here; int16 to uint8, the clamp) put q[v]'s lanes 4L..4L+3 at dword 4L + v, and a dword
+// permutation puts them at 4v + L.
 template <int NV>
 inline __m512i PackBytes(const __m512i* q) {
   static_assert(NV >= 1 && NV <= 4);
@@ -93,9 +114,14 @@ inline void FinishU8s8(const __m512i* acc, const simd::DotEpilogue& e, void* out
     }
     return;
   }
-  __m512i q[NV];
+  __m512i q[NV];  // PackBytes clamps them to 0..255
+  if (ReluFolds(e)) {
 #pragma GCC unroll 4
-  for (int v = 0; v < NV; ++v) q[v] = QuantizeLanes(DequantizeLanes(acc[v], e, v), e);
+    for (int v = 0; v < NV; ++v) q[v] = ReluQuantizeLanes(acc[v], e, v);
+  } else {
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) q[v] = QuantizeLanesUnclamped(DequantizeLanes(acc[v], e, v), e);
+  }
   const __m512i packed = PackBytes<NV>(q);
   if (NV == 4 && e.valid >= 64) {
     _mm512_storeu_si512(out, packed);

@@ -28,8 +28,10 @@
 // for every NV. Pixels whose window leaves the input use only the taps inside: the top and bottom
 // rows in tiles along the row, the left and right columns in tiles of MR rows down the column,
 // the corners one pixel at a time. The fused upsample's interior rows use the phase kernels where
-// the convolution has them, on the same tiles. MinOf, MaxOf and InsideColumns are
-// conv_driver_inl.h's.
+// the convolution has them, on the same tiles. Where the input's pixels hold nothing but their
+// groups (DotJob::dense), the interior tiles take each window row as one tap of kw times the
+// groups: its pixels' bytes follow each other as its taps' packed weights do (conv0: 3 taps of 9
+// groups instead of 9 of 3). MinOf, MaxOf and InsideColumns are conv_driver_inl.h's.
 #pragma once
 
 #include <cstddef>
@@ -132,6 +134,10 @@ struct DotJob {
   int cb = 0, ce = 0;       // the columns this call computes (Args::col_begin, col_end)
   int32_t coefficient = 0;  // int8: V::ZeroPointCoefficient(in_zero_point)
   bool phases = false;      // the fused upsample's interior from the phase kernels
+  // The input's pixels hold exactly `groups` groups, so the taps along a window row read
+  // consecutive pixels' bytes, as their packed weights lie: a tile takes them as one tap of
+  // their groups together (DotBlockRows without the upsample, DotPhaseRow).
+  bool dense = false;
 
   const ElemOf<V>* Source(int y, int x) const {
     if (!up) return a->in.pixel(y, x);
@@ -199,16 +205,16 @@ void DotPhaseRow(const DotJob<V>& j, int blk, const DotEpilogue& e3x3, int oy, i
   const WeightOf<V>* ws[4];
   const int32_t* ss[4];
   typename V::Acc init[NV];
+  // Dense input: each phase row's 2 taps as one of twice the groups.
+  const int taps = j.dense ? 2 : 4, groups = j.dense ? 2 * j.groups : j.groups;
   for (int px = 0; px < 2; ++px) {
     // First interior column of this phase: (ox - pl + crop_left) & 1 == px.
     int ox = lo + ((lo - j.pl + j.a->crop_left + px) & 1);
     if (ox >= hi) continue;
     const int phase = (ay & 1) * 2 + px;
     const WeightOf<V>* pw = p.phase_weights + phase * phase_elems + blk * 4 * j.tap_elems;
-    for (int t = 0; t < 4; ++t) {
-      ws[t] = pw + t * j.tap_elems;
-      ss[t] = TapSums<V>(p, true, phase, blk, t);
-    }
+    for (int t = 0; t < 4; ++t) ss[t] = TapSums<V>(p, true, phase, blk, t);
+    for (int t = 0; t < taps; ++t) ws[t] = pw + t * (4 / taps) * j.tap_elems;
     DotInit<V, NV>(ss, 4, j.coefficient, init);
     DotEpilogue e = e3x3;
     if constexpr (DotTraits<typename V::Conv>::kQuantized) {
@@ -217,10 +223,11 @@ void DotPhaseRow(const DotJob<V>& j, int blk, const DotEpilogue& e3x3, int oy, i
     // Pixels ox, ox + 2, ... (r of them) read low-resolution columns bx, bx + 1, ...
     auto tiles = [&](int r) {
       const int bx = (ox - j.pl + j.a->crop_left) >> 1;
-      for (int t = 0; t < 4; ++t) {
-        for (int m = 0; m < r; ++m) xs[t * r + m] = j.a->in.pixel(by + t / 2, bx + m + t % 2);
+      for (int t = 0; t < taps; ++t) {
+        const int ty = t * 2 / taps, tx = t % (taps / 2);
+        for (int m = 0; m < r; ++m) xs[t * r + m] = j.a->in.pixel(by + ty, bx + m + tx);
       }
-      DotTileUpTo<V, MR, NV>(r, xs, ws, 4, j.groups, init, e, j.Out(oy, ox, blk), 2 * j.out_pixel);
+      DotTileUpTo<V, MR, NV>(r, xs, ws, taps, groups, init, e, j.Out(oy, ox, blk), 2 * j.out_pixel);
     };
     for (; ox + 2 * (MR - 1) < hi; ox += 2 * MR) tiles(MR);
     if (ox < hi) tiles((hi - ox + 1) / 2);
@@ -300,6 +307,8 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
   const int32_t* ss[kMaxInt8Taps];
   ptrdiff_t tap_offset[kMaxInt8Taps];  // without the upsample: tap n from a pixel's first tap
   int taps_in = 0;
+  const bool merge = j.dense && !j.up;  // a window row's taps as one
+  const int tile_groups = merge ? j.kw * j.groups : j.groups;
   const ptrdiff_t pixel_step = j.sw * j.a->in.stride();  // one output pixel's window to the next
   typename V::Acc init[NV];
   for (int oy = row_begin; oy < row_end; ++oy) {
@@ -344,7 +353,7 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
           }
         }
       }
-      DotTileUpTo<V, MR, NV>(r, xs, ws, t, j.groups, init, e, j.Out(oy, ox, blk), j.out_pixel);
+      DotTileUpTo<V, MR, NV>(r, xs, ws, t, tile_groups, init, e, j.Out(oy, ox, blk), j.out_pixel);
     };
 
     const bool full = ky_lo == 0 && ky_hi == j.kh;  // its border columns: DotBorderColumns
@@ -355,17 +364,18 @@ void DotBlockRows(const DotJob<V>& j, int blk, int row_begin, int row_end) {
     if (t_lo < t_hi && j.phases && iy0 >= 0 && iy0 + 3 <= j.src_h) {
       DotPhaseRow<V, MR, NV>(j, blk, e, oy, iy0, t_lo, t_hi);
     } else if (t_lo < t_hi) {
-      int n = 0;
+      int n = 0, sums = 0;
       for (int ky = ky_lo; ky < ky_hi; ++ky) {
         for (int kx = 0; kx < j.kw; ++kx) {
+          ss[sums++] = TapSums<V>(p, false, 0, blk, ky * j.kw + kx);
+          if (merge && kx > 0) continue;  // the row's first tap reads them
           ws[n] = wblk + (ky * j.kw + kx) * j.tap_elems;
-          ss[n] = TapSums<V>(p, false, 0, blk, ky * j.kw + kx);
           tap_offset[n] = (ky - ky_lo) * j.a->in.row_stride + kx * j.a->in.stride();
           ++n;
         }
       }
       taps_in = n;
-      DotInit<V, NV>(ss, n, j.coefficient, init);
+      DotInit<V, NV>(ss, sums, j.coefficient, init);
       int ox = t_lo;
       for (; ox + MR <= t_hi; ox += MR) tiles(ox, MR);
       if (ox < t_hi) tiles(ox, t_hi - ox);
@@ -421,6 +431,7 @@ void DotRows(const typename DotTraits<typename V::Conv>::Args& a, bool up, int r
   j.ce = MinOf(j.out_w, a.col_end);
   if constexpr (T::kQuantized) j.coefficient = V::ZeroPointCoefficient(p.in_zero_point);
   j.phases = up && p.phase_weights != nullptr;
+  j.dense = a.in.stride() == j.groups * T::kGroup;
 
   for (int blk = blk_begin; blk < blk_end; ++blk) {
     const int valid = MinOf(V::kNr, p.out_channels - blk * V::kNr);
