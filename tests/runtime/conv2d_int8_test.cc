@@ -528,11 +528,13 @@ class Int8NeonDot : public Int8Kernels {
 };
 
 // The epilogue variants a layer is checked with: zero points at 0, 128 and 255, every
-// activation, uint8 (normal and saturating scales) and float outputs.
+// activation, uint8 (normal and saturating scales) and float outputs; ReLU into a uint8 output
+// whose zero point is not 0 (negative sums must give the zero point, not less).
 std::vector<Int8Quant> EveryQuant() {
   return {
       {128, 128, Activation::kLeakyRelu, false, 1.0f / 32},
       {0, 0, Activation::kRelu, false, 1.0f / 32},
+      {200, 100, Activation::kRelu, false, 1.0f / 256},
       {255, 255, Activation::kNone, false, 1.0f / 256},
       {128, 0, Activation::kLeakyRelu, false, 1.0f / 256},
       {3, 128, Activation::kLeakyRelu, true, 1.0f},
