@@ -42,6 +42,9 @@
 #include "sfrt/model.h"
 
 namespace sfrt {
+namespace simd {
+struct DotEpilogue;  // kernels/simd/dot_driver_inl.h
+}  // namespace simd
 
 // Bytes a kernel may read past the last pixel of a uint8 tensor: the SIMD kernels read input
 // channels four at a time, so a tensor whose channel count is not a multiple of 4 is read up to
@@ -182,6 +185,13 @@ const IsaInt8Kernels* Int8Kernels();
 // tile state, CPUID leaf 0x1D lists palette 1 with 8 tiles of 16 rows x 64 bytes, and Linux
 // grants the tile data permission (arch_prctl ARCH_REQ_XCOMP_PERM); null in builds without them.
 const IsaInt8Kernels* Int8KernelsAmx();
+// The AMX kernels' epilogue of one stored C tile (their tile policy's Finish: AVX-512 code
+// without a tile instruction, simd::AmxFinishScalar's arithmetic), int8 (`quantized`) or bf16,
+// for tests: it runs on a CPU with AVX-512 VNNI and AVX512_BF16 but no AMX, where the AMX kernels
+// do not. Null on other CPUs and in builds without the AMX kernels.
+using AmxTileFinishFn = void (*)(bool quantized, const int32_t* sums, const int32_t* init,
+                                 const simd::DotEpilogue& e, void* out, ptrdiff_t out_step);
+AmxTileFinishFn AmxTileFinish();
 }  // namespace avx512
 namespace amx {
 // The AMX kernels' blocking and packing over a scalar emulation of the tile registers and of

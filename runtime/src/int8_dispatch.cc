@@ -9,6 +9,7 @@ namespace sfrt {
 #if !SFRT_HAVE_AVX512_AMX
 // A build without the AMX kernels (not x86-64, or a compiler without AMX): there are none.
 const IsaInt8Kernels* avx512::Int8KernelsAmx() { return nullptr; }
+avx512::AmxTileFinishFn avx512::AmxTileFinish() { return nullptr; }
 #endif
 
 bool Int8KernelsAvailable(Isa isa) {

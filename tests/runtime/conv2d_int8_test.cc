@@ -542,6 +542,68 @@ std::vector<Int8Quant> EveryQuant() {
   };
 }
 
+// The AMX kernels' tile epilogue (AVX-512 code shared with the VNNI and AVX512_BF16 kernels)
+// gives the emulated tiles' scalar one's bytes on random sums: int8 with every epilogue variant
+// (ReLU folded into the quantisation or not, zero points, saturating scales, float output) and
+// bf16 with each activation into bf16 and float, for every count of valid channels' vectors. It
+// runs wherever AVX-512 VNNI and AVX512_BF16 do, so a CPU without AMX tests it too.
+TEST(AmxTileEpilogue, MatchesTheEmulatedTilesEpilogueBitForBit) {
+  const avx512::AmxTileFinishFn finish = avx512::AmxTileFinish();
+  if (finish == nullptr) {
+    GTEST_SKIP() << "needs AVX-512 VNNI and AVX512_BF16 and a build with the AMX kernels";
+  }
+  constexpr int kTile = simd::kAmxPixels * 16;  // 32-bit values per C tile
+  std::mt19937 rng(31);
+  // Sums whose outputs land inside 0..255 and past both ends.
+  std::uniform_int_distribution<int32_t> big(-(1 << 14), 1 << 14);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  alignas(64) int32_t sums[4 * kTile];
+  alignas(64) float float_sums[4 * kTile];  // bf16's, passed as their bits
+  alignas(64) int32_t init[64];
+  alignas(64) float multiplier[64];
+  alignas(64) float bias[64];
+  constexpr size_t kPixelBytes = 64 * sizeof(float);
+  std::vector<uint8_t> got(simd::kAmxPixels * kPixelBytes), want(got.size());
+  int runs = 0;
+  for (int valid : {64, 50, 33, 16, 5}) {
+    for (const Int8Quant& q : EveryQuant()) {
+      for (int32_t& v : sums) v = big(rng);
+      for (int o = 0; o < 64; ++o) {
+        init[o] = big(rng) / 16;
+        multiplier[o] = (1.5f + unit(rng)) * 1e-4f;
+        bias[o] = unit(rng);
+      }
+      const simd::DotEpilogue e = {multiplier,       bias,        q.act,
+                                   0.125f,           q.out_float, 1.0f / q.out_scale,
+                                   q.out_zero_point, valid};
+      const ptrdiff_t step = q.out_float ? kPixelBytes : 64;
+      std::fill(got.begin(), got.end(), 0xA5);
+      std::fill(want.begin(), want.end(), 0xA5);
+      finish(true, sums, init, e, got.data(), step);
+      simd::AmxFinishScalar<true>(sums, init, e, want.data(), step);
+      EXPECT_EQ(got, want) << "int8, " << valid << " channels, " << Describe(q);
+      ++runs;
+    }
+    for (Activation act : {Activation::kNone, Activation::kRelu, Activation::kLeakyRelu}) {
+      for (bool out_float : {false, true}) {
+        for (float& v : float_sums) v = 8.0f * unit(rng);
+        const auto* bits = reinterpret_cast<const int32_t*>(float_sums);
+        for (int o = 0; o < 64; ++o) bias[o] = unit(rng);
+        const simd::DotEpilogue e = {nullptr, bias, act, 0.125f, out_float, 0.0f, 0, valid};
+        const ptrdiff_t step = out_float ? kPixelBytes : 64 * sizeof(uint16_t);
+        std::fill(got.begin(), got.end(), 0xA5);
+        std::fill(want.begin(), want.end(), 0xA5);
+        finish(false, bits, nullptr, e, got.data(), step);
+        simd::AmxFinishScalar<false>(bits, nullptr, e, want.data(), step);
+        EXPECT_EQ(got, want) << "bf16, " << valid << " channels, activation "
+                             << static_cast<int>(act) << (out_float ? ", float out" : "");
+        ++runs;
+      }
+    }
+  }
+  std::printf("[          ] %d tiles of 16 pixels bit for bit\n", runs);
+}
+
 TEST_F(Int8Vnni, KernelNamesCarryIsaAndTile) {
   EXPECT_EQ(kernels_->nr, 64);
   for (const std::string name : {kernels_->conv_name, kernels_->upconv_name}) {

@@ -149,6 +149,15 @@ void Bf16ConvRows(const Bf16ConvArgs& a, int row_begin, int row_end, int blk_beg
                                                    a.upsampled ? g_bf16_upconv : g_bf16_conv);
 }
 
+void TileFinish(bool quantized, const int32_t* sums, const int32_t* init,
+                const simd::DotEpilogue& e, void* out, ptrdiff_t out_step) {
+  if (quantized) {
+    HardwareTiles::Finish<true>(sums, init, e, out, out_step);
+  } else {
+    HardwareTiles::Finish<false>(sums, init, e, out, out_step);
+  }
+}
+
 }  // namespace
 
 const IsaInt8Kernels* Int8KernelsAmx() {
@@ -169,6 +178,11 @@ const IsaInt8Kernels* Int8KernelsAmx() {
     return &table;
   }();
   return kernels;
+}
+
+AmxTileFinishFn AmxTileFinish() {
+  const CpuFeatures& f = HostCpuFeatures();
+  return f.avx512 && f.avx512_vnni && f.avx512_bf16 ? TileFinish : nullptr;
 }
 
 const IsaBf16Kernels* Bf16KernelsAmx() {
