@@ -565,6 +565,20 @@ TEST(AmxTileEpilogue, MatchesTheEmulatedTilesEpilogueBitForBit) {
   constexpr size_t kPixelBytes = 64 * sizeof(float);
   std::vector<uint8_t> got(simd::kAmxPixels * kPixelBytes), want(got.size());
   int runs = 0;
+  // Both epilogues of one tile, pixels `step` bytes apart, into equally prefilled outputs.
+  auto compare = [&](bool quantized, const int32_t* bits, const simd::DotEpilogue& e,
+                     ptrdiff_t step, const std::string& what) {
+    std::fill(got.begin(), got.end(), 0xA5);
+    std::fill(want.begin(), want.end(), 0xA5);
+    finish(quantized, bits, quantized ? init : nullptr, e, got.data(), step);
+    if (quantized) {
+      simd::AmxFinishScalar<true>(bits, init, e, want.data(), step);
+    } else {
+      simd::AmxFinishScalar<false>(bits, nullptr, e, want.data(), step);
+    }
+    EXPECT_EQ(got, want) << what;
+    ++runs;
+  };
   for (int valid : {64, 50, 33, 16, 5}) {
     for (const Int8Quant& q : EveryQuant()) {
       for (int32_t& v : sums) v = big(rng);
@@ -576,28 +590,18 @@ TEST(AmxTileEpilogue, MatchesTheEmulatedTilesEpilogueBitForBit) {
       const simd::DotEpilogue e = {multiplier,       bias,        q.act,
                                    0.125f,           q.out_float, 1.0f / q.out_scale,
                                    q.out_zero_point, valid};
-      const ptrdiff_t step = q.out_float ? kPixelBytes : 64;
-      std::fill(got.begin(), got.end(), 0xA5);
-      std::fill(want.begin(), want.end(), 0xA5);
-      finish(true, sums, init, e, got.data(), step);
-      simd::AmxFinishScalar<true>(sums, init, e, want.data(), step);
-      EXPECT_EQ(got, want) << "int8, " << valid << " channels, " << Describe(q);
-      ++runs;
+      compare(true, sums, e, q.out_float ? kPixelBytes : 64,
+              "int8, " + std::to_string(valid) + " channels, " + Describe(q));
     }
     for (Activation act : {Activation::kNone, Activation::kRelu, Activation::kLeakyRelu}) {
       for (bool out_float : {false, true}) {
         for (float& v : float_sums) v = 8.0f * unit(rng);
-        const auto* bits = reinterpret_cast<const int32_t*>(float_sums);
         for (int o = 0; o < 64; ++o) bias[o] = unit(rng);
         const simd::DotEpilogue e = {nullptr, bias, act, 0.125f, out_float, 0.0f, 0, valid};
-        const ptrdiff_t step = out_float ? kPixelBytes : 64 * sizeof(uint16_t);
-        std::fill(got.begin(), got.end(), 0xA5);
-        std::fill(want.begin(), want.end(), 0xA5);
-        finish(false, bits, nullptr, e, got.data(), step);
-        simd::AmxFinishScalar<false>(bits, nullptr, e, want.data(), step);
-        EXPECT_EQ(got, want) << "bf16, " << valid << " channels, activation "
-                             << static_cast<int>(act) << (out_float ? ", float out" : "");
-        ++runs;
+        compare(false, reinterpret_cast<const int32_t*>(float_sums), e,
+                out_float ? kPixelBytes : 64 * sizeof(uint16_t),
+                "bf16, " + std::to_string(valid) + " channels, activation " +
+                    std::to_string(static_cast<int>(act)) + (out_float ? ", float out" : ""));
       }
     }
   }

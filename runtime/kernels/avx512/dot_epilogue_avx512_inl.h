@@ -35,9 +35,8 @@ inline __mmask16 ValidLanes(const simd::DotEpilogue& e, int v) {
   return left >= kEpilogueLanes ? kAll : static_cast<__mmask16>((1u << left) - 1u);
 }
 
-// Bias and activation of 16 float32 lanes.
-inline __m512 BiasActivation(__m512 y, const simd::DotEpilogue& e, int v) {
-  y = _mm512_add_ps(y, _mm512_loadu_ps(e.bias + v * kEpilogueLanes));
+// The activation of 16 float32 lanes.
+inline __m512 Activate(__m512 y, const simd::DotEpilogue& e) {
   const __m512 zero = _mm512_setzero_ps();
   if (e.act == Activation::kLeakyRelu) {
     const __mmask16 negative = _mm512_cmp_ps_mask(y, zero, _CMP_LT_OQ);
@@ -48,10 +47,21 @@ inline __m512 BiasActivation(__m512 y, const simd::DotEpilogue& e, int v) {
   return y;
 }
 
+// Bias and activation of 16 float32 lanes.
+inline __m512 BiasActivation(__m512 y, const simd::DotEpilogue& e, int v) {
+  return Activate(_mm512_add_ps(y, _mm512_loadu_ps(e.bias + v * kEpilogueLanes)), e);
+}
+
+// Int8Dequantize before its activation: 16 int32 sums times lanes [v * 16, v * 16 + 16) of
+// e.multiplier, plus those of e.bias.
+inline __m512 ScaleAndBias(__m512i acc, const simd::DotEpilogue& e, int v) {
+  const __m512 y = _mm512_mul_ps(ToFloat(acc), _mm512_loadu_ps(e.multiplier + v * kEpilogueLanes));
+  return _mm512_add_ps(y, _mm512_loadu_ps(e.bias + v * kEpilogueLanes));
+}
+
 // Int8Dequantize of 16 int32 sums with lanes [v * 16, v * 16 + 16) of e.multiplier and e.bias.
 inline __m512 DequantizeLanes(__m512i acc, const simd::DotEpilogue& e, int v) {
-  const __m512 y = _mm512_mul_ps(ToFloat(acc), _mm512_loadu_ps(e.multiplier + v * kEpilogueLanes));
-  return BiasActivation(y, e, v);
+  return Activate(ScaleAndBias(acc, e, v), e);
 }
 
 // Int8Quantize of 16 float32 lanes before its clamp to 0..255 (int32 in -512 + zero_point ..
@@ -78,8 +88,7 @@ inline bool ReluFolds(const simd::DotEpilogue& e) {
 // y * inv_scale has y's sign, so ReLU's max(y, 0) and the clamp's max(t, -512) are one
 // max(y * inv_scale, 0), the same values (y <= 0, -0 and NaN give +0 as ReLU's +0 does).
 inline __m512i ReluQuantizeLanes(__m512i acc, const simd::DotEpilogue& e, int v) {
-  __m512 y = _mm512_mul_ps(ToFloat(acc), _mm512_loadu_ps(e.multiplier + v * kEpilogueLanes));
-  y = _mm512_add_ps(y, _mm512_loadu_ps(e.bias + v * kEpilogueLanes));
+  const __m512 y = ScaleAndBias(acc, e, v);
   __m512 t = Max(_mm512_mul_ps(y, _mm512_set1_ps(e.inv_scale)), _mm512_setzero_ps());
   t = Min(t, _mm512_set1_ps(512.0f));
   return _mm512_add_epi32(ToIntNearest(t), _mm512_set1_epi32(e.zero_point));
