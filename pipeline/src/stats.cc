@@ -255,4 +255,42 @@ std::string FormatOpTable(std::span<const OpRow> rows) {
   return out;
 }
 
+std::string FormatStepComparison(std::span<const std::vector<StepRow>> configs) {
+  // The step names in order: the first configuration's, then any only a later one has.
+  std::vector<std::string> names;
+  for (const std::vector<StepRow>& rows : configs) {
+    for (const StepRow& r : rows) {
+      if (std::find(names.begin(), names.end(), r.label.name) == names.end()) {
+        names.push_back(r.label.name);
+      }
+    }
+  }
+  auto median = [](const std::vector<StepRow>& rows, const std::string& name) {
+    for (const StepRow& r : rows) {
+      if (r.label.name == name) return r.ms.p50;
+    }
+    return std::nan("");
+  };
+  size_t name_w = 6;
+  for (const std::string& n : names) name_w = std::max(name_w, n.size());
+  std::string out = Pad("layers", name_w);
+  for (size_t c = 0; c < configs.size(); ++c) {
+    const std::string tag = "[" + std::to_string(c + 1) + "]";
+    out += PadLeft(tag + " ms", 12);
+    if (c > 0) out += PadLeft(tag + "/[1]", 10);
+  }
+  out += "\n";
+  for (const std::string& n : names) {
+    out += Pad(n, name_w);
+    const double first = configs.empty() ? std::nan("") : median(configs[0], n);
+    for (size_t c = 0; c < configs.size(); ++c) {
+      const double ms = median(configs[c], n);
+      out += PadLeft(FormatCell(ms, 3), 12);
+      if (c > 0) out += PadLeft(FormatCell(ms / first, 3), 10);
+    }
+    out += "\n";
+  }
+  return out;
+}
+
 }  // namespace sfrt::profiling

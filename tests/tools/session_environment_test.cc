@@ -1,6 +1,7 @@
 // The `sfrt` tool's mapping of SFRT_ISA, SFRT_WINOGRAD, SFRT_WINOGRAD_UPCONV, SFRT_FEWOUT,
-// SFRT_CONCAT_IN_PLACE and SFRT_AMX_PAIRS onto SessionOptions (tools/sfrt/session_environment.h);
-// the runtime itself reads none of them.
+// SFRT_CONCAT_IN_PLACE and SFRT_AMX_PAIRS onto SessionOptions, and of `sfrt bench --tuning`'s
+// variants onto KernelTuning (tools/sfrt/session_environment.h); the runtime itself reads none
+// of them.
 #include "sfrt/session_environment.h"
 
 #include <gtest/gtest.h>
@@ -74,6 +75,51 @@ TEST(SessionEnvironment, AnUnknownValueIsAnErrorNamingTheVariableAndTheAcceptedV
     ASSERT_FALSE(s.ok()) << c.name;
     EXPECT_EQ(s.message(), std::string(c.name) + "='" + c.value + "' is not one of " + c.accepted);
   }
+}
+
+// sfrt bench --tuning: the same switches by their names, on top of whatever the tuning holds.
+TEST(TuningVariant, DefaultChangesNothingAndSwitchesApplyInOrder) {
+  KernelTuning tuning;
+  tuning.few_out = false;  // as an SFRT_FEWOUT=off before it would leave it
+  ASSERT_TRUE(ApplyTuningVariant("default", tuning).ok());
+  EXPECT_FALSE(tuning.few_out);
+  EXPECT_TRUE(tuning.amx_pairs);
+  ASSERT_TRUE(ApplyTuningVariant("amx_pairs=off,winograd=f4,fewout=on,winograd=off", tuning).ok());
+  EXPECT_FALSE(tuning.amx_pairs);
+  EXPECT_TRUE(tuning.few_out);
+  EXPECT_EQ(tuning.winograd_tile, 0);
+  ASSERT_TRUE(ApplyTuningVariant("winograd_upconv=off,concat_in_place=off", tuning).ok());
+  EXPECT_FALSE(tuning.winograd_upconv);
+  EXPECT_FALSE(tuning.concat_in_place);
+}
+
+TEST(TuningVariant, ErrorsNameTheAssignmentAndWhatIsAccepted) {
+  const std::string names = "winograd, winograd_upconv, fewout, concat_in_place, amx_pairs";
+  const struct {
+    const char* variant;
+    std::string message;
+  } cases[] = {
+      {"fewout=maybe", "fewout='maybe' is not one of off, on"},
+      {"amx_pairs=off,winograd=f3", "winograd='f3' is not one of off, f2, f4"},
+      {"speed=fast", "'speed' is not a tuning switch (names: " + names + ")"},
+      {"fewout", "'fewout' is not NAME=VALUE (names: " + names + ")"},
+      {"fewout=off,", "'' is not NAME=VALUE (names: " + names + ")"},
+      {"", "a tuning variant is 'default' or NAME=VALUE[,NAME=VALUE...], not empty"},
+  };
+  for (const auto& c : cases) {
+    KernelTuning tuning;
+    const Status s = ApplyTuningVariant(c.variant, tuning);
+    ASSERT_FALSE(s.ok()) << c.variant;
+    EXPECT_EQ(s.message(), c.message) << c.variant;
+  }
+}
+
+// One vocabulary: each switch's variable is SFRT_ and its name in upper case.
+TEST(TuningVariant, EachSwitchsVariableIsItsNameInUpperCase) {
+  std::string variables;
+  for (const TuningSwitch& s : TuningSwitches()) variables += TuningVariable(s) + " ";
+  EXPECT_EQ(variables,
+            "SFRT_WINOGRAD SFRT_WINOGRAD_UPCONV SFRT_FEWOUT SFRT_CONCAT_IN_PLACE SFRT_AMX_PAIRS ");
 }
 
 }  // namespace

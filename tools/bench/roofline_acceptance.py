@@ -3,7 +3,7 @@
 
 usage: roofline_acceptance.py [--sfrt BIN] [--sizes 540x960,270x480] [--width-div 1]
                               [--threads 2] [--runs 5] [--precisions int8,bf16] [--bar 2.0]
-                              [--top 8] [--json FILE] [--keep DIR]
+                              [--top 8] [--against TUNING] [--json FILE] [--keep DIR]
 
 For each precision and size: SceneEDNet with seeded random weights
 (tests/fixtures/gen_sceneednet.py, 1/--width-div width, tf padding), exported with `sfrt export
@@ -15,6 +15,12 @@ doing most of them, both measured in that process; the verdict: median / floor <
 the issue's bar for AMX int8 and AMX bf16. Where the main unit is not AMX (a CPU without it)
 the ratio is printed and the verdict says the bar is AMX's. Then each run's slowest --top steps
 with their share of their roof.
+
+--against TUNING (an `sfrt bench --tuning` variant, e.g. amx_pairs=off): every bench call also
+times that variant in the same process, rounds alternating (`--tuning default --tuning TUNING`);
+the verdict stays the default's, and each run prints the variant's median over the default's and
+the same ratio for the slowest steps (above 1: the default is faster). On an AMX CPU,
+`--against amx_pairs=off` is issue 43's A/B of the 2 x 2 tile blocking.
 
 Full width at 540x960 takes seconds a run on an AMX Xeon (and minutes where int8 falls back to
 the scalar kernels: CPUs without VNNI). --keep DIR keeps the models and JSON; --json FILE writes
@@ -76,6 +82,8 @@ def parse_args(argv):
     p.add_argument("--precisions", default="int8,bf16")
     p.add_argument("--bar", type=float, default=2.0, help="median / floor at most (default 2.0)")
     p.add_argument("--top", type=int, default=8, help="slowest steps shown per run (default 8)")
+    p.add_argument("--against", metavar="TUNING",
+                   help="also time this sfrt bench --tuning variant, alternating (e.g. amx_pairs=off)")
     p.add_argument("--json")
     p.add_argument("--keep")
     args = p.parse_args(argv)
@@ -121,16 +129,39 @@ def make_models(args, work):
 
 
 def bench(args, work, model, precision, size):
+    """The default tuning's result, and --against's (None without it)."""
     h, w = size
     out = os.path.join(work, f"bench-{precision}-{h}x{w}.json")
     cmd = [args.sfrt, "bench", "--model", model, "--size", f"{h}x{w}", "--threads",
            str(args.threads), "--runs", str(args.runs), "--json", out]
     if precision == "int8":
         cmd.append("--quantized-input")
+    if args.against:
+        cmd += ["--tuning", "default", "--tuning", args.against]
     print(f"$ {' '.join(cmd)}", flush=True)
     run(cmd, "sfrt bench")
     with open(out) as f:
-        return json.load(f)["results"][0]
+        results = json.load(f)["results"]
+    return results[0], (results[1] if args.against else None)
+
+
+def print_against(default, other, top):
+    """The variant's median over the default's, overall and for the default's slowest steps."""
+    ratio = other["median_ms"] / default["median_ms"]
+    print(f"  {other['tuning']}: median {other['median_ms']:.2f} ms, {ratio:.3f}x the default's "
+          f"{default['median_ms']:.2f} ms (above 1: the default is faster)")
+    theirs = {s["layers"]: s for s in other["steps"]}
+    order = sorted(default["steps"], key=lambda s: -s["median_ms"])[:top]
+    print(f"    {'step':<30} {'default ms':>10} {'variant ms':>10} {'ratio':>7}  variant kernel")
+    for s in order:
+        o = theirs.get(s["layers"])
+        if o is None:
+            print(f"    {s['layers'][:30]:<30} {s['median_ms']:>10.3f} {'-':>10} {'-':>7}")
+            continue
+        r = o["median_ms"] / s["median_ms"] if s["median_ms"] > 0 else float("nan")
+        print(f"    {s['layers'][:30]:<30} {s['median_ms']:>10.3f} {o['median_ms']:>10.3f} "
+              f"{r:>7.3f}  {o['kernel']}")
+    return ratio
 
 
 def fastest_step(result):
@@ -187,7 +218,7 @@ def main(argv):
         models = make_models(args, work)
         for q in args.precision_list:
             for size in args.size_list:
-                r = bench(args, work, models[q], q, size)
+                r, other = bench(args, work, models[q], q, size)
                 roof = r["roofline"]
                 status, text = verdict(q, r, args.bar)
                 held = {"held": True, "missed": False}.get(status)
@@ -200,6 +231,10 @@ def main(argv):
                              "verdict": text})
                 print(f"{q} {size[0]}x{size[1]}: median {r['median_ms']:.2f} ms; {text}")
                 print_steps(r, args.top)
+                if other is not None:
+                    rows[-1]["against"] = {"tuning": other["tuning"],
+                                           "median_ms": other["median_ms"],
+                                           "ratio": print_against(r, other, args.top)}
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
@@ -212,6 +247,11 @@ def main(argv):
         print(f"{row['precision']:<9} {row['size']:<9} {row['median_ms']:>10.2f} "
               f"{row['gmacs']:>8.3g} {row['main_unit']:<11} {peak:>11} {floor:>9} {ratio:>6}  "
               f"{row['verdict']}")
+    for row in rows:
+        if "against" in row:
+            a = row["against"]
+            print(f"{row['precision']} {row['size']}: {a['tuning']} {a['median_ms']:.2f} ms = "
+                  f"{a['ratio']:.3f}x the default's {row['median_ms']:.2f} ms")
     code = exit_code([row["status"] for row in rows])
     if args.json:
         with open(args.json, "w") as f:

@@ -24,6 +24,7 @@
 #include <span>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -72,6 +73,9 @@ struct BenchArgs {
   bool peak = false;
   double peak_seconds = 0.2;
   bool quantized_input = false;  // time RunQuantized on the input quantised once beforehand
+  // --tuning, once per variant ("default" or NAME=VALUE,...: session_environment.h); empty: the
+  // default tuning alone.
+  std::vector<std::string> tunings;
 };
 
 // Per-run process counters of one configuration.
@@ -87,6 +91,8 @@ struct RunCounters {
 struct Config {
   Isa isa = Isa::kRef;
   int threads = 1;
+  std::string tuning = "default";  // the --tuning variant, on top of the SFRT_* variables
+  int spin_us = 0;                 // SessionOptions::spin_us of its session
   std::unique_ptr<Session> session;
   std::string kernels;
   std::vector<prof::StepLabel> labels;
@@ -98,6 +104,27 @@ struct Config {
   bool placed = false;  // `roofline` holds the steps' roofline (the peaks were measured)
   prof::Roofline roofline;
 };
+
+// What --isa, --threads and --tuning ask for: a configuration for each combination.
+struct BenchLists {
+  std::vector<Isa> isas;
+  std::vector<int> thread_counts;
+  std::vector<std::string> tunings;
+};
+
+// The switches --tuning takes: "winograd=off|f2|f4, fewout=off|on, ...".
+std::string TuningSwitchList() {
+  std::string list;
+  for (const tools::TuningSwitch& s : tools::TuningSwitches()) {
+    std::string values = s.values;
+    for (size_t at = values.find(", "); at != std::string::npos; at = values.find(", ")) {
+      values.replace(at, 2, "|");
+    }
+    if (!list.empty()) list += ", ";
+    list += std::string(s.name) + "=" + values;
+  }
+  return list;
+}
 
 std::vector<std::string> SplitList(const std::string& text) {
   std::vector<std::string> out;
@@ -118,8 +145,26 @@ std::string Milliseconds(double v) {
   return buf;
 }
 
-std::string ConfigName(Isa isa, int threads) {
-  return std::string(IsaName(isa)) + " x" + std::to_string(threads);
+// "avx512 x2 threads", and the tuning variant where it is not the default:
+// "avx512amx x2 threads (amx_pairs=off)".
+std::string ConfigName(const Config& c) {
+  std::string name = std::string(IsaName(c.isa)) + " x" + std::to_string(c.threads) + " threads";
+  if (c.tuning != "default") name += " (" + c.tuning + ")";
+  return name;
+}
+
+// --tuning into its list of variants (the default alone without it); "" on success, else the
+// usage message.
+std::string ParseTunings(const BenchArgs& args, std::vector<std::string>* tunings) {
+  for (const std::string& variant : args.tunings) {
+    KernelTuning scratch;
+    if (Status s = tools::ApplyTuningVariant(variant, scratch); !s.ok()) {
+      return "--tuning: " + s.message();
+    }
+    tunings->push_back(variant);
+  }
+  if (tunings->empty()) tunings->push_back("default");
+  return "";
 }
 
 // --isa and --threads into lists; "" on success, else the usage message.
@@ -367,50 +412,65 @@ std::string CheckModelRunFlags(const BenchArgs& args, int* height, int* width,
   return "";
 }
 
-// One configuration per ISA and thread count, each with its session planned and its timing
-// buffers reserved for `runs` runs and some. kExitOk, or the exit code after reporting.
-int MakeConfigs(const BenchArgs& args, const std::shared_ptr<const Model>& model,
-                const std::vector<Isa>& isas, const std::vector<int>& thread_counts, int height,
-                int width, std::vector<Config>* configs_out) {
-  std::vector<Config>& configs = *configs_out;
+// The configuration of one ISA, thread count and tuning variant, its session planned and its
+// timing buffers reserved for `runs` runs and some. kExitOk, or the exit code after reporting.
+int MakeConfig(const BenchArgs& args, const std::shared_ptr<const Model>& model, Isa isa,
+               int threads, const std::string& tuning, int height, int width, Config* c) {
+  SessionOptions options;
+  options.max_height = height;
+  options.max_width = width;
+  options.isa = isa;
+  options.threads = threads;
+  if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
+    return ReportError(kName, env.message(), kExitUsage);
+  }
+  if (Status s = tools::ApplyTuningVariant(tuning, options.tuning); !s.ok()) {
+    return ReportError(kName, "--tuning: " + s.message(), kExitUsage);
+  }
+  auto session = Session::Create(model, options);
+  if (!session.ok()) return ReportError(kName, session.message(), kExitFailure);
+  c->isa = isa;
+  c->threads = threads;
+  c->tuning = tuning;
+  c->spin_us = options.spin_us;
+  c->session = std::move(session).value();
+  for (const PlannedStep& step : c->session->steps()) {
+    if (c->kernels.find(step.kernel) != std::string::npos) continue;
+    if (!c->kernels.empty()) c->kernels += " ";
+    c->kernels += step.kernel;
+  }
+  c->labels = prof::LabelSteps(*c->session);
   const size_t expected_runs = static_cast<size_t>(args.runs) + 16;
-  for (Isa isa : isas) {
-    for (int threads : thread_counts) {
-      SessionOptions options;
-      options.max_height = height;
-      options.max_width = width;
-      options.isa = isa;
-      options.threads = threads;
-      if (Status env = tools::ApplySessionEnvironment(options); !env.ok()) {
-        return ReportError(kName, env.message(), kExitUsage);
+  c->recorder = std::make_unique<prof::StepRecorder>(c->labels.size(), expected_runs);
+  c->stamps.resize(c->labels.size() + 1);
+  RunCounters& k = c->counters;
+  for (auto* v : {&k.minor_faults, &k.major_faults, &k.voluntary_switches, &k.involuntary_switches,
+                  &k.migrations}) {
+    v->reserve(expected_runs);
+  }
+  k.wall_ms.reserve(expected_runs);
+  return kExitOk;
+}
+
+// One configuration per ISA, thread count and tuning variant, in that nesting. kExitOk, or the
+// exit code after reporting.
+int MakeConfigs(const BenchArgs& args, const std::shared_ptr<const Model>& model,
+                const BenchLists& lists, int height, int width, std::vector<Config>* configs_out) {
+  for (Isa isa : lists.isas) {
+    if (std::string notice = PrecisionFallbackNotice(*model, isa); !notice.empty()) {
+      std::printf("%s\n", notice.c_str());
+    }
+    for (int threads : lists.thread_counts) {
+      for (const std::string& tuning : lists.tunings) {
+        Config c;
+        if (int code = MakeConfig(args, model, isa, threads, tuning, height, width, &c);
+            code != kExitOk) {
+          return code;
+        }
+        configs_out->push_back(std::move(c));
       }
-      auto session = Session::Create(model, options);
-      if (!session.ok()) return ReportError(kName, session.message(), kExitFailure);
-      Config c;
-      c.isa = isa;
-      c.threads = threads;
-      c.session = std::move(session).value();
-      if (std::string notice = PrecisionFallbackNotice(*model, isa); !notice.empty()) {
-        std::printf("%s\n", notice.c_str());
-      }
-      for (const PlannedStep& step : c.session->steps()) {
-        if (c.kernels.find(step.kernel) != std::string::npos) continue;
-        if (!c.kernels.empty()) c.kernels += " ";
-        c.kernels += step.kernel;
-      }
-      c.labels = prof::LabelSteps(*c.session);
-      c.recorder = std::make_unique<prof::StepRecorder>(c.labels.size(), expected_runs);
-      c.stamps.resize(c.labels.size() + 1);
-      RunCounters& k = c.counters;
-      for (auto* v : {&k.minor_faults, &k.major_faults, &k.voluntary_switches,
-                      &k.involuntary_switches, &k.migrations}) {
-        v->reserve(expected_runs);
-      }
-      k.wall_ms.reserve(expected_runs);
-      configs.push_back(std::move(c));
     }
   }
-
   return kExitOk;
 }
 
@@ -459,19 +519,29 @@ bool TimeRuns(const BenchArgs& args, BenchInput& in, prof::MigrationCounter& mig
     c.recorder->Add(c.stamps);
     return true;
   };
-  for (int i = 0; i < args.warmup; ++i) {
-    for (Config& c : configs) {
-      if (!run_once(c, false)) return false;
+  // Every configuration once per round, the round's first one a later one each round (with two:
+  // alternating), so that none always runs after the same other one. With several, each run's
+  // workers spin for their spin_us before they sleep: that is waited out, untimed, so that they
+  // do not take CPUs from the next configuration's run.
+  const size_t n = configs.size();
+  auto round_of = [&](int round, bool record) {
+    for (size_t i = 0; i < n; ++i) {
+      Config& c = configs[(static_cast<size_t>(round) + i) % n];
+      if (!run_once(c, record)) return false;
+      if (n > 1 && c.threads > 1 && c.spin_us > 0) {
+        std::this_thread::sleep_for(std::chrono::microseconds(c.spin_us + 100));
+      }
     }
+    return true;
+  };
+  for (int i = 0; i < args.warmup; ++i) {
+    if (!round_of(i, false)) return false;
   }
-  // Round-robin: every configuration once per round.
   const auto start = Clock::now();
   for (int round = 0;; ++round) {
     const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
     if (round >= args.runs && elapsed >= args.min_seconds) break;
-    for (Config& c : configs) {
-      if (!run_once(c, true)) return false;
-    }
+    if (!round_of(round, true)) return false;
   }
   return true;
 }
@@ -504,6 +574,7 @@ Json ResultJson(const Config& c, const prof::Summary& s, double gflops, double p
                {"cpu_migrations", migrations.available() ? Json(k.migrations) : Json(nullptr)}};
   return Json{{"isa", IsaName(c.isa)},
               {"threads", c.threads},
+              {"tuning", c.tuning},
               {"runs", s.count},
               {"median_ms", s.p50},
               {"p90_ms", s.p90},
@@ -527,25 +598,33 @@ Json ResultJson(const Config& c, const prof::Summary& s, double gflops, double p
               {"per_run", per_run}};
 }
 
+// The tables' last column, the tuning variant, where some configuration has one: "  <variant>",
+// else "".
+std::string TuningCell(const std::vector<Config>& configs, const std::string& tuning) {
+  for (const Config& c : configs) {
+    if (c.tuning != "default") return "  " + tuning;
+  }
+  return "";
+}
+
 // The summary table (median, tails, GFLOP/s, share of peak, against the first configuration);
 // returns each configuration's results for --json.
 Json PrintSummaryTable(const BenchArgs& args, const std::vector<Config>& configs, uint64_t macs,
                        const prof::MigrationCounter& migrations) {
   const double base = prof::Percentile(configs.front().counters.wall_ms, 0.5);
-  std::printf("\n%-7s %7s %5s %9s %9s %9s %9s %9s %8s %9s %7s %9s\n", "isa", "threads", "runs",
+  std::printf("\n%-7s %7s %5s %9s %9s %9s %9s %9s %8s %9s %7s %9s%s\n", "isa", "threads", "runs",
               "median ms", "p90 ms", "p99 ms", "p99.9 ms", "max ms", "stddev", "GFLOP/s", "% peak",
-              "vs first");
+              "vs first", TuningCell(configs, "tuning").c_str());
   Json results = Json::array();
   for (const Config& c : configs) {
     const prof::Summary s = prof::Summarize(c.counters.wall_ms);
     const double gflops = 2.0 * static_cast<double>(macs) / (s.p50 * 1e6);
     const double percent_peak = c.peak_gflops > 0 ? 100.0 * gflops / c.peak_gflops : NAN;
-    std::printf("%-7s %7d %5zu %9s %9s %9s %9s %9s %8s %9s %7s %8sx\n", IsaName(c.isa), c.threads,
+    std::printf("%-7s %7d %5zu %9s %9s %9s %9s %9s %8s %9s %7s %8sx%s\n", IsaName(c.isa), c.threads,
                 s.count, Fixed(s.p50, 2).c_str(), Fixed(s.p90, 2).c_str(), Fixed(s.p99, 2).c_str(),
                 Fixed(s.p999, 2).c_str(), Fixed(s.max, 2).c_str(), Fixed(s.stddev, 2).c_str(),
                 Fixed(gflops, 1).c_str(), Fixed(percent_peak, 1).c_str(),
-                Fixed(s.p50 / base, 3).c_str());
-
+                Fixed(s.p50 / base, 3).c_str(), TuningCell(configs, c.tuning).c_str());
     results.push_back(ResultJson(c, s, gflops, percent_peak, args.top, migrations));
   }
   return results;
@@ -557,17 +636,19 @@ void PrintProcessCounters(const std::vector<Config>& configs,
   // Process counters per run.
   std::printf("\nper run, median / max (getrusage, whole process%s):\n",
               migrations.available() ? "; migrations: perf_event_open" : "");
-  std::printf("%-7s %7s %13s %13s %13s %13s %13s\n", "isa", "threads", "minor faults",
-              "major faults", "vol. switch", "invol. sw.", "migrations");
+  std::printf("%-7s %7s %13s %13s %13s %13s %13s%s\n", "isa", "threads", "minor faults",
+              "major faults", "vol. switch", "invol. sw.", "migrations",
+              TuningCell(configs, "tuning").c_str());
   for (const Config& c : configs) {
     const RunCounters& k = c.counters;
     auto cell = [](const std::vector<int64_t>& v) {
       return Fixed(MedianOf(v), 0) + " / " + std::to_string(MaxOf(v));
     };
-    std::printf("%-7s %7d %13s %13s %13s %13s %13s\n", IsaName(c.isa), c.threads,
+    std::printf("%-7s %7d %13s %13s %13s %13s %13s%s\n", IsaName(c.isa), c.threads,
                 cell(k.minor_faults).c_str(), cell(k.major_faults).c_str(),
                 cell(k.voluntary_switches).c_str(), cell(k.involuntary_switches).c_str(),
-                migrations.available() ? cell(k.migrations).c_str() : "unavailable");
+                migrations.available() ? cell(k.migrations).c_str() : "unavailable",
+                TuningCell(configs, c.tuning).c_str());
     const size_t slowest = static_cast<size_t>(
         std::max_element(k.wall_ms.begin(), k.wall_ms.end()) - k.wall_ms.begin());
     std::printf(
@@ -592,9 +673,9 @@ void PrintStepTables(const BenchArgs& args, const std::vector<Config>& configs) 
   for (const Config& c : configs) {
     const std::vector<prof::StepRow> rows = prof::StepTable(c.labels, c.recorder->durations_ms());
     std::printf(
-        "\n%s threads: %zu planned steps in run order (milliseconds over %zu runs; share "
+        "\n%s: %zu planned steps in run order (milliseconds over %zu runs; share "
         "of the steps' mean total)\n",
-        ConfigName(c.isa, c.threads).c_str(), rows.size(), c.recorder->runs());
+        ConfigName(c).c_str(), rows.size(), c.recorder->runs());
     std::fputs(prof::FormatStepTable(rows).c_str(), stdout);
     if (args.top > 0) {
       std::printf("top %d by median:\n", args.top);
@@ -612,6 +693,19 @@ void PrintStepTables(const BenchArgs& args, const std::vector<Config>& configs) 
           stdout);
     }
   }
+}
+
+// With more than one configuration: every step's median side by side, against the first's.
+void PrintStepComparison(const std::vector<Config>& configs) {
+  if (configs.size() < 2) return;
+  std::printf("\nsteps side by side (median ms; [n]/[1]: against the first configuration):\n");
+  std::vector<std::vector<prof::StepRow>> tables;
+  for (size_t i = 0; i < configs.size(); ++i) {
+    const Config& c = configs[i];
+    std::printf("  [%zu] %s\n", i + 1, ConfigName(c).c_str());
+    tables.push_back(prof::StepTable(c.labels, c.recorder->durations_ms()));
+  }
+  std::fputs(prof::FormatStepComparison(tables).c_str(), stdout);
 }
 
 // Each configuration's steps on the roofline: the peaks its kernels' units need at its thread
@@ -645,17 +739,17 @@ bool CheckBudget(const BenchArgs& args, double budget_percent, const std::vector
     const bool met = value <= args.budget_ms;
     budget_met = budget_met && met;
     if (met) {
-      std::printf("budget met: %s threads %s %.3f ms <= %s ms (%.3f ms to spare)\n",
-                  ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
-                  Milliseconds(args.budget_ms).c_str(), args.budget_ms - value);
+      std::printf("budget met: %s %s %.3f ms <= %s ms (%.3f ms to spare)\n", ConfigName(c).c_str(),
+                  label.c_str(), value, Milliseconds(args.budget_ms).c_str(),
+                  args.budget_ms - value);
     } else {
-      std::printf("budget MISSED: %s threads %s %.3f ms > %s ms, over by %.3f ms (%.1f%%)\n",
-                  ConfigName(c.isa, c.threads).c_str(), label.c_str(), value,
-                  Milliseconds(args.budget_ms).c_str(), value - args.budget_ms,
-                  100.0 * (value - args.budget_ms) / args.budget_ms);
+      std::printf("budget MISSED: %s %s %.3f ms > %s ms, over by %.3f ms (%.1f%%)\n",
+                  ConfigName(c).c_str(), label.c_str(), value, Milliseconds(args.budget_ms).c_str(),
+                  value - args.budget_ms, 100.0 * (value - args.budget_ms) / args.budget_ms);
     }
     budget_results.push_back(Json{{"isa", IsaName(c.isa)},
                                   {"threads", c.threads},
+                                  {"tuning", c.tuning},
                                   {"value_ms", value},
                                   {"met", met},
                                   {"over_ms", value - args.budget_ms}});
@@ -703,11 +797,16 @@ int MakeBenchInput(const BenchArgs& args, const Model& model, const std::vector<
 // After the timed runs: the peak FMA throughput per configuration and each one's roofline.
 // kExitOk, or the exit code after reporting.
 int MeasurePeaks(const BenchArgs& args, int height, int width, std::vector<Config>& configs) {
+  std::map<std::pair<Isa, int>, prof::PeakFma> measured;  // once per ISA and thread count
   for (Config& c : configs) {
-    Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
-    if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
-    c.peak_gflops = peak->gflops;
-    c.peak_kernel = peak->kernel;
+    auto found = measured.find({c.isa, c.threads});
+    if (found == measured.end()) {
+      Result<prof::PeakFma> peak = prof::MeasurePeakFma(c.isa, c.threads, args.peak_seconds);
+      if (!peak.ok()) return ReportError(kName, peak.message(), kExitFailure);
+      found = measured.emplace(std::pair{c.isa, c.threads}, *peak).first;
+    }
+    c.peak_gflops = found->second.gflops;
+    c.peak_kernel = found->second.kernel;
   }
   return PlaceConfigs(args, height, width, configs) ? kExitOk : kExitFailure;
 }
@@ -741,8 +840,7 @@ void PrintResidentMemory(const prof::ResourceUsage& usage, size_t sessions) {
 }
 
 // `sfrt bench --model`: the configurations timed, their tables, --json and the budget's verdict.
-int RunModelBench(const BenchArgs& args, const std::vector<Isa>& isas,
-                  const std::vector<int>& thread_counts) {
+int RunModelBench(const BenchArgs& args, const BenchLists& lists) {
   int height = 0, width = 0;
   double budget_percent = 99;
   if (std::string problem = CheckModelRunFlags(args, &height, &width, &budget_percent);
@@ -761,8 +859,7 @@ int RunModelBench(const BenchArgs& args, const std::vector<Isa>& isas,
   // Before any session's thread pool exists, so the pools' threads are counted too.
   prof::MigrationCounter migrations;
   std::vector<Config> configs;
-  if (int code = MakeConfigs(args, *model, isas, thread_counts, height, width, &configs);
-      code != kExitOk) {
+  if (int code = MakeConfigs(args, *model, lists, height, width, &configs); code != kExitOk) {
     return code;
   }
   BenchInput in;
@@ -779,8 +876,8 @@ int RunModelBench(const BenchArgs& args, const std::vector<Isa>& isas,
   PrintBuildAndCpu();
   for (const Config& c : configs) {
     const std::string flags = prof::IsaFlags(IsaName(c.isa));
-    std::printf("  %-6s x%d threads: %s (kernels built with %s)\n", IsaName(c.isa), c.threads,
-                c.kernels.c_str(), flags.empty() ? "the build's flags" : flags.c_str());
+    std::printf("  %s: %s (kernels built with %s)\n", ConfigName(c).c_str(), c.kernels.c_str(),
+                flags.empty() ? "the build's flags" : flags.c_str());
   }
   std::fflush(stdout);
 
@@ -793,6 +890,7 @@ int RunModelBench(const BenchArgs& args, const std::vector<Isa>& isas,
   if (args.peak_seconds > 0) PrintPeakNotes(configs);
   PrintProcessCounters(configs, migrations);
   PrintStepTables(args, configs);
+  PrintStepComparison(configs);
   std::printf("\n");
   PrintResidentMemory(usage, configs.size());
 
@@ -829,9 +927,11 @@ int RunModelBench(const BenchArgs& args, const std::vector<Isa>& isas,
 }
 
 int RunBench(const BenchArgs& args) {
-  std::vector<Isa> isas;
-  std::vector<int> thread_counts;
-  if (std::string problem = ParseLists(args, &isas, &thread_counts); !problem.empty()) {
+  BenchLists lists;
+  if (std::string problem = ParseLists(args, &lists.isas, &lists.thread_counts); !problem.empty()) {
+    return ReportError(kName, problem, kExitUsage);
+  }
+  if (std::string problem = ParseTunings(args, &lists.tunings); !problem.empty()) {
     return ReportError(kName, problem, kExitUsage);
   }
   // Found out now, not after the measurements: where --json goes must take a file.
@@ -844,19 +944,19 @@ int RunBench(const BenchArgs& args) {
     return ReportError(kName, "--peak-seconds must be > 0 with --peak, >= 0 otherwise", kExitUsage);
   }
   if (args.peak) {
-    if (!args.model.empty() || args.budget_given) {
+    if (!args.model.empty() || args.budget_given || !args.tunings.empty()) {
       return ReportError(kName,
-                         "--peak runs only the peak microbenchmarks; it takes no --model or "
-                         "--budget-ms (a model run measures the peak by itself)",
+                         "--peak runs only the peak microbenchmarks; it takes no --model, "
+                         "--budget-ms or --tuning (a model run measures the peak by itself)",
                          kExitUsage);
     }
-    return RunPeak(args, isas, thread_counts);
+    return RunPeak(args, lists.isas, lists.thread_counts);
   }
   if (args.model.empty()) {
     return ReportError(kName, "--model is required (or --peak for the peak microbenchmarks)",
                        kExitUsage);
   }
-  return RunModelBench(args, isas, thread_counts);
+  return RunModelBench(args, lists);
 }
 
 }  // namespace
@@ -894,35 +994,49 @@ Command AddBenchCommand(CLI::App& parent) {
                 "Time Session::RunQuantized on the input quantised beforehand, as sfrt run feeds "
                 "an int8 model (no quantise step); a usage error for a model that takes no uint8 "
                 "input");
+  cmd->add_option("--tuning", args->tunings,
+                  "A kernel tuning variant to time, once per variant (repeat the flag): 'default' "
+                  "or comma-separated NAME=VALUE of " +
+                      TuningSwitchList() +
+                      " (the SFRT_<NAME> variables', applied on top of them; default: the "
+                      "default alone)");
   cmd->add_option("--peak-seconds", args->peak_seconds,
                   "Time per peak measurement (default 0.2; 0 skips the FMA peak in a model run)");
-  cmd->add_option("--json", args->json,
-                  "Also write the results as JSON (per configuration median_ms, p90_ms, p99_ms, "
-                  "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, steps, "
-                  "by_op, roofline, per_run counters; build, cpu, budget)");
+  cmd->add_option(
+      "--json", args->json,
+      "Also write the results as JSON (per configuration median_ms, p90_ms, p99_ms, "
+      "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, tuning, steps, "
+      "by_op, roofline, per_run counters; build, cpu, budget)");
   cmd->footer(
-      "Every configuration (ISA x threads) gets its own session, planned once; rounds run each\n"
-      "configuration once, in turn, on the same seeded random input. Times are steady_clock\n"
+      "Every configuration (ISA x threads x --tuning variant) gets its own session, planned once;\n"
+      "rounds run each configuration once, in turn, on the same seeded random input, each round\n"
+      "starting one configuration later (two alternate which goes first). Times are steady_clock\n"
       "around Session::Run; percentiles interpolate linearly between ranks (NumPy's default),\n"
       "so with few runs p99.9 lies between the slowest runs; stddev is the population one.\n"
       "GFLOP/s counts the model's nominal arithmetic (2 x MACs of the plain convolutions), so\n"
       "the fused upsample-conv's saved work shows as speed; '% peak' divides it by the peak FMA\n"
       "throughput of the same ISA and thread count, measured in this process after the runs\n"
       "(--peak-seconds each; 'ref' is measured with the baseline ISA's 128-bit vectors).\n"
-      "'vs first' is median / the first configuration's median.\n"
+      "'vs first' is median / the first configuration's median; with several configurations, a\n"
+      "table puts every step's median side by side against the first's (an A/B of two ISAs or\n"
+      "two tunings in one process: --tuning default --tuning amx_pairs=off). Each session has\n"
+      "its own threads, whose workers spin 200 us after a run before they sleep: with several\n"
+      "configurations that is waited out after each run, untimed, so none runs beside another's\n"
+      "spinning workers (each then wakes its own workers at its first step; one configuration\n"
+      "alone runs back to back, its workers still spinning).\n"
       "Per step (Session::Run's step timestamps): median, p99, max and share of the steps' mean\n"
       "total, in run order, the --top N slowest, and summed by op type. Roofline (unless\n"
       "--peak-seconds 0): each step's median against the roof of the unit its kernel runs on\n"
       "(amx int8/bf16, int8 vnni, bf16 avx512, fma; memory for a step that only moves data):\n"
       "its actual MACs (a fused upsample-conv's phase pixels at 4 taps of 9, Winograd's\n"
-      "transformed products) and least bytes\n"
-      "moved (Session::Work), roof = min(the unit's peak, MACs/byte x read bandwidth), both\n"
-      "measured in this process after the runs, the share reached and which roof binds; then\n"
-      "the floors (every step at its roof; all MACs at the main unit's peak). Scalar int8/bf16,\n"
-      "the AMX emulation and NEON dot products are 'unmeasured' (no peak loop).\n"
-      "Per run: minor/major page\n"
-      "faults and voluntary/involuntary context switches (getrusage, whole process) and CPU\n"
-      "migrations (perf_event_open; 'unavailable' with the reason where the kernel refuses).\n"
+      "transformed products) and least bytes moved (Session::Work), roof = min(the unit's\n"
+      "peak, MACs/byte x read bandwidth), both measured in this process after the runs, the\n"
+      "share reached and which roof binds; then the floors (every step at its roof; all MACs at\n"
+      "the main unit's peak). Scalar int8/bf16, the AMX emulation and NEON dot products are\n"
+      "'unmeasured' (no peak loop).\n"
+      "Per run: minor/major page faults and voluntary/involuntary context switches (getrusage,\n"
+      "whole process) and CPU migrations (perf_event_open; 'unavailable' with the reason where\n"
+      "the kernel refuses).\n"
       "Also printed: compiler and version, build type and flags, each ISA's kernel flags, sfrt\n"
       "version and git describe (at configure time), CPU model (/proc/cpuinfo).\n"
       "Peak resident memory (also peak_rss_mib in the JSON) is the whole process's: with one\n"
@@ -936,14 +1050,14 @@ Command AddBenchCommand(CLI::App& parent) {
       "only where CPUID and XCR0 (and, for AMX, the tile palette and Linux's arch_prctl\n"
       "permission) say the CPU and OS run it, else 'not available (<why>)'; and 'amx: available'\n"
       "or 'amx: not available (<the check that failed>)'; last, for each --threads, the memory\n"
-      "read bandwidth (GB/s: each thread sums its slice of a 512 MiB buffer it touched first, "
-      "four\n"
-      "64-byte accumulators), the roof of memory-bound steps. --json gets peak, peak_int8,\n"
+      "read bandwidth (GB/s: each thread sums its slice of a 512 MiB buffer it touched first,\n"
+      "four 64-byte accumulators), the roof of memory-bound steps. --json gets peak, peak_int8,\n"
       "peak_bf16, peak_amx_int8, peak_amx_bf16, peak_unavailable (the reasons) and\n"
       "peak_read_bandwidth.\n"
       "Exit codes: 0 success (and every budget met), 1 model fails to load, plan or run, 2 usage\n"
       "error, 3 --budget-ms missed: some configuration's --budget-percentile exceeds the budget\n"
-      "(each miss is printed as 'budget MISSED: <isa> x<threads> threads <percentile> ...').");
+      "(each miss is printed as 'budget MISSED: <isa> x<threads> threads [(<tuning>)]\n"
+      "<percentile> ...').");
   return Command{cmd, [args, budget] {
                    args->budget_given = budget->count() > 0;
                    return RunBench(*args);

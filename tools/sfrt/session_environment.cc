@@ -1,5 +1,8 @@
 #include "sfrt/session_environment.h"
 
+#include <algorithm>
+#include <array>
+#include <cctype>
 #include <cstdlib>
 #include <string>
 
@@ -8,26 +11,87 @@
 namespace sfrt::tools {
 namespace {
 
+// "off" or "on" into `field`.
+bool SetSwitch(std::string_view value, bool& field) {
+  if (value != "off" && value != "on") return false;
+  field = value == "on";
+  return true;
+}
+
+bool SetWinograd(std::string_view value, KernelTuning& t) {
+  if (value == "off") {
+    t.winograd_tile = 0;
+  } else if (value == "f2") {
+    t.winograd_tile = 2;
+  } else if (value == "f4") {
+    t.winograd_tile = 4;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+constexpr std::array<TuningSwitch, 5> kSwitches{{
+    {"winograd", "off, f2, f4", SetWinograd},
+    {"winograd_upconv", "off, on",
+     [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.winograd_upconv); }},
+    {"fewout", "off, on",
+     [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.few_out); }},
+    {"concat_in_place", "off, on",
+     [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.concat_in_place); }},
+    {"amx_pairs", "off, on",
+     [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.amx_pairs); }},
+}};
+
 // The value of `name`, or nullptr when it is unset or empty.
 const char* Variable(const char* name) {
   const char* value = std::getenv(name);
   return value != nullptr && *value != '\0' ? value : nullptr;
 }
 
-Status Invalid(const char* name, const std::string& value, const std::string& accepted) {
-  return Status::Error(std::string(name) + "='" + value + "' is not one of " + accepted);
+Status Invalid(std::string_view name, std::string_view value, std::string_view accepted) {
+  return Status::Error(std::string(name) + "='" + std::string(value) + "' is not one of " +
+                       std::string(accepted));
 }
 
-Status ApplySwitch(const char* name, bool& field) {
-  const char* value = Variable(name);
-  if (value == nullptr) return Status::Ok();
-  const std::string v = value;
-  if (v != "off" && v != "on") return Invalid(name, v, "off, on");
-  field = v == "on";
-  return Status::Ok();
+std::string SwitchNames() {
+  std::string names;
+  for (const TuningSwitch& s : kSwitches) {
+    if (!names.empty()) names += ", ";
+    names += s.name;
+  }
+  return names;
+}
+
+// One NAME=VALUE of a tuning variant.
+Status ApplyAssignment(std::string_view assignment, KernelTuning& tuning) {
+  const size_t eq = assignment.find('=');
+  if (eq == std::string_view::npos) {
+    return Status::Error("'" + std::string(assignment) +
+                         "' is not NAME=VALUE (names: " + SwitchNames() + ")");
+  }
+  const std::string_view name = assignment.substr(0, eq);
+  const std::string_view value = assignment.substr(eq + 1);
+  for (const TuningSwitch& s : kSwitches) {
+    if (name != s.name) continue;
+    if (!s.apply(value, tuning)) return Invalid(name, value, s.values);
+    return Status::Ok();
+  }
+  return Status::Error("'" + std::string(name) +
+                       "' is not a tuning switch (names: " + SwitchNames() + ")");
 }
 
 }  // namespace
+
+std::span<const TuningSwitch> TuningSwitches() { return kSwitches; }
+
+std::string TuningVariable(const TuningSwitch& s) {
+  std::string variable = "SFRT_";
+  for (const char* c = s.name; *c != '\0'; ++c) {
+    variable += static_cast<char>(std::toupper(static_cast<unsigned char>(*c)));
+  }
+  return variable;
+}
 
 Status ApplySessionEnvironment(SessionOptions& options) {
   return ApplySessionEnvironment(options.isa, options.tuning);
@@ -41,24 +105,28 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
     }
     isa = parsed;
   }
-  if (const char* value = Variable("SFRT_WINOGRAD"); value != nullptr) {
-    const std::string v = value;
-    if (v == "off") {
-      tuning.winograd_tile = 0;
-    } else if (v == "f2") {
-      tuning.winograd_tile = 2;
-    } else if (v == "f4") {
-      tuning.winograd_tile = 4;
-    } else {
-      return Invalid("SFRT_WINOGRAD", v, "off, f2, f4");
+  for (const TuningSwitch& s : kSwitches) {
+    const std::string variable = TuningVariable(s);
+    const char* value = Variable(variable.c_str());
+    if (value != nullptr && !s.apply(value, tuning)) return Invalid(variable, value, s.values);
+  }
+  return Status::Ok();
+}
+
+Status ApplyTuningVariant(std::string_view variant, KernelTuning& tuning) {
+  if (variant == "default") return Status::Ok();
+  if (variant.empty()) {
+    return Status::Error("a tuning variant is 'default' or NAME=VALUE[,NAME=VALUE...], not empty");
+  }
+  size_t begin = 0;
+  while (begin <= variant.size()) {
+    const size_t comma = std::min(variant.find(',', begin), variant.size());
+    if (Status s = ApplyAssignment(variant.substr(begin, comma - begin), tuning); !s.ok()) {
+      return s;
     }
+    begin = comma + 1;
   }
-  if (Status s = ApplySwitch("SFRT_WINOGRAD_UPCONV", tuning.winograd_upconv); !s.ok()) {
-    return s;
-  }
-  if (Status s = ApplySwitch("SFRT_FEWOUT", tuning.few_out); !s.ok()) return s;
-  if (Status s = ApplySwitch("SFRT_CONCAT_IN_PLACE", tuning.concat_in_place); !s.ok()) return s;
-  return ApplySwitch("SFRT_AMX_PAIRS", tuning.amx_pairs);
+  return Status::Ok();
 }
 
 }  // namespace sfrt::tools

@@ -7,6 +7,8 @@ Checks: the keys tools/bench/compare_ort.sh reads; per configuration, one step e
 step whose mean times add up to the mean of the per-run step totals (the same timestamps, summed
 two ways) and never exceed the mean wall time around Run(); shares add up to 1; by-op rows
 account for every step; per-run counter arrays have one entry per run; build and cpu metadata.
+The int8 model runs as two --tuning variants (default, fewout=off): one result each, naming its
+variant, the variant applied, the steps side by side.
 The roofline (per configuration, and again on the int8 model): one entry per step, whose
 multiply-accumulates add up to its total (never above the model's nominal work; below it where
 phase kernels run), a unit for every step that agrees with its kernel's name, memory steps with
@@ -112,6 +114,23 @@ def check_roofline(r, nominal_macs, name, check):
               f"{name}: main floor")
 
 
+def check_tuning_variants(j, stdout, check):
+    """--tuning default --tuning fewout=off: one configuration each, in that order, the variant
+    applied (on AVX-512 the output layer leaves its few-output kernel) and the steps compared."""
+    tunings = [r.get("tuning") for r in j["results"]]
+    check(tunings == ["default", "fewout=off"], f"int8 run: tunings {tunings}")
+    if len(j["results"]) != 2:
+        return
+    default, off = j["results"]
+    check(default["isa"] == off["isa"] and default["threads"] == off["threads"],
+          "int8 run: the variants differ in more than their tuning")
+    if default["isa"].startswith("avx512"):
+        k0, k1 = default["steps"][-1]["kernel"], off["steps"][-1]["kernel"]
+        check(k0 != k1, f"int8 run: fewout=off left the output layer's kernel {k0}")
+    check("steps side by side" in stdout and "(fewout=off)" in stdout,
+          "int8 run: no side-by-side step table naming the variant")
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--sfrt", required=True)
@@ -197,14 +216,17 @@ def main():
     if args.int8_model:
         out8 = os.path.join(args.work, "bench-int8.json")
         cmd = [args.sfrt, "bench", "--model", args.int8_model, "--runs", "2", "--warmup", "0",
-               "--peak-seconds", "0.01", "--json", out8]
+               "--peak-seconds", "0.01", "--tuning", "default", "--tuning", "fewout=off",
+               "--json", out8]
         proc = run(cmd)
         check(proc.returncode == 0, f"int8 run: exit code {proc.returncode}")
         if proc.returncode == 0:
             j8 = json.load(open(out8))
             for r in j8["results"]:
-                check_roofline(r, j8["macs"], f'int8 {r["isa"]} x{r["threads"]}', check)
+                check_roofline(r, j8["macs"], f'int8 {r["isa"]} x{r["threads"]} {r["tuning"]}',
+                               check)
             check("roofline (median per step" in proc.stdout, "int8 run: no roofline table")
+            check_tuning_variants(j8, proc.stdout, check)
     for f in failures:
         print("FAIL: " + f)
     if not failures:

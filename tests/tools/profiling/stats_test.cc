@@ -161,6 +161,24 @@ TEST(StepTable, MediansSharesTopAndOps) {
   EXPECT_NE(FormatOpTable(ops).find("91.7%"), std::string::npos);
 }
 
+// Two configurations: the first's steps in its order, then a step only the second has; each
+// median, and the second's against the first's ("-" where a step is missing).
+TEST(StepComparison, PutsTheMediansSideBySideAgainstTheFirst) {
+  const std::vector<StepRow> first = StepTable(ThreeLabels(), std::vector<double>{2, 0.5, 3.5});
+  std::vector<StepLabel> labels = ThreeLabels();
+  labels[1] = {1, 1, "copy1", "concat", "ref::ConcatRowsU8", "int8"};
+  const std::vector<StepRow> second = StepTable(labels, std::vector<double>{1, 0.25, 7});
+  const std::vector<std::vector<StepRow>> both = {first, second};
+  const std::string table = FormatStepComparison(both);
+  const std::string expected =
+      "layers        [1] ms      [2] ms   [2]/[1]\n"
+      "conv1          2.000       1.000     0.500\n"
+      "crop1          0.500           -         -\n"
+      "up+conv2       3.500       7.000     2.000\n"
+      "copy1              -       0.250         -\n";
+  EXPECT_EQ(table, expected);
+}
+
 TEST(StepTable, EmptyWhenSizesDoNotFit) {
   EXPECT_TRUE(StepTable(ThreeLabels(), std::vector<double>{1, 2}).empty());
   EXPECT_TRUE(StepTable({}, std::vector<double>{1, 2}).empty());

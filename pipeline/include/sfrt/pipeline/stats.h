@@ -163,5 +163,10 @@ std::vector<OpRow> ByOp(std::span<const StepRow> rows);
 // StepRow table: step, layers, op, kernel, median/p99/max ms, share.
 std::string FormatStepTable(std::span<const StepRow> rows);
 std::string FormatOpTable(std::span<const OpRow> rows);
+// Several configurations' steps side by side (configs[0] the first, "[1]"): a row per step of
+// the first, in its run order, then per step only a later configuration has, matched by
+// StepLabel::name; per configuration its median ("-" where it has no such step) and, after the
+// first, that median / the first's ("-" where either lacks the step).
+std::string FormatStepComparison(std::span<const std::vector<StepRow>> configs);
 
 }  // namespace sfrt::profiling
