@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "common/scoped_env.h"
 #include "sfrt/isa.h"
@@ -43,11 +45,11 @@ TEST(SessionEnvironment, SfrtIsaChoosesThePathWhenOptionsSayAutoAndAFlagWins) {
 }
 
 TEST(SessionEnvironment, KernelSwitchesMapOntoTheTuningFields) {
-  ScopedEnv a("SFRT_WINOGRAD", "f4"), b("SFRT_WINOGRAD_UPCONV", "off"), c("SFRT_FEWOUT", "off"),
+  ScopedEnv a("SFRT_WINOGRAD", "f2"), b("SFRT_WINOGRAD_UPCONV", "off"), c("SFRT_FEWOUT", "off"),
       d("SFRT_CONCAT_IN_PLACE", "off"), e("SFRT_AMX_PAIRS", "off");
   SessionOptions options;
   ASSERT_TRUE(ApplySessionEnvironment(options).ok());
-  EXPECT_EQ(options.tuning.winograd_tile, 4);
+  EXPECT_EQ(options.tuning.winograd_tile, 2);
   EXPECT_FALSE(options.tuning.winograd_upconv);
   EXPECT_FALSE(options.tuning.few_out);
   EXPECT_FALSE(options.tuning.concat_in_place);
@@ -120,6 +122,40 @@ TEST(TuningVariant, EachSwitchsVariableIsItsNameInUpperCase) {
   for (const TuningSwitch& s : TuningSwitches()) variables += TuningVariable(s) + " ";
   EXPECT_EQ(variables,
             "SFRT_WINOGRAD SFRT_WINOGRAD_UPCONV SFRT_FEWOUT SFRT_CONCAT_IN_PLACE SFRT_AMX_PAIRS ");
+}
+
+// Each switch's declared default is KernelTuning's: its other values each change the tuning, and
+// the default value brings it back to KernelTuning{}.
+TEST(TuningVariant, EachSwitchsDefaultValueIsKernelTuningsDefault) {
+  for (const TuningSwitch& s : TuningSwitches()) {
+    const std::string values = s.values;
+    for (size_t begin = 0; begin < values.size();) {
+      const size_t end = std::min(values.find(", ", begin), values.size());
+      const std::string value = values.substr(begin, end - begin);
+      begin = end + 2;
+      KernelTuning tuning;
+      ASSERT_TRUE(s.apply(value, tuning)) << s.name << "=" << value;
+      if (value == s.default_value) {
+        EXPECT_TRUE(tuning == KernelTuning{}) << s.name << "=" << value;
+        continue;
+      }
+      EXPECT_FALSE(tuning == KernelTuning{}) << s.name << "=" << value;
+      ASSERT_TRUE(s.apply(s.default_value, tuning));
+      EXPECT_TRUE(tuning == KernelTuning{}) << s.name << "=" << s.default_value;
+    }
+  }
+}
+
+// --tuning each: the default, then every other value of every switch, one at a time.
+TEST(TuningVariant, EachIsTheDefaultAndEveryOtherValueOfEverySwitch) {
+  const std::vector<std::string> expected = {
+      "default",    "winograd=off",        "winograd=f2",  "winograd_upconv=off",
+      "fewout=off", "concat_in_place=off", "amx_pairs=off"};
+  EXPECT_EQ(EachTuningVariant(), expected);
+  for (const std::string& variant : EachTuningVariant()) {
+    KernelTuning tuning;
+    EXPECT_TRUE(ApplyTuningVariant(variant, tuning).ok()) << variant;
+  }
 }
 
 }  // namespace

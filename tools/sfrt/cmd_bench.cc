@@ -112,7 +112,7 @@ struct BenchLists {
   std::vector<std::string> tunings;
 };
 
-// The switches --tuning takes: "winograd=off|f2|f4, fewout=off|on, ...".
+// The switches --tuning takes, their defaults in brackets: "winograd=off|f2|f4 [f4], ...".
 std::string TuningSwitchList() {
   std::string list;
   for (const tools::TuningSwitch& s : tools::TuningSwitches()) {
@@ -121,7 +121,7 @@ std::string TuningSwitchList() {
       values.replace(at, 2, "|");
     }
     if (!list.empty()) list += ", ";
-    list += std::string(s.name) + "=" + values;
+    list += std::string(s.name) + "=" + values + " [" + s.default_value + "]";
   }
   return list;
 }
@@ -157,6 +157,10 @@ std::string ConfigName(const Config& c) {
 // usage message.
 std::string ParseTunings(const BenchArgs& args, std::vector<std::string>* tunings) {
   for (const std::string& variant : args.tunings) {
+    if (variant == "each") {
+      for (const std::string& v : tools::EachTuningVariant()) tunings->push_back(v);
+      continue;
+    }
     KernelTuning scratch;
     if (Status s = tools::ApplyTuningVariant(variant, scratch); !s.ok()) {
       return "--tuning: " + s.message();
@@ -700,10 +704,23 @@ void PrintStepComparison(const std::vector<Config>& configs) {
   if (configs.size() < 2) return;
   std::printf("\nsteps side by side (median ms; [n]/[1]: against the first configuration):\n");
   std::vector<std::vector<prof::StepRow>> tables;
+  const std::vector<double>& first = configs.front().counters.wall_ms;
   for (size_t i = 0; i < configs.size(); ++i) {
     const Config& c = configs[i];
-    std::printf("  [%zu] %s\n", i + 1, ConfigName(c).c_str());
     tables.push_back(prof::StepTable(c.labels, c.recorder->durations_ms()));
+    if (i == 0) {
+      std::printf("  [1] %s\n", ConfigName(c).c_str());
+      continue;
+    }
+    // Round r ran every configuration once: how often this one beat the first.
+    const std::vector<double>& mine = c.counters.wall_ms;
+    const size_t rounds = std::min(first.size(), mine.size());
+    size_t faster = 0;
+    for (size_t r = 0; r < rounds; ++r) faster += mine[r] < first[r] ? 1 : 0;
+    std::printf("  [%zu] %s: %sx [1]'s median, faster than [1] in %zu of %zu rounds\n", i + 1,
+                ConfigName(c).c_str(),
+                Fixed(prof::Percentile(mine, 0.5) / prof::Percentile(first, 0.5), 3).c_str(),
+                faster, rounds);
   }
   std::fputs(prof::FormatStepComparison(tables).c_str(), stdout);
 }
@@ -995,11 +1012,12 @@ Command AddBenchCommand(CLI::App& parent) {
                 "an int8 model (no quantise step); a usage error for a model that takes no uint8 "
                 "input");
   cmd->add_option("--tuning", args->tunings,
-                  "A kernel tuning variant to time, once per variant (repeat the flag): 'default' "
-                  "or comma-separated NAME=VALUE of " +
+                  "A kernel tuning variant to time, once per variant (repeat the flag): 'default', "
+                  "comma-separated NAME=VALUE of " +
                       TuningSwitchList() +
-                      " (the SFRT_<NAME> variables', applied on top of them; default: the "
-                      "default alone)");
+                      " (the SFRT_<NAME> variables', applied on top of them), or 'each': the "
+                      "default and every other value of every switch, one at a time (default: "
+                      "the default alone)");
   cmd->add_option("--peak-seconds", args->peak_seconds,
                   "Time per peak measurement (default 0.2; 0 skips the FMA peak in a model run)");
   cmd->add_option(

@@ -32,14 +32,14 @@ bool SetWinograd(std::string_view value, KernelTuning& t) {
 }
 
 constexpr std::array<TuningSwitch, 5> kSwitches{{
-    {"winograd", "off, f2, f4", SetWinograd},
-    {"winograd_upconv", "off, on",
+    {"winograd", "off, f2, f4", "f4", SetWinograd},
+    {"winograd_upconv", "off, on", "on",
      [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.winograd_upconv); }},
-    {"fewout", "off, on",
+    {"fewout", "off, on", "on",
      [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.few_out); }},
-    {"concat_in_place", "off, on",
+    {"concat_in_place", "off, on", "on",
      [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.concat_in_place); }},
-    {"amx_pairs", "off, on",
+    {"amx_pairs", "off, on", "on",
      [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.amx_pairs); }},
 }};
 
@@ -111,6 +111,23 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
     if (value != nullptr && !s.apply(value, tuning)) return Invalid(variable, value, s.values);
   }
   return Status::Ok();
+}
+
+std::vector<std::string> EachTuningVariant() {
+  std::vector<std::string> variants = {"default"};
+  for (const TuningSwitch& s : kSwitches) {
+    const std::string_view values = s.values;
+    size_t begin = 0;
+    while (begin < values.size()) {
+      const size_t end = std::min(values.find(", ", begin), values.size());
+      const std::string_view value = values.substr(begin, end - begin);
+      if (value != s.default_value) {
+        variants.push_back(std::string(s.name) + "=" + std::string(value));
+      }
+      begin = end + 2;
+    }
+  }
+  return variants;
 }
 
 Status ApplyTuningVariant(std::string_view variant, KernelTuning& tuning) {

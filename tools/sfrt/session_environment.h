@@ -16,6 +16,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "sfrt/session.h"
 #include "sfrt/status.h"
@@ -23,10 +24,12 @@
 namespace sfrt::tools {
 
 // One developer switch: its name (the environment variable is "SFRT_" and the name in upper
-// case), the values it accepts as a user reads them ("off, on") and how a value sets the tuning.
+// case), the values it accepts as a user reads them ("off, on"), the one KernelTuning's defaults
+// amount to, and how a value sets the tuning.
 struct TuningSwitch {
   const char* name;
   const char* values;
+  const char* default_value;
   // Sets the field for `value`; false (nothing changed) when the switch does not take it.
   bool (*apply)(std::string_view value, KernelTuning& tuning);
 };
@@ -45,5 +48,8 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning);
 // comma-separated NAME=VALUE switches, applied in order onto `tuning`. Errors name the
 // assignment at fault and what is accepted; `tuning` may then be partly changed.
 Status ApplyTuningVariant(std::string_view variant, KernelTuning& tuning);
+// What `sfrt bench --tuning each` times: "default", then NAME=VALUE for every value of every
+// switch other than its default, one switch at a time.
+std::vector<std::string> EachTuningVariant();
 
 }  // namespace sfrt::tools

@@ -57,8 +57,13 @@ struct BufferRequest;  // runtime/src/memory_planner.h
 // onto these fields.
 struct KernelTuning {
   // Winograd tile side for the stride-1 3x3 convolutions it suits: 0 (off), 2 (F(2x2,3x3)) or
-  // 4 (F(4x4,3x3)). Other values fail Create().
-  int winograd_tile = 2;
+  // 4 (F(4x4,3x3)). Other values fail Create(). F(4x4) does 1.78x fewer products than F(2x2)
+  // at about the same float32 error (both within 5e-6 of PyTorch's largest output on the
+  // full-width network), and its transformed weights take 36/16 of F(2x2)'s memory (the
+  // full-width network: 120 MiB more). Measured on Zen 4 (AVX2 and AVX-512, 2 threads; `sfrt
+  // bench --tuning default --tuning winograd=f2`): the full-width network 0.91-0.95x F(2x2)'s
+  // time, conv4 and conv5 0.62-0.75x; the 1/16-width default model 0.99x.
+  int winograd_tile = 4;
   // The fused upsample->conv phase convolutions through Winograd F(2x2,2x2) (needs a tile > 0).
   bool winograd_upconv = true;
   // The dedicated kernels for convolutions with few outputs (the 64->3 output layer), in every
@@ -72,6 +77,8 @@ struct KernelTuning {
   // 64 (kernels/simd/amx_driver_inl.h). false: the 1 x 4 blocking everywhere, as before it. The
   // one default here not yet measured to be the faster: it awaits an AMX CPU (issue 43).
   bool amx_pairs = true;
+
+  bool operator==(const KernelTuning&) const = default;
 };
 
 struct SessionOptions {
