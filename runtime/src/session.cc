@@ -50,9 +50,10 @@ Result<Isa> ResolveIsa(Isa requested) {
 }
 
 Status CheckTuning(const KernelTuning& tuning) {
-  if (tuning.winograd_tile != 0 && tuning.winograd_tile != 2 && tuning.winograd_tile != 4) {
-    return Status::Error("Session::Create: KernelTuning::winograd_tile is " +
-                         std::to_string(tuning.winograd_tile) + "; use 0 (off), 2 or 4");
+  const int t = tuning.winograd_tile;
+  if (t != 0 && t != 2 && t != 4 && t != KernelTuning::kWinogradAuto) {
+    return Status::Error("Session::Create: KernelTuning::winograd_tile is " + std::to_string(t) +
+                         "; use 0 (off), 2, 4 or KernelTuning::kWinogradAuto (-1)");
   }
   return Status::Ok();
 }

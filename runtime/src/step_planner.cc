@@ -142,9 +142,16 @@ class Session::StepPlanner {
         kernels_(ConvKernelsFor(isa_)),
         kernels8_(Int8KernelsFor(isa_)),
         kernels16_(Bf16KernelsFor(isa_)),
-        winograd_(tuning_.winograd_tile > 0 ? WinogradKernelsFor(isa_, tuning_.winograd_tile)
-                                            : nullptr),
-        upwinograd_(tuning_.winograd_tile > 0 && tuning_.winograd_upconv
+        geometry_(session.geometry_),
+        winograd2_(tuning_.winograd_tile == 2 ||
+                           tuning_.winograd_tile == KernelTuning::kWinogradAuto
+                       ? WinogradKernelsFor(isa_, 2)
+                       : nullptr),
+        winograd4_(tuning_.winograd_tile == 4 ||
+                           tuning_.winograd_tile == KernelTuning::kWinogradAuto
+                       ? WinogradKernelsFor(isa_, 4)
+                       : nullptr),
+        upwinograd_(tuning_.winograd_tile != 0 && tuning_.winograd_upconv
                         ? WinogradUpKernelsFor(isa_)
                         : nullptr),
         graph_(model_.float32_between_layers()),
@@ -381,15 +388,29 @@ class Session::StepPlanner {
       step = ReducedStep(i, false, -1);
       step.first_layer = i;
       cur_ = OutOf(step);
-    } else if (winograd_ != nullptr && WinogradApplies(layer.conv)) {
+    } else if (const WinogradKernels* w = WinogradFor(i); w != nullptr) {
       step.kind = Step::Kind::kWinograd;
-      step.winograd = winograd_;
-      step.kernel = winograd_->name;
+      step.winograd = w;
+      step.kernel = w->name;
     } else if (kernels_ != nullptr && SimdFits(layer.conv, false, kMaxConvTaps)) {
       step.kind = Step::Kind::kConv;
     } else {
       RowsStep(step, layer);
     }
+  }
+
+  // The Winograd kernels for convolution layer i, or nullptr: the tuning's tile, or under
+  // kWinogradAuto F(4x4) where the layer's output at the planned size has at least
+  // kWinogradAutoMinSide pixels on each side and F(2x2) where not.
+  const WinogradKernels* WinogradFor(int i) const {
+    if (!WinogradApplies(layers_[i].conv)) return nullptr;
+    if (tuning_.winograd_tile != KernelTuning::kWinogradAuto) {
+      return tuning_.winograd_tile == 4 ? winograd4_ : winograd2_;
+    }
+    const TensorShape& out = geometry_[static_cast<size_t>(i)].output;
+    const bool wide = out.height >= KernelTuning::kWinogradAutoMinSide &&
+                      out.width >= KernelTuning::kWinogradAutoMinSide;
+    return wide && winograd4_ != nullptr ? winograd4_ : winograd2_;
   }
 
   std::span<const LayerDesc> layers_;
@@ -401,7 +422,9 @@ class Session::StepPlanner {
   const IsaConvKernels* kernels_;
   const IsaInt8Kernels* kernels8_;
   const IsaBf16Kernels* kernels16_;
-  const WinogradKernels* winograd_;
+  const std::vector<LayerGeometry>& geometry_;  // at the planned maximum size
+  const WinogradKernels* winograd2_;            // F(2x2, 3x3), where the tuning may take it
+  const WinogradKernels* winograd4_;            // F(4x4, 3x3), likewise
   const WinogradKernels* upwinograd_;
   // A graph, or a model with a float32-only op, keeps float32 tensors between layers: each int8
   // or bf16 convolution converts the tensor it reads (before the upsampling it fuses, if any)

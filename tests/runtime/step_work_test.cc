@@ -185,18 +185,19 @@ TEST(SessionWork, Bf16AndFloat32StepsCountTheSameWay) {
   }
 }
 
-// Float32 on every Winograd setting: F(4x4, 3x3) with the phases' F(2x2, 2x2) (the default),
-// F(2x2, 3x3), direct phases only, and no Winograd. 1/4 width: the phases' Winograd path needs
-// 64 channels in and out (conv6 and conv7 have them).
+// Float32 on every Winograd setting: the tile chosen per layer with the phases' F(2x2, 2x2) (the
+// default), F(2x2, 3x3), F(4x4, 3x3), direct phases only, and no Winograd. 1/4 width: the phases'
+// Winograd path needs 64 channels in and out (conv6 and conv7 have them).
 TEST(SessionWork, WinogradStepsCountTheirTransformedProducts) {
   auto model = testing::LoadOrDie(exporter::SceneEdNetSpec(4));
   ASSERT_NE(model, nullptr);
-  KernelTuning f2, direct_phases, off;
+  KernelTuning f2, f4, direct_phases, off;
   f2.winograd_tile = 2;
+  f4.winograd_tile = 4;
   direct_phases.winograd_upconv = false;
   off.winograd_tile = 0;
   for (Isa isa : SupportedIsas()) {
-    for (const KernelTuning& tuning : {KernelTuning{}, f2, direct_phases, off}) {
+    for (const KernelTuning& tuning : {KernelTuning{}, f2, f4, direct_phases, off}) {
       for (auto [h, w] : {std::pair{96, 128}, std::pair{45, 61}}) {
         ExpectWorkMatchesTheCount(model, isa, h, w, tuning);
       }

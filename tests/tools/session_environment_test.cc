@@ -65,7 +65,7 @@ TEST(SessionEnvironment, AnUnknownValueIsAnErrorNamingTheVariableAndTheAcceptedV
     const char* value;
     const char* accepted;
   } cases[] = {{"SFRT_ISA", "mmx", "auto, ref, avx2, avx512, avx512amx, neon"},
-               {"SFRT_WINOGRAD", "f3", "off, f2, f4"},
+               {"SFRT_WINOGRAD", "f3", "auto, off, f2, f4"},
                {"SFRT_WINOGRAD_UPCONV", "no", "off, on"},
                {"SFRT_FEWOUT", "0", "off, on"},
                {"SFRT_CONCAT_IN_PLACE", "yes", "off, on"},
@@ -102,7 +102,7 @@ TEST(TuningVariant, ErrorsNameTheAssignmentAndWhatIsAccepted) {
     std::string message;
   } cases[] = {
       {"fewout=maybe", "fewout='maybe' is not one of off, on"},
-      {"amx_pairs=off,winograd=f3", "winograd='f3' is not one of off, f2, f4"},
+      {"amx_pairs=off,winograd=f3", "winograd='f3' is not one of auto, off, f2, f4"},
       {"speed=fast", "'speed' is not a tuning switch (names: " + names + ")"},
       {"fewout", "'fewout' is not NAME=VALUE (names: " + names + ")"},
       {"fewout=off,", "'' is not NAME=VALUE (names: " + names + ")"},
@@ -149,7 +149,7 @@ TEST(TuningVariant, EachSwitchsDefaultValueIsKernelTuningsDefault) {
 // --tuning each: the default, then every other value of every switch, one at a time.
 TEST(TuningVariant, EachIsTheDefaultAndEveryOtherValueOfEverySwitch) {
   const std::vector<std::string> expected = {
-      "default",    "winograd=off",        "winograd=f2",  "winograd_upconv=off",
+      "default",    "winograd=off",        "winograd=f2",  "winograd=f4", "winograd_upconv=off",
       "fewout=off", "concat_in_place=off", "amx_pairs=off"};
   EXPECT_EQ(EachTuningVariant(), expected);
   for (const std::string& variant : EachTuningVariant()) {

@@ -112,7 +112,7 @@ struct BenchLists {
   std::vector<std::string> tunings;
 };
 
-// The switches --tuning takes, their defaults in brackets: "winograd=off|f2|f4 [f4], ...".
+// The switches --tuning takes, their defaults in brackets: "winograd=auto|off|f2|f4 [auto], ...".
 std::string TuningSwitchList() {
   std::string list;
   for (const tools::TuningSwitch& s : tools::TuningSwitches()) {
@@ -137,6 +137,13 @@ std::vector<std::string> SplitList(const std::string& text) {
 }
 
 std::string Fixed(double v, int digits) { return prof::FormatCell(v, digits); }
+
+double Mib(size_t bytes) { return static_cast<double>(bytes) / (1024.0 * 1024.0); }
+
+// What a configuration's session planned at load: its arena and its packed weights.
+size_t PlannedBytes(const Config& c) {
+  return c.session->arena_bytes() + c.session->packed_weight_bytes();
+}
 
 // A budget as given, without rounding or exponent for ordinary values: 1000000, 12.5, 1e-06.
 std::string Milliseconds(double v) {
@@ -593,6 +600,8 @@ Json ResultJson(const Config& c, const prof::Summary& s, double gflops, double p
               {"percent_of_peak", c.peak_gflops > 0 ? Json(percent_peak) : Json()},
               {"peak_kernel", c.peak_kernel},
               {"kernels", c.kernels},
+              {"arena_bytes", c.session->arena_bytes()},
+              {"packed_weight_bytes", c.session->packed_weight_bytes()},
               {"isa_flags", prof::IsaFlags(IsaName(c.isa))},
               {"steps_total_mean_ms", steps_total},
               {"steps", StepsJson(rows)},
@@ -717,10 +726,13 @@ void PrintStepComparison(const std::vector<Config>& configs) {
     const size_t rounds = std::min(first.size(), mine.size());
     size_t faster = 0;
     for (size_t r = 0; r < rounds; ++r) faster += mine[r] < first[r] ? 1 : 0;
-    std::printf("  [%zu] %s: %sx [1]'s median, faster than [1] in %zu of %zu rounds\n", i + 1,
-                ConfigName(c).c_str(),
-                Fixed(prof::Percentile(mine, 0.5) / prof::Percentile(first, 0.5), 3).c_str(),
-                faster, rounds);
+    const double extra_mib = Mib(PlannedBytes(c)) - Mib(PlannedBytes(configs.front()));
+    std::printf(
+        "  [%zu] %s: %sx [1]'s median, faster than [1] in %zu of %zu rounds; arena and packed "
+        "weights %+.1f MiB against [1]'s\n",
+        i + 1, ConfigName(c).c_str(),
+        Fixed(prof::Percentile(mine, 0.5) / prof::Percentile(first, 0.5), 3).c_str(), faster,
+        rounds, extra_mib);
   }
   std::fputs(prof::FormatStepComparison(tables).c_str(), stdout);
 }
@@ -893,8 +905,10 @@ int RunModelBench(const BenchArgs& args, const BenchLists& lists) {
   PrintBuildAndCpu();
   for (const Config& c : configs) {
     const std::string flags = prof::IsaFlags(IsaName(c.isa));
-    std::printf("  %s: %s (kernels built with %s)\n", ConfigName(c).c_str(), c.kernels.c_str(),
-                flags.empty() ? "the build's flags" : flags.c_str());
+    std::printf("  %s: %s (kernels built with %s); arena %.1f MiB, packed weights %.1f MiB\n",
+                ConfigName(c).c_str(), c.kernels.c_str(),
+                flags.empty() ? "the build's flags" : flags.c_str(), Mib(c.session->arena_bytes()),
+                Mib(c.session->packed_weight_bytes()));
   }
   std::fflush(stdout);
 
@@ -1023,8 +1037,8 @@ Command AddBenchCommand(CLI::App& parent) {
   cmd->add_option(
       "--json", args->json,
       "Also write the results as JSON (per configuration median_ms, p90_ms, p99_ms, "
-      "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, tuning, steps, "
-      "by_op, roofline, per_run counters; build, cpu, budget)");
+      "p999_ms, max_ms, stddev_ms, gflops, percent_of_peak, isa, threads, tuning, arena_bytes, "
+      "packed_weight_bytes, steps, by_op, roofline, per_run counters; build, cpu, budget)");
   cmd->footer(
       "Every configuration (ISA x threads x --tuning variant) gets its own session, planned once;\n"
       "rounds run each configuration once, in turn, on the same seeded random input, each round\n"

@@ -19,7 +19,9 @@ bool SetSwitch(std::string_view value, bool& field) {
 }
 
 bool SetWinograd(std::string_view value, KernelTuning& t) {
-  if (value == "off") {
+  if (value == "auto") {
+    t.winograd_tile = KernelTuning::kWinogradAuto;
+  } else if (value == "off") {
     t.winograd_tile = 0;
   } else if (value == "f2") {
     t.winograd_tile = 2;
@@ -32,7 +34,7 @@ bool SetWinograd(std::string_view value, KernelTuning& t) {
 }
 
 constexpr std::array<TuningSwitch, 5> kSwitches{{
-    {"winograd", "off, f2, f4", "f4", SetWinograd},
+    {"winograd", "auto, off, f2, f4", "auto", SetWinograd},
     {"winograd_upconv", "off, on", "on",
      [](std::string_view v, KernelTuning& t) { return SetSwitch(v, t.winograd_upconv); }},
     {"fewout", "off, on", "on",

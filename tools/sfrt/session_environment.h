@@ -2,7 +2,7 @@
 // and reachable two ways: as environment variables SFRT_<NAME> (every `sfrt` command and the
 // kernel benchmarks) and as `sfrt bench --tuning NAME=VALUE[,NAME=VALUE...]` (several variants
 // timed in one process). The switches:
-//   winograd=off|f2|f4          KernelTuning::winograd_tile (0, 2, 4)
+//   winograd=auto|off|f2|f4     KernelTuning::winograd_tile (kWinogradAuto, 0, 2, 4)
 //   winograd_upconv=off|on      KernelTuning::winograd_upconv
 //   fewout=off|on               KernelTuning::few_out
 //   concat_in_place=off|on      KernelTuning::concat_in_place

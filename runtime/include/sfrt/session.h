@@ -52,18 +52,23 @@ struct BufferRequest;  // runtime/src/memory_planner.h
 
 // Switches for the optimised paths, for A/B measurements and tests; the defaults are the fastest
 // measured. Every combination computes the same function (within the kernels' tolerances).
-// The library reads no environment variable: the `sfrt` tool maps SFRT_WINOGRAD=off|f2|f4,
+// The library reads no environment variable: the `sfrt` tool maps SFRT_WINOGRAD=auto|off|f2|f4,
 // SFRT_WINOGRAD_UPCONV=off, SFRT_FEWOUT=off, SFRT_CONCAT_IN_PLACE=off and SFRT_AMX_PAIRS=off
 // onto these fields.
 struct KernelTuning {
-  // Winograd tile side for the stride-1 3x3 convolutions it suits: 0 (off), 2 (F(2x2,3x3)) or
-  // 4 (F(4x4,3x3)). Other values fail Create(). F(4x4) does 1.78x fewer products than F(2x2)
-  // at about the same float32 error (both within 5e-6 of PyTorch's largest output on the
-  // full-width network), and its transformed weights take 36/16 of F(2x2)'s memory (the
-  // full-width network: 120 MiB more). Measured on Zen 4 (AVX2 and AVX-512, 2 threads; `sfrt
-  // bench --tuning default --tuning winograd=f2`): the full-width network 0.91-0.95x F(2x2)'s
-  // time, conv4 and conv5 0.62-0.75x; the 1/16-width default model 0.99x.
-  int winograd_tile = 4;
+  // Winograd tile side for the stride-1 3x3 convolutions it suits: 0 (off), 2 (F(2x2,3x3)), 4
+  // (F(4x4,3x3)) or kWinogradAuto (per layer: 4 where its output at the planned maximum size is
+  // at least kWinogradAutoMinSide pixels on each side, else 2). Other values fail Create().
+  // F(4x4) does 1.78x fewer products than F(2x2) at about the same float32 error (both within
+  // 5e-6 of PyTorch's largest output on the full-width network), but rounds small outputs up to
+  // whole 4x4 tiles, and its transformed weights take 36/16 of F(2x2)'s memory (the full-width
+  // network: 120 MiB more). Measured on Zen 4 (AVX2 and AVX-512, 2 threads; `sfrt bench
+  // --tuning default --tuning winograd=f2`): the full-width network at 540x960, conv4 and conv5
+  // (34x60 outputs) 0.59-0.69x F(2x2)'s time, the network 0.89-0.93x; at 270x480 (17x30) 0.72-0.75x
+  // and 0.94x; the 1/16-width default model's conv4 and conv5 at 96x128 (6x8) 1.1-1.2x.
+  static constexpr int kWinogradAuto = -1;
+  static constexpr int kWinogradAutoMinSide = 16;
+  int winograd_tile = kWinogradAuto;
   // The fused upsample->conv phase convolutions through Winograd F(2x2,2x2) (needs a tile > 0).
   bool winograd_upconv = true;
   // The dedicated kernels for convolutions with few outputs (the 64->3 output layer), in every

@@ -170,7 +170,8 @@ def main():
         name = f'{r.get("isa")} x{r.get("threads")}'
         for key in ("isa", "threads", "median_ms", "p90_ms", "p99_ms", "p999_ms", "max_ms",
                     "stddev_ms", "gflops", "peak_gflops", "percent_of_peak", "kernels", "steps",
-                    "by_op", "top_steps", "per_run", "steps_total_mean_ms"):
+                    "by_op", "top_steps", "per_run", "steps_total_mean_ms", "arena_bytes",
+                    "packed_weight_bytes"):
             check(key in r, f"{name}: key {key}")
         check(r["runs"] == runs, f"{name}: runs {r['runs']} != {runs}")
         check(r["median_ms"] <= r["p90_ms"] <= r["p99_ms"] <= r["p999_ms"] <= r["max_ms"],
@@ -179,6 +180,9 @@ def main():
         check(r["gflops"] > 0 and math.isfinite(r["gflops"]), f"{name}: gflops")
         check(r["peak_gflops"] > 0 and math.isfinite(r["peak_gflops"]), f"{name}: peak_gflops")
         check(r["percent_of_peak"] > 0, f"{name}: percent_of_peak")
+        check(r["arena_bytes"] > 0, f"{name}: arena_bytes")
+        check((r["packed_weight_bytes"] == 0) == (r["isa"] == "ref"),
+              f"{name}: packed_weight_bytes {r['packed_weight_bytes']} on {r['isa']}")
         steps = r["steps"]
         check(len(steps) > 0, f"{name}: no steps")
         total = sum(s["mean_ms"] for s in steps)
