@@ -7,8 +7,8 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
-#include <algorithm>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/scoped_env.h"
@@ -128,11 +128,7 @@ TEST(TuningVariant, EachSwitchsVariableIsItsNameInUpperCase) {
 // the default value brings it back to KernelTuning{}.
 TEST(TuningVariant, EachSwitchsDefaultValueIsKernelTuningsDefault) {
   for (const TuningSwitch& s : TuningSwitches()) {
-    const std::string values = s.values;
-    for (size_t begin = 0; begin < values.size();) {
-      const size_t end = std::min(values.find(", ", begin), values.size());
-      const std::string value = values.substr(begin, end - begin);
-      begin = end + 2;
+    for (std::string_view value : TuningValues(s)) {
       KernelTuning tuning;
       ASSERT_TRUE(s.apply(value, tuning)) << s.name << "=" << value;
       if (value == s.default_value) {

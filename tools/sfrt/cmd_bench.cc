@@ -92,7 +92,6 @@ struct Config {
   Isa isa = Isa::kRef;
   int threads = 1;
   std::string tuning = "default";  // the --tuning variant, on top of the SFRT_* variables
-  int spin_us = 0;                 // SessionOptions::spin_us of its session
   std::unique_ptr<Session> session;
   std::string kernels;
   std::vector<prof::StepLabel> labels;
@@ -116,9 +115,10 @@ struct BenchLists {
 std::string TuningSwitchList() {
   std::string list;
   for (const tools::TuningSwitch& s : tools::TuningSwitches()) {
-    std::string values = s.values;
-    for (size_t at = values.find(", "); at != std::string::npos; at = values.find(", ")) {
-      values.replace(at, 2, "|");
+    std::string values;
+    for (std::string_view v : tools::TuningValues(s)) {
+      if (!values.empty()) values += "|";
+      values += v;
     }
     if (!list.empty()) list += ", ";
     list += std::string(s.name) + "=" + values + " [" + s.default_value + "]";
@@ -443,7 +443,6 @@ int MakeConfig(const BenchArgs& args, const std::shared_ptr<const Model>& model,
   c->isa = isa;
   c->threads = threads;
   c->tuning = tuning;
-  c->spin_us = options.spin_us;
   c->session = std::move(session).value();
   for (const PlannedStep& step : c->session->steps()) {
     if (c->kernels.find(step.kernel) != std::string::npos) continue;
@@ -539,8 +538,9 @@ bool TimeRuns(const BenchArgs& args, BenchInput& in, prof::MigrationCounter& mig
     for (size_t i = 0; i < n; ++i) {
       Config& c = configs[(static_cast<size_t>(round) + i) % n];
       if (!run_once(c, record)) return false;
-      if (n > 1 && c.threads > 1 && c.spin_us > 0) {
-        std::this_thread::sleep_for(std::chrono::microseconds(c.spin_us + 100));
+      const int spin_us = c.session->options().spin_us;
+      if (n > 1 && c.threads > 1 && spin_us > 0) {
+        std::this_thread::sleep_for(std::chrono::microseconds(spin_us + 100));
       }
     }
     return true;

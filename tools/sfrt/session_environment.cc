@@ -115,18 +115,24 @@ Status ApplySessionEnvironment(Isa& isa, KernelTuning& tuning) {
   return Status::Ok();
 }
 
+std::vector<std::string_view> TuningValues(const TuningSwitch& s) {
+  std::vector<std::string_view> out;
+  const std::string_view values = s.values;
+  for (size_t begin = 0; begin < values.size();) {
+    const size_t end = std::min(values.find(", ", begin), values.size());
+    out.push_back(values.substr(begin, end - begin));
+    begin = end + 2;
+  }
+  return out;
+}
+
 std::vector<std::string> EachTuningVariant() {
   std::vector<std::string> variants = {"default"};
   for (const TuningSwitch& s : kSwitches) {
-    const std::string_view values = s.values;
-    size_t begin = 0;
-    while (begin < values.size()) {
-      const size_t end = std::min(values.find(", ", begin), values.size());
-      const std::string_view value = values.substr(begin, end - begin);
+    for (std::string_view value : TuningValues(s)) {
       if (value != s.default_value) {
         variants.push_back(std::string(s.name) + "=" + std::string(value));
       }
-      begin = end + 2;
     }
   }
   return variants;

@@ -35,6 +35,8 @@ struct TuningSwitch {
 };
 // Every switch, in the order above.
 std::span<const TuningSwitch> TuningSwitches();
+// The values the switch takes, in the order of TuningSwitch::values.
+std::vector<std::string_view> TuningValues(const TuningSwitch& s);
 // "SFRT_" + the switch's name in upper case.
 std::string TuningVariable(const TuningSwitch& s);
 
